@@ -1,0 +1,152 @@
+//! glTF 2.0 (`.gltf` with external or base64-embedded buffers, and `.glb`) through the gltf crate.
+//!
+//! The default scene is walked (every scene when none is marked), each node's transform (matrix or TRS) is
+//! multiplied down the hierarchy, and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
+//! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
+
+use super::{Mesh, MeshError, Part};
+use glam::{Mat4, Vec3};
+use gltf::mesh::Mode;
+use std::path::Path;
+
+pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
+    let err = |message: String| MeshError::Gltf {
+        path: path.to_path_buf(),
+        message,
+    };
+    check_glb_header(bytes).map_err(err)?;
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice(bytes).map_err(|e| err(e.to_string()))?;
+    let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| err(e.to_string()))?;
+
+    let mut mesh = Mesh::default();
+    let roots: Vec<gltf::Node> = match document.default_scene() {
+        Some(scene) => scene.nodes().collect(),
+        None => document.scenes().flat_map(|s| s.nodes()).collect(),
+    };
+    // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
+    // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> =
+        roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    while let Some((node, parent, depth)) = stack.pop() {
+        if depth > 1024 {
+            return Err(err("node hierarchy deeper than 1024 levels (cycle?)".into()));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(gmesh) = node.mesh() {
+            for primitive in gmesh.primitives() {
+                add_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?;
+            }
+        }
+        stack.extend(node.children().map(|c| (c, world, depth + 1)));
+    }
+    Ok(mesh)
+}
+
+/// The gltf crate subtracts the header size from the GLB's declared length without checking it; reject short
+/// or inconsistent headers first so a truncated file is an error and not a panic.
+fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let length = bytes
+        .get(8..12)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    match length {
+        Some(len) if (12..=bytes.len()).contains(&len) => Ok(()),
+        Some(len) => Err(format!(
+            "GLB header declares {len} bytes but the file has {}",
+            bytes.len()
+        )),
+        None => Err("GLB header is truncated".into()),
+    }
+}
+
+fn add_primitive(
+    mesh: &mut Mesh,
+    path: &Path,
+    buffers: &[gltf::buffer::Data],
+    gmesh: &gltf::Mesh,
+    primitive: &gltf::Primitive,
+    world: Mat4,
+) -> Result<(), MeshError> {
+    let name = gmesh.name().unwrap_or("").to_string();
+    let err = |message: String| MeshError::Gltf {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mode = primitive.mode();
+    if !matches!(
+        mode,
+        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+    ) {
+        mesh.warnings.push(format!(
+            "{}: skipped {mode:?} primitive {} of mesh {} '{name}' (only triangles are voxelized)",
+            path.display(),
+            primitive.index(),
+            gmesh.index()
+        ));
+        return Ok(());
+    }
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let Some(positions) = reader.read_positions() else {
+        mesh.warnings.push(format!(
+            "{}: primitive {} of mesh {} '{name}' has no POSITION attribute",
+            path.display(),
+            primitive.index(),
+            gmesh.index()
+        ));
+        return Ok(());
+    };
+    let positions: Vec<Vec3> = positions
+        .map(|p| world.transform_point3(Vec3::from(p)))
+        .collect();
+    let indices: Vec<u32> = match reader.read_indices() {
+        Some(ix) => ix.into_u32().collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+        return Err(err(format!(
+            "mesh {} '{name}' primitive {} uses vertex {bad} but has {}",
+            gmesh.index(),
+            primitive.index(),
+            positions.len()
+        )));
+    }
+    let corner = |i: u32| positions[i as usize];
+    let triangles: Vec<[Vec3; 3]> = match mode {
+        Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|t| [corner(t[0]), corner(t[1]), corner(t[2])])
+            .collect(),
+        // Strips alternate winding; orientation does not matter for voxelization, but keep it right anyway.
+        Mode::TriangleStrip => (2..indices.len())
+            .map(|i| {
+                let (a, b, c) = (indices[i - 2], indices[i - 1], indices[i]);
+                if i % 2 == 0 {
+                    [corner(a), corner(b), corner(c)]
+                } else {
+                    [corner(b), corner(a), corner(c)]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (2..indices.len())
+            .map(|i| {
+                [
+                    corner(indices[0]),
+                    corner(indices[i - 1]),
+                    corner(indices[i]),
+                ]
+            })
+            .collect(),
+        _ => unreachable!("filtered above"),
+    };
+    let part = Part {
+        name,
+        mesh: gmesh.index() as u32,
+        primitive: primitive.index() as u32,
+        material: primitive.material().index().map(|i| i as u32),
+    };
+    mesh.push_part(part, triangles);
+    Ok(())
+}

@@ -1,0 +1,176 @@
+//! Mesh loading: OBJ (tobj) and glTF 2.0 / GLB (gltf) files, and the bundled `builtin:` meshes, all turned into
+//! one flat list of world-space triangles with, per triangle, the part of the source file it came from.
+//!
+//! This is the bottom layer: it knows nothing about grids or GPUs.
+
+pub mod builtin;
+mod gltf_scene;
+mod obj;
+
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// Where a group of triangles came from, so later stages (colour transfer, per-part stats) can trace them back.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Part {
+    /// Object/group name (OBJ) or mesh name (glTF); empty when the file gives none.
+    pub name: String,
+    /// Index of the OBJ model or glTF mesh in its file.
+    pub mesh: u32,
+    /// Index of the glTF primitive within its mesh (always 0 for OBJ).
+    pub primitive: u32,
+    /// Material index in the file, when the file assigns one.
+    pub material: Option<u32>,
+}
+
+/// An axis-aligned box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+}
+
+/// A triangle soup in world space.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// A short name for messages and stats: the file name or `builtin:NAME`.
+    pub name: String,
+    pub triangles: Vec<[Vec3; 3]>,
+    /// For each triangle, an index into `parts`.
+    pub triangle_part: Vec<u32>,
+    pub parts: Vec<Part>,
+    /// Things skipped while loading (point or line primitives, a missing material library…).
+    pub warnings: Vec<String>,
+}
+
+impl Mesh {
+    /// The bounding box of all triangles, or `None` for an empty mesh.
+    pub fn bounds(&self) -> Option<Aabb> {
+        let mut it = self.triangles.iter().flatten();
+        let first = *it.next()?;
+        let (min, max) = it.fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        Some(Aabb { min, max })
+    }
+
+    /// Appends triangles that all belong to one new part.
+    pub(crate) fn push_part(&mut self, part: Part, triangles: impl IntoIterator<Item = [Vec3; 3]>) {
+        let id = self.parts.len() as u32;
+        self.parts.push(part);
+        let before = self.triangles.len();
+        self.triangles.extend(triangles);
+        self.triangle_part.resize(self.triangles.len(), id);
+        debug_assert!(self.triangles.len() >= before);
+    }
+
+    /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
+    fn validate(self, path: &Path) -> Result<Self, MeshError> {
+        if self.triangles.is_empty() {
+            return Err(MeshError::Empty {
+                path: path.to_path_buf(),
+            });
+        }
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .position(|t| !t.iter().all(|v| v.is_finite()))
+        {
+            return Err(MeshError::NonFinite {
+                path: path.to_path_buf(),
+                triangle: t,
+            });
+        }
+        Ok(self)
+    }
+}
+
+/// Everything that can go wrong while loading a mesh. Each message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: unsupported mesh format (expected .obj, .gltf or .glb)", path.display())]
+    UnsupportedFormat { path: PathBuf },
+    #[error("{}: invalid OBJ: {message}", path.display())]
+    Obj { path: PathBuf, message: String },
+    #[error("{}: invalid glTF: {message}", path.display())]
+    Gltf { path: PathBuf, message: String },
+    #[error("{}: contains no triangles", path.display())]
+    Empty { path: PathBuf },
+    #[error("{}: triangle {triangle} has a NaN or infinite coordinate", path.display())]
+    NonFinite { path: PathBuf, triangle: usize },
+    #[error("unknown builtin mesh 'builtin:{name}' (available: {})", builtin::NAMES.join(", "))]
+    UnknownBuiltin { name: String },
+}
+
+/// The mesh file formats meshvox reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Obj,
+    Gltf,
+}
+
+impl Format {
+    /// Picks the format from the file extension, falling back to the GLB magic for extension-less data.
+    pub fn detect(path: &Path, bytes: &[u8]) -> Option<Format> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("obj") => Some(Format::Obj),
+            Some("gltf" | "glb") => Some(Format::Gltf),
+            _ if bytes.starts_with(b"glTF") => Some(Format::Gltf),
+            _ => None,
+        }
+    }
+}
+
+/// Loads a mesh named the way the CLI accepts it: `builtin:NAME` or a path to an OBJ, glTF or GLB file.
+pub fn load(spec: &str) -> Result<Mesh, MeshError> {
+    match spec.strip_prefix("builtin:") {
+        Some(name) => builtin::load(name),
+        None => load_path(Path::new(spec)),
+    }
+}
+
+/// Loads an OBJ, glTF (external or embedded buffers) or GLB file from disk.
+pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let base = path.parent().map(Path::to_path_buf);
+    load_bytes_impl(path, &bytes, base.as_deref())
+}
+
+/// Loads a mesh from memory (a browser upload, a drag-and-drop). `name` supplies the extension that picks the
+/// format. External files (glTF `.bin` buffers, OBJ material libraries) cannot be resolved this way.
+pub fn load_bytes(name: &str, bytes: &[u8]) -> Result<Mesh, MeshError> {
+    load_bytes_impl(Path::new(name), bytes, None)
+}
+
+fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
+    let mut mesh = match Format::detect(path, bytes) {
+        Some(Format::Obj) => obj::load(path, bytes, base)?,
+        Some(Format::Gltf) => gltf_scene::load(path, bytes, base)?,
+        None => {
+            return Err(MeshError::UnsupportedFormat {
+                path: path.to_path_buf(),
+            });
+        }
+    };
+    mesh.name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    mesh.validate(path)
+}

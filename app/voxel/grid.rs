@@ -1,0 +1,240 @@
+//! [`GridSpec`] (where the grid sits and how many voxels it has) and [`VoxelGrid`] (the packed bits).
+
+use crate::mesh::Aabb;
+use glam::{DVec3, UVec3, Vec3};
+
+/// Which axis the resolution counts voxels along.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Axis {
+    #[default]
+    Longest,
+    X,
+    Y,
+    Z,
+}
+
+/// How the voxel size is chosen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Resolution {
+    /// `N` voxels along the chosen axis.
+    Count(u32),
+    /// Voxels of this edge length, in mesh units.
+    VoxelSize(f64),
+}
+
+/// Largest number of voxels along one axis. 2^16 keeps every voxel coordinate well inside f32's exact integers
+/// and every index inside u32 arithmetic on the GPU.
+pub const MAX_DIM: u32 = 65_536;
+
+/// Distance from a voxel boundary, in voxels, below which grid-space coordinates snap onto it (and below which
+/// an extent counts as a whole number of voxels). It is a few f32 ulps of typical mesh coordinates at high
+/// resolutions, and far below anything visible.
+pub const SNAP: f64 = 1e-4;
+
+/// Why a grid cannot be laid over a mesh.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum GridError {
+    #[error("the resolution must be at least 1 voxel")]
+    ZeroResolution,
+    #[error("the voxel size must be a positive finite number, not {0}")]
+    BadVoxelSize(f64),
+    #[error("the mesh has zero extent along {0}: choose another --axis or give --voxel-size")]
+    FlatAxis(char),
+    #[error("the mesh is a single point: give --voxel-size to voxelize it")]
+    PointMesh,
+    #[error("the grid would be {}×{}×{} voxels; at most {MAX_DIM} per axis are supported", .0[0], .0[1], .0[2])]
+    TooLarge([u64; 3]),
+    #[error("the grid needs {needed_mib} MiB of memory, which could not be allocated")]
+    OutOfMemory { needed_mib: u64 },
+}
+
+/// Placement and size of a voxel grid. Positions are kept in f64 so the grid convention is computed exactly once
+/// and identically for every backend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridSpec {
+    pub origin: DVec3,
+    pub voxel_size: f64,
+    pub dims: UVec3,
+}
+
+impl GridSpec {
+    /// Lays a grid over `bounds` following the convention in the module documentation.
+    pub fn fit(bounds: Aabb, resolution: Resolution, axis: Axis) -> Result<GridSpec, GridError> {
+        let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        let extent = max - min;
+        let axis_index = match axis {
+            Axis::Longest => {
+                // The first of equal extents wins, so a cube counts along x like the original program.
+                let m = extent.max_element();
+                (0..3).find(|&i| extent[i] == m).unwrap_or(0)
+            }
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        };
+        let (voxel_size, fixed) = match resolution {
+            Resolution::Count(0) => return Err(GridError::ZeroResolution),
+            Resolution::Count(n) => {
+                let e = extent[axis_index];
+                if e <= 0.0 {
+                    return Err(if extent.max_element() <= 0.0 {
+                        GridError::PointMesh
+                    } else {
+                        GridError::FlatAxis(['x', 'y', 'z'][axis_index])
+                    });
+                }
+                (e / n as f64, Some((axis_index, n)))
+            }
+            Resolution::VoxelSize(h) if !(h.is_finite() && h > 0.0) => {
+                return Err(GridError::BadVoxelSize(h));
+            }
+            Resolution::VoxelSize(h) => (h, None),
+        };
+        let mut dims = [0u64; 3];
+        for (i, d) in dims.iter_mut().enumerate() {
+            *d = match fixed {
+                Some((a, n)) if a == i => n as u64,
+                // An axis exactly as long as the counted one gets exactly N too, whatever the division rounds to.
+                Some((a, n)) if extent[i] == extent[a] => n as u64,
+                _ => cells(extent[i], voxel_size),
+            };
+        }
+        if dims.iter().any(|&d| d > MAX_DIM as u64) {
+            return Err(GridError::TooLarge(dims));
+        }
+        Ok(GridSpec {
+            origin: min,
+            voxel_size,
+            dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
+        })
+    }
+
+    /// Words per x-row of the bit grid.
+    pub fn words_per_row(&self) -> usize {
+        self.dims.x.div_ceil(32) as usize
+    }
+
+    /// Total number of `u32` words in the bit grid.
+    pub fn word_count(&self) -> u64 {
+        self.words_per_row() as u64 * self.dims.y as u64 * self.dims.z as u64
+    }
+
+    /// Bytes the bit grid occupies.
+    pub fn byte_size(&self) -> u64 {
+        self.word_count() * 4
+    }
+
+    /// Total voxels in the grid.
+    pub fn voxel_count(&self) -> u64 {
+        self.dims.x as u64 * self.dims.y as u64 * self.dims.z as u64
+    }
+
+    /// Index of the word holding voxel `(x, y, z)` and the bit within it.
+    #[inline]
+    pub fn word_and_bit(&self, x: u32, y: u32, z: u32) -> (usize, u32) {
+        let row = z as usize * self.dims.y as usize + y as usize;
+        (row * self.words_per_row() + (x / 32) as usize, x % 32)
+    }
+
+    /// Maps a world-space point into grid space, where voxel `(i, j, k)` spans `[i, i+1] × [j, j+1] × [k, k+1]`.
+    /// Both backends voxelize grid-space triangles made by this one function, so they see the same f32 inputs.
+    ///
+    /// Coordinates within [`SNAP`] of a voxel boundary are snapped onto it. A face meant to lie on a boundary
+    /// (a box whose size is a multiple of the voxel size, say) rarely lands there exactly after decimal input and
+    /// the division by `h`; snapping makes the convention "a face on a boundary sets both sides" hold for it,
+    /// and keeps whole faces from flipping between layers on rounding noise.
+    #[inline]
+    pub fn to_grid(&self, p: Vec3) -> Vec3 {
+        let g = (p.as_dvec3() - self.origin) / self.voxel_size;
+        let r = g.round();
+        let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(SNAP)), r, g);
+        snapped.as_vec3()
+    }
+
+    /// World-space centre of voxel `(x, y, z)`.
+    pub fn voxel_center(&self, v: UVec3) -> DVec3 {
+        self.origin + (v.as_dvec3() + 0.5) * self.voxel_size
+    }
+}
+
+/// `ceil(extent / h)`, at least 1. A quotient within [`SNAP`] of an integer counts as that integer, matching the
+/// snapping in [`GridSpec::to_grid`], so an extent that is a multiple of `h` up to float noise in the input does
+/// not gain a spurious extra layer.
+fn cells(extent: f64, h: f64) -> u64 {
+    let q = extent / h;
+    let nearest = q.round();
+    let n = if (q - nearest).abs() <= SNAP {
+        nearest
+    } else {
+        q.ceil()
+    };
+    n.max(1.0).min(u64::MAX as f64 / 4.0) as u64
+}
+
+/// A dense grid of bits in the layout described in the module documentation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoxelGrid {
+    pub spec: GridSpec,
+    pub words: Vec<u32>,
+}
+
+impl VoxelGrid {
+    /// An empty grid. Fails cleanly instead of aborting when the allocation is impossible.
+    pub fn new(spec: GridSpec) -> Result<VoxelGrid, GridError> {
+        let words = spec.word_count();
+        let mut v = Vec::new();
+        usize::try_from(words)
+            .ok()
+            .and_then(|n| v.try_reserve_exact(n).ok())
+            .ok_or(GridError::OutOfMemory {
+                needed_mib: spec.byte_size().div_ceil(1 << 20),
+            })?;
+        v.resize(words as usize, 0);
+        Ok(VoxelGrid { spec, words: v })
+    }
+
+    /// Wraps words produced elsewhere (the GPU readback, a file reader).
+    pub fn from_words(spec: GridSpec, words: Vec<u32>) -> VoxelGrid {
+        assert_eq!(
+            words.len() as u64,
+            spec.word_count(),
+            "word count does not match the grid spec"
+        );
+        VoxelGrid { spec, words }
+    }
+
+    #[inline]
+    pub fn get(&self, x: u32, y: u32, z: u32) -> bool {
+        let (w, b) = self.spec.word_and_bit(x, y, z);
+        self.words[w] >> b & 1 != 0
+    }
+
+    #[inline]
+    pub fn set(&mut self, x: u32, y: u32, z: u32) {
+        let (w, b) = self.spec.word_and_bit(x, y, z);
+        self.words[w] |= 1 << b;
+    }
+
+    /// Number of set voxels.
+    pub fn count(&self) -> u64 {
+        self.words.iter().map(|w| w.count_ones() as u64).sum()
+    }
+
+    /// Coordinates of the set voxels, in storage order (x fastest, then y, then z).
+    pub fn iter_set(&self) -> impl Iterator<Item = UVec3> + '_ {
+        let wpr = self.spec.words_per_row();
+        let dims_y = self.spec.dims.y as usize;
+        self.words
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| **w != 0)
+            .flat_map(move |(i, &w)| {
+                let row = i / wpr;
+                let (y, z) = ((row % dims_y) as u32, (row / dims_y) as u32);
+                let x0 = ((i % wpr) * 32) as u32;
+                (0..32u32)
+                    .filter(move |b| w >> b & 1 != 0)
+                    .map(move |b| UVec3::new(x0 + b, y, z))
+            })
+    }
+}
