@@ -13,12 +13,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(
-    name = "meshvox",
-    version,
-    about = "GPU mesh voxelizer and voxel viewer",
-    arg_required_else_help = true
-)]
+#[command(name = "meshvox", version, about = "GPU mesh voxelizer and voxel viewer", arg_required_else_help = true)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -100,10 +95,7 @@ fn ms(since: Instant) -> f64 {
 
 fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = VoxelFormat::from_extension(&args.output).ok_or_else(|| {
-        anyhow!(
-            "{}: unknown output format (use a .npy, .binvox or .vox extension)",
-            args.output.display()
-        )
+        anyhow!("{}: unknown output format (use a .npy, .binvox or .vox extension)", args.output.display())
     })?;
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let dir = match args.output.parent() {
@@ -127,32 +119,23 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         (None, Some(h)) => Resolution::VoxelSize(h),
         (None, None) => bail!("give -r N or --voxel-size H"),
     };
-    let bounds = mesh
-        .bounds()
-        .ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
-    let spec =
-        GridSpec::fit(bounds, resolution, args.axis.into()).with_context(|| args.mesh.clone())?;
+    let bounds = mesh.bounds().ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
+    let spec = GridSpec::fit(bounds, resolution, args.axis.into()).with_context(|| args.mesh.clone())?;
 
     let t_vox = Instant::now();
     let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
     let grid = voxel::cpu::voxelize(&mesh, spec, &|done, _| bar.set_position(done as u64))
-        .with_context(|| {
-            format!(
-                "{}: {}×{}×{} grid",
-                args.mesh, spec.dims.x, spec.dims.y, spec.dims.z
-            )
-        })?;
+        .with_context(|| format!("{}: {}×{}×{} grid", args.mesh, spec.dims.x, spec.dims.y, spec.dims.z))?;
     bar.finish_and_clear();
     let voxelize_ms = ms(t_vox);
     let voxels = grid.count();
 
     let t_write = Instant::now();
-    let bytes = write_atomically(temp, &args.output, |out| {
-        Ok(voxel::export::write(&grid, format, out)?)
-    })?;
+    let bytes = write_atomically(temp, &args.output, |out| Ok(voxel::export::write(&grid, format, out)?))?;
     let write_ms = ms(t_write);
 
     let d = spec.dims;
+    let backend = "cpu";
     eprintln!(
         "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set in {voxelize_ms:.1} ms on {} ({} threads); wrote {} ({} bytes)",
         args.mesh,
@@ -162,7 +145,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         d.z,
         spec.voxel_size,
         voxels,
-        "cpu",
+        backend,
         rayon::current_num_threads(),
         args.output.display(),
         bytes,
@@ -175,7 +158,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
             "origin": [spec.origin.x, spec.origin.y, spec.origin.z],
             "voxel_size": spec.voxel_size,
             "voxels": voxels,
-            "backend": "cpu",
+            "backend": backend,
             "threads": rayon::current_num_threads(),
             "output": args.output.display().to_string(),
             "format": format.extension(),
@@ -196,9 +179,7 @@ fn progress_bar(len: u64, message: &'static str) -> ProgressBar {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-    if let Ok(style) =
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} triangles ({eta})")
-    {
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} triangles ({eta})") {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_message(message);
@@ -213,19 +194,15 @@ fn write_atomically(
 ) -> Result<u64> {
     let mut out = std::io::BufWriter::new(temp.as_file());
     write(&mut out).with_context(|| format!("{}: write failed", path.display()))?;
-    out.flush()
-        .with_context(|| format!("{}: write failed", path.display()))?;
+    out.flush().with_context(|| format!("{}: write failed", path.display()))?;
     drop(out);
     let bytes = temp.as_file().metadata().map(|m| m.len()).unwrap_or(0);
     // Temporary files are created private (0600); the result should get ordinary file permissions.
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
-        let _ = temp
-            .as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644));
+        let _ = temp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
     }
-    temp.persist(path)
-        .map_err(|e| anyhow!("{}: cannot create: {}", path.display(), e.error))?;
+    temp.persist(path).map_err(|e| anyhow!("{}: cannot create: {}", path.display(), e.error))?;
     Ok(bytes)
 }

@@ -11,11 +11,7 @@ use glam::{DVec3, UVec3, Vec3};
 use meshvox::voxel::{GridSpec, VoxelGrid, cpu};
 
 fn spec(dims: UVec3) -> GridSpec {
-    GridSpec {
-        origin: DVec3::ZERO,
-        voxel_size: 1.0,
-        dims,
-    }
+    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
 }
 
 fn fast(triangles: &[[Vec3; 3]], dims: UVec3) -> VoxelGrid {
@@ -60,11 +56,7 @@ fn lattice_mesh(rng: &mut Rng, count: usize, extent: f64) -> Vec<[Vec3; 3]> {
 fn random_lattice_meshes_match_brute_force_exactly() {
     let mut rng = Rng::new(0x5eed_0001);
     for round in 0..12 {
-        let dims = [
-            UVec3::new(16, 16, 16),
-            UVec3::new(40, 12, 10),
-            UVec3::new(9, 17, 13),
-        ][round % 3];
+        let dims = [UVec3::new(16, 16, 16), UVec3::new(40, 12, 10), UVec3::new(9, 17, 13)][round % 3];
         let extent = dims.min_element() as f64;
         let mesh = lattice_mesh(&mut rng, 40, extent);
         let grid = check_exact(&mesh, dims, &format!("lattice round {round}"));
@@ -82,32 +74,16 @@ fn random_float_meshes_match_brute_force() {
         let mesh: Vec<[Vec3; 3]> = (0..60)
             .map(|i| {
                 let s = [1.0, 4.0, 20.0][i % 3];
-                let a = Vec3::new(
-                    rng.unit() as f32 * 20.0,
-                    rng.unit() as f32 * 20.0,
-                    rng.unit() as f32 * 20.0,
-                );
-                let mut off = || {
-                    Vec3::new(
-                        rng.unit() as f32 - 0.5,
-                        rng.unit() as f32 - 0.5,
-                        rng.unit() as f32 - 0.5,
-                    ) * s
-                };
+                let a = Vec3::new(rng.unit() as f32 * 20.0, rng.unit() as f32 * 20.0, rng.unit() as f32 * 20.0);
+                let mut off =
+                    || Vec3::new(rng.unit() as f32 - 0.5, rng.unit() as f32 - 0.5, rng.unit() as f32 - 0.5) * s;
                 [a, (a + off()).max(Vec3::ZERO), (a + off()).max(Vec3::ZERO)]
             })
             .collect();
         let grid = fast(&mesh, dims);
         let cmp = compare_with_separations(&grid, &mesh, 1e-5);
-        assert!(
-            cmp.hard.is_empty(),
-            "round {round}: {:?}",
-            &cmp.hard[..cmp.hard.len().min(10)]
-        );
-        assert_eq!(
-            cmp.near_ties, 0,
-            "round {round}: unexpected near-tie disagreements"
-        );
+        assert!(cmp.hard.is_empty(), "round {round}: {:?}", &cmp.hard[..cmp.hard.len().min(10)]);
+        assert_eq!(cmp.near_ties, 0, "round {round}: unexpected near-tie disagreements");
         assert_eq!(grid.count(), cmp.reference_count);
     }
 }
@@ -115,12 +91,7 @@ fn random_float_meshes_match_brute_force() {
 #[test]
 fn face_on_a_voxel_boundary_sets_both_sides() {
     // A square in the plane z = 8, spanning x, y in [2, 10].
-    let (a, b, c, d) = (
-        Vec3::new(2., 2., 8.),
-        Vec3::new(10., 2., 8.),
-        Vec3::new(10., 10., 8.),
-        Vec3::new(2., 10., 8.),
-    );
+    let (a, b, c, d) = (Vec3::new(2., 2., 8.), Vec3::new(10., 2., 8.), Vec3::new(10., 10., 8.), Vec3::new(2., 10., 8.));
     let grid = check_exact(&[[a, b, c], [a, c, d]], UVec3::splat(16), "boundary face");
     // Closed boxes: x and y from 1 (touching x = 2) to 10, and both layers z = 7 and z = 8.
     assert_eq!(grid.count(), 10 * 10 * 2);
@@ -142,52 +113,27 @@ fn cube_with_faces_on_boundaries_sets_the_whole_shell() {
         c(1., 1., 1.),
         c(0., 1., 1.),
     ];
-    let quads = [
-        [0, 1, 2, 3],
-        [4, 5, 6, 7],
-        [0, 1, 5, 4],
-        [3, 2, 6, 7],
-        [0, 3, 7, 4],
-        [1, 2, 6, 5],
-    ];
-    let tris: Vec<[Vec3; 3]> = quads
-        .iter()
-        .flat_map(|q| [[v[q[0]], v[q[1]], v[q[2]]], [v[q[0]], v[q[2]], v[q[3]]]])
-        .collect();
+    let quads = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [3, 2, 6, 7], [0, 3, 7, 4], [1, 2, 6, 5]];
+    let tris: Vec<[Vec3; 3]> =
+        quads.iter().flat_map(|q| [[v[q[0]], v[q[1]], v[q[2]]], [v[q[0]], v[q[2]], v[q[3]]]]).collect();
     let grid = check_exact(&tris, UVec3::splat(16), "boundary cube");
     assert_eq!(grid.count(), 16u64.pow(3) - 14u64.pow(3));
 }
 
 #[test]
 fn tiny_triangles_inside_and_on_corners() {
-    let inside = [
-        Vec3::new(5.25, 5.25, 5.25),
-        Vec3::new(5.5, 5.25, 5.5),
-        Vec3::new(5.25, 5.75, 5.5),
-    ];
+    let inside = [Vec3::new(5.25, 5.25, 5.25), Vec3::new(5.5, 5.25, 5.5), Vec3::new(5.25, 5.75, 5.5)];
     let grid = check_exact(&[inside], UVec3::splat(12), "tiny inside");
-    assert_eq!(
-        grid.iter_set().collect::<Vec<_>>(),
-        vec![UVec3::new(5, 5, 5)]
-    );
+    assert_eq!(grid.iter_set().collect::<Vec<_>>(), vec![UVec3::new(5, 5, 5)]);
 
     // A point exactly on a lattice corner touches the eight boxes around it.
     let p = Vec3::splat(5.0);
-    assert_eq!(
-        check_exact(&[[p, p, p]], UVec3::splat(12), "corner point").count(),
-        8
-    );
+    assert_eq!(check_exact(&[[p, p, p]], UVec3::splat(12), "corner point").count(), 8);
     // On an edge between four voxels and on a face between two.
     let e = Vec3::new(5.0, 5.0, 5.5);
-    assert_eq!(
-        check_exact(&[[e, e, e]], UVec3::splat(12), "edge point").count(),
-        4
-    );
+    assert_eq!(check_exact(&[[e, e, e]], UVec3::splat(12), "edge point").count(), 4);
     let f = Vec3::new(5.0, 5.5, 5.5);
-    assert_eq!(
-        check_exact(&[[f, f, f]], UVec3::splat(12), "face point").count(),
-        2
-    );
+    assert_eq!(check_exact(&[[f, f, f]], UVec3::splat(12), "face point").count(), 2);
 }
 
 #[test]
@@ -200,38 +146,20 @@ fn zero_area_triangles_voxelize_as_segments() {
     assert!(seg.count() >= 13, "segment set only {} voxels", seg.count());
     // Axis-aligned segment lying exactly on a voxel edge line: four voxels around it per unit of length.
     let (p, q) = (Vec3::new(4.0, 4.0, 2.0), Vec3::new(4.0, 4.0, 6.0));
-    assert_eq!(
-        check_exact(&[[p, q, q]], UVec3::splat(8), "edge segment").count(),
-        4 * 6
-    );
+    assert_eq!(check_exact(&[[p, q, q]], UVec3::splat(8), "edge segment").count(), 4 * 6);
 }
 
 #[test]
 fn huge_and_sliver_triangles() {
     // Far larger than the grid, slanted: clipped to the grid.
-    let huge = [
-        Vec3::new(-40., -40., 0.),
-        Vec3::new(60., -40., 16.),
-        Vec3::new(0., 60., 8.),
-    ];
+    let huge = [Vec3::new(-40., -40., 0.), Vec3::new(60., -40., 16.), Vec3::new(0., 60., 8.)];
     let grid = check_exact(&[huge], UVec3::new(16, 16, 16), "huge");
-    assert!(
-        grid.count() >= 16 * 16,
-        "a plane across the grid sets at least a layer"
-    );
+    assert!(grid.count() >= 16 * 16, "a plane across the grid sets at least a layer");
     // Long needles along a diagonal and along an axis.
     let slivers = [
         [Vec3::ZERO, Vec3::new(16., 15.75, 16.), Vec3::splat(16.)],
-        [
-            Vec3::new(0.25, 3.0, 3.0),
-            Vec3::new(15.75, 3.0, 3.25),
-            Vec3::new(15.75, 3.25, 3.0),
-        ],
-        [
-            Vec3::new(0.0, 0.0, 9.0),
-            Vec3::new(16.0, 0.25, 9.0),
-            Vec3::new(0.0, 0.25, 9.0),
-        ],
+        [Vec3::new(0.25, 3.0, 3.0), Vec3::new(15.75, 3.0, 3.25), Vec3::new(15.75, 3.25, 3.0)],
+        [Vec3::new(0.0, 0.0, 9.0), Vec3::new(16.0, 0.25, 9.0), Vec3::new(0.0, 0.25, 9.0)],
     ];
     for (i, s) in slivers.iter().enumerate() {
         check_exact(&[*s], UVec3::splat(16), &format!("sliver {i}"));
@@ -241,11 +169,7 @@ fn huge_and_sliver_triangles() {
 #[test]
 fn flat_meshes_and_single_cells() {
     // A mesh with no extent along y gets one voxel layer there.
-    let tris = [[
-        Vec3::new(0., 0., 0.),
-        Vec3::new(8., 0., 0.),
-        Vec3::new(0., 0., 8.),
-    ]];
+    let tris = [[Vec3::new(0., 0., 0.), Vec3::new(8., 0., 0.), Vec3::new(0., 0., 8.)]];
     let g = check_exact(&tris, UVec3::new(8, 1, 8), "flat");
     // Voxel (i, k) touches the triangle x + z <= 8 iff i + k <= 8: all 64 but the 21 with i + k >= 9.
     assert_eq!(g.count(), 64 - 21, "a right triangle over an 8x8 layer");

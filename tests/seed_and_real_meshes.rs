@@ -14,12 +14,7 @@ use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
 
 fn check(spec_str: &str, resolution: u32, axis: Axis) -> u64 {
     let mesh = mesh::load(spec_str).unwrap_or_else(|e| panic!("{e}"));
-    let spec = GridSpec::fit(
-        mesh.bounds().expect("bounds"),
-        Resolution::Count(resolution),
-        axis,
-    )
-    .expect("grid");
+    let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(resolution), axis).expect("grid");
     let tris = cpu::grid_space_triangles(&mesh, &spec);
     let grid = cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("voxelize");
     let cmp = compare_with_separations(&grid, &tris, 1e-4);
@@ -31,10 +26,7 @@ fn check(spec_str: &str, resolution: u32, axis: Axis) -> u64 {
     );
     let count = grid.count();
     assert!(count > 0);
-    eprintln!(
-        "{spec_str} r={resolution} {:?}: {count} voxels, {} near ties",
-        spec.dims, cmp.near_ties
-    );
+    eprintln!("{spec_str} r={resolution} {:?}: {count} voxels, {} near ties", spec.dims, cmp.near_ties);
     count
 }
 
@@ -58,10 +50,7 @@ fn seed_suzanne_and_bunny() {
 
 #[test]
 fn every_shared_mesh_and_builtin() {
-    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES
-        .iter()
-        .map(|n| format!("builtin:{n}"))
-        .collect();
+    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES.iter().map(|n| format!("builtin:{n}")).collect();
     if let Some(dir) = shared_meshes() {
         for rel in [
             "spot.obj",

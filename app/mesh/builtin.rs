@@ -19,9 +19,7 @@ const ROTATED_CUBE_OBJ: &str = include_str!("../../assets/rotated-cube.obj");
 /// One-line descriptions, for `--help` texts and the app's picker.
 pub fn describe(name: &str) -> &'static str {
     match name {
-        "rotated-cube" => {
-            "unit cube rotated off every axis (12 triangles), as in the original program"
-        }
+        "rotated-cube" => "unit cube rotated off every axis (12 triangles), as in the original program",
         "torus" => "torus, major radius 1, minor radius 0.35 (3,456 triangles)",
         "sphere" => "UV sphere of radius 1 (4,224 triangles)",
         "knot" => "trefoil knot tube (12,288 triangles)",
@@ -32,18 +30,14 @@ pub fn describe(name: &str) -> &'static str {
 /// Builds the named builtin mesh.
 pub fn load(name: &str) -> Result<Mesh, MeshError> {
     let mut mesh = match name {
-        "rotated-cube" => super::load_bytes("rotated-cube.obj", ROTATED_CUBE_OBJ.as_bytes())
-            .map_err(|e| MeshError::Obj {
-                path: Path::new("builtin:rotated-cube").to_path_buf(),
-                message: e.to_string(),
-            })?,
+        "rotated-cube" => super::load_bytes("rotated-cube.obj", ROTATED_CUBE_OBJ.as_bytes()).map_err(|e| {
+            MeshError::Obj { path: Path::new("builtin:rotated-cube").to_path_buf(), message: e.to_string() }
+        })?,
         "torus" => tube(|t| Vec3::new(t.cos(), 0.0, t.sin()), 0.35, 96, 18),
         "sphere" => sphere(64, 34),
         "knot" => tube(trefoil, 0.28, 384, 16),
         _ => {
-            return Err(MeshError::UnknownBuiltin {
-                name: name.to_string(),
-            });
+            return Err(MeshError::UnknownBuiltin { name: name.to_string() });
         }
     };
     mesh.name = format!("builtin:{name}");
@@ -52,11 +46,7 @@ pub fn load(name: &str) -> Result<Mesh, MeshError> {
 
 /// A point on a trefoil knot, scaled to about the size of the torus.
 fn trefoil(t: f32) -> Vec3 {
-    Vec3::new(
-        t.sin() + 2.0 * (2.0 * t).sin(),
-        -(3.0 * t).sin(),
-        t.cos() - 2.0 * (2.0 * t).cos(),
-    ) * 0.45
+    Vec3::new(t.sin() + 2.0 * (2.0 * t).sin(), -(3.0 * t).sin(), t.cos() - 2.0 * (2.0 * t).cos()) * 0.45
 }
 
 /// A closed tube of the given radius around a closed curve `center(t)`, t in [0, 2π).
@@ -69,9 +59,8 @@ fn tube(center: impl Fn(f32) -> Vec3, radius: f32, segments: usize, sides: usize
         let (p0, p, p1) = (center(t - dt), center(t), center(t + dt));
         let tangent = (p1 - p0).normalize();
         let bend = p1 - 2.0 * p + p0;
-        let normal = (bend - tangent * bend.dot(tangent))
-            .try_normalize()
-            .unwrap_or_else(|| tangent.any_orthonormal_vector());
+        let normal =
+            (bend - tangent * bend.dot(tangent)).try_normalize().unwrap_or_else(|| tangent.any_orthonormal_vector());
         let binormal = tangent.cross(normal);
         (0..sides)
             .map(|j| {
@@ -95,22 +84,19 @@ fn tube(center: impl Fn(f32) -> Vec3, radius: f32, segments: usize, sides: usize
 
 /// A UV sphere; the rows at the poles are single triangles so there are no zero-area slivers.
 fn sphere(slices: usize, stacks: usize) -> Mesh {
+    // Wrap the seam and pin the poles so shared vertices are bit-identical and the surface is closed.
     let point = |i: usize, j: usize| {
-        let (theta, phi) = (
-            TAU * i as f32 / slices as f32,
-            std::f32::consts::PI * j as f32 / stacks as f32,
-        );
+        if j == 0 || j == stacks {
+            return Vec3::new(0.0, if j == 0 { 1.0 } else { -1.0 }, 0.0);
+        }
+        let theta = TAU * (i % slices) as f32 / slices as f32;
+        let phi = std::f32::consts::PI * j as f32 / stacks as f32;
         Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin())
     };
     let mut triangles = Vec::new();
     for j in 0..stacks {
         for i in 0..slices {
-            let (a, b, c, d) = (
-                point(i, j),
-                point(i + 1, j),
-                point(i + 1, j + 1),
-                point(i, j + 1),
-            );
+            let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
             if j != 0 {
                 triangles.push([a, b, c]);
             }
@@ -124,14 +110,6 @@ fn sphere(slices: usize, stacks: usize) -> Mesh {
 
 fn single_part(triangles: Vec<[Vec3; 3]>) -> Mesh {
     let mut mesh = Mesh::default();
-    mesh.push_part(
-        Part {
-            name: String::new(),
-            mesh: 0,
-            primitive: 0,
-            material: None,
-        },
-        triangles,
-    );
+    mesh.push_part(Part { name: String::new(), mesh: 0, primitive: 0, material: None }, triangles);
     mesh
 }

@@ -10,13 +10,9 @@ use gltf::mesh::Mode;
 use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
-    let err = |message: String| MeshError::Gltf {
-        path: path.to_path_buf(),
-        message,
-    };
+    let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     check_glb_header(bytes).map_err(err)?;
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(bytes).map_err(|e| err(e.to_string()))?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| err(e.to_string()))?;
     let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| err(e.to_string()))?;
 
     let mut mesh = Mesh::default();
@@ -26,8 +22,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
     };
     // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
     // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
-    let mut stack: Vec<(gltf::Node, Mat4, usize)> =
-        roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 1024 {
             return Err(err("node hierarchy deeper than 1024 levels (cycle?)".into()));
@@ -49,15 +44,10 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
     if !bytes.starts_with(b"glTF") {
         return Ok(());
     }
-    let length = bytes
-        .get(8..12)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let length = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
     match length {
         Some(len) if (12..=bytes.len()).contains(&len) => Ok(()),
-        Some(len) => Err(format!(
-            "GLB header declares {len} bytes but the file has {}",
-            bytes.len()
-        )),
+        Some(len) => Err(format!("GLB header declares {len} bytes but the file has {}", bytes.len())),
         None => Err("GLB header is truncated".into()),
     }
 }
@@ -71,15 +61,9 @@ fn add_primitive(
     world: Mat4,
 ) -> Result<(), MeshError> {
     let name = gmesh.name().unwrap_or("").to_string();
-    let err = |message: String| MeshError::Gltf {
-        path: path.to_path_buf(),
-        message,
-    };
+    let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let mode = primitive.mode();
-    if !matches!(
-        mode,
-        Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-    ) {
+    if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         mesh.warnings.push(format!(
             "{}: skipped {mode:?} primitive {} of mesh {} '{name}' (only triangles are voxelized)",
             path.display(),
@@ -98,9 +82,7 @@ fn add_primitive(
         ));
         return Ok(());
     };
-    let positions: Vec<Vec3> = positions
-        .map(|p| world.transform_point3(Vec3::from(p)))
-        .collect();
+    let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
     let indices: Vec<u32> = match reader.read_indices() {
         Some(ix) => ix.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
@@ -115,30 +97,17 @@ fn add_primitive(
     }
     let corner = |i: u32| positions[i as usize];
     let triangles: Vec<[Vec3; 3]> = match mode {
-        Mode::Triangles => indices
-            .chunks_exact(3)
-            .map(|t| [corner(t[0]), corner(t[1]), corner(t[2])])
-            .collect(),
+        Mode::Triangles => indices.chunks_exact(3).map(|t| [corner(t[0]), corner(t[1]), corner(t[2])]).collect(),
         // Strips alternate winding; orientation does not matter for voxelization, but keep it right anyway.
         Mode::TriangleStrip => (2..indices.len())
             .map(|i| {
                 let (a, b, c) = (indices[i - 2], indices[i - 1], indices[i]);
-                if i % 2 == 0 {
-                    [corner(a), corner(b), corner(c)]
-                } else {
-                    [corner(b), corner(a), corner(c)]
-                }
+                if i % 2 == 0 { [corner(a), corner(b), corner(c)] } else { [corner(b), corner(a), corner(c)] }
             })
             .collect(),
-        Mode::TriangleFan => (2..indices.len())
-            .map(|i| {
-                [
-                    corner(indices[0]),
-                    corner(indices[i - 1]),
-                    corner(indices[i]),
-                ]
-            })
-            .collect(),
+        Mode::TriangleFan => {
+            (2..indices.len()).map(|i| [corner(indices[0]), corner(indices[i - 1]), corner(indices[i])]).collect()
+        }
         _ => unreachable!("filtered above"),
     };
     let part = Part {

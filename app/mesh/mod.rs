@@ -71,19 +71,10 @@ impl Mesh {
     /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
     fn validate(self, path: &Path) -> Result<Self, MeshError> {
         if self.triangles.is_empty() {
-            return Err(MeshError::Empty {
-                path: path.to_path_buf(),
-            });
+            return Err(MeshError::Empty { path: path.to_path_buf() });
         }
-        if let Some(t) = self
-            .triangles
-            .iter()
-            .position(|t| !t.iter().all(|v| v.is_finite()))
-        {
-            return Err(MeshError::NonFinite {
-                path: path.to_path_buf(),
-                triangle: t,
-            });
+        if let Some(t) = self.triangles.iter().position(|t| !t.iter().all(|v| v.is_finite())) {
+            return Err(MeshError::NonFinite { path: path.to_path_buf(), triangle: t });
         }
         Ok(self)
     }
@@ -93,10 +84,7 @@ impl Mesh {
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
     #[error("{}: cannot read: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    Io { path: PathBuf, source: std::io::Error },
     #[error("{}: unsupported mesh format (expected .obj, .gltf or .glb)", path.display())]
     UnsupportedFormat { path: PathBuf },
     #[error("{}: invalid OBJ: {message}", path.display())]
@@ -121,10 +109,7 @@ pub enum Format {
 impl Format {
     /// Picks the format from the file extension, falling back to the GLB magic for extension-less data.
     pub fn detect(path: &Path, bytes: &[u8]) -> Option<Format> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("obj") => Some(Format::Obj),
             Some("gltf" | "glb") => Some(Format::Gltf),
@@ -144,10 +129,7 @@ pub fn load(spec: &str) -> Result<Mesh, MeshError> {
 
 /// Loads an OBJ, glTF (external or embedded buffers) or GLB file from disk.
 pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
     let base = path.parent().map(Path::to_path_buf);
     load_bytes_impl(path, &bytes, base.as_deref())
 }
@@ -163,14 +145,9 @@ fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
         Some(Format::Obj) => obj::load(path, bytes, base)?,
         Some(Format::Gltf) => gltf_scene::load(path, bytes, base)?,
         None => {
-            return Err(MeshError::UnsupportedFormat {
-                path: path.to_path_buf(),
-            });
+            return Err(MeshError::UnsupportedFormat { path: path.to_path_buf() });
         }
     };
-    mesh.name = path.file_name().map_or_else(
-        || path.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    );
+    mesh.name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     mesh.validate(path)
 }

@@ -6,32 +6,20 @@ use glam::Vec3;
 use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(bytes);
     // Materials only matter for the part table, so a missing or broken .mtl is a warning, not an error.
     let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| match base {
         Some(dir) => tobj::load_mtl(dir.join(mtl)),
         None => Err(tobj::LoadError::OpenFileFailed),
     })
-    .map_err(|e| MeshError::Obj {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    .map_err(|e| MeshError::Obj { path: path.to_path_buf(), message: e.to_string() })?;
 
     let mut mesh = Mesh::default();
     if let Err(e) = materials {
         // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
         if bytes.windows(6).any(|w| w == b"mtllib") {
-            mesh.warnings.push(format!(
-                "{}: material library not loaded: {e}",
-                path.display()
-            ));
+            mesh.warnings.push(format!("{}: material library not loaded: {e}", path.display()));
         }
     }
     for (index, model) in models.iter().enumerate() {
@@ -42,18 +30,10 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
             if i >= vertex_count {
                 return Err(MeshError::Obj {
                     path: path.to_path_buf(),
-                    message: format!(
-                        "object '{}' refers to vertex {} but has {vertex_count}",
-                        model.name,
-                        i + 1
-                    ),
+                    message: format!("object '{}' refers to vertex {} but has {vertex_count}", model.name, i + 1),
                 });
             }
-            Ok(Vec3::new(
-                m.positions[3 * i],
-                m.positions[3 * i + 1],
-                m.positions[3 * i + 2],
-            ))
+            Ok(Vec3::new(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]))
         };
         let triangles = m
             .indices

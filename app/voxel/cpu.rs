@@ -83,19 +83,7 @@ pub fn setup_triangle(v: [Vec3; 3], dims: UVec3) -> TriangleSetup {
     let (ne_yz, de_yz) = setup_edges(ys, zs, orientation(n.x));
     let (ne_zx, de_zx) = setup_edges(zs, xs, orientation(n.y));
     let (lo, hi) = voxel_range(v, dims);
-    TriangleSetup {
-        n,
-        d1,
-        d2,
-        ne_xy,
-        de_xy,
-        ne_yz,
-        de_yz,
-        ne_zx,
-        de_zx,
-        lo,
-        hi,
-    }
+    TriangleSetup { n, d1, d2, ne_xy, de_xy, ne_yz, de_yz, ne_zx, de_zx, lo, hi }
 }
 
 /// The voxels whose closed boxes meet the triangle's bounding box: `i` with `i <= max` and `i + 1 >= min`.
@@ -107,11 +95,7 @@ pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
     let hi = max.floor().clamp(Vec3::ZERO, top);
     // A triangle entirely outside the grid (only possible for a caller-made grid) gets an empty range.
     let outside = max.cmplt(Vec3::ZERO).any() || min.cmpgt(dims.as_vec3()).any();
-    if outside {
-        (UVec3::ONE, UVec3::ZERO)
-    } else {
-        (lo.as_uvec3(), hi.as_uvec3())
-    }
+    if outside { (UVec3::ONE, UVec3::ZERO) } else { (lo.as_uvec3(), hi.as_uvec3()) }
 }
 
 /// Plane test for the voxel with minimum corner `p`.
@@ -240,10 +224,7 @@ pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) {
 
 /// Maps every triangle of `mesh` into the grid space of `spec`. Both backends voxelize exactly these values.
 pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Vec<[Vec3; 3]> {
-    mesh.triangles
-        .par_iter()
-        .map(|t| t.map(|v| spec.to_grid(v)))
-        .collect()
+    mesh.triangles.par_iter().map(|t| t.map(|v| spec.to_grid(v))).collect()
 }
 
 /// Voxelizes grid-space triangles into a new grid. `progress(done, total)` is called now and then from worker
@@ -269,10 +250,7 @@ pub fn voxelize_grid_space(
         let finished = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
         progress(finished, triangles.len());
     });
-    Ok(VoxelGrid::from_words(
-        spec,
-        words.into_iter().map(AtomicU32::into_inner).collect(),
-    ))
+    Ok(VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect()))
 }
 
 /// Voxelizes a world-space mesh on the CPU.

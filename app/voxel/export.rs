@@ -51,25 +51,15 @@ pub enum FormatError {
     #[error(transparent)]
     Io(#[from] io::Error),
     #[error("not a valid {format} file: {message}")]
-    Invalid {
-        format: &'static str,
-        message: String,
-    },
+    Invalid { format: &'static str, message: String },
 }
 
 fn invalid(format: &'static str, message: impl Into<String>) -> FormatError {
-    FormatError::Invalid {
-        format,
-        message: message.into(),
-    }
+    FormatError::Invalid { format, message: message.into() }
 }
 
 /// Writes `grid` in `format`.
-pub fn write(
-    grid: &VoxelGrid,
-    format: VoxelFormat,
-    out: &mut impl Write,
-) -> Result<(), FormatError> {
+pub fn write(grid: &VoxelGrid, format: VoxelFormat, out: &mut impl Write) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
@@ -82,10 +72,7 @@ const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 /// Writes an `.npy` file. Works through the grid 32 x-slices at a time so memory stays at one slab.
 pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
-    let mut header = format!(
-        "{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}",
-        d.x, d.y, d.z
-    );
+    let mut header = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}", d.x, d.y, d.z);
     // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
     let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
     header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
@@ -141,11 +128,7 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
     let field = |key: &str| -> Option<String> {
         let start = header.find(&format!("'{key}'"))? + key.len() + 2;
         let rest = header[start..].trim_start().strip_prefix(':')?.trim_start();
-        let end = if rest.starts_with('(') {
-            rest.find(')')? + 1
-        } else {
-            rest.find(',')?
-        };
+        let end = if rest.starts_with('(') { rest.find(')')? + 1 } else { rest.find(',')? };
         Some(rest[..end].trim().to_string())
     };
     let descr = field("descr").ok_or_else(|| invalid(F, "no descr"))?;
@@ -160,23 +143,12 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
         .trim_matches(|c| c == '(' || c == ')')
         .split(',')
         .filter(|s| !s.trim().is_empty())
-        .map(|s| {
-            s.trim()
-                .parse::<u32>()
-                .map_err(|_| invalid(F, format!("bad shape {shape}")))
-        })
+        .map(|s| s.trim().parse::<u32>().map_err(|_| invalid(F, format!("bad shape {shape}"))))
         .collect::<Result<_, _>>()?;
     let [x, y, z] = dims[..] else {
-        return Err(invalid(
-            F,
-            format!("shape {shape} is not three-dimensional"),
-        ));
+        return Err(invalid(F, format!("shape {shape} is not three-dimensional")));
     };
-    let spec = GridSpec {
-        origin: DVec3::ZERO,
-        voxel_size: 1.0,
-        dims: UVec3::new(x, y, z),
-    };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(x, y, z) };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     let mut plane = vec![0u8; y as usize * z as usize];
     for xi in 0..x {
@@ -191,27 +163,49 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
 }
 
 /// Writes a binvox v1 file (cubic, run-length encoded; see the module documentation).
+///
+/// binvox runs along y, then z, then x, across our x-fastest rows, so the grid is transposed 32 x-slices at a
+/// time into y-bitmaps and the runs are read off 64 voxels at a go. Padding beyond the grid costs nothing.
 pub fn write_binvox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     let dim = d.max_element();
     let o = grid.spec.origin;
     let scale = grid.spec.voxel_size * dim as f64;
-    write!(
-        out,
-        "#binvox 1\ndim {dim} {dim} {dim}\ntranslate {} {} {}\nscale {scale}\ndata\n",
-        o.x, o.y, o.z
-    )?;
-    // binvox order: x slowest, then z, then y fastest.
-    let mut rle = RunLength {
-        out,
-        value: 0,
-        count: 0,
-    };
-    for x in 0..dim {
-        for z in 0..dim {
-            for y in 0..dim {
-                let v = x < d.x && y < d.y && z < d.z && grid.get(x, y, z);
-                rle.push(v as u8)?;
+    write!(out, "#binvox 1\ndim {dim} {dim} {dim}\ntranslate {} {} {}\nscale {scale}\ndata\n", o.x, o.y, o.z)?;
+    let mut rle = RunLength { out, value: 0, count: 0 };
+    let (dim_us, ny, nz) = (dim as usize, d.y as usize, d.z as usize);
+    let y_words = dim_us.div_ceil(64);
+    let wpr = grid.spec.words_per_row();
+    // planes[(b * dim + z) * y_words + y / 64] holds bit y of the row at x = 32 * xw + b, depth z.
+    let mut planes = vec![0u64; 32 * dim_us * y_words];
+    for xw in 0..dim_us.div_ceil(32) {
+        planes.fill(0);
+        if xw < wpr {
+            for z in 0..nz {
+                for y in 0..ny {
+                    let mut bits = grid.words[(z * ny + y) * wpr + xw];
+                    while bits != 0 {
+                        let b = bits.trailing_zeros() as usize;
+                        planes[(b * dim_us + z) * y_words + y / 64] |= 1 << (y % 64);
+                        bits &= bits - 1;
+                    }
+                }
+            }
+        }
+        for b in 0..32.min(dim_us - xw * 32) {
+            for z in 0..dim_us {
+                for (i, &word) in planes[(b * dim_us + z) * y_words..][..y_words].iter().enumerate() {
+                    let len = (dim_us - i * 64).min(64);
+                    match word {
+                        0 => rle.push_run(0, len)?,
+                        w if len == 64 && w == u64::MAX => rle.push_run(1, 64)?,
+                        w => {
+                            for bit in 0..len {
+                                rle.push_run((w >> bit & 1) as u8, 1)?;
+                            }
+                        }
+                    }
+                }
             }
         }
     }
@@ -225,13 +219,22 @@ struct RunLength<'a, W: Write> {
 }
 
 impl<W: Write> RunLength<'_, W> {
-    fn push(&mut self, v: u8) -> io::Result<()> {
-        if self.count == 255 || (self.count > 0 && v != self.value) {
+    /// Appends `n` voxels of value `v`, emitting (value, count) pairs of at most 255.
+    fn push_run(&mut self, v: u8, mut n: usize) -> io::Result<()> {
+        if self.count > 0 && v != self.value {
             self.out.write_all(&[self.value, self.count])?;
             self.count = 0;
         }
         self.value = v;
-        self.count += 1;
+        while n > 0 {
+            let take = n.min(255 - self.count as usize);
+            self.count += take as u8;
+            n -= take;
+            if self.count == 255 {
+                self.out.write_all(&[v, 255])?;
+                self.count = 0;
+            }
+        }
         Ok(())
     }
 
@@ -259,11 +262,7 @@ pub fn read_binvox(input: &mut impl BufRead) -> Result<VoxelGrid, FormatError> {
         }
         let mut words = line.split_whitespace();
         let nums = |w: std::str::SplitWhitespace| -> Result<Vec<f64>, FormatError> {
-            w.map(|s| {
-                s.parse::<f64>()
-                    .map_err(|_| invalid(F, format!("bad number '{s}'")))
-            })
-            .collect()
+            w.map(|s| s.parse::<f64>().map_err(|_| invalid(F, format!("bad number '{s}'")))).collect()
         };
         match words.next() {
             Some("dim") => {
@@ -280,30 +279,20 @@ pub fn read_binvox(input: &mut impl BufRead) -> Result<VoxelGrid, FormatError> {
                 };
                 translate = DVec3::new(x, y, z);
             }
-            Some("scale") => {
-                scale = *nums(words)?
-                    .first()
-                    .ok_or_else(|| invalid(F, "scale needs a number"))?
-            }
+            Some("scale") => scale = *nums(words)?.first().ok_or_else(|| invalid(F, "scale needs a number"))?,
             Some("data") => break,
             _ => {}
         }
     }
     let d = dims.ok_or_else(|| invalid(F, "no 'dim' line"))?;
-    let spec = GridSpec {
-        origin: translate,
-        voxel_size: scale / d.max_element().max(1) as f64,
-        dims: d,
-    };
+    let spec = GridSpec { origin: translate, voxel_size: scale / d.max_element().max(1) as f64, dims: d };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     let total = spec.voxel_count();
     let mut index = 0u64;
     let mut pair = [0u8; 2];
     let (dy, dz) = (d.y as u64, d.z as u64);
     while index < total {
-        input
-            .read_exact(&mut pair)
-            .map_err(|_| invalid(F, "run-length data ends early"))?;
+        input.read_exact(&mut pair).map_err(|_| invalid(F, "run-length data ends early"))?;
         let end = (index + pair[1] as u64).min(total);
         if pair[0] != 0 {
             for i in index..end {
@@ -332,53 +321,27 @@ pub fn write_vox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
     let chunks = (vd + VOX_MODEL_MAX - 1) / VOX_MODEL_MAX;
     let chunk_index = |c: UVec3| (c.x + chunks.x * (c.y + chunks.y * c.z)) as usize;
     let mut models: Vec<Model> = (0..chunks.z)
-        .flat_map(|z| {
-            (0..chunks.y).flat_map(move |y| (0..chunks.x).map(move |x| UVec3::new(x, y, z)))
-        })
+        .flat_map(|z| (0..chunks.y).flat_map(move |y| (0..chunks.x).map(move |x| UVec3::new(x, y, z))))
         .map(|c| {
             let size = (vd - c * VOX_MODEL_MAX).min(UVec3::splat(VOX_MODEL_MAX));
-            Model {
-                size: Size {
-                    x: size.x,
-                    y: size.y,
-                    z: size.z,
-                },
-                voxels: Vec::new(),
-            }
+            Model { size: Size { x: size.x, y: size.y, z: size.z }, voxels: Vec::new() }
         })
         .collect();
     for v in grid.iter_set() {
         let p = to_vox(v, d);
         let c = p / VOX_MODEL_MAX;
         let l = p % VOX_MODEL_MAX;
-        models[chunk_index(c)].voxels.push(Voxel {
-            x: l.x as u8,
-            y: l.y as u8,
-            z: l.z as u8,
-            i: 0,
-        });
+        models[chunk_index(c)].voxels.push(Voxel { x: l.x as u8, y: l.y as u8, z: l.z as u8, i: 0 });
     }
 
     // Scene graph: root transform -> group -> (transform -> shape) per model.
     let mut scenes = vec![
-        SceneNode::Transform {
-            attributes: Dict::new(),
-            frames: vec![Frame::default()],
-            child: 1,
-            layer_id: u32::MAX,
-        },
-        SceneNode::Group {
-            attributes: Dict::new(),
-            children: Vec::new(),
-        },
+        SceneNode::Transform { attributes: Dict::new(), frames: vec![Frame::default()], child: 1, layer_id: u32::MAX },
+        SceneNode::Group { attributes: Dict::new(), children: Vec::new() },
     ];
     let mut children = Vec::new();
     for (id, model) in models.iter().enumerate() {
-        let c = UVec3::new(
-            id as u32 % chunks.x,
-            id as u32 / chunks.x % chunks.y,
-            id as u32 / (chunks.x * chunks.y),
-        );
+        let c = UVec3::new(id as u32 % chunks.x, id as u32 / chunks.x % chunks.y, id as u32 / (chunks.x * chunks.y));
         let size = UVec3::new(model.size.x, model.size.y, model.size.z);
         // MagicaVoxel puts a model's voxel v at t + v - size / 2; centre the whole grid on the origin.
         let t = (c * VOX_MODEL_MAX + size / 2).as_ivec3() - (vd / 2).as_ivec3();
@@ -388,33 +351,17 @@ pub fn write_vox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
         attributes.insert("_name".into(), format!("meshvox {} {} {}", c.x, c.y, c.z));
         children.push(scenes.len() as u32);
         let shape = scenes.len() as u32 + 1;
-        scenes.push(SceneNode::Transform {
-            attributes,
-            frames: vec![Frame::new(frame)],
-            child: shape,
-            layer_id: 0,
-        });
+        scenes.push(SceneNode::Transform { attributes, frames: vec![Frame::new(frame)], child: shape, layer_id: 0 });
         scenes.push(SceneNode::Shape {
             attributes: Dict::new(),
-            models: vec![ShapeModel {
-                model_id: id as u32,
-                attributes: Dict::new(),
-            }],
+            models: vec![ShapeModel { model_id: id as u32, attributes: Dict::new() }],
         });
     }
-    scenes[1] = SceneNode::Group {
-        attributes: Dict::new(),
-        children,
-    };
+    scenes[1] = SceneNode::Group { attributes: Dict::new(), children };
 
     let mut palette = dot_vox::DEFAULT_PALETTE.clone();
     // Palette entry 0 is the one every voxel uses: a warm orange that reads well on MagicaVoxel's grey.
-    palette[0] = dot_vox::Color {
-        r: 235,
-        g: 140,
-        b: 52,
-        a: 255,
-    };
+    palette[0] = dot_vox::Color { r: 235, g: 140, b: 52, a: 255 };
     let data = DotVoxData {
         version: 150,
         index_map: dot_vox::DEFAULT_INDEX_MAP.to_vec(),
@@ -445,41 +392,25 @@ pub fn read_vox(bytes: &[u8]) -> Result<VoxelGrid, FormatError> {
                 .and_then(|f| f.position())
                 .map_or(glam::IVec3::ZERO, |p| glam::IVec3::new(p.x, p.y, p.z));
             for m in models {
-                let model = data
-                    .models
-                    .get(m.model_id as usize)
-                    .ok_or_else(|| invalid(F, "shape names a missing model"))?;
+                let model =
+                    data.models.get(m.model_id as usize).ok_or_else(|| invalid(F, "shape names a missing model"))?;
                 let size = UVec3::new(model.size.x, model.size.y, model.size.z);
                 placed.push((m.model_id as usize, p - (size / 2).as_ivec3()));
             }
         }
     }
     if placed.is_empty() {
-        placed = (0..data.models.len())
-            .map(|i| (i, glam::IVec3::ZERO))
-            .collect();
+        placed = (0..data.models.len()).map(|i| (i, glam::IVec3::ZERO)).collect();
     }
     let size_of = |i: usize| {
         let s = &data.models[i].size;
         UVec3::new(s.x, s.y, s.z).as_ivec3()
     };
-    let lo = placed
-        .iter()
-        .map(|&(_, o)| o)
-        .reduce(|a, b| a.min(b))
-        .ok_or_else(|| invalid(F, "no models"))?;
-    let hi = placed
-        .iter()
-        .map(|&(i, o)| o + size_of(i))
-        .reduce(|a, b| a.max(b))
-        .unwrap_or(lo);
+    let lo = placed.iter().map(|&(_, o)| o).reduce(|a, b| a.min(b)).ok_or_else(|| invalid(F, "no models"))?;
+    let hi = placed.iter().map(|&(i, o)| o + size_of(i)).reduce(|a, b| a.max(b)).unwrap_or(lo);
     let vd = (hi - lo).as_uvec3();
     let dims = UVec3::new(vd.x, vd.z, vd.y);
-    let spec = GridSpec {
-        origin: DVec3::ZERO,
-        voxel_size: 1.0,
-        dims,
-    };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     for (i, o) in placed {
         for v in &data.models[i].voxels {

@@ -102,11 +102,7 @@ impl GridSpec {
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
             return Err(GridError::TooLarge(dims));
         }
-        Ok(GridSpec {
-            origin: min,
-            voxel_size,
-            dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
-        })
+        Ok(GridSpec { origin: min, voxel_size, dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32) })
     }
 
     /// Words per x-row of the bit grid.
@@ -163,11 +159,7 @@ impl GridSpec {
 fn cells(extent: f64, h: f64) -> u64 {
     let q = extent / h;
     let nearest = q.round();
-    let n = if (q - nearest).abs() <= SNAP {
-        nearest
-    } else {
-        q.ceil()
-    };
+    let n = if (q - nearest).abs() <= SNAP { nearest } else { q.ceil() };
     n.max(1.0).min(u64::MAX as f64 / 4.0) as u64
 }
 
@@ -186,20 +178,14 @@ impl VoxelGrid {
         usize::try_from(words)
             .ok()
             .and_then(|n| v.try_reserve_exact(n).ok())
-            .ok_or(GridError::OutOfMemory {
-                needed_mib: spec.byte_size().div_ceil(1 << 20),
-            })?;
+            .ok_or(GridError::OutOfMemory { needed_mib: spec.byte_size().div_ceil(1 << 20) })?;
         v.resize(words as usize, 0);
         Ok(VoxelGrid { spec, words: v })
     }
 
     /// Wraps words produced elsewhere (the GPU readback, a file reader).
     pub fn from_words(spec: GridSpec, words: Vec<u32>) -> VoxelGrid {
-        assert_eq!(
-            words.len() as u64,
-            spec.word_count(),
-            "word count does not match the grid spec"
-        );
+        assert_eq!(words.len() as u64, spec.word_count(), "word count does not match the grid spec");
         VoxelGrid { spec, words }
     }
 
@@ -224,17 +210,11 @@ impl VoxelGrid {
     pub fn iter_set(&self) -> impl Iterator<Item = UVec3> + '_ {
         let wpr = self.spec.words_per_row();
         let dims_y = self.spec.dims.y as usize;
-        self.words
-            .iter()
-            .enumerate()
-            .filter(|(_, w)| **w != 0)
-            .flat_map(move |(i, &w)| {
-                let row = i / wpr;
-                let (y, z) = ((row % dims_y) as u32, (row / dims_y) as u32);
-                let x0 = ((i % wpr) * 32) as u32;
-                (0..32u32)
-                    .filter(move |b| w >> b & 1 != 0)
-                    .map(move |b| UVec3::new(x0 + b, y, z))
-            })
+        self.words.iter().enumerate().filter(|(_, w)| **w != 0).flat_map(move |(i, &w)| {
+            let row = i / wpr;
+            let (y, z) = ((row % dims_y) as u32, (row / dims_y) as u32);
+            let x0 = ((i % wpr) * 32) as u32;
+            (0..32u32).filter(move |b| w >> b & 1 != 0).map(move |b| UVec3::new(x0 + b, y, z))
+        })
     }
 }

@@ -15,15 +15,9 @@ pub fn shared_meshes() -> Option<PathBuf> {
         return Some(dir);
     }
     if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!(
-            "CI=true but {} is missing: the real-mesh tests cannot run",
-            dir.display()
-        );
+        panic!("CI=true but {} is missing: the real-mesh tests cannot run", dir.display());
     }
-    eprintln!(
-        "\n*** SKIPPED: {} not found; real-mesh tests did not run ***\n",
-        dir.display()
-    );
+    eprintln!("\n*** SKIPPED: {} not found; real-mesh tests did not run ***\n", dir.display());
     None
 }
 
@@ -71,10 +65,7 @@ pub fn sat_separation(t: [DVec3; 3], p: DVec3) -> f64 {
             continue;
         }
         let proj = [v[0].dot(a), v[1].dot(a), v[2].dot(a)];
-        let (lo, hi) = (
-            proj[0].min(proj[1]).min(proj[2]),
-            proj[0].max(proj[1]).max(proj[2]),
-        );
+        let (lo, hi) = (proj[0].min(proj[1]).min(proj[2]), proj[0].max(proj[1]).max(proj[2]));
         let r = 0.5 * (a.x.abs() + a.y.abs() + a.z.abs());
         sep = sep.max((lo - r).max(-r - hi) / len);
     }
@@ -136,11 +127,7 @@ pub struct Comparison {
 
 /// Compares `grid` with the brute-force answer; disagreements within `tolerance` voxels of touching are counted
 /// as rounding, everything else is reported as hard.
-pub fn compare_with_separations(
-    grid: &VoxelGrid,
-    triangles: &[[Vec3; 3]],
-    tolerance: f64,
-) -> Comparison {
+pub fn compare_with_separations(grid: &VoxelGrid, triangles: &[[Vec3; 3]], tolerance: f64) -> Comparison {
     let seps = brute_force_separations(triangles, grid.spec);
     let mut c = Comparison::default();
     for (&v, &s) in &seps {

@@ -1,0 +1,308 @@
+//! Mesh loading: the real files in `../shared/meshes` against figures from an independent tool (trimesh, as
+//! recorded in `../shared/meshes/SOURCES.md`, and a minimal OBJ vertex scan written here), plus small files made
+//! by the test for the cases the real files do not cover (negative indices, strips, fans, points, lines, index
+//! widths, node hierarchies with TRS and matrices, broken input).
+
+mod common;
+
+use base64::Engine;
+use common::shared_meshes;
+use glam::Vec3;
+use meshvox::mesh::{self, MeshError};
+use serde_json::json;
+use std::path::Path;
+
+fn assert_close(a: Vec3, b: Vec3, tol: f32, what: &str) {
+    assert!((a - b).abs().max_element() <= tol, "{what}: {a} != {b}");
+}
+
+/// Bounds of all `v` lines, read without tobj: an independent check of the OBJ loader's bounds.
+fn obj_vertex_bounds(path: &Path) -> (Vec3, Vec3) {
+    let text = std::fs::read_to_string(path).expect("read obj");
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for line in text.lines() {
+        let mut w = line.split_whitespace();
+        if w.next() == Some("v") {
+            let c: Vec<f32> = w.take(3).map(|s| s.parse().expect("number")).collect();
+            let v = Vec3::new(c[0], c[1], c[2]);
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    (lo, hi)
+}
+
+#[test]
+fn shared_obj_files_match_trimesh_counts_and_bounds() {
+    let Some(dir) = shared_meshes() else { return };
+    // Triangle counts from trimesh (process=False), as recorded in SOURCES.md.
+    for (file, triangles) in
+        [("stanford-bunny.obj", 69_451), ("suzanne.obj", 968), ("teapot.obj", 6_320), ("spot.obj", 5_856)]
+    {
+        let path = dir.join(file);
+        let m = mesh::load_path(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(m.triangles.len(), triangles, "{file}");
+        assert_eq!(m.triangle_part.len(), triangles, "{file}: one source per triangle");
+        let b = m.bounds().expect("bounds");
+        let (lo, hi) = obj_vertex_bounds(&path);
+        assert_close(b.min, lo, 0.0, file);
+        assert_close(b.max, hi, 0.0, file);
+    }
+}
+
+#[test]
+fn suzanne_quads_are_triangulated() {
+    let Some(dir) = shared_meshes() else { return };
+    let text = std::fs::read_to_string(dir.join("suzanne.obj")).expect("read");
+    let faces: Vec<usize> =
+        text.lines().filter(|l| l.starts_with("f ")).map(|l| l.split_whitespace().count() - 1).collect();
+    let quads = faces.iter().filter(|&&n| n == 4).count();
+    assert!(quads > 0, "Suzanne has quads");
+    let expected: usize = faces.iter().map(|n| n - 2).sum();
+    assert_eq!(mesh::load_path(&dir.join("suzanne.obj")).expect("load").triangles.len(), expected);
+}
+
+#[test]
+fn shared_gltf_files_match_trimesh() {
+    let Some(dir) = shared_meshes() else { return };
+    let g = dir.join("gltf");
+    let unit = (Vec3::splat(-0.5), Vec3::splat(0.5));
+    let duck = (Vec3::new(-0.6930, 0.0993, -0.6133), Vec3::new(0.9618, 1.6397, 0.5393));
+    type Case = (&'static str, usize, Option<(Vec3, Vec3)>);
+    let cases: [Case; 8] = [
+        ("Box.gltf", 12, Some(unit)),
+        ("BoxTextured.gltf", 12, Some(unit)),
+        ("Duck.gltf", 4_212, Some(duck)),
+        ("Duck.glb", 4_212, Some(duck)),
+        ("box01.glb", 12, None),
+        ("spot-textured.glb", 5_856, None),
+        ("torus-vertex-colours.gltf", 9_216, None),
+        ("cube-external/Cube.gltf", 12, None),
+    ];
+    for (file, triangles, bounds) in cases {
+        let m = mesh::load_path(&g.join(file)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(m.triangles.len(), triangles, "{file}");
+        assert!(m.warnings.is_empty(), "{file}: {:?}", m.warnings);
+        if let Some((lo, hi)) = bounds {
+            let b = m.bounds().expect("bounds");
+            assert_close(b.min, lo, 1e-4, file);
+            assert_close(b.max, hi, 1e-4, file);
+        }
+    }
+    // The Duck's mesh is in centimetres under a node scaled by 0.01: unscaled it would be ~100x larger.
+    let duck_mesh = mesh::load_path(&g.join("Duck.glb")).expect("duck");
+    assert!(duck_mesh.bounds().expect("b").extent().max_element() < 2.0);
+    // OBJ and glTF versions of spot describe the same shape.
+    let a = mesh::load_path(&dir.join("spot.obj")).expect("spot").bounds().expect("b");
+    let b = mesh::load_path(&g.join("spot-textured.glb")).expect("spot glb").bounds().expect("b");
+    assert_close(a.min, b.min, 1e-4, "spot bounds");
+    assert_close(a.max, b.max, 1e-4, "spot bounds");
+}
+
+#[test]
+fn obj_groups_negative_indices_and_polygons() {
+    let obj = "\
+v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+o first\nf 1 2 3 4\n\
+v 0 0 5\nv 2 0 5\nv 2 2 5\nv 1 3 5\nv 0 2 5\n\
+g second\nf -5 -4 -3 -2 -1\n\
+o third\nl 1 2\np 3\nf -5/1 -4/1 -3/1\n";
+    let m = mesh::load_bytes("poly.obj", obj.as_bytes()).expect("load");
+    assert_eq!(m.triangles.len(), 2 + 3 + 1);
+    assert_eq!(m.parts.len(), 3, "{:?}", m.parts);
+    assert_eq!(m.parts.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(), ["first", "second", "third"]);
+    assert_eq!(m.triangle_part, vec![0, 0, 1, 1, 1, 2]);
+    // The pentagon at z = 5 is reached through negative indices.
+    assert!(m.triangles[2..5].iter().flatten().all(|v| v.z == 5.0));
+    assert_eq!(m.triangles[5], [Vec3::new(0., 0., 5.), Vec3::new(2., 0., 5.), Vec3::new(2., 2., 5.)]);
+}
+
+/// A primitive for [`gltf_json`]: glTF mode, positions, and optional indices with their byte width.
+type Prim = (u32, Vec<[f32; 3]>, Option<(Vec<u32>, u32)>);
+
+/// A glTF with embedded base64 buffers, built from `(mode, positions, indices)` primitives placed under a node
+/// hierarchy. Indices use u8, u16 or u32 depending on `width`.
+fn gltf_json(prims: &[Prim], nodes: serde_json::Value, scenes: serde_json::Value) -> Vec<u8> {
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut primitives = Vec::new();
+    for (mode, pos, idx) in prims {
+        let start = bin.len();
+        for p in pos {
+            for c in p {
+                bin.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start}));
+        let lo = pos.iter().fold([f32::MAX; 3], |a, p| [a[0].min(p[0]), a[1].min(p[1]), a[2].min(p[2])]);
+        let hi = pos.iter().fold([f32::MIN; 3], |a, p| [a[0].max(p[0]), a[1].max(p[1]), a[2].max(p[2])]);
+        accessors.push(json!({"bufferView": views.len() - 1, "componentType": 5126, "count": pos.len(), "type": "VEC3", "min": lo, "max": hi}));
+        let mut prim = json!({"attributes": {"POSITION": accessors.len() - 1}, "mode": mode});
+        if let Some((ix, width)) = idx {
+            while bin.len() % 4 != 0 {
+                bin.push(0);
+            }
+            let start = bin.len();
+            for &i in ix {
+                match width {
+                    1 => bin.push(i as u8),
+                    2 => bin.extend_from_slice(&(i as u16).to_le_bytes()),
+                    _ => bin.extend_from_slice(&i.to_le_bytes()),
+                }
+            }
+            views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start}));
+            let ty = match width {
+                1 => 5121,
+                2 => 5123,
+                _ => 5125,
+            };
+            accessors
+                .push(json!({"bufferView": views.len() - 1, "componentType": ty, "count": ix.len(), "type": "SCALAR"}));
+            prim["indices"] = json!(accessors.len() - 1);
+        }
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        primitives.push(prim);
+    }
+    let meshes: Vec<_> = primitives.into_iter().map(|p| json!({"primitives": [p]})).collect();
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": bin.len(), "uri": uri}],
+        "bufferViews": views, "accessors": accessors, "meshes": meshes, "nodes": nodes, "scenes": scenes,
+    });
+    if scenes_have_default(&doc) {
+        doc["scene"] = json!(0);
+    }
+    serde_json::to_vec(&doc).expect("json")
+}
+
+fn scenes_have_default(doc: &serde_json::Value) -> bool {
+    doc["scenes"].as_array().is_some_and(|s| s.len() == 1)
+}
+
+#[test]
+fn gltf_modes_index_widths_and_hierarchy() {
+    let quad = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.]];
+    let prims = vec![
+        (4, quad.clone(), Some((vec![0, 1, 2, 2, 1, 3], 1))), // TRIANGLES, u8 indices
+        (5, quad.clone(), Some((vec![0, 1, 2, 3], 2))),       // TRIANGLE_STRIP, u16
+        (6, quad.clone(), Some((vec![0, 1, 3, 2], 4))),       // TRIANGLE_FAN, u32
+        (4, quad[..3].to_vec(), None),                        // non-indexed TRIANGLES
+        (0, quad.clone(), None),                              // POINTS: skipped
+        (1, quad.clone(), None),                              // LINES: skipped
+    ];
+    // Root: translate (10, 0, 0) by TRS; child: matrix scaling by 2; grandchildren hold the meshes, one rotated
+    // 90 degrees about z by a quaternion.
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let nodes = json!([
+        {"translation": [10, 0, 0], "children": [1]},
+        {"matrix": [2,0,0,0, 0,2,0,0, 0,0,2,0, 0,0,0,1], "children": [2, 3, 4, 5, 6, 7]},
+        {"mesh": 0}, {"mesh": 1}, {"mesh": 2, "rotation": [0, 0, s, s]}, {"mesh": 3}, {"mesh": 4}, {"mesh": 5},
+    ]);
+    let bytes = gltf_json(&prims, nodes, json!([{"nodes": [0]}]));
+    let m = mesh::load_bytes("modes.gltf", &bytes).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(m.triangles.len(), 2 + 2 + 2 + 1);
+    assert_eq!(m.warnings.len(), 2, "{:?}", m.warnings);
+    assert!(m.warnings.iter().any(|w| w.contains("Points")) && m.warnings.iter().any(|w| w.contains("Lines")));
+    // Every triangle went through scale 2 then translation 10 on x.
+    let by_mesh = |k: u32| -> Vec<[Vec3; 3]> {
+        m.triangles
+            .iter()
+            .zip(&m.triangle_part)
+            .filter(|(_, p)| m.parts[**p as usize].mesh == k)
+            .map(|(t, _)| *t)
+            .collect()
+    };
+    let t0 = by_mesh(0);
+    assert_eq!(t0[0], [Vec3::new(10., 0., 0.), Vec3::new(12., 0., 0.), Vec3::new(10., 2., 0.)]);
+    // The strip's second triangle has its winding flipped as the glTF spec says, (v1, v3, v2), emitted as the
+    // same cycle (v2, v1, v3).
+    let t1 = by_mesh(1);
+    assert_eq!(t1[1], [Vec3::new(10., 2., 0.), Vec3::new(12., 0., 0.), Vec3::new(12., 2., 0.)]);
+    // The fan's corners after the 90-degree rotation: (1, 0) -> (0, 1).
+    let t2 = by_mesh(2);
+    assert_close(t2[0][1], Vec3::new(10., 2., 0.), 1e-5, "fan corner");
+    let b = m.bounds().expect("bounds");
+    assert_close(b.min, Vec3::new(8., 0., 0.), 1e-5, "min");
+    assert_close(b.max, Vec3::new(12., 2., 0.), 1e-5, "max");
+}
+
+#[test]
+fn gltf_without_default_scene_walks_every_scene() {
+    let tri = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]];
+    let nodes = json!([{"mesh": 0}, {"mesh": 0, "translation": [0, 0, 3]}]);
+    let bytes = gltf_json(&[(4, tri, None)], nodes, json!([{"nodes": [0]}, {"nodes": [1]}]));
+    let m = mesh::load_bytes("scenes.gltf", &bytes).expect("load");
+    assert_eq!(m.triangles.len(), 2);
+    assert_eq!(m.bounds().expect("b").max.z, 3.0);
+}
+
+#[test]
+fn broken_input_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let missing = dir.path().join("nope.obj");
+    let e = mesh::load_path(&missing).expect_err("missing file");
+    assert!(matches!(e, MeshError::Io { .. }) && e.to_string().contains("nope.obj"), "{e}");
+
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("empty.obj", b"# nothing here\n".to_vec()),
+        ("nan.obj", b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n".to_vec()),
+        ("badindex.obj", b"v 0 0 0\nv 1 0 0\nf 1 2 7\n".to_vec()),
+        ("garbage.gltf", b"{ this is not json".to_vec()),
+        ("truncated.glb", b"glTF\x02\x00\x00\x00\xff\xff\x00\x00".to_vec()),
+        ("short.glb", b"glTF\x02\x00".to_vec()),
+        ("mesh.stl", b"solid x\nendsolid x\n".to_vec()),
+    ];
+    for (name, bytes) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).expect("write");
+        let e = mesh::load_path(&path).expect_err(name);
+        let msg = e.to_string();
+        assert!(msg.contains(name), "{name}: message does not name the file: {msg}");
+        assert!(!msg.contains('\n'), "{name}: message is not one line: {msg}");
+    }
+    // glTF whose indices point past the vertices.
+    let tri = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]];
+    let bytes = gltf_json(&[(4, tri, Some((vec![0, 1, 9], 2)))], json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    let e = mesh::load_bytes("oob.gltf", &bytes).expect_err("index out of range");
+    assert!(e.to_string().contains("vertex 9"), "{e}");
+    let e = mesh::load("builtin:nonesuch").expect_err("unknown builtin");
+    assert!(e.to_string().contains("rotated-cube"), "lists the builtins: {e}");
+}
+
+#[test]
+fn builtins_load_with_their_documented_counts() {
+    for name in mesh::builtin::NAMES {
+        let m = mesh::load(&format!("builtin:{name}")).unwrap_or_else(|e| panic!("{e}"));
+        let described = mesh::builtin::describe(name);
+        let count = format!("{} triangles", fmt_thousands(m.triangles.len()));
+        assert!(described.contains(&count), "{name}: '{described}' should mention {count}");
+        assert_eq!(m.name, format!("builtin:{name}"));
+        // Closed surfaces: every edge is shared by exactly two triangles.
+        let mut edges = std::collections::HashMap::<[[u32; 3]; 2], u32>::new();
+        for t in &m.triangles {
+            for i in 0..3 {
+                let (a, b) = (t[i].to_array().map(f32::to_bits), t[(i + 1) % 3].to_array().map(f32::to_bits));
+                *edges.entry(if a < b { [a, b] } else { [b, a] }).or_default() += 1;
+            }
+        }
+        assert!(edges.values().all(|&n| n == 2), "{name} is not a closed surface");
+    }
+}
+
+fn fmt_thousands(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
