@@ -25,6 +25,24 @@ enum Command {
     Voxelize(VoxelizeArgs),
     /// List the bundled meshes accepted as builtin:NAME.
     Builtins,
+    /// Time voxelization on the CPU and GPU backends over a fixed set of meshes and resolutions.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Resolutions to run (voxels along the longest axis).
+    #[arg(short = 'r', long = "resolution", value_delimiter = ',', default_values_t = [128, 256, 512])]
+    resolutions: Vec<u32>,
+    /// Meshes to run; by default the rotated cube and the Stanford bunny from ../shared/meshes.
+    #[arg(long, value_delimiter = ',')]
+    meshes: Vec<String>,
+    /// Backends to compare.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
+    backends: Vec<BackendArg>,
+    /// Runs per case; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
 }
 
 #[derive(clap::Args)]
@@ -48,6 +66,16 @@ struct VoxelizeArgs {
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     stats_json: bool,
+    /// Where to voxelize: the GPU when there is an adapter (auto), only the GPU, or only the CPU.
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    backend: BackendArg,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum BackendArg {
+    Auto,
+    Gpu,
+    Cpu,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -73,6 +101,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Voxelize(args) => voxelize(&args),
+        Command::Bench(args) => bench(&args),
         Command::Builtins => {
             for name in builtin::NAMES {
                 println!("builtin:{name:<14} {}", builtin::describe(name));
@@ -122,12 +151,11 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let bounds = mesh.bounds().ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
     let spec = GridSpec::fit(bounds, resolution, args.axis.into()).with_context(|| args.mesh.clone())?;
 
+    let engine = Engine::open(args.backend)?;
     let t_vox = Instant::now();
-    let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
-    let grid = voxel::cpu::voxelize(&mesh, spec, &|done, _| bar.set_position(done as u64))
-        .with_context(|| format!("{}: {}×{}×{} grid", args.mesh, spec.dims.x, spec.dims.y, spec.dims.z))?;
-    bar.finish_and_clear();
+    let result = engine.voxelize(&mesh, spec)?;
     let voxelize_ms = ms(t_vox);
+    let grid = result.grid;
     let voxels = grid.count();
 
     let t_write = Instant::now();
@@ -135,9 +163,9 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let write_ms = ms(t_write);
 
     let d = spec.dims;
-    let backend = "cpu";
+    let backend = result.backend;
     eprintln!(
-        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set in {voxelize_ms:.1} ms on {} ({} threads); wrote {} ({} bytes)",
+        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set in {voxelize_ms:.1} ms on {backend}; wrote {} ({} bytes)",
         args.mesh,
         mesh.triangles.len(),
         d.x,
@@ -145,8 +173,6 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         d.z,
         spec.voxel_size,
         voxels,
-        backend,
-        rayon::current_num_threads(),
         args.output.display(),
         bytes,
     );
@@ -160,6 +186,8 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
             "voxels": voxels,
             "backend": backend,
             "threads": rayon::current_num_threads(),
+            "gpu_ms": result.gpu_ms,
+            "setup_ms": engine.setup_ms,
             "output": args.output.display().to_string(),
             "format": format.extension(),
             "bytes": bytes,
@@ -205,4 +233,143 @@ fn write_atomically(
     }
     temp.persist(path).map_err(|e| anyhow!("{}: cannot create: {}", path.display(), e.error))?;
     Ok(bytes)
+}
+
+/// A voxelization backend, opened once: the GPU (adapter, device and compiled pipelines) or the CPU.
+struct Engine {
+    gpu: Option<(meshvox::gpu::Gpu, meshvox::gpu::voxelize::GpuVoxelizer)>,
+    /// Whether the CPU may stand in when the GPU cannot take a request.
+    fallback: bool,
+    /// Time to acquire the adapter and compile the pipelines (not part of `voxelize_ms`).
+    setup_ms: f64,
+}
+
+struct EngineResult {
+    grid: voxel::VoxelGrid,
+    backend: String,
+    gpu_ms: Option<f64>,
+}
+
+impl Engine {
+    fn open(backend: BackendArg) -> Result<Engine> {
+        let t = Instant::now();
+        if backend == BackendArg::Cpu {
+            return Ok(Engine { gpu: None, fallback: false, setup_ms: 0.0 });
+        }
+        match meshvox::gpu::Gpu::new_blocking() {
+            Ok(gpu) => {
+                let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
+                Ok(Engine { gpu: Some((gpu, v)), fallback: backend == BackendArg::Auto, setup_ms: ms(t) })
+            }
+            Err(e) if backend == BackendArg::Auto => {
+                eprintln!("note: {e}; using the CPU voxelizer");
+                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t) })
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// Host triangles to host grid, including the upload and readback on the GPU.
+    fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec) -> Result<EngineResult> {
+        let cpu_label = || format!("cpu ({} threads)", rayon::current_num_threads());
+        if let Some((gpu, v)) = &self.gpu {
+            let tris = voxel::cpu::grid_space_triangles(mesh, &spec);
+            let options = meshvox::gpu::voxelize::Options { read_grid: true, ..Default::default() };
+            match v.voxelize(gpu, &tris, spec, &options) {
+                Ok(out) => {
+                    let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
+                    return Ok(EngineResult { grid, backend: format!("gpu: {}", gpu.summary), gpu_ms: out.gpu_ms });
+                }
+                Err(e @ (meshvox::gpu::GpuError::TooLarge { .. } | meshvox::gpu::GpuError::OutOfMemory(_)))
+                    if self.fallback =>
+                {
+                    eprintln!("note: {e}; using the CPU voxelizer");
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+        let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
+        let grid = voxel::cpu::voxelize(mesh, spec, &|done, _| bar.set_position(done as u64))
+            .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
+        bar.finish_and_clear();
+        Ok(EngineResult { grid, backend: cpu_label(), gpu_ms: None })
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// `meshvox bench`: a markdown table of voxelization times per mesh, resolution and backend on stdout.
+fn bench(args: &BenchArgs) -> Result<()> {
+    let meshes = if args.meshes.is_empty() {
+        let bunny = Path::new("../shared/meshes/stanford-bunny.obj");
+        let mut m = vec!["builtin:rotated-cube".to_string()];
+        m.push(if bunny.exists() { bunny.display().to_string() } else { "builtin:knot".to_string() });
+        m
+    } else {
+        args.meshes.clone()
+    };
+    let loaded: Vec<mesh::Mesh> = meshes.iter().map(|m| mesh::load(m)).collect::<Result<_, _>>()?;
+    println!("| mesh | triangles | N | grid | voxels | backend | voxelize ms (median of {}) | gpu ms |", args.runs);
+    println!("|---|---:|---:|---|---:|---|---:|---:|");
+    let mut times = std::collections::HashMap::new();
+    for &backend in &args.backends {
+        let engine = match Engine::open(backend) {
+            Ok(e) if backend != BackendArg::Gpu || e.gpu.is_some() => e,
+            Ok(_) => continue,
+            Err(e) => {
+                eprintln!("note: skipping the GPU backend: {e:#}");
+                continue;
+            }
+        };
+        for (name, m) in meshes.iter().zip(&loaded) {
+            for &r in &args.resolutions {
+                let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
+                let spec = GridSpec::fit(bounds, Resolution::Count(r), Axis::Longest)?;
+                let mut runs = Vec::new();
+                let mut gpu = Vec::new();
+                let mut last = None;
+                for _ in 0..args.runs.max(1) {
+                    let t = Instant::now();
+                    let out = engine.voxelize(m, spec)?;
+                    runs.push(ms(t));
+                    gpu.extend(out.gpu_ms);
+                    last = Some(out);
+                }
+                let out = last.ok_or_else(|| anyhow!("no runs"))?;
+                let t = median(runs);
+                times.insert((name.clone(), r, out.backend.clone()), t);
+                let g = out.grid.spec.dims;
+                let gpu_ms = if gpu.is_empty() { "-".to_string() } else { format!("{:.2}", median(gpu)) };
+                println!(
+                    "| {} | {} | {r} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} |",
+                    name.rsplit('/').next().unwrap_or(name),
+                    m.triangles.len(),
+                    g.x,
+                    g.y,
+                    g.z,
+                    out.grid.count(),
+                    out.backend
+                );
+            }
+        }
+    }
+    // The load-balancing target: a 12-triangle cube must not be much slower than a dense mesh.
+    if meshes.len() >= 2 {
+        let mut ratios: Vec<_> = times
+            .iter()
+            .filter(|((name, _, _), _)| name == &meshes[0])
+            .filter_map(|((_, r, backend), t)| {
+                times.get(&(meshes[1].clone(), *r, backend.clone())).map(|other| (backend.clone(), *r, t / other))
+            })
+            .collect();
+        ratios.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
+        println!();
+        for (backend, r, ratio) in ratios {
+            println!("{} / {} at {r} on {backend}: {ratio:.2}x", meshes[0], meshes[1]);
+        }
+    }
+    Ok(())
 }

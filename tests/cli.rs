@@ -7,7 +7,16 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn meshvox(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_meshvox")).args(args).current_dir(dir).output().expect("run meshvox")
+    meshvox_env(args, dir, &[])
+}
+
+fn meshvox_env(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_meshvox"));
+    cmd.args(args).current_dir(dir);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run meshvox")
 }
 
 fn stats(out: &Output) -> Value {
@@ -23,7 +32,8 @@ fn voxelize_builtin_to_every_format_with_stats() {
     let mut counts = Vec::new();
     for ext in ["npy", "binvox", "vox"] {
         let name = format!("cube.{ext}");
-        let out = meshvox(&["voxelize", "builtin:rotated-cube", "-r", "32", "-o", &name, "--stats-json"], dir.path());
+        let args = ["voxelize", "builtin:rotated-cube", "-r", "32", "-o", &name, "--stats-json", "--backend", "cpu"];
+        let out = meshvox(&args, dir.path());
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let s = stats(&out);
         for key in [
@@ -42,7 +52,7 @@ fn voxelize_builtin_to_every_format_with_stats() {
         }
         assert_eq!(s["mesh"], "builtin:rotated-cube");
         assert_eq!(s["triangles"], 12);
-        assert_eq!(s["backend"], "cpu");
+        assert!(s["backend"].as_str().is_some_and(|b| b.starts_with("cpu (")), "{}", s["backend"]);
         let dims: Vec<u32> = serde_json::from_value(s["dims"].clone()).expect("dims");
         assert_eq!(*dims.iter().max().expect("max"), 32, "longest axis gets N");
         let bytes = std::fs::read(dir.path().join(&name)).expect("output exists");
@@ -144,4 +154,44 @@ fn assert_clean_failure_in(dir: &Path, args: &[&str], expect: &str) {
     let out = meshvox(args, dir);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains(expect) && !stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn gpu_backend_matches_cpu_and_names_the_adapter() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |backend: &str| {
+        let args = ["voxelize", "builtin:knot", "-r", "96", "-o", "k.npy", "--stats-json", "--backend", backend];
+        meshvox(&args, dir.path())
+    };
+    let gpu = run("gpu");
+    if !gpu.status.success() {
+        let stderr = String::from_utf8_lossy(&gpu.stderr);
+        assert!(stderr.contains("no GPU adapter"), "{stderr}");
+        assert!(std::env::var("CI").map_or(true, |v| v != "true"), "CI=true but the GPU backend failed: {stderr}");
+        eprintln!("\n*** SKIPPED GPU CLI test: {stderr} ***\n");
+        return;
+    }
+    let (g, c) = (stats(&gpu), stats(&run("cpu")));
+    assert_eq!(g["voxels"], c["voxels"]);
+    assert_eq!(g["dims"], c["dims"]);
+    assert!(g["backend"].as_str().is_some_and(|b| b.starts_with("gpu: ")), "{}", g["backend"]);
+    assert!(g["voxelize_ms"].as_f64().is_some_and(|t| t > 0.0));
+}
+
+#[test]
+fn without_an_adapter_gpu_fails_clearly_and_auto_falls_back() {
+    // No Metal on Linux: an instance limited to it finds no adapter.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let env = [("WGPU_BACKEND", "metal")];
+    let args =
+        |b: &'static str| ["voxelize", "builtin:torus", "-r", "16", "-o", "t.npy", "--stats-json", "--backend", b];
+    let out = meshvox_env(&args("gpu"), dir.path(), &env);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.starts_with("error: no GPU adapter found"), "{stderr}");
+    assert!(!dir.path().join("t.npy").exists());
+    let out = meshvox_env(&args("auto"), dir.path(), &env);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("using the CPU voxelizer"));
+    assert!(stats(&out)["backend"].as_str().is_some_and(|b| b.starts_with("cpu")));
 }

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{Rng, assert_same_grid, brute_force_all, compare_with_separations};
+use common::{Rng, assert_same_grid, brute_force_all, compare_with_separations, lattice_mesh};
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::voxel::{GridSpec, VoxelGrid, cpu};
 
@@ -22,34 +22,6 @@ fn check_exact(triangles: &[[Vec3; 3]], dims: UVec3, what: &str) -> VoxelGrid {
     let f = fast(triangles, dims);
     assert_same_grid(&f, &brute_force_all(triangles, spec(dims)), what);
     f
-}
-
-/// A point on the 1/4 lattice inside `[lo, hi]` on every axis.
-fn lattice_point(rng: &mut Rng, lo: f64, hi: f64) -> Vec3 {
-    let steps = ((hi - lo) * 4.0) as u64;
-    let mut c = || (lo + rng.below(steps + 1) as f64 / 4.0) as f32;
-    Vec3::new(c(), c(), c())
-}
-
-/// Random lattice triangles of mixed sizes, with some degenerate ones (repeated or collinear vertices).
-fn lattice_mesh(rng: &mut Rng, count: usize, extent: f64) -> Vec<[Vec3; 3]> {
-    (0..count)
-        .map(|i| {
-            let a = lattice_point(rng, 0.0, extent);
-            let spread = [0.5, 2.0, extent][i % 3];
-            let mut near = || {
-                let d = lattice_point(rng, -spread, spread);
-                (a + d).clamp(Vec3::ZERO, Vec3::splat(extent as f32))
-            };
-            let (b, c) = (near(), near());
-            match rng.below(10) {
-                0 => [a, a, b],                 // a segment
-                1 => [a, b, a + (b - a) * 0.5], // collinear, midpoint on the lattice/8
-                2 => [a, a, a],                 // a point
-                _ => [a, b, c],
-            }
-        })
-        .collect()
 }
 
 #[test]

@@ -24,6 +24,22 @@ use glam::{UVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
+/// Why no fused multiply-add: with `a * b + c` rounded twice, products that appear on both sides of a
+/// cancellation round identically and cancel exactly, so a face lying exactly on a voxel boundary yields an exact
+/// zero and touches both sides, as the grid convention requires. Fusing one of the two products (as `fma` does)
+/// breaks that symmetry and drops whole layers of touching voxels. The shader is written the same way.
+/// `a · b`, evaluated left to right.
+#[inline]
+pub fn dot3(a: Vec3, b: Vec3) -> f32 {
+    a.x * b.x + a.y * b.y + a.z * b.z
+}
+
+/// `a · q + d`, evaluated left to right: an edge function.
+#[inline]
+pub fn edge_function(a: Vec2, q: Vec2, d: f32) -> f32 {
+    a.x * q.x + a.y * q.y + d
+}
+
 /// Per-triangle quantities of the overlap test, computed once (`setup_triangle`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleSetup {
@@ -68,14 +84,15 @@ fn orientation(c: f32) -> f32 {
 /// Computes everything the per-voxel test needs for triangle `v` (grid space) in a grid of `dims` voxels.
 pub fn setup_triangle(v: [Vec3; 3], dims: UVec3) -> TriangleSetup {
     let (e0, e1) = (v[1] - v[0], v[2] - v[1]);
-    let n = e0.cross(e1);
+    // Spelled out (not `cross`) so the operations visibly match the shader's.
+    let n = Vec3::new(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
     let c = Vec3::new(
         if n.x > 0.0 { 1.0 } else { 0.0 },
         if n.y > 0.0 { 1.0 } else { 0.0 },
         if n.z > 0.0 { 1.0 } else { 0.0 },
     );
-    let d1 = n.dot(c - v[0]);
-    let d2 = n.dot(Vec3::ONE - c - v[0]);
+    let d1 = dot3(n, c - v[0]);
+    let d2 = dot3(n, Vec3::ONE - c - v[0]);
     let xs = [v[0].x, v[1].x, v[2].x];
     let ys = [v[0].y, v[1].y, v[2].y];
     let zs = [v[0].z, v[1].z, v[2].z];
@@ -101,14 +118,14 @@ pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
 /// Plane test for the voxel with minimum corner `p`.
 #[inline]
 pub fn plane_test(s: &TriangleSetup, p: Vec3) -> bool {
-    let np = s.n.dot(p);
+    let np = dot3(s.n, p);
     np + s.d1 >= 0.0 && np + s.d2 <= 0.0
 }
 
 /// The three edge-function tests of one projection, `q` being the voxel's minimum corner in that projection.
 #[inline]
 pub fn edge_test(ne: &[Vec2; 3], de: &[f32; 3], q: Vec2) -> bool {
-    (0..3).all(|i| ne[i].dot(q) + de[i] >= 0.0)
+    (0..3).all(|i| edge_function(ne[i], q, de[i]) >= 0.0)
 }
 
 /// The full Schwarz–Seidel test for the voxel with minimum corner `p`, assuming the bounding boxes overlap.
@@ -178,7 +195,7 @@ pub fn column_depth_range(s: &TriangleSetup, w: usize, p: Vec3, lo: f32, hi: f32
     let (mut lo, mut hi) = (lo, hi);
     let mut rest = p;
     rest[w] = 0.0;
-    let np = s.n.dot(rest);
+    let np = dot3(s.n, rest);
     let scale = s.n.x.abs() + s.n.y.abs() + s.n.z.abs();
     // np + n_w t + d1 >= 0 and -(np + n_w t + d2) >= 0.
     narrow(&mut lo, &mut hi, s.n[w], np + s.d1, scale);

@@ -173,3 +173,139 @@ pub fn assert_same_grid(fast: &VoxelGrid, reference: &VoxelGrid, what: &str) {
         );
     }
 }
+
+/// A point on the 1/4 lattice inside `[lo, hi]` on every axis.
+pub fn lattice_point(rng: &mut Rng, lo: f64, hi: f64) -> Vec3 {
+    let steps = ((hi - lo) * 4.0) as u64;
+    let mut c = || (lo + rng.below(steps + 1) as f64 / 4.0) as f32;
+    Vec3::new(c(), c(), c())
+}
+
+/// Random lattice triangles of mixed sizes, with some degenerate ones (repeated or collinear vertices).
+pub fn lattice_mesh(rng: &mut Rng, count: usize, extent: f64) -> Vec<[Vec3; 3]> {
+    (0..count)
+        .map(|i| {
+            let a = lattice_point(rng, 0.0, extent);
+            let spread = [0.5, 2.0, extent][i % 3];
+            let mut near = || {
+                let d = lattice_point(rng, -spread, spread);
+                (a + d).clamp(Vec3::ZERO, Vec3::splat(extent as f32))
+            };
+            let (b, c) = (near(), near());
+            match rng.below(10) {
+                0 => [a, a, b],                 // a segment
+                1 => [a, b, a + (b - a) * 0.5], // collinear, midpoint on the lattice/8
+                2 => [a, a, a],                 // a point
+                _ => [a, b, c],
+            }
+        })
+        .collect()
+}
+
+/// The hand-made hard cases of the core voxelizer tests, as (name, grid-space triangles, grid dims).
+pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
+    let v = Vec3::new;
+    let square = [[v(2., 2., 8.), v(10., 2., 8.), v(10., 10., 8.)], [v(2., 2., 8.), v(10., 10., 8.), v(2., 10., 8.)]];
+    let c = |x: f32, y: f32, z: f32| v(x, y, z) * 16.0;
+    let corners = [
+        c(0., 0., 0.),
+        c(1., 0., 0.),
+        c(1., 1., 0.),
+        c(0., 1., 0.),
+        c(0., 0., 1.),
+        c(1., 0., 1.),
+        c(1., 1., 1.),
+        c(0., 1., 1.),
+    ];
+    let quads = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [3, 2, 6, 7], [0, 3, 7, 4], [1, 2, 6, 5]];
+    let cube: Vec<[Vec3; 3]> = quads
+        .iter()
+        .flat_map(|q| [[corners[q[0]], corners[q[1]], corners[q[2]]], [corners[q[0]], corners[q[2]], corners[q[3]]]])
+        .collect();
+    let p = |x: f32, y: f32, z: f32| [v(x, y, z); 3];
+    let (a, b) = (v(1.5, 1.5, 1.5), v(14.5, 9.5, 5.5));
+    vec![
+        ("face on a boundary", square.to_vec(), UVec3::splat(16)),
+        ("cube on the grid boundary", cube, UVec3::splat(16)),
+        ("tiny inside a voxel", vec![[v(5.25, 5.25, 5.25), v(5.5, 5.25, 5.5), v(5.25, 5.75, 5.5)]], UVec3::splat(12)),
+        ("points on corner, edge, face", vec![p(5., 5., 5.), p(7., 7., 7.5), p(3., 3.5, 3.5)], UVec3::splat(12)),
+        ("segment and collinear", vec![[a, b, b], [a, b, (a + b) * 0.5]], UVec3::splat(16)),
+        ("segment on a voxel edge", vec![[v(4., 4., 2.), v(4., 4., 6.), v(4., 4., 6.)]], UVec3::splat(8)),
+        ("huge", vec![[v(-40., -40., 0.), v(60., -40., 16.), v(0., 60., 8.)]], UVec3::splat(16)),
+        (
+            "slivers",
+            vec![
+                [Vec3::ZERO, v(16., 15.75, 16.), Vec3::splat(16.)],
+                [v(0.25, 3.0, 3.0), v(15.75, 3.0, 3.25), v(15.75, 3.25, 3.0)],
+                [v(0.0, 0.0, 9.0), v(16.0, 0.25, 9.0), v(0.0, 0.25, 9.0)],
+            ],
+            UVec3::splat(16),
+        ),
+        ("flat", vec![[v(0., 0., 0.), v(8., 0., 0.), v(0., 0., 8.)]], UVec3::new(8, 1, 8)),
+        ("single voxel", vec![[Vec3::ZERO, Vec3::X, Vec3::Y]], UVec3::ONE),
+        ("wide rows", vec![[v(0.25, 0.5, 1.0), v(70.0, 2.5, 2.0), v(3.0, 3.75, 0.5)]], UVec3::new(72, 4, 3)),
+    ]
+}
+
+/// Whether the overlap test of `s` at voxel corner `p` is a rounding tie: every sign test passes or lies within
+/// f32 rounding of zero, and at least one lies within it. Different but equally valid evaluation orders (a GPU
+/// compiler fusing or reassociating float operations) can decide such a voxel either way.
+pub fn is_rounding_tie(s: &meshvox::voxel::cpu::TriangleSetup, p: Vec3) -> bool {
+    use meshvox::voxel::cpu::{dot3, edge_function};
+    let size = p.abs().max_element().max(s.lo.max_element() as f32).max(s.hi.max_element() as f32) + 2.0;
+    let eps = 1e-5f64;
+    let mut values: Vec<(f64, f64)> = Vec::new();
+    let np = dot3(s.n, p);
+    let plane_scale = (s.n.abs().element_sum() * size * 4.0) as f64;
+    values.push(((np + s.d1) as f64, plane_scale));
+    values.push((-(np + s.d2) as f64, plane_scale));
+    let q = [glam::Vec2::new(p.x, p.y), glam::Vec2::new(p.y, p.z), glam::Vec2::new(p.z, p.x)];
+    for (k, (ne, de)) in [(&s.ne_xy, &s.de_xy), (&s.ne_yz, &s.de_yz), (&s.ne_zx, &s.de_zx)].into_iter().enumerate() {
+        for i in 0..3 {
+            let scale = ((ne[i].x.abs() + ne[i].y.abs()) * size * 4.0) as f64;
+            values.push((edge_function(ne[i], q[k], de[i]) as f64, scale));
+        }
+    }
+    values.iter().all(|&(v, sc)| v >= -eps * sc) && values.iter().any(|&(v, sc)| v.abs() <= eps * sc)
+}
+
+/// Asserts that `gpu` equals `cpu` except on voxels that are rounding ties for some triangle (see
+/// [`is_rounding_tie`]); returns how many such voxels differed.
+pub fn assert_same_up_to_ties(gpu: &VoxelGrid, cpu: &VoxelGrid, triangles: &[[Vec3; 3]], what: &str) -> usize {
+    use meshvox::voxel::cpu::setup_triangle;
+    assert_eq!(gpu.spec, cpu.spec, "{what}: grid specs differ");
+    if gpu.words == cpu.words {
+        return 0;
+    }
+    let differing: Vec<(usize, u32)> = gpu
+        .words
+        .iter()
+        .zip(&cpu.words)
+        .enumerate()
+        .filter(|(_, (a, b))| a != b)
+        .map(|(i, (a, b))| (i, a ^ b))
+        .collect();
+    let wpr = gpu.spec.words_per_row();
+    let dims_y = gpu.spec.dims.y as usize;
+    let mut voxels = Vec::new();
+    for (i, mut bits) in differing {
+        let row = i / wpr;
+        while bits != 0 {
+            let b = bits.trailing_zeros();
+            bits &= bits - 1;
+            voxels.push(UVec3::new((i % wpr) as u32 * 32 + b, (row % dims_y) as u32, (row / dims_y) as u32));
+        }
+    }
+    let setups: Vec<_> = triangles.iter().map(|t| setup_triangle(*t, gpu.spec.dims)).collect();
+    for v in &voxels {
+        let p = v.as_vec3();
+        let tie = setups.iter().any(|s| v.cmpge(s.lo).all() && v.cmple(s.hi).all() && is_rounding_tie(s, p));
+        assert!(
+            tie,
+            "{what}: voxel {v} differs (gpu {}, cpu {}) and is not a rounding tie",
+            gpu.get(v.x, v.y, v.z),
+            cpu.get(v.x, v.y, v.z)
+        );
+    }
+    voxels.len()
+}

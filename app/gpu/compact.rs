@@ -1,0 +1,193 @@
+//! GPU stream compaction (`shaders/compact.wgsl`): the coordinates of a grid's set voxels as a GPU buffer, for
+//! instanced drawing and sparse output, without a CPU loop over the dense grid.
+
+use super::readback::{PassTimer, read_buffer};
+use super::voxelize::{pipeline, scoped, uniform_entry};
+use super::{Gpu, GpuError, dispatch_2d, mib};
+use crate::voxel::GridSpec;
+use glam::UVec3;
+
+pub const COMPACT_WGSL: &str = include_str!("../../shaders/compact.wgsl");
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct CompactParams {
+    dims: [u32; 3],
+    words_per_row: u32,
+    slab_z0: u32,
+    word_count: u32,
+    base: u32,
+    _pad: u32,
+}
+
+/// Set-voxel coordinates on the GPU: `count` entries of two u32, `x | y << 16` and `z`, in no particular order.
+pub struct CompactVoxels {
+    pub buffer: wgpu::Buffer,
+    pub count: u32,
+}
+
+impl CompactVoxels {
+    /// Reads the list back (for sparse output and tests).
+    pub fn read(&self, gpu: &Gpu) -> Result<Vec<UVec3>, GpuError> {
+        if self.count == 0 {
+            return Ok(Vec::new());
+        }
+        let bytes = read_buffer(&gpu.device, &gpu.queue, &self.buffer, 0, self.count as u64 * 8)?;
+        let raw: &[u32] = bytemuck::cast_slice(&bytes);
+        Ok(raw.chunks_exact(2).map(|p| UVec3::new(p[0] & 0xffff, p[0] >> 16, p[1])).collect())
+    }
+}
+
+pub(crate) struct Compactor {
+    layout: wgpu::BindGroupLayout,
+    count: wgpu::ComputePipeline,
+    write: wgpu::ComputePipeline,
+}
+
+fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Compactor {
+    pub(crate) fn new(gpu: &Gpu) -> Compactor {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("compact.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(COMPACT_WGSL.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("compact"),
+            entries: &[uniform_entry(0), storage(1, true), storage(2, false), storage(3, false)],
+        });
+        let layouts = [Some(&layout)];
+        Compactor {
+            count: pipeline(device, &module, &layouts, "count_voxels"),
+            write: pipeline(device, &module, &layouts, "write_voxels"),
+            layout,
+        }
+    }
+
+    /// Compacts the first `words` words of `slab`, which holds z-layers from `z0` of a grid laid out as `spec`.
+    pub(crate) fn compact(
+        &self,
+        gpu: &Gpu,
+        slab: &wgpu::Buffer,
+        spec: GridSpec,
+        z0: u32,
+        words: u64,
+        mut timer: Option<&mut PassTimer>,
+    ) -> Result<CompactVoxels, GpuError> {
+        let device = &gpu.device;
+        let params = CompactParams {
+            dims: spec.dims.to_array(),
+            words_per_row: spec.words_per_row() as u32,
+            slab_z0: z0,
+            word_count: words as u32,
+            base: 0,
+            _pad: 0,
+        };
+        let (x, y) = dispatch_2d((words as u32).div_ceil(256));
+        let run = |pipeline: &wgpu::ComputePipeline,
+                   points: &wgpu::Buffer,
+                   counters: &wgpu::Buffer,
+                   uniform: &wgpu::Buffer,
+                   timer: Option<&mut PassTimer>| {
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("compact"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: slab.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: counters.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: points.as_entire_binding() },
+                ],
+            });
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("compact"),
+                    timestamp_writes: timer.and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &bind, &[]);
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+        };
+        let buffer = |label: &str, size: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(8),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (uniform, counters, placeholder) = scoped(device, || {
+            let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("compact params"),
+                size: std::mem::size_of::<CompactParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            gpu.queue.write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
+            let counters = buffer("compact counters", 8);
+            let placeholder = buffer("no points yet", 8);
+            run(&self.count, &placeholder, &counters, &uniform, timer.as_deref_mut());
+            Ok((uniform, counters, placeholder))
+        })?;
+        drop(placeholder);
+        let counted = read_buffer(device, &gpu.queue, &counters, 0, 4)?;
+        let count = u32::from_le_bytes([counted[0], counted[1], counted[2], counted[3]]);
+        let bytes = count as u64 * 8;
+        if bytes > gpu.max_binding_bytes() {
+            return Err(GpuError::TooLarge {
+                what: format!("the list of {count} voxels"),
+                needed_mib: mib(bytes),
+                limit_mib: mib(gpu.max_binding_bytes()),
+            });
+        }
+        let points = scoped(device, || {
+            let points = buffer("voxel list", bytes);
+            run(&self.write, &points, &counters, &uniform, timer);
+            Ok(points)
+        })?;
+        Ok(CompactVoxels { buffer: points, count })
+    }
+
+    /// Joins per-slab lists into one buffer.
+    pub(crate) fn concat(&self, gpu: &Gpu, parts: Vec<CompactVoxels>) -> Result<CompactVoxels, GpuError> {
+        let count: u64 = parts.iter().map(|p| p.count as u64).sum();
+        if count * 8 > gpu.max_binding_bytes() {
+            return Err(GpuError::TooLarge {
+                what: format!("the list of {count} voxels"),
+                needed_mib: mib(count * 8),
+                limit_mib: mib(gpu.max_binding_bytes()),
+            });
+        }
+        scoped(&gpu.device, || {
+            let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("voxel list"),
+                size: (count * 8).max(8),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let mut at = 0;
+            for p in &parts {
+                encoder.copy_buffer_to_buffer(&p.buffer, 0, &buffer, at, p.count as u64 * 8);
+                at += p.count as u64 * 8;
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(CompactVoxels { buffer, count: count as u32 })
+        })
+    }
+}

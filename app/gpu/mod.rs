@@ -1,0 +1,113 @@
+//! WebGPU through wgpu: acquiring an adapter and device without a window ([`Gpu`]), and the compute pipelines
+//! that voxelize ([`voxelize`]) and compact ([`compact`]) on it. Used by the CLI, the tests and the app alike.
+
+pub mod compact;
+mod readback;
+pub mod voxelize;
+
+/// What the adapter is, for stats and messages.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AdapterSummary {
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+    pub driver: String,
+}
+
+impl std::fmt::Display for AdapterSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({}", self.name, self.backend)?;
+        if !self.driver.is_empty() {
+            write!(f, ", {}", self.driver)?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// Errors of the GPU path. Each message says what to do where there is something to do.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("no GPU adapter found ({0}); use --backend cpu, or install a Vulkan driver (mesa-vulkan-drivers)")]
+    NoAdapter(String),
+    #[error("the GPU adapter refused a device: {0}")]
+    RequestDevice(String),
+    #[error("{what} needs {needed_mib} MiB, but this adapter allows at most {limit_mib} MiB per buffer")]
+    TooLarge { what: String, needed_mib: u64, limit_mib: u64 },
+    #[error("the GPU ran out of memory: {0}")]
+    OutOfMemory(String),
+    #[error("GPU error: {0}")]
+    Device(String),
+    #[error(transparent)]
+    Grid(#[from] crate::voxel::GridError),
+}
+
+/// An adapter, its device and queue, ready for compute.
+pub struct Gpu {
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub summary: AdapterSummary,
+    /// Whether compute passes can be timed with timestamp queries.
+    pub timestamps: bool,
+}
+
+impl Gpu {
+    /// Acquires the default adapter without any window or surface. `WGPU_BACKEND` (vulkan, gl, …) and
+    /// `WGPU_ADAPTER_NAME` pick another one.
+    pub async fn new() -> Result<Gpu, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
+            .await
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        Self::from_adapter(adapter).await
+    }
+
+    /// Blocking [`Gpu::new`] for native callers.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn new_blocking() -> Result<Gpu, GpuError> {
+        pollster::block_on(Self::new())
+    }
+
+    /// Opens a device on `adapter` with its full limits and, where available, timestamp queries.
+    pub async fn from_adapter(adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("meshvox"),
+                required_features: features,
+                required_limits: adapter.limits(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::RequestDevice(e.to_string()))?;
+        let info = adapter.get_info();
+        let summary = AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: [info.driver.as_str(), info.driver_info.as_str()]
+                .into_iter()
+                .filter(|s| !s.is_empty())
+                .collect::<Vec<_>>()
+                .join(" "),
+        };
+        Ok(Gpu { adapter, device, queue, summary, timestamps })
+    }
+
+    /// Largest buffer this device can bind as one storage binding (and allocate).
+    pub fn max_binding_bytes(&self) -> u64 {
+        let l = self.device.limits();
+        l.max_storage_buffer_binding_size.min(l.max_buffer_size)
+    }
+}
+
+/// Splits `groups` workgroups into a 2D dispatch within the 65,535-per-dimension limit.
+pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
+    let x = groups.clamp(1, 65_535);
+    (x, groups.div_ceil(x))
+}
+
+pub(crate) fn mib(bytes: u64) -> u64 {
+    bytes.div_ceil(1 << 20)
+}

@@ -1,0 +1,99 @@
+//! Reading GPU buffers back to the host, and timing passes with timestamp queries.
+
+use super::GpuError;
+
+/// Copies `size` bytes of `buffer` (from `offset`) into host memory. Blocks until the GPU is done.
+pub(crate) fn read_buffer(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    size: u64,
+) -> Result<Vec<u8>, GpuError> {
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("meshvox readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
+    queue.submit([encoder.finish()]);
+    map_and_copy(device, &staging)
+}
+
+/// Maps a MAP_READ buffer and returns its contents.
+pub(crate) fn map_and_copy(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Device(e.to_string()))?
+        .map_err(|e| GpuError::Device(format!("cannot map a readback buffer: {e}")))?;
+    let bytes = slice.get_mapped_range().map_err(|e| GpuError::Device(e.to_string()))?.to_vec();
+    staging.unmap();
+    Ok(bytes)
+}
+
+/// A query set with a begin/end pair per compute pass, resolved into a buffer that is read with the results.
+pub(crate) struct PassTimer {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    capacity: u32,
+    used: u32,
+}
+
+impl PassTimer {
+    pub(crate) fn new(device: &wgpu::Device, passes: u32) -> PassTimer {
+        let capacity = passes * 2;
+        PassTimer {
+            set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("meshvox timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: capacity,
+            }),
+            resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("meshvox timestamps resolve"),
+                size: capacity as u64 * 8,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            capacity,
+            used: 0,
+        }
+    }
+
+    /// Timestamp writes for the next pass, or `None` when the set is full.
+    pub(crate) fn next_pass(&mut self) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        if self.used + 2 > self.capacity {
+            return None;
+        }
+        let begin = self.used;
+        self.used += 2;
+        Some(wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(begin),
+            end_of_pass_write_index: Some(begin + 1),
+        })
+    }
+
+    /// Resolves the written queries, reads them back and returns the summed pass time in milliseconds; the
+    /// timer is then empty again.
+    pub(crate) fn collect(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<f64, GpuError> {
+        if self.used == 0 {
+            return Ok(0.0);
+        }
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.resolve_query_set(&self.set, 0..self.used, &self.resolve, 0);
+        queue.submit([encoder.finish()]);
+        let bytes = read_buffer(device, queue, &self.resolve, 0, self.used as u64 * 8)?;
+        let ticks: &[u64] = bytemuck::cast_slice(&bytes);
+        let period = queue.get_timestamp_period() as f64;
+        let ns: f64 = ticks.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period).sum();
+        self.used = 0;
+        Ok(ns / 1e6)
+    }
+}

@@ -1,0 +1,357 @@
+//! The voxelization pipeline of `shaders/voxelize.wgsl` on a [`Gpu`]: upload grid-space triangles, run the
+//! set-up, prefix-sum and voxelize passes, and read the bit grid back (or keep it for compaction).
+//!
+//! Grids larger than one storage binding are processed in z-slabs (each slab a whole number of word rows, so
+//! the bit layout is unchanged), and meshes with more triangles than one binding holds are processed in batches
+//! whose slabs are OR-ed together on the host. Both limits come from the adapter, and both can be lowered through
+//! [`Options`] to exercise the chunked paths on small inputs.
+
+use super::compact::{CompactVoxels, Compactor};
+use super::readback::{PassTimer, read_buffer};
+use super::{Gpu, GpuError, dispatch_2d, mib};
+use crate::voxel::{GridSpec, VoxelGrid};
+use glam::Vec3;
+
+/// The WGSL source, shared with the shader validation test.
+pub const VOXELIZE_WGSL: &str = include_str!("../../shaders/voxelize.wgsl");
+
+/// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
+pub const SETUP_BYTES: u64 = 208;
+/// Bytes of one grid-space triangle as uploaded (nine f32).
+const TRIANGLE_BYTES: u64 = 36;
+const WG: u32 = 64;
+const SCAN_WG: u32 = 256;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    dims: [u32; 3],
+    tri_count: u32,
+    words_per_row: u32,
+    slab_z0: u32,
+    slab_z1: u32,
+    block_count: u32,
+}
+
+/// What to do besides voxelizing.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Read the bit grid back into host memory.
+    pub read_grid: bool,
+    /// Compact the set voxels into a coordinate list on the GPU.
+    pub compact: bool,
+    /// Upper bound on a slab's size in bytes (default: the adapter's binding limit).
+    pub max_slab_bytes: Option<u64>,
+    /// Upper bound on triangles per batch (default: what fits one binding).
+    pub max_batch_triangles: Option<usize>,
+}
+
+/// What a GPU voxelization produced.
+pub struct GpuOutput {
+    pub grid: Option<VoxelGrid>,
+    pub points: Option<CompactVoxels>,
+    /// Summed compute time of all passes from timestamp queries, when the adapter has them.
+    pub gpu_ms: Option<f64>,
+    pub slabs: u32,
+    pub batches: u32,
+}
+
+/// Compiled pipelines, reusable for any number of voxelizations on one device.
+pub struct GpuVoxelizer {
+    layout: wgpu::BindGroupLayout,
+    dispatch_layout: wgpu::BindGroupLayout,
+    setup: wgpu::ComputePipeline,
+    scan_blocks: wgpu::ComputePipeline,
+    scan_block_sums: wgpu::ComputePipeline,
+    add_block_offsets: wgpu::ComputePipeline,
+    voxelize: wgpu::ComputePipeline,
+    compactor: Compactor,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+pub(crate) fn pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(entry),
+        bind_group_layouts: layouts,
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(&layout),
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        // Zero-sized bindings are invalid; four bytes stand in for an empty array.
+        size: size.max(4).next_multiple_of(4),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+        mapped_at_creation: false,
+    })
+}
+
+/// Runs `f` inside out-of-memory and validation error scopes and turns what they caught into errors, so a
+/// failed allocation or dispatch is reported instead of aborting the process.
+pub(crate) fn scoped<T>(device: &wgpu::Device, f: impl FnOnce() -> Result<T, GpuError>) -> Result<T, GpuError> {
+    let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let result = f();
+    let v = pollster::block_on(validation.pop());
+    let o = pollster::block_on(oom.pop());
+    if let Some(e) = o {
+        return Err(GpuError::OutOfMemory(e.to_string()));
+    }
+    if let Some(e) = v {
+        return Err(GpuError::Device(e.to_string()));
+    }
+    result
+}
+
+impl GpuVoxelizer {
+    pub fn new(gpu: &Gpu) -> GpuVoxelizer {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("voxelize.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(VOXELIZE_WGSL.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("voxelize"),
+            entries: &[
+                uniform_entry(0),
+                storage_entry(1, true),
+                storage_entry(2, false),
+                storage_entry(3, false),
+                storage_entry(4, false),
+                storage_entry(5, false),
+            ],
+        });
+        let dispatch_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("voxelize dispatch"),
+            entries: &[storage_entry(0, false)],
+        });
+        let one = [Some(&layout)];
+        let two = [Some(&layout), Some(&dispatch_layout)];
+        GpuVoxelizer {
+            setup: pipeline(device, &module, &one, "setup"),
+            scan_blocks: pipeline(device, &module, &one, "scan_blocks"),
+            scan_block_sums: pipeline(device, &module, &two, "scan_block_sums"),
+            add_block_offsets: pipeline(device, &module, &one, "add_block_offsets"),
+            voxelize: pipeline(device, &module, &one, "voxelize"),
+            compactor: Compactor::new(gpu),
+            layout,
+            dispatch_layout,
+        }
+    }
+
+    /// Voxelizes grid-space triangles (see [`crate::voxel::cpu::grid_space_triangles`]) into `spec`'s grid.
+    pub fn voxelize(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        options: &Options,
+    ) -> Result<GpuOutput, GpuError> {
+        let device = &gpu.device;
+        let limit = gpu.max_binding_bytes();
+        let wpr = spec.words_per_row() as u64;
+        let layer_bytes = wpr * 4 * spec.dims.y as u64;
+        if layer_bytes > limit {
+            return Err(GpuError::TooLarge {
+                what: format!("one z-layer of the {}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z),
+                needed_mib: mib(layer_bytes),
+                limit_mib: mib(limit),
+            });
+        }
+        let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit);
+        let slab_layers = ((slab_limit / layer_bytes) as u32).clamp(1, spec.dims.z);
+        let slabs = spec.dims.z.div_ceil(slab_layers);
+        let slab_bytes = slab_layers as u64 * layer_bytes;
+
+        let fit = (limit / SETUP_BYTES).min(limit / TRIANGLE_BYTES) as usize;
+        let batch = options.max_batch_triangles.unwrap_or(fit).min(fit).max(1).min(triangles.len().max(1));
+        let batches = triangles.len().div_ceil(batch).max(1);
+
+        let mut grid = if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None };
+        // Collected after every slab: at most set-up, voxelize and two compaction passes in between.
+        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 4));
+        let mut gpu_ms = 0.0;
+        let mut points: Vec<CompactVoxels> = Vec::new();
+
+        let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
+        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch) = scoped(device, || {
+            Ok((
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("voxelize params"),
+                    size: std::mem::size_of::<Params>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                storage_buffer(device, "triangles", batch as u64 * TRIANGLE_BYTES, wgpu::BufferUsages::empty()),
+                storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, wgpu::BufferUsages::empty()),
+                storage_buffer(device, "offsets", batch as u64 * 4, wgpu::BufferUsages::empty()),
+                storage_buffer(device, "block sums", (blocks_max + 1) * 4, wgpu::BufferUsages::empty()),
+                storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
+                storage_buffer(device, "dispatch", 16, wgpu::BufferUsages::INDIRECT),
+            ))
+        })?;
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxelize"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: tris_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: setups.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: offsets.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: block_sums.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: slab.as_entire_binding() },
+            ],
+        });
+        let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxelize dispatch"),
+            layout: &self.dispatch_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: dispatch.as_entire_binding() }],
+        });
+
+        for (b, chunk) in triangles.chunks(batch.max(1)).enumerate() {
+            let tri_count = chunk.len() as u32;
+            let block_count = tri_count.div_ceil(SCAN_WG);
+            let flat: &[f32] = bytemuck::cast_slice(chunk);
+            scoped(device, || {
+                gpu.queue.write_buffer(&tris_buf, 0, bytemuck::cast_slice(flat));
+                let p = Params {
+                    dims: spec.dims.to_array(),
+                    tri_count,
+                    words_per_row: wpr as u32,
+                    slab_z0: 0,
+                    slab_z1: 0,
+                    block_count,
+                };
+                gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
+                let mut encoder = device.create_command_encoder(&Default::default());
+                {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("setup + scan"),
+                        timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                    });
+                    pass.set_bind_group(0, &bind, &[]);
+                    pass.set_bind_group(1, &bind_dispatch, &[]);
+                    let (x, y) = dispatch_2d(tri_count.div_ceil(WG));
+                    pass.set_pipeline(&self.setup);
+                    pass.dispatch_workgroups(x, y, 1);
+                    pass.set_pipeline(&self.scan_blocks);
+                    pass.dispatch_workgroups(block_count.max(1), 1, 1);
+                    pass.set_pipeline(&self.scan_block_sums);
+                    pass.dispatch_workgroups(1, 1, 1);
+                    pass.set_pipeline(&self.add_block_offsets);
+                    pass.dispatch_workgroups(block_count.max(1), 1, 1);
+                }
+                gpu.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
+
+            for s in 0..slabs {
+                let z0 = s * slab_layers;
+                let z1 = (z0 + slab_layers).min(spec.dims.z);
+                let p = Params {
+                    dims: spec.dims.to_array(),
+                    tri_count,
+                    words_per_row: wpr as u32,
+                    slab_z0: z0,
+                    slab_z1: z1,
+                    block_count,
+                };
+                let words = wpr * spec.dims.y as u64 * (z1 - z0) as u64;
+                scoped(device, || {
+                    gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    encoder.clear_buffer(&slab, 0, None);
+                    {
+                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("voxelize"),
+                            timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                        });
+                        pass.set_bind_group(0, &bind, &[]);
+                        pass.set_pipeline(&self.voxelize);
+                        pass.dispatch_workgroups_indirect(&dispatch, 0);
+                    }
+                    gpu.queue.submit([encoder.finish()]);
+                    Ok(())
+                })?;
+                // Compaction only makes sense on the finished grid, so it waits for the last batch.
+                if options.compact && b + 1 == batches {
+                    if batches > 1 {
+                        // Earlier batches live in the host grid; put the merged slab back before compacting.
+                        let host = grid.as_ref().ok_or_else(|| {
+                            GpuError::Device("compaction over several triangle batches needs read_grid".into())
+                        })?;
+                        let start = wpr as usize * spec.dims.y as usize * z0 as usize;
+                        let mine = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;
+                        let merged: Vec<u32> = bytemuck::cast_slice::<u8, u32>(&mine)
+                            .iter()
+                            .zip(&host.words[start..start + words as usize])
+                            .map(|(a, b)| a | b)
+                            .collect();
+                        gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
+                    }
+                    points.push(self.compactor.compact(gpu, &slab, spec, z0, words, timer.as_mut())?);
+                }
+                if let Some(host) = grid.as_mut() {
+                    let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;
+                    let start = wpr as usize * spec.dims.y as usize * z0 as usize;
+                    let dst = &mut host.words[start..start + words as usize];
+                    for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
+                        *d |= *s;
+                    }
+                }
+                if let Some(t) = timer.as_mut() {
+                    gpu_ms += t.collect(device, &gpu.queue)?;
+                }
+            }
+        }
+        if grid.is_none() {
+            // Nothing was read back: wait for the work so timings and errors are complete.
+            device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+        }
+        let points = match points.len() {
+            0 => None,
+            1 => points.pop(),
+            _ => Some(self.compactor.concat(gpu, points)?),
+        };
+        Ok(GpuOutput { grid, points, gpu_ms: gpu.timestamps.then_some(gpu_ms), slabs, batches: batches as u32 })
+    }
+}

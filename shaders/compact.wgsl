@@ -1,0 +1,75 @@
+// Stream compaction of a voxel bit grid (one z-slab of it) into a list of set-voxel coordinates, for instanced
+// drawing and sparse output. Two passes over the words: `count_voxels` totals the set bits, then, with the
+// output sized by the host, `write_voxels` reserves a run per word with an atomic cursor and writes each set
+// voxel as two u32: x | (y << 16) and z. The order of the list is unspecified.
+
+struct CompactParams {
+    dims: vec3<u32>,
+    words_per_row: u32,
+    slab_z0: u32,
+    word_count: u32,
+    // Index in `points` (in voxels) where this slab's voxels start.
+    base: u32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: CompactParams;
+@group(0) @binding(1) var<storage, read> grid: array<u32>;
+// [0]: voxels counted by count_voxels; [1]: the write cursor of write_voxels.
+@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>, 2>;
+@group(0) @binding(3) var<storage, read_write> points: array<u32>;
+
+var<workgroup> group_count: atomic<u32>;
+
+fn word_index(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return (wid.y * groups.x + wid.x) * 256u + lid.x;
+}
+
+@compute @workgroup_size(256)
+fn count_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = word_index(wid, lid, groups);
+    if lid.x == 0u {
+        atomicStore(&group_count, 0u);
+    }
+    workgroupBarrier();
+    if i < params.word_count {
+        let bits = countOneBits(grid[i]);
+        if bits != 0u {
+            atomicAdd(&group_count, bits);
+        }
+    }
+    workgroupBarrier();
+    // One global atomic per workgroup instead of one per word.
+    if lid.x == 0u {
+        let total = atomicLoad(&group_count);
+        if total != 0u {
+            atomicAdd(&counters[0], total);
+        }
+    }
+}
+
+@compute @workgroup_size(256)
+fn write_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = word_index(wid, lid, groups);
+    if i >= params.word_count {
+        return;
+    }
+    var bits = grid[i];
+    if bits == 0u {
+        return;
+    }
+    var at = params.base + atomicAdd(&counters[1], countOneBits(bits));
+    let row = i / params.words_per_row;
+    let y = row % params.dims.y;
+    let z = row / params.dims.y + params.slab_z0;
+    let x0 = (i % params.words_per_row) * 32u;
+    while bits != 0u {
+        let b = firstTrailingBit(bits);
+        points[2u * at] = (x0 + b) | (y << 16u);
+        points[2u * at + 1u] = z;
+        at += 1u;
+        bits &= bits - 1u;
+    }
+}

@@ -1,0 +1,215 @@
+//! The WGSL voxelizer on a real WebGPU adapter (lavapipe in CI) against the CPU reference: hard cases, random
+//! lattice meshes, every shared mesh at several resolutions and axes, grids past the adapter's binding limit
+//! (processed in z-slabs), batched triangles, and the GPU compaction's voxel list.
+//!
+//! Where all arithmetic is exact (the hard cases and lattice meshes) the grids must be bit-identical. On real
+//! meshes a GPU compiler may evaluate float expressions in another order than written (lavapipe lowers `fma` to
+//! a separate multiply and add, and NIR reassociates inexact float math), so a voxel whose test value is a
+//! rounding tie may come out either way; every difference must be such a tie, and there may be only a few.
+
+mod common;
+
+use common::{Rng, assert_same_grid, assert_same_up_to_ties, hard_cases, lattice_mesh, shared_meshes};
+use glam::{DVec3, UVec3, Vec3};
+use meshvox::gpu::Gpu;
+use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
+use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use std::sync::OnceLock;
+
+/// One device for the whole test binary. Without an adapter the tests are skipped loudly, except under
+/// `CI=true` where `.ci/run` installs lavapipe and a missing adapter is a failure.
+fn gpu() -> Option<&'static (Gpu, GpuVoxelizer)> {
+    static GPU: OnceLock<Option<(Gpu, GpuVoxelizer)>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new_blocking() {
+        Ok(gpu) => {
+            eprintln!("GPU tests on {}", gpu.summary);
+            let v = GpuVoxelizer::new(&gpu);
+            Some((gpu, v))
+        }
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
+        Err(e) => {
+            eprintln!("\n*** SKIPPED GPU tests: {e} ***\n");
+            None
+        }
+    })
+    .as_ref()
+}
+
+fn spec(dims: UVec3) -> GridSpec {
+    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
+}
+
+fn gpu_grid(tris: &[[Vec3; 3]], spec: GridSpec, options: Options) -> VoxelGrid {
+    let (gpu, v) = gpu().expect("checked by caller");
+    let out = v.voxelize(gpu, tris, spec, &Options { read_grid: true, ..options }).unwrap_or_else(|e| panic!("{e}"));
+    out.grid.expect("grid was requested")
+}
+
+fn cpu_grid(tris: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
+    cpu::voxelize_grid_space(tris, spec, &|_, _| {}).expect("cpu")
+}
+
+#[test]
+fn hard_cases_match_the_cpu_reference() {
+    if gpu().is_none() {
+        return;
+    }
+    for (name, tris, dims) in hard_cases() {
+        let s = spec(dims);
+        assert_same_grid(&gpu_grid(&tris, s, Options::default()), &cpu_grid(&tris, s), name);
+    }
+}
+
+#[test]
+fn random_lattice_meshes_match_the_cpu_reference() {
+    if gpu().is_none() {
+        return;
+    }
+    let mut rng = Rng::new(0x6e0_0001);
+    for round in 0..6 {
+        let dims = [UVec3::new(16, 16, 16), UVec3::new(40, 12, 10), UVec3::new(9, 17, 13)][round % 3];
+        let tris = lattice_mesh(&mut rng, 60, dims.min_element() as f64);
+        let s = spec(dims);
+        assert_same_grid(&gpu_grid(&tris, s, Options::default()), &cpu_grid(&tris, s), &format!("round {round}"));
+    }
+}
+
+fn compare_mesh(mesh_spec: &str, resolution: u32, axis: Axis) {
+    let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
+    let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(resolution), axis).expect("grid");
+    let tris = cpu::grid_space_triangles(&mesh, &s);
+    let g = gpu_grid(&tris, s, Options::default());
+    let what = format!("{mesh_spec} at {resolution} along {axis:?}");
+    let ties = assert_same_up_to_ties(&g, &cpu_grid(&tris, s), &tris, &what);
+    if ties > 0 {
+        eprintln!("{what}: {ties} rounding-tie voxels differ");
+    }
+    assert!(g.count() > 0);
+}
+
+#[test]
+fn every_mesh_at_several_resolutions_matches_the_cpu_reference() {
+    if gpu().is_none() {
+        return;
+    }
+    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES.iter().map(|n| format!("builtin:{n}")).collect();
+    if let Some(dir) = shared_meshes() {
+        for rel in [
+            "stanford-bunny.obj",
+            "suzanne.obj",
+            "teapot.obj",
+            "spot.obj",
+            "gltf/Box.gltf",
+            "gltf/BoxTextured.gltf",
+            "gltf/Duck.gltf",
+            "gltf/Duck.glb",
+            "gltf/box01.glb",
+            "gltf/spot-textured.glb",
+            "gltf/torus-vertex-colours.gltf",
+            "gltf/cube-external/Cube.gltf",
+        ] {
+            specs.push(dir.join(rel).to_string_lossy().into_owned());
+        }
+    }
+    let axes = [Axis::Longest, Axis::X, Axis::Y, Axis::Z];
+    for (i, m) in specs.iter().enumerate() {
+        for (j, r) in [16, 64, 200, 256].into_iter().enumerate() {
+            compare_mesh(m, r, axes[(i + j) % 4]);
+        }
+    }
+}
+
+#[test]
+fn grid_past_the_binding_limit_is_processed_in_slabs() {
+    let Some((gpu, v)) = gpu() else { return };
+    // A slanted plane through a 2048 x 2048 x 300 grid: 150 MiB of bits, more than lavapipe's 128 MiB binding.
+    let dims = UVec3::new(2048, 2048, 300);
+    let s = spec(dims);
+    assert!(s.byte_size() > 128 << 20);
+    let v3 = Vec3::new;
+    let tris = vec![
+        [v3(0.0, 0.0, 0.5), v3(2048.0, 0.0, 150.0), v3(0.0, 2048.0, 299.5)],
+        [v3(2048.0, 0.0, 150.0), v3(2048.0, 2048.0, 299.0), v3(0.0, 2048.0, 299.5)],
+    ];
+    let out =
+        v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..Default::default() }).expect("gpu");
+    if s.byte_size() > gpu.max_binding_bytes() {
+        assert!(out.slabs > 1, "a grid over the binding limit must be split, got {} slab", out.slabs);
+    }
+    let g = out.grid.expect("grid");
+    assert_same_grid(&g, &cpu_grid(&tris, s), "2048x2048x300 plane");
+    let points = out.points.expect("points").read(gpu).expect("read points");
+    assert_eq!(points.len() as u64, g.count());
+}
+
+/// A ribbon twisting twice around the z axis, 1 long and 0.02 wide: with -r 2048 along z, a long thin grid.
+fn ribbon() -> meshvox::mesh::Mesh {
+    let mut tris = Vec::new();
+    let at = |t: f32, side: f32| {
+        let a = t * std::f32::consts::TAU * 2.0;
+        Vec3::new(0.01 * a.cos() * side, 0.01 * a.sin() * side, t)
+    };
+    let n = 400;
+    for i in 0..n {
+        let (t0, t1) = (i as f32 / n as f32, (i + 1) as f32 / n as f32);
+        tris.push([at(t0, -1.0), at(t0, 1.0), at(t1, 1.0)]);
+        tris.push([at(t0, -1.0), at(t1, 1.0), at(t1, -1.0)]);
+    }
+    meshvox::mesh::Mesh {
+        name: "ribbon".into(),
+        triangle_part: vec![0; tris.len()],
+        triangles: tris,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn forced_slabs_and_batches_give_the_same_grid() {
+    if gpu().is_none() {
+        return;
+    }
+    // The slab and batch limits are lowered so small grids take the chunked paths of large ones.
+    let knot = meshvox::mesh::load("builtin:knot").expect("knot");
+    for (mesh, axis, r) in [(ribbon(), Axis::Z, 2048), (knot, Axis::X, 300)] {
+        let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), axis).expect("grid");
+        let tris = cpu::grid_space_triangles(&mesh, &s);
+        let reference = cpu_grid(&tris, s);
+        let layer = s.words_per_row() as u64 * 4 * s.dims.y as u64;
+        let options =
+            Options { max_slab_bytes: Some(layer * 37), max_batch_triangles: Some(300), ..Default::default() };
+        let (gpu, v) = gpu().expect("gpu");
+        let out = v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..options }).expect("gpu");
+        assert!(out.slabs > 1 && out.batches > 1, "slabs {} batches {}", out.slabs, out.batches);
+        let g = out.grid.expect("grid");
+        assert_same_up_to_ties(&g, &reference, &tris, &format!("{} at {r} in slabs and batches", mesh.name));
+        let mut points: Vec<[u32; 3]> =
+            out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+        points.sort();
+        let mut expected: Vec<[u32; 3]> = g.iter_set().map(|p| p.to_array()).collect();
+        expected.sort();
+        assert_eq!(points, expected, "compacted list over slabs and batches");
+    }
+}
+
+#[test]
+fn compaction_lists_exactly_the_set_voxels() {
+    let Some((gpu, v)) = gpu() else { return };
+    for (name, r) in [("builtin:torus", 64), ("builtin:rotated-cube", 150), ("builtin:sphere", 1)] {
+        let mesh = meshvox::mesh::load(name).expect("mesh");
+        let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("grid");
+        let tris = cpu::grid_space_triangles(&mesh, &s);
+        let out =
+            v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..Default::default() }).expect("gpu");
+        let g = out.grid.expect("grid");
+        let list = out.points.expect("points");
+        assert_eq!(list.count as u64, g.count(), "{name}");
+        let mut points: Vec<[u32; 3]> = list.read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+        points.sort();
+        let mut expected: Vec<[u32; 3]> = g.iter_set().map(|p| p.to_array()).collect();
+        expected.sort();
+        assert_eq!(points, expected, "{name}");
+        if gpu.timestamps {
+            assert!(out.gpu_ms.is_some_and(|ms| ms > 0.0), "{name}: timestamps supported but no gpu_ms");
+        }
+    }
+}
