@@ -13,20 +13,79 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "meshvox", version, about = "GPU mesh voxelizer and voxel viewer", arg_required_else_help = true)]
+#[command(
+    name = "meshvox",
+    version,
+    about = "GPU mesh voxelizer and voxel viewer",
+    after_help = "Without a command, meshvox opens the viewer on builtin:rotated-cube."
+)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand)]
 enum Command {
+    /// Open the viewer window on a mesh (the default command).
+    View(ViewArgs),
     /// Voxelize a mesh and write the grid as .npy, .binvox or .vox (chosen by the output's extension).
     Voxelize(VoxelizeArgs),
     /// List the bundled meshes accepted as builtin:NAME.
     Builtins,
     /// Time voxelization on the CPU and GPU backends over a fixed set of meshes and resolutions.
     Bench(BenchArgs),
+    /// Voxelize a mesh and render the voxels to a PNG, without a window.
+    Render(RenderArgs),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Mesh file (.obj, .gltf, .glb) or builtin:NAME.
+    #[arg(value_name = "MESH")]
+    mesh: String,
+    /// Number of voxels along the axis chosen by --axis.
+    #[arg(short = 'r', long = "resolution", value_name = "N")]
+    resolution: u32,
+    /// Axis along which -r counts voxels.
+    #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
+    axis: AxisArg,
+    /// Output PNG file.
+    #[arg(short = 'o', long = "output", value_name = "PNG")]
+    output: PathBuf,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Camera angle around the vertical axis, degrees.
+    #[arg(long, default_value_t = 35.0, allow_negative_numbers = true)]
+    yaw: f32,
+    /// Camera angle above the horizon, degrees.
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
+    pitch: f32,
+    /// Overlay the source mesh, translucent.
+    #[arg(long)]
+    show_mesh: bool,
+    /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    backend: BackendArg,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().ok().filter(|n| (1..=8192).contains(n));
+    match (parse(w), parse(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(format!("'{s}': width and height must be 1 to 8192")),
+    }
+}
+
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// Mesh file (.obj, .gltf, .glb) or builtin:NAME.
+    #[arg(value_name = "MESH", default_value = "builtin:rotated-cube")]
+    mesh: String,
+    /// Initial resolution.
+    #[arg(short = 'r', long = "resolution", value_name = "N", default_value_t = meshvox::ui::DEFAULT_RESOLUTION)]
+    resolution: u32,
 }
 
 #[derive(clap::Args)]
@@ -100,9 +159,15 @@ impl From<AxisArg> for Axis {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Voxelize(args) => voxelize(&args),
-        Command::Bench(args) => bench(&args),
-        Command::Builtins => {
+        None => view(&ViewArgs {
+            mesh: format!("builtin:{}", builtin::DEFAULT),
+            resolution: meshvox::ui::DEFAULT_RESOLUTION,
+        }),
+        Some(Command::View(args)) => view(&args),
+        Some(Command::Voxelize(args)) => voxelize(&args),
+        Some(Command::Bench(args)) => bench(&args),
+        Some(Command::Render(args)) => render(&args),
+        Some(Command::Builtins) => {
             for name in builtin::NAMES {
                 println!("builtin:{name:<14} {}", builtin::describe(name));
             }
@@ -127,15 +192,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         anyhow!("{}: unknown output format (use a .npy, .binvox or .vox extension)", args.output.display())
     })?;
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
-    let dir = match args.output.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let temp = tempfile::Builder::new()
-        .prefix(".meshvox-")
-        .suffix(".partial")
-        .tempfile_in(&dir)
-        .with_context(|| format!("{}: cannot write here", args.output.display()))?;
+    let temp = temp_beside(&args.output)?;
 
     let t_load = Instant::now();
     let mesh = mesh::load(&args.mesh)?;
@@ -212,6 +269,19 @@ fn progress_bar(len: u64, message: &'static str) -> ProgressBar {
     }
     bar.set_message(message);
     bar
+}
+
+/// A temporary file in the directory of `output`, to be renamed onto it once complete.
+fn temp_beside(output: &Path) -> Result<tempfile::NamedTempFile> {
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    tempfile::Builder::new()
+        .prefix(".meshvox-")
+        .suffix(".partial")
+        .tempfile_in(&dir)
+        .with_context(|| format!("{}: cannot write here", output.display()))
 }
 
 /// Writes through `write` into `temp` and renames it to `path`; on any error the temporary file is removed.
@@ -372,4 +442,71 @@ fn bench(args: &BenchArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `meshvox render`: voxelize, compact, draw offscreen, write a PNG.
+fn render(args: &RenderArgs) -> Result<()> {
+    use meshvox::render::{Offscreen, OrbitCamera, Style, instances_from_grid};
+    if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        bail!("{}: the output must be a .png file", args.output.display());
+    }
+    let temp = temp_beside(&args.output)?;
+    let mesh = mesh::load(&args.mesh)?;
+    for w in &mesh.warnings {
+        eprintln!("warning: {w}");
+    }
+    let bounds = mesh.bounds().ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
+    let spec = GridSpec::fit(bounds, Resolution::Count(args.resolution), args.axis.into())
+        .with_context(|| args.mesh.clone())?;
+    let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
+    let t = Instant::now();
+    let (voxels, backend) = if args.backend == BackendArg::Cpu {
+        let grid = voxel::cpu::voxelize(&mesh, spec, &|_, _| {})?;
+        (instances_from_grid(&gpu.device, &grid), "cpu".to_string())
+    } else {
+        let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
+        let tris = voxel::cpu::grid_space_triangles(&mesh, &spec);
+        let options = meshvox::gpu::voxelize::Options { compact: true, ..Default::default() };
+        let out = v.voxelize(&gpu, &tris, spec, &options)?;
+        (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))
+    };
+    let voxelize_ms = ms(t);
+    let count = voxels.count;
+    let offscreen = Offscreen::new(&gpu);
+    let scene = offscreen.renderer.scene(&gpu.device, voxels, spec, Some(&mesh));
+    let (lo, hi) = scene.bounds();
+    let camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch);
+    let style = Style { show_mesh: args.show_mesh, ..Default::default() };
+    let (w, h) = args.size;
+    let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
+    write_atomically(temp, &args.output, |out| {
+        image.write_to(out, image::ImageFormat::Png).map_err(|e| anyhow!("{e}"))?;
+        Ok(())
+    })?;
+    eprintln!(
+        "{}: {count} voxels ({}x{}x{}) voxelized in {voxelize_ms:.1} ms on {backend}; wrote {} ({w}x{h})",
+        args.mesh,
+        spec.dims.x,
+        spec.dims.y,
+        spec.dims.z,
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// Opens the desktop viewer. Without a display it says so in one line and points to the headless commands.
+fn view(args: &ViewArgs) -> Result<()> {
+    const HEADLESS: &str = "use the headless commands instead: `meshvox voxelize` or `meshvox render`";
+    #[cfg(target_os = "linux")]
+    if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        bail!("no display (neither DISPLAY nor WAYLAND_DISPLAY is set); {HEADLESS}");
+    }
+    let mesh = args.mesh.clone();
+    let resolution = args.resolution;
+    eframe::run_native(
+        "meshvox",
+        meshvox::ui::native_options(),
+        Box::new(move |cc| Ok(Box::new(meshvox::ui::ViewerApp::new(cc, &mesh, resolution)?))),
+    )
+    .map_err(|e| anyhow!("cannot open the viewer window: {e}; {HEADLESS}"))
 }

@@ -1,3 +1,5 @@
 pub mod gpu;
 pub mod mesh;
+pub mod render;
+pub mod ui;
 pub mod voxel;

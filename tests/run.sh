@@ -1,14 +1,20 @@
 #!/usr/bin/env bash
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
-# GPU) and Python with numpy, trimesh and binvox (the independent readers the tests compare with), the latter
-# in a virtual environment under target/.
+# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted) and Python with numpy, trimesh and
+# binvox (the independent readers the tests compare with), the latter in a virtual environment under target/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if [ "$(id -u)" = 0 ] && ! ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1; then
-  apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mesa-vulkan-drivers >/dev/null
+# lavapipe for the GPU tests; Xvfb, ImageMagick and the X libraries winit loads for the desktop test.
+packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1"
+if [ "$(id -u)" = 0 ]; then
+  missing=$(for p in $packages; do dpkg -s "$p" >/dev/null 2>&1 || echo "$p"; done)
+  if [ -n "$missing" ]; then
+    apt-get update -qq
+    # shellcheck disable=SC2086
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $missing >/dev/null
+  fi
 fi
 # Mesa complains on every start without a runtime directory.
 if [ -z "${XDG_RUNTIME_DIR:-}" ]; then

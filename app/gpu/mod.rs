@@ -108,6 +108,11 @@ pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
     (x, groups.div_ceil(x))
 }
 
+/// Maps a MAP_READ buffer whose copy has been submitted and returns its bytes (blocks until the GPU is done).
+pub fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    readback::map_and_copy(device, buffer)
+}
+
 pub(crate) fn mib(bytes: u64) -> u64 {
     bytes.div_ceil(1 << 20)
 }

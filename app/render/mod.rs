@@ -1,0 +1,416 @@
+//! The voxel renderer: instanced cubes drawn from the compacted voxel list (`shaders/cubes.wgsl`), an optional
+//! translucent overlay of the source mesh, an orbit camera, and offscreen rendering to an image. It needs no
+//! window: the `render` command and the tests use it headless, the app inside egui's render pass.
+
+pub mod camera;
+
+use crate::gpu::compact::CompactVoxels;
+use crate::gpu::{Gpu, GpuError};
+use crate::mesh::Mesh;
+use crate::voxel::{GridSpec, VoxelGrid};
+pub use camera::OrbitCamera;
+use wgpu::util::DeviceExt;
+
+pub const CUBES_WGSL: &str = include_str!("../../shaders/cubes.wgsl");
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// How the scene looks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Style {
+    pub show_mesh: bool,
+    /// Darken the border of every cube face.
+    pub edges: bool,
+    /// Linear RGB of the cubes.
+    pub color: [f32; 3],
+    pub background: [f32; 3],
+}
+
+impl Default for Style {
+    fn default() -> Style {
+        Style { show_mesh: false, edges: true, color: [0.86, 0.36, 0.08], background: [0.018, 0.02, 0.026] }
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ViewUniform {
+    view_proj: [[f32; 4]; 4],
+    origin: [f32; 4],
+    color: [f32; 4],
+    mesh_color: [f32; 4],
+    options: [f32; 4],
+}
+
+/// GPU data of one voxelized mesh, ready to draw.
+pub struct Scene {
+    pub spec: GridSpec,
+    pub voxels: CompactVoxels,
+    mesh: Option<(wgpu::Buffer, u32)>,
+    uniform: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+impl Scene {
+    /// World-space bounds of the grid.
+    pub fn bounds(&self) -> (glam::Vec3, glam::Vec3) {
+        let min = self.spec.origin.as_vec3();
+        (min, min + (self.spec.dims.as_dvec3() * self.spec.voxel_size).as_vec3())
+    }
+}
+
+/// Uploads a host grid's set voxels in the compacted layout, for grids voxelized on the CPU.
+pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVoxels {
+    let packed: Vec<u32> = grid.iter_set().flat_map(|v| [v.x | (v.y << 16), v.z]).collect();
+    let count = (packed.len() / 2) as u32;
+    let contents: &[u8] = if packed.is_empty() { &[0; 8] } else { bytemuck::cast_slice(&packed) };
+    let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("voxel list"),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+    });
+    CompactVoxels { buffer, count }
+}
+
+/// Pipelines for one target format and sample count.
+pub struct CubeRenderer {
+    layout: wgpu::BindGroupLayout,
+    cubes: wgpu::RenderPipeline,
+    mesh: wgpu::RenderPipeline,
+    /// Whether the shader must apply the sRGB transfer function itself (non-sRGB targets such as egui's).
+    encode_srgb: bool,
+}
+
+impl CubeRenderer {
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, samples: u32) -> CubeRenderer {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("cubes.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(CUBES_WGSL.into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("cubes"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("cubes"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let multisample = wgpu::MultisampleState { count: samples, ..Default::default() };
+        let make = |label: &str,
+                    vs: &str,
+                    fs: &str,
+                    buffers: &[Option<wgpu::VertexBufferLayout>],
+                    blend,
+                    depth_write,
+                    compare,
+                    cull| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: cull,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample,
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState { format, blend, write_mask: wgpu::ColorWrites::ALL })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let mesh_layout = wgpu::VertexBufferLayout {
+            array_stride: 12,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+        };
+        CubeRenderer {
+            cubes: make(
+                "cubes",
+                "vs_cube",
+                "fs_cube",
+                &[],
+                None,
+                true,
+                wgpu::CompareFunction::LessEqual,
+                Some(wgpu::Face::Back),
+            ),
+            // The surface lies inside its conservative voxel shell, so the overlay ignores depth: a translucent
+            // ghost of the front faces over the voxels.
+            mesh: make(
+                "mesh overlay",
+                "vs_mesh",
+                "fs_mesh",
+                &[Some(mesh_layout)],
+                Some(wgpu::BlendState::ALPHA_BLENDING),
+                false,
+                wgpu::CompareFunction::Always,
+                Some(wgpu::Face::Back),
+            ),
+            layout,
+            encode_srgb: !format.is_srgb(),
+        }
+    }
+
+    /// Builds the drawable scene for a voxel list in grid `spec`, with the source mesh for the overlay.
+    pub fn scene(&self, device: &wgpu::Device, voxels: CompactVoxels, spec: GridSpec, mesh: Option<&Mesh>) -> Scene {
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("view"),
+            size: std::mem::size_of::<ViewUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cubes"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() },
+            ],
+        });
+        let mesh = mesh.filter(|m| !m.triangles.is_empty()).map(|m| {
+            let flat: &[f32] = bytemuck::cast_slice(&m.triangles);
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mesh overlay"),
+                contents: bytemuck::cast_slice(flat),
+                usage: wgpu::BufferUsages::VERTEX,
+            });
+            (buffer, m.triangles.len() as u32 * 3)
+        });
+        Scene { spec, voxels, mesh, uniform, bind_group }
+    }
+
+    /// Writes the camera and style for the next draw.
+    pub fn update(&self, queue: &wgpu::Queue, scene: &Scene, camera: &OrbitCamera, aspect: f32, style: &Style) {
+        let o = scene.spec.origin.as_vec3();
+        let u = ViewUniform {
+            view_proj: camera.view_proj(aspect).to_cols_array_2d(),
+            origin: [o.x, o.y, o.z, scene.spec.voxel_size as f32],
+            color: [style.color[0], style.color[1], style.color[2], 1.0],
+            mesh_color: [0.3, 0.65, 1.0, 0.25],
+            options: [if self.encode_srgb { 1.0 } else { 0.0 }, if style.edges { 0.45 } else { 0.0 }, 0.0, 0.0],
+        };
+        queue.write_buffer(&scene.uniform, 0, bytemuck::bytes_of(&u));
+    }
+
+    /// Records the draws into a render pass whose depth attachment is [`DEPTH_FORMAT`].
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>, scene: &Scene, style: &Style) {
+        pass.set_bind_group(0, &scene.bind_group, &[]);
+        if scene.voxels.count > 0 {
+            pass.set_pipeline(&self.cubes);
+            pass.draw(0..36, 0..scene.voxels.count);
+        }
+        if let (true, Some((buffer, vertices))) = (style.show_mesh, &scene.mesh) {
+            pass.set_pipeline(&self.mesh);
+            pass.set_vertex_buffer(0, buffer.slice(..));
+            pass.draw(0..*vertices, 0..1);
+        }
+    }
+}
+
+/// Format of offscreen targets: sRGB, so the hardware encodes and egui can show it as a texture.
+pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Multisampling of offscreen targets.
+pub const TARGET_SAMPLES: u32 = 4;
+
+/// An offscreen colour target with its own depth buffer, drawn at 4x MSAA and resolved into a texture that can
+/// be read back (the `render` command, tests) or shown by egui (the app).
+pub struct RenderTarget {
+    pub width: u32,
+    pub height: u32,
+    msaa: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    resolved: wgpu::Texture,
+    resolved_view: wgpu::TextureView,
+    gamma_view: wgpu::TextureView,
+}
+
+impl RenderTarget {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> RenderTarget {
+        let size = wgpu::Extent3d { width: width.max(1), height: height.max(1), depth_or_array_layers: 1 };
+        // The resolved texture can also be viewed as plain Rgba8Unorm: egui composites in gamma space and wants
+        // the encoded bytes as they are, not decoded to linear by an sRGB view.
+        let texture = |label: &str, format, samples, usage, view_formats: &[wgpu::TextureFormat]| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats,
+            })
+        };
+        let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let resolved = texture(
+            "voxel view",
+            TARGET_FORMAT,
+            1,
+            attach | wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::TEXTURE_BINDING,
+            &[wgpu::TextureFormat::Rgba8Unorm],
+        );
+        RenderTarget {
+            width: size.width,
+            height: size.height,
+            msaa: texture("voxel view msaa", TARGET_FORMAT, TARGET_SAMPLES, attach, &[])
+                .create_view(&Default::default()),
+            depth: texture("voxel view depth", DEPTH_FORMAT, TARGET_SAMPLES, attach, &[])
+                .create_view(&Default::default()),
+            resolved_view: resolved.create_view(&Default::default()),
+            gamma_view: resolved.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(wgpu::TextureFormat::Rgba8Unorm),
+                ..Default::default()
+            }),
+            resolved,
+        }
+    }
+
+    /// The resolved image viewed as non-sRGB Rgba8Unorm: sampling yields the sRGB-encoded values, as egui's
+    /// gamma-space compositing expects of its textures.
+    pub fn gamma_view(&self) -> &wgpu::TextureView {
+        &self.gamma_view
+    }
+
+    /// Clears to the background and draws `scene` (if any) from `camera`.
+    pub fn draw(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        renderer: &CubeRenderer,
+        scene: Option<&Scene>,
+        camera: &OrbitCamera,
+        style: &Style,
+    ) {
+        if let Some(scene) = scene {
+            renderer.update(queue, scene, camera, self.width as f32 / self.height as f32, style);
+        }
+        let bg = style.background;
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("voxels"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.msaa,
+                    depth_slice: None,
+                    resolve_target: Some(&self.resolved_view),
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: bg[0] as f64,
+                            g: bg[1] as f64,
+                            b: bg[2] as f64,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some(scene) = scene {
+                renderer.draw(&mut pass, scene, style);
+            }
+        }
+        queue.submit([encoder.finish()]);
+    }
+
+    /// Reads the resolved image back (rows are padded to 256 bytes in the copy).
+    pub fn read(&self, gpu: &Gpu) -> Result<image::RgbaImage, GpuError> {
+        let (width, height) = (self.width, self.height);
+        let row = width * 4;
+        let padded = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image readback"),
+            size: padded as u64 * height as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            self.resolved.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &readback,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: None },
+            },
+            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        );
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = crate::gpu::map_read(&gpu.device, &readback)?;
+        let mut pixels = Vec::with_capacity((row * height) as usize);
+        for r in 0..height as usize {
+            pixels.extend_from_slice(&bytes[r * padded as usize..][..row as usize]);
+        }
+        image::RgbaImage::from_raw(width, height, pixels).ok_or_else(|| GpuError::Device("image size mismatch".into()))
+    }
+}
+
+/// Headless rendering to an image.
+pub struct Offscreen {
+    pub renderer: CubeRenderer,
+}
+
+impl Offscreen {
+    pub fn new(gpu: &Gpu) -> Offscreen {
+        Offscreen { renderer: CubeRenderer::new(&gpu.device, TARGET_FORMAT, TARGET_SAMPLES) }
+    }
+
+    /// Renders `scene` from `camera` into a `width` × `height` RGBA image.
+    pub fn render(
+        &self,
+        gpu: &Gpu,
+        scene: &Scene,
+        camera: &OrbitCamera,
+        style: &Style,
+        width: u32,
+        height: u32,
+    ) -> Result<image::RgbaImage, GpuError> {
+        let target = RenderTarget::new(&gpu.device, width, height);
+        target.draw(&gpu.device, &gpu.queue, &self.renderer, Some(scene), camera, style);
+        target.read(gpu)
+    }
+}

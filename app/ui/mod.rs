@@ -1,0 +1,445 @@
+//! The viewer app (eframe with egui's wgpu renderer): a side panel to pick a mesh (bundled, opened or dropped),
+//! the resolution and axis, overlay and export options, with stats; and a viewport that draws the voxels with the
+//! [`crate::render`] pipelines into an offscreen target (own depth buffer, 4x MSAA) shown as an egui texture,
+//! with orbit, pan and zoom. Voxelization runs on the GPU device eframe created, so the voxel list never leaves
+//! it for drawing. Drawing offscreen keeps the app independent of the window's depth buffer, so the same code
+//! runs in the desktop window, in the web page and in egui_kittest's headless harness.
+
+use crate::gpu::voxelize::{GpuVoxelizer, Options};
+use crate::gpu::{AdapterSummary, Gpu};
+use crate::mesh::{self, Mesh, builtin};
+use crate::render::{CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
+#[cfg(not(target_arch = "wasm32"))]
+use crate::voxel::export;
+use crate::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use std::sync::Arc;
+use web_time::Instant;
+
+/// What the panel shows after a voxelization, and what the web page publishes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    pub mesh: String,
+    pub triangles: usize,
+    pub dims: [u32; 3],
+    pub voxels: u64,
+    pub resolution: u32,
+    pub gpu_ms: Option<f64>,
+    pub voxelize_ms: f64,
+}
+
+/// The offscreen view and the egui texture that shows it.
+struct View {
+    target: RenderTarget,
+    texture: egui::TextureId,
+    /// What was drawn last, to redraw only on change.
+    drawn: Option<(OrbitCamera, Style, u64)>,
+}
+
+pub struct ViewerApp {
+    gpu: Gpu,
+    voxelizer: GpuVoxelizer,
+    renderer: CubeRenderer,
+    scene: Option<Scene>,
+    /// Bumped for every new scene, so the view knows to redraw.
+    scene_version: u64,
+    view: Option<View>,
+    mesh_label: String,
+    mesh: Option<Arc<Mesh>>,
+    resolution: u32,
+    axis: Axis,
+    style: Style,
+    camera: OrbitCamera,
+    grid: Option<VoxelGrid>,
+    stats: Option<Stats>,
+    error: Option<String>,
+    needs_voxelize: bool,
+    needs_framing: bool,
+}
+
+/// Default resolution: detailed, and still live on a CPU-emulated GPU.
+pub const DEFAULT_RESOLUTION: u32 = 64;
+
+impl ViewerApp {
+    /// Creates the app on eframe's wgpu device, showing `mesh_spec` (a path or `builtin:NAME`).
+    pub fn new(cc: &eframe::CreationContext<'_>, mesh_spec: &str, resolution: u32) -> Result<ViewerApp, String> {
+        let rs = cc.wgpu_render_state.as_ref().ok_or("eframe was not started with the wgpu renderer")?;
+        let info = rs.adapter.get_info();
+        let gpu = Gpu {
+            adapter: rs.adapter.clone(),
+            device: rs.device.clone(),
+            queue: rs.queue.clone(),
+            summary: AdapterSummary {
+                name: info.name.clone(),
+                backend: format!("{:?}", info.backend),
+                device_type: format!("{:?}", info.device_type),
+                driver: info.driver.clone(),
+            },
+            timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+        };
+        // wgpu panics on errors nobody captured; a viewer should report them and keep running.
+        rs.device.on_uncaptured_error(std::sync::Arc::new(|e| log::error!("wgpu: {e}")));
+        let voxelizer = GpuVoxelizer::new(&gpu);
+        let renderer = CubeRenderer::new(&rs.device, TARGET_FORMAT, TARGET_SAMPLES);
+        let mut app = ViewerApp {
+            gpu,
+            voxelizer,
+            renderer,
+            scene: None,
+            scene_version: 0,
+            view: None,
+            mesh_label: String::new(),
+            mesh: None,
+            resolution,
+            axis: Axis::Longest,
+            style: Style::default(),
+            camera: OrbitCamera::framing(glam::Vec3::ZERO, glam::Vec3::ONE, 35.0, 25.0),
+            grid: None,
+            stats: None,
+            error: None,
+            needs_voxelize: false,
+            needs_framing: true,
+        };
+        app.set_mesh(mesh_spec.to_string(), mesh::load(mesh_spec));
+        Ok(app)
+    }
+
+    /// The stats of the last voxelization (for tests and the web page).
+    pub fn stats(&self) -> Option<&Stats> {
+        self.stats.as_ref()
+    }
+
+    /// The adapter the app voxelizes and draws on.
+    pub fn adapter(&self) -> &AdapterSummary {
+        &self.gpu.summary
+    }
+
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+
+    pub fn set_resolution(&mut self, resolution: u32) {
+        if resolution != self.resolution {
+            self.resolution = resolution;
+            self.needs_voxelize = true;
+        }
+    }
+
+    /// Shows a newly loaded mesh, or keeps the current one and shows the error.
+    pub fn set_mesh(&mut self, label: String, loaded: Result<Mesh, mesh::MeshError>) {
+        match loaded {
+            Ok(m) => {
+                self.mesh_label = label;
+                self.mesh = Some(Arc::new(m));
+                self.error = None;
+                self.needs_voxelize = true;
+                self.needs_framing = true;
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
+    }
+
+    fn voxelize(&mut self) {
+        self.needs_voxelize = false;
+        let Some(mesh) = self.mesh.clone() else { return };
+        let started = Instant::now();
+        let result = (|| -> Result<(Scene, VoxelGrid, Option<f64>), String> {
+            let bounds = mesh.bounds().ok_or("the mesh has no triangles")?;
+            let spec =
+                GridSpec::fit(bounds, Resolution::Count(self.resolution), self.axis).map_err(|e| e.to_string())?;
+            let tris = cpu::grid_space_triangles(&mesh, &spec);
+            let options = Options { read_grid: true, compact: true, ..Default::default() };
+            let out = self.voxelizer.voxelize(&self.gpu, &tris, spec, &options).map_err(|e| e.to_string())?;
+            let (Some(points), Some(grid)) = (out.points, out.grid) else { return Err("no voxels came back".into()) };
+            Ok((self.renderer.scene(&self.gpu.device, points, spec, Some(&mesh)), grid, out.gpu_ms))
+        })();
+        match result {
+            Ok((scene, grid, gpu_ms)) => {
+                let d = grid.spec.dims;
+                self.stats = Some(Stats {
+                    mesh: self.mesh_label.strip_prefix("builtin:").unwrap_or(&self.mesh_label).to_string(),
+                    triangles: mesh.triangles.len(),
+                    dims: [d.x, d.y, d.z],
+                    voxels: grid.count(),
+                    resolution: self.resolution,
+                    gpu_ms,
+                    voxelize_ms: started.elapsed().as_secs_f64() * 1e3,
+                });
+                if self.needs_framing {
+                    let (lo, hi) = scene.bounds();
+                    self.camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
+                    self.needs_framing = false;
+                }
+                self.scene = Some(scene);
+                self.scene_version += 1;
+                self.grid = Some(grid);
+                self.error = None;
+            }
+            Err(e) => self.error = Some(e),
+        }
+    }
+
+    fn panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("meshvox");
+        ui.label(egui::RichText::new("GPU mesh voxelizer").weak());
+        ui.separator();
+
+        let mesh_label = ui.label("Mesh");
+        let mut picked = None;
+        egui::ComboBox::from_id_salt("mesh")
+            .selected_text(self.mesh_label.rsplit('/').next().unwrap_or(&self.mesh_label).to_string())
+            .width(200.0)
+            .show_ui(ui, |ui| {
+                for name in builtin::NAMES {
+                    let spec = format!("builtin:{name}");
+                    if ui
+                        .selectable_label(self.mesh_label == spec, spec.as_str())
+                        .on_hover_text(builtin::describe(name))
+                        .clicked()
+                    {
+                        picked = Some(spec);
+                    }
+                }
+            })
+            .response
+            .labelled_by(mesh_label.id);
+        if let Some(spec) = picked {
+            let loaded = mesh::load(&spec);
+            self.set_mesh(spec, loaded);
+        }
+        #[cfg(not(target_arch = "wasm32"))]
+        if ui.button("Open…").on_hover_text("OBJ, glTF or GLB; or drop a file on the window").clicked()
+            && let Some(path) = rfd::FileDialog::new().add_filter("meshes", &["obj", "gltf", "glb"]).pick_file()
+        {
+            let loaded = mesh::load_path(&path);
+            self.set_mesh(path.display().to_string(), loaded);
+        }
+        ui.label(egui::RichText::new("Drop an .obj, .gltf or .glb file anywhere.").small().weak());
+        ui.separator();
+
+        ui.label("Resolution (voxels along the axis)");
+        let mut r = self.resolution;
+        if ui.add(egui::Slider::new(&mut r, 4..=512).logarithmic(true).text("N")).changed() {
+            self.set_resolution(r);
+        }
+        ui.horizontal(|ui| {
+            ui.label("Axis");
+            for (axis, label) in [(Axis::Longest, "longest"), (Axis::X, "x"), (Axis::Y, "y"), (Axis::Z, "z")] {
+                if ui.radio_value(&mut self.axis, axis, label).changed() {
+                    self.needs_voxelize = true;
+                }
+            }
+        });
+        ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
+        ui.checkbox(&mut self.style.edges, "Darken cube edges");
+        if ui.button("Reset view").clicked() {
+            self.needs_framing = true;
+            self.needs_voxelize = true;
+        }
+        ui.separator();
+
+        if let Some(s) = &self.stats {
+            egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
+                ui.label("triangles");
+                ui.label(s.triangles.to_string());
+                ui.end_row();
+                ui.label("grid");
+                ui.label(format!("{}×{}×{}", s.dims[0], s.dims[1], s.dims[2]));
+                ui.end_row();
+                ui.label("voxels");
+                ui.label(s.voxels.to_string());
+                ui.end_row();
+                ui.label("backend");
+                ui.label(&self.gpu.summary.backend);
+                ui.end_row();
+                ui.label("GPU ms");
+                ui.label(s.gpu_ms.map_or("n/a".to_string(), |ms| format!("{ms:.2}")));
+                ui.end_row();
+                ui.label("total ms");
+                ui.label(format!("{:.1}", s.voxelize_ms));
+                ui.end_row();
+            });
+            ui.add(egui::Label::new(egui::RichText::new(format!("adapter: {}", self.gpu.summary.name)).small()).wrap());
+        }
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            ui.separator();
+            ui.horizontal(|ui| {
+                ui.label("Export");
+                for format in [export::VoxelFormat::Binvox, export::VoxelFormat::Vox, export::VoxelFormat::Npy] {
+                    if ui
+                        .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
+                        .clicked()
+                    {
+                        self.export(format);
+                    }
+                }
+            });
+        }
+        if let Some(e) = &self.error {
+            ui.separator();
+            ui.colored_label(egui::Color32::from_rgb(255, 110, 90), e);
+        }
+    }
+
+    #[cfg(not(target_arch = "wasm32"))]
+    fn export(&mut self, format: export::VoxelFormat) {
+        let Some(grid) = &self.grid else { return };
+        let stem = self.mesh_label.rsplit(['/', ':']).next().unwrap_or("voxels").split('.').next().unwrap_or("voxels");
+        let Some(path) = rfd::FileDialog::new()
+            .set_file_name(format!("{stem}-{}.{}", self.resolution, format.extension()))
+            .add_filter(format.extension(), &[format.extension()])
+            .save_file()
+        else {
+            return;
+        };
+        let partial = path.with_extension(format!("{}.partial", format.extension()));
+        let result = std::fs::File::create(&partial)
+            .map_err(export::FormatError::from)
+            .and_then(|f| export::write(grid, format, &mut std::io::BufWriter::new(f)))
+            .and_then(|()| std::fs::rename(&partial, &path).map_err(export::FormatError::from));
+        if let Err(e) = result {
+            let _ = std::fs::remove_file(&partial);
+            self.error = Some(format!("{}: {e}", path.display()));
+        }
+    }
+
+    /// Redraws the offscreen view when the camera, style, scene or size changed, and shows it in `rect`.
+    fn draw_view(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame, rect: egui::Rect) {
+        let Some(rs) = frame.wgpu_render_state() else { return };
+        let ppp = ui.ctx().pixels_per_point();
+        let (w, h) = ((rect.width() * ppp).round().max(1.0) as u32, (rect.height() * ppp).round().max(1.0) as u32);
+        let resized = self.view.as_ref().is_none_or(|v| (v.target.width, v.target.height) != (w, h));
+        if resized {
+            let target = RenderTarget::new(&self.gpu.device, w, h);
+            let mut renderer = rs.renderer.write();
+            let texture = match self.view.take() {
+                Some(old) => {
+                    renderer.update_egui_texture_from_wgpu_texture(
+                        &self.gpu.device,
+                        target.gamma_view(),
+                        wgpu::FilterMode::Linear,
+                        old.texture,
+                    );
+                    old.texture
+                }
+                None => {
+                    renderer.register_native_texture(&self.gpu.device, target.gamma_view(), wgpu::FilterMode::Linear)
+                }
+            };
+            self.view = Some(View { target, texture, drawn: None });
+        }
+        let Some(view) = self.view.as_mut() else { return };
+        let state = (self.camera, self.style, self.scene_version);
+        if view.drawn != Some(state) {
+            view.target.draw(
+                &self.gpu.device,
+                &self.gpu.queue,
+                &self.renderer,
+                self.scene.as_ref(),
+                &self.camera,
+                &self.style,
+            );
+            view.drawn = Some(state);
+        }
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        ui.painter().image(view.texture, rect, uv, egui::Color32::WHITE);
+    }
+
+    fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
+        let rect = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        let delta = response.drag_delta();
+        if response.dragged_by(egui::PointerButton::Primary) {
+            self.camera.orbit(-delta.x * 0.4, delta.y * 0.4);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+        {
+            let scale = 1.0 / rect.height().max(1.0);
+            self.camera.pan(delta.x * scale, delta.y * scale);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.camera.zoom((-scroll * 0.002).exp());
+            }
+        }
+        if response.double_clicked() {
+            self.needs_framing = true;
+            self.needs_voxelize = true;
+        }
+        self.draw_view(ui, frame, rect);
+        if self.stats.as_ref().is_some_and(|s| s.voxels == 0) {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "no voxels",
+                egui::FontId::proportional(16.0),
+                egui::Color32::GRAY,
+            );
+        }
+    }
+
+    fn take_dropped_files(&mut self, ctx: &egui::Context) {
+        let dropped = ctx.input(|i| i.raw.dropped_files.clone());
+        if let Some(file) = dropped.into_iter().next() {
+            // On the web, dropped files are read asynchronously; that path arrives with the web page.
+            #[cfg(not(target_arch = "wasm32"))]
+            {
+                let path = file.path().to_path_buf();
+                let loaded = mesh::load_path(&path);
+                self.set_mesh(path.display().to_string(), loaded);
+            }
+            #[cfg(target_arch = "wasm32")]
+            let _ = file;
+        }
+    }
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.take_dropped_files(ui.ctx());
+        if self.needs_voxelize {
+            self.voxelize();
+        }
+        egui::Panel::left("panel").resizable(false).exact_size(260.0).show(ui, |ui| self.panel(ui));
+        egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| self.viewport(ui, frame));
+        if self.needs_voxelize {
+            ui.ctx().request_repaint();
+        }
+    }
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+/// Native window options. The device gets the adapter's storage limits (big grids) and, where the adapter has
+/// them, timestamp queries (GPU times in the panel).
+pub fn native_options() -> eframe::NativeOptions {
+    let mut wgpu_options = egui_wgpu::WgpuConfiguration::default();
+    if let egui_wgpu::WgpuSetup::CreateNew(create) = &mut wgpu_options.wgpu_setup {
+        create.device_descriptor = Arc::new(|adapter| {
+            let supported = adapter.limits();
+            let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+            let base = if adapter.get_info().backend == wgpu::Backend::Gl {
+                wgpu::Limits::downlevel_webgl2_defaults()
+            } else {
+                wgpu::Limits::default()
+            };
+            wgpu::DeviceDescriptor {
+                label: Some("meshvox"),
+                required_features: features,
+                required_limits: wgpu::Limits {
+                    max_texture_dimension_2d: 8192.min(supported.max_texture_dimension_2d),
+                    max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
+                    max_buffer_size: supported.max_buffer_size,
+                    ..base
+                },
+                ..Default::default()
+            }
+        });
+    }
+    eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default().with_inner_size([1200.0, 760.0]).with_title("meshvox"),
+        renderer: eframe::Renderer::Wgpu,
+        wgpu_options,
+        ..Default::default()
+    }
+}

@@ -1,0 +1,103 @@
+// Instanced voxel cubes, generated from vertex_index (no vertex buffer): instance i is voxel i of the compacted
+// list (two u32 per voxel: x | y << 16, z), vertex v is corner v % 6 of face v / 6. Faces are lit by a key and a
+// fill directional light plus ambient, so all six face directions read differently, and their borders are
+// darkened so single voxels stand out. A second pipeline draws the source mesh translucently on top.
+
+struct View {
+    view_proj: mat4x4<f32>,
+    // xyz: grid origin, w: voxel size.
+    origin: vec4<f32>,
+    color: vec4<f32>,
+    mesh_color: vec4<f32>,
+    // x: 1 when the target is not sRGB and the shader must encode; y: edge darkening strength (0 = off).
+    options: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> voxels: array<u32>;
+
+struct CubeOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) face: u32,
+    @location(1) uv: vec2<f32>,
+}
+
+@vertex
+fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> CubeOut {
+    let packed = voxels[2u * ii];
+    let cell = vec3<f32>(f32(packed & 0xffffu), f32(packed >> 16u), f32(voxels[2u * ii + 1u]));
+    let face = vi / 6u;
+    let axis = face / 2u;
+    let positive = face % 2u == 1u;
+    // Quad corners as two triangles, counter-clockwise seen from outside for the positive face; the negative
+    // face uses the mirrored order.
+    var ccw = array<vec2<f32>, 6>(
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 1.0), vec2<f32>(0.0, 1.0),
+    );
+    var cw = array<vec2<f32>, 6>(
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 1.0), vec2<f32>(1.0, 0.0),
+        vec2<f32>(0.0, 0.0), vec2<f32>(0.0, 1.0), vec2<f32>(1.0, 1.0),
+    );
+    var uv = ccw[vi % 6u];
+    if !positive {
+        uv = cw[vi % 6u];
+    }
+    var local = vec3<f32>(0.0);
+    local[axis] = select(0.0, 1.0, positive);
+    local[(axis + 1u) % 3u] = uv.x;
+    local[(axis + 2u) % 3u] = uv.y;
+    let world = view.origin.xyz + (cell + local) * view.origin.w;
+    var out: CubeOut;
+    out.clip = view.view_proj * vec4<f32>(world, 1.0);
+    out.face = face;
+    out.uv = uv;
+    return out;
+}
+
+fn face_normal(face: u32) -> vec3<f32> {
+    var n = vec3<f32>(0.0);
+    n[face / 2u] = select(-1.0, 1.0, face % 2u == 1u);
+    return n;
+}
+
+fn encode(linear: vec3<f32>) -> vec3<f32> {
+    if view.options.x == 0.0 {
+        return linear;
+    }
+    // The sRGB transfer function, for targets the hardware does not encode.
+    let lo = linear * 12.92;
+    let hi = 1.055 * pow(linear, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, linear <= vec3<f32>(0.0031308));
+}
+
+@fragment
+fn fs_cube(in: CubeOut) -> @location(0) vec4<f32> {
+    let n = face_normal(in.face);
+    let key = normalize(vec3<f32>(0.5, 0.75, 0.3));
+    let fill = normalize(vec3<f32>(-0.7, -0.2, -0.3));
+    let light = 0.12 + 0.8 * max(dot(n, key), 0.0) + 0.32 * max(dot(n, fill), 0.0);
+    // Distance to the nearest face border in pixels, from the screen-space rate of change of uv. Faces only a
+    // few pixels across would be all border, so the darkening fades out as cubes get small on screen.
+    let rate = max(fwidth(in.uv), vec2<f32>(1e-6));
+    let border = min(in.uv, 1.0 - in.uv) / rate;
+    let strength = view.options.y * (1.0 - smoothstep(0.1, 0.3, max(rate.x, rate.y)));
+    let edge = 1.0 - strength * (1.0 - smoothstep(0.0, 1.5, min(border.x, border.y)));
+    return vec4<f32>(encode(view.color.rgb * light * edge), 1.0);
+}
+
+struct MeshOut {
+    @builtin(position) clip: vec4<f32>,
+}
+
+@vertex
+fn vs_mesh(@location(0) position: vec3<f32>) -> MeshOut {
+    var out: MeshOut;
+    out.clip = view.view_proj * vec4<f32>(position, 1.0);
+    return out;
+}
+
+@fragment
+fn fs_mesh() -> @location(0) vec4<f32> {
+    return vec4<f32>(encode(view.mesh_color.rgb), view.mesh_color.a);
+}

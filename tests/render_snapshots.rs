@@ -1,0 +1,126 @@
+//! Screenshot regression tests of the voxel renderer: the seed's rotated cube at 30, Suzanne at 96, the bunny at
+//! 64 and the glTF Duck at 64, drawn offscreen at a fixed camera and compared with goldens in `tests/snapshots/`
+//! named after the adapter that made them. A missing golden fails; `UPDATE_SNAPSHOTS=1` (re)writes them; a
+//! mismatch writes `NAME.new.png` and `NAME.diff.png` beside the golden (both git-ignored) and says where.
+
+mod common;
+
+use meshvox::gpu::Gpu;
+use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
+use meshvox::render::{Offscreen, OrbitCamera, Style};
+use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+use std::path::PathBuf;
+
+const SIZE: u32 = 256;
+/// A pixel differs when any channel differs by more than this (driver and rounding noise stays below).
+const CHANNEL_TOLERANCE: u8 = 24;
+/// Share of differing pixels tolerated (antialiased edges may move by a pixel between driver versions).
+const PIXEL_FRACTION: f64 = 0.005;
+
+/// A file-name-safe name of the adapter, e.g. `vulkan-llvmpipe`: goldens are only comparable on the same one.
+fn backend_slug(gpu: &Gpu) -> String {
+    let name = gpu.summary.name.split_whitespace().next().unwrap_or("unknown").to_lowercase();
+    format!("{}-{}", gpu.summary.backend.to_lowercase(), name)
+        .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "")
+}
+
+fn render(gpu: &Gpu, mesh_spec: &str, resolution: u32, show_mesh: bool) -> image::RgbaImage {
+    let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
+    let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
+    let tris = cpu::grid_space_triangles(&mesh, &spec);
+    let v = GpuVoxelizer::new(gpu);
+    let out = v.voxelize(gpu, &tris, spec, &Options { compact: true, ..Default::default() }).expect("voxelize");
+    let offscreen = Offscreen::new(gpu);
+    let scene = offscreen.renderer.scene(&gpu.device, out.points.expect("points"), spec, Some(&mesh));
+    let (lo, hi) = scene.bounds();
+    let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
+    let style = Style { show_mesh, ..Default::default() };
+    offscreen.render(gpu, &scene, &camera, &style, SIZE, SIZE).expect("render")
+}
+
+fn check_snapshot(name: &str, image: &image::RgbaImage, slug: &str) {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots");
+    let golden = dir.join(format!("{name}.{slug}.png"));
+    let new = dir.join(format!("{name}.{slug}.new.png"));
+    let diff_path = dir.join(format!("{name}.{slug}.diff.png"));
+    if std::env::var("UPDATE_SNAPSHOTS").is_ok_and(|v| v == "1") {
+        image.save(&golden).expect("write golden");
+        let _ = std::fs::remove_file(&new);
+        let _ = std::fs::remove_file(&diff_path);
+        return;
+    }
+    let Ok(expected) = image::open(&golden) else {
+        image.save(&new).expect("write new");
+        panic!("missing golden {}; wrote {} (UPDATE_SNAPSHOTS=1 accepts it)", golden.display(), new.display());
+    };
+    let expected = expected.to_rgba8();
+    assert_eq!(expected.dimensions(), image.dimensions(), "{name}: size differs from the golden");
+    let mut diff = image::RgbaImage::new(SIZE, SIZE);
+    let mut differing = 0usize;
+    for (x, y, p) in image.enumerate_pixels() {
+        let q = expected.get_pixel(x, y);
+        let d = (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0);
+        if d > CHANNEL_TOLERANCE {
+            differing += 1;
+            diff.put_pixel(x, y, image::Rgba([255, 0, 255, 255]));
+        } else {
+            let g = (p[0] as u16 + p[1] as u16 + p[2] as u16) / 12;
+            diff.put_pixel(x, y, image::Rgba([g as u8, g as u8, g as u8, 255]));
+        }
+    }
+    let fraction = differing as f64 / (SIZE * SIZE) as f64;
+    if fraction > PIXEL_FRACTION {
+        image.save(&new).expect("write new");
+        diff.save(&diff_path).expect("write diff");
+        panic!(
+            "{name}: {differing} pixels ({:.2}%) differ from {}; see {} and {}",
+            fraction * 100.0,
+            golden.display(),
+            new.display(),
+            diff_path.display()
+        );
+    }
+    let _ = std::fs::remove_file(&new);
+    let _ = std::fs::remove_file(&diff_path);
+}
+
+/// The image is not blank: several distinct shades of the voxel colour over a good part of the frame.
+fn assert_shows_voxels(name: &str, image: &image::RgbaImage) {
+    let bg = image.get_pixel(0, 0);
+    let covered = image.pixels().filter(|p| p.0[..3].iter().zip(&bg.0[..3]).any(|(a, b)| a.abs_diff(*b) > 30)).count();
+    let share = covered as f64 / (SIZE * SIZE) as f64;
+    assert!(share > 0.1 && share < 0.95, "{name}: voxels cover {:.0}% of the image", share * 100.0);
+    let mut shades: Vec<u8> = image.pixels().filter(|p| p[0] > p[2] + 40).map(|p| p[0] / 16).collect();
+    shades.sort();
+    shades.dedup();
+    assert!(shades.len() >= 3, "{name}: faces are not shaded apart ({} shades)", shades.len());
+}
+
+#[test]
+fn renderer_goldens() {
+    let gpu = match Gpu::new_blocking() {
+        Ok(g) => g,
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
+        Err(e) => {
+            eprintln!("\n*** SKIPPED render snapshots: {e} ***\n");
+            return;
+        }
+    };
+    let slug = backend_slug(&gpu);
+    let mut cases = vec![("rotated-cube-30".to_string(), "builtin:rotated-cube".to_string(), 30, false)];
+    if let Some(dir) = common::shared_meshes() {
+        let p = |f: &str| dir.join(f).to_string_lossy().into_owned();
+        cases.push(("suzanne-96".into(), p("suzanne.obj"), 96, false));
+        cases.push(("bunny-64".into(), p("stanford-bunny.obj"), 64, false));
+        cases.push(("duck-64-mesh".into(), p("gltf/Duck.glb"), 64, true));
+    }
+    let mut failures = Vec::new();
+    for (name, mesh, r, show_mesh) in cases {
+        let image = render(&gpu, &mesh, r, show_mesh);
+        assert_shows_voxels(&name, &image);
+        if let Err(e) = std::panic::catch_unwind(|| check_snapshot(&name, &image, &slug)) {
+            failures.push(e.downcast_ref::<String>().cloned().unwrap_or_else(|| format!("{name} failed")));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -1,0 +1,42 @@
+//! A whole-UI snapshot of the viewer app with egui_kittest on wgpu: the default mesh voxelized, panel included.
+//! The golden is `tests/snapshots/ui-default.<adapter>.png`; `UPDATE_SNAPSHOTS=1` rewrites it.
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use meshvox::ui::ViewerApp;
+
+#[test]
+fn viewer_ui_with_the_default_mesh() {
+    // 512 x 512 points at half a pixel per point: a 256 x 256 golden, small enough to keep in git.
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:rotated-cube", 32).expect("the app starts"));
+    harness.run();
+    let app = harness.state();
+    assert_eq!(app.error(), None);
+    let stats = app.stats().expect("the default mesh was voxelized").clone();
+    // The same voxels as the CPU reference for the same mesh and resolution.
+    let mesh = meshvox::mesh::load("builtin:rotated-cube").expect("mesh");
+    let spec = meshvox::voxel::GridSpec::fit(
+        mesh.bounds().expect("b"),
+        meshvox::voxel::Resolution::Count(32),
+        meshvox::voxel::Axis::Longest,
+    )
+    .expect("grid");
+    let cpu = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
+    assert_eq!(stats.voxels, cpu.count());
+    assert_eq!(stats.mesh, "rotated-cube");
+    // The panel shows the stats and controls.
+    harness.get_by_label("Open…");
+    harness.get_by_label(&stats.voxels.to_string());
+    let slug = {
+        let a = harness.state().adapter();
+        let name = a.name.split_whitespace().next().unwrap_or("unknown").to_lowercase();
+        format!("{}-{}", a.backend.to_lowercase(), name).replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "")
+    };
+    // The "total ms" figure changes from run to run: a few dozen pixels of it may differ.
+    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
+    harness.snapshot_options(format!("ui-default.{slug}"), &options);
+}
