@@ -466,7 +466,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     } else {
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
         let tris = voxel::cpu::grid_space_triangles(&mesh, &spec);
-        let options = meshvox::gpu::voxelize::Options { compact: true, ..Default::default() };
+        let options = meshvox::gpu::voxelize::Options { compact: true, surface_only: true, ..Default::default() };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
         (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))
     };

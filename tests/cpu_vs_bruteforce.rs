@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{Rng, assert_same_grid, brute_force_all, compare_with_separations, lattice_mesh};
+use common::{Rng, assert_same_grid, boundary_cube, brute_force_all, compare_with_separations, lattice_mesh};
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::voxel::{GridSpec, VoxelGrid, cpu};
 
@@ -73,21 +73,8 @@ fn face_on_a_voxel_boundary_sets_both_sides() {
 
 #[test]
 fn cube_with_faces_on_boundaries_sets_the_whole_shell() {
-    // The cube [0, 16]^3 as 12 triangles: every face lies on the grid's outer boundary.
-    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z) * 16.0;
-    let v = [
-        c(0., 0., 0.),
-        c(1., 0., 0.),
-        c(1., 1., 0.),
-        c(0., 1., 0.),
-        c(0., 0., 1.),
-        c(1., 0., 1.),
-        c(1., 1., 1.),
-        c(0., 1., 1.),
-    ];
-    let quads = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [3, 2, 6, 7], [0, 3, 7, 4], [1, 2, 6, 5]];
-    let tris: Vec<[Vec3; 3]> =
-        quads.iter().flat_map(|q| [[v[q[0]], v[q[1]], v[q[2]]], [v[q[0]], v[q[2]], v[q[3]]]]).collect();
+    // Every face of the cube [0, 16]^3 lies on the grid's outer boundary.
+    let tris = boundary_cube();
     let grid = check_exact(&tris, UVec3::splat(16), "boundary cube");
     assert_eq!(grid.count(), 16u64.pow(3) - 14u64.pow(3));
 }

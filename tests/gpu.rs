@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{Rng, assert_same_grid, assert_same_up_to_ties, hard_cases, lattice_mesh, shared_meshes};
+use common::{Rng, all_meshes, assert_same_grid, assert_same_up_to_ties, hard_cases, lattice_mesh};
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::gpu::Gpu;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
@@ -92,25 +92,7 @@ fn every_mesh_at_several_resolutions_matches_the_cpu_reference() {
     if gpu().is_none() {
         return;
     }
-    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES.iter().map(|n| format!("builtin:{n}")).collect();
-    if let Some(dir) = shared_meshes() {
-        for rel in [
-            "stanford-bunny.obj",
-            "suzanne.obj",
-            "teapot.obj",
-            "spot.obj",
-            "gltf/Box.gltf",
-            "gltf/BoxTextured.gltf",
-            "gltf/Duck.gltf",
-            "gltf/Duck.glb",
-            "gltf/box01.glb",
-            "gltf/spot-textured.glb",
-            "gltf/torus-vertex-colours.gltf",
-            "gltf/cube-external/Cube.gltf",
-        ] {
-            specs.push(dir.join(rel).to_string_lossy().into_owned());
-        }
-    }
+    let specs = all_meshes();
     let axes = [Axis::Longest, Axis::X, Axis::Y, Axis::Z];
     for (i, m) in specs.iter().enumerate() {
         for (j, r) in [16, 64, 200, 256].into_iter().enumerate() {
@@ -212,4 +194,39 @@ fn compaction_lists_exactly_the_set_voxels() {
             assert!(out.gpu_ms.is_some_and(|ms| ms > 0.0), "{name}: timestamps supported but no gpu_ms");
         }
     }
+}
+
+#[test]
+fn surface_only_compaction_leaves_out_enclosed_voxels() {
+    let Some((gpu, v)) = gpu() else { return };
+    // A thick solid: every voxel of a 20^3 grid set by a dense stack of planes, so the interior is enclosed.
+    let tris: Vec<[Vec3; 3]> = (0..=40)
+        .map(|k| {
+            let z = k as f32 * 0.5;
+            [Vec3::new(-1.0, -1.0, z), Vec3::new(60.0, -1.0, z), Vec3::new(-1.0, 60.0, z)]
+        })
+        .collect();
+    let s = spec(UVec3::splat(20));
+    let out = v
+        .voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, surface_only: true, ..Default::default() })
+        .expect("gpu");
+    let g = out.grid.expect("grid");
+    let d = s.dims.as_ivec3();
+    let set = |p: glam::IVec3| {
+        p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(d).all() && g.get(p.x as u32, p.y as u32, p.z as u32)
+    };
+    let mut expected: Vec<[u32; 3]> = g
+        .iter_set()
+        .filter(|v| {
+            let p = v.as_ivec3();
+            !glam::IVec3::AXES.iter().all(|&a| set(p + a) && set(p - a))
+        })
+        .map(|v| v.to_array())
+        .collect();
+    expected.sort();
+    let mut listed: Vec<[u32; 3]> =
+        out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+    listed.sort();
+    assert!(g.count() == 8000 && expected.len() < 8000, "{} set, {} visible", g.count(), expected.len());
+    assert_eq!(listed, expected);
 }

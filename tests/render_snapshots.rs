@@ -29,7 +29,9 @@ fn render(gpu: &Gpu, mesh_spec: &str, resolution: u32, show_mesh: bool) -> image
     let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
     let tris = cpu::grid_space_triangles(&mesh, &spec);
     let v = GpuVoxelizer::new(gpu);
-    let out = v.voxelize(gpu, &tris, spec, &Options { compact: true, ..Default::default() }).expect("voxelize");
+    let out = v
+        .voxelize(gpu, &tris, spec, &Options { compact: true, surface_only: true, ..Default::default() })
+        .expect("voxelize");
     let offscreen = Offscreen::new(gpu);
     let scene = offscreen.renderer.scene(&gpu.device, out.points.expect("points"), spec, Some(&mesh));
     let (lo, hi) = scene.bounds();

@@ -50,23 +50,7 @@ fn seed_suzanne_and_bunny() {
 
 #[test]
 fn every_shared_mesh_and_builtin() {
-    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES.iter().map(|n| format!("builtin:{n}")).collect();
-    if let Some(dir) = shared_meshes() {
-        for rel in [
-            "spot.obj",
-            "teapot.obj",
-            "gltf/Box.gltf",
-            "gltf/BoxTextured.gltf",
-            "gltf/Duck.gltf",
-            "gltf/Duck.glb",
-            "gltf/box01.glb",
-            "gltf/spot-textured.glb",
-            "gltf/torus-vertex-colours.gltf",
-            "gltf/cube-external/Cube.gltf",
-        ] {
-            specs.push(dir.join(rel).to_string_lossy().into_owned());
-        }
-    }
+    let specs = common::all_meshes();
     for (i, s) in specs.iter().enumerate() {
         let axis = [Axis::Longest, Axis::Y, Axis::Z][i % 3];
         check(s, 64, axis);

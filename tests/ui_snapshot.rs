@@ -40,3 +40,28 @@ fn viewer_ui_with_the_default_mesh() {
     let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
     harness.snapshot_options(format!("ui-default.{slug}"), &options);
 }
+
+#[test]
+fn a_bad_file_shows_its_error_and_the_app_keeps_going() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bad = dir.path().join("broken.glb");
+    std::fs::write(&bad, b"glTF\x02\x00\x00\x00\x10").expect("write");
+    let mut harness = Harness::builder()
+        .with_size([800.0, 500.0])
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 24).expect("the app starts"));
+    harness.run();
+    let before = harness.state().stats().expect("voxelized").clone();
+    harness.state_mut().set_mesh(bad.display().to_string(), meshvox::mesh::load_path(&bad));
+    harness.run();
+    let error = harness.state().error().expect("an error is shown").to_string();
+    assert!(error.contains("broken.glb"), "{error}");
+    harness.get_by_label(&error);
+    // The previous mesh stays on screen, and a new resolution still re-voxelizes it.
+    assert_eq!(harness.state().stats(), Some(&before));
+    harness.state_mut().set_resolution(40);
+    harness.run();
+    let after = harness.state().stats().expect("stats");
+    assert_eq!((after.mesh.as_str(), after.resolution), ("torus", 40));
+    assert!(after.voxels > before.voxels);
+}

@@ -2,7 +2,7 @@
 //! instanced drawing and sparse output, without a CPU loop over the dense grid.
 
 use super::readback::{PassTimer, read_buffer};
-use super::voxelize::{pipeline, scoped, uniform_entry};
+use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::GridSpec;
 use glam::UVec3;
@@ -17,7 +17,9 @@ struct CompactParams {
     slab_z0: u32,
     word_count: u32,
     base: u32,
-    _pad: u32,
+    surface_only: u32,
+    layers: u32,
+    _pad: [u32; 3],
 }
 
 /// Set-voxel coordinates on the GPU: `count` entries of two u32, `x | y << 16` and `z`, in no particular order.
@@ -44,19 +46,6 @@ pub(crate) struct Compactor {
     write: wgpu::ComputePipeline,
 }
 
-fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl Compactor {
     pub(crate) fn new(gpu: &Gpu) -> Compactor {
         let device = &gpu.device;
@@ -66,7 +55,7 @@ impl Compactor {
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compact"),
-            entries: &[uniform_entry(0), storage(1, true), storage(2, false), storage(3, false)],
+            entries: &[uniform_entry(0), storage_entry(1, true), storage_entry(2, false), storage_entry(3, false)],
         });
         let layouts = [Some(&layout)];
         Compactor {
@@ -76,7 +65,8 @@ impl Compactor {
         }
     }
 
-    /// Compacts the first `words` words of `slab`, which holds z-layers from `z0` of a grid laid out as `spec`.
+    /// Compacts the first `words` words of `slab`, which holds z-layers from `z0` of a grid laid out as `spec`;
+    /// with `surface_only`, voxels enclosed on all six sides are left out.
     pub(crate) fn compact(
         &self,
         gpu: &Gpu,
@@ -84,6 +74,7 @@ impl Compactor {
         spec: GridSpec,
         z0: u32,
         words: u64,
+        surface_only: bool,
         mut timer: Option<&mut PassTimer>,
     ) -> Result<CompactVoxels, GpuError> {
         let device = &gpu.device;
@@ -93,7 +84,9 @@ impl Compactor {
             slab_z0: z0,
             word_count: words as u32,
             base: 0,
-            _pad: 0,
+            surface_only: surface_only as u32,
+            layers: (words / (spec.words_per_row() as u64 * spec.dims.y as u64)) as u32,
+            _pad: [0; 3],
         };
         let (x, y) = dispatch_2d((words as u32).div_ceil(256));
         let run = |pipeline: &wgpu::ComputePipeline,

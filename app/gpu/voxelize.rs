@@ -40,6 +40,8 @@ pub struct Options {
     pub read_grid: bool,
     /// Compact the set voxels into a coordinate list on the GPU.
     pub compact: bool,
+    /// In that list, leave out voxels whose six neighbours are all set (for drawing: they cannot be seen).
+    pub surface_only: bool,
     /// Upper bound on a slab's size in bytes (default: the adapter's binding limit).
     pub max_slab_bytes: Option<u64>,
     /// Upper bound on triangles per batch (default: what fits one binding).
@@ -68,7 +70,7 @@ pub struct GpuVoxelizer {
     compactor: Compactor,
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -328,7 +330,15 @@ impl GpuVoxelizer {
                             .collect();
                         gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
                     }
-                    points.push(self.compactor.compact(gpu, &slab, spec, z0, words, timer.as_mut())?);
+                    points.push(self.compactor.compact(
+                        gpu,
+                        &slab,
+                        spec,
+                        z0,
+                        words,
+                        options.surface_only,
+                        timer.as_mut(),
+                    )?);
                 }
                 if let Some(host) = grid.as_mut() {
                     let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;

@@ -147,7 +147,7 @@ impl ViewerApp {
             let spec =
                 GridSpec::fit(bounds, Resolution::Count(self.resolution), self.axis).map_err(|e| e.to_string())?;
             let tris = cpu::grid_space_triangles(&mesh, &spec);
-            let options = Options { read_grid: true, compact: true, ..Default::default() };
+            let options = Options { read_grid: true, compact: true, surface_only: true, ..Default::default() };
             let out = self.voxelizer.voxelize(&self.gpu, &tris, spec, &options).map_err(|e| e.to_string())?;
             let (Some(points), Some(grid)) = (out.points, out.grid) else { return Err("no voxels came back".into()) };
             Ok((self.renderer.scene(&self.gpu.device, points, spec, Some(&mesh)), grid, out.gpu_ms))

@@ -202,11 +202,9 @@ pub fn lattice_mesh(rng: &mut Rng, count: usize, extent: f64) -> Vec<[Vec3; 3]> 
         .collect()
 }
 
-/// The hand-made hard cases of the core voxelizer tests, as (name, grid-space triangles, grid dims).
-pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
-    let v = Vec3::new;
-    let square = [[v(2., 2., 8.), v(10., 2., 8.), v(10., 10., 8.)], [v(2., 2., 8.), v(10., 10., 8.), v(2., 10., 8.)]];
-    let c = |x: f32, y: f32, z: f32| v(x, y, z) * 16.0;
+/// The cube [0, 16]^3 as 12 triangles: in a 16^3 grid every face lies on the grid's outer boundary.
+pub fn boundary_cube() -> Vec<[Vec3; 3]> {
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z) * 16.0;
     let corners = [
         c(0., 0., 0.),
         c(1., 0., 0.),
@@ -218,10 +216,42 @@ pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
         c(0., 1., 1.),
     ];
     let quads = [[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [3, 2, 6, 7], [0, 3, 7, 4], [1, 2, 6, 5]];
-    let cube: Vec<[Vec3; 3]> = quads
+    quads
         .iter()
         .flat_map(|q| [[corners[q[0]], corners[q[1]], corners[q[2]]], [corners[q[0]], corners[q[2]], corners[q[3]]]])
-        .collect();
+        .collect()
+}
+
+/// Every bundled mesh (`builtin:NAME`) and every OBJ, glTF and GLB file under `../shared/meshes`, found by
+/// walking the folder so that meshes added there are tested too.
+pub fn all_meshes() -> Vec<String> {
+    let mut specs: Vec<String> = meshvox::mesh::builtin::NAMES.iter().map(|n| format!("builtin:{n}")).collect();
+    if let Some(dir) = shared_meshes() {
+        let mut files = Vec::new();
+        let mut stack = vec![dir];
+        while let Some(d) = stack.pop() {
+            for entry in std::fs::read_dir(&d).expect("read shared meshes").flatten() {
+                let path = entry.path();
+                let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+                if path.is_dir() {
+                    stack.push(path);
+                } else if matches!(ext.as_deref(), Some("obj" | "gltf" | "glb")) {
+                    files.push(path.to_string_lossy().into_owned());
+                }
+            }
+        }
+        files.sort();
+        assert!(files.len() >= 12, "expected the shared meshes, found {files:?}");
+        specs.extend(files);
+    }
+    specs
+}
+
+/// The hand-made hard cases of the core voxelizer tests, as (name, grid-space triangles, grid dims).
+pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
+    let v = Vec3::new;
+    let square = [[v(2., 2., 8.), v(10., 2., 8.), v(10., 10., 8.)], [v(2., 2., 8.), v(10., 10., 8.), v(2., 10., 8.)]];
+    let cube = boundary_cube();
     let p = |x: f32, y: f32, z: f32| [v(x, y, z); 3];
     let (a, b) = (v(1.5, 1.5, 1.5), v(14.5, 9.5, 5.5));
     vec![
