@@ -40,6 +40,13 @@ impl CompactVoxels {
     }
 }
 
+/// A z-slab of a bit grid on the GPU: `words` words holding the z-layers from `z0` on.
+pub(crate) struct Slab<'a> {
+    pub buffer: &'a wgpu::Buffer,
+    pub z0: u32,
+    pub words: u64,
+}
+
 pub(crate) struct Compactor {
     layout: wgpu::BindGroupLayout,
     count: wgpu::ComputePipeline,
@@ -65,18 +72,17 @@ impl Compactor {
         }
     }
 
-    /// Compacts the first `words` words of `slab`, which holds z-layers from `z0` of a grid laid out as `spec`;
-    /// with `surface_only`, voxels enclosed on all six sides are left out.
+    /// Compacts a slab of a grid laid out as `spec`; with `surface_only`, voxels enclosed on all six sides are
+    /// left out.
     pub(crate) fn compact(
         &self,
         gpu: &Gpu,
-        slab: &wgpu::Buffer,
+        slab: Slab<'_>,
         spec: GridSpec,
-        z0: u32,
-        words: u64,
         surface_only: bool,
         mut timer: Option<&mut PassTimer>,
     ) -> Result<CompactVoxels, GpuError> {
+        let Slab { buffer: slab, z0, words } = slab;
         let device = &gpu.device;
         let params = CompactParams {
             dims: spec.dims.to_array(),

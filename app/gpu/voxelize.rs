@@ -6,7 +6,7 @@
 //! whose slabs are OR-ed together on the host. Both limits come from the adapter, and both can be lowered through
 //! [`Options`] to exercise the chunked paths on small inputs.
 
-use super::compact::{CompactVoxels, Compactor};
+use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, read_buffer};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::{GridSpec, VoxelGrid};
@@ -330,15 +330,8 @@ impl GpuVoxelizer {
                             .collect();
                         gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
                     }
-                    points.push(self.compactor.compact(
-                        gpu,
-                        &slab,
-                        spec,
-                        z0,
-                        words,
-                        options.surface_only,
-                        timer.as_mut(),
-                    )?);
+                    let part = Slab { buffer: &slab, z0, words };
+                    points.push(self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut())?);
                 }
                 if let Some(host) = grid.as_mut() {
                     let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;
