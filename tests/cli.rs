@@ -195,3 +195,18 @@ fn without_an_adapter_gpu_fails_clearly_and_auto_falls_back() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("using the CPU voxelizer"));
     assert!(stats(&out)["backend"].as_str().is_some_and(|b| b.starts_with("cpu")));
 }
+
+#[test]
+fn viewer_without_a_display_says_so_in_one_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = Command::new(env!("CARGO_BIN_EXE_meshvox"))
+        .current_dir(dir.path())
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run meshvox");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("no display") && stderr.contains("meshvox render"), "{stderr}");
+}
