@@ -17,13 +17,6 @@ const CHANNEL_TOLERANCE: u8 = 24;
 /// Share of differing pixels tolerated (antialiased edges may move by a pixel between driver versions).
 const PIXEL_FRACTION: f64 = 0.005;
 
-/// A file-name-safe name of the adapter, e.g. `vulkan-llvmpipe`: goldens are only comparable on the same one.
-fn backend_slug(gpu: &Gpu) -> String {
-    let name = gpu.summary.name.split_whitespace().next().unwrap_or("unknown").to_lowercase();
-    format!("{}-{}", gpu.summary.backend.to_lowercase(), name)
-        .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "")
-}
-
 fn render(gpu: &Gpu, mesh_spec: &str, resolution: u32, show_mesh: bool) -> image::RgbaImage {
     let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
     let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
@@ -108,7 +101,7 @@ fn renderer_goldens() {
             return;
         }
     };
-    let slug = backend_slug(&gpu);
+    let slug = gpu.summary.slug();
     let mut cases = vec![("rotated-cube-30".to_string(), "builtin:rotated-cube".to_string(), 30, false)];
     if let Some(dir) = common::shared_meshes() {
         let p = |f: &str| dir.join(f).to_string_lossy().into_owned();

@@ -31,11 +31,7 @@ fn viewer_ui_with_the_default_mesh() {
     // The panel shows the stats and controls.
     harness.get_by_label("Open…");
     harness.get_by_label(&stats.voxels.to_string());
-    let slug = {
-        let a = harness.state().adapter();
-        let name = a.name.split_whitespace().next().unwrap_or("unknown").to_lowercase();
-        format!("{}-{}", a.backend.to_lowercase(), name).replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "")
-    };
+    let slug = harness.state().adapter().slug();
     // The "total ms" figure changes from run to run: a few dozen pixels of it may differ.
     let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
     harness.snapshot_options(format!("ui-default.{slug}"), &options);

@@ -14,6 +14,29 @@ pub struct AdapterSummary {
     pub driver: String,
 }
 
+impl AdapterSummary {
+    pub fn from_info(info: &wgpu::AdapterInfo) -> AdapterSummary {
+        AdapterSummary {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: [info.driver.as_str(), info.driver_info.as_str()]
+                .into_iter()
+                .filter(|s| !s.is_empty())
+                .collect::<Vec<_>>()
+                .join(" "),
+        }
+    }
+
+    /// A file-name-safe name of backend and adapter, such as `vulkan-llvmpipe`: screenshot goldens are only
+    /// comparable on the same one and carry it in their names.
+    pub fn slug(&self) -> String {
+        let name = self.name.split_whitespace().next().unwrap_or("unknown").to_lowercase();
+        format!("{}-{}", self.backend.to_lowercase(), name)
+            .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "")
+    }
+}
+
 impl std::fmt::Display for AdapterSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{} ({}", self.name, self.backend)?;
@@ -70,8 +93,7 @@ impl Gpu {
 
     /// Opens a device on `adapter` with its full limits and, where available, timestamp queries.
     pub async fn from_adapter(adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
-        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("meshvox"),
@@ -81,18 +103,14 @@ impl Gpu {
             })
             .await
             .map_err(|e| GpuError::RequestDevice(e.to_string()))?;
-        let info = adapter.get_info();
-        let summary = AdapterSummary {
-            name: info.name.clone(),
-            backend: format!("{:?}", info.backend),
-            device_type: format!("{:?}", info.device_type),
-            driver: [info.driver.as_str(), info.driver_info.as_str()]
-                .into_iter()
-                .filter(|s| !s.is_empty())
-                .collect::<Vec<_>>()
-                .join(" "),
-        };
-        Ok(Gpu { adapter, device, queue, summary, timestamps })
+        Ok(Gpu::from_parts(adapter, device, queue))
+    }
+
+    /// Wraps a device someone else opened (eframe's, egui_kittest's); timestamps are used if it has them.
+    pub fn from_parts(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Gpu {
+        let summary = AdapterSummary::from_info(&adapter.get_info());
+        let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        Gpu { adapter, device, queue, summary, timestamps }
     }
 
     /// Largest buffer this device can bind as one storage binding (and allocate).

@@ -63,19 +63,7 @@ impl ViewerApp {
     /// Creates the app on eframe's wgpu device, showing `mesh_spec` (a path or `builtin:NAME`).
     pub fn new(cc: &eframe::CreationContext<'_>, mesh_spec: &str, resolution: u32) -> Result<ViewerApp, String> {
         let rs = cc.wgpu_render_state.as_ref().ok_or("eframe was not started with the wgpu renderer")?;
-        let info = rs.adapter.get_info();
-        let gpu = Gpu {
-            adapter: rs.adapter.clone(),
-            device: rs.device.clone(),
-            queue: rs.queue.clone(),
-            summary: AdapterSummary {
-                name: info.name.clone(),
-                backend: format!("{:?}", info.backend),
-                device_type: format!("{:?}", info.device_type),
-                driver: info.driver.clone(),
-            },
-            timestamps: rs.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
-        };
+        let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
         // wgpu panics on errors nobody captured; a viewer should report them and keep running.
         rs.device.on_uncaptured_error(std::sync::Arc::new(|e| log::error!("wgpu: {e}")));
         let voxelizer = GpuVoxelizer::new(&gpu);
