@@ -1,5 +1,6 @@
-//! The `meshvox` binary. Natively it is the command-line tool (and, later, the desktop viewer); the wasm32 entry
-//! point for the web page arrives with the web demo.
+//! The `meshvox` binary. Natively it is the command-line tool and the desktop viewer ([`cli`]); compiled to
+//! wasm32 it is the web page's app: `web/index.html` checks for WebGPU and then calls [`start`], and the other
+//! exports are the page's hooks into the running app (its file input and the browser tests use them).
 
 #[cfg(not(target_arch = "wasm32"))]
 mod cli;
@@ -9,5 +10,54 @@ fn main() -> std::process::ExitCode {
     cli::main()
 }
 
+/// wasm-bindgen runs `main` when the module loads; the page starts the app itself with [`start`].
 #[cfg(target_arch = "wasm32")]
 fn main() {}
+
+#[cfg(target_arch = "wasm32")]
+mod web_entry {
+    use meshvox::ui::web::{self, Command};
+    use meshvox::ui::{DEFAULT_RESOLUTION, ViewerApp, web_options};
+    use wasm_bindgen::prelude::*;
+
+    /// Starts the app on the canvas `canvas_id`, showing `mesh` (a bundled name, as after `builtin:`) at
+    /// `resolution` voxels along the longest axis (0 for the default).
+    #[wasm_bindgen]
+    pub async fn start(canvas_id: String, mesh: String, resolution: u32) -> Result<(), JsValue> {
+        // Logs go to the browser console; warnings and errors are what the browser test watches for.
+        let _ = eframe::WebLogger::init(log::LevelFilter::Info);
+        let canvas = web_sys::window()
+            .and_then(|w| w.document())
+            .and_then(|d| d.get_element_by_id(&canvas_id))
+            .ok_or_else(|| JsValue::from_str(&format!("no element #{canvas_id} on the page")))?
+            .dyn_into::<web_sys::HtmlCanvasElement>()
+            .map_err(|_| JsValue::from_str(&format!("#{canvas_id} is not a canvas")))?;
+        let spec = format!("builtin:{}", if mesh.is_empty() { meshvox::mesh::builtin::DEFAULT } else { &mesh });
+        let resolution = if resolution == 0 { DEFAULT_RESOLUTION } else { resolution };
+        eframe::WebRunner::new()
+            .start(
+                canvas,
+                web_options(),
+                Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, &spec, resolution)?) as Box<dyn eframe::App>)),
+            )
+            .await
+    }
+
+    /// Re-voxelizes the current mesh at `resolution` voxels along the chosen axis (the slider's hook).
+    #[wasm_bindgen(js_name = setResolution)]
+    pub fn set_resolution(resolution: u32) {
+        web::send(Command::SetResolution(resolution));
+    }
+
+    /// Shows a bundled mesh (the name after `builtin:`).
+    #[wasm_bindgen(js_name = loadBuiltin)]
+    pub fn load_builtin(name: String) {
+        web::send(Command::LoadBuiltin(name));
+    }
+
+    /// Shows a mesh file's contents (OBJ, glTF with embedded buffers, or GLB), named `name`.
+    #[wasm_bindgen(js_name = loadFile)]
+    pub fn load_file(name: String, bytes: Vec<u8>) {
+        web::send(Command::LoadFile { name, bytes });
+    }
+}

@@ -29,12 +29,18 @@ pub struct CompactVoxels {
 }
 
 impl CompactVoxels {
-    /// Reads the list back (for sparse output and tests).
+    /// Reads the list back (for sparse output and tests); blocks until the GPU is done.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn read(&self, gpu: &Gpu) -> Result<Vec<UVec3>, GpuError> {
+        pollster::block_on(self.read_async(gpu))
+    }
+
+    /// Reads the list back once the GPU is done.
+    pub async fn read_async(&self, gpu: &Gpu) -> Result<Vec<UVec3>, GpuError> {
         if self.count == 0 {
             return Ok(Vec::new());
         }
-        let bytes = read_buffer(&gpu.device, &gpu.queue, &self.buffer, 0, self.count as u64 * 8)?;
+        let bytes = read_buffer(&gpu.device, &gpu.queue, &self.buffer, 0, self.count as u64 * 8).await?;
         let raw: &[u32] = bytemuck::cast_slice(&bytes);
         Ok(raw.chunks_exact(2).map(|p| UVec3::new(p[0] & 0xffff, p[0] >> 16, p[1])).collect())
     }
@@ -74,7 +80,7 @@ impl Compactor {
 
     /// Compacts a slab of a grid laid out as `spec`; with `surface_only`, voxels enclosed on all six sides are
     /// left out.
-    pub(crate) fn compact(
+    pub(crate) async fn compact(
         &self,
         gpu: &Gpu,
         slab: Slab<'_>,
@@ -142,9 +148,10 @@ impl Compactor {
             let placeholder = buffer("no points yet", 8);
             run(&self.count, &placeholder, &counters, &uniform, timer.as_deref_mut());
             Ok((uniform, counters, placeholder))
-        })?;
+        })
+        .await?;
         drop(placeholder);
-        let counted = read_buffer(device, &gpu.queue, &counters, 0, 4)?;
+        let counted = read_buffer(device, &gpu.queue, &counters, 0, 4).await?;
         let count = u32::from_le_bytes([counted[0], counted[1], counted[2], counted[3]]);
         let bytes = count as u64 * 8;
         if bytes > gpu.max_binding_bytes() {
@@ -158,12 +165,13 @@ impl Compactor {
             let points = buffer("voxel list", bytes);
             run(&self.write, &points, &counters, &uniform, timer);
             Ok(points)
-        })?;
+        })
+        .await?;
         Ok(CompactVoxels { buffer: points, count })
     }
 
     /// Joins per-slab lists into one buffer.
-    pub(crate) fn concat(&self, gpu: &Gpu, parts: Vec<CompactVoxels>) -> Result<CompactVoxels, GpuError> {
+    pub(crate) async fn concat(&self, gpu: &Gpu, parts: Vec<CompactVoxels>) -> Result<CompactVoxels, GpuError> {
         let count: u64 = parts.iter().map(|p| p.count as u64).sum();
         if count * 8 > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {
@@ -188,5 +196,6 @@ impl Compactor {
             gpu.queue.submit([encoder.finish()]);
             Ok(CompactVoxels { buffer, count: count as u32 })
         })
+        .await
     }
 }

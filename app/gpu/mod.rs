@@ -64,7 +64,8 @@ pub enum GpuError {
     Grid(#[from] crate::voxel::GridError),
 }
 
-/// An adapter, its device and queue, ready for compute.
+/// An adapter, its device and queue, ready for compute. Cloning shares the same device.
+#[derive(Clone)]
 pub struct Gpu {
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
@@ -126,9 +127,9 @@ pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
     (x, groups.div_ceil(x))
 }
 
-/// Maps a MAP_READ buffer whose copy has been submitted and returns its bytes (blocks until the GPU is done).
-pub fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
-    readback::map_and_copy(device, buffer)
+/// Maps a MAP_READ buffer whose copy has been submitted and returns its bytes once the GPU is done.
+pub async fn map_read_async(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    readback::map_and_copy(device, buffer).await
 }
 
 pub(crate) fn mib(bytes: u64) -> u64 {

@@ -1,9 +1,13 @@
 //! Reading GPU buffers back to the host, and timing passes with timestamp queries.
+//!
+//! Reads are `async` because the browser cannot block: there a buffer maps only after control returns to the
+//! event loop, so the whole voxelization is a future that the web page spawns. Natively the same futures finish
+//! on their first poll, because [`map_and_copy`] waits for the device before awaiting the map.
 
 use super::GpuError;
 
-/// Copies `size` bytes of `buffer` (from `offset`) into host memory. Blocks until the GPU is done.
-pub(crate) fn read_buffer(
+/// Copies `size` bytes of `buffer` (from `offset`) into host memory once the GPU is done.
+pub(crate) async fn read_buffer(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     buffer: &wgpu::Buffer,
@@ -19,19 +23,21 @@ pub(crate) fn read_buffer(
     let mut encoder = device.create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
     queue.submit([encoder.finish()]);
-    map_and_copy(device, &staging)
+    map_and_copy(device, &staging).await
 }
 
 /// Maps a MAP_READ buffer and returns its contents.
-pub(crate) fn map_and_copy(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+pub(crate) async fn map_and_copy(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = staging.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
+    let (tx, rx) = futures_channel::oneshot::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
+    // Natively this blocks until the copy is done and the callback has run; in the browser it returns at once
+    // and the map completes while the await below yields to the event loop.
     device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Device(e.to_string()))?
+    rx.await
+        .map_err(|_| GpuError::Device("the device was lost before a readback finished".into()))?
         .map_err(|e| GpuError::Device(format!("cannot map a readback buffer: {e}")))?;
     let bytes = slice.get_mapped_range().map_err(|e| GpuError::Device(e.to_string()))?.to_vec();
     staging.unmap();
@@ -82,14 +88,14 @@ impl PassTimer {
 
     /// Resolves the written queries, reads them back and returns the summed pass time in milliseconds; the
     /// timer is then empty again.
-    pub(crate) fn collect(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<f64, GpuError> {
+    pub(crate) async fn collect(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<f64, GpuError> {
         if self.used == 0 {
             return Ok(0.0);
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.resolve_query_set(&self.set, 0..self.used, &self.resolve, 0);
         queue.submit([encoder.finish()]);
-        let bytes = read_buffer(device, queue, &self.resolve, 0, self.used as u64 * 8)?;
+        let bytes = read_buffer(device, queue, &self.resolve, 0, self.used as u64 * 8).await?;
         let ticks: &[u64] = bytemuck::cast_slice(&bytes);
         let period = queue.get_timestamp_period() as f64;
         let ns: f64 = ticks.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period).sum();

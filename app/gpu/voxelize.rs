@@ -129,12 +129,12 @@ fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::Bu
 
 /// Runs `f` inside out-of-memory and validation error scopes and turns what they caught into errors, so a
 /// failed allocation or dispatch is reported instead of aborting the process.
-pub(crate) fn scoped<T>(device: &wgpu::Device, f: impl FnOnce() -> Result<T, GpuError>) -> Result<T, GpuError> {
+pub(crate) async fn scoped<T>(device: &wgpu::Device, f: impl FnOnce() -> Result<T, GpuError>) -> Result<T, GpuError> {
     let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let result = f();
-    let v = pollster::block_on(validation.pop());
-    let o = pollster::block_on(oom.pop());
+    let v = validation.pop().await;
+    let o = oom.pop().await;
     if let Some(e) = o {
         return Err(GpuError::OutOfMemory(e.to_string()));
     }
@@ -180,8 +180,21 @@ impl GpuVoxelizer {
         }
     }
 
-    /// Voxelizes grid-space triangles (see [`crate::voxel::cpu::grid_space_triangles`]) into `spec`'s grid.
+    /// Voxelizes grid-space triangles (see [`crate::voxel::cpu::grid_space_triangles`]) into `spec`'s grid,
+    /// blocking until the GPU is done.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn voxelize(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        options: &Options,
+    ) -> Result<GpuOutput, GpuError> {
+        pollster::block_on(self.voxelize_async(gpu, triangles, spec, options))
+    }
+
+    /// [`GpuVoxelizer::voxelize`] as a future, for the browser, where nothing may block.
+    pub async fn voxelize_async(
         &self,
         gpu: &Gpu,
         triangles: &[[Vec3; 3]],
@@ -230,7 +243,8 @@ impl GpuVoxelizer {
                 storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
                 storage_buffer(device, "dispatch", 16, wgpu::BufferUsages::INDIRECT),
             ))
-        })?;
+        })
+        .await?;
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxelize"),
             layout: &self.layout,
@@ -284,7 +298,8 @@ impl GpuVoxelizer {
                 }
                 gpu.queue.submit([encoder.finish()]);
                 Ok(())
-            })?;
+            })
+            .await?;
 
             for s in 0..slabs {
                 let z0 = s * slab_layers;
@@ -313,7 +328,8 @@ impl GpuVoxelizer {
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())
-                })?;
+                })
+                .await?;
                 // Compaction only makes sense on the finished grid, so it waits for the last batch.
                 if options.compact && b + 1 == batches {
                     if batches > 1 {
@@ -322,7 +338,7 @@ impl GpuVoxelizer {
                             GpuError::Device("compaction over several triangle batches needs read_grid".into())
                         })?;
                         let start = wpr as usize * spec.dims.y as usize * z0 as usize;
-                        let mine = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;
+                        let mine = read_buffer(device, &gpu.queue, &slab, 0, words * 4).await?;
                         let merged: Vec<u32> = bytemuck::cast_slice::<u8, u32>(&mine)
                             .iter()
                             .zip(&host.words[start..start + words as usize])
@@ -331,10 +347,10 @@ impl GpuVoxelizer {
                         gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
                     }
                     let part = Slab { buffer: &slab, z0, words };
-                    points.push(self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut())?);
+                    points.push(self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut()).await?);
                 }
                 if let Some(host) = grid.as_mut() {
-                    let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4)?;
+                    let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4).await?;
                     let start = wpr as usize * spec.dims.y as usize * z0 as usize;
                     let dst = &mut host.words[start..start + words as usize];
                     for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
@@ -342,7 +358,7 @@ impl GpuVoxelizer {
                     }
                 }
                 if let Some(t) = timer.as_mut() {
-                    gpu_ms += t.collect(device, &gpu.queue)?;
+                    gpu_ms += t.collect(device, &gpu.queue).await?;
                 }
             }
         }
@@ -353,7 +369,7 @@ impl GpuVoxelizer {
         let points = match points.len() {
             0 => None,
             1 => points.pop(),
-            _ => Some(self.compactor.concat(gpu, points)?),
+            _ => Some(self.compactor.concat(gpu, points).await?),
         };
         Ok(GpuOutput { grid, points, gpu_ms: gpu.timestamps.then_some(gpu_ms), slabs, batches: batches as u32 })
     }

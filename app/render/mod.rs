@@ -359,8 +359,14 @@ impl RenderTarget {
         queue.submit([encoder.finish()]);
     }
 
-    /// Reads the resolved image back (rows are padded to 256 bytes in the copy).
+    /// Reads the resolved image back, blocking until the GPU is done.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn read(&self, gpu: &Gpu) -> Result<image::RgbaImage, GpuError> {
+        pollster::block_on(self.read_async(gpu))
+    }
+
+    /// Reads the resolved image back (rows are padded to 256 bytes in the copy).
+    pub async fn read_async(&self, gpu: &Gpu) -> Result<image::RgbaImage, GpuError> {
         let (width, height) = (self.width, self.height);
         let row = width * 4;
         let padded = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -380,7 +386,7 @@ impl RenderTarget {
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
         gpu.queue.submit([encoder.finish()]);
-        let bytes = crate::gpu::map_read(&gpu.device, &readback)?;
+        let bytes = crate::gpu::map_read_async(&gpu.device, &readback).await?;
         let mut pixels = Vec::with_capacity((row * height) as usize);
         for r in 0..height as usize {
             pixels.extend_from_slice(&bytes[r * padded as usize..][..row as usize]);
@@ -400,6 +406,7 @@ impl Offscreen {
     }
 
     /// Renders `scene` from `camera` into a `width` × `height` RGBA image.
+    #[cfg(not(target_arch = "wasm32"))]
     pub fn render(
         &self,
         gpu: &Gpu,

@@ -4,7 +4,14 @@
 //! with orbit, pan and zoom. Voxelization runs on the GPU device eframe created, so the voxel list never leaves
 //! it for drawing. Drawing offscreen keeps the app independent of the window's depth buffer, so the same code
 //! runs in the desktop window, in the web page and in egui_kittest's headless harness.
+//!
+//! A voxelization is a future ([`GpuVoxelizer::voxelize_async`]): natively it is driven to completion on the
+//! spot, in the browser it is spawned and the app picks the result up in a later frame.
 
+#[cfg(target_arch = "wasm32")]
+pub mod web;
+
+use crate::gpu::compact::CompactVoxels;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu};
 use crate::mesh::{self, Mesh, builtin};
@@ -12,6 +19,8 @@ use crate::render::{CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGE
 #[cfg(not(target_arch = "wasm32"))]
 use crate::voxel::export;
 use crate::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use std::cell::RefCell;
+use std::rc::Rc;
 use std::sync::Arc;
 use web_time::Instant;
 
@@ -35,9 +44,22 @@ struct View {
     drawn: Option<(OrbitCamera, Style, u64)>,
 }
 
+/// What a finished voxelization hands back to the app.
+type Outcome = Result<(CompactVoxels, VoxelGrid, Option<f64>), String>;
+
+/// A voxelization in flight, and where its task leaves the outcome.
+struct Pending {
+    started: Instant,
+    label: String,
+    mesh: Arc<Mesh>,
+    resolution: u32,
+    spec: GridSpec,
+    outcome: Rc<RefCell<Option<Outcome>>>,
+}
+
 pub struct ViewerApp {
     gpu: Gpu,
-    voxelizer: GpuVoxelizer,
+    voxelizer: Rc<GpuVoxelizer>,
     renderer: CubeRenderer,
     scene: Option<Scene>,
     /// Bumped for every new scene, so the view knows to redraw.
@@ -54,6 +76,7 @@ pub struct ViewerApp {
     error: Option<String>,
     needs_voxelize: bool,
     needs_framing: bool,
+    pending: Option<Pending>,
 }
 
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
@@ -66,7 +89,7 @@ impl ViewerApp {
         let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
         // wgpu panics on errors nobody captured; a viewer should report them and keep running.
         rs.device.on_uncaptured_error(std::sync::Arc::new(|e| log::error!("wgpu: {e}")));
-        let voxelizer = GpuVoxelizer::new(&gpu);
+        let voxelizer = Rc::new(GpuVoxelizer::new(&gpu));
         let renderer = CubeRenderer::new(&rs.device, TARGET_FORMAT, TARGET_SAMPLES);
         let mut app = ViewerApp {
             gpu,
@@ -86,7 +109,10 @@ impl ViewerApp {
             error: None,
             needs_voxelize: false,
             needs_framing: true,
+            pending: None,
         };
+        #[cfg(target_arch = "wasm32")]
+        web::attach(&cc.egui_ctx);
         app.set_mesh(mesh_spec.to_string(), mesh::load(mesh_spec));
         Ok(app)
     }
@@ -122,48 +148,99 @@ impl ViewerApp {
                 self.needs_voxelize = true;
                 self.needs_framing = true;
             }
-            Err(e) => self.error = Some(e.to_string()),
+            Err(e) => self.fail(e.to_string()),
         }
     }
 
-    fn voxelize(&mut self) {
+    /// Whether a voxelization is still running (only ever seen in the browser).
+    pub fn busy(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Starts voxelizing the current mesh with the current settings.
+    fn start_voxelize(&mut self, ctx: &egui::Context) {
         self.needs_voxelize = false;
         let Some(mesh) = self.mesh.clone() else { return };
-        let started = Instant::now();
-        let result = (|| -> Result<(Scene, VoxelGrid, Option<f64>), String> {
-            let bounds = mesh.bounds().ok_or("the mesh has no triangles")?;
-            let spec =
-                GridSpec::fit(bounds, Resolution::Count(self.resolution), self.axis).map_err(|e| e.to_string())?;
-            let tris = cpu::grid_space_triangles(&mesh, &spec);
-            let options = Options { read_grid: true, compact: true, surface_only: true, ..Default::default() };
-            let out = self.voxelizer.voxelize(&self.gpu, &tris, spec, &options).map_err(|e| e.to_string())?;
-            let (Some(points), Some(grid)) = (out.points, out.grid) else { return Err("no voxels came back".into()) };
-            Ok((self.renderer.scene(&self.gpu.device, points, spec, Some(&mesh)), grid, out.gpu_ms))
-        })();
-        match result {
-            Ok((scene, grid, gpu_ms)) => {
-                let d = grid.spec.dims;
-                self.stats = Some(Stats {
-                    mesh: self.mesh_label.strip_prefix("builtin:").unwrap_or(&self.mesh_label).to_string(),
-                    triangles: mesh.triangles.len(),
-                    dims: [d.x, d.y, d.z],
-                    voxels: grid.count(),
-                    resolution: self.resolution,
-                    gpu_ms,
-                    voxelize_ms: started.elapsed().as_secs_f64() * 1e3,
-                });
-                if self.needs_framing {
-                    let (lo, hi) = scene.bounds();
-                    self.camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
-                    self.needs_framing = false;
-                }
-                self.scene = Some(scene);
-                self.scene_version += 1;
-                self.grid = Some(grid);
-                self.error = None;
+        let fitted = mesh
+            .bounds()
+            .ok_or_else(|| "the mesh has no triangles".to_string())
+            .and_then(|b| GridSpec::fit(b, Resolution::Count(self.resolution), self.axis).map_err(|e| e.to_string()));
+        let spec = match fitted {
+            Ok(spec) => spec,
+            Err(e) => return self.fail(e),
+        };
+        let triangles = cpu::grid_space_triangles(&mesh, &spec);
+        let outcome = Rc::new(RefCell::new(None));
+        let task = {
+            let (gpu, voxelizer, outcome, ctx) =
+                (self.gpu.clone(), self.voxelizer.clone(), outcome.clone(), ctx.clone());
+            async move {
+                let options = Options { read_grid: true, compact: true, surface_only: true, ..Default::default() };
+                let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
+                    Ok(out) => match (out.points, out.grid) {
+                        (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms)),
+                        _ => Err("no voxels came back".to_string()),
+                    },
+                    Err(e) => Err(e.to_string()),
+                };
+                *outcome.borrow_mut() = Some(result);
+                ctx.request_repaint();
             }
-            Err(e) => self.error = Some(e),
+        };
+        self.pending = Some(Pending {
+            started: Instant::now(),
+            label: self.mesh_label.clone(),
+            mesh,
+            resolution: self.resolution,
+            spec,
+            outcome,
+        });
+        #[cfg(not(target_arch = "wasm32"))]
+        pollster::block_on(task);
+        #[cfg(target_arch = "wasm32")]
+        wasm_bindgen_futures::spawn_local(task);
+    }
+
+    /// Takes the result of a finished voxelization, if there is one, and shows it.
+    fn finish_voxelize(&mut self) {
+        let Some(outcome) = self.pending.as_ref().and_then(|p| p.outcome.borrow_mut().take()) else { return };
+        let Some(p) = self.pending.take() else { return };
+        let (points, grid, gpu_ms) = match outcome {
+            Ok(done) => done,
+            Err(e) => return self.fail(e),
+        };
+        let scene = self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh));
+        let d = grid.spec.dims;
+        self.stats = Some(Stats {
+            mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
+            triangles: p.mesh.triangles.len(),
+            dims: [d.x, d.y, d.z],
+            voxels: grid.count(),
+            resolution: p.resolution,
+            gpu_ms,
+            voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
+        });
+        if self.needs_framing {
+            let (lo, hi) = scene.bounds();
+            self.camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
+            self.needs_framing = false;
         }
+        self.scene = Some(scene);
+        self.scene_version += 1;
+        self.grid = Some(grid);
+        self.error = None;
+        self.publish();
+    }
+
+    fn fail(&mut self, error: String) {
+        self.error = Some(error);
+        self.publish();
+    }
+
+    /// Tells the web page what is shown (`window.meshvoxStatus`); nothing to do natively.
+    fn publish(&self) {
+        #[cfg(target_arch = "wasm32")]
+        web::publish_status(self.stats.as_ref(), &self.gpu.summary, self.error.as_deref());
     }
 
     fn panel(&mut self, ui: &mut egui::Ui) {
@@ -201,6 +278,10 @@ impl ViewerApp {
             let loaded = mesh::load_path(&path);
             self.set_mesh(path.display().to_string(), loaded);
         }
+        #[cfg(target_arch = "wasm32")]
+        if ui.button("Open…").on_hover_text("OBJ, glTF (embedded) or GLB; or drop a file on the page").clicked() {
+            web::open_file_picker();
+        }
         ui.label(egui::RichText::new("Drop an .obj, .gltf or .glb file anywhere.").small().weak());
         ui.separator();
 
@@ -225,6 +306,12 @@ impl ViewerApp {
         }
         ui.separator();
 
+        if self.pending.is_some() {
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label("voxelizing…");
+            });
+        }
         if let Some(s) = &self.stats {
             egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
                 ui.label("triangles");
@@ -370,15 +457,35 @@ impl ViewerApp {
     fn take_dropped_files(&mut self, ctx: &egui::Context) {
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
         if let Some(file) = dropped.into_iter().next() {
-            // On the web, dropped files are read asynchronously; that path arrives with the web page.
             #[cfg(not(target_arch = "wasm32"))]
             {
                 let path = file.path().to_path_buf();
                 let loaded = mesh::load_path(&path);
                 self.set_mesh(path.display().to_string(), loaded);
             }
+            // Browsers read files asynchronously; the bytes come back through the page's inbox.
             #[cfg(target_arch = "wasm32")]
-            let _ = file;
+            web::read_dropped(file);
+        }
+    }
+
+    /// Carries out what the page asked for (file input, test hooks, dropped files read in the background).
+    #[cfg(target_arch = "wasm32")]
+    fn take_web_commands(&mut self) {
+        for command in web::take() {
+            match command {
+                web::Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
+                web::Command::LoadBuiltin(name) => {
+                    let spec = format!("builtin:{name}");
+                    let loaded = mesh::load(&spec);
+                    self.set_mesh(spec, loaded);
+                }
+                web::Command::LoadFile { name, bytes } => {
+                    let loaded = mesh::load_bytes(&name, &bytes);
+                    self.set_mesh(name, loaded);
+                }
+                web::Command::Failed(e) => self.fail(e),
+            }
         }
     }
 }
@@ -386,8 +493,13 @@ impl ViewerApp {
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.take_dropped_files(ui.ctx());
-        if self.needs_voxelize {
-            self.voxelize();
+        #[cfg(target_arch = "wasm32")]
+        self.take_web_commands();
+        self.finish_voxelize();
+        if self.needs_voxelize && self.pending.is_none() {
+            self.start_voxelize(ui.ctx());
+            // Natively the voxelization has already finished: show it in this frame.
+            self.finish_voxelize();
         }
         egui::Panel::left("panel").resizable(false).exact_size(260.0).show(ui, |ui| self.panel(ui));
         egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| self.viewport(ui, frame));
@@ -397,10 +509,9 @@ impl eframe::App for ViewerApp {
     }
 }
 
-#[cfg(not(target_arch = "wasm32"))]
-/// Native window options. The device gets the adapter's storage limits (big grids) and, where the adapter has
-/// them, timestamp queries (GPU times in the panel).
-pub fn native_options() -> eframe::NativeOptions {
+/// The device eframe opens gets the adapter's storage limits (big grids) and, where the adapter has them,
+/// timestamp queries (GPU times in the panel). Shared by the desktop window and the web page.
+pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
     let mut wgpu_options = egui_wgpu::WgpuConfiguration::default();
     if let egui_wgpu::WgpuSetup::CreateNew(create) = &mut wgpu_options.wgpu_setup {
         create.device_descriptor = Arc::new(|adapter| {
@@ -424,10 +535,22 @@ pub fn native_options() -> eframe::NativeOptions {
             }
         });
     }
+    wgpu_options
+}
+
+/// Native window options.
+#[cfg(not(target_arch = "wasm32"))]
+pub fn native_options() -> eframe::NativeOptions {
     eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1200.0, 760.0]).with_title("meshvox"),
         renderer: eframe::Renderer::Wgpu,
-        wgpu_options,
+        wgpu_options: wgpu_configuration(),
         ..Default::default()
     }
+}
+
+/// Web page options: WebGPU through wgpu (the page checks for WebGPU before it starts the app).
+#[cfg(target_arch = "wasm32")]
+pub fn web_options() -> eframe::WebOptions {
+    eframe::WebOptions { wgpu_options: wgpu_configuration(), ..Default::default() }
 }

@@ -1,0 +1,97 @@
+//! The app's side of the web page: an inbox for what the page asks for (files from `<input id="meshvox-file">`,
+//! dropped files read in the background, and the test hooks `meshvoxSetResolution` / `meshvoxLoadBuiltin`), and
+//! `window.meshvoxStatus`, which the app rewrites after every voxelization so tests and scripts can follow it.
+//!
+//! The browser runs the app on one thread, so a thread-local queue is all the synchronisation needed; every
+//! message asks egui for a repaint, since an idle page only runs frames when something happens.
+
+use super::Stats;
+use crate::gpu::AdapterSummary;
+use std::cell::RefCell;
+use wasm_bindgen::{JsCast, JsValue};
+
+/// What the page asks the app to do.
+pub enum Command {
+    SetResolution(u32),
+    LoadBuiltin(String),
+    LoadFile {
+        name: String,
+        bytes: Vec<u8>,
+    },
+    /// Something the page tried failed (a file could not be read); shown like any other error.
+    Failed(String),
+}
+
+thread_local! {
+    static INBOX: RefCell<Vec<Command>> = const { RefCell::new(Vec::new()) };
+    static CONTEXT: RefCell<Option<egui::Context>> = const { RefCell::new(None) };
+}
+
+/// Remembers the egui context, so messages can wake the app.
+pub(crate) fn attach(ctx: &egui::Context) {
+    CONTEXT.with(|c| *c.borrow_mut() = Some(ctx.clone()));
+}
+
+/// Queues `command` for the next frame and asks for that frame.
+pub fn send(command: Command) {
+    INBOX.with(|i| i.borrow_mut().push(command));
+    CONTEXT.with(|c| {
+        if let Some(ctx) = c.borrow().as_ref() {
+            ctx.request_repaint();
+        }
+    });
+}
+
+pub(crate) fn take() -> Vec<Command> {
+    INBOX.with(|i| std::mem::take(&mut *i.borrow_mut()))
+}
+
+/// Reads a file dropped on the canvas in the background and queues it.
+pub(crate) fn read_dropped(file: egui::DroppedFileHandle) {
+    wasm_bindgen_futures::spawn_local(async move {
+        let name = file.path().display().to_string();
+        match file.bytes_async().await {
+            Ok(bytes) => send(Command::LoadFile { name, bytes }),
+            Err(e) => send(Command::Failed(format!("{name}: cannot read: {e}"))),
+        }
+    });
+}
+
+/// Opens the browser's file dialog through the page's file input (its change handler sends the file).
+pub(crate) fn open_file_picker() {
+    let input = web_sys::window()
+        .and_then(|w| w.document())
+        .and_then(|d| d.get_element_by_id("meshvox-file"))
+        .and_then(|e| e.dyn_into::<web_sys::HtmlElement>().ok());
+    match input {
+        Some(input) => input.click(),
+        None => send(Command::Failed("this page has no file input (#meshvox-file)".into())),
+    }
+}
+
+/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, mesh, resolution, voxels, voxelize_ms, gpu_ms,
+/// triangles, dims, error }`. `ready` turns true with the first finished voxelization.
+pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, error: Option<&str>) {
+    let status = js_sys::Object::new();
+    let set = |key: &str, value: JsValue| {
+        let _ = js_sys::Reflect::set(&status, &key.into(), &value);
+    };
+    set("ready", stats.is_some().into());
+    set("adapter", adapter.name.as_str().into());
+    set("backend", adapter.backend.as_str().into());
+    set("error", error.map_or(JsValue::NULL, JsValue::from));
+    if let Some(s) = stats {
+        set("mesh", s.mesh.as_str().into());
+        set("resolution", s.resolution.into());
+        // Counts stay below 2^53, so a JS number holds them exactly.
+        set("voxels", (s.voxels as f64).into());
+        set("triangles", (s.triangles as f64).into());
+        set("voxelize_ms", s.voxelize_ms.into());
+        set("gpu_ms", s.gpu_ms.map_or(JsValue::NULL, JsValue::from));
+        let dims = js_sys::Array::of3(&s.dims[0].into(), &s.dims[1].into(), &s.dims[2].into());
+        set("dims", dims.into());
+    }
+    if let Some(window) = web_sys::window() {
+        let _ = js_sys::Reflect::set(&window, &"meshvoxStatus".into(), &status);
+    }
+}
