@@ -21,9 +21,10 @@ mod web_entry {
     use wasm_bindgen::prelude::*;
 
     /// Starts the app on the canvas `canvas_id`, showing `mesh` (a bundled name, as after `builtin:`) at
-    /// `resolution` voxels along the longest axis (0 for the default).
+    /// `resolution` voxels along the longest axis (0 for the default). `adapter_name` names the adapter where
+    /// the browser leaves wgpu's adapter name empty.
     #[wasm_bindgen]
-    pub async fn start(canvas_id: String, mesh: String, resolution: u32) -> Result<(), JsValue> {
+    pub async fn start(canvas_id: String, mesh: String, resolution: u32, adapter_name: String) -> Result<(), JsValue> {
         // Logs go to the browser console; warnings and errors are what the browser test watches for.
         let _ = eframe::WebLogger::init(log::LevelFilter::Info);
         let canvas = web_sys::window()
@@ -38,7 +39,11 @@ mod web_entry {
             .start(
                 canvas,
                 web_options(),
-                Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, &spec, resolution)?) as Box<dyn eframe::App>)),
+                Box::new(move |cc| {
+                    let mut app = ViewerApp::new(cc, &spec, resolution)?;
+                    app.name_adapter(&adapter_name);
+                    Ok(Box::new(app) as Box<dyn eframe::App>)
+                }),
             )
             .await
     }

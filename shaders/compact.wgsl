@@ -35,7 +35,7 @@ fn is_set(x: i32, y: i32, z: i32) -> bool {
         return false;
     }
     let row = u32(z - z0) * params.dims.y + u32(y);
-    return (grid[row * params.words_per_row + u32(x) / 32u] >> (u32(x) % 32u) & 1u) != 0u;
+    return ((grid[row * params.words_per_row + u32(x) / 32u] >> (u32(x) % 32u)) & 1u) != 0u;
 }
 
 // The set bits of word i that are to be listed.

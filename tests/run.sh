@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
-# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted) and Python with numpy, trimesh and
-# binvox (the independent readers the tests compare with), the latter in a virtual environment under target/.
+# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh and
+# binvox (the independent readers the tests compare with, in a virtual environment under target/), and Chromium
+# and Node.js for the browser test (web/build.sh adds the wasm32 target and wasm-bindgen-cli).
+# `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test. With arguments,
+# only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # lavapipe for the GPU tests; Xvfb, ImageMagick and the X libraries winit loads for the desktop test.
-packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1"
+# Chromium (with SwiftShader's WebGPU) and Node.js for the browser test.
+packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1 chromium"
+command -v node >/dev/null 2>&1 || packages="$packages nodejs npm"
 if [ "$(id -u)" = 0 ]; then
   missing=$(for p in $packages; do dpkg -s "$p" >/dev/null 2>&1 || echo "$p"; done)
   if [ -n "$missing" ]; then
@@ -34,3 +39,9 @@ fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 
 cargo test --locked --all-targets "$@"
+[ $# -gt 0 ] && exit 0
+
+# The web page: build web/dist, then drive it in headless Chromium and compare with the CLI built above.
+bash web/build.sh
+(cd web && npm ci --no-audit --no-fund --loglevel=error)
+node web/tests/browser.mjs

@@ -127,6 +127,14 @@ impl ViewerApp {
         &self.gpu.summary
     }
 
+    /// Names the adapter where the platform gave no name (browsers hide it; the page passes what WebGPU tells).
+    pub fn name_adapter(&mut self, name: &str) {
+        if self.gpu.summary.name.is_empty() && !name.is_empty() {
+            self.gpu.summary.name = name.to_string();
+            self.publish();
+        }
+    }
+
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
     }

@@ -1,0 +1,181 @@
+// Browser test of the web page: headless Chromium (Debian's `chromium`, driven by playwright-core) with the WebGPU
+// flag set from ../shared/PLATFORM.md loads web/dist (built by web/build.sh) from a local server, and
+//  - waits for window.meshvoxStatus.ready and checks the default mesh's voxel count against the native CLI,
+//  - changes the resolution through the page hook and checks the new count against the CLI,
+//  - loads ../shared/meshes/suzanne.obj and ../shared/meshes/gltf/Duck.gltf through the page's file input and
+//    checks their counts against the CLI,
+//  - fails on any uncaught exception, panic or console error,
+//  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
+//    rewrites it).
+// The CLI reference is `meshvox voxelize --backend cpu` (the CPU reference voxelizer) from MESHVOX_BIN, by default
+// target/debug/meshvox. Run: `node web/tests/browser.mjs` (tests/run.sh does, after `cargo test`).
+import { chromium } from "playwright-core";
+import { createServer } from "node:http";
+import { readFile, stat, mkdtemp, rm } from "node:fs/promises";
+import { existsSync } from "node:fs";
+import { execFileSync } from "node:child_process";
+import { tmpdir } from "node:os";
+import path from "node:path";
+import { fileURLToPath } from "node:url";
+
+const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "../..");
+const dist = path.join(root, "web/dist");
+const meshes = path.resolve(root, "../shared/meshes");
+const bin = process.env.MESHVOX_BIN ?? path.join(root, "target/debug/meshvox");
+const chromiumPath = process.env.CHROMIUM ?? "/usr/bin/chromium";
+const snapshots = path.join(root, "tests/snapshots");
+
+let failures = 0;
+function check(ok, what) {
+  console.log(`${ok ? "ok  " : "FAIL"} ${what}`);
+  if (!ok) failures++;
+}
+
+for (const [p, hint] of [[path.join(dist, "meshvox_bg.wasm"), "run `bash web/build.sh` first"],
+  [bin, "build the CLI first (`cargo build`), or set MESHVOX_BIN"], [chromiumPath, "apt-get install chromium"]]) {
+  if (!existsSync(p)) throw new Error(`${p} is missing: ${hint}`);
+}
+if (!existsSync(meshes)) {
+  if (process.env.CI === "true") throw new Error(`${meshes} is missing, and CI=true requires the shared meshes`);
+  console.log(`SKIPPED the file-input part: ${meshes} is missing (this checkout has no ../shared)`);
+}
+
+/** Voxel count of the native CLI (CPU reference) for `spec` at `resolution`. */
+function cliVoxels(spec, resolution) {
+  const out = path.join(tmpdir(), `meshvox-web-test-${process.pid}.npy`);
+  const json = execFileSync(bin, ["voxelize", spec, "-r", String(resolution), "-o", out, "--stats-json",
+    "--backend", "cpu"], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
+  return JSON.parse(json.split("\n")[0]).voxels;
+}
+
+// A static server for web/dist; wasm needs its MIME type for streaming compilation.
+const types = { ".html": "text/html", ".js": "text/javascript", ".wasm": "application/wasm" };
+const server = createServer(async (req, res) => {
+  const name = decodeURIComponent(new URL(req.url, "http://x").pathname);
+  const file = path.join(dist, name === "/" ? "index.html" : name);
+  try {
+    if (!file.startsWith(dist) || !(await stat(file)).isFile()) throw new Error("not found");
+    res.writeHead(200, { "content-type": types[path.extname(file)] ?? "application/octet-stream" });
+    res.end(await readFile(file));
+  } catch {
+    res.writeHead(404).end();
+  }
+});
+await new Promise((r) => server.listen(0, "127.0.0.1", r));
+const url = `http://127.0.0.1:${server.address().port}/`;
+
+// playwright-core gives each launch a fresh temporary profile (PLATFORM.md asks for one).
+const browser = await chromium.launch({
+  executablePath: chromiumPath,
+  headless: true,
+  args: ["--no-sandbox", "--enable-unsafe-webgpu", "--enable-features=Vulkan", "--use-vulkan=swiftshader",
+    "--use-angle=vulkan", "--use-webgpu-adapter=swiftshader", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic"],
+});
+const errors = [];
+try {
+  const page = await browser.newPage({ viewport: { width: 960, height: 600 } });
+  page.on("pageerror", (e) => errors.push(`uncaught: ${e.message}`));
+  page.on("console", (m) => {
+    if (m.type() === "error") errors.push(`console.error: ${m.text()}`);
+    if (process.env.VERBOSE) console.log(`  [${m.type()}] ${m.text()}`);
+  });
+
+  const opened = performance.now();
+  await page.goto(url);
+  /** Waits until meshvoxStatus satisfies `want` (a JSON-able partial status) and returns the status. */
+  const status = async (want, what) => {
+    try {
+      await page.waitForFunction((w) => {
+        const s = window.meshvoxStatus;
+        return s && (s.error && s.error !== null ? true : Object.entries(w).every(([k, v]) => s[k] === v));
+      }, want, { timeout: 120_000 });
+    } catch (e) {
+      throw new Error(`${what}: meshvoxStatus never became ${JSON.stringify(want)} ` +
+        `(last: ${JSON.stringify(await page.evaluate(() => window.meshvoxStatus))}; errors: ${errors.join(" | ")})`);
+    }
+    const s = await page.evaluate(() => window.meshvoxStatus);
+    if (s.error) throw new Error(`${what}: the page reports an error: ${s.error}`);
+    return s;
+  };
+
+  const first = await status({ ready: true }, "start");
+  const firstMs = performance.now() - opened;
+  console.log(`first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
+    `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms`);
+  check(first.backend === "BrowserWebGpu", `the page voxelizes on the browser's WebGPU (backend ${first.backend})`);
+  const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
+  check(first.voxels === defaultCli,
+    `default mesh builtin:${first.mesh} @${first.resolution}: page ${first.voxels} == CLI ${defaultCli}`);
+
+  // The screenshot of the first view, compared with its golden (downscaled so goldens stay small).
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await compareScreenshot(page, `web-default.${slug(first)}`);
+
+  await page.evaluate(() => window.meshvoxSetResolution(96));
+  const changed = await status({ ready: true, resolution: 96 }, "resolution change");
+  const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
+  check(changed.voxels === changedCli, `resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
+
+  if (existsSync(meshes)) {
+    for (const rel of ["suzanne.obj", "gltf/Duck.gltf"]) {
+      const file = path.join(meshes, rel);
+      await page.setInputFiles("#meshvox-file", file);
+      const s = await status({ ready: true, mesh: path.basename(file) }, `loading ${rel}`);
+      const cli = cliVoxels(file, s.resolution);
+      check(s.voxels === cli, `${rel} @${s.resolution} through the file input: page ${s.voxels} == CLI ${cli} ` +
+        `(${s.triangles} triangles, ${s.voxelize_ms.toFixed(1)} ms)`);
+    }
+  }
+} finally {
+  await browser.close();
+  server.close();
+}
+check(errors.length === 0, `no page errors or console errors${errors.length ? ": " + errors.join(" | ") : ""}`);
+if (failures > 0) {
+  console.log(`browser test: ${failures} check(s) failed`);
+  process.exit(1);
+}
+console.log("browser test: all checks passed");
+
+function slug(s) {
+  const name = (s.adapter.split(/\s+/)[0] || "unknown").toLowerCase();
+  return `webgpu-${name}`.replace(/[^a-z0-9-]/g, "");
+}
+
+/** Compares a 256-pixel-wide screenshot with tests/snapshots/NAME.png using ImageMagick, with a tolerance for
+ * anti-aliasing and text rasterisation differences. */
+async function compareScreenshot(page, name) {
+  const work = await mkdtemp(path.join(tmpdir(), "meshvox-shot-"));
+  const full = path.join(work, "full.png");
+  const small = path.join(snapshots, `${name}.new.png`);
+  const golden = path.join(snapshots, `${name}.png`);
+  await page.screenshot({ path: full });
+  execFileSync("convert", [full, "-resize", "256x256", "-strip", "-define", "png:compression-level=9", small]);
+  await rm(work, { recursive: true, force: true });
+  if (process.env.UPDATE_SNAPSHOTS) {
+    execFileSync("mv", [small, golden]);
+    console.log(`wrote ${path.relative(root, golden)}`);
+    return;
+  }
+  if (!existsSync(golden)) {
+    check(false, `screenshot golden ${path.relative(root, golden)} exists (UPDATE_SNAPSHOTS=1 writes it; ` +
+      `the new image is ${path.relative(root, small)})`);
+    return;
+  }
+  // Pixels differing by more than 10% of the range in any channel, out of 256x160.
+  let differing;
+  try {
+    differing = Number(execFileSync("compare", ["-metric", "AE", "-fuzz", "10%", golden, small,
+      path.join(snapshots, `${name}.diff.png`)], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] }));
+  } catch (e) {
+    // `compare` exits 1 when the images differ and prints the metric on stderr.
+    differing = Number(String(e.stderr).trim().split(/\s+/)[0]);
+  }
+  const ok = Number.isFinite(differing) && differing <= 0.01 * 256 * 160;
+  check(ok, `screenshot matches ${path.relative(root, golden)} (${differing} pixels differ by >10%, limit 1%)`);
+  if (ok) {
+    await rm(small, { force: true });
+    await rm(path.join(snapshots, `${name}.diff.png`), { force: true });
+  }
+}
