@@ -2,8 +2,9 @@
 // flag set from ../shared/PLATFORM.md loads web/dist (built by web/build.sh) from a local server, and
 //  - waits for window.meshvoxStatus.ready and checks the default mesh's voxel count against the native CLI,
 //  - changes the resolution through the page hook and checks the new count against the CLI,
-//  - loads ../shared/meshes/suzanne.obj and ../shared/meshes/gltf/Duck.gltf through the page's file input and
-//    checks their counts against the CLI,
+//  - loads ../shared/meshes/suzanne.obj and ../shared/meshes/gltf/Duck.gltf through the page's file input, and
+//    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
+//  - in a page without WebGPU, checks that the page says so instead of showing a blank canvas,
 //  - fails on any uncaught exception, panic or console error,
 //  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
 //    rewrites it).
@@ -126,7 +127,30 @@ try {
       check(s.voxels === cli, `${rel} @${s.resolution} through the file input: page ${s.voxels} == CLI ${cli} ` +
         `(${s.triangles} triangles, ${s.voxelize_ms.toFixed(1)} ms)`);
     }
+    // Drag and drop: a real drop event on the canvas carrying the file, as a file manager would send it.
+    const glb = path.join(meshes, "gltf/box01.glb");
+    const dropped = await page.evaluateHandle(({ name, b64 }) => {
+      const dt = new DataTransfer();
+      dt.items.add(new File([Uint8Array.from(atob(b64), (c) => c.charCodeAt(0))], name));
+      return dt;
+    }, { name: path.basename(glb), b64: (await readFile(glb)).toString("base64") });
+    await page.dispatchEvent("#meshvox_canvas", "drop", { dataTransfer: dropped });
+    const s = await status({ ready: true, mesh: path.basename(glb) }, "dropping box01.glb");
+    const cli = cliVoxels(glb, s.resolution);
+    check(s.voxels === cli, `gltf/box01.glb @${s.resolution} dropped on the canvas: page ${s.voxels} == CLI ${cli}`);
   }
+
+  // A browser without WebGPU: the page must say so (the same Chromium, with navigator.gpu taken away).
+  const plain = await browser.newPage({ viewport: { width: 960, height: 600 } });
+  plain.on("pageerror", (e) => errors.push(`uncaught (no-WebGPU page): ${e.message}`));
+  await plain.addInitScript(() => delete Navigator.prototype.gpu);
+  await plain.goto(url);
+  await plain.waitForFunction(() => window.meshvoxStatus?.error, null, { timeout: 30_000 });
+  const noGpu = await plain.evaluate(() => ({ status: window.meshvoxStatus,
+    text: document.getElementById("meshvox-message").innerText,
+    visible: !document.getElementById("meshvox-message").hidden }));
+  check(noGpu.status.error === "no-webgpu" && noGpu.visible && noGpu.text.includes("no WebGPU"),
+    `without WebGPU the page says so ("${noGpu.text.split("\n")[0]}")`);
 } finally {
   await browser.close();
   server.close();
