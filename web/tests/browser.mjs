@@ -1,8 +1,10 @@
 // Browser test of the web page: headless Chromium (Debian's `chromium`, driven by playwright-core) with the WebGPU
 // flag set from ../shared/PLATFORM.md loads web/dist (built by web/build.sh) from a local server, and
 //  - waits for window.meshvoxStatus.ready and checks the default mesh's voxel count against the native CLI,
-//  - changes the resolution through the page hook and checks the new count against the CLI,
-//  - loads ../shared/meshes/suzanne.obj and ../shared/meshes/gltf/Duck.gltf through the page's file input, and
+//  - changes the resolution through the page hook, then by typing into the panel's resolution field, and checks
+//    the new counts against the CLI,
+//  - loads ../shared/meshes/suzanne.obj through the panel's Open… button and the file chooser it opens,
+//    ../shared/meshes/gltf/Duck.gltf through the page's file input, and
 //    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
 //  - in a page without WebGPU, checks that the page says so instead of showing a blank canvas,
 //  - fails on any uncaught exception, panic or console error,
@@ -118,13 +120,30 @@ try {
   const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
   check(changed.voxels === changedCli, `resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
 
+  // And through the panel: click the slider's number field, type a value, press Enter.
+  await clickLikeAUser(page, 136, 167);
+  await page.keyboard.press("Control+A");
+  await page.keyboard.type("128");
+  await page.keyboard.press("Enter");
+  const typed = await status({ ready: true, resolution: 128 }, "typing 128 into the resolution field");
+  const typedCli = cliVoxels(`builtin:${typed.mesh}`, 128);
+  check(typed.voxels === typedCli, `resolution 128 typed into the panel: page ${typed.voxels} == CLI ${typedCli}`);
+
   if (existsSync(meshes)) {
     for (const rel of ["suzanne.obj", "gltf/Duck.gltf"]) {
       const file = path.join(meshes, rel);
-      await page.setInputFiles("#meshvox-file", file);
+      if (rel === "suzanne.obj") {
+        // The user's way: click the panel's Open… button (drawn by egui at this spot of the 260-point panel),
+        // which must open the browser's file chooser.
+        const [chooser] = await Promise.all([page.waitForEvent("filechooser", { timeout: 15_000 }),
+          clickLikeAUser(page, 37, 104)]);
+        await chooser.setFiles(file);
+      } else {
+        await page.setInputFiles("#meshvox-file", file);
+      }
       const s = await status({ ready: true, mesh: path.basename(file) }, `loading ${rel}`);
       const cli = cliVoxels(file, s.resolution);
-      check(s.voxels === cli, `${rel} @${s.resolution} through the file input: page ${s.voxels} == CLI ${cli} ` +
+      check(s.voxels === cli, `${rel} @${s.resolution} through ${rel === "suzanne.obj" ? "Open…" : "the file input"}: page ${s.voxels} == CLI ${cli} ` +
         `(${s.triangles} triangles, ${s.voxelize_ms.toFixed(1)} ms)`);
     }
     // Drag and drop: a real drop event on the canvas carrying the file, as a file manager would send it.
@@ -161,6 +180,16 @@ if (failures > 0) {
   process.exit(1);
 }
 console.log("browser test: all checks passed");
+
+/** Hovers, then presses and releases a few frames apart: egui decides what is under the pointer from the
+ * previous frame, so an instant move-press-release can miss a widget on a busy machine. */
+async function clickLikeAUser(page, x, y) {
+  await page.mouse.move(x, y);
+  await page.waitForTimeout(250);
+  await page.mouse.down();
+  await page.waitForTimeout(80);
+  await page.mouse.up();
+}
 
 function slug(s) {
   const name = (s.adapter.split(/\s+/)[0] || "unknown").toLowerCase();
