@@ -54,6 +54,9 @@ struct Pending {
     mesh: Arc<Mesh>,
     resolution: u32,
     spec: GridSpec,
+    /// Whether the camera frames the result: decided when the work starts, so a mesh picked meanwhile is
+    /// framed by its own voxelization rather than by the one still running.
+    frame: bool,
     outcome: Rc<RefCell<Option<Outcome>>>,
 }
 
@@ -201,6 +204,7 @@ impl ViewerApp {
             mesh,
             resolution: self.resolution,
             spec,
+            frame: std::mem::take(&mut self.needs_framing),
             outcome,
         });
         #[cfg(not(target_arch = "wasm32"))]
@@ -215,7 +219,10 @@ impl ViewerApp {
         let Some(p) = self.pending.take() else { return };
         let (points, grid, gpu_ms) = match outcome {
             Ok(done) => done,
-            Err(e) => return self.fail(e),
+            Err(e) => {
+                self.needs_framing |= p.frame;
+                return self.fail(e);
+            }
         };
         let scene = self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh));
         let d = grid.spec.dims;
@@ -228,10 +235,9 @@ impl ViewerApp {
             gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
         });
-        if self.needs_framing {
+        if p.frame {
             let (lo, hi) = scene.bounds();
             self.camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
-            self.needs_framing = false;
         }
         self.scene = Some(scene);
         self.scene_version += 1;
