@@ -14,16 +14,45 @@ pub(crate) async fn read_buffer(
     offset: u64,
     size: u64,
 ) -> Result<Vec<u8>, GpuError> {
+    let mut parts = read_buffers(device, queue, &[(buffer, offset, size)]).await?;
+    Ok(parts.pop().unwrap_or_default())
+}
+
+/// Copies several `(buffer, offset, size)` ranges (sizes multiples of four) into one staging buffer and maps it
+/// once: in the browser every map is a round trip to the GPU process, so reads that can share one do.
+pub(crate) async fn read_buffers(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    ranges: &[(&wgpu::Buffer, u64, u64)],
+) -> Result<Vec<Vec<u8>>, GpuError> {
+    let total: u64 = ranges.iter().map(|r| r.2).sum();
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("meshvox readback"),
-        size,
+        size: total.max(4),
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let mut encoder = device.create_command_encoder(&Default::default());
-    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
+    let mut at = 0;
+    for &(buffer, offset, size) in ranges {
+        encoder.copy_buffer_to_buffer(buffer, offset, &staging, at, size);
+        at += size;
+    }
     queue.submit([encoder.finish()]);
-    map_and_copy(device, &staging).await
+    let bytes = map_and_copy(device, &staging).await?;
+    if ranges.len() == 1 {
+        // One range (most reads, grids included): no second copy.
+        return Ok(vec![bytes]);
+    }
+    let mut at = 0;
+    Ok(ranges
+        .iter()
+        .map(|r| {
+            let part = bytes[at..at + r.2 as usize].to_vec();
+            at += r.2 as usize;
+            part
+        })
+        .collect())
 }
 
 /// Maps a MAP_READ buffer and returns its contents.
@@ -86,20 +115,26 @@ impl PassTimer {
         })
     }
 
-    /// Resolves the written queries, reads them back and returns the summed pass time in milliseconds; the
-    /// timer is then empty again.
-    pub(crate) async fn collect(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<f64, GpuError> {
-        if self.used == 0 {
-            return Ok(0.0);
+    /// Resolves the written queries into the resolve buffer with `encoder`; returns how many bytes of
+    /// [`PassTimer::resolved`] to read back (zero when no pass was timed).
+    pub(crate) fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) -> u64 {
+        if self.used > 0 {
+            encoder.resolve_query_set(&self.set, 0..self.used, &self.resolve, 0);
         }
-        let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.resolve_query_set(&self.set, 0..self.used, &self.resolve, 0);
-        queue.submit([encoder.finish()]);
-        let bytes = read_buffer(device, queue, &self.resolve, 0, self.used as u64 * 8).await?;
-        let ticks: &[u64] = bytemuck::cast_slice(&bytes);
+        self.used as u64 * 8
+    }
+
+    pub(crate) fn resolved(&self) -> &wgpu::Buffer {
+        &self.resolve
+    }
+
+    /// Sums the pass times in read-back resolved queries, in milliseconds; the timer is then empty again.
+    pub(crate) fn finish(&mut self, queue: &wgpu::Queue, bytes: &[u8]) -> f64 {
+        let ticks: Vec<u64> =
+            bytes.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or_default())).collect();
         let period = queue.get_timestamp_period() as f64;
         let ns: f64 = ticks.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period).sum();
         self.used = 0;
-        Ok(ns / 1e6)
+        ns / 1e6
     }
 }

@@ -7,7 +7,7 @@
 //! [`Options`] to exercise the chunked paths on small inputs.
 
 use super::compact::{CompactVoxels, Compactor, Slab};
-use super::readback::{PassTimer, read_buffer};
+use super::readback::{PassTimer, read_buffer, read_buffers};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::Vec3;
@@ -390,16 +390,30 @@ impl GpuVoxelizer {
                     let part = Slab { buffer: &slab, z0, words };
                     points.push(self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut()).await?);
                 }
+                // The slab and this slab's pass times come back in one read.
+                let mut encoder = device.create_command_encoder(&Default::default());
+                let timed = timer.as_mut().map_or(0, |t| t.resolve(&mut encoder));
+                gpu.queue.submit([encoder.finish()]);
+                let mut ranges = Vec::new();
+                if grid.is_some() {
+                    ranges.push((&slab, 0, words * 4));
+                }
+                if let Some(t) = timer.as_ref().filter(|_| timed > 0) {
+                    ranges.push((t.resolved(), 0, timed));
+                }
+                let parts =
+                    if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
+                let mut parts = parts.into_iter();
                 if let Some(host) = grid.as_mut() {
-                    let bytes = read_buffer(device, &gpu.queue, &slab, 0, words * 4).await?;
+                    let bytes = parts.next().unwrap_or_default();
                     let start = wpr as usize * spec.dims.y as usize * z0 as usize;
                     let dst = &mut host.words[start..start + words as usize];
                     for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
                         *d |= *s;
                     }
                 }
-                if let Some(t) = timer.as_mut() {
-                    gpu_ms += t.collect(device, &gpu.queue).await?;
+                if let (Some(t), Some(bytes)) = (timer.as_mut(), parts.next()) {
+                    gpu_ms += t.finish(&gpu.queue, &bytes);
                 }
             }
         }
