@@ -116,7 +116,7 @@ impl ViewerApp {
         };
         #[cfg(target_arch = "wasm32")]
         web::attach(&cc.egui_ctx);
-        app.set_mesh(mesh_spec.to_string(), mesh::load(mesh_spec));
+        app.open(mesh_spec.to_string());
         Ok(app)
     }
 
@@ -147,6 +147,12 @@ impl ViewerApp {
             self.resolution = resolution;
             self.needs_voxelize = true;
         }
+    }
+
+    /// Loads and shows `spec` (a path or `builtin:NAME`).
+    fn open(&mut self, spec: String) {
+        let loaded = mesh::load(&spec);
+        self.set_mesh(spec, loaded);
     }
 
     /// Shows a newly loaded mesh, or keeps the current one and shows the error.
@@ -282,8 +288,7 @@ impl ViewerApp {
             .response
             .labelled_by(mesh_label.id);
         if let Some(spec) = picked {
-            let loaded = mesh::load(&spec);
-            self.set_mesh(spec, loaded);
+            self.open(spec);
         }
         #[cfg(not(target_arch = "wasm32"))]
         if ui.button("Open…").on_hover_text("OBJ, glTF or GLB; or drop a file on the window").clicked()
@@ -489,11 +494,7 @@ impl ViewerApp {
         for command in web::take() {
             match command {
                 web::Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
-                web::Command::LoadBuiltin(name) => {
-                    let spec = format!("builtin:{name}");
-                    let loaded = mesh::load(&spec);
-                    self.set_mesh(spec, loaded);
-                }
+                web::Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
                 web::Command::LoadFile { name, bytes } => {
                     let loaded = mesh::load_bytes(&name, &bytes);
                     self.set_mesh(name, loaded);

@@ -91,7 +91,7 @@ try {
     try {
       await page.waitForFunction((w) => {
         const s = window.meshvoxStatus;
-        return s && (s.error && s.error !== null ? true : Object.entries(w).every(([k, v]) => s[k] === v));
+        return s && (s.error || Object.entries(w).every(([k, v]) => s[k] === v));
       }, want, { timeout: 120_000 });
     } catch (e) {
       throw new Error(`${what}: meshvoxStatus never became ${JSON.stringify(want)} ` +
