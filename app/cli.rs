@@ -318,6 +318,8 @@ struct EngineResult {
     grid: voxel::VoxelGrid,
     backend: String,
     gpu_ms: Option<f64>,
+    /// Voxel tests the exact integer path decided (see `voxel::cpu::voxel_decision`).
+    exact_tests: Option<u64>,
 }
 
 impl Engine {
@@ -343,12 +345,13 @@ impl Engine {
     fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec) -> Result<EngineResult> {
         let cpu_label = || format!("cpu ({} threads)", rayon::current_num_threads());
         if let Some((gpu, v)) = &self.gpu {
-            let tris = voxel::cpu::grid_space_triangles(mesh, &spec);
+            let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
             let options = meshvox::gpu::voxelize::Options { read_grid: true, ..Default::default() };
             match v.voxelize(gpu, &tris, spec, &options) {
                 Ok(out) => {
                     let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
-                    return Ok(EngineResult { grid, backend: format!("gpu: {}", gpu.summary), gpu_ms: out.gpu_ms });
+                    let backend = format!("gpu: {}", gpu.summary);
+                    return Ok(EngineResult { grid, backend, gpu_ms: out.gpu_ms, exact_tests: out.exact_tests });
                 }
                 Err(e @ (meshvox::gpu::GpuError::TooLarge { .. } | meshvox::gpu::GpuError::OutOfMemory(_)))
                     if self.fallback =>
@@ -359,10 +362,12 @@ impl Engine {
             }
         }
         let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
-        let grid = voxel::cpu::voxelize(mesh, spec, &|done, _| bar.set_position(done as u64))
-            .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
+        let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
+        let (grid, stats) =
+            voxel::cpu::voxelize_grid_space_with_stats(&tris, spec, &|done, _| bar.set_position(done as u64))
+                .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
         bar.finish_and_clear();
-        Ok(EngineResult { grid, backend: cpu_label(), gpu_ms: None })
+        Ok(EngineResult { grid, backend: cpu_label(), gpu_ms: None, exact_tests: Some(stats.exact_tests) })
     }
 }
 
@@ -382,8 +387,11 @@ fn bench(args: &BenchArgs) -> Result<()> {
         args.meshes.clone()
     };
     let loaded: Vec<mesh::Mesh> = meshes.iter().map(|m| mesh::load(m)).collect::<Result<_, _>>()?;
-    println!("| mesh | triangles | N | grid | voxels | backend | voxelize ms (median of {}) | gpu ms |", args.runs);
-    println!("|---|---:|---:|---|---:|---|---:|---:|");
+    println!(
+        "| mesh | triangles | N | grid | voxels | backend | voxelize ms (median of {}) | gpu ms | exact tests |",
+        args.runs
+    );
+    println!("|---|---:|---:|---|---:|---|---:|---:|---:|");
     let mut times = std::collections::HashMap::new();
     for &backend in &args.backends {
         let engine = match Engine::open(backend) {
@@ -413,8 +421,9 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 times.insert((name.clone(), r, out.backend.clone()), t);
                 let g = out.grid.spec.dims;
                 let gpu_ms = if gpu.is_empty() { "-".to_string() } else { format!("{:.2}", median(gpu)) };
+                let exact = out.exact_tests.map_or("-".to_string(), |n| n.to_string());
                 println!(
-                    "| {} | {} | {r} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} |",
+                    "| {} | {} | {r} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} | {exact} |",
                     name.rsplit('/').next().unwrap_or(name),
                     m.triangles.len(),
                     g.x,
@@ -465,7 +474,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         (instances_from_grid(&gpu.device, &grid), "cpu".to_string())
     } else {
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-        let tris = voxel::cpu::grid_space_triangles(&mesh, &spec);
+        let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
         let options = meshvox::gpu::voxelize::Options { compact: true, surface_only: true, ..Default::default() };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
         (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))

@@ -4,6 +4,11 @@
 // the two produce bit-identical grids. Everything is in grid space: voxel (i, j, k) is the unit box with
 // minimum corner (i, j, k). Core WebGPU only: no extensions, workgroups of at most 256 invocations.
 //
+// Decisions are exact: each sign test is evaluated in f32 with a forward error bound that holds under any
+// reordering or contraction the compiler applies, and where the value lies within its bound (a tie or near-tie)
+// it is decided exactly in 128-bit integer arithmetic on the lattice coordinates (see app/voxel/lattice.rs).
+// So the grid is the exact answer on every conformant adapter, bit-identical to the CPU reference.
+//
 // Passes, all sharing one bind group:
 //   setup              one invocation per triangle: the per-triangle set-up, computed once, and how many work
 //                      items the triangle needs (rows of its dominant projection x chunks of CHUNK columns)
@@ -18,7 +23,7 @@
 // many invocations busy as a dense mesh. Grids too large for one binding run `voxelize` once per z-slab.
 
 const CHUNK: u32 = 16u;
-const MARGIN: f32 = 2.0;
+const ERROR_FACTOR: f32 = 1.0 / 524288.0;
 const WG: u32 = 64u;
 const SCAN_WG: u32 = 256u;
 
@@ -30,20 +35,25 @@ struct Params {
     slab_z0: u32,
     slab_z1: u32,
     block_count: u32,
+    // Lattice steps per voxel (2^shift): coordinates times this are exact integers below 2^23.
+    lattice_scale: f32,
 }
 
 struct Edges {
     ne: array<vec2<f32>, 3>,
     de: vec3<f32>,
+    eps: vec3<f32>,
 }
 
+// Plane and edge quantities are in local coordinates, relative to `lo`.
 struct TriangleSetup {
     n: vec3<f32>,
     d1: f32,
     d2: f32,
+    plane_eps: f32,
     axis: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // Exact signs of the normal's components: bit k set when n_k > 0, bit k + 3 when n_k < 0.
+    normal_signs: u32,
     lo: vec3<u32>,
     hi: vec3<u32>,
     xy: Edges,
@@ -58,12 +68,13 @@ struct TriangleSetup {
 @group(0) @binding(3) var<storage, read_write> offsets: array<u32>;
 @group(0) @binding(4) var<storage, read_write> block_sums: array<u32>;
 @group(0) @binding(5) var<storage, read_write> grid: array<atomic<u32>>;
-// The indirect dispatch size of `voxelize`.
+// Voxel tests the f32 decision left unsure, as (triangle, x, y, z), decided by the `exact` pass; and their count.
+@group(0) @binding(6) var<storage, read_write> unsure: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read_write> unsure_count: array<atomic<u32>>;
+// Indirect dispatch sizes: [0..3) `voxelize`, [3..6) `exact`, [6..9) `voxelize_exact` (zero groups unless the
+// unsure list overflowed).
 @group(1) @binding(0) var<storage, read_write> dispatch: array<u32>;
 
-// Sums of products are spelled out in the CPU reference's order, not as dot/cross/fma builtins. No fma on
-// purpose: products that appear on both sides of a cancellation must round identically, so a face exactly on a
-// voxel boundary gives an exact zero and touches both sides (see app/voxel/cpu.rs).
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return a.x * b.x + a.y * b.y + a.z * b.z;
 }
@@ -72,11 +83,130 @@ fn edge_function(a: vec2<f32>, q: vec2<f32>, d: f32) -> f32 {
     return a.x * q.x + a.y * q.y + d;
 }
 
-fn orientation(c: f32) -> f32 {
-    return select(-1.0, 1.0, c >= 0.0);
+// ---- 128-bit integers for the exact path: two's complement in a vec4<u32>, least significant word first ----
+
+fn wide(x: i32) -> vec4<u32> {
+    let ext = select(0u, 0xffffffffu, x < 0);
+    return vec4<u32>(bitcast<u32>(x), ext, ext, ext);
 }
 
-fn setup_edges(a: vec3<f32>, b: vec3<f32>, o: f32) -> Edges {
+fn wide_add(a: vec4<u32>, b: vec4<u32>) -> vec4<u32> {
+    var r = vec4<u32>(0u);
+    var carry = 0u;
+    for (var i = 0u; i < 4u; i++) {
+        let s = a[i] + b[i];
+        let t = s + carry;
+        carry = select(0u, 1u, s < a[i]) + select(0u, 1u, t < s);
+        r[i] = t;
+    }
+    return r;
+}
+
+fn wide_neg(a: vec4<u32>) -> vec4<u32> {
+    return wide_add(~a, vec4<u32>(1u, 0u, 0u, 0u));
+}
+
+// The 64-bit product of two u32 as (low, high) words, from 16-bit halves.
+fn mul_u32(a: u32, b: u32) -> vec2<u32> {
+    let al = a & 0xffffu;
+    let ah = a >> 16u;
+    let bl = b & 0xffffu;
+    let bh = b >> 16u;
+    let ll = al * bl;
+    let lh = al * bh;
+    let hl = ah * bl;
+    let mid = (ll >> 16u) + (lh & 0xffffu) + (hl & 0xffffu);
+    return vec2<u32>((ll & 0xffffu) | (mid << 16u), ah * bh + (lh >> 16u) + (hl >> 16u) + (mid >> 16u));
+}
+
+// a * m modulo 2^128, exact while the product fits (|m| < 2^31; every use here stays below 2^77).
+fn wide_mul(a: vec4<u32>, m: i32) -> vec4<u32> {
+    let mag = bitcast<u32>(abs(m));
+    var r = vec4<u32>(0u);
+    var carry = 0u;
+    for (var i = 0u; i < 4u; i++) {
+        let p = mul_u32(a[i], mag);
+        let lo = p.x + carry;
+        carry = p.y + select(0u, 1u, lo < p.x);
+        r[i] = lo;
+    }
+    if m < 0 {
+        return wide_neg(r);
+    }
+    return r;
+}
+
+fn wide_sign(a: vec4<u32>) -> i32 {
+    if (a.w & 0x80000000u) != 0u {
+        return -1;
+    }
+    return select(0, 1, any(a != vec4<u32>(0u)));
+}
+
+// ---- exact decisions on lattice coordinates ----
+
+fn lattice_vertex(t: u32, i: u32) -> vec3<i32> {
+    let b = 9u * t + 3u * i;
+    return vec3<i32>(vec3<f32>(triangles[b], triangles[b + 1u], triangles[b + 2u]) * params.lattice_scale);
+}
+
+fn normal_sign(signs: u32, k: u32) -> i32 {
+    return i32((signs >> k) & 1u) - i32((signs >> (k + 3u)) & 1u);
+}
+
+// Component k of the exact normal e0 x e1 of lattice edge vectors (each product below 2^48).
+fn exact_normal_component(e0: vec3<i32>, e1: vec3<i32>, k: u32) -> vec4<u32> {
+    let i = (k + 1u) % 3u;
+    let j = (k + 2u) % 3u;
+    return wide_add(wide_mul(wide(e0[i]), e1[j]), wide_neg(wide_mul(wide(e0[j]), e1[i])));
+}
+
+// n . (P - V0) + S sum max(n_k, 0) >= 0 and n . (P - V0) + S sum min(n_k, 0) <= 0, in lattice units.
+fn exact_plane_test(t: u32, p: vec3<u32>) -> bool {
+    let v0 = lattice_vertex(t, 0u);
+    let e0 = lattice_vertex(t, 1u) - v0;
+    let e1 = lattice_vertex(t, 2u) - lattice_vertex(t, 1u);
+    let unit = i32(params.lattice_scale);
+    let d = vec3<i32>(p) * unit - v0;
+    var base = vec4<u32>(0u);
+    var pos = vec4<u32>(0u);
+    var neg = vec4<u32>(0u);
+    for (var k = 0u; k < 3u; k++) {
+        let nk = exact_normal_component(e0, e1, k);
+        base = wide_add(base, wide_mul(nk, d[k]));
+        if wide_sign(nk) > 0 {
+            pos = wide_add(pos, nk);
+        } else {
+            neg = wide_add(neg, nk);
+        }
+    }
+    return wide_sign(wide_add(base, wide_mul(pos, unit))) >= 0 && wide_sign(wide_add(base, wide_mul(neg, unit))) <= 0;
+}
+
+// The exact sign of edge function i of projection k (0: XY, 1: YZ, 2: ZX) at voxel corner p, in lattice units:
+// ne . (Q - V_i) + S (max(ne.x, 0) + max(ne.y, 0)).
+fn exact_edge_sign(s: TriangleSetup, t: u32, k: u32, i: u32, p: vec3<u32>) -> i32 {
+    let a = k;
+    let b = (k + 1u) % 3u;
+    let o = select(-1, 1, normal_sign(s.normal_signs, (k + 2u) % 3u) >= 0);
+    let vi = lattice_vertex(t, i);
+    let vj = lattice_vertex(t, (i + 1u) % 3u);
+    let ne = vec2<i32>(-o * (vj[b] - vi[b]), o * (vj[a] - vi[a]));
+    let unit = i32(params.lattice_scale);
+    let q = vec3<i32>(p) * unit;
+    var value = wide_add(wide_mul(wide(ne.x), q[a] - vi[a]), wide_mul(wide(ne.y), q[b] - vi[b]));
+    value = wide_add(value, wide_mul(wide(max(ne.x, 0) + max(ne.y, 0)), unit));
+    return wide_sign(value);
+}
+
+// ---- set-up ----
+
+fn orientation(sign: i32) -> f32 {
+    return select(-1.0, 1.0, sign >= 0);
+}
+
+// Edge normals, offsets and error bounds of one projection (see setup_edges in app/voxel/cpu.rs for the bound).
+fn setup_edges(a: vec3<f32>, b: vec3<f32>, o: f32, wa: f32, wb: f32) -> Edges {
     var out: Edges;
     for (var i = 0u; i < 3u; i++) {
         let j = (i + 1u) % 3u;
@@ -84,6 +214,7 @@ fn setup_edges(a: vec3<f32>, b: vec3<f32>, o: f32) -> Edges {
         let normal = vec2<f32>(-e.y, e.x) * o;
         out.ne[i] = normal;
         out.de[i] = -(normal.x * a[i] + normal.y * b[i]) + max(normal.x, 0.0) + max(normal.y, 0.0);
+        out.eps[i] = ERROR_FACTOR * (abs(normal.x) * wa + abs(normal.y) * wb);
     }
     return out;
 }
@@ -123,71 +254,180 @@ fn dominant_axis(s: TriangleSetup) -> u32 {
     return 0u;
 }
 
-fn setup_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, dims: vec3<u32>) -> TriangleSetup {
+// The set-up of triangle t (see setup_triangle in app/voxel/cpu.rs for the plane error bound).
+fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     var s: TriangleSetup;
-    let e0 = v1 - v0;
-    let e1 = v2 - v1;
-    let n = vec3<f32>(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
-    let c = select(vec3<f32>(0.0), vec3<f32>(1.0), n > vec3<f32>(0.0));
-    s.n = n;
-    s.d1 = dot3(n, c - v0);
-    s.d2 = dot3(n, vec3<f32>(1.0) - c - v0);
-    let xs = vec3<f32>(v0.x, v1.x, v2.x);
-    let ys = vec3<f32>(v0.y, v1.y, v2.y);
-    let zs = vec3<f32>(v0.z, v1.z, v2.z);
-    s.xy = setup_edges(xs, ys, orientation(n.z));
-    s.yz = setup_edges(ys, zs, orientation(n.x));
-    s.zx = setup_edges(zs, xs, orientation(n.y));
+    let b = 9u * t;
+    let v0 = vec3<f32>(triangles[b], triangles[b + 1u], triangles[b + 2u]);
+    let v1 = vec3<f32>(triangles[b + 3u], triangles[b + 4u], triangles[b + 5u]);
+    let v2 = vec3<f32>(triangles[b + 6u], triangles[b + 7u], triangles[b + 8u]);
     voxel_range(v0, v1, v2, dims, &s);
+    // An empty range has lo = 1 > hi = 0; its local coordinates are never used.
+    let origin = vec3<f32>(s.lo);
+    let l0 = v0 - origin;
+    let l1 = v1 - origin;
+    let l2 = v2 - origin;
+    let e0 = l1 - l0;
+    let e1 = l2 - l1;
+    let n = vec3<f32>(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    let nabs = vec3<f32>(abs(e0.y * e1.z) + abs(e0.z * e1.y), abs(e0.z * e1.x) + abs(e0.x * e1.z),
+        abs(e0.x * e1.y) + abs(e0.y * e1.x));
+    let u0 = lattice_vertex(t, 0u);
+    let ue0 = lattice_vertex(t, 1u) - u0;
+    let ue1 = lattice_vertex(t, 2u) - lattice_vertex(t, 1u);
+    var signs = 0u;
+    var n_exact = vec3<f32>(0.0);
+    var nabs_live = vec3<f32>(0.0);
+    for (var k = 0u; k < 3u; k++) {
+        let sg = wide_sign(exact_normal_component(ue0, ue1, k));
+        signs = signs | (select(0u, 1u, sg > 0) << k) | (select(0u, 1u, sg < 0) << (k + 3u));
+        if sg != 0 {
+            n_exact[k] = n[k];
+            nabs_live[k] = nabs[k];
+        }
+    }
+    let c = vec3<f32>(select(0.0, 1.0, normal_sign(signs, 0u) > 0), select(0.0, 1.0, normal_sign(signs, 1u) > 0),
+        select(0.0, 1.0, normal_sign(signs, 2u) > 0));
+    s.n = n_exact;
+    s.normal_signs = signs;
+    s.d1 = dot3(n_exact, c - l0);
+    s.d2 = dot3(n_exact, vec3<f32>(1.0) - c - l0);
+    let lmin = min(min(l0, l1), l2);
+    let lmax = max(max(l0, l1), l2);
+    let w = max(max(abs(lmin), abs(lmax)), vec3<f32>(s.hi) - origin + 1.0) + 1.0;
+    s.plane_eps = ERROR_FACTOR * dot3(nabs_live, w);
+    let xs = vec3<f32>(l0.x, l1.x, l2.x);
+    let ys = vec3<f32>(l0.y, l1.y, l2.y);
+    let zs = vec3<f32>(l0.z, l1.z, l2.z);
+    s.xy = setup_edges(xs, ys, orientation(normal_sign(signs, 2u)), w.x, w.y);
+    s.yz = setup_edges(ys, zs, orientation(normal_sign(signs, 0u)), w.y, w.z);
+    s.zx = setup_edges(zs, xs, orientation(normal_sign(signs, 1u)), w.z, w.x);
     s.axis = dominant_axis(s);
     return s;
 }
 
-fn plane_test(s: TriangleSetup, p: vec3<f32>) -> bool {
-    let np = dot3(s.n, p);
-    return np + s.d1 >= 0.0 && np + s.d2 <= 0.0;
+// ---- per-voxel tests ----
+
+// 1 or -1 where the error bound makes the sign certain, 0 for an exact zero (eps == 0), 2 when unsure.
+fn certain_sign(value: f32, eps: f32) -> i32 {
+    if value > eps {
+        return 1;
+    } else if value < -eps {
+        return -1;
+    } else if eps == 0.0 {
+        return 0;
+    }
+    return 2;
 }
 
-fn edge_test(e: Edges, q: vec2<f32>) -> bool {
-    return edge_function(e.ne[0], q, e.de[0]) >= 0.0 && edge_function(e.ne[1], q, e.de[1]) >= 0.0
-        && edge_function(e.ne[2], q, e.de[2]) >= 0.0;
+fn plane_test(s: TriangleSetup, t: u32, p: vec3<u32>, pl: vec3<f32>) -> bool {
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1, s.plane_eps);
+    let t2 = certain_sign(np + s.d2, s.plane_eps);
+    if t1 == -1 || t2 == 1 {
+        return false;
+    }
+    if t1 != 2 && t2 != 2 {
+        return true;
+    }
+    return exact_plane_test(t, p);
 }
 
-fn voxel_overlaps(s: TriangleSetup, p: vec3<f32>) -> bool {
-    return plane_test(s, p) && edge_test(s.xy, p.xy) && edge_test(s.yz, p.yz) && edge_test(s.zx, p.zx);
+fn edge_test(s: TriangleSetup, e: Edges, k: u32, t: u32, p: vec3<u32>, q: vec2<f32>) -> bool {
+    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
+    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
+    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
+    if c0 == -1 || c1 == -1 || c2 == -1 {
+        return false;
+    }
+    if c0 != 2 && c1 != 2 && c2 != 2 {
+        return true;
+    }
+    return (c0 != 2 || exact_edge_sign(s, t, k, 0u, p) >= 0) && (c1 != 2 || exact_edge_sign(s, t, k, 1u, p) >= 0)
+        && (c2 != 2 || exact_edge_sign(s, t, k, 2u, p) >= 0);
 }
 
-// Narrows [lo, hi] to the t with slope * t + offset >= 0, widened by MARGIN; ill-conditioned constraints are
-// left to the exact test. Returns the new (lo, hi).
-fn narrow(range: vec2<f32>, slope: f32, offset: f32, scale: f32) -> vec2<f32> {
-    if abs(slope) * 16.0 < scale {
+fn voxel_overlaps_exact(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
+    let pl = vec3<f32>(p - s.lo);
+    return plane_test(s, t, p, pl) && edge_test(s, s.xy, 0u, t, p, pl.xy) && edge_test(s, s.yz, 1u, t, p, pl.yz)
+        && edge_test(s, s.zx, 2u, t, p, pl.zx);
+}
+
+// No edge function certainly negative: a necessary condition, to skip columns before walking them.
+fn edge_candidate(e: Edges, q: vec2<f32>) -> bool {
+    return edge_function(e.ne[0], q, e.de[0]) >= -e.eps[0] && edge_function(e.ne[1], q, e.de[1]) >= -e.eps[1]
+        && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2];
+}
+
+fn edge_decision(e: Edges, q: vec2<f32>) -> u32 {
+    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
+    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
+    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
+    if c0 == -1 || c1 == -1 || c2 == -1 {
+        return 0u;
+    } else if c0 == 2 || c1 == 2 || c2 == 2 {
+        return 2u;
+    }
+    return 1u;
+}
+
+// The overlap test in f32 only: 1 certainly overlaps, 0 certainly not, 2 unsure (voxel_overlaps_exact decides).
+fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1, s.plane_eps);
+    let t2 = certain_sign(np + s.d2, s.plane_eps);
+    if t1 == -1 || t2 == 1 {
+        return 0u;
+    }
+    let xy = edge_decision(s.xy, pl.xy);
+    let yz = edge_decision(s.yz, pl.yz);
+    let zx = edge_decision(s.zx, pl.zx);
+    if xy == 0u || yz == 0u || zx == 0u {
+        return 0u;
+    } else if t1 == 2 || t2 == 2 || xy == 2u || yz == 2u || zx == 2u {
+        return 2u;
+    }
+    return 1u;
+}
+
+// Narrows [lo, hi] to the t where slope * t + offset may be non-negative given its error bound eps, widened by
+// the rounding of the division and one voxel (see narrow in app/voxel/cpu.rs for why this is conservative);
+// ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
+fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> vec2<f32> {
+    if slope == 0.0 || abs(slope) * 16.0 < scale {
         return range;
     }
     let bound = -offset / slope;
+    let err = eps / abs(slope) + abs(bound) * (1.0 / 1048576.0) + 1.0;
     if slope > 0.0 {
-        return vec2<f32>(max(range.x, floor(bound - MARGIN)), range.y);
+        return vec2<f32>(max(range.x, floor(bound - err)), range.y);
     }
-    return vec2<f32>(range.x, min(range.y, ceil(bound + MARGIN)));
+    return vec2<f32>(range.x, min(range.y, ceil(bound + err)));
 }
 
-fn column_depth_range(s: TriangleSetup, w: u32, p: vec3<f32>, lo: f32, hi: f32) -> vec2<f32> {
-    var rest = p;
-    rest[w] = 0.0;
-    let np = dot3(s.n, rest);
-    let scale = abs(s.n.x) + abs(s.n.y) + abs(s.n.z);
-    var r = narrow(vec2<f32>(lo, hi), s.n[w], np + s.d1, scale);
-    r = narrow(r, -s.n[w], -(np + s.d2), scale);
+fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {
+    var r = vec2<f32>(lo, hi);
+    for (var i = 0u; i < 3u; i++) {
+        let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
+        r = narrow(r, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i], scale);
+    }
     return r;
 }
 
-// The (a, b) axes of the projection perpendicular to w, in the order the set-up uses.
+fn column_depth_range(s: TriangleSetup, w: u32, pl: vec3<f32>, lo: f32, hi: f32) -> vec2<f32> {
+    var rest = pl;
+    rest[w] = 0.0;
+    let np = dot3(s.n, rest);
+    let scale = abs(s.n.x) + abs(s.n.y) + abs(s.n.z);
+    var r = narrow(vec2<f32>(lo, hi), s.n[w], np + s.d1, s.plane_eps, scale);
+    r = narrow(r, -s.n[w], -(np + s.d2), s.plane_eps, scale);
+    return r;
+}
+
+// The (a, b) axes of the projection perpendicular to w, in the order the set-up uses: projection k = (w + 1) % 3.
 fn projection_axes(w: u32) -> vec2<u32> {
-    if w == 2u {
-        return vec2<u32>(0u, 1u);
-    } else if w == 0u {
-        return vec2<u32>(1u, 2u);
-    }
-    return vec2<u32>(2u, 0u);
+    let k = (w + 1u) % 3u;
+    return vec2<u32>(k, (k + 1u) % 3u);
 }
 
 fn projection_edges(s: TriangleSetup, w: u32) -> Edges {
@@ -223,11 +463,7 @@ fn setup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
     if t >= params.tri_count {
         return;
     }
-    let b = 9u * t;
-    let v0 = vec3<f32>(triangles[b], triangles[b + 1u], triangles[b + 2u]);
-    let v1 = vec3<f32>(triangles[b + 3u], triangles[b + 4u], triangles[b + 5u]);
-    let v2 = vec3<f32>(triangles[b + 6u], triangles[b + 7u], triangles[b + 8u]);
-    let s = setup_triangle(v0, v1, v2, params.dims);
+    let s = setup_triangle(t, params.dims);
     setups[t] = s;
     offsets[t] = work_items(s);
 }
@@ -322,13 +558,11 @@ fn set_voxel(v: vec3<u32>) {
     atomicOr(&grid[row * params.words_per_row + v.x / 32u], 1u << (v.x % 32u));
 }
 
-@compute @workgroup_size(64)
-fn voxelize(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
-            @builtin(num_workgroups) groups: vec3<u32>) {
-    let item = linear_id(wid, lid, groups, WG);
-    if item >= block_sums[params.block_count] {
-        return;
-    }
+// The walk of one work item. Voxels the f32 decision is unsure of are appended to `unsure` for the `exact` pass
+// (or, in the `voxelize_exact` fallback, decided on the spot). Why a separate pass: CPU implementations of
+// WebGPU (lavapipe, SwiftShader) run invocations as SIMD lanes and execute every branch some lane might take
+// under a mask, so inline 128-bit arithmetic made every voxel test pay for it (measured: 10x slower on lavapipe).
+fn walk(item: u32, inline_exact: bool) {
     let t = find_triangle(item);
     let s = setups[t];
     let k = item - offsets[t];
@@ -350,33 +584,102 @@ fn voxelize(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id)
         a0 = max(a0, z_lo);
         a1 = min(a1, z_hi);
     }
-    let e = projection_edges(s, w);
-    let lo = vec3<f32>(s.lo);
-    let hi = vec3<f32>(s.hi);
-    var w_lo_clip = lo[w];
-    var w_hi_clip = hi[w];
-    if w == 2u {
-        w_lo_clip = f32(z_lo);
-        w_hi_clip = f32(z_hi);
+    if a0 > a1 {
+        return;
     }
-    for (var ai = a0; ai <= a1; ai++) {
-        var p = vec3<f32>(0.0);
-        p[a] = f32(ai);
-        p[b] = f32(bi);
-        if !edge_test(e, vec2<f32>(p[a], p[b])) {
+    // The walk runs in local coordinates (relative to s.lo), like the set-up; the row span is cut to this work
+    // item's chunk of the row.
+    let e = projection_edges(s, w);
+    let top = vec3<f32>(s.hi - s.lo);
+    let span = row_span(e, f32(bi - s.lo[b]), f32(a0 - s.lo[a]), f32(a1 - s.lo[a]));
+    if span.x > span.y {
+        return;
+    }
+    var w_lo_clip = 0.0;
+    var w_hi_clip = top[w];
+    if w == 2u {
+        w_lo_clip = f32(z_lo - s.lo.z);
+        w_hi_clip = f32(z_hi - s.lo.z);
+    }
+    for (var ai = u32(span.x); ai <= u32(span.y); ai++) {
+        var pl = vec3<f32>(0.0);
+        pl[a] = f32(ai);
+        pl[b] = f32(bi - s.lo[b]);
+        if !edge_candidate(e, vec2<f32>(pl[a], pl[b])) {
             continue;
         }
-        let r = column_depth_range(s, w, p, lo[w], hi[w]);
+        let r = column_depth_range(s, w, pl, 0.0, top[w]);
         let w0 = max(r.x, w_lo_clip);
         let w1 = min(r.y, w_hi_clip);
         if w0 > w1 {
             continue;
         }
         for (var wi = u32(w0); wi <= u32(w1); wi++) {
-            p[w] = f32(wi);
-            if voxel_overlaps(s, p) {
-                set_voxel(vec3<u32>(p));
+            pl[w] = f32(wi);
+            let p = s.lo + vec3<u32>(pl);
+            let d = voxel_decision(s, pl);
+            if d == 1u {
+                set_voxel(p);
+            } else if d == 2u {
+                if inline_exact {
+                    if voxel_overlaps_exact(s, t, p) {
+                        set_voxel(p);
+                    }
+                } else {
+                    let i = atomicAdd(&unsure_count[0], 1u);
+                    if i < arrayLength(&unsure) {
+                        unsure[i] = vec4<u32>(t, p);
+                    }
+                }
             }
         }
     }
+}
+
+@compute @workgroup_size(64)
+fn voxelize(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+            @builtin(num_workgroups) groups: vec3<u32>) {
+    let item = linear_id(wid, lid, groups, WG);
+    if item >= block_sums[params.block_count] {
+        return;
+    }
+    walk(item, false);
+}
+
+// Sizes the `exact` pass from the unsure count, and the fallback: when the list overflowed, `voxelize_exact`
+// walks everything again deciding on the spot, so no voxel is ever lost to the list's capacity.
+@compute @workgroup_size(1)
+fn prepare_exact() {
+    let n = atomicLoad(&unsure_count[0]);
+    let listed = min(n, arrayLength(&unsure));
+    dispatch[3] = (listed + WG - 1u) / WG;
+    dispatch[4] = 1u;
+    dispatch[5] = 1u;
+    let overflow = n > arrayLength(&unsure);
+    dispatch[6] = select(0u, dispatch[0], overflow);
+    dispatch[7] = select(1u, dispatch[1], overflow);
+    dispatch[8] = 1u;
+}
+
+@compute @workgroup_size(64)
+fn exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+         @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = linear_id(wid, lid, groups, WG);
+    if i >= min(atomicLoad(&unsure_count[0]), arrayLength(&unsure)) {
+        return;
+    }
+    let entry = unsure[i];
+    if voxel_overlaps_exact(setups[entry.x], entry.x, entry.yzw) {
+        set_voxel(entry.yzw);
+    }
+}
+
+@compute @workgroup_size(64)
+fn voxelize_exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                  @builtin(num_workgroups) groups: vec3<u32>) {
+    let item = linear_id(wid, lid, groups, WG);
+    if item >= block_sums[params.block_count] {
+        return;
+    }
+    walk(item, true);
 }

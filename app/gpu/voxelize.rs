@@ -9,16 +9,21 @@
 use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, read_buffer, read_buffers};
 use super::{Gpu, GpuError, dispatch_2d, mib};
-use crate::voxel::{GridSpec, VoxelGrid};
+use crate::voxel::{GridSpec, VoxelGrid, on_lattice};
 use glam::Vec3;
 
 /// The WGSL source, shared with the shader validation test.
 pub const VOXELIZE_WGSL: &str = include_str!("../../shaders/voxelize.wgsl");
 
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
-pub const SETUP_BYTES: u64 = 208;
+pub const SETUP_BYTES: u64 = 256;
 /// Bytes of one grid-space triangle as uploaded (nine f32).
 const TRIANGLE_BYTES: u64 = 36;
+/// Bytes of one entry of the unsure list (triangle, x, y, z).
+const UNSURE_BYTES: u64 = 16;
+/// Default capacity of the unsure list. Meshes with many faces on voxel boundaries can exceed it; the
+/// `voxelize_exact` fallback then decides everything on the spot, slower but just as exact.
+const UNSURE_ENTRIES: u64 = 1 << 18;
 const WG: u32 = 64;
 const SCAN_WG: u32 = 256;
 
@@ -31,6 +36,8 @@ struct Params {
     slab_z0: u32,
     slab_z1: u32,
     block_count: u32,
+    lattice_scale: f32,
+    _pad: [u32; 3],
 }
 
 /// What to do besides voxelizing.
@@ -46,6 +53,8 @@ pub struct Options {
     pub max_slab_bytes: Option<u64>,
     /// Upper bound on triangles per batch (default: what fits one binding).
     pub max_batch_triangles: Option<usize>,
+    /// Capacity of the list of voxel tests left to the exact pass (default 2^18); past it, the fallback pass runs.
+    pub max_unsure: Option<u64>,
 }
 
 /// What a GPU voxelization produced.
@@ -56,6 +65,8 @@ pub struct GpuOutput {
     pub gpu_ms: Option<f64>,
     pub slabs: u32,
     pub batches: u32,
+    /// Voxel tests (triangle, voxel) the f32 decision left to the exact path, when the grid was read back.
+    pub exact_tests: Option<u64>,
 }
 
 /// Compiled pipelines, reusable for any number of voxelizations on one device.
@@ -67,6 +78,9 @@ pub struct GpuVoxelizer {
     scan_block_sums: wgpu::ComputePipeline,
     add_block_offsets: wgpu::ComputePipeline,
     voxelize: wgpu::ComputePipeline,
+    prepare_exact: wgpu::ComputePipeline,
+    exact: wgpu::ComputePipeline,
+    voxelize_exact: wgpu::ComputePipeline,
     compactor: Compactor,
 }
 
@@ -183,6 +197,8 @@ impl GpuVoxelizer {
                 storage_entry(3, false),
                 storage_entry(4, false),
                 storage_entry(5, false),
+                storage_entry(6, false),
+                storage_entry(7, false),
             ],
         });
         let dispatch_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -197,6 +213,9 @@ impl GpuVoxelizer {
             scan_block_sums: pipeline(device, &module, &two, "scan_block_sums"),
             add_block_offsets: pipeline(device, &module, &one, "add_block_offsets"),
             voxelize: pipeline(device, &module, &one, "voxelize"),
+            prepare_exact: pipeline(device, &module, &two, "prepare_exact"),
+            exact: pipeline(device, &module, &one, "exact"),
+            voxelize_exact: pipeline(device, &module, &one, "voxelize_exact"),
             compactor: Compactor::new(gpu),
             layout,
             dispatch_layout,
@@ -243,6 +262,10 @@ impl GpuVoxelizer {
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
         let device = &gpu.device;
+        // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
+        let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        let triangles: &[[Vec3; 3]] = &triangles;
+        let lattice_scale = lattice.scale();
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
@@ -264,12 +287,14 @@ impl GpuVoxelizer {
 
         let mut grid = if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None };
         // Collected after every slab: at most set-up, voxelize and two compaction passes in between.
-        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 4));
+        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 5));
         let mut gpu_ms = 0.0;
+        let mut exact_tests = None;
         let mut points: Vec<CompactVoxels> = Vec::new();
 
         let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
-        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch) = scoped(device, || {
+        let unsure_entries = options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, limit / UNSURE_BYTES);
+        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch, unsure, unsure_count) = scoped(device, || {
             Ok((
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("voxelize params"),
@@ -282,7 +307,9 @@ impl GpuVoxelizer {
                 storage_buffer(device, "offsets", batch as u64 * 4, wgpu::BufferUsages::empty()),
                 storage_buffer(device, "block sums", (blocks_max + 1) * 4, wgpu::BufferUsages::empty()),
                 storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
-                storage_buffer(device, "dispatch", 16, wgpu::BufferUsages::INDIRECT),
+                storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT),
+                storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, wgpu::BufferUsages::empty()),
+                storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC),
             ))
         })
         .await?;
@@ -296,6 +323,8 @@ impl GpuVoxelizer {
                 wgpu::BindGroupEntry { binding: 3, resource: offsets.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: block_sums.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: slab.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: unsure.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: unsure_count.as_entire_binding() },
             ],
         });
         let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -317,6 +346,8 @@ impl GpuVoxelizer {
                     slab_z0: 0,
                     slab_z1: 0,
                     block_count,
+                    lattice_scale,
+                    _pad: [0; 3],
                 };
                 gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
                 let mut encoder = device.create_command_encoder(&Default::default());
@@ -352,12 +383,15 @@ impl GpuVoxelizer {
                     slab_z0: z0,
                     slab_z1: z1,
                     block_count,
+                    lattice_scale,
+                    _pad: [0; 3],
                 };
                 let words = wpr * spec.dims.y as u64 * (z1 - z0) as u64;
                 scoped(device, || {
                     gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
                     let mut encoder = device.create_command_encoder(&Default::default());
                     encoder.clear_buffer(&slab, 0, None);
+                    encoder.clear_buffer(&unsure_count, 0, None);
                     {
                         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                             label: Some("voxelize"),
@@ -366,6 +400,22 @@ impl GpuVoxelizer {
                         pass.set_bind_group(0, &bind, &[]);
                         pass.set_pipeline(&self.voxelize);
                         pass.dispatch_workgroups_indirect(&dispatch, 0);
+                        pass.set_bind_group(1, &bind_dispatch, &[]);
+                        pass.set_pipeline(&self.prepare_exact);
+                        pass.dispatch_workgroups(1, 1, 1);
+                    }
+                    {
+                        // A pass of its own: `dispatch` was just written as storage and is now read as indirect
+                        // arguments.
+                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("exact"),
+                            timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                        });
+                        pass.set_bind_group(0, &bind, &[]);
+                        pass.set_pipeline(&self.exact);
+                        pass.dispatch_workgroups_indirect(&dispatch, 12);
+                        pass.set_pipeline(&self.voxelize_exact);
+                        pass.dispatch_workgroups_indirect(&dispatch, 24);
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())
@@ -397,6 +447,7 @@ impl GpuVoxelizer {
                 let mut ranges = Vec::new();
                 if grid.is_some() {
                     ranges.push((&slab, 0, words * 4));
+                    ranges.push((&unsure_count, 0, 4));
                 }
                 if let Some(t) = timer.as_ref().filter(|_| timed > 0) {
                     ranges.push((t.resolved(), 0, timed));
@@ -406,6 +457,9 @@ impl GpuVoxelizer {
                 let mut parts = parts.into_iter();
                 if let Some(host) = grid.as_mut() {
                     let bytes = parts.next().unwrap_or_default();
+                    let count = parts.next().unwrap_or_default();
+                    let listed = count.get(..4).and_then(|b| b.try_into().ok()).map_or(0, u32::from_le_bytes);
+                    *exact_tests.get_or_insert(0) += listed as u64;
                     let start = wpr as usize * spec.dims.y as usize * z0 as usize;
                     let dst = &mut host.words[start..start + words as usize];
                     for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
@@ -426,6 +480,7 @@ impl GpuVoxelizer {
             1 => points.pop(),
             _ => Some(self.compactor.concat(gpu, points).await?),
         };
-        Ok(GpuOutput { grid, points, gpu_ms: gpu.timestamps.then_some(gpu_ms), slabs, batches: batches as u32 })
+        let gpu_ms = gpu.timestamps.then_some(gpu_ms);
+        Ok(GpuOutput { grid, points, gpu_ms, slabs, batches: batches as u32, exact_tests })
     }
 }

@@ -186,7 +186,10 @@ impl ViewerApp {
             Ok(spec) => spec,
             Err(e) => return self.fail(e),
         };
-        let triangles = cpu::grid_space_triangles(&mesh, &spec);
+        let triangles = match cpu::grid_space_triangles(&mesh, &spec) {
+            Ok(t) => t,
+            Err(e) => return self.fail(e.to_string()),
+        };
         let outcome = Rc::new(RefCell::new(None));
         let task = {
             let (gpu, voxelizer, outcome, ctx) =

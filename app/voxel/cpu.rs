@@ -2,8 +2,8 @@
 //! and evaluated per voxel, with rayon across triangles.
 //!
 //! The functions here mirror `shaders/voxelize.wgsl` one for one and carry the same names, so the two can be
-//! read side by side and compared bit for bit. Everything works in grid space (see
-//! [`GridSpec::to_grid`](super::GridSpec::to_grid)): voxel `(i, j, k)` is the box with minimum corner
+//! read side by side. Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on
+//! coordinates rounded onto the fixed-point [`Lattice`]: voxel `(i, j, k)` is the box with minimum corner
 //! `p = (i, j, k)` and size `Δp = (1, 1, 1)`.
 //!
 //! The test (Schwarz & Seidel 2010, §3.1; the original program's write-up gives the same formulas): a triangle
@@ -13,97 +13,180 @@
 //! same condition because `d1 - d2 = |n_x| + |n_y| + |n_z| >= 0`, and which cannot overflow or underflow the way
 //! the product can for very large or very small triangles.
 //!
-//! Traversal: instead of the whole bounding box of a triangle, the voxelizer walks the triangle's projection
-//! onto the plane of its dominant normal axis row by row (each row narrowed to the span its 2D edge functions
-//! allow), and in each column only the depth range its plane crosses. The narrowing only chooses candidates;
+//! # Exact decisions
+//! Every sign test is first evaluated in f32, in coordinates local to the triangle (relative to the first voxel
+//! of its range, so magnitudes follow the triangle's size, not the grid's). Each value comes with a forward error
+//! bound that holds for any evaluation order, with or without fused multiply-adds (a GPU compiler may reorder and
+//! contract float arithmetic; naga cannot forbid it). Where the value is farther from zero than its bound, its
+//! sign is the exact sign. Otherwise (a tie or near-tie: a face on a voxel boundary, a vertex on a voxel edge) the
+//! test is decided exactly in integer arithmetic on the lattice coordinates: `i128` here, 128-bit words in the
+//! shader. The grid is therefore the exact answer for the lattice triangles, identical on every backend and
+//! every conformant adapter.
+//!
+//! # Traversal
+//! Instead of the whole bounding box of a triangle, the voxelizer walks the triangle's projection onto the plane
+//! of its dominant normal axis row by row (each row narrowed to the span its 2D edge functions allow), and in each
+//! column only the depth range its plane crosses. The narrowing only chooses candidates; each range is widened by
+//! the error bound of its computation plus rounding of the division (so it is a superset of the exact range), and
 //! every candidate still goes through the full test, so the result equals testing the whole bounding box.
 
+use super::lattice::{Lattice, on_lattice};
 use super::{GridSpec, VoxelGrid};
 use crate::mesh::Mesh;
-use glam::{UVec3, Vec2, Vec3};
+use glam::{IVec3, UVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering};
 
-/// Why no fused multiply-add: with `a * b + c` rounded twice, products that appear on both sides of a
-/// cancellation round identically and cancel exactly, so a face lying exactly on a voxel boundary yields an exact
-/// zero and touches both sides, as the grid convention requires. Fusing one of the two products (as `fma` does)
-/// breaks that symmetry and drops whole layers of touching voxels. The shader is written the same way.
-/// `a · b`, evaluated left to right.
+/// Relative factor of the forward error bounds: `2^-19`, i.e. 32 units of f32 roundoff. The derivations at
+/// [`setup_triangle`] and [`setup_edges`] need at most 14 (a sum of at most six products in any order, plus the
+/// set-up's own roundings); the rest covers the roundings in computing the bounds themselves.
+pub const ERROR_FACTOR: f32 = 1.0 / 524_288.0;
+
+/// `a · b`.
 #[inline]
 pub fn dot3(a: Vec3, b: Vec3) -> f32 {
     a.x * b.x + a.y * b.y + a.z * b.z
 }
 
-/// `a · q + d`, evaluated left to right: an edge function.
+/// `a · q + d`: an edge function.
 #[inline]
 pub fn edge_function(a: Vec2, q: Vec2, d: f32) -> f32 {
     a.x * q.x + a.y * q.y + d
 }
 
-/// Per-triangle quantities of the overlap test, computed once (`setup_triangle`).
+/// The three edge functions of one 2D projection, with their error bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Edges {
+    pub ne: [Vec2; 3],
+    pub de: [f32; 3],
+    /// Forward error bound of each edge function's f32 value (zero when the edge is exact: `ne == 0`).
+    pub eps: [f32; 3],
+}
+
+/// Per-triangle quantities of the overlap test, computed once (`setup_triangle`). Plane and edge quantities are
+/// in local coordinates, relative to `lo`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleSetup {
-    /// Triangle normal (not normalised; zero for a degenerate triangle).
+    /// Triangle normal in f32 (not normalised), with components set to exactly zero where the exact normal's are.
     pub n: Vec3,
     /// Plane-test offsets for the critical corner `c` and the opposite corner `Δp - c`.
     pub d1: f32,
     pub d2: f32,
-    /// Edge normals and offsets for the XY, YZ and ZX projections, three edges each.
-    pub ne_xy: [Vec2; 3],
-    pub de_xy: [f32; 3],
-    pub ne_yz: [Vec2; 3],
-    pub de_yz: [f32; 3],
-    pub ne_zx: [Vec2; 3],
-    pub de_zx: [f32; 3],
+    /// Forward error bound of the plane-test values (zero when the exact normal is zero: then they are exact).
+    pub plane_eps: f32,
+    /// Exact signs of the normal's components: bit `k` set when `n_k > 0`, bit `k + 3` when `n_k < 0`.
+    pub normal_signs: u32,
+    /// Edge functions of the XY, YZ and ZX projections.
+    pub xy: Edges,
+    pub yz: Edges,
+    pub zx: Edges,
     /// Inclusive voxel range of the triangle's bounding box, clamped to the grid; empty when `lo > hi`.
     pub lo: UVec3,
     pub hi: UVec3,
+    /// The vertices in lattice units, for exact decisions (the shader reads them from its triangle buffer).
+    pub lattice: [IVec3; 3],
+    /// Lattice steps per voxel (the shader's `params.lattice_scale`).
+    pub unit: i32,
 }
 
-/// Edge normals and offsets of one 2D projection. `a` and `b` are the projected vertices' coordinates and
-/// `orientation` the sign of the projected triangle's winding (the matching normal component's sign, +1 at 0).
-fn setup_edges(a: [f32; 3], b: [f32; 3], orientation: f32) -> ([Vec2; 3], [f32; 3]) {
-    let mut ne = [Vec2::ZERO; 3];
-    let mut de = [0.0; 3];
+/// Sign of normal component `k` from the packed `normal_signs`.
+#[inline]
+pub fn normal_sign(signs: u32, k: usize) -> i32 {
+    ((signs >> k) & 1) as i32 - ((signs >> (k + 3)) & 1) as i32
+}
+
+/// `+1` for a non-negative normal component sign, `-1` otherwise.
+#[inline]
+fn orientation(sign: i32) -> f32 {
+    if sign >= 0 { 1.0 } else { -1.0 }
+}
+
+/// Edge normals, offsets and error bounds of one projection. `a` and `b` are the projected local vertex
+/// coordinates, `o` the orientation (the exact sign of the matching normal component, +1 at 0), and `wa`, `wb`
+/// bound the magnitude of every local coordinate, voxel corner and corner plus one along the two axes.
+///
+/// Error bound: `ne` is exact (a difference of lattice values), and so are the local coordinates. The value
+/// `ne.x q.x + ne.y q.y + de`, with `de = -(ne.x a_i + ne.y b_i) + max(ne.x, 0) + max(ne.y, 0)`, is a sum of
+/// seven terms of magnitude at most `|ne.x| wa` or `|ne.y| wb` each, computed with at most ten roundings, so
+/// its error is below `10 u (|ne.x| wa + |ne.y| wb)` with `u = 2^-24`; the bound uses 32 u.
+fn setup_edges(a: [f32; 3], b: [f32; 3], o: f32, wa: f32, wb: f32) -> Edges {
+    let mut e = Edges::default();
     for i in 0..3 {
         let j = (i + 1) % 3;
-        let e = Vec2::new(a[j] - a[i], b[j] - b[i]);
-        let normal = Vec2::new(-e.y, e.x) * orientation;
-        ne[i] = normal;
-        de[i] = -(normal.x * a[i] + normal.y * b[i]) + normal.x.max(0.0) + normal.y.max(0.0);
+        let d = Vec2::new(a[j] - a[i], b[j] - b[i]);
+        let normal = Vec2::new(-d.y, d.x) * o;
+        e.ne[i] = normal;
+        e.de[i] = -(normal.x * a[i] + normal.y * b[i]) + normal.x.max(0.0) + normal.y.max(0.0);
+        e.eps[i] = ERROR_FACTOR * (normal.x.abs() * wa + normal.y.abs() * wb);
     }
-    (ne, de)
+    e
 }
 
-/// `+1` for a non-negative normal component, `-1` otherwise.
+/// Component `k` of the exact normal `e0 × e1` of lattice edge vectors (each product below `2^48`).
 #[inline]
-fn orientation(c: f32) -> f32 {
-    if c >= 0.0 { 1.0 } else { -1.0 }
+pub fn exact_normal_component(e0: IVec3, e1: IVec3, k: usize) -> i128 {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    e0[i] as i128 * e1[j] as i128 - e0[j] as i128 * e1[i] as i128
 }
 
-/// Computes everything the per-voxel test needs for triangle `v` (grid space) in a grid of `dims` voxels.
-pub fn setup_triangle(v: [Vec3; 3], dims: UVec3) -> TriangleSetup {
-    let (e0, e1) = (v[1] - v[0], v[2] - v[1]);
+/// Computes everything the per-voxel test needs for the lattice triangle `v` (grid space) in a grid of `dims`
+/// voxels.
+///
+/// Plane error bound: with `a = p - lo` and `b = c - v0 + lo` (both exact, at most `w` in magnitude per axis),
+/// the exact value is `n · (a + b)`. Each f32 normal component is off by at most `2u·nabs` (two products and a
+/// difference), and the value adds six products in some order, so the error is below `14 u Σ nabs_k w_k`, where
+/// `nabs_k = |e0_i e1_j| + |e0_j e1_i|`; the bound uses 32 u. Components whose exact value is zero are stored as
+/// exact zeros and add nothing.
+pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSetup {
+    let (lo, hi) = voxel_range(v, dims);
+    let origin = lo.as_vec3();
+    let l = v.map(|p| p - origin);
+    let (e0, e1) = (l[1] - l[0], l[2] - l[1]);
     // Spelled out (not `cross`) so the operations visibly match the shader's.
     let n = Vec3::new(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
-    let c = Vec3::new(
-        if n.x > 0.0 { 1.0 } else { 0.0 },
-        if n.y > 0.0 { 1.0 } else { 0.0 },
-        if n.z > 0.0 { 1.0 } else { 0.0 },
+    let nabs = Vec3::new(
+        (e0.y * e1.z).abs() + (e0.z * e1.y).abs(),
+        (e0.z * e1.x).abs() + (e0.x * e1.z).abs(),
+        (e0.x * e1.y).abs() + (e0.y * e1.x).abs(),
     );
-    let d1 = dot3(n, c - v[0]);
-    let d2 = dot3(n, Vec3::ONE - c - v[0]);
-    let xs = [v[0].x, v[1].x, v[2].x];
-    let ys = [v[0].y, v[1].y, v[2].y];
-    let zs = [v[0].z, v[1].z, v[2].z];
-    let (ne_xy, de_xy) = setup_edges(xs, ys, orientation(n.z));
-    let (ne_yz, de_yz) = setup_edges(ys, zs, orientation(n.x));
-    let (ne_zx, de_zx) = setup_edges(zs, xs, orientation(n.y));
-    let (lo, hi) = voxel_range(v, dims);
-    TriangleSetup { n, d1, d2, ne_xy, de_xy, ne_yz, de_yz, ne_zx, de_zx, lo, hi }
+    let units = v.map(|p| lattice.units(p));
+    let (ue0, ue1) = (units[1] - units[0], units[2] - units[1]);
+    let mut normal_signs = 0u32;
+    let mut n_exact = Vec3::ZERO;
+    let mut nabs_live = Vec3::ZERO;
+    for k in 0..3 {
+        let s = exact_normal_component(ue0, ue1, k).signum() as i32;
+        normal_signs |= u32::from(s > 0) << k | u32::from(s < 0) << (k + 3);
+        if s != 0 {
+            n_exact[k] = n[k];
+            nabs_live[k] = nabs[k];
+        }
+    }
+    let n = n_exact;
+    let c = Vec3::new(
+        if normal_sign(normal_signs, 0) > 0 { 1.0 } else { 0.0 },
+        if normal_sign(normal_signs, 1) > 0 { 1.0 } else { 0.0 },
+        if normal_sign(normal_signs, 2) > 0 { 1.0 } else { 0.0 },
+    );
+    let d1 = dot3(n, c - l[0]);
+    let d2 = dot3(n, Vec3::ONE - c - l[0]);
+    // Largest magnitude of a local vertex coordinate, voxel corner or corner plus one, plus one.
+    let lmin = l[0].min(l[1]).min(l[2]);
+    let lmax = l[0].max(l[1]).max(l[2]);
+    let w = lmin.abs().max(lmax.abs()).max((hi.as_vec3() - origin) + 1.0) + 1.0;
+    let plane_eps = ERROR_FACTOR * dot3(nabs_live, w);
+    let xs = [l[0].x, l[1].x, l[2].x];
+    let ys = [l[0].y, l[1].y, l[2].y];
+    let zs = [l[0].z, l[1].z, l[2].z];
+    let xy = setup_edges(xs, ys, orientation(normal_sign(normal_signs, 2)), w.x, w.y);
+    let yz = setup_edges(ys, zs, orientation(normal_sign(normal_signs, 0)), w.y, w.z);
+    let zx = setup_edges(zs, xs, orientation(normal_sign(normal_signs, 1)), w.z, w.x);
+    let unit = 1i32 << lattice.shift;
+    TriangleSetup { n, d1, d2, plane_eps, normal_signs, xy, yz, zx, lo, hi, lattice: units, unit }
 }
 
 /// The voxels whose closed boxes meet the triangle's bounding box: `i` with `i <= max` and `i + 1 >= min`.
+/// Exact: lattice coordinates, `floor` and `ceil` carry no rounding.
 pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
     let min = v[0].min(v[1]).min(v[2]);
     let max = v[0].max(v[1]).max(v[2]);
@@ -115,26 +198,144 @@ pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
     if outside { (UVec3::ONE, UVec3::ZERO) } else { (lo.as_uvec3(), hi.as_uvec3()) }
 }
 
-/// Plane test for the voxel with minimum corner `p`.
-#[inline]
-pub fn plane_test(s: &TriangleSetup, p: Vec3) -> bool {
-    let np = dot3(s.n, p);
-    np + s.d1 >= 0.0 && np + s.d2 <= 0.0
+/// The exact plane test of the voxel with minimum corner `p`, in lattice units (`i128`; the values stay below
+/// `2^77`): `n · (P - V0) + S Σ max(n_k, 0) >= 0` and `n · (P - V0) + S Σ min(n_k, 0) <= 0`.
+pub fn exact_plane_test(s: &TriangleSetup, p: UVec3) -> bool {
+    let v = s.lattice;
+    let (e0, e1) = (v[1] - v[0], v[2] - v[1]);
+    let d = p.as_ivec3() * s.unit - v[0];
+    let (mut base, mut pos, mut neg) = (0i128, 0i128, 0i128);
+    for k in 0..3 {
+        let nk = exact_normal_component(e0, e1, k);
+        base += nk * d[k] as i128;
+        if nk > 0 {
+            pos += nk;
+        } else {
+            neg += nk;
+        }
+    }
+    let unit = s.unit as i128;
+    base + unit * pos >= 0 && base + unit * neg <= 0
 }
 
-/// The three edge-function tests of one projection, `q` being the voxel's minimum corner in that projection.
-#[inline]
-pub fn edge_test(ne: &[Vec2; 3], de: &[f32; 3], q: Vec2) -> bool {
-    (0..3).all(|i| edge_function(ne[i], q, de[i]) >= 0.0)
+/// The exact sign of edge function `i` of projection `k` (0: XY, 1: YZ, 2: ZX) at the voxel with minimum corner
+/// `p`, in lattice units: `ne · (Q - V_i) + S (max(ne.x, 0) + max(ne.y, 0))` (below `2^50`).
+pub fn exact_edge_sign(s: &TriangleSetup, k: usize, i: usize, p: UVec3) -> i32 {
+    let (a, b) = (k, (k + 1) % 3);
+    let o = if normal_sign(s.normal_signs, (k + 2) % 3) >= 0 { 1i128 } else { -1 };
+    let (vi, vj) = (s.lattice[i], s.lattice[(i + 1) % 3]);
+    let ne = [-o * (vj[b] - vi[b]) as i128, o * (vj[a] - vi[a]) as i128];
+    let q = p.as_ivec3() * s.unit;
+    let value = ne[0] * (q[a] - vi[a]) as i128
+        + ne[1] * (q[b] - vi[b]) as i128
+        + s.unit as i128 * (ne[0].max(0) + ne[1].max(0));
+    value.signum() as i32
 }
 
-/// The full Schwarz–Seidel test for the voxel with minimum corner `p`, assuming the bounding boxes overlap.
+/// The sign of an f32 test value where its error bound makes it certain: `1` or `-1`, or `0` for a value that
+/// is exact (`eps == 0`) and zero; `2` when the exact path must decide.
 #[inline]
-pub fn voxel_overlaps(s: &TriangleSetup, p: Vec3) -> bool {
-    plane_test(s, p)
-        && edge_test(&s.ne_xy, &s.de_xy, Vec2::new(p.x, p.y))
-        && edge_test(&s.ne_yz, &s.de_yz, Vec2::new(p.y, p.z))
-        && edge_test(&s.ne_zx, &s.de_zx, Vec2::new(p.z, p.x))
+pub fn certain_sign(value: f32, eps: f32) -> i32 {
+    if value > eps {
+        1
+    } else if value < -eps {
+        -1
+    } else if eps == 0.0 {
+        0
+    } else {
+        2
+    }
+}
+
+/// Plane test for the voxel with minimum corner `p` (`pl` in local coordinates), exact.
+#[inline]
+pub fn plane_test(s: &TriangleSetup, p: UVec3, pl: Vec3) -> bool {
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1, s.plane_eps);
+    let t2 = certain_sign(np + s.d2, s.plane_eps);
+    if t1 == -1 || t2 == 1 {
+        return false;
+    }
+    if t1 != 2 && t2 != 2 {
+        return true;
+    }
+    exact_plane_test(s, p)
+}
+
+/// The three edge-function tests of projection `k` (`e` its edges), `q` being the voxel's local minimum corner
+/// in that projection, exact.
+#[inline]
+pub fn edge_test(s: &TriangleSetup, e: &Edges, k: usize, p: UVec3, q: Vec2) -> bool {
+    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
+    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
+    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
+    if c0 == -1 || c1 == -1 || c2 == -1 {
+        return false;
+    }
+    if c0 != 2 && c1 != 2 && c2 != 2 {
+        return true;
+    }
+    (c0 != 2 || exact_edge_sign(s, k, 0, p) >= 0)
+        && (c1 != 2 || exact_edge_sign(s, k, 1, p) >= 0)
+        && (c2 != 2 || exact_edge_sign(s, k, 2, p) >= 0)
+}
+
+/// The full Schwarz–Seidel test for the voxel with minimum corner `p`, with exact decisions where f32 is unsure.
+/// Assumes the bounding boxes overlap.
+#[inline]
+pub fn voxel_overlaps_exact(s: &TriangleSetup, p: UVec3) -> bool {
+    let pl = (p - s.lo).as_vec3();
+    plane_test(s, p, pl)
+        && edge_test(s, &s.xy, 0, p, Vec2::new(pl.x, pl.y))
+        && edge_test(s, &s.yz, 1, p, Vec2::new(pl.y, pl.z))
+        && edge_test(s, &s.zx, 2, p, Vec2::new(pl.z, pl.x))
+}
+
+/// Whether no edge function of projection `e` is certainly negative at `q`: a necessary condition for an
+/// overlap, used to skip columns before their depth range is walked.
+#[inline]
+pub fn edge_candidate(e: &Edges, q: Vec2) -> bool {
+    edge_function(e.ne[0], q, e.de[0]) >= -e.eps[0]
+        && edge_function(e.ne[1], q, e.de[1]) >= -e.eps[1]
+        && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2]
+}
+
+/// Folds the certain signs of one projection's edge functions into a decision (see [`voxel_decision`]).
+#[inline]
+fn edge_decision(e: &Edges, q: Vec2) -> u32 {
+    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
+    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
+    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
+    if c0 == -1 || c1 == -1 || c2 == -1 {
+        0
+    } else if c0 == 2 || c1 == 2 || c2 == 2 {
+        2
+    } else {
+        1
+    }
+}
+
+/// The overlap test in f32 only: `1` when the voxel certainly overlaps, `0` when it certainly does not, `2` when
+/// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. The common case costs no
+/// more than the plain f32 test; the shader defers the rare `2` to a separate pass.
+#[inline]
+pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1, s.plane_eps);
+    let t2 = certain_sign(np + s.d2, s.plane_eps);
+    if t1 == -1 || t2 == 1 {
+        return 0;
+    }
+    let xy = edge_decision(&s.xy, Vec2::new(pl.x, pl.y));
+    let yz = edge_decision(&s.yz, Vec2::new(pl.y, pl.z));
+    let zx = edge_decision(&s.zx, Vec2::new(pl.z, pl.x));
+    if xy == 0 || yz == 0 || zx == 0 {
+        0
+    } else if t1 == 2 || t2 == 2 || xy == 2 || yz == 2 || zx == 2 {
+        2
+    } else {
+        1
+    }
 }
 
 /// The axis the traversal walks columns along: the dominant normal component, so each column crosses the
@@ -160,114 +361,155 @@ pub fn dominant_axis(s: &TriangleSetup) -> usize {
     }
 }
 
-/// How far (in voxels) a candidate range is widened beyond its floating-point estimate. The estimates below are
-/// only used when well conditioned, which keeps their error far below this margin even at 65,536 voxels.
-const MARGIN: f32 = 2.0;
-
-/// Narrows `[lo, hi]` to the `t` satisfying `slope * t + offset >= 0` (widened by [`MARGIN`]). Constraints with a
-/// slope small against `scale` are ill-conditioned and are left to the exact test instead.
-fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, scale: f32) {
-    if slope.abs() * 16.0 < scale {
+/// Narrows the local range `[lo, hi]` to the `t` where `slope * t + offset` may be non-negative, the value's
+/// error bound being `eps`. Why it is conservative: an exact value `>= 0` means the f32 line is `>= -eps` there,
+/// so `t` lies beyond `-offset / slope` by at most `eps / |slope|`; the quotient itself is off by a few ulps
+/// (`|bound| 2^-20` covers WGSL's 2.5-ulp division), and one more voxel covers the roundings of the widening.
+/// Constraints with a slope small against `scale` are ill-conditioned and left to the full test instead, which
+/// also keeps every quantity here finite.
+fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, eps: f32, scale: f32) {
+    if slope == 0.0 || slope.abs() * 16.0 < scale {
         return;
     }
     let bound = -offset / slope;
+    let err = eps / slope.abs() + bound.abs() * (1.0 / 1_048_576.0) + 1.0;
     if slope > 0.0 {
-        *lo = lo.max((bound - MARGIN).floor());
+        *lo = lo.max((bound - err).floor());
     } else {
-        *hi = hi.min((bound + MARGIN).ceil());
+        *hi = hi.min((bound + err).ceil());
     }
 }
 
-/// Candidate span of the first projected coordinate `a` in row `b` of a projection: the 2D edge functions
-/// `ne.a * a + ne.b * b + de >= 0` bound `a` on one side each.
-pub fn row_span(ne: &[Vec2; 3], de: &[f32; 3], b: f32, lo: f32, hi: f32) -> (f32, f32) {
+/// Candidate span of the first projected local coordinate `a` in local row `b` of a projection: the 2D edge
+/// functions `ne.a * a + ne.b * b + de >= 0` bound `a` on one side each.
+pub fn row_span(e: &Edges, b: f32, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
     for i in 0..3 {
-        let scale = ne[i].x.abs() + ne[i].y.abs();
-        narrow(&mut lo, &mut hi, ne[i].x, ne[i].y * b + de[i], scale);
+        let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
+        narrow(&mut lo, &mut hi, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i], scale);
     }
     (lo, hi)
 }
 
-/// Candidate depth range along axis `w` of the column whose other two minimum-corner coordinates are in `p`
-/// (its `w` component is ignored): the plane test `np + d2 <= 0 <= np + d1` bounds `p_w` on both sides.
-pub fn column_depth_range(s: &TriangleSetup, w: usize, p: Vec3, lo: f32, hi: f32) -> (f32, f32) {
+/// Candidate local depth range along axis `w` of the column whose other two local minimum-corner coordinates
+/// are in `pl` (its `w` component is ignored): the plane test `np + d2 <= 0 <= np + d1` bounds it on both sides.
+pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
-    let mut rest = p;
+    let mut rest = pl;
     rest[w] = 0.0;
     let np = dot3(s.n, rest);
     let scale = s.n.x.abs() + s.n.y.abs() + s.n.z.abs();
     // np + n_w t + d1 >= 0 and -(np + n_w t + d2) >= 0.
-    narrow(&mut lo, &mut hi, s.n[w], np + s.d1, scale);
-    narrow(&mut lo, &mut hi, -s.n[w], -(np + s.d2), scale);
+    narrow(&mut lo, &mut hi, s.n[w], np + s.d1, s.plane_eps, scale);
+    narrow(&mut lo, &mut hi, -s.n[w], -(np + s.d2), s.plane_eps, scale);
     (lo, hi)
 }
 
-/// Calls `emit` for every voxel the triangle overlaps (possibly more than once for none: each voxel once).
-pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) {
+/// Calls `emit` for every voxel the triangle overlaps (each voxel once). Returns how many voxel tests needed the
+/// exact path.
+pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) -> u64 {
+    let mut exact = 0;
     if s.lo.cmpgt(s.hi).any() {
-        return;
+        return exact;
     }
     let w = dominant_axis(s);
     // The projection whose plane is perpendicular to w, in the (a, b) order the setup uses.
-    let (a, b, ne, de) = match w {
-        2 => (0, 1, &s.ne_xy, &s.de_xy),
-        0 => (1, 2, &s.ne_yz, &s.de_yz),
-        _ => (2, 0, &s.ne_zx, &s.de_zx),
-    };
-    let (lo, hi) = (s.lo.as_vec3(), s.hi.as_vec3());
-    for bi in s.lo[b]..=s.hi[b] {
-        let (a_lo, a_hi) = row_span(ne, de, bi as f32, lo[a], hi[a]);
+    let k = (w + 1) % 3;
+    let (a, b) = (k, (k + 1) % 3);
+    let e = [&s.xy, &s.yz, &s.zx][k];
+    // Local ranges: the walk runs in coordinates relative to `lo`.
+    let top = (s.hi - s.lo).as_vec3();
+    for bi in 0..=s.hi[b] - s.lo[b] {
+        let (a_lo, a_hi) = row_span(e, bi as f32, 0.0, top[a]);
         if a_lo > a_hi {
             continue;
         }
         for ai in a_lo as u32..=a_hi as u32 {
-            let mut p = Vec3::ZERO;
-            p[a] = ai as f32;
-            p[b] = bi as f32;
-            let (w_lo, w_hi) = column_depth_range(s, w, p, lo[w], hi[w]);
+            let mut pl = Vec3::ZERO;
+            pl[a] = ai as f32;
+            pl[b] = bi as f32;
+            if !edge_candidate(e, Vec2::new(pl[a], pl[b])) {
+                continue;
+            }
+            let (w_lo, w_hi) = column_depth_range(s, w, pl, 0.0, top[w]);
             if w_lo > w_hi {
                 continue;
             }
             for wi in w_lo as u32..=w_hi as u32 {
-                p[w] = wi as f32;
-                if voxel_overlaps(s, p) {
-                    emit(p.as_uvec3());
+                pl[w] = wi as f32;
+                let p = s.lo + pl.as_uvec3();
+                let overlaps = match voxel_decision(s, pl) {
+                    0 => false,
+                    1 => true,
+                    _ => {
+                        exact += 1;
+                        voxel_overlaps_exact(s, p)
+                    }
+                };
+                if overlaps {
+                    emit(p);
                 }
             }
         }
     }
+    exact
 }
 
-/// Maps every triangle of `mesh` into the grid space of `spec`. Both backends voxelize exactly these values.
-pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Vec<[Vec3; 3]> {
-    mesh.triangles.par_iter().map(|t| t.map(|v| spec.to_grid(v))).collect()
+/// Maps every triangle of `mesh` into the grid space of `spec` and onto its lattice. Both backends voxelize
+/// exactly these values.
+pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, super::GridError> {
+    let tolerance = spec.snap_tolerance();
+    let tris: Vec<[Vec3; 3]> = mesh.triangles.par_iter().map(|t| t.map(|v| spec.to_grid_with(v, tolerance))).collect();
+    let lattice = Lattice::fit(&tris, spec.dims)?;
+    Ok(tris.into_par_iter().map(|t| t.map(|v| lattice.snap(v))).collect())
 }
 
-/// Voxelizes grid-space triangles into a new grid. `progress(done, total)` is called now and then from worker
-/// threads with the number of triangles finished.
+/// What a CPU voxelization produced besides the grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CpuStats {
+    /// Voxel tests (triangle, voxel) that needed the exact integer path; the rest were certain in f32.
+    pub exact_tests: u64,
+}
+
+/// Voxelizes grid-space triangles into a new grid (rounding them onto the lattice first, if they are not on
+/// it). `progress(done, total)` is called now and then from worker threads with the number of triangles
+/// finished.
 pub fn voxelize_grid_space(
     triangles: &[[Vec3; 3]],
     spec: GridSpec,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<VoxelGrid, super::GridError> {
+    voxelize_grid_space_with_stats(triangles, spec, progress).map(|(grid, _)| grid)
+}
+
+/// [`voxelize_grid_space`], also counting the voxel tests that took the exact path.
+pub fn voxelize_grid_space_with_stats(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(VoxelGrid, CpuStats), super::GridError> {
+    let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
     let grid = VoxelGrid::new(spec)?;
     // Atomic words so all threads can OR into one grid, exactly like atomicOr in the shader.
     let words: Vec<AtomicU32> = grid.words.into_iter().map(AtomicU32::new).collect();
     let done = AtomicUsize::new(0);
+    let exact = AtomicU64::new(0);
     const CHUNK: usize = 1024;
     triangles.par_chunks(CHUNK).for_each(|chunk| {
+        let mut exact_tests = 0;
         for &t in chunk {
-            let s = setup_triangle(t, spec.dims);
-            voxelize_triangle(&s, |v| {
+            let s = setup_triangle(t, spec.dims, lattice);
+            exact_tests += voxelize_triangle(&s, |v| {
                 let (word, bit) = spec.word_and_bit(v.x, v.y, v.z);
                 words[word].fetch_or(1 << bit, Ordering::Relaxed);
             });
         }
+        exact.fetch_add(exact_tests, Ordering::Relaxed);
         let finished = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
         progress(finished, triangles.len());
     });
-    Ok(VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect()))
+    let grid = VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect());
+    Ok((grid, CpuStats { exact_tests: exact.into_inner() }))
 }
 
 /// Voxelizes a world-space mesh on the CPU.
@@ -276,5 +518,5 @@ pub fn voxelize(
     spec: GridSpec,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<VoxelGrid, super::GridError> {
-    voxelize_grid_space(&grid_space_triangles(mesh, &spec), spec, progress)
+    voxelize_grid_space(&grid_space_triangles(mesh, &spec)?, spec, progress)
 }

@@ -26,10 +26,25 @@ pub enum Resolution {
 /// and every index inside u32 arithmetic on the GPU.
 pub const MAX_DIM: u32 = 65_536;
 
-/// Distance from a voxel boundary, in voxels, below which grid-space coordinates snap onto it (and below which
-/// an extent counts as a whole number of voxels). It is a few f32 ulps of typical mesh coordinates at high
-/// resolutions, and far below anything visible.
+/// Distance from a voxel boundary, in voxels, below which grid-space coordinates always snap onto it (and below
+/// which an extent counts as a whole number of voxels); see [`GridSpec::snap_tolerance`] for the full rule.
 pub const SNAP: f64 = 1e-4;
+
+/// How many ulps of the mesh's largest coordinate magnitude count as noise when snapping. Exporters leave f32
+/// noise of a few ulps on vertices meant to lie on round values (Cube.gltf's 1 - 9.5e-7 is 8 ulps of 1.0).
+const SNAP_ULPS: f64 = 16.0;
+
+/// The snap tolerance never exceeds this many voxels: where the input's own precision is coarser than that (f32
+/// coordinates far from the origin), snapping would move geometry visibly.
+const SNAP_CAP: f64 = 1.0 / 64.0;
+
+/// The snap tolerance, in voxels, for coordinates up to `magnitude` (mesh units) in voxels of size `h`:
+/// `max(SNAP, SNAP_ULPS f32 ulps of the magnitude)`, at most [`SNAP_CAP`].
+fn snap_tolerance(magnitude: f64, h: f64) -> f64 {
+    let m = (magnitude as f32).abs();
+    let ulp = if m.is_finite() && m > 0.0 { (f32::from_bits(m.to_bits() + 1) - m) as f64 } else { 0.0 };
+    (SNAP_ULPS * ulp / h).clamp(SNAP, SNAP_CAP.max(SNAP))
+}
 
 /// Why a grid cannot be laid over a mesh.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -46,6 +61,10 @@ pub enum GridError {
     TooLarge([u64; 3]),
     #[error("the grid needs {needed_mib} MiB of memory, which could not be allocated")]
     OutOfMemory { needed_mib: u64 },
+    #[error("a triangle has a coordinate that is not a finite number")]
+    NonFinite,
+    #[error("triangle coordinates reach {0:.0} voxels from the grid origin; at most 8,388,606 are supported")]
+    CoordinateRange(f64),
 }
 
 /// Placement and size of a voxel grid. Positions are kept in f64 so the grid convention is computed exactly once
@@ -96,7 +115,7 @@ impl GridSpec {
                 Some((a, n)) if a == i => n as u64,
                 // An axis exactly as long as the counted one gets exactly N too, whatever the division rounds to.
                 Some((a, n)) if extent[i] == extent[a] => n as u64,
-                _ => cells(extent[i], voxel_size),
+                _ => cells(extent[i], voxel_size, snap_tolerance(min.abs().max(max.abs()).max_element(), voxel_size)),
             };
         }
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
@@ -135,16 +154,33 @@ impl GridSpec {
     /// Maps a world-space point into grid space, where voxel `(i, j, k)` spans `[i, i+1] × [j, j+1] × [k, k+1]`.
     /// Both backends voxelize grid-space triangles made by this one function, so they see the same f32 inputs.
     ///
-    /// Coordinates within [`SNAP`] of a voxel boundary are snapped onto it. A face meant to lie on a boundary
-    /// (a box whose size is a multiple of the voxel size, say) rarely lands there exactly after decimal input and
-    /// the division by `h`; snapping makes the convention "a face on a boundary sets both sides" hold for it,
-    /// and keeps whole faces from flipping between layers on rounding noise.
+    /// Coordinates within [`GridSpec::snap_tolerance`] of a voxel boundary are snapped onto it. A face meant to
+    /// lie on a boundary (a box whose size is a multiple of the voxel size, say) rarely lands there exactly after
+    /// decimal input and the division by `h`; snapping makes the convention "a face on a boundary sets both
+    /// sides" hold for it, and keeps whole faces from flipping between layers on rounding noise.
+    ///
+    /// The backends then round the result onto the fixed-point [`Lattice`](super::Lattice) (a step of about one
+    /// f32 ulp of the grid's largest coordinate); [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles)
+    /// does both.
     #[inline]
     pub fn to_grid(&self, p: Vec3) -> Vec3 {
+        self.to_grid_with(p, self.snap_tolerance())
+    }
+
+    pub(crate) fn to_grid_with(&self, p: Vec3, tolerance: f64) -> Vec3 {
         let g = (p.as_dvec3() - self.origin) / self.voxel_size;
         let r = g.round();
-        let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(SNAP)), r, g);
+        let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(tolerance)), r, g);
         snapped.as_vec3()
+    }
+
+    /// Distance from a voxel boundary, in voxels, within which a grid-space coordinate snaps onto it:
+    /// `max(1e-4, 16 f32 ulps of the largest coordinate magnitude of the grid's box, in voxels)`, at most 1/64.
+    /// Input noise is relative to the coordinates' own magnitude, so an absolute tolerance alone misses it at high
+    /// resolutions (a vertex 8 ulps off 1.0 is 1.2e-4 voxel off at 256).
+    pub fn snap_tolerance(&self) -> f64 {
+        let far = self.origin + self.dims.as_dvec3() * self.voxel_size;
+        snap_tolerance(self.origin.abs().max(far.abs()).max_element(), self.voxel_size)
     }
 
     /// World-space centre of voxel `(x, y, z)`.
@@ -153,13 +189,13 @@ impl GridSpec {
     }
 }
 
-/// `ceil(extent / h)`, at least 1. A quotient within [`SNAP`] of an integer counts as that integer, matching the
-/// snapping in [`GridSpec::to_grid`], so an extent that is a multiple of `h` up to float noise in the input does
-/// not gain a spurious extra layer.
-fn cells(extent: f64, h: f64) -> u64 {
+/// `ceil(extent / h)`, at least 1. A quotient within `tolerance` of an integer counts as that integer, matching
+/// the snapping in [`GridSpec::to_grid`], so an extent that is a multiple of `h` up to float noise in the input
+/// does not gain a spurious extra layer.
+fn cells(extent: f64, h: f64, tolerance: f64) -> u64 {
     let q = extent / h;
     let nearest = q.round();
-    let n = if (q - nearest).abs() <= SNAP { nearest } else { q.ceil() };
+    let n = if (q - nearest).abs() <= tolerance { nearest } else { q.ceil() };
     n.max(1.0).min(u64::MAX as f64 / 4.0) as u64
 }
 

@@ -20,5 +20,7 @@
 pub mod cpu;
 pub mod export;
 mod grid;
+mod lattice;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
+pub use lattice::{Lattice, on_lattice};
