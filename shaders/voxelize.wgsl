@@ -359,35 +359,27 @@ fn edge_candidate(e: Edges, q: vec2<f32>) -> bool {
         && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2];
 }
 
-fn edge_decision(e: Edges, q: vec2<f32>) -> u32 {
-    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
-    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
-    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
-    if c0 == -1 || c1 == -1 || c2 == -1 {
-        return 0u;
-    } else if c0 == 2 || c1 == 2 || c2 == 2 {
-        return 2u;
-    }
-    return 1u;
-}
-
 // The overlap test in f32 only: 1 certainly overlaps, 0 certainly not, 2 unsure (voxel_overlaps_exact decides).
+// Each test value v with error bound e is certainly non-negative when v - e >= 0 and certainly negative when
+// v + e < 0 (the rounded sum or difference of two floats has the exact one's sign), so two minima decide.
 fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
     let np = dot3(s.n, pl);
-    let t1 = certain_sign(np + s.d1, s.plane_eps);
-    let t2 = certain_sign(np + s.d2, s.plane_eps);
-    if t1 == -1 || t2 == 1 {
+    let v1 = np + s.d1;
+    let v2 = -(np + s.d2);
+    let xy = vec3<f32>(edge_function(s.xy.ne[0], pl.xy, s.xy.de[0]), edge_function(s.xy.ne[1], pl.xy, s.xy.de[1]),
+        edge_function(s.xy.ne[2], pl.xy, s.xy.de[2]));
+    let yz = vec3<f32>(edge_function(s.yz.ne[0], pl.yz, s.yz.de[0]), edge_function(s.yz.ne[1], pl.yz, s.yz.de[1]),
+        edge_function(s.yz.ne[2], pl.yz, s.yz.de[2]));
+    let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
+        edge_function(s.zx.ne[2], pl.zx, s.zx.de[2]));
+    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
+    let low = min(min(min(v1, v2) + s.plane_eps, low3.x), min(low3.y, low3.z));
+    if low < 0.0 {
         return 0u;
     }
-    let xy = edge_decision(s.xy, pl.xy);
-    let yz = edge_decision(s.yz, pl.yz);
-    let zx = edge_decision(s.zx, pl.zx);
-    if xy == 0u || yz == 0u || zx == 0u {
-        return 0u;
-    } else if t1 == 2 || t2 == 2 || xy == 2u || yz == 2u || zx == 2u {
-        return 2u;
-    }
-    return 1u;
+    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
+    let high = min(min(min(v1, v2) - s.plane_eps, high3.x), min(high3.y, high3.z));
+    return select(2u, 1u, high >= 0.0);
 }
 
 // Narrows [lo, hi] to the t where slope * t + offset may be non-negative given its error bound eps, widened by
@@ -398,7 +390,7 @@ fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> ve
         return range;
     }
     let bound = -offset / slope;
-    let err = eps / abs(slope) + abs(bound) * (1.0 / 1048576.0) + 1.0;
+    let err = eps + abs(bound) * (1.0 / 1048576.0) + 1.0;
     if slope > 0.0 {
         return vec2<f32>(max(range.x, floor(bound - err)), range.y);
     }
@@ -409,18 +401,19 @@ fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {
     var r = vec2<f32>(lo, hi);
     for (var i = 0u; i < 3u; i++) {
         let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
-        r = narrow(r, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i], scale);
+        r = narrow(r, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i] / abs(e.ne[i].x), scale);
     }
     return r;
 }
 
-fn column_depth_range(s: TriangleSetup, w: u32, pl: vec3<f32>, lo: f32, hi: f32) -> vec2<f32> {
+// depth_err: plane_eps / |n_w|, the same for every column of the triangle.
+fn column_depth_range(s: TriangleSetup, w: u32, pl: vec3<f32>, lo: f32, hi: f32, depth_err: f32) -> vec2<f32> {
     var rest = pl;
     rest[w] = 0.0;
     let np = dot3(s.n, rest);
     let scale = abs(s.n.x) + abs(s.n.y) + abs(s.n.z);
-    var r = narrow(vec2<f32>(lo, hi), s.n[w], np + s.d1, s.plane_eps, scale);
-    r = narrow(r, -s.n[w], -(np + s.d2), s.plane_eps, scale);
+    var r = narrow(vec2<f32>(lo, hi), s.n[w], np + s.d1, depth_err, scale);
+    r = narrow(r, -s.n[w], -(np + s.d2), depth_err, scale);
     return r;
 }
 
@@ -595,6 +588,7 @@ fn walk(item: u32, inline_exact: bool) {
     if span.x > span.y {
         return;
     }
+    let depth_err = s.plane_eps / abs(s.n[w]);
     var w_lo_clip = 0.0;
     var w_hi_clip = top[w];
     if w == 2u {
@@ -608,7 +602,7 @@ fn walk(item: u32, inline_exact: bool) {
         if !edge_candidate(e, vec2<f32>(pl[a], pl[b])) {
             continue;
         }
-        let r = column_depth_range(s, w, pl, 0.0, top[w]);
+        let r = column_depth_range(s, w, pl, 0.0, top[w], depth_err);
         let w0 = max(r.x, w_lo_clip);
         let w1 = min(r.y, w_hi_clip);
         if w0 > w1 {

@@ -294,25 +294,26 @@ impl GpuVoxelizer {
 
         let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
         let unsure_entries = options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, limit / UNSURE_BYTES);
-        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch, unsure, unsure_count) = scoped(device, || {
-            Ok((
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("voxelize params"),
-                    size: std::mem::size_of::<Params>() as u64,
-                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                }),
-                storage_buffer(device, "triangles", batch as u64 * TRIANGLE_BYTES, wgpu::BufferUsages::empty()),
-                storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, wgpu::BufferUsages::empty()),
-                storage_buffer(device, "offsets", batch as u64 * 4, wgpu::BufferUsages::empty()),
-                storage_buffer(device, "block sums", (blocks_max + 1) * 4, wgpu::BufferUsages::empty()),
-                storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
-                storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT),
-                storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, wgpu::BufferUsages::empty()),
-                storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC),
-            ))
-        })
-        .await?;
+        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch, unsure, unsure_count) =
+            scoped(device, || {
+                Ok((
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("voxelize params"),
+                        size: std::mem::size_of::<Params>() as u64,
+                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    }),
+                    storage_buffer(device, "triangles", batch as u64 * TRIANGLE_BYTES, wgpu::BufferUsages::empty()),
+                    storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, wgpu::BufferUsages::empty()),
+                    storage_buffer(device, "offsets", batch as u64 * 4, wgpu::BufferUsages::empty()),
+                    storage_buffer(device, "block sums", (blocks_max + 1) * 4, wgpu::BufferUsages::empty()),
+                    storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
+                    storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT),
+                    storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, wgpu::BufferUsages::empty()),
+                    storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC),
+                ))
+            })
+            .await?;
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("voxelize"),
             layout: &self.layout,

@@ -300,42 +300,35 @@ pub fn edge_candidate(e: &Edges, q: Vec2) -> bool {
         && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2]
 }
 
-/// Folds the certain signs of one projection's edge functions into a decision (see [`voxel_decision`]).
-#[inline]
-fn edge_decision(e: &Edges, q: Vec2) -> u32 {
-    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
-    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
-    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
-    if c0 == -1 || c1 == -1 || c2 == -1 {
-        0
-    } else if c0 == 2 || c1 == 2 || c2 == 2 {
-        2
-    } else {
-        1
-    }
-}
-
 /// The overlap test in f32 only: `1` when the voxel certainly overlaps, `0` when it certainly does not, `2` when
-/// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. The common case costs no
-/// more than the plain f32 test; the shader defers the rare `2` to a separate pass.
+/// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. A value `v` with bound `e`
+/// is certainly non-negative when `v - e >= 0` and certainly negative when `v + e < 0` (a rounded sum or
+/// difference of two floats has the sign of the exact one), so two minima over the eleven values decide. The
+/// common case costs little more than the plain f32 test; the shader defers the rare `2` to a separate pass.
 #[inline]
 pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
     let np = dot3(s.n, pl);
-    let t1 = certain_sign(np + s.d1, s.plane_eps);
-    let t2 = certain_sign(np + s.d2, s.plane_eps);
-    if t1 == -1 || t2 == 1 {
+    let v1 = np + s.d1;
+    let v2 = -(np + s.d2);
+    let values = |e: &Edges, q: Vec2| {
+        Vec3::new(
+            edge_function(e.ne[0], q, e.de[0]),
+            edge_function(e.ne[1], q, e.de[1]),
+            edge_function(e.ne[2], q, e.de[2]),
+        )
+    };
+    let xy = values(&s.xy, Vec2::new(pl.x, pl.y));
+    let yz = values(&s.yz, Vec2::new(pl.y, pl.z));
+    let zx = values(&s.zx, Vec2::new(pl.z, pl.x));
+    let eps = |e: &Edges| Vec3::from_array(e.eps);
+    let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
+    let low = (v1.min(v2) + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
+    if low < 0.0 {
         return 0;
     }
-    let xy = edge_decision(&s.xy, Vec2::new(pl.x, pl.y));
-    let yz = edge_decision(&s.yz, Vec2::new(pl.y, pl.z));
-    let zx = edge_decision(&s.zx, Vec2::new(pl.z, pl.x));
-    if xy == 0 || yz == 0 || zx == 0 {
-        0
-    } else if t1 == 2 || t2 == 2 || xy == 2 || yz == 2 || zx == 2 {
-        2
-    } else {
-        1
-    }
+    let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
+    let high = (v1.min(v2) - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
+    if high >= 0.0 { 1 } else { 2 }
 }
 
 /// The axis the traversal walks columns along: the dominant normal component, so each column crosses the
@@ -362,17 +355,17 @@ pub fn dominant_axis(s: &TriangleSetup) -> usize {
 }
 
 /// Narrows the local range `[lo, hi]` to the `t` where `slope * t + offset` may be non-negative, the value's
-/// error bound being `eps`. Why it is conservative: an exact value `>= 0` means the f32 line is `>= -eps` there,
-/// so `t` lies beyond `-offset / slope` by at most `eps / |slope|`; the quotient itself is off by a few ulps
-/// (`|bound| 2^-20` covers WGSL's 2.5-ulp division), and one more voxel covers the roundings of the widening.
-/// Constraints with a slope small against `scale` are ill-conditioned and left to the full test instead, which
-/// also keeps every quantity here finite.
-fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, eps: f32, scale: f32) {
+/// error bound being `eps = err_over_slope * |slope|`. Why it is conservative: an exact value `>= 0` means the
+/// f32 line is `>= -eps` there, so `t` lies beyond `-offset / slope` by at most `eps / |slope|`; the quotient
+/// itself is off by a few ulps (`|bound| 2^-20` covers WGSL's 2.5-ulp division), and one more voxel covers the
+/// roundings of the widening. Constraints with a slope small against `scale` are ill-conditioned and left to the
+/// full test instead, which also keeps every quantity here finite.
+fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f32, scale: f32) {
     if slope == 0.0 || slope.abs() * 16.0 < scale {
         return;
     }
     let bound = -offset / slope;
-    let err = eps / slope.abs() + bound.abs() * (1.0 / 1_048_576.0) + 1.0;
+    let err = err_over_slope + bound.abs() * (1.0 / 1_048_576.0) + 1.0;
     if slope > 0.0 {
         *lo = lo.max((bound - err).floor());
     } else {
@@ -386,22 +379,23 @@ pub fn row_span(e: &Edges, b: f32, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
     for i in 0..3 {
         let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
-        narrow(&mut lo, &mut hi, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i], scale);
+        narrow(&mut lo, &mut hi, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i] / e.ne[i].x.abs(), scale);
     }
     (lo, hi)
 }
 
 /// Candidate local depth range along axis `w` of the column whose other two local minimum-corner coordinates
 /// are in `pl` (its `w` component is ignored): the plane test `np + d2 <= 0 <= np + d1` bounds it on both sides.
-pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f32) -> (f32, f32) {
+/// `depth_err` is `plane_eps / |n_w|`, the same for every column of the triangle.
+pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f32, depth_err: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
     let mut rest = pl;
     rest[w] = 0.0;
     let np = dot3(s.n, rest);
     let scale = s.n.x.abs() + s.n.y.abs() + s.n.z.abs();
     // np + n_w t + d1 >= 0 and -(np + n_w t + d2) >= 0.
-    narrow(&mut lo, &mut hi, s.n[w], np + s.d1, s.plane_eps, scale);
-    narrow(&mut lo, &mut hi, -s.n[w], -(np + s.d2), s.plane_eps, scale);
+    narrow(&mut lo, &mut hi, s.n[w], np + s.d1, depth_err, scale);
+    narrow(&mut lo, &mut hi, -s.n[w], -(np + s.d2), depth_err, scale);
     (lo, hi)
 }
 
@@ -419,6 +413,7 @@ pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) -> u64 
     let e = [&s.xy, &s.yz, &s.zx][k];
     // Local ranges: the walk runs in coordinates relative to `lo`.
     let top = (s.hi - s.lo).as_vec3();
+    let depth_err = s.plane_eps / s.n[w].abs();
     for bi in 0..=s.hi[b] - s.lo[b] {
         let (a_lo, a_hi) = row_span(e, bi as f32, 0.0, top[a]);
         if a_lo > a_hi {
@@ -431,7 +426,7 @@ pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) -> u64 
             if !edge_candidate(e, Vec2::new(pl[a], pl[b])) {
                 continue;
             }
-            let (w_lo, w_hi) = column_depth_range(s, w, pl, 0.0, top[w]);
+            let (w_lo, w_hi) = column_depth_range(s, w, pl, 0.0, top[w], depth_err);
             if w_lo > w_hi {
                 continue;
             }

@@ -167,7 +167,7 @@ impl GridSpec {
         self.to_grid_with(p, self.snap_tolerance())
     }
 
-    pub(crate) fn to_grid_with(&self, p: Vec3, tolerance: f64) -> Vec3 {
+    pub(crate) fn to_grid_with(self, p: Vec3, tolerance: f64) -> Vec3 {
         let g = (p.as_dvec3() - self.origin) / self.voxel_size;
         let r = g.round();
         let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(tolerance)), r, g);

@@ -14,6 +14,9 @@ use super::GridError;
 use glam::{IVec3, UVec3, Vec3};
 use std::borrow::Cow;
 
+/// Triangles in grid space, borrowed when nothing had to change.
+pub type GridTriangles<'a> = Cow<'a, [[Vec3; 3]]>;
+
 /// `2^23`: the largest magnitude of a coordinate or voxel corner in lattice units.
 const LIMIT: f64 = 8_388_608.0;
 
@@ -63,7 +66,7 @@ impl Lattice {
 
     /// `triangles` rounded onto the lattice; borrowed when they already lie on it (as the output of
     /// [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) does).
-    pub fn snap_triangles<'a>(&self, triangles: &'a [[Vec3; 3]]) -> Cow<'a, [[Vec3; 3]]> {
+    pub fn snap_triangles<'a>(&self, triangles: &'a [[Vec3; 3]]) -> GridTriangles<'a> {
         if triangles.iter().flatten().all(|&v| self.snap(v) == v) {
             Cow::Borrowed(triangles)
         } else {
@@ -78,7 +81,7 @@ impl Lattice {
 }
 
 /// Fits the lattice to `triangles` and rounds them onto it: what both backends voxelize.
-pub fn on_lattice(triangles: &[[Vec3; 3]], dims: UVec3) -> Result<(Cow<'_, [[Vec3; 3]]>, Lattice), GridError> {
+pub fn on_lattice(triangles: &[[Vec3; 3]], dims: UVec3) -> Result<(GridTriangles<'_>, Lattice), GridError> {
     let lattice = Lattice::fit(triangles, dims)?;
     Ok((lattice.snap_triangles(triangles), lattice))
 }

@@ -23,4 +23,4 @@ mod grid;
 mod lattice;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
-pub use lattice::{Lattice, on_lattice};
+pub use lattice::{GridTriangles, Lattice, on_lattice};

@@ -1,9 +1,7 @@
 //! Writers and readers: every format round-trips through our own reader, and `.npy` / `.binvox` are also read
 //! back by independent readers (numpy, the `binvox` package, trimesh) through `tests/tools/independent.py`.
 
-mod common;
-
-use common::Rng;
+use crate::common::Rng;
 use glam::{DVec3, UVec3};
 use meshvox::voxel::export::{self, VoxelFormat};
 use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
@@ -182,7 +180,7 @@ fn npy_and_binvox_read_by_independent_tools() {
 
 #[test]
 fn loaders_agree_with_trimesh() {
-    let Some(dir) = common::shared_meshes() else { return };
+    let Some(dir) = crate::common::shared_meshes() else { return };
     for rel in ["suzanne.obj", "teapot.obj", "gltf/Duck.glb", "gltf/Box.gltf", "gltf/cube-external/Cube.gltf"] {
         let path = dir.join(rel);
         let Some(j) = independent("mesh", &path) else { return };

@@ -3,10 +3,8 @@
 //! by the test for the cases the real files do not cover (negative indices, strips, fans, points, lines, index
 //! widths, node hierarchies with TRS and matrices, broken input).
 
-mod common;
-
+use crate::common::shared_meshes;
 use base64::Engine;
-use common::shared_meshes;
 use glam::Vec3;
 use meshvox::mesh::{self, MeshError};
 use serde_json::json;

@@ -1,10 +1,10 @@
 //! Helpers shared by the integration tests: where the shared test meshes are, a small seeded PRNG, and an
-//! independent brute-force voxelizer (13-axis separating-axis test in f64) to check the fast one against.
+//! independent brute-force voxelizer (13-axis separating-axis test in exact integer arithmetic on the lattice
+//! coordinates) to check the fast one against.
 #![allow(dead_code)]
 
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::voxel::{GridSpec, VoxelGrid};
-use std::collections::HashMap;
 use std::path::PathBuf;
 
 /// `../shared/meshes`, or `None` (with a loud message) when this checkout has no shared folder beside it.
@@ -45,9 +45,8 @@ impl Rng {
 }
 
 /// Signed separation between a triangle and the closed unit box with minimum corner `p`, by the separating
-/// axis theorem over all 13 candidate axes (3 box normals, the triangle normal, 9 edge × box-axis products):
-/// the largest gap, in distance units, between the two projections. The shapes overlap iff the result is <= 0.
-/// This is deliberately a different formulation from Schwarz–Seidel's plane and edge-function test.
+/// axis theorem over all 13 candidate axes, in f64: the largest gap, in distance units, between the two
+/// projections. Only for reporting how far from touching a differing voxel is; [`sat_overlaps`] decides.
 pub fn sat_separation(t: [DVec3; 3], p: DVec3) -> f64 {
     let c = p + DVec3::splat(0.5);
     let v = [t[0] - c, t[1] - c, t[2] - c];
@@ -72,16 +71,60 @@ pub fn sat_separation(t: [DVec3; 3], p: DVec3) -> f64 {
     sep
 }
 
-/// Every voxel of the grid against every triangle: the plainest possible reference.
+/// Triangles as the backends voxelize them (rounded onto the grid's lattice), and the same triangles as exact
+/// integers for [`sat_overlaps`]: twice the lattice units, so that voxel centres are integers too.
+pub struct ExactTriangles {
+    pub snapped: Vec<[Vec3; 3]>,
+    pub doubled: Vec<[[i64; 3]; 3]>,
+    /// Lattice steps per voxel.
+    pub unit: i64,
+}
+
+pub fn exact_triangles(triangles: &[[Vec3; 3]], dims: UVec3) -> ExactTriangles {
+    let (snapped, lattice) = meshvox::voxel::on_lattice(triangles, dims).expect("triangles fit a lattice");
+    let snapped = snapped.into_owned();
+    let doubled = snapped.iter().map(|t| t.map(|v| (lattice.units(v) * 2).as_i64vec3().to_array())).collect();
+    ExactTriangles { snapped, doubled, unit: 1 << lattice.shift }
+}
+
+fn cross(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// Whether the triangle (doubled lattice units) meets the closed voxel box with minimum corner `p`, by the
+/// separating axis theorem over all 13 candidate axes (3 box normals, the triangle normal, 9 edge × box-axis
+/// products) in exact integer arithmetic. This is deliberately a different formulation from Schwarz–Seidel's
+/// plane and edge-function test, and it has no rounding at all: it is the ground truth for ties.
+pub fn sat_overlaps(t: &[[i64; 3]; 3], p: UVec3, unit: i64) -> bool {
+    let centre = [0, 1, 2].map(|k| 2 * p[k] as i128 * unit as i128 + unit as i128);
+    let v = t.map(|q| [0, 1, 2].map(|k| q[k] as i128 - centre[k]));
+    let e = [0, 1, 2].map(|i| [0, 1, 2].map(|k| v[(i + 1) % 3][k] - v[i][k]));
+    let units = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+    let mut axes = vec![units[0], units[1], units[2], cross(e[0], e[1])];
+    for edge in e {
+        for u in units {
+            axes.push(cross(edge, u));
+        }
+    }
+    // The box's half-size is `unit` in doubled units.
+    axes.iter().filter(|a| a.iter().any(|&c| c != 0)).all(|a| {
+        let proj = v.map(|q| a[0] * q[0] + a[1] * q[1] + a[2] * q[2]);
+        let r = unit as i128 * (a[0].abs() + a[1].abs() + a[2].abs());
+        let (lo, hi) = (proj.iter().min().copied().unwrap_or(0), proj.iter().max().copied().unwrap_or(0));
+        lo <= r && hi >= -r
+    })
+}
+
+/// Every voxel of the grid against every triangle, exactly: the plainest possible reference.
 pub fn brute_force_all(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
+    let exact = exact_triangles(triangles, spec.dims);
     let mut grid = VoxelGrid::new(spec).expect("small grid");
-    let tris: Vec<[DVec3; 3]> = triangles.iter().map(|t| t.map(|v| v.as_dvec3())).collect();
     let d = spec.dims;
     for z in 0..d.z {
         for y in 0..d.y {
             for x in 0..d.x {
-                let p = DVec3::new(x as f64, y as f64, z as f64);
-                if tris.iter().any(|&t| sat_separation(t, p) <= 0.0) {
+                let p = UVec3::new(x, y, z);
+                if exact.doubled.iter().any(|t| sat_overlaps(t, p, exact.unit)) {
                     grid.set(x, y, z);
                 }
             }
@@ -90,63 +133,71 @@ pub fn brute_force_all(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
     grid
 }
 
-/// For large grids: for each voxel within some triangle's bounding box, the smallest separation over those
-/// triangles. Voxels outside a triangle's bounding box are separated from it along a box axis, which is the
-/// first test of the SAT, so skipping them does not change the answer.
-pub fn brute_force_separations(triangles: &[[Vec3; 3]], spec: GridSpec) -> HashMap<UVec3, f64> {
-    let mut best: HashMap<UVec3, f64> = HashMap::new();
+/// For large grids: each triangle against the voxels its bounding box meets, exactly. Voxels outside a
+/// triangle's bounding box are separated from it along a box axis, the first test of the SAT, so skipping them
+/// does not change the answer.
+pub fn brute_force(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
+    let exact = exact_triangles(triangles, spec.dims);
+    let mut grid = VoxelGrid::new(spec).expect("grid");
     let top = spec.dims.as_dvec3() - 1.0;
-    for t in triangles {
+    for (t, d) in exact.snapped.iter().zip(&exact.doubled) {
         let t = t.map(|v| v.as_dvec3());
         let min = t[0].min(t[1]).min(t[2]);
         let max = t[0].max(t[1]).max(t[2]);
+        if max.cmplt(DVec3::ZERO).any() || min.cmpgt(spec.dims.as_dvec3()).any() {
+            continue;
+        }
         let lo = (min.ceil() - 1.0).clamp(DVec3::ZERO, top).as_uvec3();
         let hi = max.floor().clamp(DVec3::ZERO, top).as_uvec3();
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
-                    let s = sat_separation(t, DVec3::new(x as f64, y as f64, z as f64));
-                    let e = best.entry(UVec3::new(x, y, z)).or_insert(f64::INFINITY);
-                    *e = e.min(s);
+                    if !grid.get(x, y, z) && sat_overlaps(d, UVec3::new(x, y, z), exact.unit) {
+                        grid.set(x, y, z);
+                    }
                 }
             }
         }
     }
-    best
+    grid
 }
 
-/// Differences between a fast grid and the brute-force separations.
-#[derive(Debug, Default)]
-pub struct Comparison {
-    /// Voxels where the two disagree although the exact answer is far from a tie: real bugs.
-    pub hard: Vec<(UVec3, bool, f64)>,
-    /// Voxels where they disagree within `tolerance` of touching: f32 rounding in the fast path.
-    pub near_ties: usize,
-    pub reference_count: u64,
+/// Asserts that `fast` equals the exact brute force on `triangles`, naming the first differing voxels with their
+/// f64 separation (how far from touching they are).
+pub fn assert_exact(fast: &VoxelGrid, triangles: &[[Vec3; 3]], what: &str) {
+    let reference = brute_force(triangles, fast.spec);
+    if fast.words == reference.words {
+        return;
+    }
+    let snapped = exact_triangles(triangles, fast.spec.dims).snapped;
+    let sep = |v: UVec3| {
+        snapped.iter().map(|t| sat_separation(t.map(|q| q.as_dvec3()), v.as_dvec3())).fold(f64::INFINITY, f64::min)
+    };
+    let diffs: Vec<(UVec3, bool, f64)> =
+        differing_voxels(fast, &reference).into_iter().take(8).map(|v| (v, fast.get(v.x, v.y, v.z), sep(v))).collect();
+    panic!(
+        "{what}: {} voxels differ from the exact brute force ({} vs {}); first (voxel, fast, separation): {diffs:?}",
+        differing_voxels(fast, &reference).len(),
+        fast.count(),
+        reference.count()
+    );
 }
 
-/// Compares `grid` with the brute-force answer; disagreements within `tolerance` voxels of touching are counted
-/// as rounding, everything else is reported as hard.
-pub fn compare_with_separations(grid: &VoxelGrid, triangles: &[[Vec3; 3]], tolerance: f64) -> Comparison {
-    let seps = brute_force_separations(triangles, grid.spec);
-    let mut c = Comparison::default();
-    for (&v, &s) in &seps {
-        let expected = s <= 0.0;
-        c.reference_count += expected as u64;
-        if grid.get(v.x, v.y, v.z) != expected {
-            if s.abs() <= tolerance {
-                c.near_ties += 1;
-            } else {
-                c.hard.push((v, !expected, s));
-            }
+/// The voxels set in one grid and not the other.
+pub fn differing_voxels(a: &VoxelGrid, b: &VoxelGrid) -> Vec<UVec3> {
+    let wpr = a.spec.words_per_row();
+    let dims_y = a.spec.dims.y as usize;
+    let mut out = Vec::new();
+    for (i, (x, y)) in a.words.iter().zip(&b.words).enumerate() {
+        let mut bits = x ^ y;
+        let row = i / wpr;
+        while bits != 0 {
+            let bit = bits.trailing_zeros();
+            bits &= bits - 1;
+            out.push(UVec3::new((i % wpr) as u32 * 32 + bit, (row % dims_y) as u32, (row / dims_y) as u32));
         }
     }
-    for v in grid.iter_set() {
-        if !seps.contains_key(&v) {
-            c.hard.push((v, true, f64::INFINITY));
-        }
-    }
-    c
+    out
 }
 
 /// Asserts two grids are identical, naming the first few differing voxels.
@@ -275,67 +326,4 @@ pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
         ("single voxel", vec![[Vec3::ZERO, Vec3::X, Vec3::Y]], UVec3::ONE),
         ("wide rows", vec![[v(0.25, 0.5, 1.0), v(70.0, 2.5, 2.0), v(3.0, 3.75, 0.5)]], UVec3::new(72, 4, 3)),
     ]
-}
-
-/// Whether the overlap test of `s` at voxel corner `p` is a rounding tie: every sign test passes or lies within
-/// f32 rounding of zero, and at least one lies within it. Different but equally valid evaluation orders (a GPU
-/// compiler fusing or reassociating float operations) can decide such a voxel either way.
-pub fn is_rounding_tie(s: &meshvox::voxel::cpu::TriangleSetup, p: Vec3) -> bool {
-    use meshvox::voxel::cpu::{dot3, edge_function};
-    let size = p.abs().max_element().max(s.lo.max_element() as f32).max(s.hi.max_element() as f32) + 2.0;
-    let eps = 1e-5f64;
-    let mut values: Vec<(f64, f64)> = Vec::new();
-    let np = dot3(s.n, p);
-    let plane_scale = (s.n.abs().element_sum() * size * 4.0) as f64;
-    values.push(((np + s.d1) as f64, plane_scale));
-    values.push((-(np + s.d2) as f64, plane_scale));
-    let q = [glam::Vec2::new(p.x, p.y), glam::Vec2::new(p.y, p.z), glam::Vec2::new(p.z, p.x)];
-    for (k, (ne, de)) in [(&s.ne_xy, &s.de_xy), (&s.ne_yz, &s.de_yz), (&s.ne_zx, &s.de_zx)].into_iter().enumerate() {
-        for i in 0..3 {
-            let scale = ((ne[i].x.abs() + ne[i].y.abs()) * size * 4.0) as f64;
-            values.push((edge_function(ne[i], q[k], de[i]) as f64, scale));
-        }
-    }
-    values.iter().all(|&(v, sc)| v >= -eps * sc) && values.iter().any(|&(v, sc)| v.abs() <= eps * sc)
-}
-
-/// Asserts that `gpu` equals `cpu` except on voxels that are rounding ties for some triangle (see
-/// [`is_rounding_tie`]); returns how many such voxels differed.
-pub fn assert_same_up_to_ties(gpu: &VoxelGrid, cpu: &VoxelGrid, triangles: &[[Vec3; 3]], what: &str) -> usize {
-    use meshvox::voxel::cpu::setup_triangle;
-    assert_eq!(gpu.spec, cpu.spec, "{what}: grid specs differ");
-    if gpu.words == cpu.words {
-        return 0;
-    }
-    let differing: Vec<(usize, u32)> = gpu
-        .words
-        .iter()
-        .zip(&cpu.words)
-        .enumerate()
-        .filter(|(_, (a, b))| a != b)
-        .map(|(i, (a, b))| (i, a ^ b))
-        .collect();
-    let wpr = gpu.spec.words_per_row();
-    let dims_y = gpu.spec.dims.y as usize;
-    let mut voxels = Vec::new();
-    for (i, mut bits) in differing {
-        let row = i / wpr;
-        while bits != 0 {
-            let b = bits.trailing_zeros();
-            bits &= bits - 1;
-            voxels.push(UVec3::new((i % wpr) as u32 * 32 + b, (row % dims_y) as u32, (row / dims_y) as u32));
-        }
-    }
-    let setups: Vec<_> = triangles.iter().map(|t| setup_triangle(*t, gpu.spec.dims)).collect();
-    for v in &voxels {
-        let p = v.as_vec3();
-        let tie = setups.iter().any(|s| v.cmpge(s.lo).all() && v.cmple(s.hi).all() && is_rounding_tie(s, p));
-        assert!(
-            tie,
-            "{what}: voxel {v} differs (gpu {}, cpu {}) and is not a rounding tie",
-            gpu.get(v.x, v.y, v.z),
-            cpu.get(v.x, v.y, v.z)
-        );
-    }
-    voxels.len()
 }

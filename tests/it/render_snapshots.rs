@@ -3,8 +3,6 @@
 //! named after the adapter that made them. A missing golden fails; `UPDATE_SNAPSHOTS=1` (re)writes them; a
 //! mismatch writes `NAME.new.png` and `NAME.diff.png` beside the golden (both git-ignored) and says where.
 
-mod common;
-
 use meshvox::gpu::Gpu;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
 use meshvox::render::{Offscreen, OrbitCamera, Style};
@@ -20,7 +18,7 @@ const PIXEL_FRACTION: f64 = 0.005;
 fn render(gpu: &Gpu, mesh_spec: &str, resolution: u32, show_mesh: bool) -> image::RgbaImage {
     let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
     let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
-    let tris = cpu::grid_space_triangles(&mesh, &spec);
+    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
     let v = GpuVoxelizer::new(gpu);
     let out = v
         .voxelize(gpu, &tris, spec, &Options { compact: true, surface_only: true, ..Default::default() })
@@ -103,7 +101,7 @@ fn renderer_goldens() {
     };
     let slug = gpu.summary.slug();
     let mut cases = vec![("rotated-cube-30".to_string(), "builtin:rotated-cube".to_string(), 30, false)];
-    if let Some(dir) = common::shared_meshes() {
+    if let Some(dir) = crate::common::shared_meshes() {
         let p = |f: &str| dir.join(f).to_string_lossy().into_owned();
         cases.push(("suzanne-96".into(), p("suzanne.obj"), 96, false));
         cases.push(("bunny-64".into(), p("stanford-bunny.obj"), 64, false));

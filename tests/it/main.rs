@@ -1,0 +1,16 @@
+//! meshvox's integration tests, in one binary so that wgpu, egui and the rest are linked once (CI compiles it
+//! once instead of a dozen times). Each module is one area; `cargo test --test it MODULE::` runs one of them.
+
+mod cli;
+mod common;
+mod cpu_vs_bruteforce;
+mod desktop_xvfb;
+mod exactness;
+mod formats;
+mod gpu;
+mod grid_convention;
+mod mesh_loading;
+mod render_snapshots;
+mod seed_and_real_meshes;
+mod shaders;
+mod ui_snapshot;
