@@ -244,6 +244,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
             "backend": backend,
             "threads": rayon::current_num_threads(),
             "gpu_ms": result.gpu_ms,
+            "exact_tests": result.exact_tests,
             "setup_ms": engine.setup_ms,
             "output": args.output.display().to_string(),
             "format": format.extension(),
@@ -350,7 +351,11 @@ impl Engine {
             match v.voxelize(gpu, &tris, spec, &options) {
                 Ok(out) => {
                     let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
-                    let backend = format!("gpu: {}", gpu.summary);
+                    let mut backend = format!("gpu: {}", gpu.summary);
+                    if out.decided_on_cpu {
+                        // Exact either way; said so that timings are not taken for the GPU's.
+                        backend.push_str(" (overflow: decided on the CPU)");
+                    }
                     return Ok(EngineResult { grid, backend, gpu_ms: out.gpu_ms, exact_tests: out.exact_tests });
                 }
                 Err(e @ (meshvox::gpu::GpuError::TooLarge { .. } | meshvox::gpu::GpuError::OutOfMemory(_)))

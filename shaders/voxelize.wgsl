@@ -18,7 +18,10 @@
 //                      be bound for writing while `voxelize` is dispatched from it)
 //   add_block_offsets  per triangle: block offset + local offset = first work item of the triangle
 //   voxelize           one invocation per work item (found by binary search over the offsets): up to CHUNK
-//                      columns of one row, each tested over the depth range its plane crosses
+//                      columns of one row, each tested over the depth range its plane crosses; voxels the f32
+//                      decision is unsure of go to the unsure list
+//   prepare_exact      one invocation: the `exact` pass's indirect dispatch size from the list's length
+//   exact              one invocation per listed voxel test: the exact integer decision
 // Big triangles thus spread over many invocations and small ones take one each, so a 12-triangle cube keeps as
 // many invocations busy as a dense mesh. Grids too large for one binding run `voxelize` once per z-slab.
 
@@ -71,8 +74,7 @@ struct TriangleSetup {
 // Voxel tests the f32 decision left unsure, as (triangle, x, y, z), decided by the `exact` pass; and their count.
 @group(0) @binding(6) var<storage, read_write> unsure: array<vec4<u32>>;
 @group(0) @binding(7) var<storage, read_write> unsure_count: array<atomic<u32>>;
-// Indirect dispatch sizes: [0..3) `voxelize`, [3..6) `exact`, [6..9) `voxelize_exact` (zero groups unless the
-// unsure list overflowed).
+// Indirect dispatch sizes: [0..3) `voxelize`, [3..6) `exact`.
 @group(1) @binding(0) var<storage, read_write> dispatch: array<u32>;
 
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
@@ -551,11 +553,13 @@ fn set_voxel(v: vec3<u32>) {
     atomicOr(&grid[row * params.words_per_row + v.x / 32u], 1u << (v.x % 32u));
 }
 
-// The walk of one work item. Voxels the f32 decision is unsure of are appended to `unsure` for the `exact` pass
-// (or, in the `voxelize_exact` fallback, decided on the spot). Why a separate pass: CPU implementations of
-// WebGPU (lavapipe, SwiftShader) run invocations as SIMD lanes and execute every branch some lane might take
-// under a mask, so inline 128-bit arithmetic made every voxel test pay for it (measured: 10x slower on lavapipe).
-fn walk(item: u32, inline_exact: bool) {
+// The walk of one work item. Voxels the f32 decision is unsure of are appended to `unsure` for the `exact` pass.
+// Why a separate pass: CPU implementations of WebGPU (lavapipe, SwiftShader) run invocations as SIMD lanes and
+// execute every branch some lane might take under a mask, so inline 128-bit arithmetic made every voxel test pay
+// for it (measured: 10x slower on lavapipe), and a second walk with the exact test inline took SwiftShader 1.3 s
+// to compile. The count goes on past the list's capacity, so the host sees an overflow and decides the grid
+// another way (see `app/gpu/voxelize.rs`); no voxel is lost to the capacity.
+fn walk(item: u32) {
     let t = find_triangle(item);
     let s = setups[t];
     let k = item - offsets[t];
@@ -615,15 +619,9 @@ fn walk(item: u32, inline_exact: bool) {
             if d == 1u {
                 set_voxel(p);
             } else if d == 2u {
-                if inline_exact {
-                    if voxel_overlaps_exact(s, t, p) {
-                        set_voxel(p);
-                    }
-                } else {
-                    let i = atomicAdd(&unsure_count[0], 1u);
-                    if i < arrayLength(&unsure) {
-                        unsure[i] = vec4<u32>(t, p);
-                    }
+                let i = atomicAdd(&unsure_count[0], 1u);
+                if i < arrayLength(&unsure) {
+                    unsure[i] = vec4<u32>(t, p);
                 }
             }
         }
@@ -637,22 +635,16 @@ fn voxelize(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id)
     if item >= block_sums[params.block_count] {
         return;
     }
-    walk(item, false);
+    walk(item);
 }
 
-// Sizes the `exact` pass from the unsure count, and the fallback: when the list overflowed, `voxelize_exact`
-// walks everything again deciding on the spot, so no voxel is ever lost to the list's capacity.
+// Sizes the `exact` pass from the unsure count (the host keeps the list's capacity below 65,535 workgroups).
 @compute @workgroup_size(1)
 fn prepare_exact() {
-    let n = atomicLoad(&unsure_count[0]);
-    let listed = min(n, arrayLength(&unsure));
+    let listed = min(atomicLoad(&unsure_count[0]), arrayLength(&unsure));
     dispatch[3] = (listed + WG - 1u) / WG;
     dispatch[4] = 1u;
     dispatch[5] = 1u;
-    let overflow = n > arrayLength(&unsure);
-    dispatch[6] = select(0u, dispatch[0], overflow);
-    dispatch[7] = select(1u, dispatch[1], overflow);
-    dispatch[8] = 1u;
 }
 
 @compute @workgroup_size(64)
@@ -666,14 +658,4 @@ fn exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
     if voxel_overlaps_exact(setups[entry.x], entry.x, entry.yzw) {
         set_voxel(entry.yzw);
     }
-}
-
-@compute @workgroup_size(64)
-fn voxelize_exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
-                  @builtin(num_workgroups) groups: vec3<u32>) {
-    let item = linear_id(wid, lid, groups, WG);
-    if item >= block_sums[params.block_count] {
-        return;
-    }
-    walk(item, true);
 }

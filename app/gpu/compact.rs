@@ -1,7 +1,7 @@
 //! GPU stream compaction (`shaders/compact.wgsl`): the coordinates of a grid's set voxels as a GPU buffer, for
 //! instanced drawing and sparse output, without a CPU loop over the dense grid.
 
-use super::readback::{PassTimer, read_buffer};
+use super::readback::{PassTimer, read_buffer, read_buffers};
 use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::GridSpec;
@@ -79,7 +79,7 @@ impl Compactor {
     }
 
     /// Compacts a slab of a grid laid out as `spec`; with `surface_only`, voxels enclosed on all six sides are
-    /// left out.
+    /// left out. The first word of `probe`, if given, comes back with the voxel count in the same readback.
     pub(crate) async fn compact(
         &self,
         gpu: &Gpu,
@@ -87,7 +87,8 @@ impl Compactor {
         spec: GridSpec,
         surface_only: bool,
         mut timer: Option<&mut PassTimer>,
-    ) -> Result<CompactVoxels, GpuError> {
+        probe: Option<&wgpu::Buffer>,
+    ) -> Result<(CompactVoxels, Option<u32>), GpuError> {
         let Slab { buffer: slab, z0, words } = slab;
         let device = &gpu.device;
         let params = CompactParams {
@@ -151,8 +152,12 @@ impl Compactor {
         })
         .await?;
         drop(placeholder);
-        let counted = read_buffer(device, &gpu.queue, &counters, 0, 4).await?;
-        let count = u32::from_le_bytes([counted[0], counted[1], counted[2], counted[3]]);
+        let mut ranges = vec![(&counters, 0, 4)];
+        ranges.extend(probe.map(|b| (b, 0, 4)));
+        let read = read_buffers(device, &gpu.queue, &ranges).await?;
+        let word = |bytes: &[u8]| bytes.get(..4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes);
+        let count = read.first().and_then(|b| word(b)).unwrap_or(0);
+        let probed = read.get(1).and_then(|b| word(b));
         let bytes = count as u64 * 8;
         if bytes > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {
@@ -167,7 +172,7 @@ impl Compactor {
             Ok(points)
         })
         .await?;
-        Ok(CompactVoxels { buffer: points, count })
+        Ok((CompactVoxels { buffer: points, count }, probed))
     }
 
     /// Joins per-slab lists into one buffer.

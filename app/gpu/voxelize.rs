@@ -9,7 +9,7 @@
 use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, read_buffer, read_buffers};
 use super::{Gpu, GpuError, dispatch_2d, mib};
-use crate::voxel::{GridSpec, VoxelGrid, on_lattice};
+use crate::voxel::{GridSpec, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
 
 /// The WGSL source, shared with the shader validation test.
@@ -21,8 +21,9 @@ pub const SETUP_BYTES: u64 = 256;
 const TRIANGLE_BYTES: u64 = 36;
 /// Bytes of one entry of the unsure list (triangle, x, y, z).
 const UNSURE_BYTES: u64 = 16;
-/// Default capacity of the unsure list. Meshes with many faces on voxel boundaries can exceed it; the
-/// `voxelize_exact` fallback then decides everything on the spot, slower but just as exact.
+/// Default capacity of the unsure list (4 MiB). Meshes with very many faces on voxel boundaries can exceed it;
+/// the grid is then decided by the CPU reference instead (see [`GpuVoxelizer::voxelize_async`]), as exact and
+/// only slower. Real meshes need far less: the bunny at 512 lists 120 tests, a cube at 512 about 2,000.
 const UNSURE_ENTRIES: u64 = 1 << 18;
 const WG: u32 = 64;
 const SCAN_WG: u32 = 256;
@@ -53,7 +54,7 @@ pub struct Options {
     pub max_slab_bytes: Option<u64>,
     /// Upper bound on triangles per batch (default: what fits one binding).
     pub max_batch_triangles: Option<usize>,
-    /// Capacity of the list of voxel tests left to the exact pass (default 2^18); past it, the fallback pass runs.
+    /// Capacity of the list of voxel tests left to the exact pass (default 2^18); past it, the CPU decides.
     pub max_unsure: Option<u64>,
 }
 
@@ -67,6 +68,16 @@ pub struct GpuOutput {
     pub batches: u32,
     /// Voxel tests (triangle, voxel) the f32 decision left to the exact path, when the grid was read back.
     pub exact_tests: Option<u64>,
+    /// The unsure list overflowed and the CPU reference decided the grid (the points, if any, are still
+    /// compacted on the GPU).
+    pub decided_on_cpu: bool,
+}
+
+/// How one attempt on the GPU ended.
+enum Attempt {
+    Done(GpuOutput),
+    /// More voxel tests were unsure than the list holds: the grid on the GPU is incomplete.
+    Overflow,
 }
 
 /// Compiled pipelines, reusable for any number of voxelizations on one device.
@@ -80,7 +91,6 @@ pub struct GpuVoxelizer {
     voxelize: wgpu::ComputePipeline,
     prepare_exact: wgpu::ComputePipeline,
     exact: wgpu::ComputePipeline,
-    voxelize_exact: wgpu::ComputePipeline,
     compactor: Compactor,
 }
 
@@ -215,7 +225,6 @@ impl GpuVoxelizer {
             voxelize: pipeline(device, &module, &one, "voxelize"),
             prepare_exact: pipeline(device, &module, &two, "prepare_exact"),
             exact: pipeline(device, &module, &one, "exact"),
-            voxelize_exact: pipeline(device, &module, &one, "voxelize_exact"),
             compactor: Compactor::new(gpu),
             layout,
             dispatch_layout,
@@ -243,7 +252,7 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
-        if cfg!(target_arch = "wasm32") {
+        let attempt = if cfg!(target_arch = "wasm32") {
             let scopes = ErrorScopes::push(&gpu.device);
             let result = self.run(gpu, triangles, spec, options).await;
             // An error the scopes caught explains any failure of the run, so it comes first.
@@ -251,7 +260,58 @@ impl GpuVoxelizer {
             result
         } else {
             self.run(gpu, triangles, spec, options).await
+        }?;
+        match attempt {
+            Attempt::Done(output) => Ok(output),
+            // Rare (it takes hundreds of thousands of faces lying on voxel boundaries), so the simple exact
+            // answer beats a second, bigger GPU pipeline that every page load would have to compile.
+            Attempt::Overflow => self.decide_on_cpu(gpu, triangles, spec, options).await,
         }
+    }
+
+    /// The CPU reference's grid, delivered like a GPU result: read back, or uploaded slab by slab and compacted.
+    async fn decide_on_cpu(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        options: &Options,
+    ) -> Result<GpuOutput, GpuError> {
+        let (grid, stats) = cpu::voxelize_grid_space_with_stats(triangles, spec, &|_, _| {})?;
+        let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
+        let mut points = Vec::new();
+        if options.compact {
+            let layer_words = spec.words_per_row() * spec.dims.y as usize;
+            for s in 0..slabs {
+                let z0 = s * slab_layers;
+                let z1 = (z0 + slab_layers).min(spec.dims.z);
+                let words = &grid.words[layer_words * z0 as usize..layer_words * z1 as usize];
+                let slab = scoped(&gpu.device, || {
+                    let slab =
+                        storage_buffer(&gpu.device, "grid slab", words.len() as u64 * 4, wgpu::BufferUsages::empty());
+                    gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(words));
+                    Ok(slab)
+                })
+                .await?;
+                let part = Slab { buffer: &slab, z0, words: words.len() as u64 };
+                let (list, _) = self.compactor.compact(gpu, part, spec, options.surface_only, None, None).await?;
+                points.push(list);
+            }
+        }
+        let points = match points.len() {
+            0 => None,
+            1 => points.pop(),
+            _ => Some(self.compactor.concat(gpu, points).await?),
+        };
+        Ok(GpuOutput {
+            grid: options.read_grid.then_some(grid),
+            points,
+            gpu_ms: None,
+            slabs,
+            batches: 1,
+            exact_tests: Some(stats.exact_tests),
+            decided_on_cpu: true,
+        })
     }
 
     async fn run(
@@ -260,7 +320,7 @@ impl GpuVoxelizer {
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
         options: &Options,
-    ) -> Result<GpuOutput, GpuError> {
+    ) -> Result<Attempt, GpuError> {
         let device = &gpu.device;
         // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
@@ -269,16 +329,7 @@ impl GpuVoxelizer {
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
-        if layer_bytes > limit {
-            return Err(GpuError::TooLarge {
-                what: format!("one z-layer of the {}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z),
-                needed_mib: mib(layer_bytes),
-                limit_mib: mib(limit),
-            });
-        }
-        let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit);
-        let slab_layers = ((slab_limit / layer_bytes) as u32).clamp(1, spec.dims.z);
-        let slabs = spec.dims.z.div_ceil(slab_layers);
+        let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let slab_bytes = slab_layers as u64 * layer_bytes;
 
         let fit = (limit / SETUP_BYTES).min(limit / TRIANGLE_BYTES) as usize;
@@ -293,7 +344,9 @@ impl GpuVoxelizer {
         let mut points: Vec<CompactVoxels> = Vec::new();
 
         let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
-        let unsure_entries = options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, limit / UNSURE_BYTES);
+        // At most 65,535 workgroups for the `exact` pass's one-dimensional indirect dispatch.
+        let unsure_entries =
+            options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, (limit / UNSURE_BYTES).min(65_535 * WG as u64));
         let (params, tris_buf, setups, offsets, block_sums, slab, dispatch, unsure, unsure_count) =
             scoped(device, || {
                 Ok((
@@ -415,8 +468,6 @@ impl GpuVoxelizer {
                         pass.set_bind_group(0, &bind, &[]);
                         pass.set_pipeline(&self.exact);
                         pass.dispatch_workgroups_indirect(&dispatch, 12);
-                        pass.set_pipeline(&self.voxelize_exact);
-                        pass.dispatch_workgroups_indirect(&dispatch, 24);
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())
@@ -439,7 +490,14 @@ impl GpuVoxelizer {
                         gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
                     }
                     let part = Slab { buffer: &slab, z0, words };
-                    points.push(self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut()).await?);
+                    // The unsure count comes back with the compactor's voxel count, so checking costs no readback.
+                    let probe = Some(&unsure_count);
+                    let (list, listed) =
+                        self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe).await?;
+                    if listed.is_some_and(|n| n as u64 > unsure_entries) {
+                        return Ok(Attempt::Overflow);
+                    }
+                    points.push(list);
                 }
                 // The slab and this slab's pass times come back in one read.
                 let mut encoder = device.create_command_encoder(&Default::default());
@@ -460,6 +518,9 @@ impl GpuVoxelizer {
                     let bytes = parts.next().unwrap_or_default();
                     let count = parts.next().unwrap_or_default();
                     let listed = count.get(..4).and_then(|b| b.try_into().ok()).map_or(0, u32::from_le_bytes);
+                    if listed as u64 > unsure_entries {
+                        return Ok(Attempt::Overflow);
+                    }
                     *exact_tests.get_or_insert(0) += listed as u64;
                     let start = wpr as usize * spec.dims.y as usize * z0 as usize;
                     let dst = &mut host.words[start..start + words as usize];
@@ -482,6 +543,30 @@ impl GpuVoxelizer {
             _ => Some(self.compactor.concat(gpu, points).await?),
         };
         let gpu_ms = gpu.timestamps.then_some(gpu_ms);
-        Ok(GpuOutput { grid, points, gpu_ms, slabs, batches: batches as u32, exact_tests })
+        Ok(Attempt::Done(GpuOutput {
+            grid,
+            points,
+            gpu_ms,
+            slabs,
+            batches: batches as u32,
+            exact_tests,
+            decided_on_cpu: false,
+        }))
     }
+}
+
+/// Layers per z-slab and the number of slabs: as many whole layers as one binding (or `max_slab_bytes`) holds.
+fn slab_plan(gpu: &Gpu, spec: GridSpec, options: &Options) -> Result<(u32, u32), GpuError> {
+    let limit = gpu.max_binding_bytes();
+    let layer_bytes = spec.words_per_row() as u64 * 4 * spec.dims.y as u64;
+    if layer_bytes > limit {
+        return Err(GpuError::TooLarge {
+            what: format!("one z-layer of the {}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z),
+            needed_mib: mib(layer_bytes),
+            limit_mib: mib(limit),
+        });
+    }
+    let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit);
+    let slab_layers = ((slab_limit / layer_bytes) as u32).clamp(1, spec.dims.z);
+    Ok((slab_layers, spec.dims.z.div_ceil(slab_layers)))
 }

@@ -97,12 +97,13 @@ fn every_mesh_at_several_resolutions_matches_the_cpu_reference() {
 }
 
 #[test]
-fn decimal_boundary_scenes_are_bit_identical_including_the_exact_fallback() {
+fn decimal_boundary_scenes_are_bit_identical_including_the_overflow_fallback() {
     if gpu().is_none() {
         return;
     }
     // The scenes of the exactness tests: faces on voxel boundaries make thousands of tests ties, decided by the
-    // exact pass; a tiny unsure list forces the overflow fallback (`voxelize_exact`) to give the same grid.
+    // exact pass; a tiny unsure list overflows, and the CPU decision that takes over must give the same grid,
+    // whether it is read back or only compacted (as the viewer does), in one slab or several.
     let mut rng = Rng::new(0xdec1_0004);
     for (i, &n) in [23u32, 50, 99, 181].iter().enumerate() {
         let origin = [DVec3::new(-0.5, -0.5, -0.5), DVec3::new(3.21, -7.5, 0.03)][i % 2];
@@ -112,6 +113,8 @@ fn decimal_boundary_scenes_are_bit_identical_including_the_exact_fallback() {
         let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
         let (reference, stats) = cpu::voxelize_grid_space_with_stats(&tris, s, &|_, _| {}).expect("cpu");
         let (gpu, v) = gpu().expect("gpu");
+        let mut expected: Vec<[u32; 3]> = reference.iter_set().map(|p| p.to_array()).collect();
+        expected.sort();
         for max_unsure in [None, Some(64)] {
             let options = Options { read_grid: true, max_unsure, ..Default::default() };
             let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
@@ -119,6 +122,21 @@ fn decimal_boundary_scenes_are_bit_identical_including_the_exact_fallback() {
             assert_same_grid(&out.grid.expect("grid"), &reference, &what);
             // The same voxel tests are unsure on both sides: the f32 decisions are the same function.
             assert_eq!(out.exact_tests, Some(stats.exact_tests), "{what}");
+            assert_eq!(out.decided_on_cpu, max_unsure.is_some(), "{what}");
+            // Compaction only, in slabs of a few layers: the overflow is seen in the compactor's readback.
+            let slab = Some(s.words_per_row() as u64 * 4 * s.dims.y as u64 * 7);
+            let options = Options { compact: true, max_unsure, max_slab_bytes: slab, ..Default::default() };
+            let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
+            assert_eq!(out.decided_on_cpu, max_unsure.is_some(), "{what}, compaction only");
+            let mut points: Vec<[u32; 3]> =
+                out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+            points.sort();
+            assert!(
+                points == expected,
+                "{what}, compaction only: {} listed, {} expected",
+                points.len(),
+                expected.len()
+            );
         }
         assert!(stats.exact_tests > 64, "the scene at {n} must exercise the exact path ({})", stats.exact_tests);
     }

@@ -105,7 +105,7 @@ try {
   const first = await status({ ready: true }, "start");
   const firstMs = performance.now() - opened;
   console.log(`first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
-    `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms`);
+    `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms (compute passes ${first.gpu_ms.toFixed(1)} ms)`);
   check(first.backend === "BrowserWebGpu", `the page voxelizes on the browser's WebGPU (backend ${first.backend})`);
   const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
   check(first.voxels === defaultCli,
