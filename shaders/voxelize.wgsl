@@ -384,19 +384,19 @@ fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
     return select(2u, 1u, high >= 0.0);
 }
 
-// Narrows [lo, hi] to the t where slope * t + offset may be non-negative given its error bound eps, widened by
-// the rounding of the division and one voxel (see narrow in app/voxel/cpu.rs for why this is conservative);
-// ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
+// Narrows [lo, hi] to the integer t where slope * t + offset may be non-negative given its error bound eps,
+// widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu.rs for why
+// this is conservative); ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
 fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> vec2<f32> {
     if slope == 0.0 || abs(slope) * 16.0 < scale {
         return range;
     }
     let bound = -offset / slope;
-    let err = eps + abs(bound) * (1.0 / 1048576.0) + 1.0;
+    let err = eps + (abs(bound) + eps) * (1.0 / 524288.0);
     if slope > 0.0 {
-        return vec2<f32>(max(range.x, floor(bound - err)), range.y);
+        return vec2<f32>(max(range.x, ceil(bound - err)), range.y);
     }
-    return vec2<f32>(range.x, min(range.y, ceil(bound + err)));
+    return vec2<f32>(range.x, min(range.y, floor(bound + err)));
 }
 
 fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {

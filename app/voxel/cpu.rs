@@ -354,22 +354,24 @@ pub fn dominant_axis(s: &TriangleSetup) -> usize {
     }
 }
 
-/// Narrows the local range `[lo, hi]` to the `t` where `slope * t + offset` may be non-negative, the value's
-/// error bound being `eps = err_over_slope * |slope|`. Why it is conservative: an exact value `>= 0` means the
-/// f32 line is `>= -eps` there, so `t` lies beyond `-offset / slope` by at most `eps / |slope|`; the quotient
-/// itself is off by a few ulps (`|bound| 2^-20` covers WGSL's 2.5-ulp division), and one more voxel covers the
-/// roundings of the widening. Constraints with a slope small against `scale` are ill-conditioned and left to the
-/// full test instead, which also keeps every quantity here finite.
+/// Narrows the local range `[lo, hi]` to the integer `t` where `slope * t + offset` may be non-negative, the
+/// value's error bound being `eps = err_over_slope * |slope|`. Why it is conservative: the exact line crosses
+/// zero at `t*`, and the f32 offset is within `eps` of the exact one, so `t*` lies within `eps / |slope|` of
+/// `-offset / slope`. The computed quotient and `err_over_slope` are each off by at most 2.5 ulps (WGSL's
+/// division), and the sums below by half an ulp each; the relative `2^-19` covers all of them with room to
+/// spare. So `bound - err <= t*` (for a positive slope), and `ceil` keeps every integer `t >= t*`. Constraints
+/// with a slope small against `scale` are ill-conditioned and left to the full test instead, which also keeps
+/// every quantity here finite.
 fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f32, scale: f32) {
     if slope == 0.0 || slope.abs() * 16.0 < scale {
         return;
     }
     let bound = -offset / slope;
-    let err = err_over_slope + bound.abs() * (1.0 / 1_048_576.0) + 1.0;
+    let err = err_over_slope + (bound.abs() + err_over_slope) * (1.0 / 524_288.0);
     if slope > 0.0 {
-        *lo = lo.max((bound - err).floor());
+        *lo = lo.max((bound - err).ceil());
     } else {
-        *hi = hi.min((bound + err).ceil());
+        *hi = hi.min((bound + err).floor());
     }
 }
 
