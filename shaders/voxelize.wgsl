@@ -213,10 +213,15 @@ fn setup_edges(a: vec3<f32>, b: vec3<f32>, o: f32, wa: f32, wb: f32) -> Edges {
     for (var i = 0u; i < 3u; i++) {
         let j = (i + 1u) % 3u;
         let e = vec2<f32>(a[j] - a[i], b[j] - b[i]);
-        let normal = vec2<f32>(-e.y, e.x) * o;
+        var normal = vec2<f32>(-e.y, e.x) * o;
+        // Axis-aligned: unit length, exact values, zero bound (see setup_edges in app/voxel/cpu.rs).
+        let aligned = (normal.x == 0.0) != (normal.y == 0.0);
+        if aligned {
+            normal = sign(normal);
+        }
         out.ne[i] = normal;
         out.de[i] = -(normal.x * a[i] + normal.y * b[i]) + max(normal.x, 0.0) + max(normal.y, 0.0);
-        out.eps[i] = ERROR_FACTOR * (abs(normal.x) * wa + abs(normal.y) * wb);
+        out.eps[i] = select(ERROR_FACTOR * (abs(normal.x) * wa + abs(normal.y) * wb), 0.0, aligned);
     }
     return out;
 }
@@ -290,6 +295,12 @@ fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     }
     let c = vec3<f32>(select(0.0, 1.0, normal_sign(signs, 0u) > 0), select(0.0, 1.0, normal_sign(signs, 1u) > 0),
         select(0.0, 1.0, normal_sign(signs, 2u) > 0));
+    // A face perpendicular to an axis: unit normal, exact plane values, zero bound (as in cpu.rs).
+    let live = n_exact != vec3<f32>(0.0);
+    let aligned = u32(live.x) + u32(live.y) + u32(live.z) == 1u;
+    if aligned {
+        n_exact = sign(n_exact);
+    }
     s.n = n_exact;
     s.normal_signs = signs;
     s.d1 = dot3(n_exact, c - l0);
@@ -297,7 +308,7 @@ fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     let lmin = min(min(l0, l1), l2);
     let lmax = max(max(l0, l1), l2);
     let w = max(max(abs(lmin), abs(lmax)), vec3<f32>(s.hi) - origin + 1.0) + 1.0;
-    s.plane_eps = ERROR_FACTOR * dot3(nabs_live, w);
+    s.plane_eps = select(ERROR_FACTOR * dot3(nabs_live, w), 0.0, aligned);
     let xs = vec3<f32>(l0.x, l1.x, l2.x);
     let ys = vec3<f32>(l0.y, l1.y, l2.y);
     let zs = vec3<f32>(l0.z, l1.z, l2.z);

@@ -101,6 +101,18 @@ fn orientation(sign: i32) -> f32 {
     if sign >= 0 { 1.0 } else { -1.0 }
 }
 
+/// `-1`, `0` or `1`: the sign of `x` (WGSL's `sign`; unlike `f32::signum`, zero for zero).
+#[inline]
+pub fn sign(x: f32) -> f32 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
 /// Edge normals, offsets and error bounds of one projection. `a` and `b` are the projected local vertex
 /// coordinates, `o` the orientation (the exact sign of the matching normal component, +1 at 0), and `wa`, `wb`
 /// bound the magnitude of every local coordinate, voxel corner and corner plus one along the two axes.
@@ -109,15 +121,24 @@ fn orientation(sign: i32) -> f32 {
 /// `ne.x q.x + ne.y q.y + de`, with `de = -(ne.x a_i + ne.y b_i) + max(ne.x, 0) + max(ne.y, 0)`, is a sum of
 /// seven terms of magnitude at most `|ne.x| wa` or `|ne.y| wb` each, computed with at most ten roundings, so
 /// its error is below `10 u (|ne.x| wa + |ne.y| wb)` with `u = 2^-24`; the bound uses 32 u.
+///
+/// An axis-aligned edge normal (one zero component) is scaled to unit length, which leaves every sign unchanged.
+/// Then the value is `±(q - a_i) + 0 or 1`: lattice values summed, exact in f32 in any order (see
+/// [`Lattice`](super::Lattice): every partial sum stays below `2^24` lattice steps), so its bound is zero. This is
+/// what keeps axis-aligned faces on voxel boundaries, as in CAD models, off the exact path.
 fn setup_edges(a: [f32; 3], b: [f32; 3], o: f32, wa: f32, wb: f32) -> Edges {
     let mut e = Edges::default();
     for i in 0..3 {
         let j = (i + 1) % 3;
         let d = Vec2::new(a[j] - a[i], b[j] - b[i]);
-        let normal = Vec2::new(-d.y, d.x) * o;
+        let mut normal = Vec2::new(-d.y, d.x) * o;
+        let aligned = (normal.x == 0.0) != (normal.y == 0.0);
+        if aligned {
+            normal = Vec2::new(sign(normal.x), sign(normal.y));
+        }
         e.ne[i] = normal;
         e.de[i] = -(normal.x * a[i] + normal.y * b[i]) + normal.x.max(0.0) + normal.y.max(0.0);
-        e.eps[i] = ERROR_FACTOR * (normal.x.abs() * wa + normal.y.abs() * wb);
+        e.eps[i] = if aligned { 0.0 } else { ERROR_FACTOR * (normal.x.abs() * wa + normal.y.abs() * wb) };
     }
     e
 }
@@ -136,7 +157,9 @@ pub fn exact_normal_component(e0: IVec3, e1: IVec3, k: usize) -> i128 {
 /// the exact value is `n · (a + b)`. Each f32 normal component is off by at most `2u·nabs` (two products and a
 /// difference), and the value adds six products in some order, so the error is below `14 u Σ nabs_k w_k`, where
 /// `nabs_k = |e0_i e1_j| + |e0_j e1_i|`; the bound uses 32 u. Components whose exact value is zero are stored as
-/// exact zeros and add nothing.
+/// exact zeros and add nothing. A normal with one non-zero component (a face perpendicular to an axis) is scaled
+/// to unit length: the plane values are then `±(p_k + c_k - v0_k)`, exact as the aligned edges' in
+/// [`setup_edges`], and the bound is zero.
 pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSetup {
     let (lo, hi) = voxel_range(v, dims);
     let origin = lo.as_vec3();
@@ -162,7 +185,8 @@ pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSe
             nabs_live[k] = nabs[k];
         }
     }
-    let n = n_exact;
+    let aligned = n_exact.cmpne(Vec3::ZERO).bitmask().count_ones() == 1;
+    let n = if aligned { Vec3::new(sign(n_exact.x), sign(n_exact.y), sign(n_exact.z)) } else { n_exact };
     let c = Vec3::new(
         if normal_sign(normal_signs, 0) > 0 { 1.0 } else { 0.0 },
         if normal_sign(normal_signs, 1) > 0 { 1.0 } else { 0.0 },
@@ -174,7 +198,7 @@ pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSe
     let lmin = l[0].min(l[1]).min(l[2]);
     let lmax = l[0].max(l[1]).max(l[2]);
     let w = lmin.abs().max(lmax.abs()).max((hi.as_vec3() - origin) + 1.0) + 1.0;
-    let plane_eps = ERROR_FACTOR * dot3(nabs_live, w);
+    let plane_eps = if aligned { 0.0 } else { ERROR_FACTOR * dot3(nabs_live, w) };
     let xs = [l[0].x, l[1].x, l[2].x];
     let ys = [l[0].y, l[1].y, l[2].y];
     let zs = [l[0].z, l[1].z, l[2].z];

@@ -215,6 +215,39 @@ fn random_triangles_near_voxel_boundaries_match_brute_force() {
 }
 
 #[test]
+fn open_triangles_with_axis_aligned_edges_on_voxel_edges_match_brute_force() {
+    // One triangle at a time (an open mesh: no neighbour covers for a wrong decision), with an edge parallel to
+    // an axis lying on a line where voxel edges meet, its length and the third vertex decimal. Such edges and
+    // faces take the zero-bound path (unit normals, exact f32 values), which must be exact, not only bounded.
+    let mut rng = Rng::new(0xdec1_0005);
+    for &n in &[23u32, 37] {
+        let h = 1.3 / n as f64;
+        for round in 0..150 {
+            let origin = DVec3::new(-4.2 + rng.unit(), 0.7, 10.1);
+            let mut obj = ObjWriter::default();
+            let a = obj.vertex(origin);
+            let b = obj.vertex(origin + DVec3::splat(n as f64 * h));
+            obj.triangle(a, b, b);
+            let axis = rng.below(3) as usize;
+            let mut p = DVec3::new(rng.below(n as u64 + 1) as f64, rng.below(n as u64 + 1) as f64, 0.0);
+            p = DVec3::new(p.x, p.y, rng.below(n as u64 + 1) as f64);
+            let (mut q, t0, t1) = (p, rng.unit() * n as f64, rng.unit() * n as f64);
+            p[axis] = t0;
+            q[axis] = t1;
+            let r = DVec3::new(rng.unit(), rng.unit(), rng.unit()) * n as f64;
+            // Sometimes the third vertex shares a boundary coordinate too: a face on a voxel boundary.
+            let r =
+                if round % 3 == 0 { DVec3::new(r.x, r.y, p.z).with_x(if axis == 0 { r.x } else { p.x }) } else { r };
+            let (i, j, k) = (obj.vertex(origin + p * h), obj.vertex(origin + q * h), obj.vertex(origin + r * h));
+            obj.triangle(i, j, k);
+            let mesh = obj.load("aligned.obj");
+            let (grid, tris) = voxelize(&mesh, n);
+            assert_exact(&grid, &tris, &format!("aligned edge round {round} at {n}"));
+        }
+    }
+}
+
+#[test]
 fn snapping_follows_the_coordinates_precision() {
     // A vertex 8 f32 ulps below 1.0 (as Cube.gltf has) is 1.2e-4 voxel off the boundary at 256: more than the
     // absolute 1e-4, within 16 ulps of the coordinate's magnitude, so it snaps and the face is exactly on it.

@@ -6,6 +6,7 @@
 //  - loads ../shared/meshes/suzanne.obj through the panel's Open… button and the file chooser it opens,
 //    ../shared/meshes/gltf/Duck.gltf through the page's file input, and
 //    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
+//  - loads a decimal OBJ box with tessellated faces on the grid's boundaries at 99 and checks page == CLI == shell,
 //  - in a page without WebGPU, checks that the page says so instead of showing a blank canvas,
 //  - fails on any uncaught exception, panic or console error,
 //  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
@@ -14,7 +15,7 @@
 // target/debug/meshvox. Run: `node web/tests/browser.mjs` (tests/run.sh does, after `cargo test`).
 import { chromium } from "playwright-core";
 import { createServer } from "node:http";
-import { readFile, stat, mkdtemp, rm } from "node:fs/promises";
+import { readFile, writeFile, stat, mkdtemp, rm } from "node:fs/promises";
 import { existsSync } from "node:fs";
 import { execFileSync } from "node:child_process";
 import { tmpdir } from "node:os";
@@ -159,6 +160,22 @@ try {
     check(s.voxels === cli, `gltf/box01.glb @${s.resolution} dropped on the canvas: page ${s.voxels} == CLI ${cli}`);
   }
 
+  // A user's file: a unit box centred on the origin whose faces are jittered 7x7 grids of decimal points,
+  // triangulated (as remeshers and CAD exporters write them), at 99 voxels: every face lies on a grid boundary,
+  // the first or the last, so every voxel of the grid's shell and no other must be set (the case that once lost
+  // the last layer of each axis). Made here, so it runs without ../shared too.
+  const boxObj = path.join(tmpdir(), `meshvox-web-box-${process.pid}.obj`);
+  await writeFile(boxObj, tessellatedBox(7, 0x5eed));
+  await page.setInputFiles("#meshvox-file", boxObj);
+  await status({ ready: true, mesh: path.basename(boxObj) }, "loading the tessellated box");
+  await page.evaluate(() => window.meshvoxSetResolution(99));
+  const box = await status({ ready: true, mesh: path.basename(boxObj), resolution: 99 }, "the box at 99");
+  const boxCli = cliVoxels(boxObj, 99);
+  const shell = 99 ** 3 - 97 ** 3;
+  check(box.voxels === boxCli && boxCli === shell,
+    `decimal tessellated box @99: page ${box.voxels} == CLI ${boxCli} == the grid's shell ${shell}`);
+  await rm(boxObj, { force: true });
+
   // A browser without WebGPU: the page must say so (the same Chromium, with navigator.gpu taken away).
   const plain = await browser.newPage({ viewport: { width: 960, height: 600 } });
   plain.on("pageerror", (e) => errors.push(`uncaught (no-WebGPU page): ${e.message}`));
@@ -180,6 +197,40 @@ if (failures > 0) {
   process.exit(1);
 }
 console.log("browser test: all checks passed");
+
+/** OBJ text of the box [-0.5, 0.5]^3, each face an m x m grid of cells with jittered inner points, written with
+ * ten decimals (so almost no coordinate is exact in binary), two triangles per cell. */
+function tessellatedBox(m, seed) {
+  let state = seed;
+  const random = () => ((state = (state * 1103515245 + 12345) % 2147483648) / 2147483648);
+  const lines = [];
+  let count = 0;
+  for (let axis = 0; axis < 3; axis++) {
+    for (const side of [-0.5, 0.5]) {
+      const id = [];
+      for (let i = 0; i <= m; i++) {
+        for (let j = 0; j <= m; j++) {
+          const inner = (k) => k > 0 && k < m;
+          const u = i / m - 0.5 + (inner(i) ? (random() - 0.5) * 0.6 / m : 0);
+          const v = j / m - 0.5 + (inner(j) ? (random() - 0.5) * 0.6 / m : 0);
+          const p = [0, 0, 0];
+          p[axis] = side;
+          p[(axis + 1) % 3] = u;
+          p[(axis + 2) % 3] = v;
+          lines.push(`v ${p.map((c) => c.toFixed(10)).join(" ")}`);
+          id.push(++count);
+        }
+      }
+      const at = (i, j) => id[i * (m + 1) + j];
+      for (let i = 0; i < m; i++) {
+        for (let j = 0; j < m; j++) {
+          lines.push(`f ${at(i, j)} ${at(i + 1, j)} ${at(i + 1, j + 1)}`, `f ${at(i, j)} ${at(i + 1, j + 1)} ${at(i, j + 1)}`);
+        }
+      }
+    }
+  }
+  return lines.join("\n") + "\n";
+}
 
 /** Hovers, then presses and releases a few frames apart: egui decides what is under the pointer from the
  * previous frame, so an instant move-press-release can miss a widget on a busy machine. */
