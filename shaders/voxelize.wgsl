@@ -286,7 +286,11 @@ fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     var n_exact = vec3<f32>(0.0);
     var nabs_live = vec3<f32>(0.0);
     for (var k = 0u; k < 3u; k++) {
-        let sg = wide_sign(exact_normal_component(ue0, ue1, k));
+        // Exact only where the f32 component is within its error bound of zero (as in cpu.rs).
+        var sg = certain_sign(n[k], ERROR_FACTOR * nabs[k]);
+        if sg == 2 {
+            sg = wide_sign(exact_normal_component(ue0, ue1, k));
+        }
         signs = signs | (select(0u, 1u, sg > 0) << k) | (select(0u, 1u, sg < 0) << (k + 3u));
         if sg != 0 {
             n_exact[k] = n[k];
@@ -399,7 +403,8 @@ fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
 // widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu.rs for why
 // this is conservative); ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
 fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> vec2<f32> {
-    if slope == 0.0 || abs(slope) * 16.0 < scale {
+    // Short ranges are tested whole (cheaper than a division), as in cpu.rs.
+    if range.y - range.x < 2.0 || slope == 0.0 || abs(slope) * 16.0 < scale {
         return range;
     }
     let bound = -offset / slope;

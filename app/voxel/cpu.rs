@@ -101,6 +101,24 @@ fn orientation(sign: i32) -> f32 {
     if sign >= 0 { 1.0 } else { -1.0 }
 }
 
+/// WGSL's `floor`. Without SSE4.1 (not in the x86-64 baseline) `f32::floor` is a libm call, which took a tenth
+/// of the CPU voxelizer's time; a value of magnitude `2^23` or more is already an integer.
+#[inline]
+pub fn floor(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32;
+        if t > x { t - 1.0 } else { t }
+    } else {
+        x
+    }
+}
+
+/// WGSL's `ceil` (see [`floor`]).
+#[inline]
+pub fn ceil(x: f32) -> f32 {
+    -floor(-x)
+}
+
 /// `-1`, `0` or `1`: the sign of `x` (WGSL's `sign`; unlike `f32::signum`, zero for zero).
 #[inline]
 pub fn sign(x: f32) -> f32 {
@@ -178,7 +196,12 @@ pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSe
     let mut n_exact = Vec3::ZERO;
     let mut nabs_live = Vec3::ZERO;
     for k in 0..3 {
-        let s = exact_normal_component(ue0, ue1, k).signum() as i32;
+        // The f32 component is off by at most 2u nabs_k; only a component within that bound of zero (a face
+        // nearly or exactly parallel to axis k) needs the exact product.
+        let s = match certain_sign(n[k], ERROR_FACTOR * nabs[k]) {
+            2 => exact_normal_component(ue0, ue1, k).signum() as i32,
+            certain => certain,
+        };
         normal_signs |= u32::from(s > 0) << k | u32::from(s < 0) << (k + 3);
         if s != 0 {
             n_exact[k] = n[k];
@@ -215,8 +238,8 @@ pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
     let min = v[0].min(v[1]).min(v[2]);
     let max = v[0].max(v[1]).max(v[2]);
     let top = (dims.as_vec3() - 1.0).max(Vec3::ZERO);
-    let lo = (min.ceil() - 1.0).clamp(Vec3::ZERO, top);
-    let hi = max.floor().clamp(Vec3::ZERO, top);
+    let lo = (min.map(ceil) - 1.0).clamp(Vec3::ZERO, top);
+    let hi = max.map(floor).clamp(Vec3::ZERO, top);
     // A triangle entirely outside the grid (only possible for a caller-made grid) gets an empty range.
     let outside = max.cmplt(Vec3::ZERO).any() || min.cmpgt(dims.as_vec3()).any();
     if outside { (UVec3::ONE, UVec3::ZERO) } else { (lo.as_uvec3(), hi.as_uvec3()) }
@@ -387,15 +410,17 @@ pub fn dominant_axis(s: &TriangleSetup) -> usize {
 /// with a slope small against `scale` are ill-conditioned and left to the full test instead, which also keeps
 /// every quantity here finite.
 fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f32, scale: f32) {
-    if slope == 0.0 || slope.abs() * 16.0 < scale {
+    // A range of one or two voxels costs less to test than to narrow (a division), as for most triangles of a
+    // dense mesh.
+    if *hi - *lo < 2.0 || slope == 0.0 || slope.abs() * 16.0 < scale {
         return;
     }
     let bound = -offset / slope;
     let err = err_over_slope + (bound.abs() + err_over_slope) * (1.0 / 524_288.0);
     if slope > 0.0 {
-        *lo = lo.max((bound - err).ceil());
+        *lo = lo.max(ceil(bound - err));
     } else {
-        *hi = hi.min((bound + err).floor());
+        *hi = hi.min(floor(bound + err));
     }
 }
 

@@ -61,7 +61,7 @@ impl Lattice {
     /// The lattice point nearest to `v` (ties to even, as WGSL's `round`).
     pub fn snap(&self, v: Vec3) -> Vec3 {
         let s = self.scale();
-        (v * s).map(f32::round_ties_even) / s
+        (v * s).map(round_even) / s
     }
 
     /// `triangles` rounded onto the lattice; borrowed when they already lie on it (as the output of
@@ -78,6 +78,15 @@ impl Lattice {
     pub fn units(&self, v: Vec3) -> IVec3 {
         (v * self.scale()).as_ivec3()
     }
+}
+
+/// `x` rounded to the nearest integer, ties to even. Adding and subtracting `1.5 * 2^23` rounds in the FPU's
+/// default mode (to nearest, ties to even) for `|x| <= 2^22`, without the libm call `round_ties_even` is on
+/// x86-64 without SSE4.1; larger values take the call.
+#[inline]
+fn round_even(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0;
+    if x.abs() <= 4_194_304.0 { (x + MAGIC) - MAGIC } else { x.round_ties_even() }
 }
 
 /// Fits the lattice to `triangles` and rounds them onto it: what both backends voxelize.
