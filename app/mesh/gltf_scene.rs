@@ -72,6 +72,14 @@ fn add_primitive(
         ));
         return Ok(());
     }
+    // The crate's reader stops quietly at the end of a short buffer view, which would drop triangles without a
+    // word: every accessor this primitive reads is checked against the glTF rules first.
+    if let Some(accessor) = primitive.get(&gltf::Semantic::Positions) {
+        check_accessor(&accessor, buffers).map_err(err)?;
+    }
+    if let Some(accessor) = primitive.indices() {
+        check_accessor(&accessor, buffers).map_err(err)?;
+    }
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let Some(positions) = reader.read_positions() else {
         mesh.warnings.push(format!(
@@ -87,6 +95,16 @@ fn add_primitive(
         Some(ix) => ix.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
     };
+    if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
+        mesh.warnings.push(format!(
+            "{}: primitive {} of mesh {} '{name}' has {} indices, not a multiple of 3; the last {} are ignored",
+            path.display(),
+            primitive.index(),
+            gmesh.index(),
+            indices.len(),
+            indices.len() % 3
+        ));
+    }
     if let Some(&bad) = indices.iter().find(|&&i| i as usize >= positions.len()) {
         return Err(err(format!(
             "mesh {} '{name}' primitive {} uses vertex {bad} but has {}",
@@ -118,4 +136,53 @@ fn add_primitive(
     };
     mesh.push_part(part, triangles);
     Ok(())
+}
+
+/// Checks an accessor against the glTF 2.0 rules on buffers before it is read: its buffer view lies within the
+/// buffer's data, the stride is at least one element, and `count` elements from the accessor's offset fit in the
+/// view. Sparse accessors are refused (no mesh exporter meshvox's users meet writes them for positions or
+/// indices). The message names the object, as `accessors[1]`.
+fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+    let name = format!("accessors[{}]", accessor.index());
+    if accessor.sparse().is_some() {
+        return Err(format!("{name}: sparse accessors are not supported"));
+    }
+    let Some(view) = accessor.view() else {
+        return Err(format!("{name}: has no bufferView (all-zero data is not a mesh)"));
+    };
+    let view_name = format!("bufferViews[{}]", view.index());
+    let buffer = view.buffer();
+    let data = buffers.get(buffer.index()).map_or(0, |d| d.0.len());
+    let view_end = view.offset().checked_add(view.length());
+    if view_end.is_none_or(|end| end > data) {
+        return Err(format!(
+            "{view_name}: bytes {}..{} lie outside buffers[{}], which has {data} bytes",
+            view.offset(),
+            view.offset().saturating_add(view.length()),
+            buffer.index()
+        ));
+    }
+    let element = accessor.size();
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(format!(
+            "{view_name}: byteStride {stride} is smaller than one element of {name} ({element} bytes)"
+        ));
+    }
+    let count = accessor.count();
+    if count == 0 {
+        return Ok(());
+    }
+    let needed = (count - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(element))
+        .and_then(|n| n.checked_add(accessor.offset()));
+    match needed {
+        Some(n) if n <= view.length() => Ok(()),
+        _ => Err(format!(
+            "{name}: {count} elements of {element} bytes (stride {stride}, offset {}) do not fit in {view_name} of {} bytes",
+            accessor.offset(),
+            view.length()
+        )),
+    }
 }

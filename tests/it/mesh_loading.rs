@@ -269,6 +269,42 @@ fn broken_input_is_an_error_naming_the_file() {
     let bytes = gltf_json(&[(4, tri, Some((vec![0, 1, 9], 2)))], json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
     let e = mesh::load_bytes("oob.gltf", &bytes).expect_err("index out of range");
     assert!(e.to_string().contains("vertex 9"), "{e}");
+    // Accessors and buffer views that break the glTF rules on buffers: refused, naming the object, never read
+    // short (a reader that stops at the end of a short view would silently drop triangles).
+    for (what, views, index_accessor, expected) in [
+        (
+            "index count past its view",
+            r#"{"buffer":0,"byteOffset":36,"byteLength":6}"#,
+            r#""count":99"#,
+            "accessors[1]",
+        ),
+        ("view past its buffer", r#"{"buffer":0,"byteOffset":36,"byteLength":600}"#, r#""count":3"#, "bufferViews[1]"),
+        (
+            "sparse indices",
+            r#"{"buffer":0,"byteOffset":36,"byteLength":6}"#,
+            r#""count":3,"sparse":{"count":1,"indices":{"bufferView":1,"componentType":5123},"values":{"bufferView":1}}"#,
+            "sparse",
+        ),
+    ] {
+        let bytes = raw_gltf(r#"{"buffer":0,"byteOffset":0,"byteLength":36}"#, views, index_accessor);
+        let e = mesh::load_bytes("short.gltf", bytes.as_bytes()).expect_err(what);
+        let msg = e.to_string();
+        assert!(msg.contains(expected) && msg.contains("short.gltf") && !msg.contains('\n'), "{what}: {msg}");
+    }
+    let strided = raw_gltf(
+        r#"{"buffer":0,"byteOffset":0,"byteLength":36,"byteStride":4}"#,
+        r#"{"buffer":0,"byteOffset":36,"byteLength":6}"#,
+        r#""count":3"#,
+    );
+    let e = mesh::load_bytes("stride.gltf", strided.as_bytes()).expect_err("stride below one element");
+    assert!(e.to_string().contains("bufferViews[0]"), "{e}");
+    // The same file with consistent numbers loads: the checks refuse only what is broken.
+    let good = raw_gltf(
+        r#"{"buffer":0,"byteOffset":0,"byteLength":36}"#,
+        r#"{"buffer":0,"byteOffset":36,"byteLength":6}"#,
+        r#""count":3"#,
+    );
+    assert_eq!(mesh::load_bytes("good.gltf", good.as_bytes()).expect("valid").triangles.len(), 1);
     let e = mesh::load("builtin:nonesuch").expect_err("unknown builtin");
     assert!(e.to_string().contains("rotated-cube"), "lists the builtins: {e}");
 }
@@ -303,4 +339,27 @@ fn fmt_thousands(n: usize) -> String {
         out.push(c);
     }
     out
+}
+
+/// A one-triangle glTF written by hand: three f32 positions (36 bytes) and three u16 indices (6 bytes) in one
+/// embedded buffer, with the two buffer views and the index accessor's fields given, so a test can break them.
+fn raw_gltf(position_view: &str, index_view: &str, index_accessor: &str) -> String {
+    let mut data = Vec::new();
+    for v in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
+        data.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2] {
+        data.extend_from_slice(&i.to_le_bytes());
+    }
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&data));
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "buffers":[{{"byteLength":{},"uri":"{uri}"}}],
+        "bufferViews":[{position_view},{index_view}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+                     {{"bufferView":1,"componentType":5123,"type":"SCALAR",{index_accessor}}}]}}"#,
+        data.len()
+    )
 }
