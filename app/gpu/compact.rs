@@ -1,7 +1,7 @@
 //! GPU stream compaction (`shaders/compact.wgsl`): the coordinates of a grid's set voxels as a GPU buffer, for
 //! instanced drawing and sparse output, without a CPU loop over the dense grid.
 
-use super::readback::{PassTimer, read_buffer, read_buffers};
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::GridSpec;
@@ -155,9 +155,8 @@ impl Compactor {
         let mut ranges = vec![(&counters, 0, 4)];
         ranges.extend(probe.map(|b| (b, 0, 4)));
         let read = read_buffers(device, &gpu.queue, &ranges).await?;
-        let word = |bytes: &[u8]| bytes.get(..4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes);
-        let count = read.first().and_then(|b| word(b)).unwrap_or(0);
-        let probed = read.get(1).and_then(|b| word(b));
+        let count = read.first().and_then(|b| first_word(b)).unwrap_or(0);
+        let probed = read.get(1).and_then(|b| first_word(b));
         let bytes = count as u64 * 8;
         if bytes > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {

@@ -55,6 +55,11 @@ pub(crate) async fn read_buffers(
         .collect())
 }
 
+/// The first little-endian `u32` of a readback (a counter), or `None` if fewer than four bytes came back.
+pub(crate) fn first_word(bytes: &[u8]) -> Option<u32> {
+    bytes.get(..4).and_then(|b| b.try_into().ok()).map(u32::from_le_bytes)
+}
+
 /// Maps a MAP_READ buffer and returns its contents.
 pub(crate) async fn map_and_copy(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = staging.slice(..);

@@ -7,7 +7,7 @@
 //! [`Options`] to exercise the chunked paths on small inputs.
 
 use super::compact::{CompactVoxels, Compactor, Slab};
-use super::readback::{PassTimer, read_buffer, read_buffers};
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::{GridSpec, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
@@ -517,7 +517,7 @@ impl GpuVoxelizer {
                 if let Some(host) = grid.as_mut() {
                     let bytes = parts.next().unwrap_or_default();
                     let count = parts.next().unwrap_or_default();
-                    let listed = count.get(..4).and_then(|b| b.try_into().ok()).map_or(0, u32::from_le_bytes);
+                    let listed = first_word(&count).unwrap_or(0);
                     if listed as u64 > unsure_entries {
                         return Ok(Attempt::Overflow);
                     }
