@@ -38,6 +38,49 @@ enum Command {
     Render(RenderArgs),
 }
 
+/// Limits on what one request may take, shared by the commands that load and voxelize a mesh.
+#[derive(clap::Args)]
+struct LimitArgs {
+    /// Refuse meshes with more triangles than this (counted before the file is parsed).
+    #[arg(long, value_name = "N", default_value_t = mesh::LoadLimits::DEFAULT_MAX_TRIANGLES)]
+    max_triangles: u64,
+    /// Host memory a voxelization may use (512M, 8G, …); default: what the machine has available.
+    #[arg(long, value_name = "SIZE", value_parser = meshvox::memory::parse_size)]
+    max_memory: Option<u64>,
+}
+
+impl LimitArgs {
+    fn load(&self, spec: &str) -> Result<mesh::Mesh> {
+        let limits = mesh::LoadLimits { max_triangles: self.max_triangles, max_file_bytes: self.max_memory };
+        let mesh = mesh::load_with(spec, &limits)?;
+        for w in &mesh.warnings {
+            eprintln!("warning: {w}");
+        }
+        Ok(mesh)
+    }
+
+    /// Lays the grid over the mesh and checks the memory it needs, before anything large is allocated.
+    fn grid(
+        &self,
+        name: &str,
+        mesh: &mesh::Mesh,
+        resolution: Resolution,
+        axis: Axis,
+        format: Option<VoxelFormat>,
+    ) -> Result<GridSpec> {
+        let bounds = mesh.bounds().ok_or_else(|| anyhow!("{name}: contains no triangles"))?;
+        let spec = GridSpec::fit(bounds, resolution, axis).with_context(|| name.to_string())?;
+        // By default, four fifths of what is available: the rest is for the loaded mesh, the process and the
+        // machine's other work. An explicit --max-memory is taken as given.
+        let default_budget = || meshvox::memory::available().map(|a| a / 5 * 4);
+        if let Some(budget) = self.max_memory.or_else(default_budget) {
+            let triangles = mesh.triangles.len() as u64;
+            voxel::budget::check(&spec, bounds, axis, triangles, format, budget).with_context(|| name.to_string())?;
+        }
+        Ok(spec)
+    }
+}
+
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Mesh file (.obj, .gltf, .glb) or builtin:NAME.
@@ -67,6 +110,8 @@ struct RenderArgs {
     /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
+    #[command(flatten)]
+    limits: LimitArgs,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -114,7 +159,7 @@ struct VoxelizeArgs {
     #[arg(short = 'r', long = "resolution", value_name = "N")]
     resolution: Option<u32>,
     /// Edge length of a voxel in mesh units, instead of -r.
-    #[arg(long = "voxel-size", value_name = "H")]
+    #[arg(long = "voxel-size", value_name = "H", allow_negative_numbers = true)]
     voxel_size: Option<f64>,
     /// Axis along which -r counts voxels.
     #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
@@ -128,6 +173,8 @@ struct VoxelizeArgs {
     /// Where to voxelize: the GPU when there is an adapter (auto), only the GPU, or only the CPU.
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
+    #[command(flatten)]
+    limits: LimitArgs,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -157,6 +204,7 @@ impl From<AxisArg> for Axis {
 }
 
 pub fn main() -> ExitCode {
+    quiet_headless_vulkan();
     let cli = Cli::parse();
     let result = match cli.command {
         None => view(&ViewArgs {
@@ -183,6 +231,25 @@ pub fn main() -> ExitCode {
     }
 }
 
+/// Keeps Mesa's Vulkan device-selection layer from probing for a Wayland compositor where there can be none.
+///
+/// Every Mesa install enables that layer implicitly. When the instance has the Wayland surface extension (wgpu
+/// enables every window-system extension the driver offers) the layer calls `wl_display_connect` to find the
+/// GPU driving the display, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment.` twice when that variable is missing, as on servers, in containers and in CI: an alarming line
+/// on every headless run although nothing is wrong. The layer only reorders adapters, and wgpu chooses among
+/// them itself, so where there is no runtime directory the layer is switched off through its documented
+/// `NODEVICE_SELECT` variable.
+#[allow(unsafe_code)]
+fn quiet_headless_vulkan() {
+    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| Path::new(&d).is_dir());
+    if !runtime_dir && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: this runs first thing in `main`, before any other thread exists (no rayon pool, no wgpu
+        // instance), so nothing can read the environment while it changes.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
 fn ms(since: Instant) -> f64 {
     (since.elapsed().as_secs_f64() * 1e3 * 1000.0).round() / 1000.0
 }
@@ -195,18 +262,14 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let temp = temp_beside(&args.output)?;
 
     let t_load = Instant::now();
-    let mesh = mesh::load(&args.mesh)?;
+    let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
-    for w in &mesh.warnings {
-        eprintln!("warning: {w}");
-    }
     let resolution = match (args.resolution, args.voxel_size) {
         (Some(n), _) => Resolution::Count(n),
         (None, Some(h)) => Resolution::VoxelSize(h),
         (None, None) => bail!("give -r N or --voxel-size H"),
     };
-    let bounds = mesh.bounds().ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
-    let spec = GridSpec::fit(bounds, resolution, args.axis.into()).with_context(|| args.mesh.clone())?;
+    let spec = args.limits.grid(&args.mesh, &mesh, resolution, args.axis.into(), Some(format))?;
 
     let engine = Engine::open(args.backend)?;
     let t_vox = Instant::now();
@@ -358,10 +421,13 @@ impl Engine {
                     }
                     return Ok(EngineResult { grid, backend, gpu_ms: out.gpu_ms, exact_tests: out.exact_tests });
                 }
-                Err(e @ (meshvox::gpu::GpuError::TooLarge { .. } | meshvox::gpu::GpuError::OutOfMemory(_)))
-                    if self.fallback =>
-                {
+                Err(e @ meshvox::gpu::GpuError::TooLarge { .. }) if self.fallback => {
                     eprintln!("note: {e}; using the CPU voxelizer");
+                }
+                // Lost, out of memory, hung: the same grid comes from the CPU, said loudly because it is slower
+                // and because the GPU may need looking at.
+                Err(e) if self.fallback && e.is_device_failure() => {
+                    eprintln!("warning: {e}; voxelizing on the CPU instead");
                 }
                 Err(e) => return Err(e.into()),
             }
@@ -465,13 +531,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         bail!("{}: the output must be a .png file", args.output.display());
     }
     let temp = temp_beside(&args.output)?;
-    let mesh = mesh::load(&args.mesh)?;
-    for w in &mesh.warnings {
-        eprintln!("warning: {w}");
-    }
-    let bounds = mesh.bounds().ok_or_else(|| anyhow!("{}: contains no triangles", args.mesh))?;
-    let spec = GridSpec::fit(bounds, Resolution::Count(args.resolution), args.axis.into())
-        .with_context(|| args.mesh.clone())?;
+    let mesh = args.limits.load(&args.mesh)?;
+    let spec = args.limits.grid(&args.mesh, &mesh, Resolution::Count(args.resolution), args.axis.into(), None)?;
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     let t = Instant::now();
     let (voxels, backend) = if args.backend == BackendArg::Cpu {

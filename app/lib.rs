@@ -1,4 +1,5 @@
 pub mod gpu;
+pub mod memory;
 pub mod mesh;
 pub mod render;
 pub mod ui;

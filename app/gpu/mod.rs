@@ -5,6 +5,9 @@ pub mod compact;
 mod readback;
 pub mod voxelize;
 
+pub use readback::watchdog;
+use std::sync::{Arc, Mutex};
+
 /// What the adapter is, for stats and messages.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct AdapterSummary {
@@ -60,8 +63,31 @@ pub enum GpuError {
     OutOfMemory(String),
     #[error("GPU error: {0}")]
     Device(String),
+    #[error("the GPU device was lost ({0})")]
+    DeviceLost(String),
+    #[error(
+        "the GPU did not finish within {0:.1} s and was given up on (a hung device or a driver fault; \
+         MESHVOX_GPU_TIMEOUT sets the limit in seconds)"
+    )]
+    Timeout(f64),
     #[error(transparent)]
     Grid(#[from] crate::voxel::GridError),
+}
+
+impl GpuError {
+    /// Whether the device itself failed (lost, out of memory, hung, or an error outside any request's
+    /// validation), as opposed to a request it cannot take: either way the CPU can stand in.
+    pub fn is_device_failure(&self) -> bool {
+        matches!(self, GpuError::OutOfMemory(_) | GpuError::Device(_) | GpuError::DeviceLost(_) | GpuError::Timeout(_))
+    }
+}
+
+/// What a device said outside any error scope: that it was lost, or an error nobody captured. wgpu's default
+/// for an uncaptured error is a panic, which would take the viewer or the browser tab down with it.
+#[derive(Default)]
+struct Health {
+    lost: Mutex<Option<String>>,
+    uncaptured: Mutex<Option<String>>,
 }
 
 /// An adapter, its device and queue, ready for compute. Cloning shares the same device.
@@ -73,6 +99,7 @@ pub struct Gpu {
     pub summary: AdapterSummary,
     /// Whether compute passes can be timed with timestamp queries.
     pub timestamps: bool,
+    health: Arc<Health>,
 }
 
 impl Gpu {
@@ -108,10 +135,44 @@ impl Gpu {
     }
 
     /// Wraps a device someone else opened (eframe's, egui_kittest's); timestamps are used if it has them.
+    /// Device loss and errors outside any error scope are recorded (and logged) instead of panicking; see
+    /// [`Gpu::check`].
     pub fn from_parts(adapter: wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> Gpu {
         let summary = AdapterSummary::from_info(&adapter.get_info());
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        Gpu { adapter, device, queue, summary, timestamps }
+        let health = Arc::new(Health::default());
+        let on_lost = Arc::clone(&health);
+        device.set_device_lost_callback(move |reason, message| {
+            log::error!("wgpu: device lost ({reason:?}): {message}");
+            if let Ok(mut lost) = on_lost.lost.lock() {
+                *lost = Some(if message.is_empty() { format!("{reason:?}") } else { message });
+            }
+        });
+        let on_error = Arc::clone(&health);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            log::error!("wgpu: {e}");
+            if let Ok(mut slot) = on_error.uncaptured.lock() {
+                slot.get_or_insert_with(|| e.to_string().lines().next().unwrap_or("").to_string());
+            }
+        }));
+        Gpu { adapter, device, queue, summary, timestamps, health }
+    }
+
+    /// `Err` once the device has been lost, or with the first error it reported outside an error scope since
+    /// the last check. Callers check before and after a piece of work: a lost device explains any other failure.
+    pub fn check(&self) -> Result<(), GpuError> {
+        if let Some(reason) = self.health.lost.lock().ok().and_then(|l| l.clone()) {
+            return Err(GpuError::DeviceLost(reason));
+        }
+        match self.health.uncaptured.lock().ok().and_then(|mut u| u.take()) {
+            Some(message) => Err(GpuError::Device(message)),
+            None => Ok(()),
+        }
+    }
+
+    /// Whether the device has been lost (it never comes back: open a new [`Gpu`]).
+    pub fn is_lost(&self) -> bool {
+        self.health.lost.lock().is_ok_and(|l| l.is_some())
     }
 
     /// Largest buffer this device can bind as one storage binding (and allocate).

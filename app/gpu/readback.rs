@@ -5,6 +5,32 @@
 //! on their first poll, because [`map_and_copy`] waits for the device before awaiting the map.
 
 use super::GpuError;
+use std::time::Duration;
+
+/// How long a blocking wait for the GPU may take before it is given up on with [`GpuError::Timeout`]: 120 s, or
+/// `MESHVOX_GPU_TIMEOUT` seconds. One wait covers one slab's passes and readback, which take milliseconds to
+/// seconds on real adapters; a device that does not answer in minutes has hung.
+pub fn watchdog() -> Duration {
+    static TIMEOUT: std::sync::OnceLock<Duration> = std::sync::OnceLock::new();
+    *TIMEOUT.get_or_init(|| {
+        std::env::var("MESHVOX_GPU_TIMEOUT")
+            .ok()
+            .and_then(|s| s.trim().parse::<f64>().ok())
+            .and_then(|s| Duration::try_from_secs_f64(s).ok())
+            .unwrap_or(Duration::from_secs(120))
+    })
+}
+
+/// Blocks until the device has finished the work submitted so far, at most [`watchdog`] long. (A no-op in the
+/// browser, where work finishes while futures yield to the event loop.)
+pub(crate) fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
+    let timeout = watchdog();
+    match device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(timeout) }) {
+        Ok(_) => Ok(()),
+        Err(wgpu::PollError::Timeout) => Err(GpuError::Timeout(timeout.as_secs_f64())),
+        Err(e) => Err(GpuError::Device(e.to_string())),
+    }
+}
 
 /// Copies `size` bytes of `buffer` (from `offset`) into host memory once the GPU is done.
 pub(crate) async fn read_buffer(
@@ -69,9 +95,9 @@ pub(crate) async fn map_and_copy(device: &wgpu::Device, staging: &wgpu::Buffer) 
     });
     // Natively this blocks until the copy is done and the callback has run; in the browser it returns at once
     // and the map completes while the await below yields to the event loop.
-    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+    wait(device)?;
     rx.await
-        .map_err(|_| GpuError::Device("the device was lost before a readback finished".into()))?
+        .map_err(|_| GpuError::DeviceLost("the device was lost before a readback finished".into()))?
         .map_err(|e| GpuError::Device(format!("cannot map a readback buffer: {e}")))?;
     let bytes = slice.get_mapped_range().map_err(|e| GpuError::Device(e.to_string()))?.to_vec();
     staging.unmap();

@@ -7,7 +7,7 @@
 //! [`Options`] to exercise the chunked paths on small inputs.
 
 use super::compact::{CompactVoxels, Compactor, Slab};
-use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
 use super::{Gpu, GpuError, dispatch_2d, mib};
 use crate::voxel::{GridSpec, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
@@ -252,6 +252,7 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
+        gpu.check()?;
         let attempt = if cfg!(target_arch = "wasm32") {
             let scopes = ErrorScopes::push(&gpu.device);
             let result = self.run(gpu, triangles, spec, options).await;
@@ -260,8 +261,10 @@ impl GpuVoxelizer {
             result
         } else {
             self.run(gpu, triangles, spec, options).await
-        }?;
-        match attempt {
+        };
+        // A lost device (or an error outside the scopes) explains whatever else went wrong, so it comes first.
+        gpu.check()?;
+        match attempt? {
             Attempt::Done(output) => Ok(output),
             // Rare (it takes hundreds of thousands of faces lying on voxel boundaries), so the simple exact
             // answer beats a second, bigger GPU pipeline that every page load would have to compile.
@@ -535,7 +538,7 @@ impl GpuVoxelizer {
         }
         if grid.is_none() {
             // Nothing was read back: wait for the work so timings and errors are complete.
-            device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Device(e.to_string()))?;
+            wait(device)?;
         }
         let points = match points.len() {
             0 => None,

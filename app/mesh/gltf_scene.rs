@@ -4,18 +4,28 @@
 //! multiplied down the hierarchy, and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
 //! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
 
-use super::{Mesh, MeshError, Part};
+use super::{LoadLimits, Mesh, MeshError, Part};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
 use std::path::Path;
 
-pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
+pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
-    check_glb_header(bytes).map_err(err)?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| err(e.to_string()))?;
-    let buffers = gltf::import_buffers(&document, base, blob).map_err(|e| err(e.to_string()))?;
+    // The crate's own messages start with the words our error adds ("invalid glTF: invalid glTF: …").
+    let crate_err = |e: gltf::Error| {
+        let message = e.to_string();
+        err(message.strip_prefix("invalid glTF: ").map(str::to_string).unwrap_or(message))
+    };
+    let glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    check_glb_header(bytes, glb_name).map_err(err)?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(crate_err)?;
+    // glTF 1.0 is a different format that happens to parse; only the major version 2 is read.
+    let version = &document.as_json().asset.version;
+    if !version.starts_with("2.") {
+        return Err(err(format!("asset.version is \"{version}\"; only glTF 2.0 files are supported")));
+    }
+    check_external_buffers(&document, base).map_err(err)?;
 
-    let mut mesh = Mesh::default();
     let roots: Vec<gltf::Node> = match document.default_scene() {
         Some(scene) => scene.nodes().collect(),
         None => document.scenes().flat_map(|s| s.nodes()).collect(),
@@ -23,25 +33,52 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
     // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
     // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
     let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
+    let mut instances: Vec<(gltf::Mesh, Mat4)> = Vec::new();
+    // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node.
+    let mut triangles: u64 = 0;
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 1024 {
             return Err(err("node hierarchy deeper than 1024 levels (cycle?)".into()));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(gmesh) = node.mesh() {
-            for primitive in gmesh.primitives() {
-                add_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?;
-            }
+            triangles = triangles.saturating_add(gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>());
+            limits.check_triangles(path, triangles)?;
+            instances.push((gmesh, world));
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
+    }
+    let buffers = gltf::import_buffers(&document, base, blob).map_err(crate_err)?;
+    let mut mesh = Mesh::default();
+    for (gmesh, world) in instances {
+        for primitive in gmesh.primitives() {
+            add_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?;
+        }
     }
     Ok(mesh)
 }
 
+/// Triangles a primitive makes, from its accessors' declared counts (0 for points and lines).
+fn triangle_count(primitive: &gltf::Primitive) -> u64 {
+    let count = match primitive.indices() {
+        Some(indices) => indices.count(),
+        None => primitive.get(&gltf::Semantic::Positions).map_or(0, |p| p.count()),
+    } as u64;
+    match primitive.mode() {
+        Mode::Triangles => count / 3,
+        Mode::TriangleStrip | Mode::TriangleFan => count.saturating_sub(2),
+        _ => 0,
+    }
+}
+
 /// The gltf crate subtracts the header size from the GLB's declared length without checking it; reject short
-/// or inconsistent headers first so a truncated file is an error and not a panic.
-fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
+/// or inconsistent headers first so a truncated file is an error and not a panic. A `.glb` without the magic
+/// is said to be one (the crate would try it as JSON and report a JSON syntax error).
+fn check_glb_header(bytes: &[u8], glb_name: bool) -> Result<(), String> {
     if !bytes.starts_with(b"glTF") {
+        if glb_name && !bytes.trim_ascii_start().starts_with(b"{") {
+            return Err("not a GLB file (it does not start with the magic bytes \"glTF\")".into());
+        }
         return Ok(());
     }
     let length = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
@@ -50,6 +87,30 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
         Some(len) => Err(format!("GLB header declares {len} bytes but the file has {}", bytes.len())),
         None => Err("GLB header is truncated".into()),
     }
+}
+
+/// External buffer files must exist before they are read: the crate's own error is the operating system's
+/// ("No such file or directory"), which names neither the buffer nor the file.
+fn check_external_buffers(document: &gltf::Document, base: Option<&Path>) -> Result<(), String> {
+    for buffer in document.buffers() {
+        let gltf::buffer::Source::Uri(uri) = buffer.source() else { continue };
+        if uri.starts_with("data:") {
+            continue;
+        }
+        let Some(dir) = base else {
+            return Err(format!(
+                "buffers[{}] is in a separate file ({uri}), which cannot be read here: use a .glb or embedded buffers",
+                buffer.index()
+            ));
+        };
+        // Relative URIs are percent-encoded (`my%20model.bin`), as the crate decodes them when it opens the file.
+        let name = urlencoding::decode(uri).map_err(|e| format!("buffers[{}]: bad URI {uri}: {e}", buffer.index()))?;
+        let file = dir.join(&*name);
+        if let Err(e) = std::fs::metadata(&file) {
+            return Err(format!("buffers[{}]: cannot read {}: {e}", buffer.index(), file.display()));
+        }
+    }
+    Ok(())
 }
 
 fn add_primitive(
@@ -76,9 +137,14 @@ fn add_primitive(
     // word: every accessor this primitive reads is checked against the glTF rules first.
     if let Some(accessor) = primitive.get(&gltf::Semantic::Positions) {
         check_accessor(&accessor, buffers).map_err(err)?;
+        check_kind(&accessor, "POSITION", &[gltf::accessor::DataType::F32], gltf::accessor::Dimensions::Vec3)
+            .map_err(err)?;
     }
     if let Some(accessor) = primitive.indices() {
         check_accessor(&accessor, buffers).map_err(err)?;
+        // The crate's index reader reaches `unreachable!()` on any other component type.
+        use gltf::accessor::DataType::{U8, U16, U32};
+        check_kind(&accessor, "indices", &[U8, U16, U32], gltf::accessor::Dimensions::Scalar).map_err(err)?;
     }
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let Some(positions) = reader.read_positions() else {
@@ -135,6 +201,27 @@ fn add_primitive(
         material: primitive.material().index().map(|i| i as u32),
     };
     mesh.push_part(part, triangles);
+    Ok(())
+}
+
+/// Checks that an accessor holds what glTF allows for its use (`what`): one of `types`, with `dimensions`.
+fn check_kind(
+    accessor: &gltf::Accessor,
+    what: &str,
+    types: &[gltf::accessor::DataType],
+    dimensions: gltf::accessor::Dimensions,
+) -> Result<(), String> {
+    if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions || accessor.normalized() {
+        let allowed: Vec<String> = types.iter().map(|t| format!("{t:?}")).collect();
+        return Err(format!(
+            "accessors[{}]: {what} must be {dimensions:?} of {} (it is {:?} of {:?}{})",
+            accessor.index(),
+            allowed.join("/"),
+            accessor.dimensions(),
+            accessor.data_type(),
+            if accessor.normalized() { ", normalized" } else { "" }
+        ));
+    }
     Ok(())
 }
 

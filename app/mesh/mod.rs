@@ -97,6 +97,37 @@ pub enum MeshError {
     NonFinite { path: PathBuf, triangle: usize },
     #[error("unknown builtin mesh 'builtin:{name}' (available: {})", builtin::NAMES.join(", "))]
     UnknownBuiltin { name: String },
+    #[error("{}: {triangles} triangles is more than the limit of {limit} (raise it with --max-triangles)", path.display())]
+    TooManyTriangles { path: PathBuf, triangles: u64, limit: u64 },
+    #[error("{}: the file is {} but only {} of memory is available; it was not read", path.display(), crate::memory::human(*size), crate::memory::human(*available))]
+    FileTooLarge { path: PathBuf, size: u64, available: u64 },
+}
+
+/// Limits on what a load may take in, checked before the file is read whole or parsed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoadLimits {
+    /// Largest number of triangles a mesh may have (counted from the file's structure before it is parsed).
+    pub max_triangles: u64,
+    /// Largest file size in bytes; by default the memory available when the load starts.
+    pub max_file_bytes: Option<u64>,
+}
+
+impl LoadLimits {
+    /// The default triangle limit: 100 million triangles are 3.6 GB as grid-space coordinates alone.
+    pub const DEFAULT_MAX_TRIANGLES: u64 = 100_000_000;
+
+    pub(crate) fn check_triangles(&self, path: &Path, triangles: u64) -> Result<(), MeshError> {
+        if triangles > self.max_triangles {
+            return Err(MeshError::TooManyTriangles { path: path.to_path_buf(), triangles, limit: self.max_triangles });
+        }
+        Ok(())
+    }
+}
+
+impl Default for LoadLimits {
+    fn default() -> LoadLimits {
+        LoadLimits { max_triangles: Self::DEFAULT_MAX_TRIANGLES, max_file_bytes: None }
+    }
 }
 
 /// The mesh file formats meshvox reads.
@@ -121,33 +152,57 @@ impl Format {
 
 /// Loads a mesh named the way the CLI accepts it: `builtin:NAME` or a path to an OBJ, glTF or GLB file.
 pub fn load(spec: &str) -> Result<Mesh, MeshError> {
+    load_with(spec, &LoadLimits::default())
+}
+
+/// [`load`] within `limits`.
+pub fn load_with(spec: &str, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     match spec.strip_prefix("builtin:") {
-        Some(name) => builtin::load(name),
-        None => load_path(Path::new(spec)),
+        Some(name) => {
+            let mesh = builtin::load(name)?;
+            limits.check_triangles(Path::new(spec), mesh.triangles.len() as u64)?;
+            Ok(mesh)
+        }
+        None => load_path_with(Path::new(spec), limits),
     }
 }
 
 /// Loads an OBJ, glTF (external or embedded buffers) or GLB file from disk.
 pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    load_path_with(path, &LoadLimits::default())
+}
+
+/// [`load_path`] within `limits`. A file larger than the memory available (or `max_file_bytes`) is refused
+/// before it is read.
+pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+    let io = |source| MeshError::Io { path: path.to_path_buf(), source };
+    let size = std::fs::metadata(path).map_err(io)?.len();
+    if let Some(available) = limits.max_file_bytes.or_else(crate::memory::available)
+        && size > available
+    {
+        return Err(MeshError::FileTooLarge { path: path.to_path_buf(), size, available });
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
     let base = path.parent().map(Path::to_path_buf);
-    load_bytes_impl(path, &bytes, base.as_deref())
+    load_bytes_impl(path, &bytes, base.as_deref(), limits)
 }
 
 /// Loads a mesh from memory (a browser upload, a drag-and-drop). `name` supplies the extension that picks the
 /// format. External files (glTF `.bin` buffers, OBJ material libraries) cannot be resolved this way.
 pub fn load_bytes(name: &str, bytes: &[u8]) -> Result<Mesh, MeshError> {
-    load_bytes_impl(Path::new(name), bytes, None)
+    load_bytes_impl(Path::new(name), bytes, None, &LoadLimits::default())
 }
 
-fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
+fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let mut mesh = match Format::detect(path, bytes) {
-        Some(Format::Obj) => obj::load(path, bytes, base)?,
-        Some(Format::Gltf) => gltf_scene::load(path, bytes, base)?,
+        Some(Format::Obj) => obj::load(path, bytes, base, limits)?,
+        Some(Format::Gltf) => gltf_scene::load(path, bytes, base, limits)?,
         None => {
             return Err(MeshError::UnsupportedFormat { path: path.to_path_buf() });
         }
     };
+    // The counts before parsing are exact for both formats; this is the net under them.
+    limits.check_triangles(path, mesh.triangles.len() as u64)?;
     mesh.name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     mesh.validate(path)
 }

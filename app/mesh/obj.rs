@@ -1,11 +1,20 @@
 //! Wavefront OBJ through tobj: every object and group, polygons fan-triangulated by tobj, negative (relative)
 //! indices resolved by tobj. Points and lines are ignored.
+//!
+//! tobj reports a broken file without saying where, and takes a two-index face for a line and an index of 0
+//! for a missing one. So [`scan`] reads the text once first, in one cheap pass: it counts the triangles the
+//! faces will make (so an oversized mesh is refused before it is parsed) and checks every vertex and face
+//! statement, naming the line of the first problem.
 
-use super::{Mesh, MeshError, Part};
+use super::{LoadLimits, Mesh, MeshError, Part};
 use glam::Vec3;
 use std::path::Path;
 
-pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mesh, MeshError> {
+pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+    let obj_err = |message: String| MeshError::Obj { path: path.to_path_buf(), message };
+    let counts = scan(bytes).map_err(obj_err)?;
+    limits.check_triangles(path, counts.triangles)?;
+
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(bytes);
     // Materials only matter for the part table, so a missing or broken .mtl is a warning, not an error.
@@ -13,7 +22,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
         Some(dir) => tobj::load_mtl(dir.join(mtl)),
         None => Err(tobj::LoadError::OpenFileFailed),
     })
-    .map_err(|e| MeshError::Obj { path: path.to_path_buf(), message: e.to_string() })?;
+    .map_err(|e| obj_err(e.to_string()))?;
 
     let mut mesh = Mesh::default();
     if let Err(e) = materials {
@@ -28,10 +37,11 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
         let vertex = |i: u32| -> Result<Vec3, MeshError> {
             let i = i as usize;
             if i >= vertex_count {
-                return Err(MeshError::Obj {
-                    path: path.to_path_buf(),
-                    message: format!("object '{}' refers to vertex {} but has {vertex_count}", model.name, i + 1),
-                });
+                return Err(obj_err(format!(
+                    "object '{}' refers to vertex {} but has {vertex_count}",
+                    model.name,
+                    i + 1
+                )));
             }
             Ok(Vec3::new(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]))
         };
@@ -49,4 +59,107 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>) -> Result<Mes
         mesh.push_part(part, triangles);
     }
     Ok(mesh)
+}
+
+/// What [`scan`] counted.
+#[derive(Debug, PartialEq, Eq)]
+pub(super) struct Counts {
+    pub vertices: u64,
+    pub triangles: u64,
+}
+
+/// Checks the vertex (`v`) and face (`f`) statements of an OBJ file and counts the triangles its faces make
+/// (`n - 2` for an `n`-gon). Errors name the line: text that is not UTF-8, a vertex without three numbers, a
+/// face with fewer than three vertices, an index that is not an integer, is 0 (OBJ counts from 1) or
+/// points before the first or past the last vertex. Other statements are left to tobj.
+pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
+    let mut vertices: u64 = 0;
+    let mut triangles: u64 = 0;
+    // The largest absolute index any face uses and where: OBJ lets a face name a vertex defined further down.
+    let mut furthest: Option<(u64, usize)> = None;
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line_no = n + 1;
+        let line = std::str::from_utf8(raw).map_err(|_| format!("line {line_no}: not text (invalid UTF-8)"))?;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let numbers = words.take(3).map(|w| (w, w.parse::<f64>())).collect::<Vec<_>>();
+                if let Some((w, _)) = numbers.iter().find(|(_, v)| v.is_err()) {
+                    return Err(format!("line {line_no}: vertex coordinate '{}' is not a number", shorten(w)));
+                }
+                if numbers.len() < 3 {
+                    return Err(format!(
+                        "line {line_no}: a vertex needs 3 coordinates, this one has {}",
+                        numbers.len()
+                    ));
+                }
+                vertices += 1;
+            }
+            Some("f") => {
+                let mut corners: u64 = 0;
+                for w in words {
+                    let index = w.split('/').next().unwrap_or("");
+                    let i: i64 = index
+                        .parse()
+                        .map_err(|_| format!("line {line_no}: face vertex '{}' is not a valid index", shorten(w)))?;
+                    if i == 0 {
+                        return Err(format!("line {line_no}: face vertex index 0 (OBJ counts vertices from 1)"));
+                    }
+                    if i < 0 && i.unsigned_abs() > vertices {
+                        return Err(format!(
+                            "line {line_no}: relative index {i} points before the first vertex ({vertices} defined so far)"
+                        ));
+                    }
+                    if i > 0 && furthest.is_none_or(|(f, _)| i as u64 > f) {
+                        furthest = Some((i as u64, line_no));
+                    }
+                    corners += 1;
+                }
+                if corners < 3 {
+                    return Err(format!(
+                        "line {line_no}: a face needs at least 3 vertices, this one has {corners} (use `l` for lines)"
+                    ));
+                }
+                triangles += corners - 2;
+            }
+            _ => {}
+        }
+    }
+    if let Some((index, line_no)) = furthest.filter(|&(f, _)| f > vertices) {
+        return Err(format!("line {line_no}: face refers to vertex {index} but the file has {vertices}"));
+    }
+    Ok(Counts { vertices, triangles })
+}
+
+/// A word from a hostile file, cut short for a one-line message.
+fn shorten(word: &str) -> String {
+    let mut s: String = word.chars().filter(|c| !c.is_control()).take(24).collect();
+    if word.chars().count() > 24 {
+        s.push('…');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scan_counts_and_names_lines() {
+        let ok = b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
+        assert_eq!(scan(ok), Ok(Counts { vertices: 4, triangles: 4 }));
+        for (text, expected) in [
+            (&b"v 0 0\n"[..], "line 1: a vertex needs 3 coordinates"),
+            (b"v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate 'x'"),
+            (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices, this one has 2"),
+            (b"v 0 0 0\nf 0 1 1\n", "line 2: face vertex index 0"),
+            (b"v 0 0 0\nf -2 -1 -1\n", "line 2: relative index -2"),
+            (b"v 0 0 0\nf 1 1 9\n", "line 2: face refers to vertex 9 but the file has 1"),
+            (b"v 0 0 0\nf 1 1 1.5\n", "line 2: face vertex '1.5' is not a valid index"),
+            (b"v 0 0 0\n\xff\n", "line 2: not text"),
+        ] {
+            let e = scan(text).expect_err(expected);
+            assert!(e.starts_with(expected), "{e}");
+        }
+    }
 }

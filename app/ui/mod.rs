@@ -13,12 +13,12 @@ pub mod web;
 
 use crate::gpu::compact::CompactVoxels;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
-use crate::gpu::{AdapterSummary, Gpu};
+use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::{self, Mesh, builtin};
-use crate::render::{CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
+use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
 #[cfg(not(target_arch = "wasm32"))]
 use crate::voxel::export;
-use crate::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use crate::voxel::{Axis, GridSpec, Resolution, VoxelGrid, budget, cpu};
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
@@ -82,6 +82,18 @@ pub struct ViewerApp {
     pending: Option<Pending>,
 }
 
+/// What to do after the GPU device is lost: eframe's device (which also draws) does not come back by itself.
+#[cfg(not(target_arch = "wasm32"))]
+const RESTART: &str = "restart the viewer to get a new one";
+#[cfg(target_arch = "wasm32")]
+const RESTART: &str = "reload the page to get a new one";
+
+/// Host memory a voxelization in the viewer may use: what the machine has available natively; in the browser
+/// the wasm32 heap, which cannot grow past 4 GiB and in practice fails well before, so half of that.
+fn host_budget() -> Option<u64> {
+    if cfg!(target_arch = "wasm32") { Some(2 << 30) } else { crate::memory::available() }
+}
+
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
 pub const DEFAULT_RESOLUTION: u32 = 64;
 
@@ -89,9 +101,9 @@ impl ViewerApp {
     /// Creates the app on eframe's wgpu device, showing `mesh_spec` (a path or `builtin:NAME`).
     pub fn new(cc: &eframe::CreationContext<'_>, mesh_spec: &str, resolution: u32) -> Result<ViewerApp, String> {
         let rs = cc.wgpu_render_state.as_ref().ok_or("eframe was not started with the wgpu renderer")?;
+        // Gpu::from_parts records errors nobody captured (wgpu's default is a panic) and device loss, so the
+        // viewer can report them and keep running.
         let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
-        // wgpu panics on errors nobody captured; a viewer should report them and keep running.
-        rs.device.on_uncaptured_error(std::sync::Arc::new(|e| log::error!("wgpu: {e}")));
         let voxelizer = Rc::new(GpuVoxelizer::new(&gpu));
         let renderer = CubeRenderer::new(&rs.device, TARGET_FORMAT, TARGET_SAMPLES);
         let mut app = ViewerApp {
@@ -186,6 +198,14 @@ impl ViewerApp {
             Ok(spec) => spec,
             Err(e) => return self.fail(e),
         };
+        // A resolution the host cannot hold is refused before anything is allocated; the message names the
+        // largest one that fits, and the current voxels stay on screen.
+        if let Some(budget) = host_budget()
+            && let (Some(bounds), triangle_count) = (mesh.bounds(), mesh.triangles.len() as u64)
+            && let Err(e) = budget::check(&spec, bounds, self.axis, triangle_count, None, budget)
+        {
+            return self.fail(e.to_string());
+        }
         let triangles = match cpu::grid_space_triangles(&mesh, &spec) {
             Ok(t) => t,
             Err(e) => return self.fail(e.to_string()),
@@ -201,6 +221,15 @@ impl ViewerApp {
                         (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms)),
                         _ => Err("no voxels came back".to_string()),
                     },
+                    // The device still draws but could not voxelize (out of memory, hung): the CPU makes the
+                    // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
+                    Err(e) if e.is_device_failure() && !gpu.is_lost() => {
+                        log::warn!("{e}; voxelizing on the CPU instead");
+                        cpu::voxelize_grid_space(&triangles, spec, &|_, _| {})
+                            .map(|grid| (render::instances_from_grid(&gpu.device, &grid), grid, None))
+                            .map_err(|e| e.to_string())
+                    }
+                    Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
                     Err(e) => Err(e.to_string()),
                 };
                 *outcome.borrow_mut() = Some(result);

@@ -65,6 +65,15 @@ pub enum GridError {
     NonFinite,
     #[error("triangle coordinates reach {0:.0} voxels from the grid origin; at most 8,388,606 are supported")]
     CoordinateRange(f64),
+    #[error(
+        "the {}×{}×{} grid needs {} of memory but {} is available; {}",
+        dims[0], dims[1], dims[2], crate::memory::human(*needed), crate::memory::human(*budget),
+        match fits {
+            Some(n) => format!("the largest resolution that fits is -r {n} (or raise --max-memory)"),
+            None => "not even -r 1 fits (raise --max-memory)".to_string(),
+        }
+    )]
+    OverBudget { dims: [u32; 3], needed: u64, budget: u64, fits: Option<u32> },
 }
 
 /// Placement and size of a voxel grid. Positions are kept in f64 so the grid convention is computed exactly once

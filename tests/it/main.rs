@@ -9,6 +9,7 @@ mod exactness;
 mod formats;
 mod gpu;
 mod grid_convention;
+mod hostile;
 mod mesh_loading;
 mod render_snapshots;
 mod seed_and_real_meshes;

@@ -174,6 +174,34 @@ try {
   const shell = 99 ** 3 - 97 ** 3;
   check(box.voxels === boxCli && boxCli === shell,
     `decimal tessellated box @99: page ${box.voxels} == CLI ${boxCli} == the grid's shell ${shell}`);
+
+  // Broken files from tests/corpus/bad through the file input: the panel shows one line naming the file, and the
+  // page keeps working. Then a resolution the wasm heap cannot hold: refused with what fits, nothing allocated.
+  const afterError = async (want, what) => {
+    await page.waitForFunction((w) => {
+      const s = window.meshvoxStatus;
+      return s && !s.error && Object.entries(w).every(([k, v]) => s[k] === v);
+    }, want, { timeout: 60_000 }).catch(async () => {
+      throw new Error(`${what}: never recovered (last: ${JSON.stringify(await page.evaluate(() => window.meshvoxStatus))})`);
+    });
+    return page.evaluate(() => window.meshvoxStatus);
+  };
+  for (const name of ["index-count-past-view.gltf", "two-vertex-face.obj", "wrong-magic.glb", "random-bytes.glb"]) {
+    await page.setInputFiles("#meshvox-file", path.join(root, "tests/corpus/bad", name));
+    await page.waitForFunction((n) => window.meshvoxStatus?.error?.includes(n), name, { timeout: 30_000 });
+    const s = await page.evaluate(() => window.meshvoxStatus);
+    check(!s.error.includes("\n"), `bad file ${name}: the page shows "${s.error}"`);
+  }
+  await page.evaluate(() => window.meshvoxSetResolution(20000));
+  await page.waitForFunction(() => window.meshvoxStatus?.error?.includes("largest resolution that fits"), null,
+    { timeout: 30_000 });
+  const tooBig = await page.evaluate(() => window.meshvoxStatus.error);
+  check(/-r \d+/.test(tooBig), `resolution 20000 refused, naming what fits: "${tooBig}"`);
+  await page.evaluate(() => window.meshvoxSetResolution(72));
+  const recovered = await afterError({ ready: true, resolution: 72 }, "after the bad files");
+  const recoveredCli = cliVoxels(boxObj, 72);
+  check(recovered.mesh === path.basename(boxObj) && recovered.voxels === recoveredCli,
+    `after the bad files the page still voxelizes: the box @72 ${recovered.voxels} == CLI ${recoveredCli}`);
   await rm(boxObj, { force: true });
 
   // A browser without WebGPU: the page must say so (the same Chromium, with navigator.gpu taken away).

@@ -1,0 +1,43 @@
+//! Random triangles (huge, tiny, NaN, degenerate, far from the origin) at a small random resolution through
+//! the CPU voxelizer, compared voxel for voxel with the integration tests' exact brute force
+//! (`tests/it/common.rs`, included as is). Requests the voxelizer refuses must be refused with an error.
+#![no_main]
+
+use arbitrary::Arbitrary;
+use glam::Vec3;
+use libfuzzer_sys::fuzz_target;
+use meshvox::mesh::Mesh;
+use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+
+#[path = "../../it/common.rs"]
+mod common;
+
+#[derive(Arbitrary, Debug)]
+struct Case {
+    triangles: Vec<[[f32; 3]; 3]>,
+    /// Voxels along the chosen axis, kept small so one run takes milliseconds.
+    resolution: u8,
+    axis: u8,
+    /// Moves every vertex by the same amount, to reach coordinates far from the origin.
+    offset: [f32; 3],
+}
+
+fuzz_target!(|case: Case| {
+    if case.triangles.is_empty() || case.triangles.len() > 16 {
+        return;
+    }
+    let offset = Vec3::from(case.offset);
+    let triangles: Vec<[Vec3; 3]> =
+        case.triangles.iter().map(|t| t.map(|v| Vec3::from(v) + offset)).collect();
+    let mesh = Mesh { triangles: triangles.clone(), ..Default::default() };
+    let Some(bounds) = mesh.bounds() else { return };
+    let axis = [Axis::Longest, Axis::X, Axis::Y, Axis::Z][case.axis as usize % 4];
+    let resolution = Resolution::Count(u32::from(case.resolution % 48) + 1);
+    let Ok(spec) = GridSpec::fit(bounds, resolution, axis) else { return };
+    if spec.voxel_count() > 48 * 48 * 48 {
+        return;
+    }
+    let Ok(grid_space) = cpu::grid_space_triangles(&mesh, &spec) else { return };
+    let Ok(grid) = cpu::voxelize_grid_space(&grid_space, spec, &|_, _| {}) else { return };
+    common::assert_exact(&grid, &grid_space, "fuzzed triangles");
+});
