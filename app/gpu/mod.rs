@@ -82,6 +82,23 @@ impl GpuError {
     }
 }
 
+/// A wgpu error in one line with its cause: `Display` alone says only "Validation Error".
+pub(crate) fn describe(e: &wgpu::Error) -> String {
+    let text = match e {
+        wgpu::Error::Validation { description, .. } => description.clone(),
+        other => {
+            let mut text = other.to_string();
+            let mut source = std::error::Error::source(other);
+            while let Some(s) = source {
+                text.push_str(&format!(": {s}"));
+                source = s.source();
+            }
+            text
+        }
+    };
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
 /// What a device said outside any error scope: that it was lost, or an error nobody captured. wgpu's default
 /// for an uncaptured error is a panic, which would take the viewer or the browser tab down with it.
 #[derive(Default)]
@@ -152,7 +169,7 @@ impl Gpu {
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             log::error!("wgpu: {e}");
             if let Ok(mut slot) = on_error.uncaptured.lock() {
-                slot.get_or_insert_with(|| e.to_string().lines().next().unwrap_or("").to_string());
+                slot.get_or_insert_with(|| describe(&e));
             }
         }));
         Gpu { adapter, device, queue, summary, timestamps, health }
@@ -161,6 +178,9 @@ impl Gpu {
     /// `Err` once the device has been lost, or with the first error it reported outside an error scope since
     /// the last check. Callers check before and after a piece of work: a lost device explains any other failure.
     pub fn check(&self) -> Result<(), GpuError> {
+        // wgpu runs the lost callback when the device is next maintained; a non-blocking poll does that now.
+        // (In the browser the callback comes from the event loop, and the poll is a no-op.)
+        let _ = self.device.poll(wgpu::PollType::Poll);
         if let Some(reason) = self.health.lost.lock().ok().and_then(|l| l.clone()) {
             return Err(GpuError::DeviceLost(reason));
         }

@@ -168,10 +168,10 @@ impl ErrorScopes {
         let v = self.validation.pop().await;
         let o = self.oom.pop().await;
         if let Some(e) = o {
-            return Err(GpuError::OutOfMemory(e.to_string()));
+            return Err(GpuError::OutOfMemory(super::describe(&e)));
         }
         if let Some(e) = v {
-            return Err(GpuError::Device(e.to_string()));
+            return Err(GpuError::Device(super::describe(&e)));
         }
         Ok(())
     }

@@ -258,7 +258,9 @@ fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> 
     }
     let count = accessor.count();
     if count == 0 {
-        return Ok(());
+        // The crate's reader computes `count - 1` and, with that wrapped, returns no reader at all: an index
+        // accessor of count 0 was then read as "no indices" and every vertex taken in order.
+        return Err(format!("{name}: count is 0 (glTF requires at least 1)"));
     }
     let needed = (count - 1)
         .checked_mul(stride)

@@ -73,10 +73,12 @@ pub(super) struct Counts {
 /// face with fewer than three vertices, an index that is not an integer, is 0 (OBJ counts from 1) or
 /// points before the first or past the last vertex. Other statements are left to tobj.
 pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
-    let mut vertices: u64 = 0;
+    // Positions, texture coordinates and normals defined so far (a face's relative indices count back from
+    // these), and per kind the largest absolute index any face uses and where: OBJ lets a face name an element
+    // defined further down, so those are checked at the end.
+    let mut defined = [0u64; 3];
+    let mut furthest: [Option<(u64, usize)>; 3] = [None; 3];
     let mut triangles: u64 = 0;
-    // The largest absolute index any face uses and where: OBJ lets a face name a vertex defined further down.
-    let mut furthest: Option<(u64, usize)> = None;
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line_no = n + 1;
         let line = std::str::from_utf8(raw).map_err(|_| format!("line {line_no}: not text (invalid UTF-8)"))?;
@@ -93,25 +95,37 @@ pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
                         numbers.len()
                     ));
                 }
-                vertices += 1;
+                defined[0] += 1;
             }
+            Some("vt") => defined[1] += 1,
+            Some("vn") => defined[2] += 1,
             Some("f") => {
                 let mut corners: u64 = 0;
                 for w in words {
-                    let index = w.split('/').next().unwrap_or("");
-                    let i: i64 = index
-                        .parse()
-                        .map_err(|_| format!("line {line_no}: face vertex '{}' is not a valid index", shorten(w)))?;
-                    if i == 0 {
-                        return Err(format!("line {line_no}: face vertex index 0 (OBJ counts vertices from 1)"));
-                    }
-                    if i < 0 && i.unsigned_abs() > vertices {
+                    let refs: Vec<&str> = w.split('/').collect();
+                    if refs.len() > 3 || refs[0].is_empty() {
                         return Err(format!(
-                            "line {line_no}: relative index {i} points before the first vertex ({vertices} defined so far)"
+                            "line {line_no}: face vertex '{}' is not v, v/vt, v//vn or v/vt/vn",
+                            shorten(w)
                         ));
                     }
-                    if i > 0 && furthest.is_none_or(|(f, _)| i as u64 > f) {
-                        furthest = Some((i as u64, line_no));
+                    for (kind, text) in refs.iter().enumerate().filter(|(_, t)| !t.is_empty()) {
+                        let what = ["vertex", "texture coordinate", "normal"][kind];
+                        let i: i64 = text.parse().map_err(|_| {
+                            format!("line {line_no}: face {what} '{}' is not a valid index", shorten(w))
+                        })?;
+                        if i == 0 {
+                            return Err(format!("line {line_no}: face {what} index 0 (OBJ counts from 1)"));
+                        }
+                        if i < 0 && i.unsigned_abs() > defined[kind] {
+                            return Err(format!(
+                                "line {line_no}: relative {what} index {i} points before the first one ({} defined so far)",
+                                defined[kind]
+                            ));
+                        }
+                        if i > 0 && furthest[kind].is_none_or(|(f, _)| i as u64 > f) {
+                            furthest[kind] = Some((i as u64, line_no));
+                        }
                     }
                     corners += 1;
                 }
@@ -125,10 +139,12 @@ pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
             _ => {}
         }
     }
-    if let Some((index, line_no)) = furthest.filter(|&(f, _)| f > vertices) {
-        return Err(format!("line {line_no}: face refers to vertex {index} but the file has {vertices}"));
+    for (kind, what) in ["vertex", "texture coordinate", "normal"].iter().enumerate() {
+        if let Some((index, line_no)) = furthest[kind].filter(|&(f, _)| f > defined[kind]) {
+            return Err(format!("line {line_no}: face refers to {what} {index} but the file has {}", defined[kind]));
+        }
     }
-    Ok(Counts { vertices, triangles })
+    Ok(Counts { vertices: defined[0], triangles })
 }
 
 /// A word from a hostile file, cut short for a one-line message.
@@ -146,14 +162,17 @@ mod tests {
 
     #[test]
     fn scan_counts_and_names_lines() {
-        let ok = b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
+        let ok = b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
         assert_eq!(scan(ok), Ok(Counts { vertices: 4, triangles: 4 }));
         for (text, expected) in [
             (&b"v 0 0\n"[..], "line 1: a vertex needs 3 coordinates"),
             (b"v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate 'x'"),
             (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices, this one has 2"),
+            (b"v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n", "line 3: face refers to texture coordinate 2 but the file has 1"),
+            (b"v 0 0 0\nvn 0 0 1\nf 1//-2 1//1 1//1\n", "line 3: relative normal index -2"),
+            (b"v 0 0 0\nf 1/1/1/1 1 1\n", "line 2: face vertex '1/1/1/1' is not v"),
             (b"v 0 0 0\nf 0 1 1\n", "line 2: face vertex index 0"),
-            (b"v 0 0 0\nf -2 -1 -1\n", "line 2: relative index -2"),
+            (b"v 0 0 0\nf -2 -1 -1\n", "line 2: relative vertex index -2"),
             (b"v 0 0 0\nf 1 1 9\n", "line 2: face refers to vertex 9 but the file has 1"),
             (b"v 0 0 0\nf 1 1 1.5\n", "line 2: face vertex '1.5' is not a valid index"),
             (b"v 0 0 0\n\xff\n", "line 2: not text"),

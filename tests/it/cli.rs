@@ -210,3 +210,52 @@ fn viewer_without_a_display_says_so_in_one_line() {
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(stderr.contains("no display") && stderr.contains("meshvox render"), "{stderr}");
 }
+
+/// A GPU that stops answering: with `MESHVOX_GPU_TIMEOUT=0` every wait gives up at once, as a watchdog does
+/// on a hung device. `--backend gpu` fails with one line saying so; `auto` warns and voxelizes on the CPU, with
+/// the CPU's grid.
+#[test]
+fn the_gpu_watchdog_gives_up_and_auto_falls_back_to_the_cpu() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = |backend| ["voxelize", "builtin:knot", "-r", "400", "-o", "k.npy", "--stats-json", "--backend", backend];
+    let hung = [("MESHVOX_GPU_TIMEOUT", "0")];
+    let out = meshvox_env(&args("gpu"), dir.path(), &hung);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if stderr.contains("no GPU adapter") && std::env::var("CI").as_deref() != Ok("true") {
+        eprintln!("\n*** SKIPPED: no GPU adapter ***\n");
+        return;
+    }
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("error: the GPU did not finish within")), "{stderr}");
+    assert!(!dir.path().join("k.npy").exists());
+
+    let out = meshvox_env(&args("auto"), dir.path(), &hung);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: the GPU did not finish") && stderr.contains("on the CPU instead"), "{stderr}");
+    let fallback = stats(&out);
+    assert!(fallback["backend"].as_str().is_some_and(|b| b.starts_with("cpu")), "{fallback}");
+    let cpu = stats(&meshvox(&args("cpu"), dir.path()));
+    assert_eq!(fallback["voxels"], cpu["voxels"]);
+}
+
+/// Headless runs print nothing that is not meshvox's own, even where the machine has no XDG_RUNTIME_DIR (Mesa's
+/// device-selection layer used to print an error about it twice on every GPU run).
+#[test]
+fn a_headless_gpu_run_prints_no_window_system_noise() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = Command::new(env!("CARGO_BIN_EXE_meshvox"))
+        .args(["voxelize", "builtin:torus", "-r", "32", "-o", "t.npy"])
+        .current_dir(dir.path())
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .output()
+        .expect("run");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(
+        lines.len() == 1 && lines[0].starts_with("builtin:torus: "),
+        "stderr should be the summary only:\n{stderr}"
+    );
+}

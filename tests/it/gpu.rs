@@ -271,3 +271,33 @@ fn surface_only_compaction_leaves_out_enclosed_voxels() {
     assert!(g.count() == 8000 && expected.len() < 8000, "{} set, {} visible", g.count(), expected.len());
     assert_eq!(listed, expected);
 }
+
+/// A device destroyed under a voxelizer (as a driver reset or a browser reclaiming the GPU would) makes the next
+/// voxelization an error that says the device was lost: no panic, no hang, nothing half-written.
+#[test]
+fn a_lost_device_is_an_error_not_a_panic() {
+    if gpu().is_none() {
+        return;
+    }
+    // A device of its own: the shared one must survive for the other tests.
+    let gpu = Gpu::new_blocking().expect("a second device");
+    let v = GpuVoxelizer::new(&gpu);
+    let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
+    let bounds = mesh.bounds().expect("bounds");
+    let spec = GridSpec::fit(bounds, Resolution::Count(48), Axis::Longest).expect("spec");
+    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let options = Options { read_grid: true, ..Default::default() };
+    let before = v.voxelize(&gpu, &tris, spec, &options).expect("works before");
+    assert!(before.grid.expect("grid").count() > 0);
+    assert!(gpu.check().is_ok() && !gpu.is_lost());
+
+    gpu.device.destroy();
+    let e = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| v.voxelize(&gpu, &tris, spec, &options))) {
+        Ok(Ok(_)) => panic!("voxelized on a destroyed device"),
+        Ok(Err(e)) => e,
+        Err(_) => panic!("voxelizing on a destroyed device panicked"),
+    };
+    assert!(e.is_device_failure(), "{e}");
+    assert!(gpu.is_lost(), "the lost callback ran: {e}");
+    assert!(e.to_string().contains("lost"), "{e}");
+}

@@ -133,3 +133,24 @@ fn the_triangle_limit_refuses_a_mesh_before_reading_it_whole() {
     let out = meshvox(&["voxelize", &path, "-r", "8", "-o", "out.npy", "--max-triangles", "2000"], dir.path());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
+
+#[test]
+fn the_resolution_the_memory_error_names_is_the_largest_that_fits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |r: u32| {
+        let r = r.to_string();
+        let args = ["voxelize", "builtin:knot", "-r", &r, "-o", "k.binvox", "--max-memory", "1M", "--backend", "cpu"];
+        meshvox(&args, dir.path())
+    };
+    let line = the_error_line(&run(300), "knot at 300 in 1 MiB");
+    let fits: u32 = line
+        .split("the largest resolution that fits is -r ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no resolution in: {line}"));
+    assert!((2..300).contains(&fits), "{line}");
+    let ok = run(fits);
+    assert!(ok.status.success(), "-r {fits} was said to fit: {}", String::from_utf8_lossy(&ok.stderr));
+    the_error_line(&run(fits + 1), "one more than fits");
+}

@@ -105,7 +105,7 @@ v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
 o first\nf 1 2 3 4\n\
 v 0 0 5\nv 2 0 5\nv 2 2 5\nv 1 3 5\nv 0 2 5\n\
 g second\nf -5 -4 -3 -2 -1\n\
-o third\nl 1 2\np 3\nf -5/1 -4/1 -3/1\n";
+o third\nl 1 2\np 3\nvt 0.5 0.5\nf -5/1 -4/1 -3/-1\n";
     let m = mesh::load_bytes("poly.obj", obj.as_bytes()).expect("load");
     assert_eq!(m.triangles.len(), 2 + 3 + 1);
     assert_eq!(m.parts.len(), 3, "{:?}", m.parts);
