@@ -4,8 +4,8 @@
 # GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh and
 # binvox (the independent readers the tests compare with, in a virtual environment under target/), and Chromium
 # and Node.js for the browser test (web/build.sh adds the wasm32 target and wasm-bindgen-cli).
-# `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test. With arguments,
-# only `cargo test ARGS` runs.
+# `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test, then each fuzz
+# target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -45,3 +45,6 @@ cargo test --locked --all-targets "$@"
 bash web/build.sh
 (cd web && npm ci --no-audit --no-fund --loglevel=error)
 node web/tests/browser.mjs
+
+# The fuzz targets, briefly, over their kept corpus (nightly and cargo-fuzz are installed if missing).
+bash tests/fuzz/run.sh 20

@@ -18,7 +18,12 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     };
     let glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     check_glb_header(bytes, glb_name).map_err(err)?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(crate_err)?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes).map_err(crate_err)?;
+    // The crate's validation indexes `accessors` with a primitive's POSITION index before checking it (a panic
+    // on a dangling index), so those references are checked first, and then the crate validates the rest.
+    let json = document.into_json();
+    check_primitive_references(&json).map_err(err)?;
+    let document = gltf::Document::from_json(json).map_err(crate_err)?;
     // glTF 1.0 is a different format that happens to parse; only the major version 2 is read.
     let version = &document.as_json().asset.version;
     if !version.starts_with("2.") {
@@ -69,6 +74,31 @@ fn triangle_count(primitive: &gltf::Primitive) -> u64 {
         Mode::TriangleStrip | Mode::TriangleFan => count.saturating_sub(2),
         _ => 0,
     }
+}
+
+/// Every accessor a mesh primitive names (attributes and indices) exists.
+fn check_primitive_references(json: &gltf::json::Root) -> Result<(), String> {
+    let accessors = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let attributes = primitive.attributes.iter().map(|(semantic, index)| {
+                let name = match semantic {
+                    gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                    gltf::json::validation::Checked::Invalid => "?".to_string(),
+                };
+                (format!("attributes.{name}"), index.value())
+            });
+            let indices = primitive.indices.iter().map(|i| ("indices".to_string(), i.value()));
+            for (what, index) in attributes.chain(indices) {
+                if index >= accessors {
+                    return Err(format!(
+                        "meshes[{m}].primitives[{p}].{what} names accessors[{index}], but there are {accessors}"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The gltf crate subtracts the header size from the GLB's declared length without checking it; reject short

@@ -132,6 +132,11 @@ fn the_triangle_limit_refuses_a_mesh_before_reading_it_whole() {
     assert!(line.contains("2000") && line.contains("many.obj"), "{line}");
     let out = meshvox(&["voxelize", &path, "-r", "8", "-o", "out.npy", "--max-triangles", "2000"], dir.path());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // A file larger than the memory there is (here: --max-memory) is not read at all.
+    let out = meshvox(&["voxelize", &path, "-r", "8", "-o", "small.npy", "--max-memory", "1K"], dir.path());
+    let line = the_error_line(&out, "a file larger than the memory");
+    assert!(line.contains("many.obj: the file is 9.8 KiB but only 1.0 KiB of memory"), "{line}");
+    assert!(!dir.path().join("small.npy").exists());
 }
 
 #[test]
