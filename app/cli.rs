@@ -75,7 +75,8 @@ impl LimitArgs {
         let default_budget = || meshvox::memory::available().map(|a| a / 5 * 4);
         if let Some(budget) = self.max_memory.or_else(default_budget) {
             let triangles = mesh.triangles.len() as u64;
-            voxel::budget::check(&spec, bounds, axis, triangles, format, budget).with_context(|| name.to_string())?;
+            voxel::budget::check(&spec, bounds, axis, triangles, format, budget)
+                .map_err(|e| anyhow!("{name}: {e} (or raise --max-memory)"))?;
         }
         Ok(spec)
     }

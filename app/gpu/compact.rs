@@ -3,7 +3,7 @@
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
-use super::{Gpu, GpuError, dispatch_2d, mib};
+use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::GridSpec;
 use glam::UVec3;
 
@@ -161,8 +161,8 @@ impl Compactor {
         if bytes > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {
                 what: format!("the list of {count} voxels"),
-                needed_mib: mib(bytes),
-                limit_mib: mib(gpu.max_binding_bytes()),
+                needed: bytes,
+                limit: gpu.max_binding_bytes(),
             });
         }
         let points = scoped(device, || {
@@ -180,8 +180,8 @@ impl Compactor {
         if count * 8 > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {
                 what: format!("the list of {count} voxels"),
-                needed_mib: mib(count * 8),
-                limit_mib: mib(gpu.max_binding_bytes()),
+                needed: count * 8,
+                limit: gpu.max_binding_bytes(),
             });
         }
         scoped(&gpu.device, || {

@@ -57,8 +57,12 @@ pub enum GpuError {
     NoAdapter(String),
     #[error("the GPU adapter refused a device: {0}")]
     RequestDevice(String),
-    #[error("{what} needs {needed_mib} MiB, but this adapter allows at most {limit_mib} MiB per buffer")]
-    TooLarge { what: String, needed_mib: u64, limit_mib: u64 },
+    #[error(
+        "{what} needs {}, but this adapter allows at most {} per buffer",
+        crate::memory::human(*needed),
+        crate::memory::human(*limit)
+    )]
+    TooLarge { what: String, needed: u64, limit: u64 },
     #[error("the GPU ran out of memory: {0}")]
     OutOfMemory(String),
     #[error("GPU error: {0}")]
@@ -138,12 +142,19 @@ impl Gpu {
 
     /// Opens a device on `adapter` with its full limits and, where available, timestamp queries.
     pub async fn from_adapter(adapter: wgpu::Adapter) -> Result<Gpu, GpuError> {
+        let limits = adapter.limits();
+        Self::from_adapter_with_limits(adapter, limits).await
+    }
+
+    /// [`Gpu::from_adapter`] with other limits (at most the adapter's): small ones stand in for a small GPU in
+    /// the tests of the slab, batch and too-large paths.
+    pub async fn from_adapter_with_limits(adapter: wgpu::Adapter, limits: wgpu::Limits) -> Result<Gpu, GpuError> {
         let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("meshvox"),
                 required_features: features,
-                required_limits: adapter.limits(),
+                required_limits: limits,
                 ..Default::default()
             })
             .await
@@ -211,8 +222,4 @@ pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
 /// Maps a MAP_READ buffer whose copy has been submitted and returns its bytes once the GPU is done.
 pub async fn map_read_async(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     readback::map_and_copy(device, buffer).await
-}
-
-pub(crate) fn mib(bytes: u64) -> u64 {
-    bytes.div_ceil(1 << 20)
 }

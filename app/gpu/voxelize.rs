@@ -8,7 +8,7 @@
 
 use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
-use super::{Gpu, GpuError, dispatch_2d, mib};
+use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::{GridSpec, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
 
@@ -565,8 +565,8 @@ fn slab_plan(gpu: &Gpu, spec: GridSpec, options: &Options) -> Result<(u32, u32),
     if layer_bytes > limit {
         return Err(GpuError::TooLarge {
             what: format!("one z-layer of the {}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z),
-            needed_mib: mib(layer_bytes),
-            limit_mib: mib(limit),
+            needed: layer_bytes,
+            limit,
         });
     }
     let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit);

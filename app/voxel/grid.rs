@@ -69,8 +69,8 @@ pub enum GridError {
         "the {}×{}×{} grid needs {} of memory but {} is available; {}",
         dims[0], dims[1], dims[2], crate::memory::human(*needed), crate::memory::human(*budget),
         match fits {
-            Some(n) => format!("the largest resolution that fits is -r {n} (or raise --max-memory)"),
-            None => "not even -r 1 fits (raise --max-memory)".to_string(),
+            Some(n) => format!("the largest resolution that fits is -r {n}"),
+            None => "not even -r 1 fits".to_string(),
         }
     )]
     OverBudget { dims: [u32; 3], needed: u64, budget: u64, fits: Option<u32> },

@@ -301,3 +301,34 @@ fn a_lost_device_is_an_error_not_a_panic() {
     assert!(gpu.is_lost(), "the lost callback ran: {e}");
     assert!(e.to_string().contains("lost"), "{e}");
 }
+
+/// A device with small limits (64 KiB per buffer, as a stand-in for a small GPU): a grid whose single z-layer
+/// does not fit is refused with a message naming both sizes, before anything is dispatched; a grid that fits in
+/// slabs gives the CPU's grid.
+#[test]
+fn small_device_limits_refuse_cleanly_or_work_in_slabs() {
+    let Some((shared, _)) = gpu() else { return };
+    let limits = wgpu::Limits {
+        max_storage_buffer_binding_size: 64 << 10,
+        max_buffer_size: 64 << 10,
+        ..shared.adapter.limits()
+    };
+    let small = pollster::block_on(Gpu::from_adapter_with_limits(shared.adapter.clone(), limits)).expect("device");
+    let v = GpuVoxelizer::new(&small);
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let bounds = mesh.bounds().expect("bounds");
+    let options = Options { read_grid: true, ..Default::default() };
+
+    let fits = GridSpec::fit(bounds, Resolution::Count(200), Axis::Longest).expect("spec");
+    let tris = cpu::grid_space_triangles(&mesh, &fits).expect("grid space");
+    let out = v.voxelize(&small, &tris, fits, &options).expect("fits in slabs");
+    assert!(out.slabs > 1, "{} slabs", out.slabs);
+    assert_same_grid(&out.grid.expect("grid"), &cpu_grid(&tris, fits), "knot@200 on 64 KiB buffers");
+
+    let too_big = GridSpec::fit(bounds, Resolution::Count(1200), Axis::Longest).expect("spec");
+    let tris = cpu::grid_space_triangles(&mesh, &too_big).expect("grid space");
+    let e = v.voxelize(&small, &tris, too_big, &options).err().expect("one layer cannot fit");
+    assert!(matches!(e, meshvox::gpu::GpuError::TooLarge { .. }), "{e}");
+    assert!(e.to_string().contains("one z-layer") && e.to_string().contains("at most 64.0 KiB"), "{e}");
+    assert!(small.check().is_ok(), "nothing failed on the device itself");
+}
