@@ -12,7 +12,7 @@ use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let obj_err = |message: String| MeshError::Obj { path: path.to_path_buf(), message };
-    let counts = scan(bytes).map_err(obj_err)?;
+    let counts = scan(bytes, false).map_err(obj_err)?;
     limits.check_triangles(path, counts.triangles)?;
 
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
@@ -22,7 +22,9 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
         Some(dir) => tobj::load_mtl(dir.join(mtl)),
         None => Err(tobj::LoadError::OpenFileFailed),
     })
-    .map_err(|e| obj_err(e.to_string()))?;
+    // The quick scan lets number-like words such as `1.2.3` through; tobj refuses them without saying where, so
+    // the strict scan finds the line.
+    .map_err(|e| obj_err(scan(bytes, true).err().unwrap_or_else(|| e.to_string())))?;
 
     let mut mesh = Mesh::default();
     if let Err(e) = materials {
@@ -72,7 +74,12 @@ pub(super) struct Counts {
 /// (`n - 2` for an `n`-gon). Errors name the line: text that is not UTF-8, a vertex without three numbers, a
 /// face with fewer than three vertices, an index that is not an integer, is 0 (OBJ counts from 1) or
 /// points before the first or past the last vertex. Other statements are left to tobj.
-pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
+///
+/// Parsing every coordinate costs about a quarter of a load, so unless `strict` a word made only of digits,
+/// signs, points and exponents passes without being parsed (tobj parses it right after and refuses a malformed
+/// one); anything else (`nan`, `inf`, `abc`) is parsed and checked either way.
+pub(super) fn scan(bytes: &[u8], strict: bool) -> Result<Counts, String> {
+    let number_like = |w: &str| w.bytes().all(|b| matches!(b, b'0'..=b'9' | b'+' | b'-' | b'.' | b'e' | b'E'));
     // Positions, texture coordinates and normals defined so far (a face's relative indices count back from
     // these), and per kind the largest absolute index any face uses and where: OBJ lets a face name an element
     // defined further down, so those are checked at the end.
@@ -85,15 +92,15 @@ pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
-                let numbers = words.take(3).map(|w| (w, w.parse::<f64>())).collect::<Vec<_>>();
-                if let Some((w, _)) = numbers.iter().find(|(_, v)| v.is_err()) {
-                    return Err(format!("line {line_no}: vertex coordinate '{}' is not a number", shorten(w)));
+                let mut coordinates = 0;
+                for w in words.take(3) {
+                    if !(!strict && number_like(w) || w.parse::<f64>().is_ok()) {
+                        return Err(format!("line {line_no}: vertex coordinate '{}' is not a number", shorten(w)));
+                    }
+                    coordinates += 1;
                 }
-                if numbers.len() < 3 {
-                    return Err(format!(
-                        "line {line_no}: a vertex needs 3 coordinates, this one has {}",
-                        numbers.len()
-                    ));
+                if coordinates < 3 {
+                    return Err(format!("line {line_no}: a vertex needs 3 coordinates, this one has {coordinates}"));
                 }
                 defined[0] += 1;
             }
@@ -102,14 +109,16 @@ pub(super) fn scan(bytes: &[u8]) -> Result<Counts, String> {
             Some("f") => {
                 let mut corners: u64 = 0;
                 for w in words {
-                    let refs: Vec<&str> = w.split('/').collect();
-                    if refs.len() > 3 || refs[0].is_empty() {
-                        return Err(format!(
-                            "line {line_no}: face vertex '{}' is not v, v/vt, v//vn or v/vt/vn",
-                            shorten(w)
-                        ));
-                    }
-                    for (kind, text) in refs.iter().enumerate().filter(|(_, t)| !t.is_empty()) {
+                    for (kind, text) in w.split('/').enumerate() {
+                        if kind > 2 || (kind == 0 && text.is_empty()) {
+                            return Err(format!(
+                                "line {line_no}: face vertex '{}' is not v, v/vt, v//vn or v/vt/vn",
+                                shorten(w)
+                            ));
+                        }
+                        if text.is_empty() {
+                            continue;
+                        }
                         let what = ["vertex", "texture coordinate", "normal"][kind];
                         let i: i64 = text.parse().map_err(|_| {
                             format!("line {line_no}: face {what} '{}' is not a valid index", shorten(w))
@@ -163,10 +172,12 @@ mod tests {
     #[test]
     fn scan_counts_and_names_lines() {
         let ok = b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
-        assert_eq!(scan(ok), Ok(Counts { vertices: 4, triangles: 4 }));
+        assert_eq!(scan(ok, false), Ok(Counts { vertices: 4, triangles: 4 }));
+        assert_eq!(scan(ok, true), Ok(Counts { vertices: 4, triangles: 4 }));
         for (text, expected) in [
             (&b"v 0 0\n"[..], "line 1: a vertex needs 3 coordinates"),
             (b"v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate 'x'"),
+            (b"v 0 0 0\nv 1 1.2.3 0\n", "line 2: vertex coordinate '1.2.3'"),
             (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices, this one has 2"),
             (b"v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n", "line 3: face refers to texture coordinate 2 but the file has 1"),
             (b"v 0 0 0\nvn 0 0 1\nf 1//-2 1//1 1//1\n", "line 3: relative normal index -2"),
@@ -177,7 +188,7 @@ mod tests {
             (b"v 0 0 0\nf 1 1 1.5\n", "line 2: face vertex '1.5' is not a valid index"),
             (b"v 0 0 0\n\xff\n", "line 2: not text"),
         ] {
-            let e = scan(text).expect_err(expected);
+            let e = scan(text, true).expect_err(expected);
             assert!(e.starts_with(expected), "{e}");
         }
     }

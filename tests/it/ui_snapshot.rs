@@ -55,9 +55,17 @@ fn a_bad_file_shows_its_error_and_the_app_keeps_going() {
     harness.get_by_label(&error);
     // The previous mesh stays on screen, and a new resolution still re-voxelizes it.
     assert_eq!(harness.state().stats(), Some(&before));
+    // A resolution the host cannot hold: refused in the panel, naming what fits, with the voxels kept.
+    harness.state_mut().set_resolution(60_000);
+    harness.run();
+    let error = harness.state().error().expect("refused").to_string();
+    assert!(error.contains("largest resolution that fits is -r "), "{error}");
+    harness.get_by_label(&error);
+    assert_eq!(harness.state().stats(), Some(&before));
     harness.state_mut().set_resolution(40);
     harness.run();
     let after = harness.state().stats().expect("stats");
     assert_eq!((after.mesh.as_str(), after.resolution), ("torus", 40));
     assert!(after.voxels > before.voxels);
+    assert_eq!(harness.state().error(), None);
 }
