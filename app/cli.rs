@@ -70,10 +70,8 @@ impl LimitArgs {
     ) -> Result<GridSpec> {
         let bounds = mesh.bounds().ok_or_else(|| anyhow!("{name}: contains no triangles"))?;
         let spec = GridSpec::fit(bounds, resolution, axis).with_context(|| name.to_string())?;
-        // By default, four fifths of what is available: the rest is for the loaded mesh, the process and the
-        // machine's other work. An explicit --max-memory is taken as given.
-        let default_budget = || meshvox::memory::available().map(|a| a / 5 * 4);
-        if let Some(budget) = self.max_memory.or_else(default_budget) {
+        // An explicit --max-memory is taken as given.
+        if let Some(budget) = self.max_memory.or_else(meshvox::memory::default_budget) {
             let triangles = mesh.triangles.len() as u64;
             voxel::budget::check(&spec, bounds, axis, triangles, format, budget)
                 .map_err(|e| anyhow!("{name}: {e} (or raise --max-memory)"))?;

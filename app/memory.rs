@@ -27,6 +27,12 @@ pub fn available() -> Option<u64> {
     }
 }
 
+/// The budget a request gets when the user sets none: four fifths of [`available`], leaving the rest for the
+/// loaded mesh, the process itself and the machine's other work.
+pub fn default_budget() -> Option<u64> {
+    available().map(|a| a / 5 * 4)
+}
+
 /// Headroom under the cgroup v2 memory limit (containers, Slurm jobs), if the process has one.
 #[cfg(target_os = "linux")]
 fn cgroup_headroom() -> Option<u64> {

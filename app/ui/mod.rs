@@ -88,10 +88,10 @@ const RESTART: &str = "restart the viewer to get a new one";
 #[cfg(target_arch = "wasm32")]
 const RESTART: &str = "reload the page to get a new one";
 
-/// Host memory a voxelization in the viewer may use: what the machine has available natively; in the browser
-/// the wasm32 heap, which cannot grow past 4 GiB and in practice fails well before, so half of that.
+/// Host memory a voxelization in the viewer may use: the CLI's default natively; in the browser the wasm32
+/// heap, which cannot grow past 4 GiB and in practice fails well before, so half of that.
 fn host_budget() -> Option<u64> {
-    if cfg!(target_arch = "wasm32") { Some(2 << 30) } else { crate::memory::available() }
+    if cfg!(target_arch = "wasm32") { Some(2 << 30) } else { crate::memory::default_budget() }
 }
 
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
