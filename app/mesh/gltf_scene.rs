@@ -41,9 +41,21 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     let mut instances: Vec<(gltf::Mesh, Mat4)> = Vec::new();
     // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node.
     let mut triangles: u64 = 0;
+    // glTF requires the nodes to form trees, so a walk meets each node at most once per scene. A node listed as
+    // a child twice (or by two parents) makes a graph whose walk doubles at every level: 40 such levels are a
+    // trillion visits, so the walk stops at the most a valid file can need.
+    let most_visits = document.nodes().len().saturating_mul(document.scenes().len().max(1));
+    let mut visits = 0usize;
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 1024 {
             return Err(err("node hierarchy deeper than 1024 levels (cycle?)".into()));
+        }
+        visits += 1;
+        if visits > most_visits {
+            return Err(err(format!(
+                "nodes[{}] is reached more than once: the node hierarchy is not a tree, as glTF requires",
+                node.index()
+            )));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(gmesh) = node.mesh() {

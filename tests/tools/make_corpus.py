@@ -90,6 +90,8 @@ gltf("float-indices.gltf", doc(data, accessors=[
     {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.1,0.2,0.3], "max": [1.7,1.9,0.3]},
     {"bufferView": 1, "componentType": 5126, "count": 1, "type": "SCALAR"}]))
 gltf("node-cycle.gltf", doc(data, extra=lambda d: d.update(nodes=[{"mesh": 0, "children": [1]}, {"children": [0]}])))
+# Each node lists the next one twice: not a tree, and a walk that follows it visits 2^40 nodes.
+gltf("node-graph-not-tree.gltf", doc(data, extra=lambda d: d.update(nodes=[{"children": [i + 1, i + 1]} for i in range(40)] + [{"mesh": 0}])))
 gltf("mesh-out-of-range.gltf", doc(data, extra=lambda d: d.update(nodes=[{"mesh": 5}])))
 gltf("accessor-out-of-range.gltf", doc(data, extra=lambda d: d["meshes"][0]["primitives"][0].update(indices=7)))
 gltf("sparse-indices.gltf", doc(data, accessors=[
