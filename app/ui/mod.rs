@@ -338,7 +338,10 @@ impl ViewerApp {
 
         ui.label("Resolution (voxels along the axis)");
         let mut r = self.resolution;
-        if ui.add(egui::Slider::new(&mut r, 4..=512).logarithmic(true).text("N")).changed() {
+        // The range reaches the current resolution when it is larger (`view -r 2000`, the page's hook), so the
+        // slider shows the value the panel's messages refer to instead of its own maximum.
+        let range = 4..=self.resolution.max(512);
+        if ui.add(egui::Slider::new(&mut r, range).logarithmic(true).text("N")).changed() {
             self.set_resolution(r);
         }
         ui.horizontal(|ui| {
