@@ -63,6 +63,9 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     Ok(mesh)
 }
 
+/// What the three reference slots of a face vertex (`v/vt/vn`) name, for messages.
+const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+
 /// What [`scan`] counted.
 #[derive(Debug, PartialEq, Eq)]
 pub(super) struct Counts {
@@ -119,7 +122,7 @@ pub(super) fn scan(bytes: &[u8], strict: bool) -> Result<Counts, String> {
                         if text.is_empty() {
                             continue;
                         }
-                        let what = ["vertex", "texture coordinate", "normal"][kind];
+                        let what = KINDS[kind];
                         let i: i64 = text.parse().map_err(|_| {
                             format!("line {line_no}: face {what} '{}' is not a valid index", shorten(w))
                         })?;
@@ -148,7 +151,7 @@ pub(super) fn scan(bytes: &[u8], strict: bool) -> Result<Counts, String> {
             _ => {}
         }
     }
-    for (kind, what) in ["vertex", "texture coordinate", "normal"].iter().enumerate() {
+    for (kind, what) in KINDS.iter().enumerate() {
         if let Some((index, line_no)) = furthest[kind].filter(|&(f, _)| f > defined[kind]) {
             return Err(format!("line {line_no}: face refers to {what} {index} but the file has {}", defined[kind]));
         }

@@ -190,19 +190,15 @@ impl ViewerApp {
     fn start_voxelize(&mut self, ctx: &egui::Context) {
         self.needs_voxelize = false;
         let Some(mesh) = self.mesh.clone() else { return };
-        let fitted = mesh
-            .bounds()
-            .ok_or_else(|| "the mesh has no triangles".to_string())
-            .and_then(|b| GridSpec::fit(b, Resolution::Count(self.resolution), self.axis).map_err(|e| e.to_string()));
-        let spec = match fitted {
+        let Some(bounds) = mesh.bounds() else { return self.fail("the mesh has no triangles".to_string()) };
+        let spec = match GridSpec::fit(bounds, Resolution::Count(self.resolution), self.axis) {
             Ok(spec) => spec,
-            Err(e) => return self.fail(e),
+            Err(e) => return self.fail(e.to_string()),
         };
         // A resolution the host cannot hold is refused before anything is allocated; the message names the
         // largest one that fits, and the current voxels stay on screen.
         if let Some(budget) = host_budget()
-            && let (Some(bounds), triangle_count) = (mesh.bounds(), mesh.triangles.len() as u64)
-            && let Err(e) = budget::check(&spec, bounds, self.axis, triangle_count, None, budget)
+            && let Err(e) = budget::check(&spec, bounds, self.axis, mesh.triangles.len() as u64, None, budget)
         {
             return self.fail(e.to_string());
         }

@@ -67,16 +67,7 @@ pub fn check(
             .is_ok_and(|s| estimate(&s, triangles, format).total() <= budget)
     };
     // The resolution this request amounts to along its axis bounds the search from above.
-    let index = match axis {
-        Axis::X => 0,
-        Axis::Y => 1,
-        Axis::Z => 2,
-        Axis::Longest => {
-            let e = bounds.extent();
-            (0..3).max_by(|&a, &b| e[a].total_cmp(&e[b]).then(b.cmp(&a))).unwrap_or(0)
-        }
-    };
-    let (mut lo, mut hi) = (0u32, spec.dims[index].max(1));
+    let (mut lo, mut hi) = (0u32, spec.dims[axis.index(bounds)].max(1));
     while lo < hi {
         let mid = lo + (hi - lo).div_ceil(2);
         if fits(mid) { lo = mid } else { hi = mid - 1 }

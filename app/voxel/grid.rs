@@ -13,6 +13,23 @@ pub enum Axis {
     Z,
 }
 
+impl Axis {
+    /// The index (0, 1, 2 for x, y, z) of the axis along which the resolution counts voxels over `bounds`.
+    pub fn index(self, bounds: Aabb) -> usize {
+        match self {
+            Axis::Longest => {
+                // The first of equal extents wins, so a cube counts along x like the original program.
+                let extent = bounds.max.as_dvec3() - bounds.min.as_dvec3();
+                let m = extent.max_element();
+                (0..3).find(|&i| extent[i] == m).unwrap_or(0)
+            }
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+}
+
 /// How the voxel size is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Resolution {
@@ -90,16 +107,7 @@ impl GridSpec {
     pub fn fit(bounds: Aabb, resolution: Resolution, axis: Axis) -> Result<GridSpec, GridError> {
         let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
         let extent = max - min;
-        let axis_index = match axis {
-            Axis::Longest => {
-                // The first of equal extents wins, so a cube counts along x like the original program.
-                let m = extent.max_element();
-                (0..3).find(|&i| extent[i] == m).unwrap_or(0)
-            }
-            Axis::X => 0,
-            Axis::Y => 1,
-            Axis::Z => 2,
-        };
+        let axis_index = axis.index(bounds);
         let (voxel_size, fixed) = match resolution {
             Resolution::Count(0) => return Err(GridError::ZeroResolution),
             Resolution::Count(n) => {
