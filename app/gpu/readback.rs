@@ -22,9 +22,14 @@ pub fn watchdog() -> Duration {
 }
 
 /// Blocks until the device has finished the work submitted so far, at most [`watchdog`] long. (A no-op in the
-/// browser, where work finishes while futures yield to the event loop.)
+/// browser, where work finishes while futures yield to the event loop.) A limit of zero gives up on every wait
+/// without asking the device: whether a zero-length wait succeeds would otherwise depend on whether the GPU
+/// happened to finish first, and `MESHVOX_GPU_TIMEOUT=0` is how the fallback path is tried on purpose.
 pub(crate) fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
     let timeout = watchdog();
+    if timeout.is_zero() {
+        return Err(GpuError::Timeout(0.0));
+    }
     match device.poll(wgpu::PollType::Wait { submission_index: None, timeout: Some(timeout) }) {
         Ok(_) => Ok(()),
         Err(wgpu::PollError::Timeout) => Err(GpuError::Timeout(timeout.as_secs_f64())),
