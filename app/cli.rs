@@ -6,7 +6,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{self, Axis, GridSpec, Resolution, export::VoxelFormat};
+use meshvox::voxel::{self, Axis, GridSpec, Mode, Resolution, export::VoxelFormat};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -103,6 +103,13 @@ struct RenderArgs {
     /// Camera angle above the horizon, degrees.
     #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
     pitch: f32,
+    /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
+    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
+    mode: ModeArg,
+    /// Cut the model away beyond a plane across an axis, to show the inside: AXIS:FRACTION, e.g. x:0.5 keeps
+    /// the voxels in the lower half of the grid along x.
+    #[arg(long, value_name = "AXIS:FRACTION", value_parser = parse_cut)]
+    cut: Option<meshvox::render::Cut>,
     /// Overlay the source mesh, translucent.
     #[arg(long)]
     show_mesh: bool,
@@ -111,6 +118,10 @@ struct RenderArgs {
     backend: BackendArg,
     #[command(flatten)]
     limits: LimitArgs,
+}
+
+fn parse_cut(s: &str) -> Result<meshvox::render::Cut, String> {
+    meshvox::render::Cut::parse(s).ok_or_else(|| format!("'{s}': expected x, y or z, a colon and a fraction from 0 to 1"))
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -143,6 +154,9 @@ struct BenchArgs {
     /// Backends to compare.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
     backends: Vec<BackendArg>,
+    /// Modes to run.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ModeArg::Surface])]
+    modes: Vec<ModeArg>,
     /// Runs per case; the median is reported.
     #[arg(long, default_value_t = 3)]
     runs: usize,
@@ -166,6 +180,9 @@ struct VoxelizeArgs {
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox.
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     output: PathBuf,
+    /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
+    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
+    mode: ModeArg,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     stats_json: bool,
@@ -181,6 +198,27 @@ enum BackendArg {
     Auto,
     Gpu,
     Cpu,
+}
+
+/// What to voxelize (`voxel::Mode`).
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModeArg {
+    /// The conservative surface: every voxel a triangle touches (26-separating).
+    Surface,
+    /// The surface plus every voxel whose centre is inside (generalized winding number >= 1/2).
+    Solid,
+    /// The thin surface (6-separating): no face-connected leak from inside a closed mesh.
+    Surface6,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::Surface => Mode::Surface,
+            ModeArg::Solid => Mode::Solid,
+            ModeArg::Surface6 => Mode::Surface6,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -272,7 +310,8 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
 
     let engine = Engine::open(args.backend)?;
     let t_vox = Instant::now();
-    let result = engine.voxelize(&mesh, spec)?;
+    let mode = Mode::from(args.mode);
+    let result = engine.voxelize(&mesh, spec, mode)?;
     let voxelize_ms = ms(t_vox);
     let grid = result.grid;
     let voxels = grid.count();
@@ -284,7 +323,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let d = spec.dims;
     let backend = result.backend;
     eprintln!(
-        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set in {voxelize_ms:.1} ms on {backend}; wrote {} ({} bytes)",
+        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({mode}) in {voxelize_ms:.1} ms on {backend}; wrote {} ({} bytes)",
         args.mesh,
         mesh.triangles.len(),
         d.x,
@@ -303,6 +342,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
             "origin": [spec.origin.x, spec.origin.y, spec.origin.z],
             "voxel_size": spec.voxel_size,
             "voxels": voxels,
+            "mode": mode.name(),
             "backend": backend,
             "threads": rayon::current_num_threads(),
             "gpu_ms": result.gpu_ms,
@@ -405,11 +445,11 @@ impl Engine {
     }
 
     /// Host triangles to host grid, including the upload and readback on the GPU.
-    fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec) -> Result<EngineResult> {
+    fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec, mode: Mode) -> Result<EngineResult> {
         let cpu_label = || format!("cpu ({} threads)", rayon::current_num_threads());
         if let Some((gpu, v)) = &self.gpu {
             let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
-            let options = meshvox::gpu::voxelize::Options { read_grid: true, ..Default::default() };
+            let options = meshvox::gpu::voxelize::Options { read_grid: true, mode, ..Default::default() };
             match v.voxelize(gpu, &tris, spec, &options) {
                 Ok(out) => {
                     let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
@@ -434,7 +474,7 @@ impl Engine {
         let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
         let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
         let (grid, stats) =
-            voxel::cpu::voxelize_grid_space_with_stats(&tris, spec, &|done, _| bar.set_position(done as u64))
+            voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|done, _| bar.set_position(done as u64))
                 .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
         bar.finish_and_clear();
         Ok(EngineResult { grid, backend: cpu_label(), gpu_ms: None, exact_tests: Some(stats.exact_tests) })
@@ -458,10 +498,10 @@ fn bench(args: &BenchArgs) -> Result<()> {
     };
     let loaded: Vec<mesh::Mesh> = meshes.iter().map(|m| mesh::load(m)).collect::<Result<_, _>>()?;
     println!(
-        "| mesh | triangles | N | grid | voxels | backend | voxelize ms (median of {}) | gpu ms | exact tests |",
+        "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms (median of {}) | gpu ms | exact tests |",
         args.runs
     );
-    println!("|---|---:|---:|---|---:|---|---:|---:|---:|");
+    println!("|---|---:|---:|---|---|---:|---|---:|---:|---:|");
     let mut times = std::collections::HashMap::new();
     for &backend in &args.backends {
         let engine = match Engine::open(backend) {
@@ -473,7 +513,8 @@ fn bench(args: &BenchArgs) -> Result<()> {
             }
         };
         for (name, m) in meshes.iter().zip(&loaded) {
-            for &r in &args.resolutions {
+            for (&r, &mode) in args.resolutions.iter().flat_map(|r| args.modes.iter().map(move |m| (r, m))) {
+                let mode = Mode::from(mode);
                 let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
                 let spec = GridSpec::fit(bounds, Resolution::Count(r), Axis::Longest)?;
                 let mut runs = Vec::new();
@@ -481,19 +522,21 @@ fn bench(args: &BenchArgs) -> Result<()> {
                 let mut last = None;
                 for _ in 0..args.runs.max(1) {
                     let t = Instant::now();
-                    let out = engine.voxelize(m, spec)?;
+                    let out = engine.voxelize(m, spec, mode)?;
                     runs.push(ms(t));
                     gpu.extend(out.gpu_ms);
                     last = Some(out);
                 }
                 let out = last.ok_or_else(|| anyhow!("no runs"))?;
                 let t = median(runs);
-                times.insert((name.clone(), r, out.backend.clone()), t);
+                if mode == Mode::Surface {
+                    times.insert((name.clone(), r, out.backend.clone()), t);
+                }
                 let g = out.grid.spec.dims;
                 let gpu_ms = if gpu.is_empty() { "-".to_string() } else { format!("{:.2}", median(gpu)) };
                 let exact = out.exact_tests.map_or("-".to_string(), |n| n.to_string());
                 println!(
-                    "| {} | {} | {r} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} | {exact} |",
+                    "| {} | {} | {r} | {mode} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} | {exact} |",
                     name.rsplit('/').next().unwrap_or(name),
                     m.triangles.len(),
                     g.x,
@@ -533,14 +576,22 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mesh = args.limits.load(&args.mesh)?;
     let spec = args.limits.grid(&args.mesh, &mesh, Resolution::Count(args.resolution), args.axis.into(), None)?;
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
+    let mode = Mode::from(args.mode);
     let t = Instant::now();
-    let (voxels, backend) = if args.backend == BackendArg::Cpu {
-        let grid = voxel::cpu::voxelize(&mesh, spec, &|_, _| {})?;
-        (instances_from_grid(&gpu.device, &grid), "cpu".to_string())
+    let (voxels, backend) = if args.backend == BackendArg::Cpu || args.cut.is_some() {
+        // A cut-away needs the whole grid on the host: the cut makes interior voxels visible.
+        let engine = Engine::open(args.backend)?;
+        let out = engine.voxelize(&mesh, spec, mode)?;
+        let grid = match args.cut {
+            Some(cut) => cut.apply(&out.grid),
+            None => out.grid.exposed(),
+        };
+        (instances_from_grid(&gpu.device, &grid), out.backend)
     } else {
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
         let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-        let options = meshvox::gpu::voxelize::Options { compact: true, surface_only: true, ..Default::default() };
+        let options =
+            meshvox::gpu::voxelize::Options { compact: true, surface_only: true, mode, ..Default::default() };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
         (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))
     };
@@ -558,7 +609,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         Ok(())
     })?;
     eprintln!(
-        "{}: {count} voxels ({}x{}x{}) voxelized in {voxelize_ms:.1} ms on {backend}; wrote {} ({w}x{h})",
+        "{}: {count} voxels drawn ({}x{}x{}, {mode}) voxelized in {voxelize_ms:.1} ms on {backend}; wrote {} ({w}x{h})",
         args.mesh,
         spec.dims.x,
         spec.dims.y,

@@ -9,7 +9,7 @@
 use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::{GridSpec, VoxelGrid, cpu, on_lattice};
+use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
 
 /// The WGSL source, shared with the shader validation test.
@@ -56,6 +56,8 @@ pub struct Options {
     pub max_batch_triangles: Option<usize>,
     /// Capacity of the list of voxel tests left to the exact pass (default 2^18); past it, the CPU decides.
     pub max_unsure: Option<u64>,
+    /// Surface, solid or thin surface.
+    pub mode: Mode,
 }
 
 /// What a GPU voxelization produced.

@@ -75,8 +75,10 @@ fn tube(center: impl Fn(f32) -> Vec3, radius: f32, segments: usize, sides: usize
         let (a, b) = (&rings[i], &rings[(i + 1) % segments]);
         for j in 0..sides {
             let k = (j + 1) % sides;
-            triangles.push([a[j], b[j], b[k]]);
-            triangles.push([a[j], b[k], a[k]]);
+            // Counter-clockwise seen from outside (the ring angle turns counter-clockwise about the tangent),
+            // so the winding number inside is +1 and solid voxelization fills the tube.
+            triangles.push([a[j], b[k], b[j]]);
+            triangles.push([a[j], a[k], b[k]]);
         }
     }
     single_part(triangles)

@@ -31,7 +31,7 @@
 //! every candidate still goes through the full test, so the result equals testing the whole bounding box.
 
 use super::lattice::{Lattice, on_lattice};
-use super::{GridSpec, VoxelGrid};
+use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
 use glam::{IVec3, UVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -338,6 +338,139 @@ pub fn voxel_overlaps_exact(s: &TriangleSetup, p: UVec3) -> bool {
         && edge_test(s, &s.zx, 2, p, Vec2::new(pl.z, pl.x))
 }
 
+/// How far the thin (6-separating) test moves a triangle's plane and edge values inward, per triangle: the
+/// thick test accepts a voxel when its box meets the plane (`|<n, centre> + d| <= (|n_x| + |n_y| + |n_z|) / 2`), the
+/// thin one when the plane passes within half a voxel of the centre along the normal's dominant axis
+/// (`<= max |n_k| / 2`, Schwarz & Seidel 2010 §3.2), so each plane value shrinks by half the two smaller normal
+/// components. Likewise each 2D edge test moves from the projected square to its inscribed diamond, which lowers
+/// the edge value by `min(|ne.x|, |ne.y|) / 2`. Both shrinks are exact halvings of at most one rounded sum, well
+/// inside the error bounds (which allow 32 roundings where the thick test needs 14), so the thin values keep them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinShrink {
+    pub plane: f32,
+    pub xy: Vec3,
+    pub yz: Vec3,
+    pub zx: Vec3,
+}
+
+/// The half sum of the two smaller of `|n_x|, |n_y|, |n_z|` (see [`ThinShrink`]).
+#[inline]
+pub fn plane_shrink(n: Vec3) -> f32 {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0.5 * (a.y + a.z)
+    } else if a.y >= a.z {
+        0.5 * (a.x + a.z)
+    } else {
+        0.5 * (a.x + a.y)
+    }
+}
+
+/// `min(|ne.x|, |ne.y|) / 2` for each edge of a projection.
+#[inline]
+pub fn edge_shrink(e: &Edges) -> Vec3 {
+    Vec3::new(
+        0.5 * e.ne[0].x.abs().min(e.ne[0].y.abs()),
+        0.5 * e.ne[1].x.abs().min(e.ne[1].y.abs()),
+        0.5 * e.ne[2].x.abs().min(e.ne[2].y.abs()),
+    )
+}
+
+/// The thin test's shrinks for one triangle.
+pub fn thin_shrink(s: &TriangleSetup) -> ThinShrink {
+    ThinShrink { plane: plane_shrink(s.n), xy: edge_shrink(&s.xy), yz: edge_shrink(&s.yz), zx: edge_shrink(&s.zx) }
+}
+
+/// The exact thin plane test at the voxel with minimum corner `p`, in doubled lattice units (the centre is then
+/// a lattice point): `|2 n . (P - V0) + S sum n_k| <= S max |n_k|`.
+pub fn exact_plane_test_thin(s: &TriangleSetup, p: UVec3) -> bool {
+    let v = s.lattice;
+    let (e0, e1) = (v[1] - v[0], v[2] - v[1]);
+    let d = p.as_ivec3() * s.unit - v[0];
+    let (mut base, mut sum, mut max) = (0i128, 0i128, 0i128);
+    for k in 0..3 {
+        let nk = exact_normal_component(e0, e1, k);
+        base += nk * d[k] as i128;
+        sum += nk;
+        max = max.max(nk.abs());
+    }
+    let unit = s.unit as i128;
+    let value = 2 * base + unit * sum;
+    -unit * max <= value && value <= unit * max
+}
+
+/// The exact sign of thin edge function `i` of projection `k` at the voxel with minimum corner `p`, doubled:
+/// `2 ne . (Q - V_i) + S (ne.x + ne.y) + S max(|ne.x|, |ne.y|)` (the edge value at the voxel's projected diamond).
+pub fn exact_edge_sign_thin(s: &TriangleSetup, k: usize, i: usize, p: UVec3) -> i32 {
+    let (a, b) = (k, (k + 1) % 3);
+    let o = if normal_sign(s.normal_signs, (k + 2) % 3) >= 0 { 1i128 } else { -1 };
+    let (vi, vj) = (s.lattice[i], s.lattice[(i + 1) % 3]);
+    let ne = [-o * (vj[b] - vi[b]) as i128, o * (vj[a] - vi[a]) as i128];
+    let q = p.as_ivec3() * s.unit;
+    let unit = s.unit as i128;
+    let value = 2 * (ne[0] * (q[a] - vi[a]) as i128 + ne[1] * (q[b] - vi[b]) as i128)
+        + unit * (ne[0] + ne[1])
+        + unit * ne[0].abs().max(ne[1].abs());
+    value.signum() as i32
+}
+
+/// The thin edge tests of projection `k` (exact where f32 is unsure).
+#[inline]
+fn edge_test_thin(s: &TriangleSetup, e: &Edges, shrink: Vec3, k: usize, p: UVec3, q: Vec2) -> bool {
+    (0..3).all(|i| match certain_sign(edge_function(e.ne[i], q, e.de[i]) - shrink[i], e.eps[i]) {
+        -1 => false,
+        2 => exact_edge_sign_thin(s, k, i, p) >= 0,
+        _ => true,
+    })
+}
+
+/// The thin (6-separating) test for the voxel with minimum corner `p`, exact.
+pub fn voxel_overlaps_exact_thin(s: &TriangleSetup, p: UVec3) -> bool {
+    let sh = thin_shrink(s);
+    let pl = (p - s.lo).as_vec3();
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1 - sh.plane, s.plane_eps);
+    let t2 = certain_sign(np + s.d2 + sh.plane, s.plane_eps);
+    let plane = if t1 == -1 || t2 == 1 {
+        false
+    } else if t1 != 2 && t2 != 2 {
+        true
+    } else {
+        exact_plane_test_thin(s, p)
+    };
+    plane
+        && edge_test_thin(s, &s.xy, sh.xy, 0, p, Vec2::new(pl.x, pl.y))
+        && edge_test_thin(s, &s.yz, sh.yz, 1, p, Vec2::new(pl.y, pl.z))
+        && edge_test_thin(s, &s.zx, sh.zx, 2, p, Vec2::new(pl.z, pl.x))
+}
+
+/// [`voxel_decision`] for the thin test: the same eleven values, each moved inward by its shrink.
+#[inline]
+pub fn voxel_decision_thin(s: &TriangleSetup, sh: &ThinShrink, pl: Vec3) -> u32 {
+    let np = dot3(s.n, pl);
+    let v1 = np + s.d1 - sh.plane;
+    let v2 = -(np + s.d2 + sh.plane);
+    let values = |e: &Edges, q: Vec2, shrink: Vec3| {
+        Vec3::new(
+            edge_function(e.ne[0], q, e.de[0]) - shrink.x,
+            edge_function(e.ne[1], q, e.de[1]) - shrink.y,
+            edge_function(e.ne[2], q, e.de[2]) - shrink.z,
+        )
+    };
+    let xy = values(&s.xy, Vec2::new(pl.x, pl.y), sh.xy);
+    let yz = values(&s.yz, Vec2::new(pl.y, pl.z), sh.yz);
+    let zx = values(&s.zx, Vec2::new(pl.z, pl.x), sh.zx);
+    let eps = |e: &Edges| Vec3::from_array(e.eps);
+    let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
+    let low = (v1.min(v2) + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
+    if low < 0.0 {
+        return 0;
+    }
+    let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
+    let high = (v1.min(v2) - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
+    if high >= 0.0 { 1 } else { 2 }
+}
+
 /// Whether no edge function of projection `e` is certainly negative at `q`: a necessary condition for an
 /// overlap, used to skip columns before their depth range is walked.
 #[inline]
@@ -452,8 +585,12 @@ pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f3
 
 /// Calls `emit` for every voxel the triangle overlaps (each voxel once). Returns how many voxel tests needed the
 /// exact path.
-pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) -> u64 {
+///
+/// `thin` selects the 6-separating test ([`voxel_decision_thin`]); its voxels are a subset of the thick test's,
+/// so the thick test's candidate ranges serve both.
+pub fn voxelize_triangle(s: &TriangleSetup, thin: bool, mut emit: impl FnMut(UVec3)) -> u64 {
     let mut exact = 0;
+    let shrink = thin.then(|| thin_shrink(s));
     if s.lo.cmpgt(s.hi).any() {
         return exact;
     }
@@ -484,12 +621,16 @@ pub fn voxelize_triangle(s: &TriangleSetup, mut emit: impl FnMut(UVec3)) -> u64 
             for wi in w_lo as u32..=w_hi as u32 {
                 pl[w] = wi as f32;
                 let p = s.lo + pl.as_uvec3();
-                let overlaps = match voxel_decision(s, pl) {
+                let decision = match &shrink {
+                    None => voxel_decision(s, pl),
+                    Some(sh) => voxel_decision_thin(s, sh, pl),
+                };
+                let overlaps = match decision {
                     0 => false,
                     1 => true,
                     _ => {
                         exact += 1;
-                        voxel_overlaps_exact(s, p)
+                        if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) }
                     }
                 };
                 if overlaps {
@@ -534,8 +675,20 @@ pub fn voxelize_grid_space_with_stats(
     spec: GridSpec,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(VoxelGrid, CpuStats), super::GridError> {
+    voxelize_grid_space_mode(triangles, spec, Mode::Surface, progress)
+}
+
+/// Voxelizes grid-space triangles in any [`Mode`]: the thick or thin surface, or the thick surface plus the
+/// voxels whose centres are inside ([`super::solid`]).
+pub fn voxelize_grid_space_mode(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    mode: Mode,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(VoxelGrid, CpuStats), super::GridError> {
     let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
     let grid = VoxelGrid::new(spec)?;
+    let thin = mode == Mode::Surface6;
     // Atomic words so all threads can OR into one grid, exactly like atomicOr in the shader.
     let words: Vec<AtomicU32> = grid.words.into_iter().map(AtomicU32::new).collect();
     let done = AtomicUsize::new(0);
@@ -545,7 +698,7 @@ pub fn voxelize_grid_space_with_stats(
         let mut exact_tests = 0;
         for &t in chunk {
             let s = setup_triangle(t, spec.dims, lattice);
-            exact_tests += voxelize_triangle(&s, |v| {
+            exact_tests += voxelize_triangle(&s, thin, |v| {
                 let (word, bit) = spec.word_and_bit(v.x, v.y, v.z);
                 words[word].fetch_or(1 << bit, Ordering::Relaxed);
             });
@@ -554,7 +707,10 @@ pub fn voxelize_grid_space_with_stats(
         let finished = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
         progress(finished, triangles.len());
     });
-    let grid = VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect());
+    let mut grid = VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect());
+    if mode == Mode::Solid {
+        super::solid::fill(&triangles, lattice, &mut grid);
+    }
     Ok((grid, CpuStats { exact_tests: exact.into_inner() }))
 }
 

@@ -290,3 +290,67 @@ impl VoxelGrid {
         })
     }
 }
+
+impl VoxelGrid {
+    /// A copy without the voxels at or beyond index `keep` along `axis` (0, 1, 2 for x, y, z): a cut-away that
+    /// shows the inside of a solid grid.
+    pub fn cut(&self, axis: usize, keep: u32) -> VoxelGrid {
+        let mut out = self.clone();
+        let spec = self.spec;
+        let wpr = spec.words_per_row();
+        for (r, row) in out.words.chunks_mut(wpr).enumerate() {
+            let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
+            match axis {
+                0 => {
+                    for (i, w) in row.iter_mut().enumerate() {
+                        let first = i as u32 * 32;
+                        if first >= keep {
+                            *w = 0;
+                        } else if keep - first < 32 {
+                            *w &= (1u32 << (keep - first)) - 1;
+                        }
+                    }
+                }
+                _ if [y, z][axis - 1] >= keep => row.fill(0),
+                _ => {}
+            }
+        }
+        out
+    }
+
+    /// The voxels with at least one of their six neighbours empty (outside the grid counts as empty): all that
+    /// can be seen of the grid, and what the renderer draws.
+    pub fn exposed(&self) -> VoxelGrid {
+        let spec = self.spec;
+        let wpr = spec.words_per_row();
+        let (dy, dz) = (spec.dims.y as usize, spec.dims.z as usize);
+        let row = |y: isize, z: isize| -> Option<&[u32]> {
+            if y < 0 || z < 0 || y as usize >= dy || z as usize >= dz {
+                return None;
+            }
+            let r = z as usize * dy + y as usize;
+            Some(&self.words[r * wpr..(r + 1) * wpr])
+        };
+        let mut out = self.clone();
+        for (r, dst) in out.words.chunks_mut(wpr).enumerate() {
+            let (y, z) = ((r % dy) as isize, (r / dy) as isize);
+            let Some(me) = row(y, z) else { continue };
+            let others = [row(y - 1, z), row(y + 1, z), row(y, z - 1), row(y, z + 1)];
+            for i in 0..wpr {
+                let w = me[i];
+                if w == 0 {
+                    continue;
+                }
+                // Bit x of `left` is voxel x - 1, of `right` voxel x + 1; shifted-in bits beyond the grid are 0.
+                let left = w << 1 | if i > 0 { me[i - 1] >> 31 } else { 0 };
+                let right = w >> 1 | if i + 1 < wpr { me[i + 1] << 31 } else { 0 };
+                let mut interior = w & left & right;
+                for o in &others {
+                    interior &= o.map_or(0, |o| o[i]);
+                }
+                dst[i] = w & !interior;
+            }
+        }
+        out
+    }
+}

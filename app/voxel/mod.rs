@@ -22,6 +22,43 @@ pub mod cpu;
 pub mod export;
 mod grid;
 mod lattice;
+pub mod solid;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};
+
+/// What a voxelization produces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash)]
+pub enum Mode {
+    /// The conservative, 26-separating surface: every voxel whose closed box meets a triangle.
+    #[default]
+    Surface,
+    /// The surface plus every voxel whose centre is inside the mesh (generalized winding number >= 1/2).
+    Solid,
+    /// The thin, 6-separating surface of Schwarz & Seidel 2010 §3.2: a subset of `Surface` that still leaves no
+    /// face-connected path of empty voxels from the inside of a closed mesh to the outside.
+    Surface6,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 3] = [Mode::Surface, Mode::Solid, Mode::Surface6];
+
+    /// The name used on the command line, in JSON and in the page's status.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Surface => "surface",
+            Mode::Solid => "solid",
+            Mode::Surface6 => "surface6",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Mode> {
+        Mode::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}

@@ -11,6 +11,7 @@ mod gpu;
 mod grid_convention;
 mod hostile;
 mod mesh_loading;
+mod modes;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;

@@ -1,0 +1,294 @@
+//! The voxelization modes against independent references: `solid` against winding numbers summed over every
+//! triangle here (exactly on closed meshes whose inside is known in closed form, within bounds on the shared real
+//! meshes, most of which are open), `surface6` against its defining properties (a strict subset of `surface`
+//! that no face-connected path of empty voxels crosses), and the GPU against the CPU reference in every mode.
+
+use crate::common::{Rng, all_meshes, assert_same_grid, differing_voxels, shared_meshes};
+use glam::{DVec3, UVec3, Vec3};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use rayon::prelude::*;
+
+fn spec(dims: UVec3) -> GridSpec {
+    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
+}
+
+fn voxelize(tris: &[[Vec3; 3]], spec: GridSpec, mode: Mode) -> VoxelGrid {
+    cpu::voxelize_grid_space_mode(tris, spec, mode, &|_, _| {}).expect("cpu").0
+}
+
+/// The generalized winding number at `p`, summed over all triangles in f64 (Van Oosterom & Strackee).
+pub fn winding_number(p: DVec3, tris: &[[Vec3; 3]]) -> f64 {
+    let mut sum = 0.0;
+    for t in tris {
+        let [a, b, c] = t.map(|v| v.as_dvec3() - p);
+        let (la, lb, lc) = (a.length(), b.length(), c.length());
+        let num = a.dot(b.cross(c));
+        let den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+        sum += 2.0 * num.atan2(den);
+    }
+    sum / (4.0 * std::f64::consts::PI)
+}
+
+/// An axis-aligned box as 12 triangles, counter-clockwise seen from outside (or inside when `inward`).
+fn cuboid(lo: Vec3, hi: Vec3, inward: bool) -> Vec<[Vec3; 3]> {
+    let c = |i: usize| Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][i >> 1 & 1], [lo.z, hi.z][i >> 2 & 1]);
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    quads
+        .iter()
+        .flat_map(|q| {
+            let (a, b, c2, d) = (c(q[0]), c(q[1]), c(q[2]), c(q[3]));
+            if inward { [[a, c2, b], [a, d, c2]] } else { [[a, b, c2], [a, c2, d]] }
+        })
+        .collect()
+}
+
+/// A regular octahedron `|x - c|_1 = r`, outward.
+fn octahedron(c: Vec3, r: f32) -> Vec<[Vec3; 3]> {
+    let mut tris = Vec::new();
+    for sx in [-1.0f32, 1.0] {
+        for sy in [-1.0f32, 1.0] {
+            for sz in [-1.0f32, 1.0] {
+                let (a, b, d) = (c + Vec3::X * sx * r, c + Vec3::Y * sy * r, c + Vec3::Z * sz * r);
+                // Outward when the three axes' signs have an even number of minus signs in this order.
+                if sx * sy * sz > 0.0 { tris.push([a, b, d]) } else { tris.push([a, d, b]) }
+            }
+        }
+    }
+    tris
+}
+
+/// `surface ∪ {voxels whose centre satisfies inside}`: the expected solid where the inside is known exactly.
+fn expected_solid(tris: &[[Vec3; 3]], s: GridSpec, inside: impl Fn(DVec3) -> bool) -> VoxelGrid {
+    let mut g = voxelize(tris, s, Mode::Surface);
+    for z in 0..s.dims.z {
+        for y in 0..s.dims.y {
+            for x in 0..s.dims.x {
+                if inside(UVec3::new(x, y, z).as_dvec3() + 0.5) {
+                    g.set(x, y, z);
+                }
+            }
+        }
+    }
+    g
+}
+
+#[test]
+fn solid_is_exact_on_closed_meshes_with_known_insides() {
+    let v = Vec3::new;
+    let inside_box = |lo: Vec3, hi: Vec3| move |p: DVec3| p.cmpgt(lo.as_dvec3()).all() && p.cmplt(hi.as_dvec3()).all();
+    // Quarter-lattice corners: exact in every arithmetic, and never on a voxel centre, so "inside" is strict.
+    let (a_lo, a_hi) = (v(0.25, 1.75, 2.0), v(9.75, 7.25, 11.5));
+    let (b_lo, b_hi) = (v(5.5, 3.25, 0.0), v(13.0, 12.0, 8.75));
+    let dims = UVec3::new(13, 12, 12);
+    let cases: Vec<(&str, Vec<[Vec3; 3]>, Box<dyn Fn(DVec3) -> bool>)> = vec![
+        ("box", cuboid(a_lo, a_hi, false), Box::new(inside_box(a_lo, a_hi))),
+        // Faces on the grid's first and last boundaries.
+        ("box filling the grid", cuboid(Vec3::ZERO, dims.as_vec3(), false), Box::new(|_| true)),
+        // Two overlapping closed boxes: winding number 2 where they overlap, still inside.
+        ("overlapping boxes", [cuboid(a_lo, a_hi, false), cuboid(b_lo, b_hi, false)].concat(), {
+            let (a, b) = (inside_box(a_lo, a_hi), inside_box(b_lo, b_hi));
+            Box::new(move |p| a(p) || b(p))
+        }),
+        // A cavity: the inner box faces inward, so its inside has winding number 0.
+        ("box with a cavity", [cuboid(a_lo, a_hi, false), cuboid(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25), true)].concat(), {
+            let (a, b) = (inside_box(a_lo, a_hi), inside_box(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25)));
+            Box::new(move |p| a(p) && !b(p))
+        }),
+        // Inside out: winding number -1, which is not inside.
+        ("inward box", cuboid(a_lo, a_hi, true), Box::new(|_| false)),
+        ("octahedron", octahedron(v(6.25, 5.75, 6.0), 5.25), {
+            Box::new(|p: DVec3| (p - DVec3::new(6.25, 5.75, 6.0)).abs().element_sum() < 5.25)
+        }),
+    ];
+    for (name, tris, inside) in cases {
+        let s = spec(dims);
+        let solid = voxelize(&tris, s, Mode::Solid);
+        assert_same_grid(&solid, &expected_solid(&tris, s, inside), name);
+    }
+}
+
+#[test]
+fn solid_matches_the_winding_number_of_an_open_bowl_and_a_holed_sphere() {
+    // A hemisphere (the bowl is open at the top): the winding number is above 1/2 inside the half ball and below
+    // it above the rim, so neither "fill every column from its first crossing" nor parity gets it right.
+    let sphere = meshvox::mesh::builtin::load("sphere").expect("builtin");
+    let tris: Vec<[Vec3; 3]> = sphere.triangles.iter().map(|t| t.map(|p| (p + 1.0) * 12.5 + 0.3)).collect();
+    let bowl: Vec<_> = tris.iter().copied().filter(|t| t.iter().all(|p| p.y <= 12.81)).collect();
+    // The sphere with a ring of faces removed on one side, and its cap off along another axis.
+    let holed: Vec<_> =
+        tris.iter().copied().filter(|t| !t.iter().all(|p| p.x > 22.0) && !t.iter().all(|p| p.z < 3.5)).collect();
+    for (name, mesh) in [("bowl", &bowl), ("holed sphere", &holed)] {
+        assert!(mesh.len() < tris.len(), "{name}: faces were removed");
+        let s = spec(UVec3::splat(26));
+        let solid = voxelize(mesh, s, Mode::Solid);
+        let surface = voxelize(mesh, s, Mode::Surface);
+        let (mut differ, mut checked) = (0, 0);
+        for z in 0..26 {
+            for y in 0..26 {
+                for x in 0..26 {
+                    if surface.get(x, y, z) {
+                        continue;
+                    }
+                    checked += 1;
+                    let w = winding_number(UVec3::new(x, y, z).as_dvec3() + 0.5, mesh);
+                    if (w >= 0.5) != solid.get(x, y, z) {
+                        differ += 1;
+                        // Only where the winding number is near the threshold: next to the open boundary.
+                        assert!((w - 0.5).abs() < 0.25, "{name}: voxel ({x}, {y}, {z}) has winding number {w:.3}");
+                    }
+                }
+            }
+        }
+        eprintln!("{name}: {differ} of {checked} voxels off the surface differ from the winding number");
+        assert!(differ as f64 <= 0.005 * checked as f64, "{name}: {differ} of {checked} differ");
+    }
+}
+
+/// Distance in voxels (Chebyshev) from `v` to the nearest set voxel of `shell`, searched up to `limit`.
+fn distance_to(shell: &VoxelGrid, v: UVec3, limit: u32) -> u32 {
+    let d = shell.spec.dims.as_ivec3();
+    for r in 0..=limit as i32 {
+        for z in -r..=r {
+            for y in -r..=r {
+                for x in -r..=r {
+                    let p = v.as_ivec3() + glam::IVec3::new(x, y, z);
+                    if p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(d).all() && shell.get(p.x as u32, p.y as u32, p.z as u32)
+                    {
+                        return r as u32;
+                    }
+                }
+            }
+        }
+    }
+    limit + 1
+}
+
+#[test]
+fn solid_matches_winding_numbers_on_the_shared_meshes() {
+    if shared_meshes().is_none() {
+        return;
+    }
+    let mut report = Vec::new();
+    for name in all_meshes() {
+        let mesh = meshvox::mesh::load(&name).expect("loads");
+        let bounds = mesh.bounds().expect("bounds");
+        // A non-power-of-two resolution.
+        let s = GridSpec::fit(bounds, Resolution::Count(41), Axis::Longest).expect("fits");
+        let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+        let solid = voxelize(&tris, s, Mode::Solid);
+        let surface = voxelize(&tris, s, Mode::Surface);
+        // Every voxel off the surface on a sample of rows: the winding number is summed over all triangles, so
+        // the whole grid would take minutes on the bunny.
+        let mut rng = Rng::new(11);
+        let rows: Vec<(u32, u32)> =
+            (0..60).map(|_| (rng.below(s.dims.y as u64) as u32, rng.below(s.dims.z as u64) as u32)).collect();
+        let results: Vec<(UVec3, f64, bool)> = rows
+            .par_iter()
+            .flat_map_iter(|&(y, z)| {
+                let (tris, solid, surface) = (&tris, &solid, &surface);
+                (0..s.dims.x).filter(move |&x| !surface.get(x, y, z)).map(move |x| {
+                    let v = UVec3::new(x, y, z);
+                    (v, winding_number(v.as_dvec3() + 0.5, tris), solid.get(x, y, z))
+                })
+            })
+            .collect();
+        let wrong: Vec<_> = results.iter().filter(|(_, w, set)| (*w >= 0.5) != *set).collect();
+        for (v, w, set) in &wrong {
+            let d = distance_to(&surface, *v, 3);
+            assert!(d <= 3, "{name}: voxel {v} (set: {set}) has winding number {w:.3}, {d} voxels from the surface");
+        }
+        let share = wrong.len() as f64 / results.len().max(1) as f64;
+        report.push(format!("{name}: {} of {} sampled voxels differ", wrong.len(), results.len()));
+        assert!(share <= 0.005, "{name}: {} of {} sampled voxels differ from the winding number", wrong.len(), results.len());
+    }
+    eprintln!("{}", report.join("\n"));
+}
+
+/// Empty voxels reachable from outside the grid through face-connected empty voxels.
+fn outside_reach(grid: &VoxelGrid) -> Vec<bool> {
+    let d = grid.spec.dims;
+    let index = |x: u32, y: u32, z: u32| ((z * d.y + y) * d.x + x) as usize;
+    let mut seen = vec![false; (d.x * d.y * d.z) as usize];
+    let mut stack = Vec::new();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let border = x == 0 || y == 0 || z == 0 || x + 1 == d.x || y + 1 == d.y || z + 1 == d.z;
+                if border && !grid.get(x, y, z) {
+                    seen[index(x, y, z)] = true;
+                    stack.push(UVec3::new(x, y, z));
+                }
+            }
+        }
+    }
+    while let Some(v) = stack.pop() {
+        for (axis, step) in [(0, -1i32), (0, 1), (1, -1), (1, 1), (2, -1), (2, 1)] {
+            let mut n = v.as_ivec3();
+            n[axis] += step;
+            if n.cmplt(glam::IVec3::ZERO).any() || n.cmpge(d.as_ivec3()).any() {
+                continue;
+            }
+            let n = n.as_uvec3();
+            if !grid.get(n.x, n.y, n.z) && !seen[index(n.x, n.y, n.z)] {
+                seen[index(n.x, n.y, n.z)] = true;
+                stack.push(n);
+            }
+        }
+    }
+    seen
+}
+
+#[test]
+fn surface6_is_a_thinner_subset_that_still_separates_inside_from_outside() {
+    let mut meshes: Vec<(String, Vec<[Vec3; 3]>, GridSpec)> = Vec::new();
+    for name in ["builtin:sphere", "builtin:torus", "builtin:knot", "builtin:rotated-cube"] {
+        let mesh = meshvox::mesh::load(name).expect("builtin");
+        for r in [23, 64] {
+            let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("fits");
+            meshes.push((format!("{name} at {r}"), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+        }
+    }
+    if let Some(dir) = shared_meshes() {
+        // Spot is closed; the others have holes, so only the subset property applies to them.
+        let mesh = meshvox::mesh::load(&dir.join("spot.obj").to_string_lossy()).expect("spot");
+        let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(57), Axis::Longest).expect("fits");
+        meshes.push(("spot at 57".into(), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+    }
+    meshes.push(("octahedron".into(), octahedron(Vec3::new(6.25, 5.75, 6.0), 5.25), spec(UVec3::new(13, 12, 12))));
+    for (name, tris, s) in meshes {
+        let thin = voxelize(&tris, s, Mode::Surface6);
+        let thick = voxelize(&tris, s, Mode::Surface);
+        let solid = voxelize(&tris, s, Mode::Solid);
+        assert!(thin.words.iter().zip(&thick.words).all(|(a, b)| a & !b == 0), "{name}: surface6 is not a subset");
+        assert!(thin.count() < thick.count() * 9 / 10, "{name}: surface6 {} vs surface {}", thin.count(), thick.count());
+        // Inside voxels: centres inside (in the solid but off the thick surface).
+        let reach = outside_reach(&thin);
+        let d = s.dims;
+        let mut inside = 0;
+        for z in 0..d.z {
+            for y in 0..d.y {
+                for x in 0..d.x {
+                    if solid.get(x, y, z) && !thick.get(x, y, z) {
+                        inside += 1;
+                        assert!(!reach[((z * d.y + y) * d.x + x) as usize], "{name}: outside reaches ({x}, {y}, {z})");
+                    }
+                }
+            }
+        }
+        assert!(inside > 0, "{name}: no inside voxels to protect");
+    }
+}
+
+#[test]
+fn modes_differ_where_they_should() {
+    let mesh = meshvox::mesh::builtin::load("sphere").expect("builtin");
+    let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(30), Axis::Longest).expect("fits");
+    let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid");
+    let surface = voxelize(&tris, s, Mode::Surface);
+    let solid = voxelize(&tris, s, Mode::Solid);
+    assert!(differing_voxels(&surface, &solid).len() > surface.count() as usize, "the solid adds the inside");
+    // A unit sphere at 30 voxels: the solid's volume is the ball's to within the shell.
+    let ball = 4.0 / 3.0 * std::f64::consts::PI * 15f64.powi(3);
+    assert!((solid.count() as f64 - ball).abs() < surface.count() as f64 / 2.0, "{} vs {ball}", solid.count());
+}
+
