@@ -121,7 +121,8 @@ struct RenderArgs {
 }
 
 fn parse_cut(s: &str) -> Result<meshvox::render::Cut, String> {
-    meshvox::render::Cut::parse(s).ok_or_else(|| format!("'{s}': expected x, y or z, a colon and a fraction from 0 to 1"))
+    meshvox::render::Cut::parse(s)
+        .ok_or_else(|| format!("'{s}': expected x, y or z, a colon and a fraction from 0 to 1"))
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -590,8 +591,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     } else {
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
         let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-        let options =
-            meshvox::gpu::voxelize::Options { compact: true, surface_only: true, mode, ..Default::default() };
+        let options = meshvox::gpu::voxelize::Options { compact: true, surface_only: true, mode, ..Default::default() };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
         (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))
     };

@@ -40,6 +40,8 @@ struct Params {
     block_count: u32,
     // Lattice steps per voxel (2^shift): coordinates times this are exact integers below 2^23.
     lattice_scale: f32,
+    // 0: the thick (26-separating) surface test, 2: the thin (6-separating) one (voxel::Mode's order).
+    mode: u32,
 }
 
 struct Edges {
@@ -399,6 +401,124 @@ fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
     return select(2u, 1u, high >= 0.0);
 }
 
+// ---- the thin (6-separating) test: the thick test's values moved inward (see ThinShrink in cpu.rs) ----
+
+struct ThinShrink {
+    plane: f32,
+    xy: vec3<f32>,
+    yz: vec3<f32>,
+    zx: vec3<f32>,
+}
+
+fn plane_shrink(n: vec3<f32>) -> f32 {
+    let a = abs(n);
+    if a.x >= a.y && a.x >= a.z {
+        return 0.5 * (a.y + a.z);
+    } else if a.y >= a.z {
+        return 0.5 * (a.x + a.z);
+    }
+    return 0.5 * (a.x + a.y);
+}
+
+fn edge_shrink(e: Edges) -> vec3<f32> {
+    return vec3<f32>(0.5 * min(abs(e.ne[0].x), abs(e.ne[0].y)), 0.5 * min(abs(e.ne[1].x), abs(e.ne[1].y)),
+        0.5 * min(abs(e.ne[2].x), abs(e.ne[2].y)));
+}
+
+fn thin_shrink(s: TriangleSetup) -> ThinShrink {
+    return ThinShrink(plane_shrink(s.n), edge_shrink(s.xy), edge_shrink(s.yz), edge_shrink(s.zx));
+}
+
+// |2 n . (P - V0) + S sum n_k| <= S max |n_k|, in doubled lattice units.
+fn exact_plane_test_thin(t: u32, p: vec3<u32>) -> bool {
+    let v0 = lattice_vertex(t, 0u);
+    let e0 = lattice_vertex(t, 1u) - v0;
+    let e1 = lattice_vertex(t, 2u) - lattice_vertex(t, 1u);
+    let unit = i32(params.lattice_scale);
+    let d = vec3<i32>(p) * unit - v0;
+    var base = vec4<u32>(0u);
+    var sum = vec4<u32>(0u);
+    var max_abs = vec4<u32>(0u);
+    for (var k = 0u; k < 3u; k++) {
+        let nk = exact_normal_component(e0, e1, k);
+        base = wide_add(base, wide_mul(nk, d[k]));
+        sum = wide_add(sum, nk);
+        var mag = nk;
+        if wide_sign(nk) < 0 {
+            mag = wide_neg(nk);
+        }
+        if wide_sign(wide_add(mag, wide_neg(max_abs))) > 0 {
+            max_abs = mag;
+        }
+    }
+    let value = wide_add(wide_mul(base, 2), wide_mul(sum, unit));
+    let thickness = wide_mul(max_abs, unit);
+    return wide_sign(wide_add(value, thickness)) >= 0 && wide_sign(wide_add(thickness, wide_neg(value))) >= 0;
+}
+
+// 2 ne . (Q - V_i) + S (ne.x + ne.y) + S max(|ne.x|, |ne.y|), doubled: the edge value at the projected diamond.
+fn exact_edge_sign_thin(s: TriangleSetup, t: u32, k: u32, i: u32, p: vec3<u32>) -> i32 {
+    let a = k;
+    let b = (k + 1u) % 3u;
+    let o = select(-1, 1, normal_sign(s.normal_signs, (k + 2u) % 3u) >= 0);
+    let vi = lattice_vertex(t, i);
+    let vj = lattice_vertex(t, (i + 1u) % 3u);
+    let ne = vec2<i32>(-o * (vj[b] - vi[b]), o * (vj[a] - vi[a]));
+    let unit = i32(params.lattice_scale);
+    let q = vec3<i32>(p) * unit;
+    var value = wide_add(wide_mul(wide(ne.x), q[a] - vi[a]), wide_mul(wide(ne.y), q[b] - vi[b]));
+    value = wide_mul(value, 2);
+    value = wide_add(value, wide_mul(wide(ne.x + ne.y), unit));
+    value = wide_add(value, wide_mul(wide(max(abs(ne.x), abs(ne.y))), unit));
+    return wide_sign(value);
+}
+
+fn edge_test_thin(s: TriangleSetup, e: Edges, shrink: vec3<f32>, k: u32, t: u32, p: vec3<u32>, q: vec2<f32>) -> bool {
+    for (var i = 0u; i < 3u; i++) {
+        let c = certain_sign(edge_function(e.ne[i], q, e.de[i]) - shrink[i], e.eps[i]);
+        if c == -1 || (c == 2 && exact_edge_sign_thin(s, t, k, i, p) < 0) {
+            return false;
+        }
+    }
+    return true;
+}
+
+fn voxel_overlaps_exact_thin(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
+    let sh = thin_shrink(s);
+    let pl = vec3<f32>(p - s.lo);
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1 - sh.plane, s.plane_eps);
+    let t2 = certain_sign(np + s.d2 + sh.plane, s.plane_eps);
+    var plane = true;
+    if t1 == -1 || t2 == 1 {
+        plane = false;
+    } else if t1 == 2 || t2 == 2 {
+        plane = exact_plane_test_thin(t, p);
+    }
+    return plane && edge_test_thin(s, s.xy, sh.xy, 0u, t, p, pl.xy) && edge_test_thin(s, s.yz, sh.yz, 1u, t, p, pl.yz)
+        && edge_test_thin(s, s.zx, sh.zx, 2u, t, p, pl.zx);
+}
+
+fn voxel_decision_thin(s: TriangleSetup, sh: ThinShrink, pl: vec3<f32>) -> u32 {
+    let np = dot3(s.n, pl);
+    let v1 = np + s.d1 - sh.plane;
+    let v2 = -(np + s.d2 + sh.plane);
+    let xy = vec3<f32>(edge_function(s.xy.ne[0], pl.xy, s.xy.de[0]), edge_function(s.xy.ne[1], pl.xy, s.xy.de[1]),
+        edge_function(s.xy.ne[2], pl.xy, s.xy.de[2])) - sh.xy;
+    let yz = vec3<f32>(edge_function(s.yz.ne[0], pl.yz, s.yz.de[0]), edge_function(s.yz.ne[1], pl.yz, s.yz.de[1]),
+        edge_function(s.yz.ne[2], pl.yz, s.yz.de[2])) - sh.yz;
+    let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
+        edge_function(s.zx.ne[2], pl.zx, s.zx.de[2])) - sh.zx;
+    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
+    let low = min(min(min(v1, v2) + s.plane_eps, low3.x), min(low3.y, low3.z));
+    if low < 0.0 {
+        return 0u;
+    }
+    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
+    let high = min(min(min(v1, v2) - s.plane_eps, high3.x), min(high3.y, high3.z));
+    return select(2u, 1u, high >= 0.0);
+}
+
 // Narrows [lo, hi] to the integer t where slope * t + offset may be non-negative given its error bound eps,
 // widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu.rs for why
 // this is conservative); ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
@@ -615,6 +735,8 @@ fn walk(item: u32) {
         w_lo_clip = f32(z_lo - s.lo.z);
         w_hi_clip = f32(z_hi - s.lo.z);
     }
+    let thin = params.mode == 2u;
+    let shrink = thin_shrink(s);
     for (var ai = u32(span.x); ai <= u32(span.y); ai++) {
         var pl = vec3<f32>(0.0);
         pl[a] = f32(ai);
@@ -631,7 +753,12 @@ fn walk(item: u32) {
         for (var wi = u32(w0); wi <= u32(w1); wi++) {
             pl[w] = f32(wi);
             let p = s.lo + vec3<u32>(pl);
-            let d = voxel_decision(s, pl);
+            var d: u32;
+            if thin {
+                d = voxel_decision_thin(s, shrink, pl);
+            } else {
+                d = voxel_decision(s, pl);
+            }
             if d == 1u {
                 set_voxel(p);
             } else if d == 2u {
@@ -671,7 +798,392 @@ fn exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
         return;
     }
     let entry = unsure[i];
-    if voxel_overlaps_exact(setups[entry.x], entry.x, entry.yzw) {
+    var overlaps: bool;
+    if params.mode == 2u {
+        overlaps = voxel_overlaps_exact_thin(setups[entry.x], entry.x, entry.yzw);
+    } else {
+        overlaps = voxel_overlaps_exact(setups[entry.x], entry.x, entry.yzw);
+    }
+    if overlaps {
         set_voxel(entry.yzw);
     }
+}
+
+// ---- solid: the inside voxels, mirroring app/voxel/solid.rs (see there for the algorithm and why) ----
+//
+//   count_crossings   one workgroup per triangle: its invocations share the rows (y, z) under the triangle's YZ
+//                     bounding box and count, per row, the exact crossings of the row's centre line
+//   allocate_rows     per row: a segment of the crossing list (atomic bump allocation: segments are contiguous,
+//                     their order does not matter) and the counter reset to serve as the write cursor
+//   write_crossings   as count_crossings, writing each crossing's exact first voxel and sign into the segment
+//   fill_rows         per row of the current z-slab: sort the segment, then set the inside voxels (integer
+//                     counts where the crossings cancel, winding numbers with the boundary term elsewhere)
+// These passes have their own bindings (8 and up), never the surface passes' ones.
+
+struct SolidParams {
+    dims: vec3<u32>,
+    tri_count: u32,
+    words_per_row: u32,
+    slab_z0: u32,
+    slab_z1: u32,
+    edge_count: u32,
+    // The boundary's YZ extent: (lo.y, lo.z, hi.y, hi.z).
+    extent: vec4<f32>,
+    lattice_scale: f32,
+    pad: u32,
+}
+
+@group(0) @binding(8) var<uniform> solid: SolidParams;
+@group(0) @binding(9) var<storage, read> solid_triangles: array<f32>;
+@group(0) @binding(10) var<storage, read_write> row_counts: array<atomic<u32>>;
+// Per row: the segment's first index and length.
+@group(0) @binding(11) var<storage, read_write> row_segments: array<vec2<u32>>;
+@group(0) @binding(12) var<storage, read_write> crossings: array<u32>;
+// Two vec4 per edge: (a, weight), (b, 0).
+@group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
+@group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
+
+const RUN_STACK: u32 = 40u;
+
+fn solid_vertex(t: u32, i: u32) -> vec3<f32> {
+    let b = 9u * t + 3u * i;
+    return vec3<f32>(solid_triangles[b], solid_triangles[b + 1u], solid_triangles[b + 2u]);
+}
+
+// The exact product of two i32 as a 128-bit integer.
+fn wide_product(a: i32, b: i32) -> vec4<u32> {
+    let p = mul_u32(bitcast<u32>(abs(a)), bitcast<u32>(abs(b)));
+    let r = vec4<u32>(p.x, p.y, 0u, 0u);
+    if (a < 0) != (b < 0) {
+        return wide_neg(r);
+    }
+    return r;
+}
+
+// (b - a) x (q - a) in the YZ plane, doubled lattice units: its sign.
+fn edge_yz(a: vec3<i32>, b: vec3<i32>, q: vec2<i32>) -> i32 {
+    return wide_sign(wide_add(wide_product(b.y - a.y, q.y - a.z), wide_neg(wide_product(b.z - a.z, q.x - a.y))));
+}
+
+struct CrossingSetup {
+    // Doubled lattice units, counter-clockwise in YZ.
+    v0: vec3<i32>,
+    v1: vec3<i32>,
+    v2: vec3<i32>,
+    sign: i32,
+    lo: vec2<u32>,
+    hi: vec2<u32>,
+}
+
+fn crossing_setup(t: u32) -> CrossingSetup {
+    var s: CrossingSetup;
+    let p0 = solid_vertex(t, 0u);
+    let p1 = solid_vertex(t, 1u);
+    let p2 = solid_vertex(t, 2u);
+    let u0 = vec3<i32>(p0 * solid.lattice_scale) * 2;
+    let u1 = vec3<i32>(p1 * solid.lattice_scale) * 2;
+    let u2 = vec3<i32>(p2 * solid.lattice_scale) * 2;
+    let area = edge_yz(u0, u1, u2.yz);
+    s.sign = area;
+    s.v0 = u0;
+    s.v1 = u1;
+    s.v2 = u2;
+    if area < 0 {
+        s.v1 = u2;
+        s.v2 = u1;
+    }
+    let mn = min(min(p0, p1), p2);
+    let mx = max(max(p0, p1), p2);
+    let lo_y = max(ceil(mn.y - 0.5), 0.0);
+    let lo_z = max(ceil(mn.z - 0.5), 0.0);
+    let hi_y = min(floor(mx.y - 0.5), f32(solid.dims.y) - 1.0);
+    let hi_z = min(floor(mx.z - 0.5), f32(solid.dims.z) - 1.0);
+    if area == 0 || lo_y > hi_y || lo_z > hi_z {
+        s.sign = 0;
+        s.lo = vec2<u32>(1u);
+        s.hi = vec2<u32>(0u);
+        return s;
+    }
+    s.lo = vec2<u32>(u32(lo_y), u32(lo_z));
+    s.hi = vec2<u32>(u32(hi_y), u32(hi_z));
+    return s;
+}
+
+fn covers_edge(a: vec3<i32>, b: vec3<i32>, q: vec2<i32>) -> bool {
+    let e = edge_yz(a, b, q);
+    let d = b - a;
+    return e > 0 || (e == 0 && (d.z > 0 || (d.z == 0 && d.y > 0)));
+}
+
+fn covers_row(s: CrossingSetup, y: u32, z: u32) -> bool {
+    let unit = i32(solid.lattice_scale);
+    let q = vec2<i32>(i32(2u * y + 1u) * unit, i32(2u * z + 1u) * unit);
+    return covers_edge(s.v0, s.v1, q) && covers_edge(s.v1, s.v2, q) && covers_edge(s.v2, s.v0, q);
+}
+
+// The centre of voxel k of row (y, z) is at or beyond the triangle's plane along +x (t: lattice units).
+fn beyond_plane(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, k: u32, y: u32, z: u32) -> bool {
+    let unit = i32(solid.lattice_scale);
+    let e0 = t1 - t0;
+    let e1 = t2 - t1;
+    let p = vec3<i32>(i32(2u * k + 1u), i32(2u * y + 1u), i32(2u * z + 1u)) * unit;
+    let d = p - t0 * 2;
+    var f = vec4<u32>(0u);
+    for (var c = 0u; c < 3u; c++) {
+        f = wide_add(f, wide_mul(exact_normal_component(e0, e1, c), d[c]));
+    }
+    return wide_sign(f) * sign >= 0;
+}
+
+fn crossing_voxel_at(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, k: u32, y: u32, z: u32) -> bool {
+    return k >= solid.dims.x || beyond_plane(t0, t1, t2, sign, k, y, z);
+}
+
+fn crossing_voxel_exact(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, x: f32, y: u32, z: u32) -> u32 {
+    let guess = ceil(x - 0.5);
+    var k = 0u;
+    if guess >= 0.0 && guess <= f32(solid.dims.x) {
+        k = u32(guess);
+    }
+    if crossing_voxel_at(t0, t1, t2, sign, k, y, z) && (k == 0u || !crossing_voxel_at(t0, t1, t2, sign, k - 1u, y, z)) {
+        return k;
+    }
+    var lo = 0u;
+    var hi = solid.dims.x;
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2u;
+        if crossing_voxel_at(t0, t1, t2, sign, mid, y, z) {
+            hi = mid;
+        } else {
+            lo = mid + 1u;
+        }
+    }
+    return lo;
+}
+
+// The packed crossing of triangle t with row (y, z) (covered by it).
+fn row_crossing(t: u32, s: CrossingSetup, y: u32, z: u32) -> u32 {
+    let p0 = solid_vertex(t, 0u);
+    let e0 = solid_vertex(t, 1u) - p0;
+    let e1 = solid_vertex(t, 2u) - p0;
+    let n = cross(e0, e1);
+    let x = p0.x - (n.y * (f32(y) + 0.5 - p0.y) + n.z * (f32(z) + 0.5 - p0.z)) / n.x;
+    let t0 = vec3<i32>(p0 * solid.lattice_scale);
+    let t1 = vec3<i32>(solid_vertex(t, 1u) * solid.lattice_scale);
+    let t2 = vec3<i32>(solid_vertex(t, 2u) * solid.lattice_scale);
+    let k = crossing_voxel_exact(t0, t1, t2, s.sign, x, y, z);
+    return (k << 1u) | select(0u, 1u, s.sign > 0);
+}
+
+@compute @workgroup_size(64)
+fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                   @builtin(num_workgroups) groups: vec3<u32>) {
+    let t = wid.y * groups.x + wid.x;
+    if t >= solid.tri_count {
+        return;
+    }
+    let s = crossing_setup(t);
+    if s.sign == 0 {
+        return;
+    }
+    let width = s.hi.x - s.lo.x + 1u;
+    let total = width * (s.hi.y - s.lo.y + 1u);
+    for (var i = lid.x; i < total; i += 64u) {
+        let y = s.lo.x + i % width;
+        let z = s.lo.y + i / width;
+        if covers_row(s, y, z) {
+            atomicAdd(&row_counts[z * solid.dims.y + y], 1u);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                 @builtin(num_workgroups) groups: vec3<u32>) {
+    let row = linear_id(wid, lid, groups, 64u);
+    if row >= solid.dims.y * solid.dims.z {
+        return;
+    }
+    let n = atomicLoad(&row_counts[row]);
+    var start = 0u;
+    if n > 0u {
+        start = atomicAdd(&crossing_total[0], n);
+    }
+    row_segments[row] = vec2<u32>(start, n);
+    atomicStore(&row_counts[row], 0u);
+}
+
+@compute @workgroup_size(64)
+fn write_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                   @builtin(num_workgroups) groups: vec3<u32>) {
+    let t = wid.y * groups.x + wid.x;
+    if t >= solid.tri_count {
+        return;
+    }
+    let s = crossing_setup(t);
+    if s.sign == 0 {
+        return;
+    }
+    let width = s.hi.x - s.lo.x + 1u;
+    let total = width * (s.hi.y - s.lo.y + 1u);
+    for (var i = lid.x; i < total; i += 64u) {
+        let y = s.lo.x + i % width;
+        let z = s.lo.y + i / width;
+        if covers_row(s, y, z) {
+            let row = z * solid.dims.y + y;
+            let slot = atomicAdd(&row_counts[row], 1u);
+            let segment = row_segments[row];
+            if slot < segment.y && segment.x + slot < arrayLength(&crossings) {
+                crossings[segment.x + slot] = row_crossing(t, s, y, z);
+            }
+        }
+    }
+}
+
+fn crossing_sign(c: u32) -> i32 {
+    return select(-1, 1, (c & 1u) != 0u);
+}
+
+// Sets bits k0..k1 (exclusive) of the row whose first word is `base` in the slab.
+fn set_range(base: u32, k0: u32, k1: u32) {
+    var k = k0;
+    while k < k1 {
+        let b = k % 32u;
+        let n = min(32u - b, k1 - k);
+        var mask = 0xffffffffu;
+        if n < 32u {
+            mask = ((1u << n) - 1u) << b;
+        }
+        atomicOr(&solid_grid[base + k / 32u], mask);
+        k += n;
+    }
+}
+
+fn cone_solid_angle(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let la = length(a);
+    let lb = length(b);
+    let num = a.y * b.z - a.z * b.y;
+    let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
+    return 2.0 * atan2(num, den);
+}
+
+fn winding_number(count: i32, p: vec3<f32>) -> f32 {
+    var sum = 0.0;
+    for (var e = 0u; e < solid.edge_count; e++) {
+        let a = boundary[2u * e];
+        let b = boundary[2u * e + 1u];
+        sum += a.w * cone_solid_angle(a.xyz - p, b.xyz - p);
+    }
+    return f32(count) + sum * (1.0 / (4.0 * 3.14159265358979));
+}
+
+fn inside_open(count: i32, k: u32, y: u32, z: u32) -> bool {
+    return winding_number(count, vec3<f32>(f32(k) + 0.5, f32(y) + 0.5, f32(z) + 0.5)) >= 0.5;
+}
+
+fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
+    var stack: array<vec4<u32>, RUN_STACK>;
+    stack[0] = vec4<u32>(first, last, u32(inside_open(count, first, y, z)), u32(inside_open(count, last, y, z)));
+    var len = 1u;
+    while len > 0u {
+        len -= 1u;
+        let e = stack[len];
+        let a = e.x;
+        let b = e.y;
+        let ia = e.z != 0u;
+        let ib = e.w != 0u;
+        if b - a <= 1u {
+            if ia {
+                set_range(base, a, a + 1u);
+            }
+            if ib {
+                set_range(base, b, b + 1u);
+            }
+            continue;
+        }
+        let m = a + (b - a) / 2u;
+        let im = inside_open(count, m, y, z);
+        if ia == ib && ia == im {
+            if ia {
+                set_range(base, a, b + 1u);
+            }
+            continue;
+        }
+        if len + 2u > RUN_STACK {
+            if im {
+                set_range(base, a, b + 1u);
+            }
+            continue;
+        }
+        stack[len] = vec4<u32>(m, b, u32(im), u32(ib));
+        stack[len + 1u] = vec4<u32>(a, m, u32(ia), u32(im));
+        len += 2u;
+    }
+}
+
+fn near_boundary(y: u32, z: u32) -> bool {
+    let cy = f32(y) + 0.5;
+    let cz = f32(z) + 0.5;
+    return cy >= solid.extent.x && cy <= solid.extent.z && cz >= solid.extent.y && cz <= solid.extent.w;
+}
+
+// The row's crossings are solid's crossings[start .. start + n], sorted here (insertion sort: rows hold a
+// handful).
+fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
+    var total = 0;
+    for (var i = 1u; i < n; i++) {
+        let c = crossings[start + i];
+        var j = i;
+        while j > 0u && crossings[start + j - 1u] > c {
+            crossings[start + j] = crossings[start + j - 1u];
+            j -= 1u;
+        }
+        crossings[start + j] = c;
+    }
+    for (var i = 0u; i < n; i++) {
+        total += crossing_sign(crossings[start + i]);
+    }
+    let open = total != 0 || near;
+    var i = 0u;
+    var before = 0;
+    var k0 = 0u;
+    let dims_x = solid.dims.x;
+    while k0 < dims_x {
+        while i < n && (crossings[start + i] >> 1u) <= k0 {
+            before += crossing_sign(crossings[start + i]);
+            i += 1u;
+        }
+        var k1 = dims_x;
+        if i < n {
+            k1 = min(crossings[start + i] >> 1u, dims_x);
+        }
+        let count = -before;
+        if !open {
+            if count >= 1 {
+                set_range(base, k0, k1);
+            }
+        } else {
+            fill_open_run(count, k0, k1 - 1u, y, z, base);
+        }
+        k0 = k1;
+    }
+}
+
+@compute @workgroup_size(64)
+fn fill_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+             @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = linear_id(wid, lid, groups, 64u);
+    let rows = solid.dims.y * (solid.slab_z1 - solid.slab_z0);
+    if i >= rows {
+        return;
+    }
+    let y = i % solid.dims.y;
+    let z = solid.slab_z0 + i / solid.dims.y;
+    let segment = row_segments[z * solid.dims.y + y];
+    let near = near_boundary(y, z);
+    if segment.y == 0u && !near {
+        return;
+    }
+    fill_row(segment.x, segment.y, y, z, near, i * solid.words_per_row);
 }

@@ -3,6 +3,7 @@
 
 pub mod compact;
 mod readback;
+mod solid;
 pub mod voxelize;
 
 pub use readback::watchdog;

@@ -8,6 +8,7 @@
 
 use super::compact::{CompactVoxels, Compactor, Slab};
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
+use super::solid::{SolidPipelines, SolidRun};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
@@ -38,7 +39,9 @@ struct Params {
     slab_z1: u32,
     block_count: u32,
     lattice_scale: f32,
-    _pad: [u32; 3],
+    /// 0 for the thick surface test, 2 for the thin one (the order of [`Mode`]; solid uses the thick test).
+    mode: u32,
+    _pad: [u32; 2],
 }
 
 /// What to do besides voxelizing.
@@ -94,6 +97,7 @@ pub struct GpuVoxelizer {
     prepare_exact: wgpu::ComputePipeline,
     exact: wgpu::ComputePipeline,
     compactor: Compactor,
+    solid: SolidPipelines,
 }
 
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -228,6 +232,7 @@ impl GpuVoxelizer {
             prepare_exact: pipeline(device, &module, &two, "prepare_exact"),
             exact: pipeline(device, &module, &one, "exact"),
             compactor: Compactor::new(gpu),
+            solid: SolidPipelines::new(device, &module),
             layout,
             dispatch_layout,
         }
@@ -282,7 +287,7 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
-        let (grid, stats) = cpu::voxelize_grid_space_with_stats(triangles, spec, &|_, _| {})?;
+        let (grid, stats) = cpu::voxelize_grid_space_mode(triangles, spec, options.mode, &|_, _| {})?;
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let mut points = Vec::new();
         if options.compact {
@@ -331,6 +336,7 @@ impl GpuVoxelizer {
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
         let triangles: &[[Vec3; 3]] = &triangles;
         let lattice_scale = lattice.scale();
+        let surface_mode = if options.mode == Mode::Surface6 { 2 } else { 0 };
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
@@ -347,6 +353,7 @@ impl GpuVoxelizer {
         let mut gpu_ms = 0.0;
         let mut exact_tests = None;
         let mut points: Vec<CompactVoxels> = Vec::new();
+        let mut solid_run: Option<SolidRun> = None;
 
         let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
         // At most 65,535 workgroups for the `exact` pass's one-dimensional indirect dispatch.
@@ -406,7 +413,8 @@ impl GpuVoxelizer {
                     slab_z1: 0,
                     block_count,
                     lattice_scale,
-                    _pad: [0; 3],
+                    mode: surface_mode,
+                    _pad: [0; 2],
                 };
                 gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
                 let mut encoder = device.create_command_encoder(&Default::default());
@@ -431,6 +439,14 @@ impl GpuVoxelizer {
                 Ok(())
             })
             .await?;
+            if options.mode == Mode::Solid && solid_run.is_none() {
+                if batches > 1 {
+                    // The crossing lists need every triangle at once; meshes too large for one binding get the
+                    // CPU reference's solid instead (flagged as decided on the CPU).
+                    return Ok(Attempt::Overflow);
+                }
+                solid_run = Some(self.solid.prepare(gpu, triangles, &tris_buf, spec, lattice, &slab).await?);
+            }
 
             for s in 0..slabs {
                 let z0 = s * slab_layers;
@@ -443,7 +459,8 @@ impl GpuVoxelizer {
                     slab_z1: z1,
                     block_count,
                     lattice_scale,
-                    _pad: [0; 3],
+                    mode: surface_mode,
+                    _pad: [0; 2],
                 };
                 let words = wpr * spec.dims.y as u64 * (z1 - z0) as u64;
                 scoped(device, || {
@@ -473,6 +490,9 @@ impl GpuVoxelizer {
                         pass.set_bind_group(0, &bind, &[]);
                         pass.set_pipeline(&self.exact);
                         pass.dispatch_workgroups_indirect(&dispatch, 12);
+                    }
+                    if let Some(run) = &solid_run {
+                        self.solid.fill(gpu, run, &mut encoder, z0, z1);
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())

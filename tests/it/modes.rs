@@ -90,10 +90,14 @@ fn solid_is_exact_on_closed_meshes_with_known_insides() {
             Box::new(move |p| a(p) || b(p))
         }),
         // A cavity: the inner box faces inward, so its inside has winding number 0.
-        ("box with a cavity", [cuboid(a_lo, a_hi, false), cuboid(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25), true)].concat(), {
-            let (a, b) = (inside_box(a_lo, a_hi), inside_box(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25)));
-            Box::new(move |p| a(p) && !b(p))
-        }),
+        (
+            "box with a cavity",
+            [cuboid(a_lo, a_hi, false), cuboid(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25), true)].concat(),
+            {
+                let (a, b) = (inside_box(a_lo, a_hi), inside_box(v(2.25, 3.5, 4.0), v(7.0, 5.75, 9.25)));
+                Box::new(move |p| a(p) && !b(p))
+            },
+        ),
         // Inside out: winding number -1, which is not inside.
         ("inward box", cuboid(a_lo, a_hi, true), Box::new(|_| false)),
         ("octahedron", octahedron(v(6.25, 5.75, 6.0), 5.25), {
@@ -152,7 +156,9 @@ fn distance_to(shell: &VoxelGrid, v: UVec3, limit: u32) -> u32 {
             for y in -r..=r {
                 for x in -r..=r {
                     let p = v.as_ivec3() + glam::IVec3::new(x, y, z);
-                    if p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(d).all() && shell.get(p.x as u32, p.y as u32, p.z as u32)
+                    if p.cmpge(glam::IVec3::ZERO).all()
+                        && p.cmplt(d).all()
+                        && shell.get(p.x as u32, p.y as u32, p.z as u32)
                     {
                         return r as u32;
                     }
@@ -199,7 +205,12 @@ fn solid_matches_winding_numbers_on_the_shared_meshes() {
         }
         let share = wrong.len() as f64 / results.len().max(1) as f64;
         report.push(format!("{name}: {} of {} sampled voxels differ", wrong.len(), results.len()));
-        assert!(share <= 0.005, "{name}: {} of {} sampled voxels differ from the winding number", wrong.len(), results.len());
+        assert!(
+            share <= 0.005,
+            "{name}: {} of {} sampled voxels differ from the winding number",
+            wrong.len(),
+            results.len()
+        );
     }
     eprintln!("{}", report.join("\n"));
 }
@@ -260,7 +271,12 @@ fn surface6_is_a_thinner_subset_that_still_separates_inside_from_outside() {
         let thick = voxelize(&tris, s, Mode::Surface);
         let solid = voxelize(&tris, s, Mode::Solid);
         assert!(thin.words.iter().zip(&thick.words).all(|(a, b)| a & !b == 0), "{name}: surface6 is not a subset");
-        assert!(thin.count() < thick.count() * 9 / 10, "{name}: surface6 {} vs surface {}", thin.count(), thick.count());
+        assert!(
+            thin.count() < thick.count() * 9 / 10,
+            "{name}: surface6 {} vs surface {}",
+            thin.count(),
+            thick.count()
+        );
         // Inside voxels: centres inside (in the solid but off the thick surface).
         let reach = outside_reach(&thin);
         let d = s.dims;
@@ -291,4 +307,3 @@ fn modes_differ_where_they_should() {
     let ball = 4.0 / 3.0 * std::f64::consts::PI * 15f64.powi(3);
     assert!((solid.count() as f64 - ball).abs() < surface.count() as f64 / 2.0, "{} vs {ball}", solid.count());
 }
-

@@ -1,0 +1,202 @@
+//! The solid passes of `shaders/voxelize.wgsl` (`count_crossings`, `allocate_rows`, `write_crossings`,
+//! `fill_rows`) on a [`Gpu`]: the inside voxels added to the surface pass's grid slabs. The algorithm and its
+//! CPU reference are in [`crate::voxel::solid`].
+//!
+//! The crossing list is sized by one readback of its length between counting and writing; the boundary edges
+//! (which only open meshes have) are found on the host, where welding vertices by position is a sort.
+
+use super::readback::{first_word, read_buffer};
+use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::solid::{BoundaryEdge, boundary_edges, boundary_extent};
+use crate::voxel::{GridSpec, Lattice};
+use glam::Vec3;
+
+const WG: u32 = 64;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct SolidParams {
+    dims: [u32; 3],
+    tri_count: u32,
+    words_per_row: u32,
+    slab_z0: u32,
+    slab_z1: u32,
+    edge_count: u32,
+    extent: [f32; 4],
+    lattice_scale: f32,
+    _pad: [u32; 3],
+}
+
+/// The compiled solid pipelines.
+pub(crate) struct SolidPipelines {
+    layout: wgpu::BindGroupLayout,
+    count: wgpu::ComputePipeline,
+    allocate: wgpu::ComputePipeline,
+    write: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
+}
+
+/// One solid voxelization's buffers, with the crossing lists written: ready to fill slab after slab.
+pub(crate) struct SolidRun {
+    params: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    base: SolidParams,
+    // Kept alive for the bind group.
+    _buffers: Vec<wgpu::Buffer>,
+}
+
+fn buffer(device: &wgpu::Device, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(4).next_multiple_of(4),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | usage,
+        mapped_at_creation: false,
+    })
+}
+
+impl SolidPipelines {
+    pub fn new(device: &wgpu::Device, module: &wgpu::ShaderModule) -> SolidPipelines {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("solid"),
+            entries: &[
+                uniform_entry(8),
+                storage_entry(9, true),
+                storage_entry(10, false),
+                storage_entry(11, false),
+                storage_entry(12, false),
+                storage_entry(13, true),
+                storage_entry(14, false),
+                storage_entry(15, false),
+            ],
+        });
+        let one = [Some(&layout)];
+        SolidPipelines {
+            count: pipeline(device, module, &one, "count_crossings"),
+            allocate: pipeline(device, module, &one, "allocate_rows"),
+            write: pipeline(device, module, &one, "write_crossings"),
+            fill: pipeline(device, module, &one, "fill_rows"),
+            layout,
+        }
+    }
+
+    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry { binding: 8 + i as u32, resource: b.as_entire_binding() })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("solid"),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+
+    /// Lists the crossings of `triangles` (lattice triangles, already uploaded in `tris`) with every row of
+    /// `spec`'s grid. `slab` is the grid slab buffer the fills will OR into.
+    pub async fn prepare(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        tris: &wgpu::Buffer,
+        spec: GridSpec,
+        lattice: Lattice,
+        slab: &wgpu::Buffer,
+    ) -> Result<SolidRun, GpuError> {
+        let device = &gpu.device;
+        let limit = gpu.max_binding_bytes();
+        let rows = spec.dims.y as u64 * spec.dims.z as u64;
+        if rows * 8 > limit {
+            return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
+        }
+        let edges = boundary_edges(triangles, lattice);
+        let (lo, hi) = boundary_extent(&edges);
+        let base = SolidParams {
+            dims: spec.dims.to_array(),
+            tri_count: triangles.len() as u32,
+            words_per_row: spec.words_per_row() as u32,
+            slab_z0: 0,
+            slab_z1: spec.dims.z,
+            edge_count: edges.len() as u32,
+            extent: [lo[0], lo[1], hi[0], hi[1]],
+            lattice_scale: lattice.scale(),
+            _pad: [0; 3],
+        };
+        let edge_bytes: &[u8] = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges);
+        let (params, counts, segments, placeholder, boundary, total) = scoped(device, || {
+            let params = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("solid params"),
+                size: std::mem::size_of::<SolidParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let counts = buffer(device, "row counts", rows * 4, wgpu::BufferUsages::empty());
+            let segments = buffer(device, "row segments", rows * 8, wgpu::BufferUsages::empty());
+            let placeholder = buffer(device, "crossings (placeholder)", 4, wgpu::BufferUsages::empty());
+            let boundary = buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), wgpu::BufferUsages::empty());
+            let total = buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
+            gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
+            if !edge_bytes.is_empty() {
+                gpu.queue.write_buffer(&boundary, 0, edge_bytes);
+            }
+            Ok((params, counts, segments, placeholder, boundary, total))
+        })
+        .await?;
+        let tri_groups = dispatch_2d(triangles.len() as u32);
+        let row_groups = dispatch_2d((rows as u32).div_ceil(WG));
+        let first = self.bind(device, [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total]);
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_bind_group(0, &first, &[]);
+                pass.set_pipeline(&self.count);
+                pass.dispatch_workgroups(tri_groups.0, tri_groups.1, 1);
+                pass.set_pipeline(&self.allocate);
+                pass.dispatch_workgroups(row_groups.0, row_groups.1, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await?;
+        let listed = first_word(&read_buffer(device, &gpu.queue, &total, 0, 4).await?).unwrap_or(0) as u64;
+        if listed * 4 > limit {
+            return Err(GpuError::TooLarge {
+                what: "the solid pass's crossing list".into(),
+                needed: listed * 4,
+                limit,
+            });
+        }
+        let crossings =
+            scoped(device, || Ok(buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
+        let bind = self.bind(device, [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total]);
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_bind_group(0, &bind, &[]);
+                pass.set_pipeline(&self.write);
+                pass.dispatch_workgroups(tri_groups.0, tri_groups.1, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await?;
+        Ok(SolidRun { params, bind, base, _buffers: vec![counts, segments, crossings, boundary, total, placeholder] })
+    }
+
+    /// Adds the inside voxels of rows in `z0..z1` to the slab (recorded into `encoder`; the slab bounds go to the
+    /// queue, ahead of the submit).
+    pub fn fill(&self, gpu: &Gpu, run: &SolidRun, encoder: &mut wgpu::CommandEncoder, z0: u32, z1: u32) {
+        let p = SolidParams { slab_z0: z0, slab_z1: z1, ..run.base };
+        gpu.queue.write_buffer(&run.params, 0, bytemuck::bytes_of(&p));
+        let rows = run.base.dims[1] * (z1 - z0);
+        let (x, y) = dispatch_2d(rows.div_ceil(WG));
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("fill rows"), timestamp_writes: None });
+        pass.set_bind_group(0, &run.bind, &[]);
+        pass.set_pipeline(&self.fill);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+}
