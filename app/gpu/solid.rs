@@ -134,7 +134,8 @@ impl SolidPipelines {
             let counts = buffer(device, "row counts", rows * 4, wgpu::BufferUsages::empty());
             let segments = buffer(device, "row segments", rows * 8, wgpu::BufferUsages::empty());
             let placeholder = buffer(device, "crossings (placeholder)", 4, wgpu::BufferUsages::empty());
-            let boundary = buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), wgpu::BufferUsages::empty());
+            let boundary =
+                buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), wgpu::BufferUsages::empty());
             let total = buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
             gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
             if !edge_bytes.is_empty() {

@@ -16,7 +16,7 @@ use std::sync::OnceLock;
 
 /// One device for the whole test binary. Without an adapter the tests are skipped loudly, except under
 /// `CI=true` where `.ci/run` installs lavapipe and a missing adapter is a failure.
-fn gpu() -> Option<&'static (Gpu, GpuVoxelizer)> {
+pub(crate) fn gpu() -> Option<&'static (Gpu, GpuVoxelizer)> {
     static GPU: OnceLock<Option<(Gpu, GpuVoxelizer)>> = OnceLock::new();
     GPU.get_or_init(|| match Gpu::new_blocking() {
         Ok(gpu) => {

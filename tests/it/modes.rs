@@ -80,7 +80,8 @@ fn solid_is_exact_on_closed_meshes_with_known_insides() {
     let (a_lo, a_hi) = (v(0.25, 1.75, 2.0), v(9.75, 7.25, 11.5));
     let (b_lo, b_hi) = (v(5.5, 3.25, 0.0), v(13.0, 12.0, 8.75));
     let dims = UVec3::new(13, 12, 12);
-    let cases: Vec<(&str, Vec<[Vec3; 3]>, Box<dyn Fn(DVec3) -> bool>)> = vec![
+    type Inside = Box<dyn Fn(DVec3) -> bool>;
+    let cases: Vec<(&str, Vec<[Vec3; 3]>, Inside)> = vec![
         ("box", cuboid(a_lo, a_hi, false), Box::new(inside_box(a_lo, a_hi))),
         // Faces on the grid's first and last boundaries.
         ("box filling the grid", cuboid(Vec3::ZERO, dims.as_vec3(), false), Box::new(|_| true)),
@@ -306,4 +307,45 @@ fn modes_differ_where_they_should() {
     // A unit sphere at 30 voxels: the solid's volume is the ball's to within the shell.
     let ball = 4.0 / 3.0 * std::f64::consts::PI * 15f64.powi(3);
     assert!((solid.count() as f64 - ball).abs() < surface.count() as f64 / 2.0, "{} vs {ball}", solid.count());
+}
+
+#[test]
+fn gpu_matches_the_cpu_reference_in_every_mode() {
+    use meshvox::gpu::voxelize::Options;
+    let Some((gpu, v)) = crate::gpu::gpu() else { return };
+    let mut cases: Vec<(String, Vec<[Vec3; 3]>, GridSpec)> = Vec::new();
+    for name in all_meshes() {
+        let mesh = meshvox::mesh::load(&name).expect("loads");
+        for r in [29, 96] {
+            let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("fits");
+            cases.push((format!("{name} at {r}"), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+        }
+    }
+    let v3 = Vec3::new;
+    cases.push((
+        "cavity".into(),
+        [
+            cuboid(v3(0.25, 1.75, 2.0), v3(9.75, 7.25, 11.5), false),
+            cuboid(v3(2.25, 3.5, 4.0), v3(7.0, 5.75, 9.25), true),
+        ]
+        .concat(),
+        spec(UVec3::new(13, 12, 12)),
+    ));
+    cases.push((
+        "grid-filling box".into(),
+        cuboid(Vec3::ZERO, v3(13.0, 12.0, 12.0), false),
+        spec(UVec3::new(13, 12, 12)),
+    ));
+    for (name, tris, s) in &cases {
+        for mode in Mode::ALL {
+            let reference = voxelize(tris, *s, mode);
+            // Whole, and in slabs of five layers (the solid fill then runs once per slab).
+            for slab in [None, Some(s.words_per_row() as u64 * 4 * s.dims.y as u64 * 5)] {
+                let options = Options { read_grid: true, mode, max_slab_bytes: slab, ..Default::default() };
+                let out = v.voxelize(gpu, tris, *s, &options).unwrap_or_else(|e| panic!("{name} {mode}: {e}"));
+                assert!(!out.decided_on_cpu, "{name} {mode}: decided on the CPU");
+                assert_same_grid(&out.grid.expect("grid"), &reference, &format!("{name} {mode} slab {slab:?}"));
+            }
+        }
+    }
 }
