@@ -54,6 +54,18 @@ mod web_entry {
         web::send(Command::SetResolution(resolution));
     }
 
+    /// Voxelizes in another mode: `surface`, `solid` or `surface6` (the panel's mode picker).
+    #[wasm_bindgen(js_name = setMode)]
+    pub fn set_mode(mode: String) {
+        web::send(Command::SetMode(mode));
+    }
+
+    /// Cuts the view away at `x:0.5` and the like (an empty string removes the cut).
+    #[wasm_bindgen(js_name = setCut)]
+    pub fn set_cut(cut: String) {
+        web::send(Command::SetCut(cut));
+    }
+
     /// Shows a bundled mesh (the name after `builtin:`).
     #[wasm_bindgen(js_name = loadBuiltin)]
     pub fn load_builtin(name: String) {

@@ -18,7 +18,7 @@ use crate::mesh::{self, Mesh, builtin};
 use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
 #[cfg(not(target_arch = "wasm32"))]
 use crate::voxel::export;
-use crate::voxel::{Axis, GridSpec, Resolution, VoxelGrid, budget, cpu};
+use crate::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, budget, cpu};
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
@@ -32,6 +32,7 @@ pub struct Stats {
     pub dims: [u32; 3],
     pub voxels: u64,
     pub resolution: u32,
+    pub mode: Mode,
     pub gpu_ms: Option<f64>,
     pub voxelize_ms: f64,
 }
@@ -53,6 +54,7 @@ struct Pending {
     label: String,
     mesh: Arc<Mesh>,
     resolution: u32,
+    mode: Mode,
     spec: GridSpec,
     /// Whether the camera frames the result: decided when the work starts, so a mesh picked meanwhile is
     /// framed by its own voxelization rather than by the one still running.
@@ -72,6 +74,10 @@ pub struct ViewerApp {
     mesh: Option<Arc<Mesh>>,
     resolution: u32,
     axis: Axis,
+    mode: Mode,
+    /// The cut-away plane (axis and fraction), and whether it is on.
+    cut: render::Cut,
+    cut_on: bool,
     style: Style,
     camera: OrbitCamera,
     grid: Option<VoxelGrid>,
@@ -117,6 +123,9 @@ impl ViewerApp {
             mesh: None,
             resolution,
             axis: Axis::Longest,
+            mode: Mode::Surface,
+            cut: render::Cut { axis: 0, fraction: 0.5 },
+            cut_on: false,
             style: Style::default(),
             camera: OrbitCamera::framing(glam::Vec3::ZERO, glam::Vec3::ONE, 35.0, 25.0),
             grid: None,
@@ -152,6 +161,32 @@ impl ViewerApp {
 
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
+    }
+
+    pub fn set_mode(&mut self, mode: Mode) {
+        if mode != self.mode {
+            self.mode = mode;
+            self.needs_voxelize = true;
+        }
+    }
+
+    /// Shows the grid cut away at `cut` (or whole with `None`), without voxelizing again.
+    pub fn set_cut(&mut self, cut: Option<render::Cut>) {
+        self.cut_on = cut.is_some();
+        if let Some(c) = cut {
+            self.cut = c;
+        }
+        self.rebuild_scene();
+    }
+
+    /// Rebuilds the drawn voxels from the host grid: the cut-away needs the voxels behind the cut, which the
+    /// GPU's list (exposed voxels only) leaves out.
+    fn rebuild_scene(&mut self) {
+        let (Some(grid), Some(mesh)) = (&self.grid, &self.mesh) else { return };
+        let shown = if self.cut_on { self.cut.apply(grid) } else { grid.exposed() };
+        let points = render::instances_from_grid(&self.gpu.device, &shown);
+        self.scene = Some(self.renderer.scene(&self.gpu.device, points, grid.spec, Some(mesh)));
+        self.scene_version += 1;
     }
 
     pub fn set_resolution(&mut self, resolution: u32) {
@@ -210,8 +245,10 @@ impl ViewerApp {
         let task = {
             let (gpu, voxelizer, outcome, ctx) =
                 (self.gpu.clone(), self.voxelizer.clone(), outcome.clone(), ctx.clone());
+            let mode = self.mode;
             async move {
-                let options = Options { read_grid: true, compact: true, surface_only: true, ..Default::default() };
+                let options =
+                    Options { read_grid: true, compact: true, surface_only: true, mode, ..Default::default() };
                 let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
                     Ok(out) => match (out.points, out.grid) {
                         (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms)),
@@ -221,8 +258,8 @@ impl ViewerApp {
                     // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
                     Err(e) if e.is_device_failure() && !gpu.is_lost() => {
                         log::warn!("{e}; voxelizing on the CPU instead");
-                        cpu::voxelize_grid_space(&triangles, spec, &|_, _| {})
-                            .map(|grid| (render::instances_from_grid(&gpu.device, &grid), grid, None))
+                        cpu::voxelize_grid_space_mode(&triangles, spec, mode, &|_, _| {})
+                            .map(|(grid, _)| (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None))
                             .map_err(|e| e.to_string())
                     }
                     Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
@@ -237,6 +274,7 @@ impl ViewerApp {
             label: self.mesh_label.clone(),
             mesh,
             resolution: self.resolution,
+            mode: self.mode,
             spec,
             frame: std::mem::take(&mut self.needs_framing),
             outcome,
@@ -266,6 +304,7 @@ impl ViewerApp {
             dims: [d.x, d.y, d.z],
             voxels: grid.count(),
             resolution: p.resolution,
+            mode: p.mode,
             gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
         });
@@ -276,6 +315,9 @@ impl ViewerApp {
         self.scene = Some(scene);
         self.scene_version += 1;
         self.grid = Some(grid);
+        if self.cut_on {
+            self.rebuild_scene();
+        }
         self.error = None;
         self.publish();
     }
@@ -348,6 +390,34 @@ impl ViewerApp {
                 }
             }
         });
+        ui.horizontal(|ui| {
+            ui.label("Mode");
+            for mode in Mode::ALL {
+                let hint = match mode {
+                    Mode::Surface => "every voxel a triangle touches (26-separating)",
+                    Mode::Solid => "the surface plus every voxel whose centre is inside (winding number ≥ ½)",
+                    Mode::Surface6 => "the thin surface: no face-connected leak from inside a closed mesh",
+                };
+                if ui.radio(self.mode == mode, mode.name()).on_hover_text(hint).clicked() {
+                    self.set_mode(mode);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            let mut changed = ui
+                .checkbox(&mut self.cut_on, "Cut away")
+                .on_hover_text("hide the voxels beyond a plane to see inside")
+                .changed();
+            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
+                changed |= ui.radio_value(&mut self.cut.axis, axis, *label).changed();
+            }
+            if changed {
+                self.rebuild_scene();
+            }
+        });
+        if self.cut_on && ui.add(egui::Slider::new(&mut self.cut.fraction, 0.0..=1.0).text("cut")).changed() {
+            self.rebuild_scene();
+        }
         ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
         if ui.button("Reset view").clicked() {
@@ -371,7 +441,7 @@ impl ViewerApp {
                 ui.label(format!("{}×{}×{}", s.dims[0], s.dims[1], s.dims[2]));
                 ui.end_row();
                 ui.label("voxels");
-                ui.label(s.voxels.to_string());
+                ui.label(format!("{} ({})", s.voxels, s.mode));
                 ui.end_row();
                 ui.label("backend");
                 ui.label(&self.gpu.summary.backend);
@@ -525,6 +595,11 @@ impl ViewerApp {
         for command in web::take() {
             match command {
                 web::Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
+                web::Command::SetMode(name) => match Mode::from_name(&name) {
+                    Some(mode) => self.set_mode(mode),
+                    None => self.fail(format!("unknown mode '{name}': use surface, solid or surface6")),
+                },
+                web::Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
                 web::Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
                 web::Command::LoadFile { name, bytes } => {
                     let loaded = mesh::load_bytes(&name, &bytes);

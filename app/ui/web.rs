@@ -1,5 +1,5 @@
 //! The app's side of the web page: an inbox for what the page asks for (files from `<input id="meshvox-file">`,
-//! dropped files read in the background, and the test hooks `meshvoxSetResolution` / `meshvoxLoadBuiltin`), and
+//! dropped files read in the background, and the test hooks `meshvoxSetResolution` / `meshvoxSetMode` / `meshvoxSetCut` / `meshvoxLoadBuiltin`), and
 //! `window.meshvoxStatus`, which the app rewrites after every voxelization so tests and scripts can follow it.
 //!
 //! The browser runs the app on one thread, so a thread-local queue is all the synchronisation needed; every
@@ -13,6 +13,10 @@ use wasm_bindgen::{JsCast, JsValue};
 /// What the page asks the app to do.
 pub enum Command {
     SetResolution(u32),
+    /// `surface`, `solid` or `surface6`.
+    SetMode(String),
+    /// `x:0.5` and the like, or anything else for no cut.
+    SetCut(String),
     LoadBuiltin(String),
     LoadFile {
         name: String,
@@ -69,7 +73,7 @@ pub(crate) fn open_file_picker() {
     }
 }
 
-/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, mesh, resolution, voxels, voxelize_ms, gpu_ms,
+/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, mesh, resolution, mode, voxels, voxelize_ms, gpu_ms,
 /// triangles, dims, error }`. `ready` turns true with the first finished voxelization.
 pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, error: Option<&str>) {
     let status = js_sys::Object::new();
@@ -83,6 +87,7 @@ pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, er
     if let Some(s) = stats {
         set("mesh", s.mesh.as_str().into());
         set("resolution", s.resolution.into());
+        set("mode", s.mode.name().into());
         // Counts stay below 2^53, so a JS number holds them exactly.
         set("voxels", (s.voxels as f64).into());
         set("triangles", (s.triangles as f64).into());

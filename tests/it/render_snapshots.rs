@@ -5,8 +5,8 @@
 
 use meshvox::gpu::Gpu;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
-use meshvox::render::{Offscreen, OrbitCamera, Style};
-use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+use meshvox::render::{Cut, Offscreen, OrbitCamera, Style, instances_from_grid};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, cpu};
 use std::path::PathBuf;
 
 const SIZE: u32 = 256;
@@ -15,16 +15,50 @@ const CHANNEL_TOLERANCE: u8 = 24;
 /// Share of differing pixels tolerated (antialiased edges may move by a pixel between driver versions).
 const PIXEL_FRACTION: f64 = 0.005;
 
-fn render(gpu: &Gpu, mesh_spec: &str, resolution: u32, show_mesh: bool) -> image::RgbaImage {
-    let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
-    let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
+/// One golden: a mesh at a resolution, in a mode, optionally with the mesh overlaid or cut away.
+struct Case {
+    name: String,
+    mesh: String,
+    resolution: u32,
+    show_mesh: bool,
+    mode: Mode,
+    cut: Option<Cut>,
+}
+
+fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
+    let mesh = meshvox::mesh::load(&case.mesh).unwrap_or_else(|e| panic!("{e}"));
+    let spec =
+        GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(case.resolution), Axis::Longest).expect("grid");
     let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
     let v = GpuVoxelizer::new(gpu);
-    let out = v
-        .voxelize(gpu, &tris, spec, &Options { compact: true, surface_only: true, ..Default::default() })
-        .expect("voxelize");
+    let options = Options { compact: true, surface_only: true, read_grid: true, mode: case.mode, ..Default::default() };
+    let out = v.voxelize(gpu, &tris, spec, &options).expect("voxelize");
+    let points = match case.cut {
+        Some(cut) => {
+            let grid = out.grid.expect("grid");
+            let shown = cut.apply(&grid);
+            // The cut face of a solid is filled: its last layer before the cut holds more voxels than the same
+            // layer of the surface, which is a ring.
+            if case.mode == Mode::Solid {
+                let surface = cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu");
+                let layer = |g: &meshvox::voxel::VoxelGrid| {
+                    let keep = cut.keep(&spec);
+                    g.iter_set().filter(|v| v[cut.axis] + 1 == keep).count()
+                };
+                let (filled, ring) = (layer(&shown), layer(&cut.apply(&surface)));
+                assert!(
+                    filled > ring * 2,
+                    "{}: the cut shows {filled} voxels of the solid, {ring} of the surface",
+                    case.name
+                );
+            }
+            instances_from_grid(&gpu.device, &shown)
+        }
+        None => out.points.expect("points"),
+    };
+    let show_mesh = case.show_mesh;
     let offscreen = Offscreen::new(gpu);
-    let scene = offscreen.renderer.scene(&gpu.device, out.points.expect("points"), spec, Some(&mesh));
+    let scene = offscreen.renderer.scene(&gpu.device, points, spec, Some(&mesh));
     let (lo, hi) = scene.bounds();
     let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
     let style = Style { show_mesh, ..Default::default() };
@@ -100,16 +134,31 @@ fn renderer_goldens() {
         }
     };
     let slug = gpu.summary.slug();
-    let mut cases = vec![("rotated-cube-30".to_string(), "builtin:rotated-cube".to_string(), 30, false)];
+    let case = |name: &str, mesh: String, resolution, show_mesh, mode, cut: Option<&str>| Case {
+        name: name.into(),
+        mesh,
+        resolution,
+        show_mesh,
+        mode,
+        cut: cut.map(|c| Cut::parse(c).expect("cut")),
+    };
+    let mut cases = vec![
+        case("rotated-cube-30", "builtin:rotated-cube".into(), 30, false, Mode::Surface, None),
+        // A solid cut away through the middle: the filled inside shows on the cut.
+        case("knot-48-solid-cut-z", "builtin:knot".into(), 48, false, Mode::Solid, Some("z:0.5")),
+    ];
     if let Some(dir) = crate::common::shared_meshes() {
         let p = |f: &str| dir.join(f).to_string_lossy().into_owned();
-        cases.push(("suzanne-96".into(), p("suzanne.obj"), 96, false));
-        cases.push(("bunny-64".into(), p("stanford-bunny.obj"), 64, false));
-        cases.push(("duck-64-mesh".into(), p("gltf/Duck.glb"), 64, true));
+        cases.push(case("suzanne-96", p("suzanne.obj"), 96, false, Mode::Surface, None));
+        cases.push(case("bunny-64", p("stanford-bunny.obj"), 64, false, Mode::Surface, None));
+        cases.push(case("duck-64-mesh", p("gltf/Duck.glb"), 64, true, Mode::Surface, None));
+        cases.push(case("bunny-64-solid-cut-x", p("stanford-bunny.obj"), 64, false, Mode::Solid, Some("x:0.5")));
+        cases.push(case("spot-64-surface6", p("spot.obj"), 64, false, Mode::Surface6, None));
     }
     let mut failures = Vec::new();
-    for (name, mesh, r, show_mesh) in cases {
-        let image = render(&gpu, &mesh, r, show_mesh);
+    for c in cases {
+        let name = c.name.clone();
+        let image = render(&gpu, &c);
         assert_shows_voxels(&name, &image);
         if let Err(e) = std::panic::catch_unwind(|| check_snapshot(&name, &image, &slug)) {
             failures.push(e.downcast_ref::<String>().cloned().unwrap_or_else(|| format!("{name} failed")));
