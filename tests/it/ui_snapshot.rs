@@ -30,11 +30,46 @@ fn viewer_ui_with_the_default_mesh() {
     assert_eq!(stats.mesh, "rotated-cube");
     // The panel shows the stats and controls.
     harness.get_by_label("Open…");
-    harness.get_by_label(&stats.voxels.to_string());
+    harness.get_by_label(&format!("{} (surface)", stats.voxels));
     let slug = harness.state().adapter().slug();
     // The "total ms" figure changes from run to run: a few dozen pixels of it may differ.
     let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
     harness.snapshot_options(format!("ui-default.{slug}"), &options);
+}
+
+#[test]
+fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:sphere", 40).expect("the app starts"));
+    harness.run();
+    harness.get_by_label("solid").click();
+    harness.run();
+    let stats = harness.state().stats().expect("voxelized").clone();
+    assert_eq!(stats.mode, meshvox::voxel::Mode::Solid);
+    let mesh = meshvox::mesh::load("builtin:sphere").expect("mesh");
+    let spec = meshvox::voxel::GridSpec::fit(
+        mesh.bounds().expect("b"),
+        meshvox::voxel::Resolution::Count(40),
+        meshvox::voxel::Axis::Longest,
+    )
+    .expect("grid");
+    let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let (cpu, _) =
+        meshvox::voxel::cpu::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Solid, &|_, _| {})
+            .expect("cpu");
+    assert_eq!(stats.voxels, cpu.count());
+    harness.get_by_label(&format!("{} (solid)", cpu.count()));
+    // The cut-away shows the filled inside without voxelizing again.
+    harness.get_by_label("Cut away").click();
+    harness.run();
+    assert_eq!(harness.state().stats(), Some(&stats));
+    assert_eq!(harness.state().error(), None);
+    let slug = harness.state().adapter().slug();
+    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
+    harness.snapshot_options(format!("ui-solid-cut.{slug}"), &options);
 }
 
 #[test]

@@ -45,10 +45,10 @@ if (!existsSync(meshes)) {
 }
 
 /** Voxel count of the native CLI (CPU reference) for `spec` at `resolution`. */
-function cliVoxels(spec, resolution) {
+function cliVoxels(spec, resolution, mode = "surface") {
   const out = path.join(tmpdir(), `meshvox-web-test-${process.pid}.npy`);
   const json = execFileSync(bin, ["voxelize", spec, "-r", String(resolution), "-o", out, "--stats-json",
-    "--backend", "cpu"], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
+    "--backend", "cpu", "--mode", mode], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
   return JSON.parse(json.split("\n")[0]).voxels;
 }
 
@@ -129,6 +129,23 @@ try {
   const typed = await status({ ready: true, resolution: 128 }, "typing 128 into the resolution field");
   const typedCli = cliVoxels(`builtin:${typed.mesh}`, 128);
   check(typed.voxels === typedCli, `resolution 128 typed into the panel: page ${typed.voxels} == CLI ${typedCli}`);
+
+  // The modes: solid (the surface plus the inside) and the thin surface, each the CLI's count; the cut-away
+  // only changes the view. Then back to the surface for the rest.
+  check(typed.mode === "surface", `the page starts in surface mode (${typed.mode})`);
+  for (const mode of ["solid", "surface6", "surface"]) {
+    await page.evaluate((m) => window.meshvoxSetMode(m), mode);
+    const m = await status({ ready: true, mode }, `mode ${mode}`);
+    const cli = cliVoxels(`builtin:${m.mesh}`, m.resolution, mode);
+    check(m.voxels === cli, `mode ${mode} @${m.resolution}: page ${m.voxels} == CLI ${cli}`);
+    if (mode === "solid") {
+      await page.evaluate(() => window.meshvoxSetCut("x:0.5"));
+      await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+      const cut = await page.evaluate(() => window.meshvoxStatus);
+      check(!cut.error && cut.voxels === cli, `the cut-away keeps the solid's ${cli} voxels and shows no error`);
+      await page.evaluate(() => window.meshvoxSetCut(""));
+    }
+  }
 
   if (existsSync(meshes)) {
     for (const rel of ["suzanne.obj", "gltf/Duck.gltf"]) {
