@@ -40,9 +40,11 @@ struct Params {
     block_count: u32,
     // Lattice steps per voxel (2^shift): coordinates times this are exact integers below 2^23.
     lattice_scale: f32,
-    // 0: the thick (26-separating) surface test, 2: the thin (6-separating) one (voxel::Mode's order).
-    mode: u32,
 }
+
+// The thin (6-separating) test instead of the thick one in `voxelize` and `exact`. A pipeline constant, so each
+// variant compiles without the other: CPU implementations of WebGPU run both sides of a branch under a mask.
+override THIN: bool = false;
 
 struct Edges {
     ne: array<vec2<f32>, 3>,
@@ -735,7 +737,6 @@ fn walk(item: u32) {
         w_lo_clip = f32(z_lo - s.lo.z);
         w_hi_clip = f32(z_hi - s.lo.z);
     }
-    let thin = params.mode == 2u;
     let shrink = thin_shrink(s);
     for (var ai = u32(span.x); ai <= u32(span.y); ai++) {
         var pl = vec3<f32>(0.0);
@@ -754,7 +755,7 @@ fn walk(item: u32) {
             pl[w] = f32(wi);
             let p = s.lo + vec3<u32>(pl);
             var d: u32;
-            if thin {
+            if THIN {
                 d = voxel_decision_thin(s, shrink, pl);
             } else {
                 d = voxel_decision(s, pl);
@@ -799,7 +800,7 @@ fn exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
     }
     let entry = unsure[i];
     var overlaps: bool;
-    if params.mode == 2u {
+    if THIN {
         overlaps = voxel_overlaps_exact_thin(setups[entry.x], entry.x, entry.yzw);
     } else {
         overlaps = voxel_overlaps_exact(setups[entry.x], entry.x, entry.yzw);
@@ -827,10 +828,10 @@ struct SolidParams {
     slab_z0: u32,
     slab_z1: u32,
     edge_count: u32,
-    // The boundary's YZ extent: (lo.y, lo.z, hi.y, hi.z).
-    extent: vec4<f32>,
+    // The boundary loops' YZ boxes (lo.y, lo.z, hi.y, hi.z) follow the edges in `boundary`.
+    box_count: u32,
     lattice_scale: f32,
-    pad: u32,
+    pad: vec2<u32>,
 }
 
 @group(0) @binding(8) var<uniform> solid: SolidParams;
@@ -839,12 +840,16 @@ struct SolidParams {
 // Per row: the segment's first index and length.
 @group(0) @binding(11) var<storage, read_write> row_segments: array<vec2<u32>>;
 @group(0) @binding(12) var<storage, read_write> crossings: array<u32>;
-// Two vec4 per edge: (a, weight), (b, 0).
+// Two vec4 per edge: (a, weight), (b, 0); then one per boundary loop's box.
 @group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
 @group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
 
 const RUN_STACK: u32 = 40u;
+// Invocations per triangle in the crossing passes: most triangles of a dense mesh cover a few rows, so a wide
+// group would idle (on CPU implementations, eight lanes are one SIMD group); the few big triangles of a coarse
+// mesh share their rows among these.
+const CROSSING_WG: u32 = 8u;
 
 fn solid_vertex(t: u32, i: u32) -> vec3<f32> {
     let b = 9u * t + 3u * i;
@@ -940,8 +945,14 @@ fn crossing_voxel_at(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, k: 
     return k >= solid.dims.x || beyond_plane(t0, t1, t2, sign, k, y, z);
 }
 
-fn crossing_voxel_exact(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, x: f32, y: u32, z: u32) -> u32 {
+fn crossing_voxel_exact(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, x: f32, err: f32, y: u32,
+                        z: u32) -> u32 {
+    let below = floor(x - 0.5) + 0.5;
+    let clear = min(x - below, below + 1.0 - x);
     let guess = ceil(x - 0.5);
+    if clear > err {
+        return u32(clamp(guess, 0.0, f32(solid.dims.x)));
+    }
     var k = 0u;
     if guess >= 0.0 && guess <= f32(solid.dims.x) {
         k = u32(guess);
@@ -962,21 +973,36 @@ fn crossing_voxel_exact(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, 
     return lo;
 }
 
+// The f32 crossing of row (y, z) with the triangle's plane and a bound on its error (see row_crossing_estimate
+// in solid.rs for the bound).
+fn row_crossing_estimate(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, y: u32, z: u32) -> vec2<f32> {
+    let e0 = p1 - p0;
+    let e1 = p2 - p0;
+    let n = cross(e0, e1);
+    let nabs = vec3<f32>(abs(e0.y * e1.z) + abs(e0.z * e1.y), abs(e0.z * e1.x) + abs(e0.x * e1.z),
+        abs(e0.x * e1.y) + abs(e0.y * e1.x));
+    let dy = f32(y) + 0.5 - p0.y;
+    let dz = f32(z) + 0.5 - p0.z;
+    let q = (n.y * dy + n.z * dz) / n.x;
+    let x = p0.x - q;
+    let err = ERROR_FACTOR * ((nabs.y * abs(dy) + nabs.z * abs(dz) + abs(q) * nabs.x) / abs(n.x) + abs(q) + abs(x));
+    return vec2<f32>(x, err);
+}
+
 // The packed crossing of triangle t with row (y, z) (covered by it).
 fn row_crossing(t: u32, s: CrossingSetup, y: u32, z: u32) -> u32 {
     let p0 = solid_vertex(t, 0u);
-    let e0 = solid_vertex(t, 1u) - p0;
-    let e1 = solid_vertex(t, 2u) - p0;
-    let n = cross(e0, e1);
-    let x = p0.x - (n.y * (f32(y) + 0.5 - p0.y) + n.z * (f32(z) + 0.5 - p0.z)) / n.x;
+    let p1 = solid_vertex(t, 1u);
+    let p2 = solid_vertex(t, 2u);
+    let estimate = row_crossing_estimate(p0, p1, p2, y, z);
     let t0 = vec3<i32>(p0 * solid.lattice_scale);
-    let t1 = vec3<i32>(solid_vertex(t, 1u) * solid.lattice_scale);
-    let t2 = vec3<i32>(solid_vertex(t, 2u) * solid.lattice_scale);
-    let k = crossing_voxel_exact(t0, t1, t2, s.sign, x, y, z);
+    let t1 = vec3<i32>(p1 * solid.lattice_scale);
+    let t2 = vec3<i32>(p2 * solid.lattice_scale);
+    let k = crossing_voxel_exact(t0, t1, t2, s.sign, estimate.x, estimate.y, y, z);
     return (k << 1u) | select(0u, 1u, s.sign > 0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(CROSSING_WG)
 fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                    @builtin(num_workgroups) groups: vec3<u32>) {
     let t = wid.y * groups.x + wid.x;
@@ -989,7 +1015,7 @@ fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocat
     }
     let width = s.hi.x - s.lo.x + 1u;
     let total = width * (s.hi.y - s.lo.y + 1u);
-    for (var i = lid.x; i < total; i += 64u) {
+    for (var i = lid.x; i < total; i += CROSSING_WG) {
         let y = s.lo.x + i % width;
         let z = s.lo.y + i / width;
         if covers_row(s, y, z) {
@@ -1014,7 +1040,7 @@ fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     atomicStore(&row_counts[row], 0u);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(CROSSING_WG)
 fn write_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                    @builtin(num_workgroups) groups: vec3<u32>) {
     let t = wid.y * groups.x + wid.x;
@@ -1027,7 +1053,7 @@ fn write_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocat
     }
     let width = s.hi.x - s.lo.x + 1u;
     let total = width * (s.hi.y - s.lo.y + 1u);
-    for (var i = lid.x; i < total; i += 64u) {
+    for (var i = lid.x; i < total; i += CROSSING_WG) {
         let y = s.lo.x + i % width;
         let z = s.lo.y + i / width;
         if covers_row(s, y, z) {
@@ -1125,7 +1151,13 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
 fn near_boundary(y: u32, z: u32) -> bool {
     let cy = f32(y) + 0.5;
     let cz = f32(z) + 0.5;
-    return cy >= solid.extent.x && cy <= solid.extent.z && cz >= solid.extent.y && cz <= solid.extent.w;
+    for (var i = 0u; i < solid.box_count; i++) {
+        let b = boundary[2u * solid.edge_count + i];
+        if cy >= b.x && cy <= b.z && cz >= b.y && cz <= b.w {
+            return true;
+        }
+    }
+    return false;
 }
 
 // The row's crossings are solid's crossings[start .. start + n], sorted here (insertion sort: rows hold a

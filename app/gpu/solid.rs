@@ -8,7 +8,7 @@
 use super::readback::{first_word, read_buffer};
 use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{BoundaryEdge, boundary_edges, boundary_extent};
+use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges};
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
 
@@ -23,9 +23,9 @@ struct SolidParams {
     slab_z0: u32,
     slab_z1: u32,
     edge_count: u32,
-    extent: [f32; 4],
+    box_count: u32,
     lattice_scale: f32,
-    _pad: [u32; 3],
+    _pad: [u32; 2],
 }
 
 /// The compiled solid pipelines.
@@ -111,7 +111,7 @@ impl SolidPipelines {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
         let edges = boundary_edges(triangles, lattice);
-        let (lo, hi) = boundary_extent(&edges);
+        let boxes = boundary_boxes(&edges);
         let base = SolidParams {
             dims: spec.dims.to_array(),
             tri_count: triangles.len() as u32,
@@ -119,11 +119,13 @@ impl SolidPipelines {
             slab_z0: 0,
             slab_z1: spec.dims.z,
             edge_count: edges.len() as u32,
-            extent: [lo[0], lo[1], hi[0], hi[1]],
+            box_count: boxes.len() as u32,
             lattice_scale: lattice.scale(),
-            _pad: [0; 3],
+            _pad: [0; 2],
         };
-        let edge_bytes: &[u8] = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges);
+        // The edges (two vec4 each), then the loops' boxes (one vec4 each).
+        let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
+        edge_bytes.extend_from_slice(bytemuck::cast_slice(&boxes));
         let (params, counts, segments, placeholder, boundary, total) = scoped(device, || {
             let params = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("solid params"),
@@ -139,7 +141,7 @@ impl SolidPipelines {
             let total = buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
             gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
             if !edge_bytes.is_empty() {
-                gpu.queue.write_buffer(&boundary, 0, edge_bytes);
+                gpu.queue.write_buffer(&boundary, 0, &edge_bytes);
             }
             Ok((params, counts, segments, placeholder, boundary, total))
         })

@@ -12,6 +12,7 @@ use super::solid::{SolidPipelines, SolidRun};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
+use std::sync::OnceLock;
 
 /// The WGSL source, shared with the shader validation test.
 pub const VOXELIZE_WGSL: &str = include_str!("../../shaders/voxelize.wgsl");
@@ -39,9 +40,7 @@ struct Params {
     slab_z1: u32,
     block_count: u32,
     lattice_scale: f32,
-    /// 0 for the thick surface test, 2 for the thin one (the order of [`Mode`]; solid uses the thick test).
-    mode: u32,
-    _pad: [u32; 2],
+    _pad: [u32; 3],
 }
 
 /// What to do besides voxelizing.
@@ -97,7 +96,11 @@ pub struct GpuVoxelizer {
     prepare_exact: wgpu::ComputePipeline,
     exact: wgpu::ComputePipeline,
     compactor: Compactor,
-    solid: SolidPipelines,
+    module: wgpu::ShaderModule,
+    /// The thin test's `voxelize` and `exact` pipelines, and the solid passes: compiled on first use, so pages
+    /// and runs that never ask for them do not pay for their compilation (seconds on SwiftShader).
+    thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
+    solid: OnceLock<SolidPipelines>,
 }
 
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -132,6 +135,17 @@ pub(crate) fn pipeline(
     layouts: &[Option<&wgpu::BindGroupLayout>],
     entry: &str,
 ) -> wgpu::ComputePipeline {
+    pipeline_with(device, module, layouts, entry, &[])
+}
+
+/// [`pipeline`] with values for the shader's pipeline-overridable constants.
+pub(crate) fn pipeline_with(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layouts: &[Option<&wgpu::BindGroupLayout>],
+    entry: &str,
+    constants: &[(&str, f64)],
+) -> wgpu::ComputePipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(entry),
         bind_group_layouts: layouts,
@@ -142,7 +156,7 @@ pub(crate) fn pipeline(
         layout: Some(&layout),
         module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
 }
@@ -232,7 +246,9 @@ impl GpuVoxelizer {
             prepare_exact: pipeline(device, &module, &two, "prepare_exact"),
             exact: pipeline(device, &module, &one, "exact"),
             compactor: Compactor::new(gpu),
-            solid: SolidPipelines::new(device, &module),
+            thin: OnceLock::new(),
+            solid: OnceLock::new(),
+            module,
             layout,
             dispatch_layout,
         }
@@ -336,7 +352,6 @@ impl GpuVoxelizer {
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
         let triangles: &[[Vec3; 3]] = &triangles;
         let lattice_scale = lattice.scale();
-        let surface_mode = if options.mode == Mode::Surface6 { 2 } else { 0 };
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
@@ -354,6 +369,19 @@ impl GpuVoxelizer {
         let mut exact_tests = None;
         let mut points: Vec<CompactVoxels> = Vec::new();
         let mut solid_run: Option<SolidRun> = None;
+        let (walk, exact) = if options.mode == Mode::Surface6 {
+            let (w, e) = self.thin.get_or_init(|| {
+                let one = [Some(&self.layout)];
+                let thin = [("THIN", 1.0)];
+                (
+                    pipeline_with(device, &self.module, &one, "voxelize", &thin),
+                    pipeline_with(device, &self.module, &one, "exact", &thin),
+                )
+            });
+            (w, e)
+        } else {
+            (&self.voxelize, &self.exact)
+        };
 
         let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
         // At most 65,535 workgroups for the `exact` pass's one-dimensional indirect dispatch.
@@ -413,8 +441,7 @@ impl GpuVoxelizer {
                     slab_z1: 0,
                     block_count,
                     lattice_scale,
-                    mode: surface_mode,
-                    _pad: [0; 2],
+                    _pad: [0; 3],
                 };
                 gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
                 let mut encoder = device.create_command_encoder(&Default::default());
@@ -445,7 +472,8 @@ impl GpuVoxelizer {
                     // CPU reference's solid instead (flagged as decided on the CPU).
                     return Ok(Attempt::Overflow);
                 }
-                solid_run = Some(self.solid.prepare(gpu, triangles, &tris_buf, spec, lattice, &slab).await?);
+                let solid = self.solid.get_or_init(|| SolidPipelines::new(device, &self.module));
+                solid_run = Some(solid.prepare(gpu, triangles, &tris_buf, spec, lattice, &slab).await?);
             }
 
             for s in 0..slabs {
@@ -459,8 +487,7 @@ impl GpuVoxelizer {
                     slab_z1: z1,
                     block_count,
                     lattice_scale,
-                    mode: surface_mode,
-                    _pad: [0; 2],
+                    _pad: [0; 3],
                 };
                 let words = wpr * spec.dims.y as u64 * (z1 - z0) as u64;
                 scoped(device, || {
@@ -474,7 +501,7 @@ impl GpuVoxelizer {
                             timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
                         });
                         pass.set_bind_group(0, &bind, &[]);
-                        pass.set_pipeline(&self.voxelize);
+                        pass.set_pipeline(walk);
                         pass.dispatch_workgroups_indirect(&dispatch, 0);
                         pass.set_bind_group(1, &bind_dispatch, &[]);
                         pass.set_pipeline(&self.prepare_exact);
@@ -488,11 +515,11 @@ impl GpuVoxelizer {
                             timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
                         });
                         pass.set_bind_group(0, &bind, &[]);
-                        pass.set_pipeline(&self.exact);
+                        pass.set_pipeline(exact);
                         pass.dispatch_workgroups_indirect(&dispatch, 12);
                     }
-                    if let Some(run) = &solid_run {
-                        self.solid.fill(gpu, run, &mut encoder, z0, z1);
+                    if let (Some(run), Some(solid)) = (&solid_run, self.solid.get()) {
+                        solid.fill(gpu, run, &mut encoder, z0, z1);
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())

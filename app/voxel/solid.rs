@@ -125,10 +125,26 @@ pub fn beyond_plane(t: &[IVec3; 3], sign: i32, k: u32, y: u32, z: u32, unit: i32
 }
 
 /// The first voxel of row `(y, z)` whose centre is at or beyond the crossing (`dims_x` when none is), exactly.
-/// `x` is the f32 estimate of the crossing, usually right; the exact test checks it and a bisection takes over
-/// when it is not (a face nearly parallel to the row, where the estimate is ill-conditioned).
-pub fn crossing_voxel_exact(t: &[IVec3; 3], sign: i32, x: f32, y: u32, z: u32, dims_x: u32, unit: i32) -> u32 {
+/// `x` is the f32 estimate of the crossing and `err` a bound on its error: where the estimate is farther than
+/// that from every voxel centre it decides alone; otherwise the exact test checks it, and a bisection takes over
+/// when it was wrong (a face nearly parallel to the row, where the estimate is ill-conditioned).
+#[allow(clippy::too_many_arguments)]
+pub fn crossing_voxel_exact(
+    t: &[IVec3; 3],
+    sign: i32,
+    x: f32,
+    err: f32,
+    y: u32,
+    z: u32,
+    dims_x: u32,
+    unit: i32,
+) -> u32 {
+    let below = super::cpu::floor(x - 0.5) + 0.5;
+    let clear = (x - below).min(below + 1.0 - x);
     let guess = super::cpu::ceil(x - 0.5);
+    if clear > err {
+        return guess.clamp(0.0, dims_x as f32) as u32;
+    }
     let k = if guess >= 0.0 && guess <= dims_x as f32 { guess as u32 } else { 0 };
     let at = |k: u32| k >= dims_x || beyond_plane(t, sign, k, y, z, unit);
     if at(k) && (k == 0 || !at(k - 1)) {
@@ -142,6 +158,27 @@ pub fn crossing_voxel_exact(t: &[IVec3; 3], sign: i32, x: f32, y: u32, z: u32, d
     lo
 }
 
+/// The f32 crossing of row `(y, z)` with the plane of `t` (grid space), and a bound on its error:
+/// `x = v0.x - (n_y (y + 1/2 - v0.y) + n_z (z + 1/2 - v0.z)) / n_x`. The differences are exact (lattice values),
+/// each normal component is off by at most `2u` times `nabs` (its two products' magnitudes), and the rest adds a
+/// few roundings relative to the magnitudes involved; `ERROR_FACTOR` (32 units of roundoff) covers them all.
+/// A face parallel to the row (`n_x` zero in f32) gives a bound that is not a number, so the exact test decides.
+pub fn row_crossing_estimate(t: [Vec3; 3], y: u32, z: u32) -> (f32, f32) {
+    let (e0, e1) = (t[1] - t[0], t[2] - t[0]);
+    let n = e0.cross(e1);
+    let nabs = Vec3::new(
+        (e0.y * e1.z).abs() + (e0.z * e1.y).abs(),
+        (e0.z * e1.x).abs() + (e0.x * e1.z).abs(),
+        (e0.x * e1.y).abs() + (e0.y * e1.x).abs(),
+    );
+    let (dy, dz) = (y as f32 + 0.5 - t[0].y, z as f32 + 0.5 - t[0].z);
+    let q = (n.y * dy + n.z * dz) / n.x;
+    let x = t[0].x - q;
+    let err = super::cpu::ERROR_FACTOR
+        * ((nabs.y * dy.abs() + nabs.z * dz.abs() + q.abs() * nabs.x) / n.x.abs() + q.abs() + x.abs());
+    (x, err)
+}
+
 /// Calls `emit(row, packed crossing)` for every row whose centre line crosses the lattice triangle `t`.
 pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit: impl FnMut(u32, u32)) {
     let s = crossing_setup(t, dims, lattice);
@@ -150,16 +187,13 @@ pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit:
     }
     let unit = 1i32 << lattice.shift;
     let units = t.map(|p| lattice.units(p));
-    // The plane in f32 for the estimate: x = v0.x - (n_y (y - v0.y) + n_z (z - v0.z)) / n_x.
-    let (e0, e1) = (t[1] - t[0], t[2] - t[0]);
-    let n = e0.cross(e1);
     for z in s.lo[1]..=s.hi[1] {
         for y in s.lo[0]..=s.hi[0] {
             if !covers_row(&s, y, z, unit) {
                 continue;
             }
-            let x = t[0].x - (n.y * (y as f32 + 0.5 - t[0].y) + n.z * (z as f32 + 0.5 - t[0].z)) / n.x;
-            let k = crossing_voxel_exact(&units, s.sign, x, y, z, dims.x, unit);
+            let (x, err) = row_crossing_estimate(t, y, z);
+            let k = crossing_voxel_exact(&units, s.sign, x, err, y, z, dims.x, unit);
             emit(z * dims.y + y, pack_crossing(k, s.sign > 0));
         }
     }
@@ -288,26 +322,58 @@ fn inside_open(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> bo
     winding_number(count, Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5), edges) >= 0.5
 }
 
-/// The YZ extent of the boundary edges, widened by a voxel: rows whose centre line misses it keep the integer
-/// count where their crossings cancel (see [`fill_row`]). `lo > hi` when there is no boundary.
-pub fn boundary_extent(edges: &[BoundaryEdge]) -> ([f32; 2], [f32; 2]) {
-    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
-    for e in edges {
-        for p in [e.a, e.b] {
-            for i in 0..2 {
-                lo[i] = lo[i].min(p[i + 1] - 1.0);
-                hi[i] = hi[i].max(p[i + 1] + 1.0);
-            }
+/// The YZ extents of the boundary's connected pieces (its loops, on a mesh with holes), each widened by a voxel,
+/// as `[lo_y, lo_z, hi_y, hi_z]`: rows whose centre line misses all of them keep the integer count where their
+/// crossings cancel (see [`fill_row`]). Pieces are found by joining edges that share an end point.
+pub fn boundary_boxes(edges: &[BoundaryEdge]) -> Vec<[f32; 4]> {
+    let mut ids = std::collections::HashMap::new();
+    let mut parent: Vec<usize> = Vec::new();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut id = |p: [f32; 3], parent: &mut Vec<usize>| {
+        *ids.entry(p.map(f32::to_bits)).or_insert_with(|| {
+            parent.push(parent.len());
+            parent.len() - 1
+        })
+    };
+    let ends: Vec<(usize, usize)> = edges.iter().map(|e| (id(e.a, &mut parent), id(e.b, &mut parent))).collect();
+    for &(a, b) in &ends {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        if ra != rb {
+            parent[ra.max(rb)] = ra.min(rb);
         }
     }
-    (lo, hi)
+    let mut boxes: Vec<(usize, [f32; 4])> = Vec::new();
+    for (e, &(a, _)) in edges.iter().zip(&ends) {
+        let r = root(&mut parent, a);
+        let i = match boxes.iter().position(|(k, _)| *k == r) {
+            Some(i) => i,
+            None => {
+                boxes.push((r, [f32::MAX, f32::MAX, f32::MIN, f32::MIN]));
+                boxes.len() - 1
+            }
+        };
+        let b = &mut boxes[i].1;
+        for p in [e.a, e.b] {
+            b[0] = b[0].min(p[1] - 1.0);
+            b[1] = b[1].min(p[2] - 1.0);
+            b[2] = b[2].max(p[1] + 1.0);
+            b[3] = b[3].max(p[2] + 1.0);
+        }
+    }
+    boxes.into_iter().map(|(_, b)| b).collect()
 }
 
-/// Whether the centre line of row `(y, z)` passes through the boundary's extent.
+/// Whether the centre line of row `(y, z)` passes through one of the boundary's boxes.
 #[inline]
-pub fn near_boundary(y: u32, z: u32, lo: [f32; 2], hi: [f32; 2]) -> bool {
+pub fn near_boundary(y: u32, z: u32, boxes: &[[f32; 4]]) -> bool {
     let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
-    cy >= lo[0] && cy <= hi[0] && cz >= lo[1] && cz <= hi[1]
+    boxes.iter().any(|b| cy >= b[0] && cy <= b[2] && cz >= b[1] && cz <= b[3])
 }
 
 /// Most runs deeper than the stack holds would need a grid far beyond `MAX_DIM` voxels: bisection halves a run
@@ -360,11 +426,12 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &
 
 /// Sets the inside voxels of row `(y, z)` given its crossings, sorted (see the module documentation).
 ///
-/// Where the crossings cancel and the line stays clear of the boundary's extent, the integer count is the
-/// winding number up to the boundary term, which is then below 1/2: seen from a point outside the convex hull of
-/// a boundary loop, any surface spanning the loop covers less than a hemisphere. Near the boundary (`near`) the
-/// term can reach 1/2 even where the crossings cancel (beside a large hole), so such rows are evaluated like
-/// those through a hole.
+/// Where the crossings cancel and the line stays clear of every boundary loop's box, the integer count is the
+/// winding number up to the boundary term, which is then below 1/2 for each loop: seen from a point outside the
+/// convex hull of a loop, any surface spanning it covers less than a hemisphere. (Several loops' terms add up;
+/// only where more than one large hole is close by could they pass 1/2 together.) Near a loop (`near`) the term
+/// can reach 1/2 even where the crossings cancel (beside a large hole), so such rows are evaluated like those
+/// through a hole.
 pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, edges: &[BoundaryEdge], row: &mut [u32]) {
     let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
     let open = total != 0 || near;
@@ -395,12 +462,12 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
     let spec = grid.spec;
     let rows = column_crossings(triangles, spec.dims, lattice);
     let edges = boundary_edges(triangles, lattice);
-    let (lo, hi) = boundary_extent(&edges);
+    let boxes = boundary_boxes(&edges);
     let wpr = spec.words_per_row();
     grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
         let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
         let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
-        let near = near_boundary(y, z, lo, hi);
+        let near = near_boundary(y, z, &boxes);
         if list.is_empty() && !near {
             return;
         }

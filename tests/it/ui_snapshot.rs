@@ -57,9 +57,8 @@ fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
     )
     .expect("grid");
     let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
-    let (cpu, _) =
-        meshvox::voxel::cpu::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Solid, &|_, _| {})
-            .expect("cpu");
+    let (cpu, _) = meshvox::voxel::cpu::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Solid, &|_, _| {})
+        .expect("cpu");
     assert_eq!(stats.voxels, cpu.count());
     harness.get_by_label(&format!("{} (solid)", cpu.count()));
     // The cut-away shows the filled inside without voxelizing again.
