@@ -349,3 +349,23 @@ fn gpu_matches_the_cpu_reference_in_every_mode() {
         }
     }
 }
+
+#[test]
+fn a_solid_bunny_at_256_is_a_filled_vox_model() {
+    let Some(dir) = shared_meshes() else { return };
+    let mesh = meshvox::mesh::load(&dir.join("stanford-bunny.obj").to_string_lossy()).expect("bunny");
+    let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(256), Axis::Longest).expect("fits");
+    let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid");
+    let solid = voxelize(&tris, s, Mode::Solid);
+    let mut bytes = Vec::new();
+    meshvox::voxel::export::write(&solid, meshvox::voxel::export::VoxelFormat::Vox, &mut bytes).expect("write");
+    let data = dot_vox::load_bytes(&bytes).expect("dot_vox parses it");
+    let total: usize = data.models.iter().map(|m| m.voxels.len()).sum();
+    assert_eq!(total as u64, solid.count());
+    // Filled: far more voxels than the surface, and the grid's centre voxel (inside the body) is there.
+    assert!(solid.count() > 10 * voxelize(&tris, s, Mode::Surface).count());
+    let c = s.dims / 2;
+    let (x, y, z) = (c.x as u8, (s.dims.z - 1 - c.z) as u8, c.y as u8);
+    assert!(solid.get(c.x, c.y, c.z), "the bunny's centre is inside");
+    assert!(data.models[0].voxels.iter().any(|v| (v.x, v.y, v.z) == (x, y, z)), "centre voxel in the .vox");
+}
