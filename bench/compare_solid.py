@@ -47,7 +47,7 @@ surface, _, _ = meshvox("surface", "cpu")
 assert (solid == solid_gpu).all(), "GPU and CPU solids differ"
 origin, h, dims = np.array(stats["origin"]), stats["voxel_size"], tuple(stats["dims"])
 
-m = trimesh.load(mesh_path, force="mesh", process=False)
+m = trimesh.load(mesh_path, force="mesh", process=False, skip_materials=True)
 grid_space = (m.vertices - origin) / h - 0.5  # meshvox voxel centres -> integer points
 t0 = time.perf_counter()
 vg = trimesh.Trimesh(grid_space, m.faces, process=False).voxelized(pitch=1.0).fill()

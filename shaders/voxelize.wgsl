@@ -812,8 +812,8 @@ fn exact(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
 
 // ---- solid: the inside voxels, mirroring app/voxel/solid.rs (see there for the algorithm and why) ----
 //
-//   count_crossings   one workgroup per triangle: its invocations share the rows (y, z) under the triangle's YZ
-//                     bounding box and count, per row, the exact crossings of the row's centre line
+//   count_crossings   one invocation per work item (up to ROWS_PER_ITEM rows (y, z) under one triangle's YZ
+//                     bounding box): count, per row, the exact crossings of the row's centre line
 //   allocate_rows     per row: a segment of the crossing list (atomic bump allocation: segments are contiguous,
 //                     their order does not matter) and the counter reset to serve as the write cursor
 //   write_crossings   as count_crossings, writing each crossing's exact first voxel and sign into the segment
@@ -831,7 +831,8 @@ struct SolidParams {
     // The boundary loops' YZ boxes (lo.y, lo.z, hi.y, hi.z) follow the edges in `boundary`.
     box_count: u32,
     lattice_scale: f32,
-    pad: vec2<u32>,
+    item_count: u32,
+    pad: u32,
 }
 
 @group(0) @binding(8) var<uniform> solid: SolidParams;
@@ -844,12 +845,15 @@ struct SolidParams {
 @group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
 @group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
+// Per triangle, its first work item (exclusive prefix sum of its items, from the host).
+@group(0) @binding(16) var<storage, read> item_offsets: array<u32>;
 
 const RUN_STACK: u32 = 40u;
-// Invocations per triangle in the crossing passes: most triangles of a dense mesh cover a few rows, so a wide
-// group would idle (on CPU implementations, eight lanes are one SIMD group); the few big triangles of a coarse
-// mesh share their rows among these.
-const CROSSING_WG: u32 = 8u;
+// Rows per work item of the crossing passes: a triangle gets ceil(rows / ROWS_PER_ITEM) items (the host counts
+// them), so a dense mesh's small triangles take one invocation each and a coarse mesh's big ones spread over
+// many. (One workgroup per triangle, striding over its rows, idled most lanes on dense meshes, and lost writes on
+// lavapipe once a lane looped over tens of thousands of rows.)
+const ROWS_PER_ITEM: u32 = 32u;
 
 fn solid_vertex(t: u32, i: u32) -> vec3<f32> {
     let b = 9u * t + 3u * i;
@@ -1002,25 +1006,58 @@ fn row_crossing(t: u32, s: CrossingSetup, y: u32, z: u32) -> u32 {
     return (k << 1u) | select(0u, 1u, s.sign > 0);
 }
 
-@compute @workgroup_size(CROSSING_WG)
-fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
-                   @builtin(num_workgroups) groups: vec3<u32>) {
-    let t = wid.y * groups.x + wid.x;
-    if t >= solid.tri_count {
-        return;
+// The triangle of work item `item`: the last whose first item is at most `item`.
+fn item_triangle(item: u32) -> u32 {
+    var lo = 0u;
+    var hi = solid.tri_count;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if item_offsets[mid] <= item {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
     }
+    return lo;
+}
+
+// Calls the pass's row action for each row of work item `item` its triangle covers: rows k * ROWS_PER_ITEM ..
+// (k + 1) * ROWS_PER_ITEM of the triangle's YZ bounding box, row-major in y.
+fn crossing_rows(item: u32, write: bool) {
+    let t = item_triangle(item);
     let s = crossing_setup(t);
     if s.sign == 0 {
         return;
     }
     let width = s.hi.x - s.lo.x + 1u;
     let total = width * (s.hi.y - s.lo.y + 1u);
-    for (var i = lid.x; i < total; i += CROSSING_WG) {
+    let first = (item - item_offsets[t]) * ROWS_PER_ITEM;
+    let end = min(total, first + ROWS_PER_ITEM);
+    for (var i = first; i < end; i++) {
         let y = s.lo.x + i % width;
         let z = s.lo.y + i / width;
-        if covers_row(s, y, z) {
-            atomicAdd(&row_counts[z * solid.dims.y + y], 1u);
+        if !covers_row(s, y, z) {
+            continue;
         }
+        let row = z * solid.dims.y + y;
+        if !write {
+            atomicAdd(&row_counts[row], 1u);
+            continue;
+        }
+        let slot = atomicAdd(&row_counts[row], 1u);
+        let segment = row_segments[row];
+        if slot < segment.y && segment.x + slot < arrayLength(&crossings) {
+            crossings[segment.x + slot] = row_crossing(t, s, y, z);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                   @builtin(num_workgroups) groups: vec3<u32>) {
+    let item = linear_id(wid, lid, groups, 64u);
+    if item < solid.item_count {
+        crossing_rows(item, false);
     }
 }
 
@@ -1040,30 +1077,12 @@ fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     atomicStore(&row_counts[row], 0u);
 }
 
-@compute @workgroup_size(CROSSING_WG)
+@compute @workgroup_size(64)
 fn write_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                    @builtin(num_workgroups) groups: vec3<u32>) {
-    let t = wid.y * groups.x + wid.x;
-    if t >= solid.tri_count {
-        return;
-    }
-    let s = crossing_setup(t);
-    if s.sign == 0 {
-        return;
-    }
-    let width = s.hi.x - s.lo.x + 1u;
-    let total = width * (s.hi.y - s.lo.y + 1u);
-    for (var i = lid.x; i < total; i += CROSSING_WG) {
-        let y = s.lo.x + i % width;
-        let z = s.lo.y + i / width;
-        if covers_row(s, y, z) {
-            let row = z * solid.dims.y + y;
-            let slot = atomicAdd(&row_counts[row], 1u);
-            let segment = row_segments[row];
-            if slot < segment.y && segment.x + slot < arrayLength(&crossings) {
-                crossings[segment.x + slot] = row_crossing(t, s, y, z);
-            }
-        }
+    let item = linear_id(wid, lid, groups, 64u);
+    if item < solid.item_count {
+        crossing_rows(item, true);
     }
 }
 

@@ -8,11 +8,13 @@
 use super::readback::{first_word, read_buffer};
 use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges};
+use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
 
 const WG: u32 = 64;
+/// The shader's `ROWS_PER_ITEM`.
+const ROWS_PER_ITEM: u64 = 32;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -25,7 +27,8 @@ struct SolidParams {
     edge_count: u32,
     box_count: u32,
     lattice_scale: f32,
-    _pad: [u32; 2],
+    item_count: u32,
+    _pad: u32,
 }
 
 /// The compiled solid pipelines.
@@ -68,6 +71,7 @@ impl SolidPipelines {
                 storage_entry(13, true),
                 storage_entry(14, false),
                 storage_entry(15, false),
+                storage_entry(16, true),
             ],
         });
         let one = [Some(&layout)];
@@ -80,7 +84,7 @@ impl SolidPipelines {
         }
     }
 
-    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
+    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 9]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -112,6 +116,21 @@ impl SolidPipelines {
         }
         let edges = boundary_edges(triangles, lattice);
         let boxes = boundary_boxes(&edges);
+        // Work items per triangle from the same set-up the shader computes (exact, so both count the same rows).
+        let mut offsets = Vec::with_capacity(triangles.len() + 1);
+        let mut items = 0u64;
+        for &t in triangles {
+            offsets.push(items as u32);
+            let s = crossing_setup(t, spec.dims, lattice);
+            if s.sign != 0 {
+                let rows = (s.hi[0] - s.lo[0] + 1) as u64 * (s.hi[1] - s.lo[1] + 1) as u64;
+                items += rows.div_ceil(ROWS_PER_ITEM);
+            }
+        }
+        offsets.push(items as u32);
+        if items > u32::MAX as u64 / 2 {
+            return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
+        }
         let base = SolidParams {
             dims: spec.dims.to_array(),
             tri_count: triangles.len() as u32,
@@ -121,12 +140,13 @@ impl SolidPipelines {
             edge_count: edges.len() as u32,
             box_count: boxes.len() as u32,
             lattice_scale: lattice.scale(),
-            _pad: [0; 2],
+            item_count: items as u32,
+            _pad: 0,
         };
         // The edges (two vec4 each), then the loops' boxes (one vec4 each).
         let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
         edge_bytes.extend_from_slice(bytemuck::cast_slice(&boxes));
-        let (params, counts, segments, placeholder, boundary, total) = scoped(device, || {
+        let (params, counts, segments, placeholder, boundary, total, item_offsets) = scoped(device, || {
             let params = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("solid params"),
                 size: std::mem::size_of::<SolidParams>() as u64,
@@ -139,23 +159,26 @@ impl SolidPipelines {
             let boundary =
                 buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), wgpu::BufferUsages::empty());
             let total = buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
+            let item_offsets = buffer(device, "item offsets", offsets.len() as u64 * 4, wgpu::BufferUsages::empty());
+            gpu.queue.write_buffer(&item_offsets, 0, bytemuck::cast_slice(&offsets));
             gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
             if !edge_bytes.is_empty() {
                 gpu.queue.write_buffer(&boundary, 0, &edge_bytes);
             }
-            Ok((params, counts, segments, placeholder, boundary, total))
+            Ok((params, counts, segments, placeholder, boundary, total, item_offsets))
         })
         .await?;
-        let tri_groups = dispatch_2d(triangles.len() as u32);
+        let item_groups = dispatch_2d((items as u32).div_ceil(WG));
         let row_groups = dispatch_2d((rows as u32).div_ceil(WG));
-        let first = self.bind(device, [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total]);
+        let first = self
+            .bind(device, [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets]);
         scoped(device, || {
             let mut encoder = device.create_command_encoder(&Default::default());
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 pass.set_bind_group(0, &first, &[]);
                 pass.set_pipeline(&self.count);
-                pass.dispatch_workgroups(tri_groups.0, tri_groups.1, 1);
+                pass.dispatch_workgroups(item_groups.0, item_groups.1, 1);
                 pass.set_pipeline(&self.allocate);
                 pass.dispatch_workgroups(row_groups.0, row_groups.1, 1);
             }
@@ -173,20 +196,26 @@ impl SolidPipelines {
         }
         let crossings =
             scoped(device, || Ok(buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
-        let bind = self.bind(device, [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total]);
+        let bind =
+            self.bind(device, [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total, &item_offsets]);
         scoped(device, || {
             let mut encoder = device.create_command_encoder(&Default::default());
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 pass.set_bind_group(0, &bind, &[]);
                 pass.set_pipeline(&self.write);
-                pass.dispatch_workgroups(tri_groups.0, tri_groups.1, 1);
+                pass.dispatch_workgroups(item_groups.0, item_groups.1, 1);
             }
             gpu.queue.submit([encoder.finish()]);
             Ok(())
         })
         .await?;
-        Ok(SolidRun { params, bind, base, _buffers: vec![counts, segments, crossings, boundary, total, placeholder] })
+        Ok(SolidRun {
+            params,
+            bind,
+            base,
+            _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
+        })
     }
 
     /// Adds the inside voxels of rows in `z0..z1` to the slab (recorded into `encoder`; the slab bounds go to the
