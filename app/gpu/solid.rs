@@ -220,13 +220,21 @@ impl SolidPipelines {
 
     /// Adds the inside voxels of rows in `z0..z1` to the slab (recorded into `encoder`; the slab bounds go to the
     /// queue, ahead of the submit).
-    pub fn fill(&self, gpu: &Gpu, run: &SolidRun, encoder: &mut wgpu::CommandEncoder, z0: u32, z1: u32) {
+    pub fn fill(
+        &self,
+        gpu: &Gpu,
+        run: &SolidRun,
+        encoder: &mut wgpu::CommandEncoder,
+        z0: u32,
+        z1: u32,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites>,
+    ) {
         let p = SolidParams { slab_z0: z0, slab_z1: z1, ..run.base };
         gpu.queue.write_buffer(&run.params, 0, bytemuck::bytes_of(&p));
         let rows = run.base.dims[1] * (z1 - z0);
         let (x, y) = dispatch_2d(rows.div_ceil(WG));
-        let mut pass = encoder
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("fill rows"), timestamp_writes: None });
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("fill rows"), timestamp_writes });
         pass.set_bind_group(0, &run.bind, &[]);
         pass.set_pipeline(&self.fill);
         pass.dispatch_workgroups(x, y, 1);

@@ -363,8 +363,9 @@ impl GpuVoxelizer {
         let batches = triangles.len().div_ceil(batch).max(1);
 
         let mut grid = if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None };
-        // Collected after every slab: at most set-up, voxelize and two compaction passes in between.
-        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 5));
+        // Collected after every slab: at most set-up, voxelize, exact, the solid fill and two compaction passes
+        // in between.
+        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 6));
         let mut gpu_ms = 0.0;
         let mut exact_tests = None;
         let mut points: Vec<CompactVoxels> = Vec::new();
@@ -519,7 +520,7 @@ impl GpuVoxelizer {
                         pass.dispatch_workgroups_indirect(&dispatch, 12);
                     }
                     if let (Some(run), Some(solid)) = (&solid_run, self.solid.get()) {
-                        solid.fill(gpu, run, &mut encoder, z0, z1);
+                        solid.fill(gpu, run, &mut encoder, z0, z1, timer.as_mut().and_then(|t| t.next_pass()));
                     }
                     gpu.queue.submit([encoder.finish()]);
                     Ok(())

@@ -336,6 +336,13 @@ fn gpu_matches_the_cpu_reference_in_every_mode() {
         cuboid(Vec3::ZERO, v3(13.0, 12.0, 12.0), false),
         spec(UVec3::new(13, 12, 12)),
     ));
+    // Big triangles at a high resolution: each covers ~170,000 rows (a workgroup per triangle once lost rows here).
+    let cube = meshvox::mesh::load("builtin:rotated-cube").expect("builtin");
+    let s = GridSpec::fit(cube.bounds().expect("b"), Resolution::Count(640), Axis::Longest).expect("fits");
+    let tris = cpu::grid_space_triangles(&cube, &s).expect("grid");
+    let options = Options { read_grid: true, mode: Mode::Solid, ..Default::default() };
+    let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
+    assert_same_grid(&out.grid.expect("grid"), &voxelize(&tris, s, Mode::Solid), "rotated cube at 640, solid");
     for (name, tris, s) in &cases {
         for mode in Mode::ALL {
             let reference = voxelize(tris, *s, mode);
