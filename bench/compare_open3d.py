@@ -8,8 +8,11 @@ Open3D has no solid voxel grid; its occupancy query (ray parity, `nsamples` rays
 voxel centre is the closest it offers. Voxels of meshvox's surface shell are left out of the comparison (their
 centres may lie on either side). Prints one markdown table row.
 """
-import json, os, subprocess, sys, tempfile, time
+import os, sys, time
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from meshvox_compare import meshvox, winding  # noqa: E402
 import open3d as o3d
 
 mesh_path, r = sys.argv[1], int(sys.argv[2])
@@ -17,28 +20,8 @@ binary = sys.argv[3] if len(sys.argv) > 3 else "target/release/meshvox"
 rng = np.random.default_rng(7)
 
 
-def meshvox(mode):
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "g.npy")
-        line = subprocess.run([binary, "voxelize", mesh_path, "-r", str(r), "--mode", mode, "--backend", "cpu",
-                               "-o", out, "--stats-json"], check=True, capture_output=True, text=True).stdout
-        return np.load(out).astype(bool), json.loads(line.strip().splitlines()[-1])
-
-
-def winding(points, tri):
-    w = np.zeros(len(points))
-    for i, p in enumerate(points):
-        a, b, c = tri[:, 0] - p, tri[:, 1] - p, tri[:, 2] - p
-        la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
-        num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
-            + np.einsum("ij,ij->i", c, a) * lb
-        w[i] = 2 * np.arctan2(num, den).sum() / (4 * np.pi)
-    return w
-
-
-solid, stats = meshvox("solid")
-surface, _ = meshvox("surface")
+solid, stats, _ = meshvox(binary, mesh_path, r, "solid")
+surface, _, _ = meshvox(binary, mesh_path, r, "surface")
 origin, h, dims = np.array(stats["origin"]), stats["voxel_size"], tuple(stats["dims"])
 m = o3d.io.read_triangle_mesh(mesh_path)
 v = (np.asarray(m.vertices) - origin) / h - 0.5  # meshvox voxel centres -> integer points

@@ -9,41 +9,19 @@ meshvox's voxel centres are trimesh's integer points (pitch 1), then `.fill()`. 
 winding number at the voxel centre is summed over all triangles here (numpy, float64) for a random sample of the
 differing voxels off meshvox's surface shell, to say which side is right. Prints one markdown table row.
 """
-import json, subprocess, sys, tempfile, time, os
+import os, sys, time
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from meshvox_compare import meshvox, winding  # noqa: E402
 import trimesh
 
 mesh_path, r = sys.argv[1], int(sys.argv[2])
 binary = sys.argv[3] if len(sys.argv) > 3 else "target/release/meshvox"
 rng = np.random.default_rng(7)
-
-
-def meshvox(mode, backend):
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "g.npy")
-        runs = []
-        for _ in range(3):
-            line = subprocess.run([binary, "voxelize", mesh_path, "-r", str(r), "--mode", mode, "--backend", backend,
-                                   "-o", out, "--stats-json"], check=True, capture_output=True, text=True).stdout
-            runs.append(json.loads(line.strip().splitlines()[-1]))
-        return np.load(out).astype(bool), runs[-1], sorted(s["voxelize_ms"] for s in runs)[1]
-
-
-def winding(points, tri):
-    w = np.zeros(len(points))
-    for i, p in enumerate(points):
-        a, b, c = tri[:, 0] - p, tri[:, 1] - p, tri[:, 2] - p
-        la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
-        num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
-            + np.einsum("ij,ij->i", c, a) * lb
-        w[i] = 2 * np.arctan2(num, den).sum() / (4 * np.pi)
-    return w
-
-
-solid, stats, cpu_ms = meshvox("solid", "cpu")
-solid_gpu, gstats, gpu_ms = meshvox("solid", "gpu")
-surface, _, _ = meshvox("surface", "cpu")
+solid, stats, cpu_ms = meshvox(binary, mesh_path, r, "solid", "cpu", runs=3)
+solid_gpu, _, gpu_ms = meshvox(binary, mesh_path, r, "solid", "gpu", runs=3)
+surface, _, _ = meshvox(binary, mesh_path, r, "surface", "cpu")
 assert (solid == solid_gpu).all(), "GPU and CPU solids differ"
 origin, h, dims = np.array(stats["origin"]), stats["voxel_size"], tuple(stats["dims"])
 

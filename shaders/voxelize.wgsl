@@ -380,6 +380,18 @@ fn edge_candidate(e: Edges, q: vec2<f32>) -> bool {
         && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2];
 }
 
+// The common end of voxel_decision and voxel_decision_thin (see decide in cpu.rs).
+fn decide(s: TriangleSetup, plane: f32, xy: vec3<f32>, yz: vec3<f32>, zx: vec3<f32>) -> u32 {
+    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
+    let low = min(min(plane + s.plane_eps, low3.x), min(low3.y, low3.z));
+    if low < 0.0 {
+        return 0u;
+    }
+    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
+    let high = min(min(plane - s.plane_eps, high3.x), min(high3.y, high3.z));
+    return select(2u, 1u, high >= 0.0);
+}
+
 // The overlap test in f32 only: 1 certainly overlaps, 0 certainly not, 2 unsure (voxel_overlaps_exact decides).
 // Each test value v with error bound e is certainly non-negative when v - e >= 0 and certainly negative when
 // v + e < 0 (the rounded sum or difference of two floats has the exact one's sign), so two minima decide.
@@ -393,14 +405,7 @@ fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
         edge_function(s.yz.ne[2], pl.yz, s.yz.de[2]));
     let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
         edge_function(s.zx.ne[2], pl.zx, s.zx.de[2]));
-    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
-    let low = min(min(min(v1, v2) + s.plane_eps, low3.x), min(low3.y, low3.z));
-    if low < 0.0 {
-        return 0u;
-    }
-    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
-    let high = min(min(min(v1, v2) - s.plane_eps, high3.x), min(high3.y, high3.z));
-    return select(2u, 1u, high >= 0.0);
+    return decide(s, min(v1, v2), xy, yz, zx);
 }
 
 // ---- the thin (6-separating) test: the thick test's values moved inward (see ThinShrink in cpu.rs) ----
@@ -511,14 +516,7 @@ fn voxel_decision_thin(s: TriangleSetup, sh: ThinShrink, pl: vec3<f32>) -> u32 {
         edge_function(s.yz.ne[2], pl.yz, s.yz.de[2])) - sh.yz;
     let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
         edge_function(s.zx.ne[2], pl.zx, s.zx.de[2])) - sh.zx;
-    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
-    let low = min(min(min(v1, v2) + s.plane_eps, low3.x), min(low3.y, low3.z));
-    if low < 0.0 {
-        return 0u;
-    }
-    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
-    let high = min(min(min(v1, v2) - s.plane_eps, high3.x), min(high3.y, high3.z));
-    return select(2u, 1u, high >= 0.0);
+    return decide(s, min(v1, v2), xy, yz, zx);
 }
 
 // Narrows [lo, hi] to the integer t where slope * t + offset may be non-negative given its error bound eps,

@@ -6,7 +6,7 @@
 //! (which only open meshes have) are found on the host, where welding vertices by position is a sort.
 
 use super::readback::{first_word, read_buffer};
-use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
+use super::voxelize::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};
@@ -47,15 +47,6 @@ pub(crate) struct SolidRun {
     base: SolidParams,
     // Kept alive for the bind group.
     _buffers: Vec<wgpu::Buffer>,
-}
-
-fn buffer(device: &wgpu::Device, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: size.max(4).next_multiple_of(4),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | usage,
-        mapped_at_creation: false,
-    })
 }
 
 impl SolidPipelines {
@@ -153,13 +144,18 @@ impl SolidPipelines {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let counts = buffer(device, "row counts", rows * 4, wgpu::BufferUsages::empty());
-            let segments = buffer(device, "row segments", rows * 8, wgpu::BufferUsages::empty());
-            let placeholder = buffer(device, "crossings (placeholder)", 4, wgpu::BufferUsages::empty());
-            let boundary =
-                buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), wgpu::BufferUsages::empty());
-            let total = buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
-            let item_offsets = buffer(device, "item offsets", offsets.len() as u64 * 4, wgpu::BufferUsages::empty());
+            let counts = storage_buffer(device, "row counts", rows * 4, wgpu::BufferUsages::empty());
+            let segments = storage_buffer(device, "row segments", rows * 8, wgpu::BufferUsages::empty());
+            let placeholder = storage_buffer(device, "crossings (placeholder)", 4, wgpu::BufferUsages::empty());
+            let boundary = storage_buffer(
+                device,
+                "boundary edges",
+                (edge_bytes.len() as u64).max(32),
+                wgpu::BufferUsages::empty(),
+            );
+            let total = storage_buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
+            let item_offsets =
+                storage_buffer(device, "item offsets", offsets.len() as u64 * 4, wgpu::BufferUsages::empty());
             gpu.queue.write_buffer(&item_offsets, 0, bytemuck::cast_slice(&offsets));
             gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
             if !edge_bytes.is_empty() {
@@ -172,20 +168,7 @@ impl SolidPipelines {
         let row_groups = dispatch_2d((rows as u32).div_ceil(WG));
         let first = self
             .bind(device, [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets]);
-        scoped(device, || {
-            let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_bind_group(0, &first, &[]);
-                pass.set_pipeline(&self.count);
-                pass.dispatch_workgroups(item_groups.0, item_groups.1, 1);
-                pass.set_pipeline(&self.allocate);
-                pass.dispatch_workgroups(row_groups.0, row_groups.1, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-            Ok(())
-        })
-        .await?;
+        run_passes(gpu, &first, &[(&self.count, item_groups), (&self.allocate, row_groups)]).await?;
         let listed = first_word(&read_buffer(device, &gpu.queue, &total, 0, 4).await?).unwrap_or(0) as u64;
         if listed * 4 > limit {
             return Err(GpuError::TooLarge {
@@ -195,21 +178,10 @@ impl SolidPipelines {
             });
         }
         let crossings =
-            scoped(device, || Ok(buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
+            scoped(device, || Ok(storage_buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
         let bind =
             self.bind(device, [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total, &item_offsets]);
-        scoped(device, || {
-            let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_bind_group(0, &bind, &[]);
-                pass.set_pipeline(&self.write);
-                pass.dispatch_workgroups(item_groups.0, item_groups.1, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-            Ok(())
-        })
-        .await?;
+        run_passes(gpu, &bind, &[(&self.write, item_groups)]).await?;
         Ok(SolidRun {
             params,
             bind,
@@ -239,4 +211,26 @@ impl SolidPipelines {
         pass.set_pipeline(&self.fill);
         pass.dispatch_workgroups(x, y, 1);
     }
+}
+
+/// Submits one compute pass that dispatches `pipelines` in order over `groups` workgroups each (x, y).
+async fn run_passes(
+    gpu: &Gpu,
+    bind: &wgpu::BindGroup,
+    pipelines: &[(&wgpu::ComputePipeline, (u32, u32))],
+) -> Result<(), GpuError> {
+    scoped(&gpu.device, || {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, bind, &[]);
+            for (pipeline, (x, y)) in pipelines {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(*x, *y, 1);
+            }
+        }
+        gpu.queue.submit([encoder.finish()]);
+        Ok(())
+    })
+    .await
 }

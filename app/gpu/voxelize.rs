@@ -161,7 +161,7 @@ pub(crate) fn pipeline_with(
     })
 }
 
-fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         // Zero-sized bindings are invalid; four bytes stand in for an empty array.

@@ -460,15 +460,7 @@ pub fn voxel_decision_thin(s: &TriangleSetup, sh: &ThinShrink, pl: Vec3) -> u32 
     let xy = values(&s.xy, Vec2::new(pl.x, pl.y), sh.xy);
     let yz = values(&s.yz, Vec2::new(pl.y, pl.z), sh.yz);
     let zx = values(&s.zx, Vec2::new(pl.z, pl.x), sh.zx);
-    let eps = |e: &Edges| Vec3::from_array(e.eps);
-    let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
-    let low = (v1.min(v2) + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
-    if low < 0.0 {
-        return 0;
-    }
-    let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
-    let high = (v1.min(v2) - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
-    if high >= 0.0 { 1 } else { 2 }
+    decide(s, v1.min(v2), xy, yz, zx)
 }
 
 /// Whether no edge function of projection `e` is certainly negative at `q`: a necessary condition for an
@@ -500,14 +492,22 @@ pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
     let xy = values(&s.xy, Vec2::new(pl.x, pl.y));
     let yz = values(&s.yz, Vec2::new(pl.y, pl.z));
     let zx = values(&s.zx, Vec2::new(pl.z, pl.x));
+    decide(s, v1.min(v2), xy, yz, zx)
+}
+
+/// The common end of [`voxel_decision`] and [`voxel_decision_thin`]: `plane` is the smaller of the two plane
+/// values, `xy`, `yz`, `zx` the edge values; each value `v` with bound `e` is certainly non-negative when
+/// `v - e >= 0` and certainly negative when `v + e < 0`, so two minima decide.
+#[inline]
+fn decide(s: &TriangleSetup, plane: f32, xy: Vec3, yz: Vec3, zx: Vec3) -> u32 {
     let eps = |e: &Edges| Vec3::from_array(e.eps);
     let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
-    let low = (v1.min(v2) + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
+    let low = (plane + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
     if low < 0.0 {
         return 0;
     }
     let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
-    let high = (v1.min(v2) - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
+    let high = (plane - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
     if high >= 0.0 { 1 } else { 2 }
 }
 
