@@ -579,21 +579,30 @@ fn render(args: &RenderArgs) -> Result<()> {
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     let mode = Mode::from(args.mode);
     let t = Instant::now();
-    let (voxels, backend) = if args.backend == BackendArg::Cpu || args.cut.is_some() {
-        // A cut-away needs the whole grid on the host: the cut makes interior voxels visible.
-        let engine = Engine::open(args.backend)?;
-        let out = engine.voxelize(&mesh, spec, mode)?;
-        let grid = match args.cut {
-            Some(cut) => cut.apply(&out.grid),
-            None => out.grid.exposed(),
-        };
-        (instances_from_grid(&gpu.device, &grid), out.backend)
+    let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
+    let (voxels, backend) = if args.backend == BackendArg::Cpu {
+        let (grid, _) = voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|_, _| {})?;
+        let shown = args.cut.map_or_else(|| grid.exposed(), |cut| cut.apply(&grid));
+        (instances_from_grid(&gpu.device, &shown), format!("cpu ({} threads)", rayon::current_num_threads()))
     } else {
+        // On the device that draws. A cut-away needs the whole grid on the host (the cut exposes interior
+        // voxels); otherwise the GPU compacts the visible voxels straight into the instance buffer.
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-        let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-        let options = meshvox::gpu::voxelize::Options { compact: true, surface_only: true, mode, ..Default::default() };
+        let cut = args.cut;
+        let options = meshvox::gpu::voxelize::Options {
+            compact: cut.is_none(),
+            read_grid: cut.is_some(),
+            surface_only: true,
+            mode,
+            ..Default::default()
+        };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
-        (out.points.ok_or_else(|| anyhow!("the GPU returned no voxel list"))?, format!("gpu: {}", gpu.summary))
+        let voxels = match (cut, out.points, out.grid) {
+            (Some(cut), _, Some(grid)) => instances_from_grid(&gpu.device, &cut.apply(&grid)),
+            (None, Some(points), _) => points,
+            _ => bail!("the GPU returned no voxels"),
+        };
+        (voxels, format!("gpu: {}", gpu.summary))
     };
     let voxelize_ms = ms(t);
     let count = voxels.count;
