@@ -5,8 +5,9 @@
 
 struct View {
     view_proj: mat4x4<f32>,
-    // xyz: grid origin, w: voxel size.
-    origin: vec4<f32>,
+    // x: voxel size. Everything is drawn relative to the grid origin (the host keeps that in f64), so a mesh far
+    // from the world origin keeps the precision of one at the origin.
+    grid: vec4<f32>,
     color: vec4<f32>,
     mesh_color: vec4<f32>,
     // x: 1 when the target is not sRGB and the shader must encode; y: edge darkening strength (0 = off).
@@ -47,7 +48,7 @@ fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
     local[axis] = select(0.0, 1.0, positive);
     local[(axis + 1u) % 3u] = uv.x;
     local[(axis + 2u) % 3u] = uv.y;
-    let world = view.origin.xyz + (cell + local) * view.origin.w;
+    let world = (cell + local) * view.grid.x;
     var out: CubeOut;
     out.clip = view.view_proj * vec4<f32>(world, 1.0);
     out.face = face;

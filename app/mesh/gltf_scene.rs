@@ -1,11 +1,12 @@
 //! glTF 2.0 (`.gltf` with external or base64-embedded buffers, and `.glb`) through the gltf crate.
 //!
 //! The default scene is walked (every scene when none is marked), each node's transform (matrix or TRS) is
-//! multiplied down the hierarchy, and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
+//! multiplied down the hierarchy in f64 (read from the JSON text, since the crate keeps them in f32: a model placed
+//! far from the origin by a node translation must not have that translation rounded), and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
 //! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
 
-use super::{LoadLimits, Mesh, MeshError, Part};
-use glam::{Mat4, Vec3};
+use super::{LoadLimits, Mesh, MeshError, Part, Piece};
+use glam::{DMat4, DQuat, DVec3};
 use gltf::mesh::Mode;
 use std::path::Path;
 
@@ -18,6 +19,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     };
     let glb_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     check_glb_header(bytes, glb_name).map_err(err)?;
+    let transforms = node_transforms_f64(bytes);
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes).map_err(crate_err)?;
     // The crate's validation indexes `accessors` with a primitive's POSITION index before checking it (a panic
     // on a dangling index), so those references are checked first, and then the crate validates the rest.
@@ -37,8 +39,8 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     };
     // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
     // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
-    let mut stack: Vec<(gltf::Node, Mat4, usize)> = roots.into_iter().map(|n| (n, Mat4::IDENTITY, 0)).collect();
-    let mut instances: Vec<(gltf::Mesh, Mat4)> = Vec::new();
+    let mut stack: Vec<(gltf::Node, DMat4, usize)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let mut instances: Vec<(gltf::Mesh, DMat4)> = Vec::new();
     // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node.
     let mut triangles: u64 = 0;
     // glTF requires the nodes to form trees, so a walk meets each node at most once per scene. A node listed as
@@ -57,7 +59,12 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
                 node.index()
             )));
         }
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let local = match transforms.get(node.index()) {
+            Some(Some(m)) => *m,
+            // The JSON could not be reread (the crate accepted it, so this is not expected): its f32 values.
+            _ => DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from))),
+        };
+        let world = parent * local;
         if let Some(gmesh) = node.mesh() {
             triangles = triangles.saturating_add(gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>());
             limits.check_triangles(path, triangles)?;
@@ -67,12 +74,63 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     }
     let buffers = gltf::import_buffers(&document, base, blob).map_err(crate_err)?;
     let mut mesh = Mesh::default();
+    let mut pieces = Vec::new();
     for (gmesh, world) in instances {
         for primitive in gmesh.primitives() {
-            add_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?;
+            pieces.extend(read_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?);
         }
     }
+    mesh.push_pieces(pieces);
     Ok(mesh)
+}
+
+/// Every node's local transform in f64, read from the JSON text (the GLB's JSON chunk or the whole `.gltf`);
+/// `None` for a node whose transform is not well-formed numbers, and an empty list if the JSON cannot be read.
+/// glTF gives either a column-major `matrix` or `translation`, `rotation` (x, y, z, w) and `scale`.
+fn node_transforms_f64(bytes: &[u8]) -> Vec<Option<DMat4>> {
+    let json: &[u8] = if bytes.starts_with(b"glTF") {
+        match gltf::binary::Glb::from_slice(bytes) {
+            Ok(glb) => return transforms_from_json(&glb.json),
+            Err(_) => return Vec::new(),
+        }
+    } else {
+        bytes
+    };
+    transforms_from_json(json)
+}
+
+fn transforms_from_json(json: &[u8]) -> Vec<Option<DMat4>> {
+    #[derive(serde::Deserialize)]
+    struct Node {
+        matrix: Option<[f64; 16]>,
+        translation: Option<[f64; 3]>,
+        rotation: Option<[f64; 4]>,
+        scale: Option<[f64; 3]>,
+    }
+    // Nodes are read one by one as raw values, so one malformed node costs only its own f64 transform.
+    #[derive(serde::Deserialize)]
+    struct Raw {
+        #[serde(default)]
+        nodes: Vec<serde_json::Value>,
+    }
+    let Ok(raw) = serde_json::from_slice::<Raw>(json) else { return Vec::new() };
+    raw.nodes
+        .into_iter()
+        .map(|v| {
+            let n: Node = serde_json::from_value(v).ok()?;
+            Some(match n.matrix {
+                Some(m) => DMat4::from_cols_array(&m),
+                None => {
+                    let [x, y, z, w] = n.rotation.unwrap_or([0.0, 0.0, 0.0, 1.0]);
+                    DMat4::from_scale_rotation_translation(
+                        DVec3::from(n.scale.unwrap_or([1.0; 3])),
+                        DQuat::from_xyzw(x, y, z, w),
+                        DVec3::from(n.translation.unwrap_or([0.0; 3])),
+                    )
+                }
+            })
+        })
+        .collect()
 }
 
 /// Triangles a primitive makes, from its accessors' declared counts (0 for points and lines).
@@ -155,14 +213,16 @@ fn check_external_buffers(document: &gltf::Document, base: Option<&Path>) -> Res
     Ok(())
 }
 
-fn add_primitive(
+/// One triangle primitive as a [`Piece`] in world space (f64); `None`, with a warning on `mesh`, for a primitive
+/// that makes no triangles.
+fn read_primitive(
     mesh: &mut Mesh,
     path: &Path,
     buffers: &[gltf::buffer::Data],
     gmesh: &gltf::Mesh,
     primitive: &gltf::Primitive,
-    world: Mat4,
-) -> Result<(), MeshError> {
+    world: DMat4,
+) -> Result<Option<Piece>, MeshError> {
     let name = gmesh.name().unwrap_or("").to_string();
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let mode = primitive.mode();
@@ -173,7 +233,7 @@ fn add_primitive(
             primitive.index(),
             gmesh.index()
         ));
-        return Ok(());
+        return Ok(None);
     }
     // The crate's reader stops quietly at the end of a short buffer view, which would drop triangles without a
     // word: every accessor this primitive reads is checked against the glTF rules first.
@@ -196,9 +256,9 @@ fn add_primitive(
             primitive.index(),
             gmesh.index()
         ));
-        return Ok(());
+        return Ok(None);
     };
-    let positions: Vec<Vec3> = positions.map(|p| world.transform_point3(Vec3::from(p))).collect();
+    let positions: Vec<DVec3> = positions.map(|p| world.transform_point3(DVec3::from(p.map(f64::from)))).collect();
     let indices: Vec<u32> = match reader.read_indices() {
         Some(ix) => ix.into_u32().collect(),
         None => (0..positions.len() as u32).collect(),
@@ -221,19 +281,16 @@ fn add_primitive(
             positions.len()
         )));
     }
-    let corner = |i: u32| positions[i as usize];
-    let triangles: Vec<[Vec3; 3]> = match mode {
-        Mode::Triangles => indices.chunks_exact(3).map(|t| [corner(t[0]), corner(t[1]), corner(t[2])]).collect(),
+    let triangles: Vec<[u32; 3]> = match mode {
+        Mode::Triangles => indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
         // Strips alternate winding; orientation does not matter for voxelization, but keep it right anyway.
         Mode::TriangleStrip => (2..indices.len())
             .map(|i| {
                 let (a, b, c) = (indices[i - 2], indices[i - 1], indices[i]);
-                if i % 2 == 0 { [corner(a), corner(b), corner(c)] } else { [corner(b), corner(a), corner(c)] }
+                if i % 2 == 0 { [a, b, c] } else { [b, a, c] }
             })
             .collect(),
-        Mode::TriangleFan => {
-            (2..indices.len()).map(|i| [corner(indices[0]), corner(indices[i - 1]), corner(indices[i])]).collect()
-        }
+        Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
         _ => unreachable!("filtered above"),
     };
     let part = Part {
@@ -242,8 +299,7 @@ fn add_primitive(
         primitive: primitive.index() as u32,
         material: primitive.material().index().map(|i| i as u32),
     };
-    mesh.push_part(part, triangles);
-    Ok(())
+    Ok(Some(Piece { part, positions, triangles }))
 }
 
 /// Checks that an accessor holds what glTF allows for its use (`what`): one of `types`, with `dimensions`.

@@ -7,7 +7,7 @@ pub mod builtin;
 mod gltf_scene;
 mod obj;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use std::path::{Path, PathBuf};
 
 /// Where a group of triangles came from, so later stages (colour transfer, per-part stats) can trace them back.
@@ -23,24 +23,29 @@ pub struct Part {
     pub material: Option<u32>,
 }
 
-/// An axis-aligned box.
+/// An axis-aligned box in world space, in f64 so that a box far from the origin keeps its size.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
-    pub min: Vec3,
-    pub max: Vec3,
+    pub min: DVec3,
+    pub max: DVec3,
 }
 
 impl Aabb {
-    pub fn extent(&self) -> Vec3 {
+    pub fn extent(&self) -> DVec3 {
         self.max - self.min
     }
 }
 
-/// A triangle soup in world space.
+/// A triangle soup. Positions are f32 offsets from an f64 `anchor` (the centre of the loaded positions): a
+/// mesh far from the origin (UTM coordinates, a CAD part metres from its assembly's origin) keeps the f32
+/// precision of a mesh at the origin, while the triangles take no more memory than plain f32 positions.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
     /// A short name for messages and stats: the file name or `builtin:NAME`.
     pub name: String,
+    /// The world-space point the triangle coordinates are relative to.
+    pub anchor: DVec3,
+    /// Triangles, relative to `anchor`: world position = `anchor + v` (computed in f64).
     pub triangles: Vec<[Vec3; 3]>,
     /// For each triangle, an index into `parts`.
     pub triangle_part: Vec<u32>,
@@ -50,12 +55,41 @@ pub struct Mesh {
 }
 
 impl Mesh {
-    /// The bounding box of all triangles, or `None` for an empty mesh.
+    /// The world-space bounding box of all triangles, or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
         let mut it = self.triangles.iter().flatten();
         let first = *it.next()?;
         let (min, max) = it.fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-        Some(Aabb { min, max })
+        Some(Aabb { min: self.anchor + min.as_dvec3(), max: self.anchor + max.as_dvec3() })
+    }
+
+    /// Triangle `i` in world space (f64).
+    pub fn world_triangle(&self, i: usize) -> [DVec3; 3] {
+        self.triangles[i].map(|v| self.anchor + v.as_dvec3())
+    }
+
+    /// Appends the pieces' triangles, each piece one part, relative to an anchor at the centre of all the
+    /// pieces' positions. The positions arrive in f64 (parsed so, or placed by f64 node transforms) and are
+    /// rounded to f32 only as offsets from that anchor. The mesh must be empty.
+    pub(crate) fn push_pieces(&mut self, pieces: Vec<Piece>) {
+        debug_assert!(self.triangles.is_empty());
+        // Only positions a triangle uses: a stray vertex far away must not pull the anchor off the mesh.
+        let mut all = pieces
+            .iter()
+            .flat_map(|p| p.triangles.iter().flatten().map(|&i| p.positions[i as usize]))
+            .filter(|v| v.is_finite());
+        self.anchor = match all.next() {
+            Some(first) => {
+                let (lo, hi) = all.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                lo + (hi - lo) * 0.5
+            }
+            None => DVec3::ZERO,
+        };
+        let anchor = self.anchor;
+        for piece in pieces {
+            let local: Vec<Vec3> = piece.positions.iter().map(|&p| (p - anchor).as_vec3()).collect();
+            self.push_part(piece.part, piece.triangles.iter().map(|t| t.map(|i| local[i as usize])));
+        }
     }
 
     /// Appends triangles that all belong to one new part.
@@ -76,8 +110,19 @@ impl Mesh {
         if let Some(t) = self.triangles.iter().position(|t| !t.iter().all(|v| v.is_finite())) {
             return Err(MeshError::NonFinite { path: path.to_path_buf(), triangle: t });
         }
+        if !self.anchor.is_finite() {
+            return Err(MeshError::NonFinite { path: path.to_path_buf(), triangle: 0 });
+        }
         Ok(self)
     }
+}
+
+/// One part of a mesh as a loader reads it: f64 world-space positions and triangles indexing them (every index
+/// already checked against `positions`). See [`Mesh::push_pieces`].
+pub(crate) struct Piece {
+    pub part: Part,
+    pub positions: Vec<DVec3>,
+    pub triangles: Vec<[u32; 3]>,
 }
 
 /// Everything that can go wrong while loading a mesh. Each message names the file.

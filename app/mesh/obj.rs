@@ -6,8 +6,8 @@
 //! faces will make (so an oversized mesh is refused before it is parsed) and checks every vertex and face
 //! statement, naming the line of the first problem.
 
-use super::{LoadLimits, Mesh, MeshError, Part};
-use glam::Vec3;
+use super::{LoadLimits, Mesh, MeshError, Part, Piece};
+use glam::DVec3;
 use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
@@ -33,33 +33,26 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
             mesh.warnings.push(format!("{}: material library not loaded: {e}", path.display()));
         }
     }
-    for (index, model) in models.iter().enumerate() {
-        let m = &model.mesh;
+    // tobj parses coordinates as f64 (its `use_f64` feature), so a mesh far from the origin keeps its shape
+    // until `push_pieces` takes offsets from its centre.
+    let mut pieces = Vec::with_capacity(models.len());
+    for (index, model) in models.into_iter().enumerate() {
+        let m = model.mesh;
         let vertex_count = m.positions.len() / 3;
-        let vertex = |i: u32| -> Result<Vec3, MeshError> {
-            let i = i as usize;
-            if i >= vertex_count {
-                return Err(obj_err(format!(
-                    "object '{}' refers to vertex {} but has {vertex_count}",
-                    model.name,
-                    i + 1
-                )));
-            }
-            Ok(Vec3::new(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]))
-        };
-        let triangles = m
-            .indices
-            .chunks_exact(3)
-            .map(|t| Ok([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?]))
-            .collect::<Result<Vec<_>, MeshError>>()?;
-        let part = Part {
-            name: model.name.clone(),
-            mesh: index as u32,
-            primitive: 0,
-            material: m.material_id.map(|id| id as u32),
-        };
-        mesh.push_part(part, triangles);
+        if let Some(&bad) = m.indices.iter().find(|&&i| i as usize >= vertex_count) {
+            return Err(obj_err(format!(
+                "object '{}' refers to vertex {} but has {vertex_count}",
+                model.name,
+                bad as u64 + 1
+            )));
+        }
+        let positions = m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
+        let triangles = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let part =
+            Part { name: model.name, mesh: index as u32, primitive: 0, material: m.material_id.map(|id| id as u32) };
+        pieces.push(Piece { part, positions, triangles });
     }
+    mesh.push_pieces(pieces);
     Ok(mesh)
 }
 

@@ -35,7 +35,7 @@ impl Default for Style {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct ViewUniform {
     view_proj: [[f32; 4]; 4],
-    origin: [f32; 4],
+    grid: [f32; 4],
     color: [f32; 4],
     mesh_color: [f32; 4],
     options: [f32; 4],
@@ -51,10 +51,11 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// World-space bounds of the grid.
+    /// Bounds of the grid in the drawing frame, whose origin is the grid origin: scenes are drawn relative to
+    /// it so a mesh far from the world origin (world = `spec.origin` + drawing position, in f64) does not lose
+    /// its shape to f32 on the way to the screen.
     pub fn bounds(&self) -> (glam::Vec3, glam::Vec3) {
-        let min = self.spec.origin.as_vec3();
-        (min, min + (self.spec.dims.as_dvec3() * self.spec.voxel_size).as_vec3())
+        (glam::Vec3::ZERO, (self.spec.dims.as_dvec3() * self.spec.voxel_size).as_vec3())
     }
 }
 
@@ -208,10 +209,14 @@ impl CubeRenderer {
             ],
         });
         let mesh = mesh.filter(|m| !m.triangles.is_empty()).map(|m| {
-            let flat: &[f32] = bytemuck::cast_slice(&m.triangles);
+            // Into the drawing frame: anchor-relative positions moved by the anchor's offset from the grid origin,
+            // which is taken in f64.
+            let shift = m.anchor - spec.origin;
+            let local: Vec<[glam::Vec3; 3]> =
+                m.triangles.iter().map(|t| t.map(|v| (shift + v.as_dvec3()).as_vec3())).collect();
             let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("mesh overlay"),
-                contents: bytemuck::cast_slice(flat),
+                contents: bytemuck::cast_slice(&local),
                 usage: wgpu::BufferUsages::VERTEX,
             });
             (buffer, m.triangles.len() as u32 * 3)
@@ -221,10 +226,9 @@ impl CubeRenderer {
 
     /// Writes the camera and style for the next draw.
     pub fn update(&self, queue: &wgpu::Queue, scene: &Scene, camera: &OrbitCamera, aspect: f32, style: &Style) {
-        let o = scene.spec.origin.as_vec3();
         let u = ViewUniform {
             view_proj: camera.view_proj(aspect).to_cols_array_2d(),
-            origin: [o.x, o.y, o.z, scene.spec.voxel_size as f32],
+            grid: [scene.spec.voxel_size as f32, 0.0, 0.0, 0.0],
             color: [style.color[0], style.color[1], style.color[2], 1.0],
             mesh_color: [0.3, 0.65, 1.0, 0.25],
             options: [if self.encode_srgb { 1.0 } else { 0.0 }, if style.edges { 0.45 } else { 0.0 }, 0.0, 0.0],

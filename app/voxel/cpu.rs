@@ -646,7 +646,11 @@ pub fn voxelize_triangle(s: &TriangleSetup, thin: bool, mut emit: impl FnMut(UVe
 /// exactly these values.
 pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, super::GridError> {
     let tolerance = spec.snap_tolerance();
-    let tris: Vec<[Vec3; 3]> = mesh.triangles.par_iter().map(|t| t.map(|v| spec.to_grid_with(v, tolerance))).collect();
+    // The anchor's offset from the grid origin is taken in f64 once; each vertex is then a small f32 offset from
+    // the anchor, so no world coordinate far from the origin is ever rounded to f32.
+    let shift = mesh.anchor - spec.origin;
+    let tris: Vec<[Vec3; 3]> =
+        mesh.triangles.par_iter().map(|t| t.map(|v| spec.snap_to_grid(shift + v.as_dvec3(), tolerance))).collect();
     let lattice = Lattice::fit(&tris, spec.dims)?;
     Ok(tris.into_par_iter().map(|t| t.map(|v| lattice.snap(v))).collect())
 }

@@ -19,7 +19,7 @@ impl Axis {
         match self {
             Axis::Longest => {
                 // The first of equal extents wins, so a cube counts along x like the original program.
-                let extent = bounds.max.as_dvec3() - bounds.min.as_dvec3();
+                let extent = bounds.extent();
                 let m = extent.max_element();
                 (0..3).find(|&i| extent[i] == m).unwrap_or(0)
             }
@@ -105,7 +105,7 @@ pub struct GridSpec {
 impl GridSpec {
     /// Lays a grid over `bounds` following the convention in the module documentation.
     pub fn fit(bounds: Aabb, resolution: Resolution, axis: Axis) -> Result<GridSpec, GridError> {
-        let (min, max) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        let (min, max) = (bounds.min, bounds.max);
         let extent = max - min;
         let axis_index = axis.index(bounds);
         let (voxel_size, fixed) = match resolution {
@@ -132,7 +132,7 @@ impl GridSpec {
                 Some((a, n)) if a == i => n as u64,
                 // An axis exactly as long as the counted one gets exactly N too, whatever the division rounds to.
                 Some((a, n)) if extent[i] == extent[a] => n as u64,
-                _ => cells(extent[i], voxel_size, snap_tolerance(min.abs().max(max.abs()).max_element(), voxel_size)),
+                _ => cells(extent[i], voxel_size, snap_tolerance(extent.max_element() / 2.0, voxel_size)),
             };
         }
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
@@ -169,7 +169,9 @@ impl GridSpec {
     }
 
     /// Maps a world-space point into grid space, where voxel `(i, j, k)` spans `[i, i+1] × [j, j+1] × [k, k+1]`.
-    /// Both backends voxelize grid-space triangles made by this one function, so they see the same f32 inputs.
+    /// Both backends voxelize grid-space triangles made by [`GridSpec::snap_to_grid`], so they see the same f32
+    /// inputs; [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) maps a mesh's anchor-relative
+    /// triangles without forming world coordinates.
     ///
     /// Coordinates within [`GridSpec::snap_tolerance`] of a voxel boundary are snapped onto it. A face meant to
     /// lie on a boundary (a box whose size is a multiple of the voxel size, say) rarely lands there exactly after
@@ -180,24 +182,28 @@ impl GridSpec {
     /// f32 ulp of the grid's largest coordinate); [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles)
     /// does both.
     #[inline]
-    pub fn to_grid(&self, p: Vec3) -> Vec3 {
-        self.to_grid_with(p, self.snap_tolerance())
+    pub fn to_grid(&self, p: DVec3) -> Vec3 {
+        self.snap_to_grid(p - self.origin, self.snap_tolerance())
     }
 
-    pub(crate) fn to_grid_with(self, p: Vec3, tolerance: f64) -> Vec3 {
-        let g = (p.as_dvec3() - self.origin) / self.voxel_size;
+    /// Grid-space coordinates of the point `d` (world units) from the grid origin, snapped within `tolerance`.
+    #[inline]
+    pub(crate) fn snap_to_grid(&self, d: DVec3, tolerance: f64) -> Vec3 {
+        let g = d / self.voxel_size;
         let r = g.map(nearest_integer);
         let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(tolerance)), r, g);
         snapped.as_vec3()
     }
 
     /// Distance from a voxel boundary, in voxels, within which a grid-space coordinate snaps onto it:
-    /// `max(1e-4, 16 f32 ulps of the largest coordinate magnitude of the grid's box, in voxels)`, at most 1/64.
-    /// Input noise is relative to the coordinates' own magnitude, so an absolute tolerance alone misses it at high
-    /// resolutions (a vertex 8 ulps off 1.0 is 1.2e-4 voxel off at 256).
+    /// `max(1e-4, 16 f32 ulps of half the grid's largest extent, in voxels)`, at most 1/64. Input noise is
+    /// relative to the coordinates' magnitude, so an absolute tolerance alone misses it at high resolutions (a
+    /// vertex 8 ulps off 1.0 is 1.2e-4 voxel off at 256). The magnitude is measured from the grid's centre, not
+    /// from the world origin, so the same mesh moved far away snaps the same way: positions are read in f64 and
+    /// keep their precision however far they are (a file that stored its far-away positions in f32 has lost
+    /// that precision already, and no tolerance brings it back).
     pub fn snap_tolerance(&self) -> f64 {
-        let far = self.origin + self.dims.as_dvec3() * self.voxel_size;
-        snap_tolerance(self.origin.abs().max(far.abs()).max_element(), self.voxel_size)
+        snap_tolerance((self.dims.as_dvec3() * self.voxel_size).max_element() / 2.0, self.voxel_size)
     }
 
     /// World-space centre of voxel `(x, y, z)`.

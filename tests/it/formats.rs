@@ -188,8 +188,8 @@ fn loaders_agree_with_trimesh() {
         assert_eq!(j["triangles"].as_u64(), Some(m.triangles.len() as u64), "{rel}");
         let b: [[f64; 3]; 2] = serde_json::from_value(j["bounds"].clone()).expect("bounds");
         let ours = m.bounds().expect("bounds");
-        let diff = (ours.min.as_dvec3() - DVec3::from_array(b[0])).abs().max_element()
-            + (ours.max.as_dvec3() - DVec3::from_array(b[1])).abs().max_element();
+        let diff = (ours.min - DVec3::from_array(b[0])).abs().max_element()
+            + (ours.max - DVec3::from_array(b[1])).abs().max_element();
         assert!(diff < 1e-5, "{rel}: bounds {ours:?} vs trimesh {b:?}");
     }
 }

@@ -5,7 +5,7 @@ use meshvox::mesh::Aabb;
 use meshvox::voxel::{Axis, GridError, GridSpec, Resolution, VoxelGrid};
 
 fn bounds(min: [f32; 3], max: [f32; 3]) -> Aabb {
-    Aabb { min: Vec3::from(min), max: Vec3::from(max) }
+    Aabb { min: Vec3::from(min).as_dvec3(), max: Vec3::from(max).as_dvec3() }
 }
 
 #[test]
@@ -70,7 +70,7 @@ fn bit_layout_is_row_aligned_x_fastest() {
 fn grid_space_snaps_near_boundaries() {
     let spec = GridSpec { origin: DVec3::new(-1.0, 0.0, 0.0), voxel_size: 0.1, dims: UVec3::splat(20) };
     // 0.3 is not representable: (0.3 + 1) / 0.1 is 12.999999... in floating point, and snaps to 13.
-    assert_eq!(spec.to_grid(Vec3::new(0.3, 0.0, 0.0)).x, 13.0);
-    assert_eq!(spec.to_grid(Vec3::new(0.305, 0.0, 0.0)).x, 13.05);
+    assert_eq!(spec.to_grid(DVec3::new(0.3, 0.0, 0.0)).x, 13.0);
+    assert_eq!(spec.to_grid(DVec3::new(0.305, 0.0, 0.0)).x, 13.05);
     assert_eq!(spec.voxel_center(UVec3::new(0, 0, 0)), DVec3::new(-0.95, 0.05, 0.05));
 }

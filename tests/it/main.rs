@@ -6,6 +6,7 @@ mod common;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;
 mod exactness;
+mod far;
 mod formats;
 mod gpu;
 mod grid_convention;

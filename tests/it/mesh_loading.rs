@@ -5,25 +5,25 @@
 
 use crate::common::shared_meshes;
 use base64::Engine;
-use glam::Vec3;
+use glam::DVec3;
 use meshvox::mesh::{self, MeshError};
 use serde_json::json;
 use std::path::Path;
 
-fn assert_close(a: Vec3, b: Vec3, tol: f32, what: &str) {
+fn assert_close(a: DVec3, b: DVec3, tol: f64, what: &str) {
     assert!((a - b).abs().max_element() <= tol, "{what}: {a} != {b}");
 }
 
 /// Bounds of all `v` lines, read without tobj: an independent check of the OBJ loader's bounds.
-fn obj_vertex_bounds(path: &Path) -> (Vec3, Vec3) {
+fn obj_vertex_bounds(path: &Path) -> (DVec3, DVec3) {
     let text = std::fs::read_to_string(path).expect("read obj");
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
     for line in text.lines() {
         let mut w = line.split_whitespace();
         if w.next() == Some("v") {
-            let c: Vec<f32> = w.take(3).map(|s| s.parse().expect("number")).collect();
-            let v = Vec3::new(c[0], c[1], c[2]);
+            let c: Vec<f64> = w.take(3).map(|s| s.parse().expect("number")).collect();
+            let v = DVec3::new(c[0], c[1], c[2]);
             lo = lo.min(v);
             hi = hi.max(v);
         }
@@ -44,8 +44,10 @@ fn shared_obj_files_match_trimesh_counts_and_bounds() {
         assert_eq!(m.triangle_part.len(), triangles, "{file}: one source per triangle");
         let b = m.bounds().expect("bounds");
         let (lo, hi) = obj_vertex_bounds(&path);
-        assert_close(b.min, lo, 0.0, file);
-        assert_close(b.max, hi, 0.0, file);
+        // Parsed in f64 and kept as f32 offsets from the centre: within an f32 rounding of the mesh's size.
+        let tol = (hi - lo).max_element() * f32::EPSILON as f64;
+        assert_close(b.min, lo, tol, file);
+        assert_close(b.max, hi, tol, file);
     }
 }
 
@@ -65,9 +67,9 @@ fn suzanne_quads_are_triangulated() {
 fn shared_gltf_files_match_trimesh() {
     let Some(dir) = shared_meshes() else { return };
     let g = dir.join("gltf");
-    let unit = (Vec3::splat(-0.5), Vec3::splat(0.5));
-    let duck = (Vec3::new(-0.6930, 0.0993, -0.6133), Vec3::new(0.9618, 1.6397, 0.5393));
-    type Case = (&'static str, usize, Option<(Vec3, Vec3)>);
+    let unit = (DVec3::splat(-0.5), DVec3::splat(0.5));
+    let duck = (DVec3::new(-0.6930, 0.0993, -0.6133), DVec3::new(0.9618, 1.6397, 0.5393));
+    type Case = (&'static str, usize, Option<(DVec3, DVec3)>);
     let cases: [Case; 8] = [
         ("Box.gltf", 12, Some(unit)),
         ("BoxTextured.gltf", 12, Some(unit)),
@@ -112,8 +114,8 @@ o third\nl 1 2\np 3\nvt 0.5 0.5\nf -5/1 -4/1 -3/-1\n";
     assert_eq!(m.parts.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(), ["first", "second", "third"]);
     assert_eq!(m.triangle_part, vec![0, 0, 1, 1, 1, 2]);
     // The pentagon at z = 5 is reached through negative indices.
-    assert!(m.triangles[2..5].iter().flatten().all(|v| v.z == 5.0));
-    assert_eq!(m.triangles[5], [Vec3::new(0., 0., 5.), Vec3::new(2., 0., 5.), Vec3::new(2., 2., 5.)]);
+    assert!((2..5).flat_map(|i| m.world_triangle(i)).all(|v| v.z == 5.0));
+    assert_eq!(m.world_triangle(5), [DVec3::new(0., 0., 5.), DVec3::new(2., 0., 5.), DVec3::new(2., 2., 5.)]);
 }
 
 /// A primitive for [`gltf_json`]: glTF mode, positions, and optional indices with their byte width.
@@ -208,26 +210,28 @@ fn gltf_modes_index_widths_and_hierarchy() {
     assert_eq!(m.warnings.len(), 2, "{:?}", m.warnings);
     assert!(m.warnings.iter().any(|w| w.contains("Points")) && m.warnings.iter().any(|w| w.contains("Lines")));
     // Every triangle went through scale 2 then translation 10 on x.
-    let by_mesh = |k: u32| -> Vec<[Vec3; 3]> {
-        m.triangles
-            .iter()
-            .zip(&m.triangle_part)
-            .filter(|(_, p)| m.parts[**p as usize].mesh == k)
-            .map(|(t, _)| *t)
+    let by_mesh = |k: u32| -> Vec<[DVec3; 3]> {
+        (0..m.triangles.len())
+            .filter(|&i| m.parts[m.triangle_part[i] as usize].mesh == k)
+            .map(|i| m.world_triangle(i))
             .collect()
     };
     let t0 = by_mesh(0);
-    assert_eq!(t0[0], [Vec3::new(10., 0., 0.), Vec3::new(12., 0., 0.), Vec3::new(10., 2., 0.)]);
+    // Positions are kept as f32 offsets from the mesh's centre, so they match to an f32 rounding.
+    let same = |a: [DVec3; 3], b: [[f64; 3]; 3], what: &str| {
+        (0..3).for_each(|i| assert_close(a[i], DVec3::from(b[i]), 1e-6, what));
+    };
+    same(t0[0], [[10., 0., 0.], [12., 0., 0.], [10., 2., 0.]], "triangles");
     // The strip's second triangle has its winding flipped as the glTF spec says, (v1, v3, v2), emitted as the
     // same cycle (v2, v1, v3).
     let t1 = by_mesh(1);
-    assert_eq!(t1[1], [Vec3::new(10., 2., 0.), Vec3::new(12., 0., 0.), Vec3::new(12., 2., 0.)]);
+    same(t1[1], [[10., 2., 0.], [12., 0., 0.], [12., 2., 0.]], "strip");
     // The fan's corners after the 90-degree rotation: (1, 0) -> (0, 1).
     let t2 = by_mesh(2);
-    assert_close(t2[0][1], Vec3::new(10., 2., 0.), 1e-5, "fan corner");
+    assert_close(t2[0][1], DVec3::new(10., 2., 0.), 1e-5, "fan corner");
     let b = m.bounds().expect("bounds");
-    assert_close(b.min, Vec3::new(8., 0., 0.), 1e-5, "min");
-    assert_close(b.max, Vec3::new(12., 2., 0.), 1e-5, "max");
+    assert_close(b.min, DVec3::new(8., 0., 0.), 1e-5, "min");
+    assert_close(b.max, DVec3::new(12., 2., 0.), 1e-5, "max");
 }
 
 #[test]

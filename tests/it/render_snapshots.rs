@@ -16,16 +16,16 @@ const CHANNEL_TOLERANCE: u8 = 24;
 const PIXEL_FRACTION: f64 = 0.005;
 
 /// One golden: a mesh at a resolution, in a mode, optionally with the mesh overlaid or cut away.
-struct Case {
-    name: String,
-    mesh: String,
-    resolution: u32,
-    show_mesh: bool,
-    mode: Mode,
-    cut: Option<Cut>,
+pub(crate) struct Case {
+    pub name: String,
+    pub mesh: String,
+    pub resolution: u32,
+    pub show_mesh: bool,
+    pub mode: Mode,
+    pub cut: Option<Cut>,
 }
 
-fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
+pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
     let mesh = meshvox::mesh::load(&case.mesh).unwrap_or_else(|e| panic!("{e}"));
     let spec =
         GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(case.resolution), Axis::Longest).expect("grid");
