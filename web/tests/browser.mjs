@@ -3,6 +3,7 @@
 //  - waits for window.meshvoxStatus.ready and checks the default mesh's voxel count against the native CLI,
 //  - changes the resolution through the page hook, then by typing into the panel's resolution field, and checks
 //    the new counts against the CLI,
+//  - opens a copy of Suzanne moved to UTM-like coordinates and expects the voxels of Suzanne at the origin;
 //  - loads ../shared/meshes/suzanne.obj through the panel's Open… button and the file chooser it opens,
 //    ../shared/meshes/gltf/Duck.gltf through the page's file input, and
 //    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
@@ -175,6 +176,22 @@ try {
     const s = await status({ ready: true, mesh: path.basename(glb) }, "dropping box01.glb");
     const cli = cliVoxels(glb, s.resolution);
     check(s.voxels === cli, `gltf/box01.glb @${s.resolution} dropped on the canvas: page ${s.voxels} == CLI ${cli}`);
+
+    // Far from the origin: Suzanne moved to UTM-like coordinates (ten decimals) must give the voxels of Suzanne
+    // where she was; f32 positions would have rounded her onto 0.5-unit steps.
+    const suzanne = path.join(meshes, "suzanne.obj");
+    const farObj = path.join(tmpdir(), `meshvox-web-far-${process.pid}.obj`);
+    const offset = [4500000.37, 5400000.81, 312.25];
+    await writeFile(farObj, (await readFile(suzanne, "utf8")).split("\n").map((line) => {
+      const w = line.trim().split(/\s+/);
+      return w[0] === "v" ? "v " + [1, 2, 3].map((i) => (Number(w[i]) + offset[i - 1]).toFixed(10)).join(" ") : line;
+    }).join("\n"));
+    await page.setInputFiles("#meshvox-file", farObj);
+    const far = await status({ ready: true, mesh: path.basename(farObj) }, "loading the far-away Suzanne");
+    const nearCli = cliVoxels(suzanne, far.resolution);
+    const farCli = cliVoxels(farObj, far.resolution);
+    check(far.voxels === nearCli && farCli === nearCli,
+      `Suzanne moved by ${offset} @${far.resolution}: page ${far.voxels} == CLI ${farCli} == CLI at the origin ${nearCli}`);
   }
 
   // A user's file: a unit box centred on the origin whose faces are jittered 7x7 grids of decimal points,
