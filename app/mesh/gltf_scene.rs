@@ -88,15 +88,10 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
 /// `None` for a node whose transform is not well-formed numbers, and an empty list if the JSON cannot be read.
 /// glTF gives either a column-major `matrix` or `translation`, `rotation` (x, y, z, w) and `scale`.
 fn node_transforms_f64(bytes: &[u8]) -> Vec<Option<DMat4>> {
-    let json: &[u8] = if bytes.starts_with(b"glTF") {
-        match gltf::binary::Glb::from_slice(bytes) {
-            Ok(glb) => return transforms_from_json(&glb.json),
-            Err(_) => return Vec::new(),
-        }
-    } else {
-        bytes
-    };
-    transforms_from_json(json)
+    if !bytes.starts_with(b"glTF") {
+        return transforms_from_json(bytes);
+    }
+    gltf::binary::Glb::from_slice(bytes).map_or_else(|_| Vec::new(), |glb| transforms_from_json(&glb.json))
 }
 
 fn transforms_from_json(json: &[u8]) -> Vec<Option<DMat4>> {

@@ -107,11 +107,9 @@ impl Mesh {
         if self.triangles.is_empty() {
             return Err(MeshError::Empty { path: path.to_path_buf() });
         }
+        // An anchor that overflowed makes every offset from it non-finite, so this check covers it too.
         if let Some(t) = self.triangles.iter().position(|t| !t.iter().all(|v| v.is_finite())) {
             return Err(MeshError::NonFinite { path: path.to_path_buf(), triangle: t });
-        }
-        if !self.anchor.is_finite() {
-            return Err(MeshError::NonFinite { path: path.to_path_buf(), triangle: 0 });
         }
         Ok(self)
     }

@@ -105,8 +105,7 @@ pub struct GridSpec {
 impl GridSpec {
     /// Lays a grid over `bounds` following the convention in the module documentation.
     pub fn fit(bounds: Aabb, resolution: Resolution, axis: Axis) -> Result<GridSpec, GridError> {
-        let (min, max) = (bounds.min, bounds.max);
-        let extent = max - min;
+        let extent = bounds.extent();
         let axis_index = axis.index(bounds);
         let (voxel_size, fixed) = match resolution {
             Resolution::Count(0) => return Err(GridError::ZeroResolution),
@@ -138,7 +137,11 @@ impl GridSpec {
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
             return Err(GridError::TooLarge(dims));
         }
-        Ok(GridSpec { origin: min, voxel_size, dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32) })
+        Ok(GridSpec {
+            origin: bounds.min,
+            voxel_size,
+            dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
+        })
     }
 
     /// Words per x-row of the bit grid.
