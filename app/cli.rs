@@ -49,6 +49,33 @@ struct LimitArgs {
     max_memory: Option<u64>,
 }
 
+/// Voxel colours from the mesh's materials, shared by the commands that voxelize.
+#[derive(clap::Args)]
+struct ColourArgs {
+    /// Colour the voxels from the mesh's materials, textures and vertex colours: the colour of the surface point
+    /// nearest each voxel's centre (default: on when the mesh has any colour).
+    #[arg(long, overrides_with = "no_colour")]
+    colour: bool,
+    /// Leave the voxels uncoloured even when the mesh has colour.
+    #[arg(long)]
+    no_colour: bool,
+}
+
+impl ColourArgs {
+    /// Whether to colour this mesh's voxels; says so when --colour meets a mesh without colour.
+    fn wanted(&self, name: &str, mesh: &mesh::Mesh) -> bool {
+        if self.no_colour {
+            return false;
+        }
+        if self.colour && mesh.shading.is_none() {
+            eprintln!(
+                "note: {name} has no colours (materials, textures or vertex colours); the voxels stay uncoloured"
+            );
+        }
+        mesh.shading.is_some()
+    }
+}
+
 impl LimitArgs {
     fn load(&self, spec: &str) -> Result<mesh::Mesh> {
         let limits = mesh::LoadLimits { max_triangles: self.max_triangles, max_file_bytes: self.max_memory };
@@ -116,6 +143,8 @@ struct RenderArgs {
     /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
+    #[command(flatten)]
+    colour: ColourArgs,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -190,6 +219,8 @@ struct VoxelizeArgs {
     /// Where to voxelize: the GPU when there is an adapter (auto), only the GPU, or only the CPU.
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
+    #[command(flatten)]
+    colour: ColourArgs,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -316,9 +347,28 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let voxelize_ms = ms(t_vox);
     let grid = result.grid;
     let voxels = grid.count();
+    let t_colour = Instant::now();
+    let colours = match args.colour.wanted(&args.mesh, &mesh) {
+        true => Some(engine.colour(&mesh, &grid)?),
+        false => None,
+    };
+    let colour_ms = colours.as_ref().map(|_| ms(t_colour));
 
     let t_write = Instant::now();
-    let bytes = write_atomically(temp, &args.output, |out| Ok(voxel::export::write(&grid, format, out)?))?;
+    // The colour array beside an .npy grid is written first (atomically too), so a grid never appears without
+    // the colours it was asked for.
+    let colours_file = match (&colours, format) {
+        (Some((c, _)), VoxelFormat::Npy) => {
+            let path = voxel::export::colours_npy_path(&args.output);
+            let temp = temp_beside(&path)?;
+            write_atomically(temp, &path, |out| Ok(voxel::export::write_colours_npy(&grid, c, out)?))?;
+            Some(path)
+        }
+        _ => None,
+    };
+    let bytes = write_atomically(temp, &args.output, |out| {
+        Ok(voxel::export::write_coloured(&grid, colours.as_ref().map(|c| &c.0), format, out)?)
+    })?;
     let write_ms = ms(t_write);
 
     let d = spec.dims;
@@ -351,6 +401,9 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
             "setup_ms": engine.setup_ms,
             "output": args.output.display().to_string(),
             "format": format.extension(),
+            "colour": colours.as_ref().map(|(_, backend)| backend),
+            "colour_ms": colour_ms,
+            "colours_output": colours_file.as_ref().map(|p| p.display().to_string()),
             "bytes": bytes,
             "warnings": mesh.warnings,
             "load_ms": load_ms,
@@ -482,6 +535,31 @@ impl Engine {
     }
 }
 
+impl Engine {
+    /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU;
+    /// returns the colours and where they were computed.
+    fn colour(&self, mesh: &mesh::Mesh, grid: &voxel::VoxelGrid) -> Result<(voxel::colour::VoxelColours, String)> {
+        let shading = mesh.shading.as_ref().ok_or_else(|| anyhow!("the mesh has no colours"))?;
+        let tris = voxel::cpu::grid_space_triangles(mesh, &grid.spec)?;
+        if let Some((gpu, _)) = &self.gpu {
+            use meshvox::gpu::colour::GpuColourer;
+            if GpuColourer::fits(gpu, grid, tris.len(), shading) {
+                match GpuColourer::new(gpu).colour(gpu, grid, &tris, shading) {
+                    Ok(c) => return Ok((c, format!("gpu: {}", gpu.summary))),
+                    Err(e) if self.fallback && e.is_device_failure() => {
+                        eprintln!("warning: {e}; colouring on the CPU instead");
+                    }
+                    Err(e) => return Err(e.into()),
+                }
+            } else if !self.fallback {
+                bail!("the grid or the mesh's textures are too large for one GPU binding; colour with --backend cpu");
+            }
+        }
+        let colours = voxel::colour::colour_voxels(grid, &tris, shading);
+        Ok((colours, format!("cpu ({} threads)", rayon::current_num_threads())))
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -580,10 +658,20 @@ fn render(args: &RenderArgs) -> Result<()> {
     let mode = Mode::from(args.mode);
     let t = Instant::now();
     let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-    let (voxels, backend) = if args.backend == BackendArg::Cpu {
-        let (grid, _) = voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|_, _| {})?;
+    let colour = args.colour.wanted(&args.mesh, &mesh);
+    let (voxels, colours, backend) = if args.backend == BackendArg::Cpu || colour {
+        // Colours and cut-aways need the whole grid on the host.
+        let engine = Engine::open(args.backend)?;
+        let result = engine.voxelize(&mesh, spec, mode)?;
+        let grid = result.grid;
         let shown = args.cut.map_or_else(|| grid.exposed(), |cut| cut.apply(&grid));
-        (instances_from_grid(&gpu.device, &shown), format!("cpu ({} threads)", rayon::current_num_threads()))
+        if colour {
+            let (c, _) = engine.colour(&mesh, &grid)?;
+            let (voxels, colours) = meshvox::render::coloured_instances(&gpu.device, &grid, &shown, &c);
+            (voxels, Some(colours), result.backend)
+        } else {
+            (instances_from_grid(&gpu.device, &shown), None, result.backend)
+        }
     } else {
         // On the device that draws. A cut-away needs the whole grid on the host (the cut exposes interior
         // voxels); otherwise the GPU compacts the visible voxels straight into the instance buffer.
@@ -602,12 +690,12 @@ fn render(args: &RenderArgs) -> Result<()> {
             (None, Some(points), _) => points,
             _ => bail!("the GPU returned no voxels"),
         };
-        (voxels, format!("gpu: {}", gpu.summary))
+        (voxels, None, format!("gpu: {}", gpu.summary))
     };
     let voxelize_ms = ms(t);
     let count = voxels.count;
     let offscreen = Offscreen::new(&gpu);
-    let scene = offscreen.renderer.scene(&gpu.device, voxels, spec, Some(&mesh));
+    let scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
     let (lo, hi) = scene.bounds();
     let camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch);
     let style = Style { show_mesh: args.show_mesh, ..Default::default() };

@@ -10,17 +10,21 @@ struct View {
     grid: vec4<f32>,
     color: vec4<f32>,
     mesh_color: vec4<f32>,
-    // x: 1 when the target is not sRGB and the shader must encode; y: edge darkening strength (0 = off).
+    // x: 1 when the target is not sRGB and the shader must encode; y: edge darkening strength (0 = off);
+    // z: 1 to draw each voxel's own colour from `colours` instead of `color`.
     options: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> voxels: array<u32>;
+// One sRGB RGBA8 colour per instance (r in the low byte), when options.z is 1.
+@group(0) @binding(2) var<storage, read> colours: array<u32>;
 
 struct CubeOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) @interpolate(flat) face: u32,
     @location(1) uv: vec2<f32>,
+    @location(2) @interpolate(flat) albedo: vec3<f32>,
 }
 
 @vertex
@@ -53,6 +57,10 @@ fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
     out.clip = view.view_proj * vec4<f32>(world, 1.0);
     out.face = face;
     out.uv = uv;
+    out.albedo = view.color.rgb;
+    if view.options.z != 0.0 {
+        out.albedo = decode(unpack4x8unorm(colours[ii]).rgb);
+    }
     return out;
 }
 
@@ -60,6 +68,13 @@ fn face_normal(face: u32) -> vec3<f32> {
     var n = vec3<f32>(0.0);
     n[face / 2u] = select(-1.0, 1.0, face % 2u == 1u);
     return n;
+}
+
+// The sRGB transfer function's inverse: voxel colours are stored encoded, lighting works in linear light.
+fn decode(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
 }
 
 fn encode(linear: vec3<f32>) -> vec3<f32> {
@@ -84,7 +99,7 @@ fn fs_cube(in: CubeOut) -> @location(0) vec4<f32> {
     let border = min(in.uv, 1.0 - in.uv) / rate;
     let strength = view.options.y * (1.0 - smoothstep(0.1, 0.3, max(rate.x, rate.y)));
     let edge = 1.0 - strength * (1.0 - smoothstep(0.0, 1.5, min(border.x, border.y)));
-    return vec4<f32>(encode(view.color.rgb * light * edge), 1.0);
+    return vec4<f32>(encode(in.albedo * light * edge), 1.0);
 }
 
 struct MeshOut {

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
-# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh and
-# binvox (the independent readers the tests compare with, in a virtual environment under target/), and Chromium
+# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh, binvox
+# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), and Chromium
 # and Node.js for the browser test (web/build.sh adds the wasm32 target and wasm-bindgen-cli).
 # `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test, then each fuzz
 # target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
@@ -28,13 +28,13 @@ if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
 fi
 
 venv=target/pyenv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox' 2>/dev/null; then
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL' 2>/dev/null; then
   if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3 python3-venv python3-pip
   fi
   mkdir -p target
   python3 -m venv "$venv"
-  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6
+  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 

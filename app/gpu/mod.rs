@@ -1,6 +1,7 @@
 //! WebGPU through wgpu: acquiring an adapter and device without a window ([`Gpu`]), and the compute pipelines
 //! that voxelize ([`voxelize`]) and compact ([`compact`]) on it. Used by the CLI, the tests and the app alike.
 
+pub mod colour;
 pub mod compact;
 mod readback;
 mod solid;

@@ -5,8 +5,9 @@
 //! far from the origin by a node translation must not have that translation rounded), and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
 //! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
 
+use super::material::{Material, Shading, Texture, TextureRef, Wrap};
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
-use glam::{DMat4, DQuat, DVec3};
+use glam::{DMat4, DQuat, DVec3, Vec4};
 use gltf::mesh::Mode;
 use std::path::Path;
 
@@ -74,10 +75,12 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     }
     let buffers = gltf::import_buffers(&document, base, blob).map_err(crate_err)?;
     let mut mesh = Mesh::default();
+    let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &buffers, base);
+    mesh.shading = Some(shading);
     let mut pieces = Vec::new();
     for (gmesh, world) in instances {
         for primitive in gmesh.primitives() {
-            pieces.extend(read_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world)?);
+            pieces.extend(read_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world, &tex_sets)?);
         }
     }
     mesh.push_pieces(pieces);
@@ -217,6 +220,7 @@ fn read_primitive(
     gmesh: &gltf::Mesh,
     primitive: &gltf::Primitive,
     world: DMat4,
+    tex_sets: &[u32],
 ) -> Result<Option<Piece>, MeshError> {
     let name = gmesh.name().unwrap_or("").to_string();
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
@@ -288,13 +292,45 @@ fn read_primitive(
         Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
         _ => unreachable!("filtered above"),
     };
+    // Colour attributes are optional: one that cannot be read costs only its colour, with a warning.
+    let material = primitive.material().index().unwrap_or(tex_sets.len().saturating_sub(1));
+    let set = tex_sets.get(material).copied().unwrap_or(0);
+    let mut attribute = |semantic: gltf::Semantic, what: &str| -> bool {
+        let Some(accessor) = primitive.get(&semantic) else { return false };
+        match check_accessor(&accessor, buffers).and_then(|()| {
+            if accessor.count() == positions.len() {
+                Ok(())
+            } else {
+                Err(format!("{} values for {} vertices", accessor.count(), positions.len()))
+            }
+        }) {
+            Ok(()) => true,
+            Err(e) => {
+                mesh.warnings.push(format!(
+                    "{}: mesh {} '{name}' primitive {}: {what} ignored: {e}",
+                    path.display(),
+                    gmesh.index(),
+                    primitive.index()
+                ));
+                false
+            }
+        }
+    };
+    let uvs = match attribute(gltf::Semantic::TexCoords(set), "texture coordinates") {
+        true => reader.read_tex_coords(set).map_or_else(Vec::new, |t| t.into_f32().collect()),
+        false => Vec::new(),
+    };
+    let colors = match attribute(gltf::Semantic::Colors(0), "vertex colours") {
+        true => reader.read_colors(0).map_or_else(Vec::new, |c| c.into_rgba_f32().map(Vec4::from).collect()),
+        false => Vec::new(),
+    };
     let part = Part {
         name,
         mesh: gmesh.index() as u32,
         primitive: primitive.index() as u32,
         material: primitive.material().index().map(|i| i as u32),
     };
-    Ok(Some(Piece { part, positions, triangles }))
+    Ok(Some(Piece { part, positions, triangles, uvs, colors, material: material as u32 }))
 }
 
 /// Checks that an accessor holds what glTF allows for its use (`what`): one of `types`, with `dimensions`.
@@ -367,4 +403,94 @@ fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> 
             view.length()
         )),
     }
+}
+
+/// The file's materials (and, last, glTF's default material for primitives without one), the textures their
+/// base colour uses, and per material the texture coordinate set it reads. A texture that cannot be read or
+/// decoded costs its material only the texture, with a warning.
+fn read_materials(
+    warnings: &mut Vec<String>,
+    path: &Path,
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
+) -> (Shading, Vec<u32>) {
+    let mut shading = Shading::default();
+    let mut tex_sets = Vec::new();
+    // glTF texture index -> index in `shading.textures`, decoded on first use.
+    let mut decoded: Vec<Option<Option<u32>>> = vec![None; document.textures().len()];
+    for material in document.materials() {
+        let pbr = material.pbr_metallic_roughness();
+        let mut texture = None;
+        let mut set = 0;
+        if let Some(info) = pbr.base_color_texture() {
+            let t = info.texture();
+            let slot = &mut decoded[t.index()];
+            let index = *slot.get_or_insert_with(|| match read_texture(&t, buffers, base) {
+                Ok(texture) => {
+                    shading.textures.push(texture);
+                    Some(shading.textures.len() as u32 - 1)
+                }
+                Err(e) => {
+                    warnings.push(format!("{}: textures[{}] not used: {e}", path.display(), t.index()));
+                    None
+                }
+            });
+            set = info.tex_coord();
+            let transform = match info.texture_transform() {
+                Some(tt) => {
+                    set = tt.tex_coord().unwrap_or(set);
+                    TextureRef::transform_from(tt.offset(), tt.rotation(), tt.scale())
+                }
+                None => TextureRef::IDENTITY,
+            };
+            texture = index.map(|texture| TextureRef { texture, transform });
+        }
+        shading.materials.push(Material {
+            name: material.name().unwrap_or("").to_string(),
+            base_color: Vec4::from(pbr.base_color_factor()),
+            texture,
+        });
+        tex_sets.push(set);
+    }
+    shading.materials.push(Material::default());
+    tex_sets.push(0);
+    (shading, tex_sets)
+}
+
+/// Decodes one texture's image with its sampler's wrap modes and magnification filter.
+fn read_texture(
+    texture: &gltf::Texture,
+    buffers: &[gltf::buffer::Data],
+    base: Option<&Path>,
+) -> Result<Texture, String> {
+    let sampler = texture.sampler();
+    let wrap = |w: gltf::texture::WrappingMode| match w {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    };
+    let nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
+    let image = texture.source();
+    let bytes: std::borrow::Cow<[u8]> = match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = buffers.get(view.buffer().index()).map_or(&[][..], |d| &d.0[..]);
+            let range = view.offset()..view.offset().saturating_add(view.length());
+            data.get(range).ok_or_else(|| format!("images[{}] lies outside its buffer", image.index()))?.into()
+        }
+        gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
+            Some(data) => {
+                let (_, encoded) = data.split_once(";base64,").ok_or("a data URI that is not base64")?;
+                use base64::Engine;
+                base64::engine::general_purpose::STANDARD.decode(encoded).map_err(|e| e.to_string())?.into()
+            }
+            None => {
+                let dir = base.ok_or_else(|| format!("{uri} is a separate file, which cannot be read here"))?;
+                let name = urlencoding::decode(uri).map_err(|e| format!("bad URI {uri}: {e}"))?;
+                std::fs::read(dir.join(&*name)).map_err(|e| format!("cannot read {uri}: {e}"))?.into()
+            }
+        },
+    };
+    Texture::decode(&bytes, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())], nearest)
+        .map_err(|e| format!("images[{}]: {e}", image.index()))
 }

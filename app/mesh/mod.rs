@@ -5,9 +5,12 @@
 
 pub mod builtin;
 mod gltf_scene;
+pub mod material;
 mod obj;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
+pub use material::Shading;
+use material::TriangleShading;
 use std::path::{Path, PathBuf};
 
 /// Where a group of triangles came from, so later stages (colour transfer, per-part stats) can trace them back.
@@ -52,6 +55,9 @@ pub struct Mesh {
     pub parts: Vec<Part>,
     /// Things skipped while loading (point or line primitives, a missing material library…).
     pub warnings: Vec<String>,
+    /// Materials, textures and per-triangle texture coordinates and vertex colours, when the file has any
+    /// colour (see [`Shading::has_colour`]); `None` otherwise.
+    pub shading: Option<Shading>,
 }
 
 impl Mesh {
@@ -88,7 +94,23 @@ impl Mesh {
         let anchor = self.anchor;
         for piece in pieces {
             let local: Vec<Vec3> = piece.positions.iter().map(|&p| (p - anchor).as_vec3()).collect();
+            if let Some(shading) = &mut self.shading {
+                let uv = |i: u32| piece.uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
+                let color = |i: u32| {
+                    piece.colors.get(i as usize).map_or(TriangleShading::WHITE, |&c| TriangleShading::pack_color(c))
+                };
+                shading.triangles.extend(piece.triangles.iter().map(|t| TriangleShading {
+                    uv: t.map(uv),
+                    color: t.map(color),
+                    material: piece.material,
+                    _pad: 0,
+                }));
+            }
             self.push_part(piece.part, piece.triangles.iter().map(|t| t.map(|i| local[i as usize])));
+        }
+        // Colour that is all white is no colour: the mesh is then drawn in the viewer's colour.
+        if self.shading.as_ref().is_some_and(|s| !s.has_colour()) {
+            self.shading = None;
         }
     }
 
@@ -121,6 +143,11 @@ pub(crate) struct Piece {
     pub part: Part,
     pub positions: Vec<DVec3>,
     pub triangles: Vec<[u32; 3]>,
+    /// Per-position texture coordinates and linear vertex colours; empty when the piece has none.
+    pub uvs: Vec<[f32; 2]>,
+    pub colors: Vec<Vec4>,
+    /// Index into the mesh's `Shading::materials` (ignored when the mesh has no shading).
+    pub material: u32,
 }
 
 /// Everything that can go wrong while loading a mesh. Each message names the file.

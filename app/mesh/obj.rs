@@ -6,8 +6,9 @@
 //! faces will make (so an oversized mesh is refused before it is parsed) and checks every vertex and face
 //! statement, naming the line of the first problem.
 
+use super::material::{Material, Shading, Texture, TextureRef, Wrap};
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
-use glam::DVec3;
+use glam::{DVec3, Vec4};
 use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
@@ -27,12 +28,19 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     .map_err(|e| obj_err(scan(bytes, true).err().unwrap_or_else(|| e.to_string())))?;
 
     let mut mesh = Mesh::default();
-    if let Err(e) = materials {
-        // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
-        if bytes.windows(6).any(|w| w == b"mtllib") {
-            mesh.warnings.push(format!("{}: material library not loaded: {e}", path.display()));
+    let materials = match materials {
+        Ok(m) => m,
+        Err(e) => {
+            // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
+            if bytes.windows(6).any(|w| w == b"mtllib") {
+                mesh.warnings.push(format!("{}: material library not loaded: {e}", path.display()));
+            }
+            Vec::new()
         }
-    }
+    };
+    let shading = read_materials(&mut mesh.warnings, path, &materials, base);
+    let default_material = shading.materials.len() as u32 - 1;
+    mesh.shading = Some(shading);
     // tobj parses coordinates as f64 (its `use_f64` feature), so a mesh far from the origin keeps its shape
     // until `push_pieces` takes offsets from its centre.
     let mut pieces = Vec::with_capacity(models.len());
@@ -46,14 +54,103 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
                 bad as u64 + 1
             )));
         }
-        let positions = m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
-        let triangles = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let mut positions: Vec<DVec3> = m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
+        let mut triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        // Vertex colours (`v x y z r g b`, as MeshLab and scanners write them) are sRGB like texels.
+        let mut colors: Vec<Vec4> = match m.vertex_color.len() == m.positions.len() {
+            true => m.vertex_color.chunks_exact(3).map(|c| srgb_to_linear([c[0], c[1], c[2]])).collect(),
+            false => Vec::new(),
+        };
+        let material = m.material_id.filter(|&id| id < materials.len());
+        let textured =
+            material.is_some_and(|id| mesh.shading.as_ref().is_some_and(|s| s.materials[id].texture.is_some()));
+        let mut uvs = Vec::new();
+        if textured && m.texcoord_indices.len() == m.indices.len() && !m.texcoords.is_empty() {
+            // Texture coordinates have their own indices: every corner becomes a vertex of its own. OBJ's v
+            // runs up the image, the texture's rows down.
+            let uv_count = m.texcoords.len() / 2;
+            if let Some(&bad) = m.texcoord_indices.iter().find(|&&i| i as usize >= uv_count) {
+                return Err(obj_err(format!(
+                    "object '{}' refers to texture coordinate {} but has {uv_count}",
+                    model.name,
+                    bad as u64 + 1
+                )));
+            }
+            uvs = m
+                .texcoord_indices
+                .iter()
+                .map(|&i| {
+                    let i = i as usize * 2;
+                    [m.texcoords[i] as f32, (1.0 - m.texcoords[i + 1]) as f32]
+                })
+                .collect();
+            positions = m.indices.iter().map(|&i| positions[i as usize]).collect();
+            if !colors.is_empty() {
+                colors = m.indices.iter().map(|&i| colors[i as usize]).collect();
+            }
+            triangles = (0..triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+        }
         let part =
             Part { name: model.name, mesh: index as u32, primitive: 0, material: m.material_id.map(|id| id as u32) };
-        pieces.push(Piece { part, positions, triangles });
+        let material = material.map_or(default_material, |id| id as u32);
+        pieces.push(Piece { part, positions, triangles, uvs, colors, material });
     }
     mesh.push_pieces(pieces);
     Ok(mesh)
+}
+
+/// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`), then a white default for faces without a
+/// material. A texture that cannot be read costs its material only the texture, with a warning.
+fn read_materials(
+    warnings: &mut Vec<String>,
+    path: &Path,
+    materials: &[tobj::Material],
+    base: Option<&Path>,
+) -> Shading {
+    let mut shading = Shading::default();
+    // Texture file -> index in `shading.textures`, so materials sharing one decode it once.
+    let mut decoded: Vec<(String, Option<u32>)> = Vec::new();
+    for m in materials {
+        let base_color = m.diffuse.map_or(Vec4::ONE, |d| Vec4::new(d[0] as f32, d[1] as f32, d[2] as f32, 1.0));
+        // `map_Kd -s 1 1 1 wood.png`: the options come first, the file name last.
+        let file = m.diffuse_texture.as_deref().and_then(|t| t.split_whitespace().last());
+        let texture = file.and_then(|file| {
+            if let Some((_, index)) = decoded.iter().find(|(f, _)| f == file) {
+                return *index;
+            }
+            let read = match base {
+                Some(dir) => std::fs::read(dir.join(file))
+                    .map_err(|e| e.to_string())
+                    .and_then(|bytes| Texture::decode(&bytes, [Wrap::Repeat; 2], false)),
+                None => Err("a separate file, which cannot be read here".into()),
+            };
+            let index = match read {
+                Ok(t) => {
+                    shading.textures.push(t);
+                    Some(shading.textures.len() as u32 - 1)
+                }
+                Err(e) => {
+                    warnings.push(format!("{}: material '{}': texture {file} not used: {e}", path.display(), m.name));
+                    None
+                }
+            };
+            decoded.push((file.to_string(), index));
+            index
+        });
+        let texture = texture.map(|texture| TextureRef { texture, transform: TextureRef::IDENTITY });
+        shading.materials.push(Material { name: m.name.clone(), base_color, texture });
+    }
+    shading.materials.push(Material::default());
+    shading
+}
+
+/// An sRGB-encoded colour in [0, 1] as linear RGBA.
+fn srgb_to_linear(c: [f64; 3]) -> Vec4 {
+    let f = |c: f64| {
+        let c = c.clamp(0.0, 1.0);
+        (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+    };
+    Vec4::new(f(c[0]), f(c[1]), f(c[2]), 1.0)
 }
 
 /// What the three reference slots of a face vertex (`v/vt/vn`) name, for messages.

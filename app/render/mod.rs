@@ -7,6 +7,7 @@ pub mod camera;
 use crate::gpu::compact::CompactVoxels;
 use crate::gpu::{Gpu, GpuError};
 use crate::mesh::Mesh;
+use crate::voxel::colour::VoxelColours;
 use crate::voxel::{GridSpec, VoxelGrid};
 pub use camera::OrbitCamera;
 use wgpu::util::DeviceExt;
@@ -22,12 +23,20 @@ pub struct Style {
     pub edges: bool,
     /// Linear RGB of the cubes.
     pub color: [f32; 3],
+    /// Draw the voxels' own colours where the scene has them (otherwise `color`).
+    pub voxel_colours: bool,
     pub background: [f32; 3],
 }
 
 impl Default for Style {
     fn default() -> Style {
-        Style { show_mesh: false, edges: true, color: [0.86, 0.36, 0.08], background: [0.018, 0.02, 0.026] }
+        Style {
+            show_mesh: false,
+            edges: true,
+            color: [0.86, 0.36, 0.08],
+            voxel_colours: true,
+            background: [0.018, 0.02, 0.026],
+        }
     }
 }
 
@@ -45,6 +54,8 @@ struct ViewUniform {
 pub struct Scene {
     pub spec: GridSpec,
     pub voxels: CompactVoxels,
+    /// Whether each instance has a colour (sRGB RGBA8, one u32 per instance, in the list's order).
+    pub coloured: bool,
     mesh: Option<(wgpu::Buffer, u32)>,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -70,6 +81,31 @@ pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVo
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     });
     CompactVoxels { buffer, count }
+}
+
+/// Uploads the set voxels of `shown` (all of `grid`, its exposed voxels, a cut-away of it) with their colours
+/// from `colours`, which belong to `grid` (one per set voxel in storage order; see [`crate::voxel::colour`]).
+pub fn coloured_instances(
+    device: &wgpu::Device,
+    grid: &VoxelGrid,
+    shown: &VoxelGrid,
+    colours: &VoxelColours,
+) -> (CompactVoxels, wgpu::Buffer) {
+    let ranks = crate::voxel::colour::word_ranks(grid);
+    let rgba: Vec<u32> = shown
+        .iter_set()
+        .map(|v| {
+            let rank = crate::voxel::colour::voxel_rank(grid, &ranks, v);
+            rank.and_then(|r| colours.rgba.get(r as usize)).map_or(0, |c| u32::from_le_bytes(*c))
+        })
+        .collect();
+    let contents: &[u8] = if rgba.is_empty() { &[0; 4] } else { bytemuck::cast_slice(&rgba) };
+    let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("voxel colours"),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    (instances_from_grid(device, shown), buffer)
 }
 
 /// Pipelines for one target format and sample count.
@@ -100,16 +136,8 @@ impl CubeRenderer {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_vertex(1),
+                storage_vertex(2),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -194,6 +222,27 @@ impl CubeRenderer {
 
     /// Builds the drawable scene for a voxel list in grid `spec`, with the source mesh for the overlay.
     pub fn scene(&self, device: &wgpu::Device, voxels: CompactVoxels, spec: GridSpec, mesh: Option<&Mesh>) -> Scene {
+        self.coloured_scene(device, voxels, None, spec, mesh)
+    }
+
+    /// [`CubeRenderer::scene`] with a colour per instance (see [`coloured_instances`]).
+    pub fn coloured_scene(
+        &self,
+        device: &wgpu::Device,
+        voxels: CompactVoxels,
+        colours: Option<wgpu::Buffer>,
+        spec: GridSpec,
+        mesh: Option<&Mesh>,
+    ) -> Scene {
+        let coloured = colours.is_some();
+        let colours = colours.unwrap_or_else(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("no voxel colours"),
+                size: 4,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        });
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("view"),
             size: std::mem::size_of::<ViewUniform>() as u64,
@@ -206,6 +255,7 @@ impl CubeRenderer {
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: colours.as_entire_binding() },
             ],
         });
         let mesh = mesh.filter(|m| !m.triangles.is_empty()).map(|m| {
@@ -221,7 +271,7 @@ impl CubeRenderer {
             });
             (buffer, m.triangles.len() as u32 * 3)
         });
-        Scene { spec, voxels, mesh, uniform, bind_group }
+        Scene { spec, voxels, coloured, mesh, uniform, bind_group }
     }
 
     /// Writes the camera and style for the next draw.
@@ -231,7 +281,12 @@ impl CubeRenderer {
             grid: [scene.spec.voxel_size as f32, 0.0, 0.0, 0.0],
             color: [style.color[0], style.color[1], style.color[2], 1.0],
             mesh_color: [0.3, 0.65, 1.0, 0.25],
-            options: [if self.encode_srgb { 1.0 } else { 0.0 }, if style.edges { 0.45 } else { 0.0 }, 0.0, 0.0],
+            options: [
+                if self.encode_srgb { 1.0 } else { 0.0 },
+                if style.edges { 0.45 } else { 0.0 },
+                if style.voxel_colours && scene.coloured { 1.0 } else { 0.0 },
+                0.0,
+            ],
         };
         queue.write_buffer(&scene.uniform, 0, bytemuck::bytes_of(&u));
     }
@@ -248,6 +303,19 @@ impl CubeRenderer {
             pass.set_vertex_buffer(0, buffer.slice(..));
             pass.draw(0..*vertices, 0..1);
         }
+    }
+}
+
+fn storage_vertex(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
     }
 }
 

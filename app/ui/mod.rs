@@ -11,11 +11,13 @@
 #[cfg(target_arch = "wasm32")]
 pub mod web;
 
+use crate::gpu::colour::GpuColourer;
 use crate::gpu::compact::CompactVoxels;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::{self, Mesh, builtin};
 use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
+use crate::voxel::colour::{self, VoxelColours};
 #[cfg(not(target_arch = "wasm32"))]
 use crate::voxel::export;
 use crate::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, budget, cpu};
@@ -35,6 +37,8 @@ pub struct Stats {
     pub mode: Mode,
     pub gpu_ms: Option<f64>,
     pub voxelize_ms: f64,
+    /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
+    pub coloured: bool,
 }
 
 /// The offscreen view and the egui texture that shows it.
@@ -46,7 +50,7 @@ struct View {
 }
 
 /// What a finished voxelization hands back to the app.
-type Outcome = Result<(CompactVoxels, VoxelGrid, Option<f64>), String>;
+type Outcome = Result<(CompactVoxels, VoxelGrid, Option<f64>, Option<VoxelColours>), String>;
 
 /// A voxelization in flight, and where its task leaves the outcome.
 struct Pending {
@@ -65,6 +69,8 @@ struct Pending {
 pub struct ViewerApp {
     gpu: Gpu,
     voxelizer: Rc<GpuVoxelizer>,
+    /// The colour pipelines, compiled the first time a mesh with colour is voxelized.
+    colourer: Rc<std::cell::OnceCell<GpuColourer>>,
     renderer: CubeRenderer,
     scene: Option<Scene>,
     /// Bumped for every new scene, so the view knows to redraw.
@@ -81,6 +87,8 @@ pub struct ViewerApp {
     style: Style,
     camera: OrbitCamera,
     grid: Option<VoxelGrid>,
+    /// The shown grid's voxel colours, when its mesh has colour.
+    colours: Option<VoxelColours>,
     stats: Option<Stats>,
     error: Option<String>,
     needs_voxelize: bool,
@@ -115,6 +123,7 @@ impl ViewerApp {
         let mut app = ViewerApp {
             gpu,
             voxelizer,
+            colourer: Rc::default(),
             renderer,
             scene: None,
             scene_version: 0,
@@ -129,6 +138,7 @@ impl ViewerApp {
             style: Style::default(),
             camera: OrbitCamera::framing(glam::Vec3::ZERO, glam::Vec3::ONE, 35.0, 25.0),
             grid: None,
+            colours: None,
             stats: None,
             error: None,
             needs_voxelize: false,
@@ -184,8 +194,15 @@ impl ViewerApp {
     fn rebuild_scene(&mut self) {
         let (Some(grid), Some(mesh)) = (&self.grid, &self.mesh) else { return };
         let shown = if self.cut_on { self.cut.apply(grid) } else { grid.exposed() };
-        let points = render::instances_from_grid(&self.gpu.device, &shown);
-        self.scene = Some(self.renderer.scene(&self.gpu.device, points, grid.spec, Some(mesh)));
+        let device = &self.gpu.device;
+        let (points, colours) = match &self.colours {
+            Some(c) => {
+                let (points, colours) = render::coloured_instances(device, grid, &shown, c);
+                (points, Some(colours))
+            }
+            None => (render::instances_from_grid(device, &shown), None),
+        };
+        self.scene = Some(self.renderer.coloured_scene(device, points, colours, grid.spec, Some(mesh)));
         self.scene_version += 1;
     }
 
@@ -245,13 +262,14 @@ impl ViewerApp {
         let task = {
             let (gpu, voxelizer, outcome, ctx) =
                 (self.gpu.clone(), self.voxelizer.clone(), outcome.clone(), ctx.clone());
-            let mode = self.mode;
+            let (mode, mesh) = (self.mode, mesh.clone());
+            let colourer = self.colourer.clone();
             async move {
                 let options =
                     Options { read_grid: true, compact: true, surface_only: true, mode, ..Default::default() };
                 let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
                     Ok(out) => match (out.points, out.grid) {
-                        (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms)),
+                        (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms, None)),
                         _ => Err("no voxels came back".to_string()),
                     },
                     // The device still draws but could not voxelize (out of memory, hung): the CPU makes the
@@ -259,11 +277,20 @@ impl ViewerApp {
                     Err(e) if e.is_device_failure() && !gpu.is_lost() => {
                         log::warn!("{e}; voxelizing on the CPU instead");
                         cpu::voxelize_grid_space_mode(&triangles, spec, mode, &|_, _| {})
-                            .map(|(grid, _)| (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None))
+                            .map(|(grid, _)| {
+                                (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None, None)
+                            })
                             .map_err(|e| e.to_string())
                     }
                     Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
                     Err(e) => Err(e.to_string()),
+                };
+                let result = match (result, mesh.shading.as_ref()) {
+                    (Ok((points, grid, gpu_ms, _)), Some(shading)) => {
+                        let colours = colour_grid(&gpu, &colourer, &grid, &triangles, shading).await;
+                        colours.map(|c| (points, grid, gpu_ms, Some(c)))
+                    }
+                    (result, _) => result,
                 };
                 *outcome.borrow_mut() = Some(result);
                 ctx.request_repaint();
@@ -289,14 +316,21 @@ impl ViewerApp {
     fn finish_voxelize(&mut self) {
         let Some(outcome) = self.pending.as_ref().and_then(|p| p.outcome.borrow_mut().take()) else { return };
         let Some(p) = self.pending.take() else { return };
-        let (points, grid, gpu_ms) = match outcome {
+        let (points, grid, gpu_ms, colours) = match outcome {
             Ok(done) => done,
             Err(e) => {
                 self.needs_framing |= p.frame;
                 return self.fail(e);
             }
         };
-        let scene = self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh));
+        // The GPU's list is in no particular order; colours go with a list built from the host grid.
+        let scene = match &colours {
+            Some(c) => {
+                let (points, buffer) = render::coloured_instances(&self.gpu.device, &grid, &grid.exposed(), c);
+                self.renderer.coloured_scene(&self.gpu.device, points, Some(buffer), p.spec, Some(&p.mesh))
+            }
+            None => self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh)),
+        };
         let d = grid.spec.dims;
         self.stats = Some(Stats {
             mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
@@ -307,6 +341,7 @@ impl ViewerApp {
             mode: p.mode,
             gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
+            coloured: colours.is_some(),
         });
         if p.frame {
             let (lo, hi) = scene.bounds();
@@ -315,6 +350,7 @@ impl ViewerApp {
         self.scene = Some(scene);
         self.scene_version += 1;
         self.grid = Some(grid);
+        self.colours = colours;
         if self.cut_on {
             self.rebuild_scene();
         }
@@ -417,6 +453,10 @@ impl ViewerApp {
         });
         if self.cut_on && ui.add(egui::Slider::new(&mut self.cut.fraction, 0.0..=1.0).text("cut")).changed() {
             self.rebuild_scene();
+        }
+        if self.colours.is_some() {
+            ui.checkbox(&mut self.style.voxel_colours, "Voxel colours")
+                .on_hover_text("the mesh's colour at the surface point nearest each voxel; off: one flat colour");
         }
         ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
@@ -674,4 +714,23 @@ pub fn native_options() -> eframe::NativeOptions {
 #[cfg(target_arch = "wasm32")]
 pub fn web_options() -> eframe::WebOptions {
     eframe::WebOptions { wgpu_options: wgpu_configuration(), ..Default::default() }
+}
+
+/// Colours a voxelized grid on the GPU when it fits there, else (and when the GPU fails) on the CPU.
+async fn colour_grid(
+    gpu: &Gpu,
+    colourer: &Rc<std::cell::OnceCell<GpuColourer>>,
+    grid: &VoxelGrid,
+    triangles: &[[glam::Vec3; 3]],
+    shading: &mesh::Shading,
+) -> Result<VoxelColours, String> {
+    if GpuColourer::fits(gpu, grid, triangles.len(), shading) {
+        let c = colourer.get_or_init(|| GpuColourer::new(gpu));
+        match c.colour_async(gpu, grid, triangles, shading).await {
+            Ok(colours) => return Ok(colours),
+            Err(e @ GpuError::DeviceLost(_)) => return Err(format!("{e}: {RESTART}")),
+            Err(e) => log::warn!("{e}; colouring on the CPU instead"),
+        }
+    }
+    Ok(colour::colour_voxels(grid, triangles, shading))
 }

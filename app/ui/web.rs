@@ -74,7 +74,7 @@ pub(crate) fn open_file_picker() {
 }
 
 /// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, mesh, resolution, mode, voxels, voxelize_ms, gpu_ms,
-/// triangles, dims, error }`. `ready` turns true with the first finished voxelization.
+/// triangles, dims, coloured, error }`. `ready` turns true with the first finished voxelization.
 pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, error: Option<&str>) {
     let status = js_sys::Object::new();
     let set = |key: &str, value: JsValue| {
@@ -95,6 +95,7 @@ pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, er
         set("gpu_ms", s.gpu_ms.map_or(JsValue::NULL, JsValue::from));
         let dims = js_sys::Array::of3(&s.dims[0].into(), &s.dims[1].into(), &s.dims[2].into());
         set("dims", dims.into());
+        set("coloured", s.coloured.into());
     }
     if let Some(window) = web_sys::window() {
         let _ = js_sys::Reflect::set(&window, &"meshvoxStatus".into(), &status);

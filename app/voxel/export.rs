@@ -13,6 +13,7 @@
 //!   256 voxels a side; a larger grid is split into chunks, each a model placed by a transform node under one
 //!   group, so it opens as one object. The grid is centred on MagicaVoxel's origin.
 
+use super::colour::VoxelColours;
 use super::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::{self, BufRead, Read, Write};
@@ -60,19 +61,54 @@ fn invalid(format: &'static str, message: impl Into<String>) -> FormatError {
 
 /// Writes `grid` in `format`.
 pub fn write(grid: &VoxelGrid, format: VoxelFormat, out: &mut impl Write) -> Result<(), FormatError> {
+    write_coloured(grid, None, format, out)
+}
+
+/// Writes `grid` in `format` with its voxel colours where the format holds them (`.vox`: a palette of at most
+/// 255 colours; `.npy` and `.binvox` hold occupancy only: see [`write_colours_npy`]).
+pub fn write_coloured(
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    format: VoxelFormat,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
-        VoxelFormat::Vox => write_vox(grid, out),
+        VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
     }
 }
 
-const NPY_MAGIC: &[u8] = b"\x93NUMPY";
+/// The path of the colour array written beside an `.npy` grid: `grid.npy` → `grid.colors.npy`.
+pub fn colours_npy_path(grid_path: &std::path::Path) -> std::path::PathBuf {
+    grid_path.with_extension("colors.npy")
+}
 
-/// Writes an `.npy` file. Works through the grid 32 x-slices at a time so memory stays at one slab.
-pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
+/// Writes the voxel colours as an `.npy` array of dtype `uint8`, shape `(dims_x, dims_y, dims_z, 4)`, C order:
+/// sRGB RGBA, alpha 255 where a voxel is set and all zero where none is.
+pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
-    let mut header = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': ({}, {}, {}), }}", d.x, d.y, d.z);
+    write_npy_header(&format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
+    let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
+    // The dense array is x-major here and z-fastest in the file: one x-slice (y × z × 4 bytes) at a time.
+    let mut slice = vec![0u8; ny * nz * 4];
+    let mut by_x: Vec<Vec<(u32, u32, [u8; 4])>> = vec![Vec::new(); nx];
+    for (v, c) in grid.iter_set().zip(&colours.rgba) {
+        by_x[v.x as usize].push((v.y, v.z, *c));
+    }
+    for column in by_x {
+        slice.fill(0);
+        for (y, z, c) in column {
+            let at = (y as usize * nz + z as usize) * 4;
+            slice[at..at + 4].copy_from_slice(&c);
+        }
+        out.write_all(&slice)?;
+    }
+    Ok(())
+}
+
+fn write_npy_header(shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
+    let mut header = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
     let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
     header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
@@ -81,6 +117,15 @@ pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
     out.write_all(&[1, 0])?;
     out.write_all(&(header.len() as u16).to_le_bytes())?;
     out.write_all(header.as_bytes())?;
+    Ok(())
+}
+
+const NPY_MAGIC: &[u8] = b"\x93NUMPY";
+
+/// Writes an `.npy` file. Works through the grid 32 x-slices at a time so memory stays at one slab.
+pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    write_npy_header(&format!("({}, {}, {})", d.x, d.y, d.z), out)?;
 
     let (ny, nz) = (d.y as usize, d.z as usize);
     let wpr = grid.spec.words_per_row();
@@ -313,8 +358,19 @@ fn to_vox(v: UVec3, dims: UVec3) -> UVec3 {
     UVec3::new(v.x, dims.z - 1 - v.z, v.y)
 }
 
-/// Writes a MagicaVoxel `.vox` file, split into models of at most 256³ (see the module documentation).
+/// Writes a MagicaVoxel `.vox` file, split into models of at most 256³ (see the module documentation), every
+/// voxel in one colour.
 pub fn write_vox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
+    write_vox_coloured(grid, None, out)
+}
+
+/// [`write_vox`] with per-voxel colours, quantized to a palette of at most 255 entries
+/// ([`super::palette::quantize`]).
+pub fn write_vox_coloured(
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
     use dot_vox::{Dict, DotVoxData, Frame, Model, SceneNode, ShapeModel, Size, Voxel};
     let d = grid.spec.dims;
     let vd = UVec3::new(d.x, d.z, d.y);
@@ -327,11 +383,13 @@ pub fn write_vox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
             Model { size: Size { x: size.x, y: size.y, z: size.z }, voxels: Vec::new() }
         })
         .collect();
-    for v in grid.iter_set() {
+    let quantized = colours.map(|c| super::palette::quantize(&c.rgba, 255));
+    for (n, v) in grid.iter_set().enumerate() {
         let p = to_vox(v, d);
         let c = p / VOX_MODEL_MAX;
         let l = p % VOX_MODEL_MAX;
-        models[chunk_index(c)].voxels.push(Voxel { x: l.x as u8, y: l.y as u8, z: l.z as u8, i: 0 });
+        let i = quantized.as_ref().and_then(|q| q.index.get(n).copied()).unwrap_or(0);
+        models[chunk_index(c)].voxels.push(Voxel { x: l.x as u8, y: l.y as u8, z: l.z as u8, i });
     }
 
     // Scene graph: root transform -> group -> (transform -> shape) per model.
@@ -360,8 +418,16 @@ pub fn write_vox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
     scenes[1] = SceneNode::Group { attributes: Dict::new(), children };
 
     let mut palette = dot_vox::DEFAULT_PALETTE.clone();
-    // Palette entry 0 is the one every voxel uses: a warm orange that reads well on MagicaVoxel's grey.
-    palette[0] = dot_vox::Color { r: 235, g: 140, b: 52, a: 255 };
+    match &quantized {
+        Some(q) => {
+            for (slot, c) in palette.iter_mut().zip(&q.palette) {
+                *slot = dot_vox::Color { r: c[0], g: c[1], b: c[2], a: 255 };
+            }
+        }
+        // Without colours palette entry 0 is the one every voxel uses: a warm orange that reads well on
+        // MagicaVoxel's grey.
+        None => palette[0] = dot_vox::Color { r: 235, g: 140, b: 52, a: 255 },
+    }
     let data = DotVoxData {
         version: 150,
         index_map: dot_vox::DEFAULT_INDEX_MAP.to_vec(),

@@ -18,10 +18,12 @@
 //! lets the GPU process the grid in z-slabs that are whole word ranges.
 
 pub mod budget;
+pub mod colour;
 pub mod cpu;
 pub mod export;
 mod grid;
 mod lattice;
+pub mod palette;
 pub mod solid;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};

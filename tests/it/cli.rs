@@ -6,7 +6,7 @@ use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};
 
-fn meshvox(args: &[&str], dir: &Path) -> Output {
+pub(crate) fn meshvox(args: &[&str], dir: &Path) -> Output {
     meshvox_env(args, dir, &[])
 }
 
@@ -19,7 +19,7 @@ fn meshvox_env(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
     cmd.output().expect("run meshvox")
 }
 
-fn stats(out: &Output) -> Value {
+pub(crate) fn stats(out: &Output) -> Value {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let last =
         stdout.lines().last().unwrap_or_else(|| panic!("no stdout; stderr: {}", String::from_utf8_lossy(&out.stderr)));

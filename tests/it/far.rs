@@ -181,6 +181,7 @@ fn render_of_a_far_mesh_matches_the_render_at_the_origin() {
         show_mesh: true,
         mode: Mode::Surface,
         cut: None,
+        colour: false,
     };
     let a = render(gpu, &case(&path));
     let b = render(gpu, &case(&far));

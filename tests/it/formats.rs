@@ -114,12 +114,20 @@ fn vox_is_upright_in_magicavoxel() {
     assert_eq!((data.models[0].size.x, data.models[0].size.y, data.models[0].size.z), (2, 3, 5));
 }
 
-/// Runs the independent Python reader, or returns None (loudly) when python3 with numpy, binvox and trimesh is
-/// not available. Under CI=true that is a failure: `.ci/run` installs them.
-fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
+/// Runs the independent Python reader, or returns None (loudly) when python3 with numpy, binvox, trimesh and
+/// Pillow is not available. Under CI=true that is a failure: `.ci/run` installs them.
+pub(crate) fn independent_args(kind: &str, args: &[&str]) -> Option<serde_json::Value> {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/independent.py");
     let python = std::env::var("MESHVOX_PYTHON").unwrap_or_else(|_| "python3".into());
-    let out = Command::new(python).arg(script).arg(kind).arg(path).output();
+    let out = Command::new(python).arg(script).arg(kind).args(args).output();
+    independent_result(kind, out)
+}
+
+fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
+    independent_args(kind, &[&path.to_string_lossy()])
+}
+
+fn independent_result(kind: &str, out: std::io::Result<std::process::Output>) -> Option<serde_json::Value> {
     match out {
         Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from independent.py")),
         other => {

@@ -2,6 +2,7 @@
 //! once instead of a dozen times). Each module is one area; `cargo test --test it MODULE::` runs one of them.
 
 mod cli;
+mod colour;
 mod common;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;

@@ -4,8 +4,9 @@
 //! mismatch writes `NAME.new.png` and `NAME.diff.png` beside the golden (both git-ignored) and says where.
 
 use meshvox::gpu::Gpu;
+use meshvox::gpu::colour::GpuColourer;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
-use meshvox::render::{Cut, Offscreen, OrbitCamera, Style, instances_from_grid};
+use meshvox::render::{Cut, Offscreen, OrbitCamera, Style, coloured_instances, instances_from_grid};
 use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, cpu};
 use std::path::PathBuf;
 
@@ -23,6 +24,8 @@ pub(crate) struct Case {
     pub show_mesh: bool,
     pub mode: Mode,
     pub cut: Option<Cut>,
+    /// Draw the voxels in the mesh's colours (computed by the GPU colour pass).
+    pub colour: bool,
 }
 
 pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
@@ -33,9 +36,15 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
     let v = GpuVoxelizer::new(gpu);
     let options = Options { compact: true, surface_only: true, read_grid: true, mode: case.mode, ..Default::default() };
     let out = v.voxelize(gpu, &tris, spec, &options).expect("voxelize");
-    let points = match case.cut {
+    let grid = out.grid.expect("grid");
+    let (points, colours) = match case.cut {
+        _ if case.colour => {
+            let shading = mesh.shading.as_ref().expect("the mesh has colours");
+            let colours = GpuColourer::new(gpu).colour(gpu, &grid, &tris, shading).expect("colour");
+            let (points, buffer) = coloured_instances(&gpu.device, &grid, &grid.exposed(), &colours);
+            (points, Some(buffer))
+        }
         Some(cut) => {
-            let grid = out.grid.expect("grid");
             let shown = cut.apply(&grid);
             // The cut face of a solid is filled: its last layer before the cut holds more voxels than the same
             // layer of the surface, which is a ring.
@@ -52,13 +61,13 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
                     case.name
                 );
             }
-            instances_from_grid(&gpu.device, &shown)
+            (instances_from_grid(&gpu.device, &shown), None)
         }
-        None => out.points.expect("points"),
+        None => (out.points.expect("points"), None),
     };
     let show_mesh = case.show_mesh;
     let offscreen = Offscreen::new(gpu);
-    let scene = offscreen.renderer.scene(&gpu.device, points, spec, Some(&mesh));
+    let scene = offscreen.renderer.coloured_scene(&gpu.device, points, colours, spec, Some(&mesh));
     let (lo, hi) = scene.bounds();
     let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
     let style = Style { show_mesh, ..Default::default() };
@@ -123,6 +132,27 @@ fn assert_shows_voxels(name: &str, image: &image::RgbaImage) {
     assert!(shades.len() >= 3, "{name}: faces are not shaded apart ({} shades)", shades.len());
 }
 
+/// The image shows coloured voxels: many distinct colours (not one lit colour), covering a good part of it.
+fn assert_shows_colours(name: &str, image: &image::RgbaImage) {
+    let bg = image.get_pixel(0, 0);
+    let covered: Vec<&image::Rgba<u8>> =
+        image.pixels().filter(|p| p.0[..3].iter().zip(&bg.0[..3]).any(|(a, b)| a.abs_diff(*b) > 30)).collect();
+    let share = covered.len() as f64 / (SIZE * SIZE) as f64;
+    assert!(share > 0.1 && share < 0.95, "{name}: voxels cover {:.0}% of the image", share * 100.0);
+    // Hue-like buckets of the normalised colour: lighting alone changes brightness, not these.
+    let mut buckets: Vec<(u32, u32)> = covered
+        .iter()
+        .filter(|p| p[0] as u32 + p[1] as u32 + p[2] as u32 > 60)
+        .map(|p| {
+            let sum = p[0] as u32 + p[1] as u32 + p[2] as u32;
+            (p[0] as u32 * 8 / sum, p[1] as u32 * 8 / sum)
+        })
+        .collect();
+    buckets.sort();
+    buckets.dedup();
+    assert!(buckets.len() >= 3, "{name}: only {} colour buckets; are the voxel colours drawn?", buckets.len());
+}
+
 #[test]
 fn renderer_goldens() {
     let gpu = match Gpu::new_blocking() {
@@ -141,6 +171,7 @@ fn renderer_goldens() {
         show_mesh,
         mode,
         cut: cut.map(|c| Cut::parse(c).expect("cut")),
+        colour: false,
     };
     let mut cases = vec![
         case("rotated-cube-30", "builtin:rotated-cube".into(), 30, false, Mode::Surface, None),
@@ -154,12 +185,25 @@ fn renderer_goldens() {
         cases.push(case("duck-64-mesh", p("gltf/Duck.glb"), 64, true, Mode::Surface, None));
         cases.push(case("bunny-64-solid-cut-x", p("stanford-bunny.obj"), 64, false, Mode::Solid, Some("x:0.5")));
         cases.push(case("spot-64-surface6", p("spot.obj"), 64, false, Mode::Surface6, None));
+        // Textured models in their own colours: the Duck's texture, Spot's texture, the torus's vertex colours.
+        for (name, file) in [
+            ("duck-64-colour", "gltf/Duck.glb"),
+            ("spot-64-colour", "gltf/spot-textured.glb"),
+            ("torus-48-colour", "gltf/torus-vertex-colours.gltf"),
+        ] {
+            let resolution = if name.starts_with("torus") { 48 } else { 64 };
+            cases.push(Case { colour: true, ..case(name, p(file), resolution, false, Mode::Surface, None) });
+        }
     }
     let mut failures = Vec::new();
     for c in cases {
         let name = c.name.clone();
         let image = render(&gpu, &c);
-        assert_shows_voxels(&name, &image);
+        if c.colour {
+            assert_shows_colours(&name, &image);
+        } else {
+            assert_shows_voxels(&name, &image);
+        }
         if let Err(e) = std::panic::catch_unwind(|| check_snapshot(&name, &image, &slug)) {
             failures.push(e.downcast_ref::<String>().cloned().unwrap_or_else(|| format!("{name} failed")));
         }

@@ -1,7 +1,8 @@
 """Independent readers for meshvox's tests: numpy for .npy, the `binvox` package (a binvox-rw port) and trimesh
-for .binvox, trimesh for mesh triangle counts and bounds. Prints one JSON object on stdout.
+for .binvox, trimesh for mesh triangle counts and bounds, and trimesh with Pillow for voxel colours. Prints one
+JSON object on stdout.
 
-usage: independent.py npy FILE | binvox FILE | mesh FILE
+usage: independent.py npy FILE | binvox FILE | mesh FILE | colours MESH GRID.npy OX,OY,OZ H
 """
 import json
 import sys
@@ -41,6 +42,123 @@ def mesh(path):
     return {"triangles": int(len(m.faces)), "bounds": np.asarray(m.bounds).tolist()}
 
 
+def srgb_to_linear(c):
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(c):
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
+
+
+def bilinear(image, uv):
+    """Samples an sRGB PIL image at glTF-style uv (origin top left, repeat), bilinear in linear light."""
+    a = srgb_to_linear(np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0)
+    h, w = a.shape[:2]
+    x = np.mod(uv[:, 0], 1.0) * w - 0.5
+    y = np.mod(uv[:, 1], 1.0) * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    xa, xb = (x0.astype(int) % w), ((x0.astype(int) + 1) % w)
+    ya, yb = (y0.astype(int) % h), ((y0.astype(int) + 1) % h)
+    top = a[ya, xa] * (1 - fx) + a[ya, xb] * fx
+    bottom = a[yb, xa] * (1 - fx) + a[yb, xb] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def surface_colours(path):
+    """World-space triangles of every mesh in the file and a function giving the linear RGB colour of triangle t
+    at barycentric weights w, from trimesh's own reading of materials, textures and vertex colours."""
+    import trimesh
+
+    loaded = trimesh.load(path, process=False)
+    geometries = loaded.dump() if hasattr(loaded, "dump") else [loaded]
+    tris, shaders = [], []
+    for g in geometries:
+        faces = g.faces
+        tris.append(g.vertices[faces])
+        visual = g.visual
+        n = len(faces)
+        if visual.kind == "texture" and visual.uv is not None:
+            material = visual.material
+            uv = np.asarray(visual.uv, dtype=np.float64)[faces].copy()
+            # trimesh moves the uv origin to the bottom left; textures are addressed from the top.
+            uv[:, :, 1] = 1.0 - uv[:, :, 1]
+            image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
+            factor = getattr(material, "baseColorFactor", None)
+            if factor is None:
+                factor = getattr(material, "diffuse", None)
+            factor = np.ones(3) if factor is None else np.asarray(factor, dtype=np.float64)[:3] / 255.0
+            shaders.append(("texture", uv, image, factor, n))
+        else:
+            colors = np.asarray(visual.vertex_colors, dtype=np.float64)[:, :3] / 255.0 if visual.kind == "vertex" else None
+            if colors is None:
+                face = np.asarray(visual.face_colors, dtype=np.float64)[:, :3] / 255.0
+                colors = np.repeat(face[:, None, :], 3, axis=1)
+            else:
+                colors = colors[faces]
+            shaders.append(("vertex", colors, None, None, n))
+    return np.concatenate(tris), shaders
+
+
+def colours(mesh_path, grid_path, origin, h):
+    """Recomputes the colour of every set voxel of a meshvox grid (the surface point nearest the voxel centre,
+    barycentric uv, a bilinear texture sample) and compares with the colours meshvox wrote beside the grid."""
+    import trimesh
+
+    grid = np.load(grid_path)
+    ours = np.load(grid_path[: -len(".npy")] + ".colors.npy")
+    alpha_ok = bool(np.array_equal(ours[..., 3] == 255, grid != 0)) and bool(np.all(ours[grid == 0] == 0))
+    tris, shaders = surface_colours(mesh_path)
+    coords = np.argwhere(grid != 0)
+    rng = np.random.default_rng(7)
+    if len(coords) > 3000:
+        coords = coords[rng.choice(len(coords), 3000, replace=False)]
+    centres = np.asarray(origin) + (coords + 0.5) * h
+    nearest, closest = np.empty(len(centres), dtype=int), np.empty((len(centres), 3))
+    for start in range(0, len(centres), 64):
+        pts = centres[start : start + 64]
+        rep = np.repeat(pts, len(tris), axis=0)
+        cp = trimesh.triangles.closest_point(np.tile(tris, (len(pts), 1, 1)), rep)
+        d = np.linalg.norm(cp - rep, axis=1).reshape(len(pts), len(tris))
+        best = np.argmin(d, axis=1)
+        nearest[start : start + len(pts)] = best
+        closest[start : start + len(pts)] = cp.reshape(len(pts), len(tris), 3)[np.arange(len(pts)), best]
+    bary = trimesh.triangles.points_to_barycentric(tris[nearest], closest)
+    expected = np.zeros((len(centres), 3))
+    first = 0
+    for kind, data, image, factor, n in shaders:
+        sel = (nearest >= first) & (nearest < first + n)
+        local = nearest[sel] - first
+        w = bary[sel][:, :, None]
+        if kind == "texture":
+            uv = (data[local] * w).sum(axis=1)
+            # Material factors are linear (trimesh keeps them as bytes, value x 255).
+            expected[sel] = factor * (bilinear(image, uv) if image is not None else 1.0)
+        else:
+            # glTF vertex colours are linear too.
+            expected[sel] = (data[local] * w).sum(axis=1)
+        first += n
+    expected = np.round(linear_to_srgb(expected) * 255.0)
+    got = ours[coords[:, 0], coords[:, 1], coords[:, 2], :3].astype(np.float64)
+    err = np.abs(got - expected)
+    return {
+        "voxels": int(len(coords)),
+        "shape": list(ours.shape),
+        "dtype": str(ours.dtype),
+        "alpha_ok": alpha_ok,
+        "mean_error": float(err.mean()),
+        "within_16": float(np.mean(err.max(axis=1) <= 16)),
+        "mean_expected": expected.mean(axis=0).tolist(),
+        "mean_ours": got.mean(axis=0).tolist(),
+    }
+
+
 if __name__ == "__main__":
     kind, path = sys.argv[1], sys.argv[2]
-    print(json.dumps({"npy": npy, "binvox": binvox_file, "mesh": mesh}[kind](path)))
+    if kind == "colours":
+        origin = [float(v) for v in sys.argv[4].split(",")]
+        print(json.dumps(colours(path, sys.argv[3], origin, float(sys.argv[5]))))
+    else:
+        print(json.dumps({"npy": npy, "binvox": binvox_file, "mesh": mesh}[kind](path)))

@@ -1,0 +1,220 @@
+//! The voxel colour passes of `shaders/colour.wgsl` on a [`Gpu`]: upload the grid, its word ranks, the grid-space
+//! triangles and their shading, run `nearest_distance`, `nearest_triangle` and `shade_voxels`, and read the colours
+//! back. The rule and the CPU reference are in [`crate::voxel::colour`].
+//!
+//! The whole grid and one entry per set voxel must each fit one storage binding; [`GpuColourer::fits`] says
+//! whether they do, and callers colour larger grids with the CPU reference.
+
+use super::readback::read_buffer;
+use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::mesh::Shading;
+use crate::mesh::material::SRGB_TO_LINEAR;
+use crate::voxel::VoxelGrid;
+use crate::voxel::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, VoxelColours, fill_interior, word_ranks};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+pub const COLOUR_WGSL: &str = include_str!("../../shaders/colour.wgsl");
+const WG: u32 = 64;
+/// Words of one material record and one texture record in the tables (`MATERIAL_WORDS`, `TEXTURE_WORDS`).
+const MATERIAL_WORDS: usize = 12;
+const TEXTURE_WORDS: usize = 4;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    dims: [u32; 3],
+    words_per_row: u32,
+    tri_count: u32,
+    word_count: u32,
+    materials_at: u32,
+    textures_at: u32,
+    row_threads: u32,
+    _pad: [u32; 3],
+}
+
+/// The shader's `tables` (sRGB table, its midpoints, material and texture records) and `texels`, and the offsets
+/// of the records.
+pub struct Tables {
+    pub words: Vec<u32>,
+    pub texels: Vec<u32>,
+    pub materials_at: u32,
+    pub textures_at: u32,
+}
+
+impl Tables {
+    pub fn new(shading: &Shading) -> Tables {
+        let mut words: Vec<u32> = SRGB_TO_LINEAR.iter().chain(SRGB_MIDPOINTS.iter()).map(|f| f.to_bits()).collect();
+        let materials_at = words.len() as u32;
+        for m in &shading.materials {
+            let (row0, row1, texture) = match m.texture {
+                Some(r) => (r.transform[0], r.transform[1], r.texture),
+                None => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], NO_TRIANGLE),
+            };
+            let record: [u32; MATERIAL_WORDS] = [
+                m.base_color.x.to_bits(),
+                m.base_color.y.to_bits(),
+                m.base_color.z.to_bits(),
+                m.base_color.w.to_bits(),
+                row0[0].to_bits(),
+                row0[1].to_bits(),
+                row0[2].to_bits(),
+                texture,
+                row1[0].to_bits(),
+                row1[1].to_bits(),
+                row1[2].to_bits(),
+                0,
+            ];
+            words.extend(record);
+        }
+        let textures_at = words.len() as u32;
+        let mut texels = Vec::new();
+        for t in &shading.textures {
+            let flags = t.wrap[0] as u32 | (t.wrap[1] as u32) << 2 | (t.nearest as u32) << 4;
+            let record: [u32; TEXTURE_WORDS] = [texels.len() as u32, t.width, t.height, flags];
+            words.extend(record);
+            texels.extend_from_slice(&t.texels);
+        }
+        Tables { words, texels, materials_at, textures_at }
+    }
+}
+
+/// Compiled colour pipelines, reusable on one device.
+pub struct GpuColourer {
+    layout: wgpu::BindGroupLayout,
+    distance: wgpu::ComputePipeline,
+    triangle: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+}
+
+impl GpuColourer {
+    pub fn new(gpu: &Gpu) -> GpuColourer {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("colour.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(COLOUR_WGSL.into()),
+        });
+        let mut entries = vec![uniform_entry(0)];
+        entries.extend((1..7).map(|b| storage_entry(b, true)));
+        entries.push(storage_entry(7, false));
+        let layout = device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("colour"), entries: &entries });
+        let layouts = [Some(&layout)];
+        GpuColourer {
+            distance: pipeline(device, &module, &layouts, "nearest_distance"),
+            triangle: pipeline(device, &module, &layouts, "nearest_triangle"),
+            shade: pipeline(device, &module, &layouts, "shade_voxels"),
+            layout,
+        }
+    }
+
+    /// Whether the grid, its per-voxel entries, the triangles and the texels each fit one binding of this device.
+    pub fn fits(gpu: &Gpu, grid: &VoxelGrid, triangles: usize, shading: &Shading) -> bool {
+        let max = gpu.max_binding_bytes();
+        let texels: u64 = shading.textures.iter().map(|t| t.texels.len() as u64 * 4).sum();
+        [grid.spec.byte_size(), grid.count() * 8, triangles as u64 * 56, texels].iter().all(|&b| b <= max)
+    }
+
+    /// Colours `grid`'s set voxels from the grid-space triangles it was voxelized from, blocking until done.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn colour(
+        &self,
+        gpu: &Gpu,
+        grid: &VoxelGrid,
+        triangles: &[[Vec3; 3]],
+        shading: &Shading,
+    ) -> Result<VoxelColours, GpuError> {
+        pollster::block_on(self.colour_async(gpu, grid, triangles, shading))
+    }
+
+    /// [`GpuColourer::colour`] as a future, for the browser.
+    pub async fn colour_async(
+        &self,
+        gpu: &Gpu,
+        grid: &VoxelGrid,
+        triangles: &[[Vec3; 3]],
+        shading: &Shading,
+    ) -> Result<VoxelColours, GpuError> {
+        gpu.check()?;
+        let count = grid.count();
+        if count == 0 || triangles.is_empty() {
+            return Ok(VoxelColours { rgba: vec![[0; 4]; count as usize] });
+        }
+        let device = &gpu.device;
+        let spec = grid.spec;
+        let tables = Tables::new(shading);
+        let ranks = word_ranks(grid);
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            // Zero-sized bindings are invalid; four bytes stand in for an empty array.
+            let contents = if contents.is_empty() { &[0u8; 4][..] } else { contents };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let best_init: Vec<[u32; 2]> = vec![[f32::INFINITY.to_bits(), NO_TRIANGLE]; count as usize];
+        let word_count = spec.word_count() as u32;
+        let groups = |n: u32| dispatch_2d(n.div_ceil(WG));
+        let (tri_groups, word_groups) = (groups(triangles.len() as u32), groups(word_count));
+        let best = scoped(device, || {
+            let params = |row_groups: u32| Params {
+                dims: spec.dims.to_array(),
+                words_per_row: spec.words_per_row() as u32,
+                tri_count: triangles.len() as u32,
+                word_count,
+                materials_at: tables.materials_at,
+                textures_at: tables.textures_at,
+                row_threads: row_groups * WG,
+                _pad: [0; 3],
+            };
+            let uniform = wgpu::BufferUsages::UNIFORM;
+            let tri_params = init("colour params", bytemuck::bytes_of(&params(tri_groups.0)), uniform);
+            let word_params = init("colour params", bytemuck::bytes_of(&params(word_groups.0)), uniform);
+            let buffers = [
+                init("colour triangles", bytemuck::cast_slice(triangles), storage),
+                init("colour shading", bytemuck::cast_slice(&shading.triangles), storage),
+                init("colour tables", bytemuck::cast_slice(&tables.words), storage),
+                init("colour texels", bytemuck::cast_slice(&tables.texels), storage),
+                init("colour grid", bytemuck::cast_slice(&grid.words), storage),
+                init("colour ranks", bytemuck::cast_slice(&ranks), storage),
+                init("colour best", bytemuck::cast_slice(&best_init), storage | wgpu::BufferUsages::COPY_SRC),
+            ];
+            let bind = |params: &wgpu::Buffer| {
+                let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }];
+                entries.extend(
+                    buffers
+                        .iter()
+                        .enumerate()
+                        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
+                );
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("colour"),
+                    layout: &self.layout,
+                    entries: &entries,
+                })
+            };
+            let (tri_bind, word_bind) = (bind(&tri_params), bind(&word_params));
+            let mut encoder = device.create_command_encoder(&Default::default());
+            for (pipeline, bind, (x, y)) in [
+                (&self.distance, &tri_bind, tri_groups),
+                (&self.triangle, &tri_bind, tri_groups),
+                (&self.shade, &word_bind, word_groups),
+            ] {
+                // One pass per step: each reads what the one before wrote.
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind, &[]);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            let [.., best] = buffers;
+            Ok(best)
+        })
+        .await?;
+        let bytes = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
+        gpu.check()?;
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        let mut colours = VoxelColours { rgba: words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect() };
+        fill_interior(grid, &mut colours);
+        Ok(colours)
+    }
+}

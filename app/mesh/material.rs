@@ -1,0 +1,142 @@
+//! Surface colour as mesh data: materials (a base colour factor and an optional texture), decoded textures with
+//! their sampler settings, and per triangle the material, texture coordinates and vertex colours. Loaders fill a
+//! [`Shading`] only when the file carries colour; the voxel colour pass (`voxel/colour.rs`, `gpu/colour.rs`)
+//! evaluates it at the surface point nearest each voxel centre.
+//!
+//! Colours are kept in linear RGB (glTF factors and vertex colours are linear; texels are sRGB-encoded and decoded
+//! when sampled, through [`SRGB_TO_LINEAR`], the one table the CPU reference and the shader share).
+
+use glam::{Vec2, Vec4};
+
+/// How a texture coordinate outside [0, 1] is brought back (glTF sampler `wrapS`/`wrapT`; OBJ textures repeat).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u32)]
+pub enum Wrap {
+    #[default]
+    Repeat = 0,
+    ClampToEdge = 1,
+    MirroredRepeat = 2,
+}
+
+/// A decoded texture: `width × height` texels, row 0 at the top (v = 0), each RGBA8 packed as
+/// `r | g << 8 | b << 16 | a << 24` with sRGB-encoded colour and linear alpha.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<u32>,
+    pub wrap: [Wrap; 2],
+    /// Nearest-texel sampling (glTF `magFilter` NEAREST); otherwise bilinear.
+    pub nearest: bool,
+}
+
+impl Texture {
+    /// Decodes an encoded image (PNG or JPEG, guessed from its bytes) into RGBA8.
+    pub fn decode(bytes: &[u8], wrap: [Wrap; 2], nearest: bool) -> Result<Texture, String> {
+        let image = image::load_from_memory(bytes).map_err(|e| e.to_string())?.into_rgba8();
+        let (width, height) = image.dimensions();
+        if width == 0 || height == 0 {
+            return Err("the image is empty".into());
+        }
+        let texels = image.pixels().map(|p| u32::from_le_bytes(p.0)).collect();
+        Ok(Texture { width, height, texels, wrap, nearest })
+    }
+}
+
+/// A texture as a material uses it: which one, and the `KHR_texture_transform` of its coordinates as the two
+/// rows of a 2×3 matrix (`uv' = (row0 · (u, v, 1), row1 · (u, v, 1))`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    pub texture: u32,
+    pub transform: [[f32; 3]; 2],
+}
+
+impl TextureRef {
+    pub const IDENTITY: [[f32; 3]; 2] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+    /// The transform of `KHR_texture_transform`: scale, then rotate (counter-clockwise in uv, as the extension
+    /// defines it), then translate.
+    pub fn transform_from(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> [[f32; 3]; 2] {
+        let (s, c) = rotation.sin_cos();
+        [[c * scale[0], s * scale[1], offset[0]], [-s * scale[0], c * scale[1], offset[1]]]
+    }
+}
+
+/// A material's colour: `base_color × texture(uv)`, linear RGBA.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub base_color: Vec4,
+    pub texture: Option<TextureRef>,
+}
+
+impl Default for Material {
+    /// glTF's default material: white, untextured.
+    fn default() -> Material {
+        Material { name: String::new(), base_color: Vec4::ONE, texture: None }
+    }
+}
+
+/// Per-triangle shading inputs, laid out as the colour shader reads them (`TriangleShading` in
+/// `shaders/colour.wgsl`): three texture coordinates, three vertex colours in linear unorm16 RGBA, the material.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TriangleShading {
+    pub uv: [[f32; 2]; 3],
+    /// Linear RGBA per corner, each channel `round(c × 65535)`, packed two channels per u32 (r | g << 16, b | a << 16).
+    pub color: [[u32; 2]; 3],
+    pub material: u32,
+    pub _pad: u32,
+}
+
+impl TriangleShading {
+    /// A corner colour packed as the shader reads it.
+    pub fn pack_color(c: Vec4) -> [u32; 2] {
+        let q = |x: f32| (x.clamp(0.0, 1.0) * 65535.0).round() as u32;
+        [q(c.x) | q(c.y) << 16, q(c.z) | q(c.w) << 16]
+    }
+
+    pub const WHITE: [u32; 2] = [0xffff_ffff, 0xffff_ffff];
+
+    /// A triangle with `material`, no texture coordinates and white corners.
+    pub fn plain(material: u32) -> TriangleShading {
+        TriangleShading { uv: [[0.0; 2]; 3], color: [Self::WHITE; 3], material, _pad: 0 }
+    }
+
+    /// Corner `i`'s colour, unpacked.
+    pub fn corner_color(&self, i: usize) -> Vec4 {
+        let [a, b] = self.color[i];
+        let f = |x: u32| (x & 0xffff) as f32 / 65535.0;
+        Vec4::new(f(a), f(a >> 16), f(b), f(b >> 16))
+    }
+
+    pub fn corner_uv(&self, i: usize) -> Vec2 {
+        Vec2::from(self.uv[i])
+    }
+}
+
+/// Everything the colour pass needs from a mesh: `triangles[i]` shades `Mesh::triangles[i]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Shading {
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub triangles: Vec<TriangleShading>,
+}
+
+impl Shading {
+    /// Whether any surface has a colour other than white: a texture, vertex colours or a coloured material.
+    /// A mesh without any is drawn and exported in the viewer's flat colour.
+    pub fn has_colour(&self) -> bool {
+        let used = |m: &Material| m.texture.is_some() || m.base_color != Vec4::ONE;
+        self.materials.iter().any(used) || self.triangles.iter().any(|t| t.color != [TriangleShading::WHITE; 3])
+    }
+}
+
+/// sRGB-encoded byte → linear value, the table both the CPU reference and the shader decode texels with (so
+/// both sides use the same numbers rather than two `pow` implementations).
+pub static SRGB_TO_LINEAR: std::sync::LazyLock<[f32; 256]> = std::sync::LazyLock::new(|| {
+    std::array::from_fn(|i| {
+        let c = i as f64 / 255.0;
+        (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32
+    })
+});

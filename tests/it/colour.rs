@@ -1,0 +1,276 @@
+//! Voxel colours: the CLI's colours for the shared textured and vertex-coloured samples against an independent
+//! computation (trimesh's reading of the file, brute-force nearest surface point, barycentric uv, a bilinear
+//! texture sample, in tests/tools/independent.py); the GPU pass against the CPU reference; OBJ materials and
+//! textures; the `.vox` palette and `grid.colors.npy`.
+
+use crate::cli::{meshvox, stats};
+use crate::formats::independent_args;
+use glam::UVec3;
+use meshvox::gpu::colour::GpuColourer;
+use meshvox::mesh::material::Wrap;
+use meshvox::voxel::colour::colour_voxels;
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use std::path::Path;
+
+/// Mean absolute difference per channel (sRGB bytes) between two colour lists of the same voxels.
+fn mean_error(a: &[[u8; 4]], b: &[[u8; 4]]) -> f64 {
+    let sum: u64 = a.iter().zip(b).map(|(x, y)| (0..3).map(|c| x[c].abs_diff(y[c]) as u64).sum::<u64>()).sum();
+    sum as f64 / (a.len().max(1) * 3) as f64
+}
+
+fn voxelize_cpu(mesh: &meshvox::mesh::Mesh, r: u32, mode: Mode) -> (VoxelGrid, Vec<[glam::Vec3; 3]>) {
+    let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("grid");
+    let tris = cpu::grid_space_triangles(mesh, &spec).expect("grid space");
+    let (grid, _) = cpu::voxelize_grid_space_mode(&tris, spec, mode, &|_, _| {}).expect("voxelize");
+    (grid, tris)
+}
+
+#[test]
+fn cli_colours_match_an_independent_computation() {
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let out_dir = tempfile::tempdir().expect("tempdir");
+    let mut report = Vec::new();
+    for (rel, r) in [
+        ("gltf/BoxTextured.gltf", 40),
+        ("gltf/Duck.glb", 48),
+        ("gltf/spot-textured.glb", 48),
+        ("gltf/torus-vertex-colours.gltf", 40),
+        ("gltf/cube-external/Cube.gltf", 32),
+    ] {
+        let mesh = dir.join(rel);
+        let mesh = mesh.to_string_lossy();
+        let out = meshvox(&["voxelize", &mesh, "-r", &r.to_string(), "-o", "g.npy", "--stats-json"], out_dir.path());
+        assert!(out.status.success(), "{rel}: {}", String::from_utf8_lossy(&out.stderr));
+        let s = stats(&out);
+        assert!(s["colour"].is_string(), "{rel}: colours on by default for a coloured mesh: {s}");
+        assert_eq!(s["colours_output"].as_str(), Some("g.colors.npy"), "{rel}: the colours go beside the grid");
+        let origin: Vec<String> = (0..3).map(|i| s["origin"][i].as_f64().expect("origin").to_string()).collect();
+        let h = s["voxel_size"].as_f64().expect("voxel size").to_string();
+        let grid = out_dir.path().join("g.npy");
+        let Some(j) = independent_args("colours", &[&mesh, &grid.to_string_lossy(), &origin.join(","), &h]) else {
+            return;
+        };
+        let dims: Vec<u64> = (0..3).map(|i| s["dims"][i].as_u64().expect("dims")).collect();
+        assert_eq!(j["shape"], serde_json::json!([dims[0], dims[1], dims[2], 4]), "{rel}");
+        assert_eq!(j["dtype"], "uint8", "{rel}");
+        assert_eq!(j["alpha_ok"], true, "{rel}: alpha must be 255 exactly where a voxel is set");
+        let (mean, within) = (j["mean_error"].as_f64().expect("mean"), j["within_16"].as_f64().expect("within"));
+        report.push(format!(
+            "{rel} @{r}: {} voxels, mean error {mean:.2}, {:.1}% within 16",
+            j["voxels"],
+            within * 100.0
+        ));
+        // Rounding, bilinear filtering across texture seams and triangles equally near on both sides of a
+        // colour edge make a few voxels differ; a wrong uv origin, a missing texture or factor moves them all.
+        assert!(mean < 6.0 && within > 0.9, "{rel}: colours differ from the independent computation: {j}");
+    }
+    eprintln!("{}", report.join("\n"));
+}
+
+#[test]
+fn gpu_colours_match_the_cpu_reference() {
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let colourer = GpuColourer::new(gpu);
+    for (rel, r, mode) in [
+        ("gltf/Duck.glb", 64, Mode::Surface),
+        ("gltf/spot-textured.glb", 57, Mode::Surface),
+        ("gltf/torus-vertex-colours.gltf", 48, Mode::Solid),
+    ] {
+        let mesh = meshvox::mesh::load_path(&dir.join(rel)).expect("load");
+        let shading = mesh.shading.as_ref().expect("the sample has colours");
+        let (grid, tris) = voxelize_cpu(&mesh, r, mode);
+        let cpu = colour_voxels(&grid, &tris, shading);
+        let gpu_colours = colourer.colour(gpu, &grid, &tris, shading).expect("gpu colour");
+        assert_eq!(cpu.rgba.len() as u64, grid.count(), "{rel}");
+        assert_eq!(gpu_colours.rgba.len(), cpu.rgba.len(), "{rel}");
+        assert!(cpu.rgba.iter().all(|c| c[3] == 255), "{rel}: every set voxel gets a colour");
+        let same = cpu.rgba.iter().zip(&gpu_colours.rgba).filter(|(a, b)| a == b).count();
+        let share = same as f64 / cpu.rgba.len() as f64;
+        eprintln!("{rel} @{r} {mode}: {same} of {} voxel colours identical", cpu.rgba.len());
+        // Only ties between equally near triangles may go the other way (see voxel::colour).
+        assert!(share > 0.995, "{rel}: only {:.2}% of the GPU's colours equal the CPU's", share * 100.0);
+        assert!(mean_error(&cpu.rgba, &gpu_colours.rgba) < 0.5, "{rel}");
+    }
+}
+
+/// Writes a 4×4 PNG whose four 2×2 quadrants are red (top left), green (top right), blue (bottom left) and
+/// white (bottom right).
+fn write_quadrant_png(path: &Path) {
+    let image = image::RgbaImage::from_fn(4, 4, |x, y| {
+        image::Rgba(match (x < 2, y < 2) {
+            (true, true) => [255, 0, 0, 255],
+            (false, true) => [0, 255, 0, 255],
+            (true, false) => [0, 0, 255, 255],
+            (false, false) => [255, 255, 255, 255],
+        })
+    });
+    image.save(path).expect("write png");
+}
+
+#[test]
+fn obj_materials_and_textures() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_quadrant_png(&dir.path().join("quadrants.png"));
+    std::fs::write(
+        dir.path().join("scene.mtl"),
+        "newmtl tex\nKd 1 1 1\nmap_Kd quadrants.png\n\nnewmtl orange\nKd 1.0 0.5 0.0\n",
+    )
+    .expect("mtl");
+    // A textured unit quad at z = 0 (uv = xy, OBJ's v pointing up) and an orange quad at z = 1: the grid's
+    // first and last layers, with decimal coordinates that are not exact in binary.
+    let obj = "mtllib scene.mtl\n\
+        v 0.0 0.0 0.0\nv 1.1 0.0 0.0\nv 1.1 1.1 0.0\nv 0.0 1.1 0.0\n\
+        v 0.0 0.0 0.7\nv 1.1 0.0 0.7\nv 1.1 1.1 0.7\nv 0.0 1.1 0.7\n\
+        vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+        o textured\nusemtl tex\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n\
+        o plain\nusemtl orange\nf 5 6 7\nf 5 7 8\n";
+    let path = dir.path().join("scene.obj");
+    std::fs::write(&path, obj).expect("obj");
+    let mesh = meshvox::mesh::load_path(&path).expect("load");
+    let shading = mesh.shading.as_ref().expect("the OBJ has colours");
+    assert_eq!(shading.textures.len(), 1);
+    assert_eq!(shading.textures[0].wrap, [Wrap::Repeat; 2]);
+    let (grid, tris) = voxelize_cpu(&mesh, 22, Mode::Surface);
+    let colours = colour_voxels(&grid, &tris, shading);
+    let d = grid.spec.dims;
+    let at = |v: UVec3| -> [u8; 4] {
+        let i = grid.iter_set().position(|s| s == v).unwrap_or_else(|| panic!("voxel {v} is not set"));
+        colours.rgba[i]
+    };
+    // Quadrant centres of the textured quad, in voxels (22 across 1.1 units: uv 0.25 is voxel 5).
+    let (lo, hi) = (5, d.x - 6);
+    assert_eq!(at(UVec3::new(lo, lo, 0)), [0, 0, 255, 255], "uv (0.25, 0.25): the image's bottom left is blue");
+    assert_eq!(at(UVec3::new(hi, lo, 0)), [255, 255, 255, 255], "uv (0.75, 0.25): bottom right, white");
+    assert_eq!(at(UVec3::new(lo, hi, 0)), [255, 0, 0, 255], "uv (0.25, 0.75): top left, red");
+    assert_eq!(at(UVec3::new(hi, hi, 0)), [0, 255, 0, 255], "uv (0.75, 0.75): top right, green");
+    // Kd 1 0.5 0 is linear: 0.5 encodes as sRGB 188.
+    assert_eq!(at(UVec3::new(11, 11, d.z - 1)), [255, 188, 0, 255], "the Kd-only quad");
+
+    // The same file through the CLI and the independent reader (trimesh reads the MTL and the PNG itself).
+    let out = meshvox(&["voxelize", &path.to_string_lossy(), "-r", "22", "-o", "g.npy", "--stats-json"], dir.path());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = stats(&out);
+    let origin: Vec<String> = (0..3).map(|i| s["origin"][i].as_f64().expect("origin").to_string()).collect();
+    let h = s["voxel_size"].as_f64().expect("h").to_string();
+    let grid_path = dir.path().join("g.npy");
+    if let Some(j) =
+        independent_args("colours", &[&path.to_string_lossy(), &grid_path.to_string_lossy(), &origin.join(","), &h])
+    {
+        assert_eq!(j["alpha_ok"], true);
+        let mean = j["mean_error"].as_f64().expect("mean");
+        // Voxels on quadrant borders blend two texels; elsewhere the colours are exact.
+        assert!(mean < 12.0, "OBJ colours differ from trimesh's reading: {j}");
+    }
+
+    // --no-colour: no colour file.
+    let out = meshvox(&["voxelize", &path.to_string_lossy(), "-r", "22", "-o", "n.npy", "--no-colour"], dir.path());
+    assert!(out.status.success());
+    assert!(!dir.path().join("n.colors.npy").exists(), "--no-colour still wrote colours");
+}
+
+#[test]
+fn meshes_without_colour_stay_uncoloured() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mesh = meshvox::mesh::load("builtin:torus").expect("builtin");
+    assert!(mesh.shading.is_none());
+    let out = meshvox(&["voxelize", "builtin:torus", "-r", "24", "-o", "t.npy", "--stats-json"], dir.path());
+    assert!(out.status.success());
+    assert!(stats(&out)["colour"].is_null());
+    assert!(!dir.path().join("t.colors.npy").exists());
+    let out = meshvox(&["voxelize", "builtin:torus", "-r", "24", "-o", "t.npy", "--colour"], dir.path());
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("has no colours"), "--colour on a plain mesh says so");
+}
+
+#[test]
+fn vox_palette_keeps_the_colours() {
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let out_dir = tempfile::tempdir().expect("tempdir");
+    let duck = dir.join("gltf/Duck.glb");
+    let duck = duck.to_string_lossy();
+    for o in ["d.npy", "d.vox"] {
+        let out = meshvox(&["voxelize", &duck, "-r", "80", "-o", o, "--backend", "cpu"], out_dir.path());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    }
+    let grid = meshvox::voxel::export::read_npy(&mut std::fs::File::open(out_dir.path().join("d.npy")).expect("npy"))
+        .expect("read npy");
+    let dense = read_colours_npy(&out_dir.path().join("d.colors.npy"), grid.spec.dims);
+    let data = dot_vox::load_bytes(&std::fs::read(out_dir.path().join("d.vox")).expect("vox")).expect("parse vox");
+    assert_eq!(data.models.len(), 1);
+    let d = grid.spec.dims;
+    let mut used = std::collections::HashSet::new();
+    let (mut ours, mut vox) = (Vec::new(), Vec::new());
+    for v in &data.models[0].voxels {
+        // MagicaVoxel is z-up: (x, y, z) there is (x, z, dims_z - 1 - y) here (see voxel::export).
+        let p = UVec3::new(v.x as u32, v.z as u32, d.z - 1 - v.y as u32);
+        used.insert(v.i);
+        let c = data.palette[v.i as usize];
+        vox.push([c.r, c.g, c.b, 255]);
+        ours.push(dense[((p.z * d.y + p.y) * d.x + p.x) as usize]);
+    }
+    assert_eq!(vox.len() as u64, grid.count());
+    let error = mean_error(&ours, &vox);
+    eprintln!("Duck @80: {} voxels, {} palette entries used, mean error {error:.2}", vox.len(), used.len());
+    assert!(used.len() > 16 && used.len() <= 255, "{} palette entries", used.len());
+    assert!(error < 4.0, "the palette is far from the voxel colours: mean error {error:.2}");
+}
+
+/// Reads `grid.colors.npy` (uint8, (x, y, z, 4), C order) into a list indexed `(z * dy + y) * dx + x`.
+fn read_colours_npy(path: &Path, dims: UVec3) -> Vec<[u8; 4]> {
+    let bytes = std::fs::read(path).expect("colours npy");
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + header_len]).expect("header");
+    assert!(header.contains(&format!("'shape': ({}, {}, {}, 4)", dims.x, dims.y, dims.z)), "{header}");
+    let data = &bytes[10 + header_len..];
+    assert_eq!(data.len(), (dims.x * dims.y * dims.z * 4) as usize);
+    let mut out = vec![[0u8; 4]; data.len() / 4];
+    for x in 0..dims.x {
+        for y in 0..dims.y {
+            for z in 0..dims.z {
+                let at = (((x * dims.y + y) * dims.z + z) * 4) as usize;
+                out[((z * dims.y + y) * dims.x + x) as usize].copy_from_slice(&data[at..at + 4]);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn palette_quantizes_many_colours_closely() {
+    let quantized_error = |colours: &[[u8; 4]]| {
+        let q = meshvox::voxel::palette::quantize(colours, 255);
+        assert!(q.palette.len() <= 255 && q.palette.len() > 200, "{} entries", q.palette.len());
+        let mapped: Vec<[u8; 4]> = q.index.iter().map(|&i| q.palette[i as usize]).collect();
+        mean_error(colours, &mapped)
+    };
+    // Textures are made of a few families of colours: 40 clusters of 100 noisy shades (4,000 colours) fit
+    // 255 entries closely.
+    let mut rng = crate::common::Rng::new(12);
+    let mut clustered = Vec::new();
+    for _ in 0..40 {
+        let centre: [i32; 3] = std::array::from_fn(|_| 20 + rng.below(216) as i32);
+        for _ in 0..100 {
+            let c: [u8; 3] = std::array::from_fn(|k| (centre[k] + rng.below(25) as i32 - 12).clamp(0, 255) as u8);
+            clustered.push([c[0], c[1], c[2], 255]);
+        }
+    }
+    let error = quantized_error(&clustered);
+    assert!(error < 5.0, "clustered colours: mean error {error:.2}");
+    // The worst case, 4,096 colours spread evenly over the whole cube (16 levels per channel, unevenly
+    // weighted): about 16 colours per entry, so a mean error of about half a level step (17) is the best there is.
+    let mut ramp = Vec::new();
+    for i in 0..4096u32 {
+        let c = [(i & 15) as u8 * 17, (i >> 4 & 15) as u8 * 17, (i >> 8) as u8 * 17, 255];
+        for _ in 0..(1 + i % 3) {
+            ramp.push(c);
+        }
+    }
+    let error = quantized_error(&ramp);
+    assert!(error < 14.0, "evenly spread colours: mean error {error:.2}");
+    // Few colours are kept exactly.
+    let few = vec![[10, 20, 30, 255], [200, 100, 0, 255], [10, 20, 30, 255]];
+    let q = meshvox::voxel::palette::quantize(&few, 255);
+    assert_eq!(q.palette.len(), 2);
+    assert_eq!(few.iter().zip(&q.index).filter(|(c, i)| q.palette[**i as usize] == **c).count(), 3);
+}
