@@ -59,3 +59,19 @@ fn triangle_setup_size_matches_the_host() {
     assert_eq!(layouter[handle].size as u64, meshvox::gpu::voxelize::SETUP_BYTES);
     assert_eq!(meshvox::gpu::voxelize::VOXELIZE_WGSL, std::fs::read_to_string(&path).expect("read"));
 }
+
+#[test]
+fn colour_structs_match_the_host() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/colour.wgsl");
+    let (module, _) = parse(&path).expect("valid");
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layout");
+    let size = |name: &str| {
+        let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect(name);
+        layouter[handle].size as usize
+    };
+    // The per-triangle shading records are uploaded as the host's bytes, 56 per triangle.
+    assert_eq!(size("TriangleShading"), std::mem::size_of::<meshvox::mesh::material::TriangleShading>());
+    assert_eq!(size("Params"), 48);
+    assert_eq!(meshvox::gpu::colour::COLOUR_WGSL, std::fs::read_to_string(&path).expect("read"));
+}

@@ -103,3 +103,32 @@ fn a_bad_file_shows_its_error_and_the_app_keeps_going() {
     assert!(after.voxels > before.voxels);
     assert_eq!(harness.state().error(), None);
 }
+
+#[test]
+fn a_textured_mesh_shows_its_colours_and_the_flat_colour_on_request() {
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let duck = dir.join("gltf/Duck.glb").to_string_lossy().into_owned();
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, &duck, 48).expect("the app starts"));
+    harness.run();
+    assert_eq!(harness.state().error(), None);
+    assert!(harness.state().stats().expect("voxelized").coloured, "the Duck's voxels carry its texture's colours");
+    // The Duck's texture is yellow (no blue at all, under any light); the flat colour is an orange whose blue is
+    // about a third of its red on every face. Count pixels of each in the whole window.
+    let count = |image: &image::RgbaImage| {
+        let ratio = |p: &image::Rgba<u8>| p[2] as f32 / p[0].max(1) as f32;
+        let lit = |p: &&image::Rgba<u8>| p[0] > 100;
+        let yellow = image.pixels().filter(lit).filter(|p| ratio(p) < 0.1).count();
+        let orange = image.pixels().filter(lit).filter(|p| (0.2..0.45).contains(&ratio(p)) && p[1] < p[0]).count();
+        (yellow, orange)
+    };
+    let (yellow, orange) = count(&harness.render().expect("render"));
+    assert!(yellow > 2000 && yellow > orange * 4, "coloured: {yellow} yellow, {orange} orange pixels");
+    harness.get_by_label("Voxel colours").click();
+    harness.run();
+    let (yellow, orange) = count(&harness.render().expect("render"));
+    assert!(orange > 2000 && orange > yellow * 4, "flat: {yellow} yellow, {orange} orange pixels");
+}
