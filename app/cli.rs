@@ -28,7 +28,7 @@ struct Cli {
 enum Command {
     /// Open the viewer window on a mesh (the default command).
     View(ViewArgs),
-    /// Voxelize a mesh and write the grid as .npy, .binvox or .vox (chosen by the output's extension).
+    /// Voxelize a mesh and write the grid as .npy, .binvox or .vox, or the voxel model as .glb, .ply or .obj.
     Voxelize(VoxelizeArgs),
     /// List the bundled meshes accepted as builtin:NAME.
     Builtins,
@@ -207,9 +207,13 @@ struct VoxelizeArgs {
     /// Axis along which -r counts voxels.
     #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
     axis: AxisArg,
-    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox.
+    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; or .glb, .ply or .obj for the voxel model's
+    /// outer faces as a mesh in world space.
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     output: PathBuf,
+    /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
+    #[arg(long)]
+    merge: bool,
     /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
     #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
     mode: ModeArg,
@@ -325,8 +329,14 @@ fn ms(since: Instant) -> f64 {
 
 fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = VoxelFormat::from_extension(&args.output).ok_or_else(|| {
-        anyhow!("{}: unknown output format (use a .npy, .binvox or .vox extension)", args.output.display())
+        anyhow!(
+            "{}: unknown output format (use a .npy, .binvox or .vox extension, or .glb, .ply or .obj for a mesh)",
+            args.output.display()
+        )
     })?;
+    if args.merge && !matches!(format, VoxelFormat::Mesh(_)) {
+        bail!("--merge joins the faces of a mesh output: use a .glb, .ply or .obj file");
+    }
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
 
@@ -367,7 +377,7 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         _ => None,
     };
     let bytes = write_atomically(temp, &args.output, |out| {
-        Ok(voxel::export::write_coloured(&grid, colours.as_ref().map(|c| &c.0), format, out)?)
+        Ok(voxel::export::write_coloured(&grid, colours.as_ref().map(|c| &c.0), format, args.merge, out)?)
     })?;
     let write_ms = ms(t_write);
 

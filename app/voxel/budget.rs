@@ -43,6 +43,12 @@ pub fn estimate(spec: &GridSpec, triangles: u64, format: Option<VoxelFormat>) ->
             let dim = d.max_element();
             32 * dim * dim.div_ceil(64) * 8
         }
+        // Word ranks for the colours (the size of the grid), and for --merge one plane's mask and one direction's
+        // faces, bounded here by the plane mask times two.
+        Some(VoxelFormat::Mesh(_)) => {
+            let plane = (d.x * d.y).max(d.y * d.z).max(d.x * d.z);
+            grid + plane * 16
+        }
         Some(VoxelFormat::Vox) | None => 0,
     };
     Estimate { grid, triangles: triangles.saturating_mul(2 * TRIANGLE_BYTES), readback: grid.min(MAX_READBACK), writer }

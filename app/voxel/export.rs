@@ -8,12 +8,14 @@
 //!   readers expect cubic grids), `translate` = grid origin and `scale` = edge of the cube, so a voxel's
 //!   world-space centre is `translate + (index + 0.5) / dim * scale` as in binvox-rw and trimesh. Written by
 //!   hand: there is no maintained binvox crate.
+//! * `.glb`, `.ply`, `.obj`: the voxel model's outer faces as a mesh ([`super::mesh_export`]).
 //! * `.vox`: MagicaVoxel through dot_vox. MagicaVoxel is Z-up while meshes are usually Y-up, so voxel
 //!   `(x, y, z)` is stored at `(x, dims_z - 1 - z, y)` (a proper rotation, no mirroring). Models are at most
 //!   256 voxels a side; a larger grid is split into chunks, each a model placed by a transform node under one
 //!   group, so it opens as one object. The grid is centred on MagicaVoxel's origin.
 
 use super::colour::VoxelColours;
+use super::mesh_export::MeshFormat;
 use super::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::{self, BufRead, Read, Write};
@@ -24,6 +26,8 @@ pub enum VoxelFormat {
     Npy,
     Binvox,
     Vox,
+    /// The voxel model as a mesh (see [`super::mesh_export`]).
+    Mesh(MeshFormat),
 }
 
 impl VoxelFormat {
@@ -33,6 +37,9 @@ impl VoxelFormat {
             "npy" => Some(VoxelFormat::Npy),
             "binvox" => Some(VoxelFormat::Binvox),
             "vox" => Some(VoxelFormat::Vox),
+            "glb" => Some(VoxelFormat::Mesh(MeshFormat::Glb)),
+            "ply" => Some(VoxelFormat::Mesh(MeshFormat::Ply)),
+            "obj" => Some(VoxelFormat::Mesh(MeshFormat::Obj)),
             _ => None,
         }
     }
@@ -42,6 +49,9 @@ impl VoxelFormat {
             VoxelFormat::Npy => "npy",
             VoxelFormat::Binvox => "binvox",
             VoxelFormat::Vox => "vox",
+            VoxelFormat::Mesh(MeshFormat::Glb) => "glb",
+            VoxelFormat::Mesh(MeshFormat::Ply) => "ply",
+            VoxelFormat::Mesh(MeshFormat::Obj) => "obj",
         }
     }
 }
@@ -61,21 +71,24 @@ fn invalid(format: &'static str, message: impl Into<String>) -> FormatError {
 
 /// Writes `grid` in `format`.
 pub fn write(grid: &VoxelGrid, format: VoxelFormat, out: &mut impl Write) -> Result<(), FormatError> {
-    write_coloured(grid, None, format, out)
+    write_coloured(grid, None, format, false, out)
 }
 
 /// Writes `grid` in `format` with its voxel colours where the format holds them (`.vox`: a palette of at most
-/// 255 colours; `.npy` and `.binvox` hold occupancy only: see [`write_colours_npy`]).
+/// 255 colours; meshes: vertex colours; `.npy` and `.binvox` hold occupancy only: see [`write_colours_npy`]).
+/// `merge` joins coplanar faces of mesh formats into rectangles.
 pub fn write_coloured(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
     format: VoxelFormat,
+    merge: bool,
     out: &mut impl Write,
 ) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
         VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
+        VoxelFormat::Mesh(m) => super::mesh_export::write_mesh(grid, colours, merge, m, out),
     }
 }
 

@@ -23,6 +23,7 @@ pub mod cpu;
 pub mod export;
 mod grid;
 mod lattice;
+pub mod mesh_export;
 pub mod palette;
 pub mod solid;
 

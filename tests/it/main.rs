@@ -12,6 +12,7 @@ mod formats;
 mod gpu;
 mod grid_convention;
 mod hostile;
+mod mesh_export;
 mod mesh_loading;
 mod modes;
 mod render_snapshots;

@@ -2,7 +2,7 @@
 for .binvox, trimesh for mesh triangle counts and bounds, and trimesh with Pillow for voxel colours. Prints one
 JSON object on stdout.
 
-usage: independent.py npy FILE | binvox FILE | mesh FILE | colours MESH GRID.npy OX,OY,OZ H
+usage: independent.py npy FILE | binvox FILE | mesh FILE | surface FILE | colours MESH GRID.npy OX,OY,OZ H
 """
 import json
 import sys
@@ -40,6 +40,30 @@ def mesh(path):
     loaded = trimesh.load(path, process=False)
     m = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded
     return {"triangles": int(len(m.faces)), "bounds": np.asarray(m.bounds).tolist()}
+
+
+def surface(path):
+    """A voxel model meshvox exported (.glb, .ply, .obj): faces, whether it is watertight once vertices are welded
+    by position, its volume and area, bounds, and the mean vertex colour as trimesh reads it (PLY and OBJ; trimesh
+    reads glTF's linear COLOR_0 as if it were sRGB, so the tests decode those themselves)."""
+    import trimesh
+
+    loaded = trimesh.load(path, process=False)
+    m = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded
+    welded = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    welded.merge_vertices(merge_tex=True, merge_norm=True)
+    colours = None
+    if m.visual.kind == "vertex":
+        colours = np.asarray(m.visual.vertex_colors, dtype=np.float64)[:, :3].mean(axis=0).tolist()
+    return {
+        "faces": int(len(m.faces)),
+        "watertight": bool(welded.is_watertight),
+        "winding_consistent": bool(welded.is_winding_consistent),
+        "volume": float(welded.volume),
+        "area": float(m.area),
+        "bounds": np.asarray(m.bounds).tolist(),
+        "mean_colour": colours,
+    }
 
 
 def srgb_to_linear(c):
@@ -161,4 +185,4 @@ if __name__ == "__main__":
         origin = [float(v) for v in sys.argv[4].split(",")]
         print(json.dumps(colours(path, sys.argv[3], origin, float(sys.argv[5]))))
     else:
-        print(json.dumps({"npy": npy, "binvox": binvox_file, "mesh": mesh}[kind](path)))
+        print(json.dumps({"npy": npy, "binvox": binvox_file, "mesh": mesh, "surface": surface}[kind](path)))
