@@ -1,4 +1,4 @@
-//! Mesh loading: OBJ (tobj) and glTF 2.0 / GLB (gltf) files, and the bundled `builtin:` meshes, all turned into
+//! Mesh loading: OBJ (tobj), glTF 2.0 / GLB (gltf), STL (binary and ASCII) and PLY (ply-rs) files, and the bundled `builtin:` meshes, all turned into
 //! one flat list of world-space triangles with, per triangle, the part of the source file it came from.
 //!
 //! This is the bottom layer: it knows nothing about grids or GPUs.
@@ -7,6 +7,8 @@ pub mod builtin;
 mod gltf_scene;
 pub mod material;
 mod obj;
+mod ply;
+mod stl;
 
 use glam::{DVec3, Vec3, Vec4};
 pub use material::Shading;
@@ -155,12 +157,16 @@ pub(crate) struct Piece {
 pub enum MeshError {
     #[error("{}: cannot read: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
-    #[error("{}: unsupported mesh format (expected .obj, .gltf or .glb)", path.display())]
+    #[error("{}: unsupported mesh format (expected .obj, .gltf, .glb, .stl or .ply)", path.display())]
     UnsupportedFormat { path: PathBuf },
     #[error("{}: invalid OBJ: {message}", path.display())]
     Obj { path: PathBuf, message: String },
     #[error("{}: invalid glTF: {message}", path.display())]
     Gltf { path: PathBuf, message: String },
+    #[error("{}: invalid STL: {message}", path.display())]
+    Stl { path: PathBuf, message: String },
+    #[error("{}: invalid PLY: {message}", path.display())]
+    Ply { path: PathBuf, message: String },
     #[error("{}: contains no triangles", path.display())]
     Empty { path: PathBuf },
     #[error("{}: triangle {triangle} has a NaN or infinite coordinate", path.display())]
@@ -205,6 +211,8 @@ impl Default for LoadLimits {
 pub enum Format {
     Obj,
     Gltf,
+    Stl,
+    Ply,
 }
 
 impl Format {
@@ -214,13 +222,16 @@ impl Format {
         match ext.as_deref() {
             Some("obj") => Some(Format::Obj),
             Some("gltf" | "glb") => Some(Format::Gltf),
+            Some("stl") => Some(Format::Stl),
+            Some("ply") => Some(Format::Ply),
             _ if bytes.starts_with(b"glTF") => Some(Format::Gltf),
+            _ if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") => Some(Format::Ply),
             _ => None,
         }
     }
 }
 
-/// Loads a mesh named the way the CLI accepts it: `builtin:NAME` or a path to an OBJ, glTF or GLB file.
+/// Loads a mesh named the way the CLI accepts it: `builtin:NAME` or a path to an OBJ, glTF, GLB, STL or PLY file.
 pub fn load(spec: &str) -> Result<Mesh, MeshError> {
     load_with(spec, &LoadLimits::default())
 }
@@ -267,6 +278,8 @@ fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     let mut mesh = match Format::detect(path, bytes) {
         Some(Format::Obj) => obj::load(path, bytes, base, limits)?,
         Some(Format::Gltf) => gltf_scene::load(path, bytes, base, limits)?,
+        Some(Format::Stl) => stl::load(path, bytes, limits)?,
+        Some(Format::Ply) => ply::load(path, bytes, limits)?,
         None => {
             return Err(MeshError::UnsupportedFormat { path: path.to_path_buf() });
         }

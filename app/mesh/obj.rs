@@ -145,7 +145,7 @@ fn read_materials(
 }
 
 /// An sRGB-encoded colour in [0, 1] as linear RGBA.
-fn srgb_to_linear(c: [f64; 3]) -> Vec4 {
+pub(super) fn srgb_to_linear(c: [f64; 3]) -> Vec4 {
     let f = |c: f64| {
         let c = c.clamp(0.0, 1.0);
         (if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }) as f32

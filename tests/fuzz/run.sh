@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs meshvox's fuzz targets (see "Fuzzing" in the README). `bash tests/fuzz/run.sh [SECONDS] [TARGET...]` runs
-# each target (default: obj, gltf, voxelize) for SECONDS (default 20) starting from its kept corpus in
+# each target (default: obj, gltf, voxelize, stl_ply) for SECONDS (default 20) starting from its kept corpus in
 # tests/fuzz/corpus/TARGET and the hostile corpus, on a scratch copy, so the kept corpus only changes when a
 # longer run is minimized into it on purpose. Installs a nightly toolchain and cargo-fuzz if they are missing.
 # Any crash fails the run and leaves the input in tests/fuzz/artifacts/TARGET/.
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 seconds="${1:-20}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize)
+[ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply)
 
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 cargo fuzz --version >/dev/null 2>&1 || cargo install cargo-fuzz --version 0.13.2 --locked
@@ -24,6 +24,7 @@ for target in "${targets[@]}"; do
   case "$target" in
     obj) seeds=(tests/corpus/bad tests/corpus/odd) ;;
     gltf) seeds=(tests/corpus/bad tests/corpus/odd) ;;
+    stl_ply) seeds=(tests/corpus/bad tests/corpus/odd) ;;
   esac
   echo "=== fuzz $target for ${seconds}s ($(ls "$scratch" | wc -l) kept inputs)"
   log="$scratch.log"

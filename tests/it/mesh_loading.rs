@@ -367,3 +367,55 @@ fn raw_gltf(position_view: &str, index_view: &str, index_accessor: &str) -> Stri
         data.len()
     )
 }
+
+/// STL (binary and ASCII) and PLY (binary and ASCII, with vertex colours) written by trimesh from the bunny OBJ:
+/// the same triangles, so the same grid as the OBJ's (the binary files hold f32, which the snap tolerance absorbs).
+#[test]
+fn stl_and_ply_from_an_independent_writer_give_the_obj_grid() {
+    use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+    let Some(dir) = shared_meshes() else { return };
+    let obj = dir.join("stanford-bunny.obj");
+    let grid_of = |m: &mesh::Mesh| {
+        let spec = GridSpec::fit(m.bounds().expect("bounds"), Resolution::Count(100), Axis::Longest).expect("grid");
+        cpu::voxelize(m, spec, &|_, _| {}).expect("voxelize")
+    };
+    let reference = grid_of(&mesh::load_path(&obj).expect("obj"));
+    let out = tempfile::tempdir().expect("tempdir");
+    for (name, options) in [
+        ("b.stl", vec![]),
+        ("ba.stl", vec!["ascii"]),
+        ("b.ply", vec!["coloured"]),
+        ("ba.ply", vec!["ascii", "coloured"]),
+    ] {
+        let path = out.path().join(name);
+        let mut args = vec![obj.to_str().expect("utf-8"), path.to_str().expect("utf-8")];
+        args.extend(options.iter().copied());
+        let Some(j) = crate::formats::independent_args("convert", &args) else { return };
+        let m = mesh::load_path(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(j["faces"].as_u64(), Some(m.triangles.len() as u64), "{name}");
+        let grid = grid_of(&m);
+        assert_eq!(grid.spec.dims, reference.spec.dims, "{name}");
+        let differ = grid.words.iter().zip(&reference.words).map(|(a, b)| (a ^ b).count_ones()).sum::<u32>();
+        assert!(differ as u64 * 1000 <= reference.count(), "{name}: {differ} voxels differ from the OBJ's grid");
+        assert_eq!(m.shading.is_some(), name.ends_with(".ply"), "{name}: vertex colours make a shading");
+        if let Some(shading) = &m.shading {
+            // trimesh coloured the vertices red along x: the voxels on the +x side are redder.
+            let colours = meshvox::voxel::colour::colour_voxels(
+                &grid,
+                &cpu::grid_space_triangles(&m, &grid.spec).expect("t"),
+                shading,
+            );
+            let half = grid.spec.dims.x / 2;
+            let red = |upper: bool| {
+                let v: Vec<f64> = grid
+                    .iter_set()
+                    .zip(&colours.rgba)
+                    .filter(|(p, _)| (p.x >= half) == upper)
+                    .map(|(_, c)| c[0] as f64)
+                    .collect();
+                v.iter().sum::<f64>() / v.len() as f64
+            };
+            assert!(red(true) > red(false) + 40.0, "{name}: red {} on +x, {} on -x", red(true), red(false));
+        }
+    }
+}

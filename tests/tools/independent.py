@@ -3,6 +3,7 @@ for .binvox, trimesh for mesh triangle counts and bounds, and trimesh with Pillo
 JSON object on stdout.
 
 usage: independent.py npy FILE | binvox FILE | mesh FILE | surface FILE | colours MESH GRID.npy OX,OY,OZ H
+       | convert SRC DST [ascii] [coloured]
 """
 import json
 import sys
@@ -179,9 +180,32 @@ def colours(mesh_path, grid_path, origin, h):
     }
 
 
+def convert(src, dst, options):
+    """Writes SRC as DST (.stl or .ply, binary unless `ascii`) with trimesh's own writers; with `coloured`, PLY
+    vertices get colours from their position (red along x, green along y, blue along z)."""
+    import trimesh
+
+    loaded = trimesh.load(src, process=False)
+    m = loaded.to_geometry() if hasattr(loaded, "to_geometry") else loaded
+    m = trimesh.Trimesh(m.vertices, m.faces, process=False)
+    if "coloured" in options:
+        t = (m.vertices - m.bounds[0]) / (m.bounds[1] - m.bounds[0]).max()
+        m.visual.vertex_colors = np.concatenate([np.round(t * 255), np.full((len(t), 1), 255)], axis=1).astype(np.uint8)
+    encoding = "ascii" if "ascii" in options else "binary"
+    if dst.endswith(".stl"):
+        data = trimesh.exchange.stl.export_stl_ascii(m) if encoding == "ascii" else trimesh.exchange.stl.export_stl(m)
+    else:
+        data = trimesh.exchange.ply.export_ply(m, encoding=encoding, vertex_normal=False)
+    with open(dst, "wb") as f:
+        f.write(data.encode() if isinstance(data, str) else data)
+    return {"faces": int(len(m.faces)), "vertices": int(len(m.vertices))}
+
+
 if __name__ == "__main__":
     kind, path = sys.argv[1], sys.argv[2]
-    if kind == "colours":
+    if kind == "convert":
+        print(json.dumps(convert(path, sys.argv[3], sys.argv[4:])))
+    elif kind == "colours":
         origin = [float(v) for v in sys.argv[4].split(",")]
         print(json.dumps(colours(path, sys.argv[3], origin, float(sys.argv[5]))))
     else:

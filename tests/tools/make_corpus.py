@@ -116,6 +116,20 @@ w(bad, "bin-chunk-missing.glb", glb(d_glb, None))
 w(bad, "random-bytes.glb", b"glTF" + bytes(rnd.randrange(256) for _ in range(300)))
 w(bad, "mesh.stl", "solid x\nendsolid x\n")
 
+# --- bad STL and PLY
+stl_tri = struct.pack("<12f", 0, 0, 1, 0.1, 0.2, 0.3, 1.7, 0.2, 0.3, 0.1, 1.9, 0.3) + b"\x00\x00"
+w(bad, "binary-count-too-large.stl", b"\x00" * 80 + struct.pack("<I", 1000) + stl_tri)
+w(bad, "binary-truncated.stl", (b"\x00" * 80 + struct.pack("<I", 2) + stl_tri * 2)[:-7])
+w(bad, "ascii-two-vertex-facet.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid t\n")
+w(bad, "ascii-bad-number.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 zero 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n")
+w(bad, "ascii-cut-short.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n")
+ply_head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+w(bad, "face-index-out-of-range.ply", ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n")
+w(bad, "points-only.ply", ply_head + "end_header\n0 0 0\n1 0 0\n0 1 0\n")
+w(bad, "fewer-vertices-than-declared.ply", ply_head.replace("vertex 3", "vertex 5") + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+w(bad, "binary-truncated.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n".encode() + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + b"\x03\x00\x00")
+w(bad, "not-a-ply-header.ply", "ply\nformat ascii 1.0\nelement vertex three\nend_header\n")
+
 # --- odd but valid
 w(odd, "single-triangle.obj", tri + "f 1 2 3\n")
 w(odd, "all-degenerate.obj", "v 0.1 0.2 0.3\nv 0.6 0.2 0.3\nv 1.35 0.2 0.3\nv 2.05 0.2 0.3\nf 1 2 3\nf 2 3 4\nf 1 1 1\nf 4 4 2\n")
@@ -132,3 +146,5 @@ def two_buffers(d):
     for v in d["bufferViews"]: v["buffer"] = 1
 w(odd, "zero-length-bin-chunk.glb", glb(doc(data, uri=False, extra=two_buffers), b""))
 w(odd, "single-triangle.glb", good_glb)
+w(odd, "single-triangle.stl", b"solid-looking header of a binary STL".ljust(80, b" ") + struct.pack("<I", 1) + stl_tri)
+w(odd, "quad-with-colours.ply", ply_head.replace("vertex 3", "vertex 4") + "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1.5 0 0 0 255 0\n1.5 1.5 0 0 0 255\n0 1.5 0.2 255 255 255\n4 0 1 2 3\n")
