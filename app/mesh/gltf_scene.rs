@@ -6,12 +6,12 @@
 //! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
 
 use super::material::{Material, Shading, Texture, TextureRef, Wrap};
-use super::{LoadLimits, Mesh, MeshError, Part, Piece};
+use super::{Externals, LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DMat4, DQuat, DVec3, Vec4};
 use gltf::mesh::Mode;
 use std::path::Path;
 
-pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     // The crate's own messages start with the words our error adds ("invalid glTF: invalid glTF: …").
     let crate_err = |e: gltf::Error| {
@@ -32,7 +32,6 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     if !version.starts_with("2.") {
         return Err(err(format!("asset.version is \"{version}\"; only glTF 2.0 files are supported")));
     }
-    check_external_buffers(&document, base).map_err(err)?;
 
     let roots: Vec<gltf::Node> = match document.default_scene() {
         Some(scene) => scene.nodes().collect(),
@@ -73,7 +72,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
-    let buffers = gltf::import_buffers(&document, base, blob).map_err(crate_err)?;
+    let buffers = read_buffers(&document, base, blob).map_err(err)?;
     let mut mesh = Mesh::default();
     let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &buffers, base);
     mesh.shading = Some(shading);
@@ -187,28 +186,50 @@ fn check_glb_header(bytes: &[u8], glb_name: bool) -> Result<(), String> {
     }
 }
 
-/// External buffer files must exist before they are read: the crate's own error is the operating system's
-/// ("No such file or directory"), which names neither the buffer nor the file.
-fn check_external_buffers(document: &gltf::Document, base: Option<&Path>) -> Result<(), String> {
+/// Every buffer's bytes: the GLB's BIN chunk, a base64 data URI, or a file read through `base` (beside the
+/// `.gltf`, or among the files opened with it). Each error names the buffer; a missing file is named too (the
+/// operating system's own message names neither).
+fn read_buffers(
+    document: &gltf::Document,
+    base: Externals,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, String> {
+    let mut buffers = Vec::new();
     for buffer in document.buffers() {
-        let gltf::buffer::Source::Uri(uri) = buffer.source() else { continue };
-        if uri.starts_with("data:") {
-            continue;
-        }
-        let Some(dir) = base else {
-            return Err(format!(
-                "buffers[{}] is in a separate file ({uri}), which cannot be read here: use a .glb or embedded buffers",
-                buffer.index()
-            ));
+        let name = format!("buffers[{}]", buffer.index());
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                blob.take().ok_or_else(|| format!("{name} is the GLB's BIN chunk, which is missing"))?
+            }
+            gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
+                Some(data) => {
+                    let (_, encoded) =
+                        data.split_once(";base64,").ok_or_else(|| format!("{name}: a data URI that is not base64"))?;
+                    use base64::Engine;
+                    base64::engine::general_purpose::STANDARD
+                        .decode(encoded)
+                        .map_err(|e| format!("{name}: bad base64: {e}"))?
+                }
+                None => match base {
+                    Externals::None => {
+                        return Err(format!(
+                            "{name} is in a separate file ({uri}), which cannot be read here: use a .glb or embedded buffers, or open the files together"
+                        ));
+                    }
+                    other => other.read(uri).map_err(|e| format!("{name}: {e}"))?.into_owned(),
+                },
+            },
         };
-        // Relative URIs are percent-encoded (`my%20model.bin`), as the crate decodes them when it opens the file.
-        let name = urlencoding::decode(uri).map_err(|e| format!("buffers[{}]: bad URI {uri}: {e}", buffer.index()))?;
-        let file = dir.join(&*name);
-        if let Err(e) = std::fs::metadata(&file) {
-            return Err(format!("buffers[{}]: cannot read {}: {e}", buffer.index(), file.display()));
+        if data.len() < buffer.length() {
+            return Err(format!("{name} has {} bytes but its byteLength is {}", data.len(), buffer.length()));
         }
+        // The crate's reader expects buffers padded to four bytes, as its own import does.
+        while !data.len().is_multiple_of(4) {
+            data.push(0);
+        }
+        buffers.push(gltf::buffer::Data(data));
     }
-    Ok(())
+    Ok(buffers)
 }
 
 /// One triangle primitive as a [`Piece`] in world space (f64); `None`, with a warning on `mesh`, for a primitive
@@ -413,7 +434,7 @@ fn read_materials(
     path: &Path,
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
+    base: Externals,
 ) -> (Shading, Vec<u32>) {
     let mut shading = Shading::default();
     let mut tex_sets = Vec::new();
@@ -459,11 +480,7 @@ fn read_materials(
 }
 
 /// Decodes one texture's image with its sampler's wrap modes and magnification filter.
-fn read_texture(
-    texture: &gltf::Texture,
-    buffers: &[gltf::buffer::Data],
-    base: Option<&Path>,
-) -> Result<Texture, String> {
+fn read_texture(texture: &gltf::Texture, buffers: &[gltf::buffer::Data], base: Externals) -> Result<Texture, String> {
     let sampler = texture.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
         gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -484,11 +501,7 @@ fn read_texture(
                 use base64::Engine;
                 base64::engine::general_purpose::STANDARD.decode(encoded).map_err(|e| e.to_string())?.into()
             }
-            None => {
-                let dir = base.ok_or_else(|| format!("{uri} is a separate file, which cannot be read here"))?;
-                let name = urlencoding::decode(uri).map_err(|e| format!("bad URI {uri}: {e}"))?;
-                std::fs::read(dir.join(&*name)).map_err(|e| format!("cannot read {uri}: {e}"))?.into()
-            }
+            None => base.read(uri)?,
         },
     };
     Texture::decode(&bytes, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())], nearest)

@@ -264,17 +264,60 @@ pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshErro
         return Err(MeshError::FileTooLarge { path: path.to_path_buf(), size, available });
     }
     let bytes = std::fs::read(path).map_err(io)?;
-    let base = path.parent().map(Path::to_path_buf);
-    load_bytes_impl(path, &bytes, base.as_deref(), limits)
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    load_bytes_impl(path, &bytes, Externals::Dir(&base), limits)
 }
 
 /// Loads a mesh from memory (a browser upload, a drag-and-drop). `name` supplies the extension that picks the
 /// format. External files (glTF `.bin` buffers, OBJ material libraries) cannot be resolved this way.
 pub fn load_bytes(name: &str, bytes: &[u8]) -> Result<Mesh, MeshError> {
-    load_bytes_impl(Path::new(name), bytes, None, &LoadLimits::default())
+    load_bytes_impl(Path::new(name), bytes, Externals::None, &LoadLimits::default())
 }
 
-fn load_bytes_impl(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+/// Loads a mesh from several files picked or dropped together (a `.gltf` with its `.bin` and textures, an `.obj`
+/// with its `.mtl` and images): the first file with a mesh extension is the mesh, the others are what it refers
+/// to, found by file name.
+pub fn load_files(files: &[(String, Vec<u8>)]) -> Result<Mesh, MeshError> {
+    let is_mesh = |name: &str| Format::detect(Path::new(name), &[]).is_some();
+    let Some((name, bytes)) = files.iter().find(|(name, _)| is_mesh(name)) else {
+        let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
+        return Err(MeshError::UnsupportedFormat { path: PathBuf::from(names.join(", ")) });
+    };
+    load_bytes_impl(Path::new(name), bytes, Externals::Files(files), &LoadLimits::default())
+}
+
+/// Where a file's external references (glTF buffers and images, OBJ material libraries and textures) are read
+/// from: beside it on disk, among files handed over together, or nowhere.
+#[derive(Clone, Copy)]
+pub(crate) enum Externals<'a> {
+    None,
+    Dir(&'a Path),
+    Files(&'a [(String, Vec<u8>)]),
+}
+
+impl<'a> Externals<'a> {
+    /// The bytes of `uri` (relative, percent-encoded as glTF URIs are).
+    pub(crate) fn read(&self, uri: &str) -> Result<std::borrow::Cow<'a, [u8]>, String> {
+        let decoded = urlencoding::decode(uri).map_err(|e| format!("bad URI {uri}: {e}"))?;
+        match *self {
+            Externals::None => Err(format!("{uri} is a separate file, which cannot be read here")),
+            Externals::Dir(dir) => {
+                let file = dir.join(&*decoded);
+                std::fs::read(&file).map(Into::into).map_err(|e| format!("cannot read {}: {e}", file.display()))
+            }
+            Externals::Files(files) => {
+                let wanted = Path::new(&*decoded).file_name();
+                files
+                    .iter()
+                    .find(|(name, _)| Path::new(name).file_name() == wanted)
+                    .map(|(_, bytes)| bytes.as_slice().into())
+                    .ok_or_else(|| format!("{uri} was not among the files opened together with it"))
+            }
+        }
+    }
+}
+
+fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let mut mesh = match Format::detect(path, bytes) {
         Some(Format::Obj) => obj::load(path, bytes, base, limits)?,
         Some(Format::Gltf) => gltf_scene::load(path, bytes, base, limits)?,

@@ -7,11 +7,11 @@
 //! statement, naming the line of the first problem.
 
 use super::material::{Material, Shading, Texture, TextureRef, Wrap};
-use super::{LoadLimits, Mesh, MeshError, Part, Piece};
+use super::{Externals, LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DVec3, Vec4};
 use std::path::Path;
 
-pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let obj_err = |message: String| MeshError::Obj { path: path.to_path_buf(), message };
     let counts = scan(bytes, false).map_err(obj_err)?;
     limits.check_triangles(path, counts.triangles)?;
@@ -20,8 +20,11 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
     let mut reader = std::io::BufReader::new(bytes);
     // Materials only matter for the part table, so a missing or broken .mtl is a warning, not an error.
     let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| match base {
-        Some(dir) => tobj::load_mtl(dir.join(mtl)),
-        None => Err(tobj::LoadError::OpenFileFailed),
+        Externals::Dir(dir) => tobj::load_mtl(dir.join(mtl)),
+        other => match other.read(&mtl.to_string_lossy()) {
+            Ok(text) => tobj::load_mtl_buf(&mut std::io::BufReader::new(&text[..])),
+            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        },
     })
     // The quick scan lets number-like words such as `1.2.3` through; tobj refuses them without saying where, so
     // the strict scan finds the line.
@@ -101,12 +104,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Option<&Path>, limits: &Load
 
 /// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`), then a white default for faces without a
 /// material. A texture that cannot be read costs its material only the texture, with a warning.
-fn read_materials(
-    warnings: &mut Vec<String>,
-    path: &Path,
-    materials: &[tobj::Material],
-    base: Option<&Path>,
-) -> Shading {
+fn read_materials(warnings: &mut Vec<String>, path: &Path, materials: &[tobj::Material], base: Externals) -> Shading {
     let mut shading = Shading::default();
     // Texture file -> index in `shading.textures`, so materials sharing one decode it once.
     let mut decoded: Vec<(String, Option<u32>)> = Vec::new();
@@ -118,12 +116,10 @@ fn read_materials(
             if let Some((_, index)) = decoded.iter().find(|(f, _)| f == file) {
                 return *index;
             }
-            let read = match base {
-                Some(dir) => std::fs::read(dir.join(file))
-                    .map_err(|e| e.to_string())
-                    .and_then(|bytes| Texture::decode(&bytes, [Wrap::Repeat; 2], false)),
-                None => Err("a separate file, which cannot be read here".into()),
-            };
+            // Texture names in MTL files are plain paths, not URIs: `%` in one is a percent sign.
+            let read = base
+                .read(&urlencoding::encode(file))
+                .and_then(|bytes| Texture::decode(&bytes, [Wrap::Repeat; 2], false));
             let index = match read {
                 Ok(t) => {
                     shading.textures.push(t);

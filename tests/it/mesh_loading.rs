@@ -419,3 +419,26 @@ fn stl_and_ply_from_an_independent_writer_give_the_obj_grid() {
         }
     }
 }
+
+/// A glTF with an external buffer and textures, handed over as files in memory (as the web page gets them when
+/// the user picks or drops them together), loads like the file on disk; without its buffer it says what is missing.
+#[test]
+fn files_opened_together_resolve_each_other() {
+    let Some(dir) = shared_meshes() else { return };
+    let folder = dir.join("gltf/cube-external");
+    let on_disk = mesh::load_path(&folder.join("Cube.gltf")).expect("on disk");
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&folder)
+        .expect("ls")
+        .map(|e| e.expect("entry").path())
+        .map(|p| (p.file_name().expect("name").to_string_lossy().into_owned(), std::fs::read(&p).expect("read")))
+        .collect();
+    // The order the browser gives them in is arbitrary: the mesh is found by its extension.
+    files.sort_by(|a, b| b.0.cmp(&a.0));
+    let together = mesh::load_files(&files).expect("loads from memory");
+    assert_eq!(together.triangles, on_disk.triangles);
+    assert_eq!(together.shading, on_disk.shading);
+    assert!(together.shading.as_ref().is_some_and(|s| s.textures.len() == 1), "the base colour texture was found");
+    files.retain(|(name, _)| !name.ends_with(".bin"));
+    let e = mesh::load_files(&files).expect_err("no buffer").to_string();
+    assert!(e.contains("Cube.bin") && e.contains("not among the files"), "{e}");
+}
