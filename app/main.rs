@@ -72,9 +72,24 @@ mod web_entry {
         web::send(Command::LoadBuiltin(name));
     }
 
-    /// Shows a mesh file's contents (OBJ, glTF with embedded buffers, or GLB), named `name`.
+    /// Shows a mesh file's contents (OBJ, glTF with embedded buffers, GLB, STL or PLY), named `name`.
     #[wasm_bindgen(js_name = loadFile)]
     pub fn load_file(name: String, bytes: Vec<u8>) {
-        web::send(Command::LoadFile { name, bytes });
+        web::send(Command::LoadFiles(vec![(name, bytes)]));
+    }
+
+    /// Shows a mesh from files picked or dropped together: `names[i]` is the name of `contents[i]` (a
+    /// `Uint8Array`); a `.gltf` finds its `.bin` and images among them, an `.obj` its `.mtl` and textures.
+    #[wasm_bindgen(js_name = loadFiles)]
+    pub fn load_files(names: Vec<String>, contents: js_sys::Array) {
+        let files = names.into_iter().zip(contents.iter()).map(|(n, c)| (n, js_sys::Uint8Array::new(&c).to_vec()));
+        web::send(Command::LoadFiles(files.collect()));
+    }
+
+    /// Downloads the current grid as `format` (`vox`, `binvox`, `npy` (with `.colors.npy` when coloured) or `glb`),
+    /// as the panel's export buttons do.
+    #[wasm_bindgen(js_name = exportGrid)]
+    pub fn export_grid(format: String) {
+        web::send(Command::Export(format));
     }
 }

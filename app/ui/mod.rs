@@ -18,7 +18,6 @@ use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::{self, Mesh, builtin};
 use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
 use crate::voxel::colour::{self, VoxelColours};
-#[cfg(not(target_arch = "wasm32"))]
 use crate::voxel::export;
 use crate::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, budget, cpu};
 use std::cell::RefCell;
@@ -495,17 +494,26 @@ impl ViewerApp {
             });
             ui.add(egui::Label::new(egui::RichText::new(format!("adapter: {}", self.gpu.summary.name)).small()).wrap());
         }
-        #[cfg(not(target_arch = "wasm32"))]
         {
             ui.separator();
             ui.horizontal(|ui| {
                 ui.label("Export");
-                for format in [export::VoxelFormat::Binvox, export::VoxelFormat::Vox, export::VoxelFormat::Npy] {
+                use export::VoxelFormat::{Binvox, Mesh, Npy, Vox};
+                for format in [Vox, Binvox, Npy, Mesh(crate::voxel::mesh_export::MeshFormat::Glb)] {
                     if ui
                         .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
+                        .on_hover_text(match format {
+                            Npy => "numpy uint8 grid (and .colors.npy beside it when coloured)",
+                            Vox => "MagicaVoxel, with a palette of the voxel colours",
+                            Binvox => "binvox, occupancy only",
+                            _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
+                        })
                         .clicked()
                     {
+                        #[cfg(not(target_arch = "wasm32"))]
                         self.export(format);
+                        #[cfg(target_arch = "wasm32")]
+                        self.download(format);
                     }
                 }
             });
@@ -516,25 +524,61 @@ impl ViewerApp {
         }
     }
 
+    /// The files an export of the current grid makes, named after the mesh and resolution: the grid in `format`
+    /// with its colours where the format holds them, and for `.npy` of a coloured grid the colour array beside it.
+    fn export_files(&self, format: export::VoxelFormat) -> Result<Vec<(String, Vec<u8>)>, String> {
+        let grid = self.grid.as_ref().ok_or("nothing is voxelized yet")?;
+        let stem = self.mesh_label.rsplit(['/', ':']).next().unwrap_or("voxels").split('.').next().unwrap_or("voxels");
+        let name = format!("{stem}-{}.{}", self.resolution, format.extension());
+        let colours = self.colours.as_ref();
+        let mut bytes = Vec::new();
+        export::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+        let mut files = vec![(name.clone(), bytes)];
+        if let (Some(c), export::VoxelFormat::Npy) = (colours, format) {
+            let mut bytes = Vec::new();
+            export::write_colours_npy(grid, c, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+            let path = export::colours_npy_path(std::path::Path::new(&name));
+            files.push((path.display().to_string(), bytes));
+        }
+        Ok(files)
+    }
+
+    /// Saves an export through a save dialog (the colour array, if any, beside the chosen file).
     #[cfg(not(target_arch = "wasm32"))]
     fn export(&mut self, format: export::VoxelFormat) {
-        let Some(grid) = &self.grid else { return };
-        let stem = self.mesh_label.rsplit(['/', ':']).next().unwrap_or("voxels").split('.').next().unwrap_or("voxels");
+        let files = match self.export_files(format) {
+            Ok(f) => f,
+            Err(e) => return self.fail(e),
+        };
         let Some(path) = rfd::FileDialog::new()
-            .set_file_name(format!("{stem}-{}.{}", self.resolution, format.extension()))
+            .set_file_name(&files[0].0)
             .add_filter(format.extension(), &[format.extension()])
             .save_file()
         else {
             return;
         };
-        let partial = path.with_extension(format!("{}.partial", format.extension()));
-        let result = std::fs::File::create(&partial)
-            .map_err(export::FormatError::from)
-            .and_then(|f| export::write(grid, format, &mut std::io::BufWriter::new(f)))
-            .and_then(|()| std::fs::rename(&partial, &path).map_err(export::FormatError::from));
+        let mut targets = vec![path.clone()];
+        if files.len() > 1 {
+            targets.push(export::colours_npy_path(&path));
+        }
+        for (target, (_, bytes)) in targets.iter().zip(&files) {
+            let partial = target.with_extension("partial");
+            let result = std::fs::write(&partial, bytes).and_then(|()| std::fs::rename(&partial, target));
+            if let Err(e) = result {
+                let _ = std::fs::remove_file(&partial);
+                self.error = Some(format!("{}: {e}", target.display()));
+                return;
+            }
+        }
+    }
+
+    /// Hands an export to the browser as downloads.
+    #[cfg(target_arch = "wasm32")]
+    fn download(&mut self, format: export::VoxelFormat) {
+        let result =
+            self.export_files(format).and_then(|files| files.iter().try_for_each(|(n, b)| web::download(n, b)));
         if let Err(e) = result {
-            let _ = std::fs::remove_file(&partial);
-            self.error = Some(format!("{}: {e}", path.display()));
+            self.fail(e);
         }
     }
 
@@ -616,17 +660,21 @@ impl ViewerApp {
 
     fn take_dropped_files(&mut self, ctx: &egui::Context) {
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
-        if let Some(file) = dropped.into_iter().next() {
-            #[cfg(not(target_arch = "wasm32"))]
-            {
-                let path = file.path().to_path_buf();
-                let loaded = mesh::load_path(&path);
-                self.set_mesh(path.display().to_string(), loaded);
-            }
-            // Browsers read files asynchronously; the bytes come back through the page's inbox.
-            #[cfg(target_arch = "wasm32")]
-            web::read_dropped(file);
+        if dropped.is_empty() {
+            return;
         }
+        // On the desktop a file's references are read from beside it; of several dropped, the first mesh counts.
+        #[cfg(not(target_arch = "wasm32"))]
+        if let Some(path) =
+            dropped.iter().map(|f| f.path().to_path_buf()).find(|p| mesh::Format::detect(p, &[]).is_some())
+        {
+            let loaded = mesh::load_path(&path);
+            self.set_mesh(path.display().to_string(), loaded);
+        }
+        // Browsers read files asynchronously, and the files dropped together are all a glTF or OBJ can refer to;
+        // the bytes come back through the page's inbox.
+        #[cfg(target_arch = "wasm32")]
+        web::read_dropped(dropped);
     }
 
     /// Carries out what the page asked for (file input, test hooks, dropped files read in the background).
@@ -641,9 +689,19 @@ impl ViewerApp {
                 },
                 web::Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
                 web::Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
-                web::Command::LoadFile { name, bytes } => {
-                    let loaded = mesh::load_bytes(&name, &bytes);
-                    self.set_mesh(name, loaded);
+                web::Command::LoadFiles(files) => {
+                    let loaded = mesh::load_files(&files);
+                    let name = files
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .find(|n| mesh::Format::detect(std::path::Path::new(n), &[]).is_some());
+                    self.set_mesh(name.unwrap_or("files").to_string(), loaded);
+                }
+                web::Command::Export(ext) => {
+                    match export::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
+                        Some(format) => self.download(format),
+                        None => self.fail(format!("unknown export format '{ext}': use vox, binvox, npy or glb")),
+                    }
                 }
                 web::Command::Failed(e) => self.fail(e),
             }

@@ -18,10 +18,10 @@ pub enum Command {
     /// `x:0.5` and the like, or anything else for no cut.
     SetCut(String),
     LoadBuiltin(String),
-    LoadFile {
-        name: String,
-        bytes: Vec<u8>,
-    },
+    /// One mesh file, or a mesh with the files it refers to (see [`crate::mesh::load_files`]).
+    LoadFiles(Vec<(String, Vec<u8>)>),
+    /// Download the current grid in a format named by its extension.
+    Export(String),
     /// Something the page tried failed (a file could not be read); shown like any other error.
     Failed(String),
 }
@@ -50,15 +50,29 @@ pub(crate) fn take() -> Vec<Command> {
     INBOX.with(|i| std::mem::take(&mut *i.borrow_mut()))
 }
 
-/// Reads a file dropped on the canvas in the background and queues it.
-pub(crate) fn read_dropped(file: egui::DroppedFileHandle) {
+/// Reads files dropped on the canvas together in the background and queues them as one mesh.
+pub(crate) fn read_dropped(files: Vec<egui::DroppedFileHandle>) {
     wasm_bindgen_futures::spawn_local(async move {
-        let name = file.path().display().to_string();
-        match file.bytes_async().await {
-            Ok(bytes) => send(Command::LoadFile { name, bytes }),
-            Err(e) => send(Command::Failed(format!("{name}: cannot read: {e}"))),
+        let mut read = Vec::new();
+        for file in files {
+            let name = file.path().display().to_string();
+            match file.bytes_async().await {
+                Ok(bytes) => read.push((name, bytes)),
+                Err(e) => return send(Command::Failed(format!("{name}: cannot read: {e}"))),
+            }
         }
+        send(Command::LoadFiles(read));
     });
+}
+
+/// Hands `bytes` to the page's `window.meshvoxDownload(name, bytes)`, which saves them as a download.
+pub(crate) fn download(name: &str, bytes: &[u8]) -> Result<(), String> {
+    let window = web_sys::window().ok_or("no window")?;
+    let f = js_sys::Reflect::get(&window, &"meshvoxDownload".into()).map_err(|_| "no meshvoxDownload")?;
+    let f: js_sys::Function = f.dyn_into().map_err(|_| "this page has no window.meshvoxDownload")?;
+    let array = js_sys::Uint8Array::from(bytes);
+    f.call2(&JsValue::NULL, &name.into(), &array).map_err(|e| format!("download of {name} failed: {e:?}"))?;
+    Ok(())
 }
 
 /// Opens the browser's file dialog through the page's file input (its change handler sends the file).

@@ -7,6 +7,9 @@
 //  - loads ../shared/meshes/suzanne.obj through the panel's Open… button and the file chooser it opens,
 //    ../shared/meshes/gltf/Duck.gltf through the page's file input, and
 //    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
+//  - opens gltf/cube-external (a .gltf with its .bin and PNGs) picked as several files, and STL and PLY files,
+//  - downloads the coloured Duck in each export format (.vox, .binvox, .npy with .colors.npy, .glb) and compares
+//    each file byte for byte with the CLI's for the same input,
 //  - loads a decimal OBJ box with tessellated faces on the grid's boundaries at 99 and checks page == CLI == shell,
 //  - in a page without WebGPU, checks that the page says so instead of showing a blank canvas,
 //  - fails on any uncaught exception, panic or console error,
@@ -16,7 +19,7 @@
 // target/debug/meshvox. Run: `node web/tests/browser.mjs` (tests/run.sh does, after `cargo test`).
 import { chromium } from "playwright-core";
 import { createServer } from "node:http";
-import { readFile, writeFile, stat, mkdtemp, rm } from "node:fs/promises";
+import { readFile, readdir, writeFile, stat, mkdtemp, rm } from "node:fs/promises";
 import { existsSync } from "node:fs";
 import { execFileSync } from "node:child_process";
 import { tmpdir } from "node:os";
@@ -192,6 +195,56 @@ try {
     const farCli = cliVoxels(farObj, far.resolution);
     check(far.voxels === nearCli && farCli === nearCli,
       `Suzanne moved by ${offset} @${far.resolution}: page ${far.voxels} == CLI ${farCli} == CLI at the origin ${nearCli}`);
+
+    // A glTF with an external .bin and textures, picked together: it opens, coloured, with the CLI's voxels.
+    const cube = path.join(meshes, "gltf/cube-external");
+    const cubeFiles = (await readdir(cube)).filter((f) => !f.endsWith(".md")).map((f) => path.join(cube, f));
+    await page.setInputFiles("#meshvox-file", cubeFiles);
+    const ext = await status({ ready: true, mesh: "Cube.gltf" }, "opening Cube.gltf with its .bin and images");
+    const extCli = cliVoxels(path.join(cube, "Cube.gltf"), ext.resolution);
+    check(ext.voxels === extCli && ext.coloured,
+      `gltf/cube-external picked as ${cubeFiles.length} files: page ${ext.voxels} == CLI ${extCli}, coloured ${ext.coloured}`);
+
+    // Exports: the coloured Duck at 48 downloaded in each format, byte for byte the CLI's file for the same input.
+    const duck = path.join(meshes, "gltf/Duck.glb");
+    await page.setInputFiles("#meshvox-file", duck);
+    await status({ ready: true, mesh: "Duck.glb" }, "loading Duck.glb");
+    await page.evaluate(() => window.meshvoxSetResolution(48));
+    await status({ ready: true, mesh: "Duck.glb", resolution: 48, coloured: true }, "Duck.glb at 48");
+    const work = await mkdtemp(path.join(tmpdir(), "meshvox-web-export-"));
+    for (const format of ["vox", "binvox", "npy", "glb"]) {
+      const expected = format === "npy" ? ["Duck-48.npy", "Duck-48.colors.npy"] : [`Duck-48.${format}`];
+      const downloads = [];
+      const onDownload = (d) => downloads.push(d);
+      page.on("download", onDownload);
+      await page.evaluate((f) => window.meshvoxExport(f), format);
+      const deadline = Date.now() + 60_000;
+      while (downloads.length < expected.length && Date.now() < deadline) await page.waitForTimeout(100);
+      page.off("download", onDownload);
+      const names = downloads.map((d) => d.suggestedFilename());
+      check(JSON.stringify(names) === JSON.stringify(expected), `export ${format}: downloads ${names.join(", ")}`);
+      const reference = path.join(work, `reference.${format}`);
+      execFileSync(bin, ["voxelize", duck, "-r", "48", "-o", reference, "--backend", "cpu"], { stdio: "ignore" });
+      for (const d of downloads) {
+        const saved = path.join(work, d.suggestedFilename());
+        await d.saveAs(saved);
+        const ref = d.suggestedFilename().endsWith(".colors.npy") ? path.join(work, "reference.colors.npy") : reference;
+        const [a, b] = [await readFile(saved), await readFile(ref)];
+        check(a.equals(b), `${d.suggestedFilename()} from the page (${a.length} bytes) equals the CLI's (${b.length} bytes)`);
+      }
+    }
+    await rm(work, { recursive: true, force: true });
+  }
+
+  // STL and PLY through the file input (files of the hostile corpus's valid half): the CLI's voxels, and the
+  // PLY's vertex colours.
+  for (const name of ["single-triangle.stl", "quad-with-colours.ply"]) {
+    const file = path.join(root, "tests/corpus/odd", name);
+    await page.setInputFiles("#meshvox-file", file);
+    const s = await status({ ready: true, mesh: name }, `loading ${name}`);
+    const cli = cliVoxels(file, s.resolution);
+    check(s.voxels === cli && s.coloured === name.endsWith(".ply"),
+      `${name} @${s.resolution}: page ${s.voxels} == CLI ${cli}, coloured ${s.coloured}`);
   }
 
   // A user's file: a unit box centred on the origin whose faces are jittered 7x7 grids of decimal points,
