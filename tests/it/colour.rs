@@ -274,3 +274,65 @@ fn palette_quantizes_many_colours_closely() {
     assert_eq!(q.palette.len(), 2);
     assert_eq!(few.iter().zip(&q.index).filter(|(c, i)| q.palette[**i as usize] == **c).count(), 3);
 }
+
+/// glTF sampler settings and KHR_texture_transform: a quad whose texture coordinates run from 0 to 2, a 2×2
+/// texture sampled nearest, mirrored along u (after the transform doubles u) and clamped along v. Every voxel's
+/// colour is the texel the formulas of the glTF specification pick, computed here.
+#[test]
+fn sampler_wrap_modes_filter_and_texture_transform() {
+    use base64::Engine;
+    let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
+    let texels = [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [255, 255, 255, 255]];
+    let image = image::RgbaImage::from_fn(2, 2, |x, y| image::Rgba(texels[(y * 2 + x) as usize]));
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
+    let mut data = Vec::new();
+    for p in [[0.0f32, 0.0, 0.0], [1.6, 0.0, 0.0], [1.6, 1.6, 0.0], [0.0, 1.6, 0.0]] {
+        data.extend(p.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    for uv in [[0.0f32, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]] {
+        data.extend(uv.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    data.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+    let gltf = serde_json::json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "extensionsUsed": ["KHR_texture_transform"],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
+            "extensions": {"KHR_texture_transform": {"scale": [2.0, 1.0]}}}}}],
+        "textures": [{"sampler": 0, "source": 0}],
+        "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
+        "images": [{"uri": format!("data:image/png;base64,{}", b64(&png))}],
+        "buffers": [{"byteLength": data.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&data))}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 12}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.6, 1.6, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    });
+    let mesh = meshvox::mesh::load_bytes("quad.gltf", gltf.to_string().as_bytes()).expect("load");
+    let shading = mesh.shading.as_ref().expect("textured");
+    let t = &shading.textures[0];
+    assert_eq!((t.wrap, t.nearest), ([Wrap::MirroredRepeat, Wrap::ClampToEdge], true));
+    let (grid, tris) = voxelize_cpu(&mesh, 16, Mode::Surface);
+    let colours = colour_voxels(&grid, &tris, shading);
+    let mut checked = 0;
+    for (v, c) in grid.iter_set().zip(&colours.rgba) {
+        // The voxel centre's uv (the quad spans 1.6 units: uv = position / 0.8), then the transform (u doubled),
+        // mirrored repeat along u and clamp along v, then the nearest texel.
+        let (u, w) = ((v.x as f64 + 0.5) * 0.1 / 0.8 * 2.0, (v.y as f64 + 0.5) * 0.1 / 0.8);
+        let m = u - 2.0 * (u / 2.0).floor();
+        let s = if m > 1.0 { 2.0 - m } else { m };
+        let t = w.clamp(0.0, 1.0);
+        let texel = (((t * 2.0).floor() as usize).min(1)) * 2 + ((s * 2.0).floor() as usize).min(1);
+        assert_eq!(*c, texels[texel], "voxel {v}: uv ({u}, {w}) -> ({s}, {t})");
+        checked += 1;
+    }
+    assert_eq!(checked, 256);
+    // The shader's wrap modes and nearest filter give the same.
+    if let Some((gpu, _)) = crate::gpu::gpu() {
+        let on_gpu = GpuColourer::new(gpu).colour(gpu, &grid, &tris, shading).expect("gpu");
+        assert_eq!(on_gpu, colours, "the GPU's colours differ from the CPU reference");
+    }
+}
