@@ -105,25 +105,23 @@ def surface_colours(path):
         tris.append(g.vertices[faces])
         visual = g.visual
         n = len(faces)
-        if visual.kind == "texture" and visual.uv is not None:
+        if visual.kind == "texture":
+            # A material, textured or not (an OBJ `Kd` without `map_Kd` has no uv).
             material = visual.material
-            uv = np.asarray(visual.uv, dtype=np.float64)[faces].copy()
-            # trimesh moves the uv origin to the bottom left; textures are addressed from the top.
-            uv[:, :, 1] = 1.0 - uv[:, :, 1]
+            uv = None
+            if visual.uv is not None:
+                uv = np.asarray(visual.uv, dtype=np.float64)[faces].copy()
+                # trimesh moves the uv origin to the bottom left; textures are addressed from the top.
+                uv[:, :, 1] = 1.0 - uv[:, :, 1]
             image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
             factor = getattr(material, "baseColorFactor", None)
             if factor is None:
                 factor = getattr(material, "diffuse", None)
             factor = np.ones(3) if factor is None else np.asarray(factor, dtype=np.float64)[:3] / 255.0
-            shaders.append(("texture", uv, image, factor, n))
+            shaders.append(("texture", uv, image if uv is not None else None, factor, n))
         else:
-            colors = np.asarray(visual.vertex_colors, dtype=np.float64)[:, :3] / 255.0 if visual.kind == "vertex" else None
-            if colors is None:
-                face = np.asarray(visual.face_colors, dtype=np.float64)[:, :3] / 255.0
-                colors = np.repeat(face[:, None, :], 3, axis=1)
-            else:
-                colors = colors[faces]
-            shaders.append(("vertex", colors, None, None, n))
+            colors = np.asarray(visual.vertex_colors, dtype=np.float64)[:, :3] / 255.0
+            shaders.append(("vertex", colors[faces], None, None, n))
     return np.concatenate(tris), shaders
 
 
@@ -158,9 +156,9 @@ def colours(mesh_path, grid_path, origin, h):
         local = nearest[sel] - first
         w = bary[sel][:, :, None]
         if kind == "texture":
-            uv = (data[local] * w).sum(axis=1)
             # Material factors are linear (trimesh keeps them as bytes, value x 255).
-            expected[sel] = factor * (bilinear(image, uv) if image is not None else 1.0)
+            sample = bilinear(image, (data[local] * w).sum(axis=1)) if image is not None else 1.0
+            expected[sel] = factor * sample
         else:
             # glTF vertex colours are linear too.
             expected[sel] = (data[local] * w).sum(axis=1)
