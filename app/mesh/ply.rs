@@ -90,6 +90,7 @@ impl PropertyAccess for Face {
 
 pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let err = |message: String| MeshError::Ply { path: path.to_path_buf(), message };
+    check_header(bytes).map_err(err)?;
     let mut reader = std::io::BufReader::new(bytes);
     let header = ply_rs::parser::Parser::<Vertex>::new()
         .read_header(&mut reader)
@@ -178,6 +179,61 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
     let part = Part { name, mesh: 0, primitive: 0, material: None };
     mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors, material: 0 }]);
     Ok(mesh)
+}
+
+/// Checks what ply-rs trusts in a header, before it reads one: an element count or a format version number too
+/// large for 64 bits panics in its grammar, and an element without properties is read without consuming input, `count` times (forever,
+/// for a hostile count). So every `element NAME COUNT` must have a count no larger than the file's size (each
+/// entry takes at least a byte) and at least one property.
+fn check_header(bytes: &[u8]) -> Result<(), String> {
+    let mut current: Option<(String, usize)> = None;
+    let finish = |current: &Option<(String, usize)>| match current {
+        Some((name, 0)) => Err(format!("header: element '{name}' has no properties")),
+        _ => Ok(()),
+    };
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(raw);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("element") => {
+                finish(&current)?;
+                let name = words.next().unwrap_or("").chars().take(24).collect::<String>();
+                let count = words.next().unwrap_or("");
+                match count.parse::<u64>() {
+                    Ok(c) if c <= bytes.len() as u64 => {}
+                    Ok(c) => {
+                        return Err(format!(
+                            "header line {}: element '{name}' declares {c} entries but the file has {} bytes",
+                            n + 1,
+                            bytes.len()
+                        ));
+                    }
+                    Err(_) => {
+                        let shown: String = count.chars().take(24).collect();
+                        return Err(format!("header line {}: element '{name}' count '{shown}' is not a number", n + 1));
+                    }
+                }
+                current = Some((name, 0));
+            }
+            Some("format") => {
+                // `format ascii 1.0`: the version's numbers go through the same unwrapping parse.
+                let version = words.nth(1).unwrap_or("");
+                let numbers = version.split('.').all(|p| p.is_empty() || p.parse::<u64>().is_ok());
+                if !numbers {
+                    let shown: String = version.chars().take(24).collect();
+                    return Err(format!("header line {}: format version '{shown}' is not a version number", n + 1));
+                }
+            }
+            Some("property") => {
+                if let Some((_, properties)) = &mut current {
+                    *properties += 1;
+                }
+            }
+            Some("end_header") => return finish(&current),
+            _ => {}
+        }
+    }
+    Err("header: no end_header line".into())
 }
 
 /// An element that is read past.
