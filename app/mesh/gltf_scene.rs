@@ -186,6 +186,13 @@ fn check_glb_header(bytes: &[u8], glb_name: bool) -> Result<(), String> {
     }
 }
 
+/// The bytes of a base64 data URI (the part after `data:`), as glTF embeds buffers and images.
+fn decode_data_uri(data: &str) -> Result<Vec<u8>, String> {
+    let (_, encoded) = data.split_once(";base64,").ok_or("a data URI that is not base64")?;
+    use base64::Engine;
+    base64::engine::general_purpose::STANDARD.decode(encoded).map_err(|e| format!("bad base64: {e}"))
+}
+
 /// Every buffer's bytes: the GLB's BIN chunk, a base64 data URI, or a file read through `base` (beside the
 /// `.gltf`, or among the files opened with it). Each error names the buffer; a missing file is named too (the
 /// operating system's own message names neither).
@@ -202,14 +209,7 @@ fn read_buffers(
                 blob.take().ok_or_else(|| format!("{name} is the GLB's BIN chunk, which is missing"))?
             }
             gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
-                Some(data) => {
-                    let (_, encoded) =
-                        data.split_once(";base64,").ok_or_else(|| format!("{name}: a data URI that is not base64"))?;
-                    use base64::Engine;
-                    base64::engine::general_purpose::STANDARD
-                        .decode(encoded)
-                        .map_err(|e| format!("{name}: bad base64: {e}"))?
-                }
+                Some(data) => decode_data_uri(data).map_err(|e| format!("{name}: {e}"))?,
                 None => match base {
                     Externals::None => {
                         return Err(format!(
@@ -496,11 +496,7 @@ fn read_texture(texture: &gltf::Texture, buffers: &[gltf::buffer::Data], base: E
             data.get(range).ok_or_else(|| format!("images[{}] lies outside its buffer", image.index()))?.into()
         }
         gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
-            Some(data) => {
-                let (_, encoded) = data.split_once(";base64,").ok_or("a data URI that is not base64")?;
-                use base64::Engine;
-                base64::engine::general_purpose::STANDARD.decode(encoded).map_err(|e| e.to_string())?.into()
-            }
+            Some(data) => decode_data_uri(data)?.into(),
             None => base.read(uri)?,
         },
     };
