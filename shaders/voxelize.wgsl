@@ -11,7 +11,7 @@
 //
 // Passes, all sharing one bind group:
 //   setup              one invocation per triangle: the per-triangle set-up, computed once, and how many work
-//                      items the triangle needs (rows of its dominant projection x chunks of CHUNK columns)
+//                      items the triangle needs (z layers of its bounding box x chunks of CHUNK rows along y)
 //   scan_blocks        exclusive prefix sum of the work counts within blocks of 256 triangles
 //   scan_block_sums    one workgroup: prefix sum of the block totals, the grand total (block_sums[block_count])
 //                      and the indirect dispatch size (group 1, kept apart because the indirect buffer must not
@@ -58,7 +58,6 @@ struct TriangleSetup {
     d1: f32,
     d2: f32,
     plane_eps: f32,
-    axis: u32,
     // Exact signs of the normal's components: bit k set when n_k > 0, bit k + 3 when n_k < 0.
     normal_signs: u32,
     lo: vec3<u32>,
@@ -246,25 +245,6 @@ fn voxel_range(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, dims: vec3<u32>, s: 
     }
 }
 
-fn dominant_axis(s: TriangleSetup) -> u32 {
-    let a = abs(s.n);
-    if all(a == vec3<f32>(0.0)) {
-        let ext = s.hi - s.lo;
-        if ext.z <= ext.x && ext.z <= ext.y {
-            return 2u;
-        } else if ext.y <= ext.x {
-            return 1u;
-        }
-        return 0u;
-    }
-    if a.z >= a.x && a.z >= a.y {
-        return 2u;
-    } else if a.y >= a.x {
-        return 1u;
-    }
-    return 0u;
-}
-
 // The set-up of triangle t (see setup_triangle in app/voxel/cpu.rs for the plane error bound).
 fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     var s: TriangleSetup;
@@ -323,7 +303,6 @@ fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     s.xy = setup_edges(xs, ys, orientation(normal_sign(signs, 2u)), w.x, w.y);
     s.yz = setup_edges(ys, zs, orientation(normal_sign(signs, 0u)), w.y, w.z);
     s.zx = setup_edges(zs, xs, orientation(normal_sign(signs, 1u)), w.z, w.x);
-    s.axis = dominant_axis(s);
     return s;
 }
 
@@ -372,12 +351,6 @@ fn voxel_overlaps_exact(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
     let pl = vec3<f32>(p - s.lo);
     return plane_test(s, t, p, pl) && edge_test(s, s.xy, 0u, t, p, pl.xy) && edge_test(s, s.yz, 1u, t, p, pl.yz)
         && edge_test(s, s.zx, 2u, t, p, pl.zx);
-}
-
-// No edge function certainly negative: a necessary condition, to skip columns before walking them.
-fn edge_candidate(e: Edges, q: vec2<f32>) -> bool {
-    return edge_function(e.ne[0], q, e.de[0]) >= -e.eps[0] && edge_function(e.ne[1], q, e.de[1]) >= -e.eps[1]
-        && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2];
 }
 
 // The common end of voxel_decision and voxel_decision_thin (see decide in cpu.rs).
@@ -538,8 +511,24 @@ fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> ve
 fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {
     var r = vec2<f32>(lo, hi);
     for (var i = 0u; i < 3u; i++) {
+        if r.y - r.x < 2.0 {
+            break;
+        }
         let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
         r = narrow(r, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i] / abs(e.ne[i].x), scale);
+    }
+    return r;
+}
+
+// The counterpart of row_span: the span of the second coordinate b at first coordinate a.
+fn column_span(e: Edges, a: f32, lo: f32, hi: f32) -> vec2<f32> {
+    var r = vec2<f32>(lo, hi);
+    for (var i = 0u; i < 3u; i++) {
+        if r.y - r.x < 2.0 {
+            break;
+        }
+        let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
+        r = narrow(r, e.ne[i].y, e.ne[i].x * a + e.de[i], e.eps[i] / abs(e.ne[i].y), scale);
     }
     return r;
 }
@@ -555,32 +544,21 @@ fn column_depth_range(s: TriangleSetup, w: u32, pl: vec3<f32>, lo: f32, hi: f32,
     return r;
 }
 
-// The (a, b) axes of the projection perpendicular to w, in the order the set-up uses: projection k = (w + 1) % 3.
-fn projection_axes(w: u32) -> vec2<u32> {
-    let k = (w + 1u) % 3u;
-    return vec2<u32>(k, (k + 1u) % 3u);
-}
-
-fn projection_edges(s: TriangleSetup, w: u32) -> Edges {
-    if w == 2u {
-        return s.xy;
-    } else if w == 0u {
-        return s.yz;
-    }
-    return s.zx;
+// The candidate local x range of the row at local (pl.y, pl.z), from the ZX edges' span x_span of its z layer.
+fn row_x_range(s: TriangleSetup, pl: vec3<f32>, x_span: vec2<f32>, depth_err: f32) -> vec2<f32> {
+    let r = column_depth_range(s, 0u, pl, x_span.x, x_span.y, depth_err);
+    return row_span(s.xy, pl.y, r.x, r.y);
 }
 
 fn chunks_per_row(s: TriangleSetup) -> u32 {
-    let ab = projection_axes(s.axis);
-    return (s.hi[ab.x] - s.lo[ab.x] + 1u + CHUNK - 1u) / CHUNK;
+    return (s.hi.y - s.lo.y + 1u + CHUNK - 1u) / CHUNK;
 }
 
 fn work_items(s: TriangleSetup) -> u32 {
     if any(s.lo > s.hi) {
         return 0u;
     }
-    let ab = projection_axes(s.axis);
-    return (s.hi[ab.y] - s.lo[ab.y] + 1u) * chunks_per_row(s);
+    return (s.hi.z - s.lo.z + 1u) * chunks_per_row(s);
 }
 
 fn linear_id(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>, size: u32) -> u32 {
@@ -689,7 +667,33 @@ fn set_voxel(v: vec3<u32>) {
     atomicOr(&grid[row * params.words_per_row + v.x / 32u], 1u << (v.x % 32u));
 }
 
-// The walk of one work item. Voxels the f32 decision is unsure of are appended to `unsure` for the `exact` pass.
+// Sets voxels x0..=x1 of row (y, z): one atomicOr per 32-voxel word.
+fn set_run(x0: u32, x1: u32, y: u32, z: u32) {
+    let row = ((z - params.slab_z0) * params.dims.y + y) * params.words_per_row;
+    for (var w = x0 / 32u; w <= x1 / 32u; w++) {
+        let lo = max(x0, w * 32u) - w * 32u;
+        let hi = min(x1, w * 32u + 31u) - w * 32u;
+        atomicOr(&grid[row + w], (0xffffffffu >> (31u - hi)) & (0xffffffffu << lo));
+    }
+}
+
+fn decision(s: TriangleSetup, shrink: ThinShrink, pl: vec3<f32>) -> u32 {
+    if THIN {
+        return voxel_decision_thin(s, shrink, pl);
+    }
+    return voxel_decision(s, pl);
+}
+
+fn list_unsure(t: u32, p: vec3<u32>) {
+    let i = atomicAdd(&unsure_count[0], 1u);
+    if i < arrayLength(&unsure) {
+        unsure[i] = vec4<u32>(t, p);
+    }
+}
+
+// The walk of one work item (see walk in app/voxel/cpu.rs for why the voxels between the first and the last
+// certain overlap of a row are filled untested). Voxels the f32 decision is unsure of are appended to `unsure`
+// for the `exact` pass.
 // Why a separate pass: CPU implementations of WebGPU (lavapipe, SwiftShader) run invocations as SIMD lanes and
 // execute every branch some lane might take under a mask, so inline 128-bit arithmetic made every voxel test pay
 // for it (measured: 10x slower on lavapipe), and a second walk with the exact test inline took SwiftShader 1.3 s
@@ -699,74 +703,63 @@ fn walk(item: u32) {
     let t = find_triangle(item);
     let s = setups[t];
     let k = item - offsets[t];
-    let w = s.axis;
-    let ab = projection_axes(w);
-    let a = ab.x;
-    let b = ab.y;
     let cpr = chunks_per_row(s);
-    let bi = s.lo[b] + k / cpr;
-    // Restrict to the current z-slab before any testing.
-    var z_lo = max(s.lo.z, params.slab_z0);
-    var z_hi = min(s.hi.z, params.slab_z1 - 1u);
-    if z_lo > z_hi || (b == 2u && (bi < z_lo || bi > z_hi)) {
+    let zi = k / cpr;
+    // Only rows in the current z-slab.
+    let zg = s.lo.z + zi;
+    if zg < params.slab_z0 || zg >= params.slab_z1 {
         return;
     }
-    var a0 = s.lo[a] + (k % cpr) * CHUNK;
-    var a1 = min(a0 + CHUNK - 1u, s.hi[a]);
-    if a == 2u {
-        a0 = max(a0, z_lo);
-        a1 = min(a1, z_hi);
-    }
-    if a0 > a1 {
-        return;
-    }
-    // The walk runs in local coordinates (relative to s.lo), like the set-up; the row span is cut to this work
-    // item's chunk of the row.
-    let e = projection_edges(s, w);
+    let y0 = (k % cpr) * CHUNK;
+    let y1 = min(y0 + CHUNK - 1u, s.hi.y - s.lo.y);
     let top = vec3<f32>(s.hi - s.lo);
-    let span = row_span(e, f32(bi - s.lo[b]), f32(a0 - s.lo[a]), f32(a1 - s.lo[a]));
-    if span.x > span.y {
+    let z = f32(zi);
+    let ys = row_span(s.yz, z, f32(y0), f32(y1));
+    if ys.x > ys.y {
         return;
     }
-    let depth_err = s.plane_eps / abs(s.n[w]);
-    var w_lo_clip = 0.0;
-    var w_hi_clip = top[w];
-    if w == 2u {
-        w_lo_clip = f32(z_lo - s.lo.z);
-        w_hi_clip = f32(z_hi - s.lo.z);
+    let x_span = column_span(s.zx, z, 0.0, top.x);
+    if x_span.x > x_span.y {
+        return;
     }
+    let depth_err = s.plane_eps / abs(s.n.x);
     let shrink = thin_shrink(s);
-    for (var ai = u32(span.x); ai <= u32(span.y); ai++) {
-        var pl = vec3<f32>(0.0);
-        pl[a] = f32(ai);
-        pl[b] = f32(bi - s.lo[b]);
-        if !edge_candidate(e, vec2<f32>(pl[a], pl[b])) {
+    for (var yi = u32(ys.x); yi <= u32(ys.y); yi++) {
+        var pl = vec3<f32>(0.0, f32(yi), z);
+        let r = row_x_range(s, pl, x_span, depth_err);
+        if r.x > r.y {
             continue;
         }
-        let r = column_depth_range(s, w, pl, 0.0, top[w], depth_err);
-        let w0 = max(r.x, w_lo_clip);
-        let w1 = min(r.y, w_hi_clip);
-        if w0 > w1 {
-            continue;
-        }
-        for (var wi = u32(w0); wi <= u32(w1); wi++) {
-            pl[w] = f32(wi);
-            let p = s.lo + vec3<u32>(pl);
-            var d: u32;
-            if THIN {
-                d = voxel_decision_thin(s, shrink, pl);
-            } else {
-                d = voxel_decision(s, pl);
-            }
+        let x_lo = u32(r.x);
+        let x_hi = u32(r.y);
+        var first = x_hi + 1u;
+        for (var xi = x_lo; xi <= x_hi; xi++) {
+            pl.x = f32(xi);
+            let d = decision(s, shrink, pl);
             if d == 1u {
-                set_voxel(p);
-            } else if d == 2u {
-                let i = atomicAdd(&unsure_count[0], 1u);
-                if i < arrayLength(&unsure) {
-                    unsure[i] = vec4<u32>(t, p);
-                }
+                first = xi;
+                break;
+            }
+            if d == 2u {
+                list_unsure(t, s.lo + vec3<u32>(xi, yi, zi));
             }
         }
+        if first > x_hi {
+            continue;
+        }
+        var last = first;
+        for (var xi = x_hi; xi > first; xi--) {
+            pl.x = f32(xi);
+            let d = decision(s, shrink, pl);
+            if d == 1u {
+                last = xi;
+                break;
+            }
+            if d == 2u {
+                list_unsure(t, s.lo + vec3<u32>(xi, yi, zi));
+            }
+        }
+        set_run(s.lo.x + first, s.lo.x + last, s.lo.y + yi, s.lo.z + zi);
     }
 }
 

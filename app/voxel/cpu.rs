@@ -24,18 +24,21 @@
 //! every conformant adapter.
 //!
 //! # Traversal
-//! Instead of the whole bounding box of a triangle, the voxelizer walks the triangle's projection onto the plane
-//! of its dominant normal axis row by row (each row narrowed to the span its 2D edge functions allow), and in each
-//! column only the depth range its plane crosses. The narrowing only chooses candidates; each range is widened by
-//! the error bound of its computation plus rounding of the division (so it is a superset of the exact range), and
-//! every candidate still goes through the full test, so the result equals testing the whole bounding box.
+//! The voxels a triangle overlaps in one row along `x` (the grid's word axis) form one interval: the test is a
+//! conjunction of inequalities affine in the voxel's coordinates. So the walk ([`walk`]) goes over the rows
+//! `(y, z)` of the triangle's bounding box that its YZ edge functions allow, narrows each row's `x` range with
+//! the ZX edges, the plane and the XY edges, tests inward from both ends of that range until the f32 decision is
+//! certain of an overlap, and sets everything between with one OR per 32-voxel word. The narrowing only chooses
+//! candidates; each range is widened by the error bound of its computation plus rounding of the division (so it
+//! is a superset of the exact range), and every voxel outside the filled interval still goes through the full
+//! test, so the result equals testing the whole bounding box.
 
 use super::lattice::{Lattice, on_lattice};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
 use glam::{IVec3, UVec3, Vec2, Vec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 /// Relative factor of the forward error bounds: `2^-19`, i.e. 32 units of f32 roundoff. The derivations at
 /// [`setup_triangle`] and [`setup_edges`] need at most 14 (a sum of at most six products in any order, plus the
@@ -445,7 +448,7 @@ pub fn voxel_overlaps_exact_thin(s: &TriangleSetup, p: UVec3) -> bool {
 }
 
 /// [`voxel_decision`] for the thin test: the same eleven values, each moved inward by its shrink.
-#[inline]
+#[inline(always)]
 pub fn voxel_decision_thin(s: &TriangleSetup, sh: &ThinShrink, pl: Vec3) -> u32 {
     let np = dot3(s.n, pl);
     let v1 = np + s.d1 - sh.plane;
@@ -463,21 +466,12 @@ pub fn voxel_decision_thin(s: &TriangleSetup, sh: &ThinShrink, pl: Vec3) -> u32 
     decide(s, v1.min(v2), xy, yz, zx)
 }
 
-/// Whether no edge function of projection `e` is certainly negative at `q`: a necessary condition for an
-/// overlap, used to skip columns before their depth range is walked.
-#[inline]
-pub fn edge_candidate(e: &Edges, q: Vec2) -> bool {
-    edge_function(e.ne[0], q, e.de[0]) >= -e.eps[0]
-        && edge_function(e.ne[1], q, e.de[1]) >= -e.eps[1]
-        && edge_function(e.ne[2], q, e.de[2]) >= -e.eps[2]
-}
-
 /// The overlap test in f32 only: `1` when the voxel certainly overlaps, `0` when it certainly does not, `2` when
 /// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. A value `v` with bound `e`
 /// is certainly non-negative when `v - e >= 0` and certainly negative when `v + e < 0` (a rounded sum or
 /// difference of two floats has the sign of the exact one), so two minima over the eleven values decide. The
 /// common case costs little more than the plain f32 test; the shader defers the rare `2` to a separate pass.
-#[inline]
+#[inline(always)]
 pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
     let np = dot3(s.n, pl);
     let v1 = np + s.d1;
@@ -498,7 +492,7 @@ pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
 /// The common end of [`voxel_decision`] and [`voxel_decision_thin`]: `plane` is the smaller of the two plane
 /// values, `xy`, `yz`, `zx` the edge values; each value `v` with bound `e` is certainly non-negative when
 /// `v - e >= 0` and certainly negative when `v + e < 0`, so two minima decide.
-#[inline]
+#[inline(always)]
 fn decide(s: &TriangleSetup, plane: f32, xy: Vec3, yz: Vec3, zx: Vec3) -> u32 {
     let eps = |e: &Edges| Vec3::from_array(e.eps);
     let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
@@ -509,29 +503,6 @@ fn decide(s: &TriangleSetup, plane: f32, xy: Vec3, yz: Vec3, zx: Vec3) -> u32 {
     let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
     let high = (plane - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
     if high >= 0.0 { 1 } else { 2 }
-}
-
-/// The axis the traversal walks columns along: the dominant normal component, so each column crosses the
-/// plane within a few voxels. A degenerate triangle (no normal) walks along its shortest extent instead.
-pub fn dominant_axis(s: &TriangleSetup) -> usize {
-    let a = s.n.abs();
-    if a == Vec3::ZERO {
-        let ext = s.hi.saturating_sub(s.lo);
-        return if ext.z <= ext.x && ext.z <= ext.y {
-            2
-        } else if ext.y <= ext.x {
-            1
-        } else {
-            0
-        };
-    }
-    if a.z >= a.x && a.z >= a.y {
-        2
-    } else if a.y >= a.x {
-        1
-    } else {
-        0
-    }
 }
 
 /// Narrows the local range `[lo, hi]` to the integer `t` where `slope * t + offset` may be non-negative, the
@@ -561,7 +532,12 @@ fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f
 /// functions `ne.a * a + ne.b * b + de >= 0` bound `a` on one side each.
 pub fn row_span(e: &Edges, b: f32, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
+    // A range under two voxels is left as it is (see `narrow`); checked here too so that its error term is not
+    // computed for nothing.
     for i in 0..3 {
+        if hi - lo < 2.0 {
+            break;
+        }
         let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
         narrow(&mut lo, &mut hi, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i] / e.ne[i].x.abs(), scale);
     }
@@ -583,60 +559,143 @@ pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f3
     (lo, hi)
 }
 
-/// Calls `emit` for every voxel the triangle overlaps (each voxel once). Returns how many voxel tests needed the
-/// exact path.
-///
-/// `thin` selects the 6-separating test ([`voxel_decision_thin`]); its voxels are a subset of the thick test's,
-/// so the thick test's candidate ranges serve both.
-pub fn voxelize_triangle(s: &TriangleSetup, thin: bool, mut emit: impl FnMut(UVec3)) -> u64 {
-    let mut exact = 0;
-    let shrink = thin.then(|| thin_shrink(s));
-    if s.lo.cmpgt(s.hi).any() {
-        return exact;
+/// Rows (values of `y`) per work item: a triangle's work is one item per `z` row of its bounding box and chunk
+/// of `CHUNK` rows along `y`, so big triangles spread over many items (and threads, and GPU invocations) and
+/// small ones take one each.
+pub const CHUNK: u32 = 16;
+
+/// Work items of `y` rows in one `z` row of the triangle's bounding box.
+pub fn chunks_per_row(s: &TriangleSetup) -> u32 {
+    (s.hi.y - s.lo.y + 1).div_ceil(CHUNK)
+}
+
+/// The triangle's work items (see [`CHUNK`]); none for an empty range.
+pub fn work_items(s: &TriangleSetup) -> u32 {
+    if s.lo.cmpgt(s.hi).any() { 0 } else { (s.hi.z - s.lo.z + 1) * chunks_per_row(s) }
+}
+
+/// Candidate span of the second projected local coordinate `b` at first coordinate `a` of a projection (the
+/// counterpart of [`row_span`]).
+pub fn column_span(e: &Edges, a: f32, lo: f32, hi: f32) -> (f32, f32) {
+    let (mut lo, mut hi) = (lo, hi);
+    for i in 0..3 {
+        if hi - lo < 2.0 {
+            break;
+        }
+        let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
+        narrow(&mut lo, &mut hi, e.ne[i].y, e.ne[i].x * a + e.de[i], e.eps[i] / e.ne[i].y.abs(), scale);
     }
-    let w = dominant_axis(s);
-    // The projection whose plane is perpendicular to w, in the (a, b) order the setup uses.
-    let k = (w + 1) % 3;
-    let (a, b) = (k, (k + 1) % 3);
-    let e = [&s.xy, &s.yz, &s.zx][k];
-    // Local ranges: the walk runs in coordinates relative to `lo`.
+    (lo, hi)
+}
+
+/// Candidate local `x` range of the row at local `(pl.y, pl.z)`, starting from `x_span`, the span the ZX edges
+/// allow in the row's `z` layer: the plane test bounds `x` on both sides, the XY edges on one side each.
+pub fn row_x_range(s: &TriangleSetup, pl: Vec3, x_span: (f32, f32), depth_err: f32) -> (f32, f32) {
+    let (lo, hi) = column_depth_range(s, 0, pl, x_span.0, x_span.1, depth_err);
+    row_span(&s.xy, pl.y, lo, hi)
+}
+
+/// The f32 decision of the thick or thin test (`thin` carries the thin test's shrinks).
+#[inline]
+fn decision(s: &TriangleSetup, thin: Option<&ThinShrink>, pl: Vec3) -> u32 {
+    match thin {
+        None => voxel_decision(s, pl),
+        Some(sh) => voxel_decision_thin(s, sh, pl),
+    }
+}
+
+/// The walk of one work item: for each row along `x` (the grid's word axis) in the item's `z` layer and chunk of
+/// `y` rows, the voxels the triangle overlaps.
+///
+/// Why rows along `x` are filled, not tested voxel by voxel: both tests are conjunctions of inequalities affine
+/// in the voxel's coordinates (bounding box, plane, edge functions), so the voxels a triangle overlaps in one
+/// row form one interval. The walk tests inward from each end of the row's candidate range until the f32
+/// decision is certain of an overlap, and `fill`s everything between the first and the last certain voxel
+/// without testing it; a big triangle's rows thus cost a few tests and whole 32-voxel words. Voxels the f32
+/// decision is unsure of on the way go to `unsure` (the shader lists them for its `exact` pass); voxels beyond
+/// the ends are certain misses.
+pub fn walk(
+    s: &TriangleSetup,
+    item: u32,
+    thin: Option<&ThinShrink>,
+    mut unsure: impl FnMut(UVec3),
+    mut fill: impl FnMut(u32, u32, u32, u32),
+) {
+    let cpr = chunks_per_row(s);
+    let zi = item / cpr;
+    let y0 = (item % cpr) * CHUNK;
+    let y1 = (y0 + CHUNK - 1).min(s.hi.y - s.lo.y);
     let top = (s.hi - s.lo).as_vec3();
-    let depth_err = s.plane_eps / s.n[w].abs();
-    for bi in 0..=s.hi[b] - s.lo[b] {
-        let (a_lo, a_hi) = row_span(e, bi as f32, 0.0, top[a]);
-        if a_lo > a_hi {
+    let z = zi as f32;
+    let (y_lo, y_hi) = row_span(&s.yz, z, y0 as f32, y1 as f32);
+    if y_lo > y_hi {
+        return;
+    }
+    let x_span = column_span(&s.zx, z, 0.0, top.x);
+    if x_span.0 > x_span.1 {
+        return;
+    }
+    let depth_err = s.plane_eps / s.n.x.abs();
+    for yi in y_lo as u32..=y_hi as u32 {
+        let mut pl = Vec3::new(0.0, yi as f32, z);
+        let (x_lo, x_hi) = row_x_range(s, pl, x_span, depth_err);
+        if x_lo > x_hi {
             continue;
         }
-        for ai in a_lo as u32..=a_hi as u32 {
-            let mut pl = Vec3::ZERO;
-            pl[a] = ai as f32;
-            pl[b] = bi as f32;
-            if !edge_candidate(e, Vec2::new(pl[a], pl[b])) {
-                continue;
-            }
-            let (w_lo, w_hi) = column_depth_range(s, w, pl, 0.0, top[w], depth_err);
-            if w_lo > w_hi {
-                continue;
-            }
-            for wi in w_lo as u32..=w_hi as u32 {
-                pl[w] = wi as f32;
-                let p = s.lo + pl.as_uvec3();
-                let decision = match &shrink {
-                    None => voxel_decision(s, pl),
-                    Some(sh) => voxel_decision_thin(s, sh, pl),
-                };
-                let overlaps = match decision {
-                    0 => false,
-                    1 => true,
-                    _ => {
-                        exact += 1;
-                        if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) }
-                    }
-                };
-                if overlaps {
-                    emit(p);
+        let (x_lo, x_hi) = (x_lo as u32, x_hi as u32);
+        let mut first = None;
+        for xi in x_lo..=x_hi {
+            pl.x = xi as f32;
+            match decision(s, thin, pl) {
+                1 => {
+                    first = Some(xi);
+                    break;
                 }
+                2 => unsure(s.lo + UVec3::new(xi, yi, zi)),
+                _ => {}
             }
+        }
+        let Some(first) = first else { continue };
+        let mut last = first;
+        for xi in (first + 1..=x_hi).rev() {
+            pl.x = xi as f32;
+            match decision(s, thin, pl) {
+                1 => {
+                    last = xi;
+                    break;
+                }
+                2 => unsure(s.lo + UVec3::new(xi, yi, zi)),
+                _ => {}
+            }
+        }
+        fill(s.lo.x + first, s.lo.x + last, s.lo.y + yi, s.lo.z + zi);
+    }
+}
+
+/// Sets voxels `x0..=x1` of a row whose words start at `row`: one OR per 32-voxel word (the shader's
+/// `set_run`).
+#[inline]
+pub fn set_run(row: &mut [u32], x0: u32, x1: u32) {
+    for w in x0 / 32..=x1 / 32 {
+        let lo = x0.max(w * 32) - w * 32;
+        let hi = x1.min(w * 32 + 31) - w * 32;
+        row[w as usize] |= (u32::MAX >> (31 - hi)) & (u32::MAX << lo);
+    }
+}
+
+/// Calls `emit(x0, x1, y, z)` for every run of voxels the triangle overlaps (each voxel once), deciding unsure
+/// voxels exactly. Returns how many voxel tests needed the exact path.
+pub fn voxelize_triangle(s: &TriangleSetup, thin: bool, mut emit: impl FnMut(u32, u32, u32, u32)) -> u64 {
+    let shrink = thin.then(|| thin_shrink(s));
+    let mut exact = 0;
+    let mut unsure = Vec::new();
+    for item in 0..work_items(s) {
+        walk(s, item, shrink.as_ref(), |p| unsure.push(p), &mut emit);
+    }
+    for p in unsure {
+        exact += 1;
+        if if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) } {
+            emit(p.x, p.x, p.y, p.z);
         }
     }
     exact
@@ -691,27 +750,65 @@ pub fn voxelize_grid_space_mode(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(VoxelGrid, CpuStats), super::GridError> {
     let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
-    let grid = VoxelGrid::new(spec)?;
+    let mut grid = VoxelGrid::new(spec)?;
     let thin = mode == Mode::Surface6;
-    // Atomic words so all threads can OR into one grid, exactly like atomicOr in the shader.
-    let words: Vec<AtomicU32> = grid.words.into_iter().map(AtomicU32::new).collect();
+    let (wpr, dims) = (spec.words_per_row(), spec.dims);
+    let layer_words = wpr * dims.y as usize;
     let done = AtomicUsize::new(0);
     let exact = AtomicU64::new(0);
-    const CHUNK: usize = 1024;
-    triangles.par_chunks(CHUNK).for_each(|chunk| {
-        let mut exact_tests = 0;
-        for &t in chunk {
-            let s = setup_triangle(t, spec.dims, lattice);
-            exact_tests += voxelize_triangle(&s, thin, |v| {
-                let (word, bit) = spec.word_and_bit(v.x, v.y, v.z);
-                words[word].fetch_or(1 << bit, Ordering::Relaxed);
-            });
+    // Set-ups once per triangle (as the shader's `setup` pass), then the grid is cut into bands of z layers, one
+    // task each, and every band walks the work items of its layers: a task owns its words, so it ORs without
+    // atomics, and a 12-triangle cube keeps every core as busy as a dense mesh. Batches bound the memory the
+    // set-ups take.
+    const BATCH: usize = 1 << 14;
+    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1);
+    let mut setups = Vec::new();
+    for batch in triangles.chunks(BATCH) {
+        batch
+            .par_iter()
+            .map(|&t| {
+                let s = setup_triangle(t, dims, lattice);
+                let shrink = thin.then(|| thin_shrink(&s));
+                (s, shrink)
+            })
+            .collect_into_vec(&mut setups);
+        let mut bins = vec![Vec::new(); (dims.z as usize).div_ceil(band)];
+        for (t, (s, _)) in setups.iter().enumerate() {
+            if work_items(s) > 0 {
+                for bin in &mut bins[s.lo.z as usize / band..=s.hi.z as usize / band] {
+                    bin.push(t as u32);
+                }
+            }
         }
-        exact.fetch_add(exact_tests, Ordering::Relaxed);
-        let finished = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
+        grid.words.par_chunks_mut(layer_words * band).zip(bins.par_iter()).enumerate().for_each(|(b, (words, bin))| {
+            let z0 = (b * band) as u32;
+            let z1 = z0 + (words.len() / layer_words) as u32 - 1;
+            let mut exact_tests = 0;
+            for &t in bin {
+                let (s, shrink) = &setups[t as usize];
+                let mut fill = |x0: u32, x1: u32, y: u32, z: u32| {
+                    let row = ((z - z0) as usize * dims.y as usize + y as usize) * wpr;
+                    set_run(&mut words[row..row + wpr], x0, x1);
+                };
+                let mut unsure = Vec::new();
+                let cpr = chunks_per_row(s);
+                for z in s.lo.z.max(z0)..=s.hi.z.min(z1) {
+                    for item in (z - s.lo.z) * cpr..(z - s.lo.z + 1) * cpr {
+                        walk(s, item, shrink.as_ref(), |p| unsure.push(p), &mut fill);
+                    }
+                }
+                for p in unsure {
+                    exact_tests += 1;
+                    if if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) } {
+                        fill(p.x, p.x, p.y, p.z);
+                    }
+                }
+            }
+            exact.fetch_add(exact_tests, Ordering::Relaxed);
+        });
+        let finished = done.fetch_add(batch.len(), Ordering::Relaxed) + batch.len();
         progress(finished, triangles.len());
-    });
-    let mut grid = VoxelGrid::from_words(spec, words.into_iter().map(AtomicU32::into_inner).collect());
+    }
     if mode == Mode::Solid {
         super::solid::fill(&triangles, lattice, &mut grid);
     }

@@ -255,13 +255,13 @@ impl VoxelGrid {
     /// An empty grid. Fails cleanly instead of aborting when the allocation is impossible.
     pub fn new(spec: GridSpec) -> Result<VoxelGrid, GridError> {
         let words = spec.word_count();
-        let mut v = Vec::new();
-        usize::try_from(words)
+        // Tried first so that a grid too large for the machine is an error, not an abort; then allocated zeroed,
+        // which the system does lazily, so the pages are touched by the threads that set voxels in them.
+        let n = usize::try_from(words)
             .ok()
-            .and_then(|n| v.try_reserve_exact(n).ok())
+            .filter(|&n| Vec::<u32>::new().try_reserve_exact(n).is_ok())
             .ok_or(GridError::OutOfMemory { needed_mib: spec.byte_size().div_ceil(1 << 20) })?;
-        v.resize(words as usize, 0);
-        Ok(VoxelGrid { spec, words: v })
+        Ok(VoxelGrid { spec, words: vec![0; n] })
     }
 
     /// Wraps words produced elsewhere (the GPU readback, a file reader).
