@@ -472,6 +472,12 @@ fn write_atomically(
     Ok(bytes)
 }
 
+/// `MESHVOX_SOFTWARE_GPU=1`: let `--backend auto` use a software adapter for compute as it would a hardware one
+/// (to exercise the GPU path's fallbacks where the only adapter is lavapipe).
+fn software_gpu_preferred() -> bool {
+    std::env::var("MESHVOX_SOFTWARE_GPU").is_ok_and(|v| v == "1")
+}
+
 /// A voxelization backend, opened once: the GPU (adapter, device and compiled pipelines) or the CPU.
 struct Engine {
     gpu: Option<(meshvox::gpu::Gpu, meshvox::gpu::voxelize::GpuVoxelizer)>,
@@ -479,6 +485,8 @@ struct Engine {
     fallback: bool,
     /// Time to acquire the adapter and compile the pipelines (not part of `voxelize_ms`).
     setup_ms: f64,
+    /// Why `--backend auto` chose the CPU although there is an adapter (a software one), for `backend`.
+    cpu_reason: Option<String>,
 }
 
 struct EngineResult {
@@ -493,16 +501,29 @@ impl Engine {
     fn open(backend: BackendArg) -> Result<Engine> {
         let t = Instant::now();
         if backend == BackendArg::Cpu {
-            return Ok(Engine { gpu: None, fallback: false, setup_ms: 0.0 });
+            return Ok(Engine { gpu: None, fallback: false, setup_ms: 0.0, cpu_reason: None });
         }
-        match meshvox::gpu::Gpu::new_blocking() {
-            Ok(gpu) => {
+        let opened = meshvox::gpu::Gpu::adapter_blocking().and_then(|adapter| {
+            let summary = meshvox::gpu::AdapterSummary::from_info(&adapter.get_info());
+            if backend == BackendArg::Auto && summary.is_software() && !software_gpu_preferred() {
+                // A software adapter runs compute on the same cores, slower than the CPU voxelizer (see
+                // bench/RESULTS.md); no device is opened, so no pipelines are compiled either.
+                return Ok(Err(summary));
+            }
+            pollster::block_on(meshvox::gpu::Gpu::from_adapter(adapter)).map(Ok)
+        });
+        match opened {
+            Ok(Ok(gpu)) => {
                 let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-                Ok(Engine { gpu: Some((gpu, v)), fallback: backend == BackendArg::Auto, setup_ms: ms(t) })
+                Ok(Engine { gpu: Some((gpu, v)), fallback: backend == BackendArg::Auto, setup_ms: ms(t), cpu_reason: None })
+            }
+            Ok(Err(software)) => {
+                let reason = format!("auto: the only adapter, {}, is software", software.name);
+                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t), cpu_reason: Some(reason) })
             }
             Err(e) if backend == BackendArg::Auto => {
                 eprintln!("note: {e}; using the CPU voxelizer");
-                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t) })
+                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t), cpu_reason: None })
             }
             Err(e) => Err(e.into()),
         }
@@ -510,7 +531,10 @@ impl Engine {
 
     /// Host triangles to host grid, including the upload and readback on the GPU.
     fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec, mode: Mode) -> Result<EngineResult> {
-        let cpu_label = || format!("cpu ({} threads)", rayon::current_num_threads());
+        let cpu_label = || match &self.cpu_reason {
+            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
+            None => format!("cpu ({} threads)", rayon::current_num_threads()),
+        };
         if let Some((gpu, v)) = &self.gpu {
             let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
             let options = meshvox::gpu::voxelize::Options { read_grid: true, mode, ..Default::default() };
@@ -669,7 +693,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let t = Instant::now();
     let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
     let colour = args.colour.wanted(&args.mesh, &mesh);
-    let (voxels, colours, backend) = if args.backend == BackendArg::Cpu || colour {
+    // On a software adapter `auto` voxelizes on the CPU (faster there; see `Engine::open`) and only draws on it.
+    let cpu = args.backend == BackendArg::Cpu
+        || (args.backend == BackendArg::Auto && gpu.summary.is_software() && !software_gpu_preferred());
+    let (voxels, colours, backend) = if cpu || colour {
         // Colours and cut-aways need the whole grid on the host.
         let engine = Engine::open(args.backend)?;
         let result = engine.voxelize(&mesh, spec, mode)?;

@@ -33,6 +33,12 @@ impl AdapterSummary {
         }
     }
 
+    /// Whether the adapter is a software implementation on the CPU (lavapipe, SwiftShader, WARP): compute on
+    /// it runs on the same cores as the CPU voxelizer, which is faster there.
+    pub fn is_software(&self) -> bool {
+        self.device_type == format!("{:?}", wgpu::DeviceType::Cpu)
+    }
+
     /// A file-name-safe name of backend and adapter, such as `vulkan-llvmpipe`: screenshot goldens are only
     /// comparable on the same one and carry it in their names.
     pub fn slug(&self) -> String {
@@ -129,17 +135,27 @@ impl Gpu {
     /// Acquires the default adapter without any window or surface. `WGPU_BACKEND` (vulkan, gl, …) and
     /// `WGPU_ADAPTER_NAME` pick another one.
     pub async fn new() -> Result<Gpu, GpuError> {
+        Self::from_adapter(Self::adapter().await?).await
+    }
+
+    /// The adapter [`Gpu::new`] would open, without opening a device on it (which is where the time goes).
+    pub async fn adapter() -> Result<wgpu::Adapter, GpuError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
+        wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
             .await
-            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        Self::from_adapter(adapter).await
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))
     }
 
     /// Blocking [`Gpu::new`] for native callers.
     #[cfg(not(target_arch = "wasm32"))]
     pub fn new_blocking() -> Result<Gpu, GpuError> {
         pollster::block_on(Self::new())
+    }
+
+    /// Blocking [`Gpu::adapter`] for native callers.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn adapter_blocking() -> Result<wgpu::Adapter, GpuError> {
+        pollster::block_on(Self::adapter())
     }
 
     /// Opens a device on `adapter` with its full limits and, where available, timestamp queries.

@@ -95,7 +95,8 @@ pub struct GpuVoxelizer {
     voxelize: wgpu::ComputePipeline,
     prepare_exact: wgpu::ComputePipeline,
     exact: wgpu::ComputePipeline,
-    compactor: Compactor,
+    /// Compiled on first use: the CLI's grid readback never compacts.
+    compactor: OnceLock<Compactor>,
     module: wgpu::ShaderModule,
     /// The thin test's `voxelize` and `exact` pipelines, and the solid passes: compiled on first use, so pages
     /// and runs that never ask for them do not pay for their compilation (seconds on SwiftShader).
@@ -245,13 +246,17 @@ impl GpuVoxelizer {
             voxelize: pipeline(device, &module, &one, "voxelize"),
             prepare_exact: pipeline(device, &module, &two, "prepare_exact"),
             exact: pipeline(device, &module, &one, "exact"),
-            compactor: Compactor::new(gpu),
+            compactor: OnceLock::new(),
             thin: OnceLock::new(),
             solid: OnceLock::new(),
             module,
             layout,
             dispatch_layout,
         }
+    }
+
+    fn compactor(&self, gpu: &Gpu) -> &Compactor {
+        self.compactor.get_or_init(|| Compactor::new(gpu))
     }
 
     /// Voxelizes grid-space triangles (see [`crate::voxel::cpu::grid_space_triangles`]) into `spec`'s grid,
@@ -320,14 +325,14 @@ impl GpuVoxelizer {
                 })
                 .await?;
                 let part = Slab { buffer: &slab, z0, words: words.len() as u64 };
-                let (list, _) = self.compactor.compact(gpu, part, spec, options.surface_only, None, None).await?;
+                let (list, _) = self.compactor(gpu).compact(gpu, part, spec, options.surface_only, None, None).await?;
                 points.push(list);
             }
         }
         let points = match points.len() {
             0 => None,
             1 => points.pop(),
-            _ => Some(self.compactor.concat(gpu, points).await?),
+            _ => Some(self.compactor(gpu).concat(gpu, points).await?),
         };
         Ok(GpuOutput {
             grid: options.read_grid.then_some(grid),
@@ -546,7 +551,7 @@ impl GpuVoxelizer {
                     // The unsure count comes back with the compactor's voxel count, so checking costs no readback.
                     let probe = Some(&unsure_count);
                     let (list, listed) =
-                        self.compactor.compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe).await?;
+                        self.compactor(gpu).compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe).await?;
                     if listed.is_some_and(|n| n as u64 > unsure_entries) {
                         return Ok(Attempt::Overflow);
                     }
@@ -593,7 +598,7 @@ impl GpuVoxelizer {
         let points = match points.len() {
             0 => None,
             1 => points.pop(),
-            _ => Some(self.compactor.concat(gpu, points).await?),
+            _ => Some(self.compactor(gpu).concat(gpu, points).await?),
         };
         let gpu_ms = gpu.timestamps.then_some(gpu_ms);
         Ok(Attempt::Done(GpuOutput {

@@ -178,6 +178,32 @@ fn gpu_backend_matches_cpu_and_names_the_adapter() {
     assert!(g["voxelize_ms"].as_f64().is_some_and(|t| t > 0.0));
 }
 
+/// Where the only adapter is a software one (lavapipe here), its compute runs on the same cores as the CPU
+/// voxelizer and is slower, so `auto` voxelizes on the CPU, says why in `backend`, and opens no device.
+#[test]
+fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = |b| ["voxelize", "builtin:knot", "-r", "64", "-o", "k.npy", "--stats-json", "--backend", b];
+    let gpu = meshvox(&args("gpu"), dir.path());
+    if !gpu.status.success() {
+        assert!(std::env::var("CI").as_deref() != Ok("true"), "CI=true but the GPU backend failed");
+        eprintln!("\n*** SKIPPED: no GPU adapter ***\n");
+        return;
+    }
+    let g = stats(&gpu);
+    let software = g["backend"].as_str().is_some_and(|b| b.contains("llvmpipe") || b.contains("SwiftShader"));
+    let auto = stats(&meshvox(&args("auto"), dir.path()));
+    let backend = auto["backend"].as_str().unwrap_or_default();
+    if software {
+        assert!(backend.starts_with("cpu (") && backend.contains("is software"), "{backend}");
+        // No device, so no pipelines: the set-up is the adapter enumeration only.
+        assert!(auto["setup_ms"].as_f64() < g["setup_ms"].as_f64(), "{auto} vs {g}");
+    } else {
+        assert!(backend.starts_with("gpu: "), "{backend}");
+    }
+    assert_eq!(auto["voxels"], g["voxels"]);
+}
+
 #[test]
 fn without_an_adapter_gpu_fails_clearly_and_auto_falls_back() {
     // No Metal on Linux: an instance limited to it finds no adapter.
@@ -229,7 +255,8 @@ fn the_gpu_watchdog_gives_up_and_auto_falls_back_to_the_cpu() {
     assert!(stderr.lines().any(|l| l.starts_with("error: the GPU did not finish within")), "{stderr}");
     assert!(!dir.path().join("k.npy").exists());
 
-    let out = meshvox_env(&args("auto"), dir.path(), &hung);
+    // On a software adapter `auto` would not use the GPU at all; MESHVOX_SOFTWARE_GPU=1 makes it.
+    let out = meshvox_env(&args("auto"), dir.path(), &[hung[0], ("MESHVOX_SOFTWARE_GPU", "1")]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("warning: the GPU did not finish") && stderr.contains("on the CPU instead"), "{stderr}");
