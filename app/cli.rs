@@ -2,7 +2,10 @@
 //! line naming the file and the problem, with a non-zero exit status; output files are written to a temporary
 //! file beside the target and renamed into place, so a failure never leaves half a file behind.
 
+mod bench;
+
 use anyhow::{Context, Result, anyhow, bail};
+use bench::BenchArgs;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh::{self, builtin};
@@ -174,25 +177,6 @@ struct ViewArgs {
 }
 
 #[derive(clap::Args)]
-struct BenchArgs {
-    /// Resolutions to run (voxels along the longest axis).
-    #[arg(short = 'r', long = "resolution", value_delimiter = ',', default_values_t = [128, 256, 512])]
-    resolutions: Vec<u32>,
-    /// Meshes to run; by default the rotated cube and the Stanford bunny from ../shared/meshes.
-    #[arg(long, value_delimiter = ',')]
-    meshes: Vec<String>,
-    /// Backends to compare.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
-    backends: Vec<BackendArg>,
-    /// Modes to run.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ModeArg::Surface])]
-    modes: Vec<ModeArg>,
-    /// Runs per case; the median is reported.
-    #[arg(long, default_value_t = 3)]
-    runs: usize,
-}
-
-#[derive(clap::Args)]
 #[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
 struct VoxelizeArgs {
     /// Mesh file (.obj, .gltf, .glb) or builtin:NAME (see `meshvox builtins`).
@@ -229,7 +213,7 @@ struct VoxelizeArgs {
     limits: LimitArgs,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum BackendArg {
     Auto,
     Gpu,
@@ -286,7 +270,7 @@ pub fn main() -> ExitCode {
         }),
         Some(Command::View(args)) => view(&args),
         Some(Command::Voxelize(args)) => voxelize(&args),
-        Some(Command::Bench(args)) => bench(&args),
+        Some(Command::Bench(args)) => bench::bench(&args),
         Some(Command::Render(args)) => render(&args),
         Some(Command::Builtins) => {
             for name in builtin::NAMES {
@@ -515,7 +499,12 @@ impl Engine {
         match opened {
             Ok(Ok(gpu)) => {
                 let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-                Ok(Engine { gpu: Some((gpu, v)), fallback: backend == BackendArg::Auto, setup_ms: ms(t), cpu_reason: None })
+                Ok(Engine {
+                    gpu: Some((gpu, v)),
+                    fallback: backend == BackendArg::Auto,
+                    setup_ms: ms(t),
+                    cpu_reason: None,
+                })
             }
             Ok(Err(software)) => {
                 let reason = format!("auto: the only adapter, {}, is software", software.name);
@@ -597,86 +586,6 @@ impl Engine {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-/// `meshvox bench`: a markdown table of voxelization times per mesh, resolution and backend on stdout.
-fn bench(args: &BenchArgs) -> Result<()> {
-    let meshes = if args.meshes.is_empty() {
-        let bunny = Path::new("../shared/meshes/stanford-bunny.obj");
-        let mut m = vec!["builtin:rotated-cube".to_string()];
-        m.push(if bunny.exists() { bunny.display().to_string() } else { "builtin:knot".to_string() });
-        m
-    } else {
-        args.meshes.clone()
-    };
-    let loaded: Vec<mesh::Mesh> = meshes.iter().map(|m| mesh::load(m)).collect::<Result<_, _>>()?;
-    println!(
-        "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms (median of {}) | gpu ms | exact tests |",
-        args.runs
-    );
-    println!("|---|---:|---:|---|---|---:|---|---:|---:|---:|");
-    let mut times = std::collections::HashMap::new();
-    for &backend in &args.backends {
-        let engine = match Engine::open(backend) {
-            Ok(e) if backend != BackendArg::Gpu || e.gpu.is_some() => e,
-            Ok(_) => continue,
-            Err(e) => {
-                eprintln!("note: skipping the GPU backend: {e:#}");
-                continue;
-            }
-        };
-        for (name, m) in meshes.iter().zip(&loaded) {
-            for (&r, &mode) in args.resolutions.iter().flat_map(|r| args.modes.iter().map(move |m| (r, m))) {
-                let mode = Mode::from(mode);
-                let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
-                let spec = GridSpec::fit(bounds, Resolution::Count(r), Axis::Longest)?;
-                let mut runs = Vec::new();
-                let mut gpu = Vec::new();
-                let mut last = None;
-                for _ in 0..args.runs.max(1) {
-                    let t = Instant::now();
-                    let out = engine.voxelize(m, spec, mode)?;
-                    runs.push(ms(t));
-                    gpu.extend(out.gpu_ms);
-                    last = Some(out);
-                }
-                let out = last.ok_or_else(|| anyhow!("no runs"))?;
-                let t = median(runs);
-                if mode == Mode::Surface {
-                    times.insert((name.clone(), r, out.backend.clone()), t);
-                }
-                let g = out.grid.spec.dims;
-                let gpu_ms = if gpu.is_empty() { "-".to_string() } else { format!("{:.2}", median(gpu)) };
-                let exact = out.exact_tests.map_or("-".to_string(), |n| n.to_string());
-                println!(
-                    "| {} | {} | {r} | {mode} | {}x{}x{} | {} | {} | {t:.2} | {gpu_ms} | {exact} |",
-                    name.rsplit('/').next().unwrap_or(name),
-                    m.triangles.len(),
-                    g.x,
-                    g.y,
-                    g.z,
-                    out.grid.count(),
-                    out.backend
-                );
-            }
-        }
-    }
-    // The load-balancing target: a 12-triangle cube must not be much slower than a dense mesh.
-    if meshes.len() >= 2 {
-        let mut ratios: Vec<_> = times
-            .iter()
-            .filter(|((name, _, _), _)| name == &meshes[0])
-            .filter_map(|((_, r, backend), t)| {
-                times.get(&(meshes[1].clone(), *r, backend.clone())).map(|other| (backend.clone(), *r, t / other))
-            })
-            .collect();
-        ratios.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
-        println!();
-        for (backend, r, ratio) in ratios {
-            println!("{} / {} at {r} on {backend}: {ratio:.2}x", meshes[0], meshes[1]);
-        }
-    }
-    Ok(())
 }
 
 /// `meshvox render`: voxelize, compact, draw offscreen, write a PNG.

@@ -550,8 +550,10 @@ impl GpuVoxelizer {
                     let part = Slab { buffer: &slab, z0, words };
                     // The unsure count comes back with the compactor's voxel count, so checking costs no readback.
                     let probe = Some(&unsure_count);
-                    let (list, listed) =
-                        self.compactor(gpu).compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe).await?;
+                    let (list, listed) = self
+                        .compactor(gpu)
+                        .compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe)
+                        .await?;
                     if listed.is_some_and(|n| n as u64 > unsure_entries) {
                         return Ok(Attempt::Overflow);
                     }

@@ -44,6 +44,15 @@ pub fn load(name: &str) -> Result<Mesh, MeshError> {
     Ok(mesh)
 }
 
+/// The trefoil knot tube with about `triangles` triangles (rings of 250 sides): the generated dense mesh of
+/// `meshvox bench --suite scale`.
+pub fn dense_knot(triangles: usize) -> Mesh {
+    let sides = 250;
+    let mut mesh = tube(trefoil, 0.3, (triangles / (2 * sides)).max(3), sides);
+    mesh.name = format!("generated knot ({} triangles)", mesh.triangles.len());
+    mesh
+}
+
 /// A point on a trefoil knot, scaled to about the size of the torus.
 fn trefoil(t: f32) -> Vec3 {
     Vec3::new(t.sin() + 2.0 * (2.0 * t).sin(), -(3.0 * t).sin(), t.cos() - 2.0 * (2.0 * t).cos()) * 0.45

@@ -286,3 +286,41 @@ fn a_headless_gpu_run_prints_no_window_system_noise() {
         "stderr should be the summary only:\n{stderr}"
     );
 }
+
+/// `bench --suite seed` writes its results itself: the JSON has a row per case and backend with the paper's
+/// figure beside it, and `--markdown` replaces only its own marked section of an existing file.
+#[test]
+fn bench_seed_suite_writes_json_and_its_markdown_section() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let md = dir.path().join("RESULTS.md");
+    std::fs::write(
+        &md,
+        "# Results\n\nkept above\n\n<!-- bench seed begin -->\nold\n<!-- bench seed end -->\n\nkept below\n",
+    )
+    .expect("write");
+    let json_path = dir.path().join("seed.json");
+    let (json_arg, md_arg) = (json_path.to_string_lossy(), md.to_string_lossy());
+    let args =
+        ["bench", "--suite", "seed", "--backends", "cpu", "--runs", "1", "--out", &json_arg, "--markdown", &md_arg];
+    // From the checkout, where ../shared/meshes is.
+    let out = meshvox(&args, Path::new(env!("CARGO_MANIFEST_DIR")));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json_path).expect("json")).expect("parse");
+    let rows = json["rows"].as_array().expect("rows");
+    // Three meshes at 30, 70 and 150 along x (the shared meshes are required under CI=true).
+    let expected = if Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes").exists() { 9 } else { 3 };
+    assert_eq!(rows.len(), expected, "{json}");
+    for r in rows {
+        assert_eq!(r["dims"][0], r["n"], "{r}");
+        assert!(r["voxels"].as_u64().is_some_and(|v| v > 0) && r["voxelize_ms"].as_f64().is_some_and(|t| t > 0.0));
+        assert!(r["paper_ms"].as_f64().is_some(), "{r}");
+    }
+    let text = std::fs::read_to_string(&md).expect("md");
+    assert!(
+        text.starts_with("# Results\n\nkept above\n\n<!-- bench seed begin -->\nWritten by `meshvox bench"),
+        "{text}"
+    );
+    assert!(text.ends_with("<!-- bench seed end -->\n\nkept below\n") && !text.contains("\nold\n"), "{text}");
+    assert!(text.contains("| builtin:rotated-cube | 12 | 150 | 150x"), "{text}");
+}

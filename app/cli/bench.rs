@@ -1,0 +1,361 @@
+//! `meshvox bench`: voxelization times per mesh, resolution, mode and backend. `--suite seed` reproduces the
+//! original program's Table 1 beside its figures, `--suite scale` runs real meshes and a generated dense one up to
+//! 2048 with peak memory; `--out` and `--markdown` write the results, so `bench/RESULTS.md` is written by the
+//! tool, not pasted.
+
+use super::{BackendArg, Engine, ModeArg, median, ms};
+use anyhow::{Context, Result, anyhow};
+use meshvox::mesh::{self, Mesh, builtin};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// A fixed set of cases.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Suite {
+    /// The original program's Table 1: rotated cube, Suzanne and bunny at 30, 70 and 150 voxels along x.
+    Seed,
+    /// Bunny, Suzanne, teapot, rotated cube and a generated ~1M-triangle knot at 256, 512, 1024 and 2048.
+    Scale,
+}
+
+impl Suite {
+    fn name(self) -> &'static str {
+        match self {
+            Suite::Seed => "seed",
+            Suite::Scale => "scale",
+        }
+    }
+}
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// A fixed suite of cases instead of --meshes and -r.
+    #[arg(long, value_enum)]
+    suite: Option<Suite>,
+    /// Resolutions to run (voxels along the longest axis).
+    #[arg(short = 'r', long = "resolution", value_delimiter = ',', default_values_t = [128, 256, 512])]
+    resolutions: Vec<u32>,
+    /// Meshes to run; by default the rotated cube and the Stanford bunny from ../shared/meshes.
+    #[arg(long, value_delimiter = ',')]
+    meshes: Vec<String>,
+    /// Backends to compare.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
+    backends: Vec<BackendArg>,
+    /// Modes to run.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ModeArg::Surface])]
+    modes: Vec<ModeArg>,
+    /// Runs per case; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Also write the results as JSON (machine, adapter, set-up times and one object per case and backend).
+    #[arg(long, value_name = "FILE.json")]
+    out: Option<PathBuf>,
+    /// Also write the markdown tables into this file: between `<!-- bench SUITE begin -->` and
+    /// `<!-- bench SUITE end -->` where the file has them (the rest of the file is kept), else appended.
+    #[arg(long, value_name = "FILE.md")]
+    markdown: Option<PathBuf>,
+}
+
+/// The original program's Table 1 (AMD HD6850, one thread per triangle): ms at 30, 70 and 150 voxels along x.
+const PAPER: [(&str, [f64; 3]); 3] =
+    [("rotated cube", [15.0, 46.0, 176.0]), ("Suzanne", [20.0, 39.0, 105.0]), ("bunny", [9.0, 185.0, 141.0])];
+
+struct Case {
+    /// Index into the loaded meshes.
+    mesh: usize,
+    n: u32,
+    axis: Axis,
+    mode: Mode,
+    paper_ms: Option<f64>,
+}
+
+#[derive(serde::Serialize)]
+struct Row {
+    mesh: String,
+    triangles: usize,
+    n: u32,
+    axis: String,
+    mode: String,
+    dims: [u32; 3],
+    voxels: u64,
+    backend: String,
+    /// Median host-to-host time.
+    voxelize_ms: f64,
+    runs_ms: Vec<f64>,
+    gpu_ms: Option<f64>,
+    exact_tests: Option<u64>,
+    /// Peak resident memory above what the process held before the case.
+    peak_mib: Option<f64>,
+    paper_ms: Option<f64>,
+}
+
+#[derive(serde::Serialize)]
+struct EngineInfo {
+    backend: String,
+    /// The first `Engine::open` in this process, and a second one right after it.
+    setup_ms_cold: f64,
+    setup_ms_warm: f64,
+}
+
+/// The CPU model, cores and memory, for the results' header.
+fn machine() -> String {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let model = cpuinfo
+        .lines()
+        .find_map(|l| l.strip_prefix("model name").and_then(|r| r.split_once(':')).map(|(_, m)| m.trim().to_string()))
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let memory =
+        meshvox::memory::available().map_or(String::new(), |a| format!(", {} available", meshvox::memory::human(a)));
+    format!("{model}, {cores} cores{memory}")
+}
+
+fn load_meshes(names: &[String]) -> Result<Meshes> {
+    let mut loaded = Vec::new();
+    for name in names {
+        if let Some(count) = name.strip_prefix("generated:knot-") {
+            let triangles: usize = count.parse().with_context(|| format!("{name}: a triangle count"))?;
+            let m = builtin::dense_knot(triangles);
+            loaded.push((m.name.clone(), m));
+            continue;
+        }
+        if !name.starts_with("builtin:") && !Path::new(name).exists() {
+            if std::env::var("CI").as_deref() == Ok("true") {
+                return Err(anyhow!("{name} is missing (CI=true)"));
+            }
+            eprintln!("\n*** SKIPPED {name}: not found (the shared meshes live in ../shared/meshes) ***\n");
+            continue;
+        }
+        let m = mesh::load(name)?;
+        loaded.push((name.rsplit('/').next().unwrap_or(name).to_string(), m));
+    }
+    Ok(loaded)
+}
+
+/// Meshes with their labels.
+type Meshes = Vec<(String, Mesh)>;
+
+fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
+    let shared = |f: &str| format!("../shared/meshes/{f}");
+    let modes: Vec<Mode> = args.modes.iter().map(|&m| Mode::from(m)).collect();
+    match args.suite {
+        Some(Suite::Seed) => {
+            let names = ["builtin:rotated-cube".to_string(), shared("suzanne.obj"), shared("stanford-bunny.obj")];
+            let meshes = load_meshes(&names)?;
+            let mut cases = Vec::new();
+            for (i, (label, _)) in meshes.iter().enumerate() {
+                let paper = PAPER.iter().position(|(p, _)| {
+                    let p = p.to_lowercase();
+                    label.to_lowercase().contains(p.split(' ').next_back().unwrap_or(&p))
+                });
+                for (k, n) in [30, 70, 150].into_iter().enumerate() {
+                    let paper_ms = paper.map(|p| PAPER[p].1[k]);
+                    cases.push(Case { mesh: i, n, axis: Axis::X, mode: Mode::Surface, paper_ms });
+                }
+            }
+            Ok((meshes, cases))
+        }
+        Some(Suite::Scale) => {
+            let names = [
+                shared("stanford-bunny.obj"),
+                shared("suzanne.obj"),
+                shared("teapot.obj"),
+                "builtin:rotated-cube".to_string(),
+                "generated:knot-1000000".to_string(),
+            ];
+            let meshes = load_meshes(&names)?;
+            let cases = (0..meshes.len())
+                .flat_map(|i| [256, 512, 1024, 2048].map(|n| (i, n)))
+                .flat_map(|(i, n)| {
+                    modes.iter().map(move |&mode| Case { mesh: i, n, axis: Axis::Longest, mode, paper_ms: None })
+                })
+                .collect();
+            Ok((meshes, cases))
+        }
+        None => {
+            let names = if args.meshes.is_empty() {
+                vec!["builtin:rotated-cube".to_string(), shared("stanford-bunny.obj")]
+            } else {
+                args.meshes.clone()
+            };
+            let meshes = load_meshes(&names)?;
+            let cases = (0..meshes.len())
+                .flat_map(|i| args.resolutions.iter().map(move |&n| (i, n)))
+                .flat_map(|(i, n)| {
+                    modes.iter().map(move |&mode| Case { mesh: i, n, axis: Axis::Longest, mode, paper_ms: None })
+                })
+                .collect();
+            Ok((meshes, cases))
+        }
+    }
+}
+
+/// `meshvox bench`: a markdown table on stdout, and the files `--out` and `--markdown` ask for.
+pub fn bench(args: &BenchArgs) -> Result<()> {
+    let (meshes, cases) = cases(args)?;
+    let mut rows = Vec::new();
+    let mut engines = Vec::new();
+    for &backend in &args.backends {
+        let t = Instant::now();
+        let engine = match Engine::open(backend) {
+            Ok(e) if backend != BackendArg::Gpu || e.gpu.is_some() => e,
+            Ok(_) => continue,
+            Err(e) => {
+                eprintln!("note: skipping the GPU backend: {e:#}");
+                continue;
+            }
+        };
+        let cold = ms(t);
+        let warm = Engine::open(backend).map(|e| e.setup_ms).unwrap_or(f64::NAN);
+        let mut label = None;
+        for case in &cases {
+            let (name, m) = &meshes[case.mesh];
+            let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
+            let spec = GridSpec::fit(bounds, Resolution::Count(case.n), case.axis)?;
+            let measure_peak = meshvox::memory::reset_peak();
+            let before = meshvox::memory::peak_resident();
+            let mut runs = Vec::new();
+            let mut gpu = Vec::new();
+            let mut last = None;
+            for _ in 0..args.runs.max(1) {
+                // The previous run's grid is dropped first, so the peak is one run's.
+                drop(last.take());
+                let t = Instant::now();
+                let out = engine.voxelize(m, spec, case.mode)?;
+                runs.push(ms(t));
+                gpu.extend(out.gpu_ms);
+                last = Some(out);
+            }
+            let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
+                (true, Some(b), Some(p)) => Some(p.saturating_sub(b) as f64 / (1 << 20) as f64),
+                _ => None,
+            };
+            let out = last.ok_or_else(|| anyhow!("no runs"))?;
+            let d = out.grid.spec.dims;
+            label.get_or_insert_with(|| out.backend.clone());
+            let row = Row {
+                mesh: name.clone(),
+                triangles: m.triangles.len(),
+                n: case.n,
+                axis: format!("{:?}", case.axis).to_lowercase(),
+                mode: case.mode.to_string(),
+                dims: d.to_array(),
+                voxels: out.grid.count(),
+                backend: out.backend.clone(),
+                voxelize_ms: median(runs.clone()),
+                runs_ms: runs,
+                gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+                exact_tests: out.exact_tests,
+                peak_mib: peak,
+                paper_ms: case.paper_ms,
+            };
+            eprintln!("{} @{} {}: {:.2} ms on {}", row.mesh, row.n, row.mode, row.voxelize_ms, row.backend);
+            rows.push(row);
+        }
+        engines.push(EngineInfo {
+            backend: label.unwrap_or_else(|| format!("{backend:?}")),
+            setup_ms_cold: cold,
+            setup_ms_warm: warm,
+        });
+    }
+    let markdown = render(args, &rows, &engines);
+    println!("{markdown}");
+    if let Some(path) = &args.markdown {
+        let suite = args.suite.map_or("custom", Suite::name);
+        write_section(path, &format!("bench {suite}"), &markdown)?;
+    }
+    if let Some(path) = &args.out {
+        let json = serde_json::json!({
+            "suite": args.suite.map(Suite::name),
+            "machine": machine(),
+            "runs": args.runs,
+            "engines": engines,
+            "rows": rows,
+        });
+        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    Ok(())
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// The markdown tables of one bench run.
+fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
+    let mut md = String::new();
+    let command = std::env::args().skip(1).collect::<Vec<_>>().join(" ");
+    md += &format!("Written by `meshvox {command}` on {}.\n\n", machine());
+    md += &format!(
+        "`voxelize ms`: host triangles to host grid (grid-space conversion, upload, all passes, readback), median of \
+         {} runs after set-up; `gpu ms`: compute passes from timestamp queries.\n\n",
+        args.runs.max(1)
+    );
+    md += "| backend | set-up ms (first open in the process) | set-up ms (second open) |\n|---|---:|---:|\n";
+    for e in engines {
+        md += &format!("| {} | {:.1} | {:.1} |\n", e.backend, e.setup_ms_cold, e.setup_ms_warm);
+    }
+    md += "\n";
+    if args.suite == Some(Suite::Seed) {
+        md += "| mesh | triangles | N (along x) | grid | voxels | backend | voxelize ms | gpu ms | original program (HD6850) ms | speed-up |\n";
+        md += "|---|---:|---:|---|---:|---|---:|---:|---:|---:|\n";
+        for r in rows {
+            let speedup = r.paper_ms.map(|p| p / r.voxelize_ms);
+            md += &format!(
+                "| {} | {} | {} | {}x{}x{} | {} | {} | {:.2} | {} | {} | {} |\n",
+                r.mesh,
+                r.triangles,
+                r.n,
+                r.dims[0],
+                r.dims[1],
+                r.dims[2],
+                r.voxels,
+                r.backend,
+                r.voxelize_ms,
+                opt(r.gpu_ms, 2),
+                opt(r.paper_ms, 0),
+                speedup.map_or("-".to_string(), |s| if s < 10.0 { format!("{s:.1}x") } else { format!("{s:.0}x") }),
+            );
+        }
+        md += "\nThe original program's bunny had 4,968 triangles; ours has 69,451.\n";
+    } else {
+        md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | ns per voxel | peak MiB | exact tests |\n";
+        md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|\n";
+        for r in rows {
+            md += &format!(
+                "| {} | {} | {} | {} | {}x{}x{} | {} | {} | {:.2} | {} | {:.1} | {} | {} |\n",
+                r.mesh,
+                r.triangles,
+                r.n,
+                r.mode,
+                r.dims[0],
+                r.dims[1],
+                r.dims[2],
+                r.voxels,
+                r.backend,
+                r.voxelize_ms,
+                opt(r.gpu_ms, 2),
+                r.voxelize_ms * 1e6 / r.voxels.max(1) as f64,
+                opt(r.peak_mib, 0),
+                r.exact_tests.map_or("-".to_string(), |n| n.to_string()),
+            );
+        }
+    }
+    md
+}
+
+/// Replaces the text between `<!-- NAME begin -->` and `<!-- NAME end -->` in `path` with `body`, or appends the
+/// marked section (creating the file) where there are no such markers.
+fn write_section(path: &Path, name: &str, body: &str) -> Result<()> {
+    let (begin, end) = (format!("<!-- {name} begin -->"), format!("<!-- {name} end -->"));
+    let section = format!("{begin}\n{body}\n{end}");
+    let old = std::fs::read_to_string(path).unwrap_or_default();
+    let new = match (old.find(&begin), old.find(&end)) {
+        (Some(b), Some(e)) if b < e => format!("{}{section}{}", &old[..b], &old[e + end.len()..]),
+        _ if old.is_empty() => section + "\n",
+        _ => format!("{}\n\n{section}\n", old.trim_end()),
+    };
+    std::fs::write(path, new).with_context(|| format!("{}: cannot write", path.display()))
+}
