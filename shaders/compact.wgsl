@@ -109,8 +109,11 @@ fn write_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation
     let x0 = (i % params.words_per_row) * 32u;
     while bits != 0u {
         let b = firstTrailingBit(bits);
-        points[2u * at] = (x0 + b) | (y << 16u);
-        points[2u * at + 1u] = z;
+        // A presized list may be too short (the host then compacts again at the exact size): no write past it.
+        if 2u * at + 1u < arrayLength(&points) {
+            points[2u * at] = (x0 + b) | (y << 16u);
+            points[2u * at + 1u] = z;
+        }
         at += 1u;
         bits &= bits - 1u;
     }

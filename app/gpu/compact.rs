@@ -78,6 +78,84 @@ impl Compactor {
         }
     }
 
+    /// The uniform of a compaction of `slab` and its dispatch size.
+    fn prepare(gpu: &Gpu, slab: &Slab<'_>, spec: GridSpec, surface_only: bool) -> (wgpu::Buffer, (u32, u32)) {
+        let words = slab.words;
+        let params = CompactParams {
+            dims: spec.dims.to_array(),
+            words_per_row: spec.words_per_row() as u32,
+            slab_z0: slab.z0,
+            word_count: words as u32,
+            base: 0,
+            surface_only: surface_only as u32,
+            layers: (words / (spec.words_per_row() as u64 * spec.dims.y as u64)) as u32,
+            _pad: [0; 3],
+        };
+        let uniform = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("compact params"),
+            size: std::mem::size_of::<CompactParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        gpu.queue.write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
+        (uniform, dispatch_2d((words as u32).div_ceil(256)))
+    }
+
+    /// Submits one compaction pass (`count` or `write`) over `slab`.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &self,
+        gpu: &Gpu,
+        slab: &wgpu::Buffer,
+        pipeline: &wgpu::ComputePipeline,
+        (points, counters, uniform): (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+        (x, y): (u32, u32),
+        timer: Option<&mut PassTimer>,
+    ) {
+        let device = &gpu.device;
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("compact"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: slab.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: counters.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: points.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("compact"),
+                timestamp_writes: timer.and_then(|t| t.next_pass()),
+            });
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+    }
+
+    /// Compacts a slab into a list presized for `capacity` entries, in one submission and without reading
+    /// anything back: the caller reads word 1 of the returned counters (the write pass's cursor: the number of voxels, which may
+    /// exceed `capacity`; then the list is incomplete and must be made again with [`Compactor::compact`])
+    /// together with whatever else it reads.
+    pub(crate) fn compact_presized(
+        &self,
+        gpu: &Gpu,
+        slab: Slab<'_>,
+        spec: GridSpec,
+        surface_only: bool,
+        timer: Option<&mut PassTimer>,
+        capacity: u64,
+    ) -> (wgpu::Buffer, wgpu::Buffer) {
+        let (uniform, groups) = Self::prepare(gpu, &slab, spec, surface_only);
+        let counters = compact_buffer(&gpu.device, "compact counters", 8);
+        let points = compact_buffer(&gpu.device, "voxel list", capacity * 8);
+        self.run(gpu, slab.buffer, &self.write, (&points, &counters, &uniform), groups, timer);
+        (points, counters)
+    }
+
     /// Compacts a slab of a grid laid out as `spec`; with `surface_only`, voxels enclosed on all six sides are
     /// left out. The first word of `probe`, if given, comes back with the voxel count in the same readback.
     pub(crate) async fn compact(
@@ -89,69 +167,16 @@ impl Compactor {
         mut timer: Option<&mut PassTimer>,
         probe: Option<&wgpu::Buffer>,
     ) -> Result<(CompactVoxels, Option<u32>), GpuError> {
-        let Slab { buffer: slab, z0, words } = slab;
         let device = &gpu.device;
-        let params = CompactParams {
-            dims: spec.dims.to_array(),
-            words_per_row: spec.words_per_row() as u32,
-            slab_z0: z0,
-            word_count: words as u32,
-            base: 0,
-            surface_only: surface_only as u32,
-            layers: (words / (spec.words_per_row() as u64 * spec.dims.y as u64)) as u32,
-            _pad: [0; 3],
-        };
-        let (x, y) = dispatch_2d((words as u32).div_ceil(256));
-        let run = |pipeline: &wgpu::ComputePipeline,
-                   points: &wgpu::Buffer,
-                   counters: &wgpu::Buffer,
-                   uniform: &wgpu::Buffer,
-                   timer: Option<&mut PassTimer>| {
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("compact"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: slab.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 2, resource: counters.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 3, resource: points.as_entire_binding() },
-                ],
-            });
-            let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("compact"),
-                    timestamp_writes: timer.and_then(|t| t.next_pass()),
-                });
-                pass.set_bind_group(0, &bind, &[]);
-                pass.set_pipeline(pipeline);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-        };
-        let buffer = |label: &str, size: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(8),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let (uniform, counters, placeholder) = scoped(device, || {
-            let uniform = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("compact params"),
-                size: std::mem::size_of::<CompactParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            gpu.queue.write_buffer(&uniform, 0, bytemuck::bytes_of(&params));
-            let counters = buffer("compact counters", 8);
-            let placeholder = buffer("no points yet", 8);
-            run(&self.count, &placeholder, &counters, &uniform, timer.as_deref_mut());
-            Ok((uniform, counters, placeholder))
+        let (uniform, counters, groups) = scoped(device, || {
+            let (uniform, groups) = Self::prepare(gpu, &slab, spec, surface_only);
+            let counters = compact_buffer(device, "compact counters", 8);
+            let placeholder = compact_buffer(device, "no points yet", 8);
+            let buffers = (&placeholder, &counters, &uniform);
+            self.run(gpu, slab.buffer, &self.count, buffers, groups, timer.as_deref_mut());
+            Ok((uniform, counters, groups))
         })
         .await?;
-        drop(placeholder);
         let mut ranges = vec![(&counters, 0, 4)];
         ranges.extend(probe.map(|b| (b, 0, 4)));
         let read = read_buffers(device, &gpu.queue, &ranges).await?;
@@ -166,8 +191,8 @@ impl Compactor {
             });
         }
         let points = scoped(device, || {
-            let points = buffer("voxel list", bytes);
-            run(&self.write, &points, &counters, &uniform, timer);
+            let points = compact_buffer(device, "voxel list", bytes);
+            self.run(gpu, slab.buffer, &self.write, (&points, &counters, &uniform), groups, timer);
             Ok(points)
         })
         .await?;
@@ -202,4 +227,14 @@ impl Compactor {
         })
         .await
     }
+}
+
+/// A storage buffer the compaction passes write and the host may copy from.
+fn compact_buffer(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(8),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }

@@ -60,6 +60,10 @@ pub struct Options {
     pub max_unsure: Option<u64>,
     /// Surface, solid or thin surface.
     pub mode: Mode,
+    /// With `compact`, in one slab and batch: presize the voxel list for this many entries (clamped to the grid)
+    /// and read its length back with the grid and the timings, so a voxelization maps once. If more voxels
+    /// are listed, it is compacted again at its exact size (a second readback).
+    pub list_capacity: Option<u64>,
 }
 
 /// What a GPU voxelization produced.
@@ -374,6 +378,8 @@ impl GpuVoxelizer {
         let mut gpu_ms = 0.0;
         let mut exact_tests = None;
         let mut points: Vec<CompactVoxels> = Vec::new();
+        // The presized list and its counters (see `Options::list_capacity`) until its length comes back.
+        let mut presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)> = None;
         let mut solid_run: Option<SolidRun> = None;
         let (walk, exact) = if options.mode == Mode::Surface6 {
             let (w, e) = self.thin.get_or_init(|| {
@@ -548,16 +554,31 @@ impl GpuVoxelizer {
                         gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
                     }
                     let part = Slab { buffer: &slab, z0, words };
-                    // The unsure count comes back with the compactor's voxel count, so checking costs no readback.
-                    let probe = Some(&unsure_count);
-                    let (list, listed) = self
-                        .compactor(gpu)
-                        .compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe)
-                        .await?;
-                    if listed.is_some_and(|n| n as u64 > unsure_entries) {
-                        return Ok(Attempt::Overflow);
+                    let single = slabs == 1 && batches == 1;
+                    if let Some(capacity) = options.list_capacity.filter(|_| single) {
+                        let capacity = capacity.min(spec.voxel_count()).min(gpu.max_binding_bytes() / 8).max(1);
+                        let (list, counters) = self.compactor(gpu).compact_presized(
+                            gpu,
+                            part,
+                            spec,
+                            options.surface_only,
+                            timer.as_mut(),
+                            capacity,
+                        );
+                        presized = Some((list, counters, capacity));
+                    } else {
+                        // The unsure count comes back with the compactor's voxel count, so checking costs no
+                        // readback.
+                        let probe = Some(&unsure_count);
+                        let (list, listed) = self
+                            .compactor(gpu)
+                            .compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe)
+                            .await?;
+                        if listed.is_some_and(|n| n as u64 > unsure_entries) {
+                            return Ok(Attempt::Overflow);
+                        }
+                        points.push(list);
                     }
-                    points.push(list);
                 }
                 // The slab and this slab's pass times come back in one read.
                 let mut encoder = device.create_command_encoder(&Default::default());
@@ -566,7 +587,13 @@ impl GpuVoxelizer {
                 let mut ranges = Vec::new();
                 if grid.is_some() {
                     ranges.push((&slab, 0, words * 4));
+                }
+                if grid.is_some() || presized.is_some() {
                     ranges.push((&unsure_count, 0, 4));
+                }
+                if let Some((_, counters, _)) = &presized {
+                    // Word 1: the write pass's cursor, which counts every listed voxel.
+                    ranges.push((counters, 4, 4));
                 }
                 if let Some(t) = timer.as_ref().filter(|_| timed > 0) {
                     ranges.push((t.resolved(), 0, timed));
@@ -574,13 +601,29 @@ impl GpuVoxelizer {
                 let parts =
                     if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
                 let mut parts = parts.into_iter();
-                if let Some(host) = grid.as_mut() {
-                    let bytes = parts.next().unwrap_or_default();
-                    let count = parts.next().unwrap_or_default();
-                    let listed = first_word(&count).unwrap_or(0);
-                    if listed as u64 > unsure_entries {
-                        return Ok(Attempt::Overflow);
+                let bytes = if grid.is_some() { parts.next() } else { None };
+                let listed = if grid.is_some() || presized.is_some() {
+                    first_word(&parts.next().unwrap_or_default()).unwrap_or(0)
+                } else {
+                    0
+                };
+                if listed as u64 > unsure_entries {
+                    return Ok(Attempt::Overflow);
+                }
+                if let Some((list, counters, capacity)) = presized.take() {
+                    let count = first_word(&parts.next().unwrap_or_default()).unwrap_or(0);
+                    if count as u64 <= capacity {
+                        points.push(CompactVoxels { buffer: list, count });
+                    } else {
+                        drop((list, counters));
+                        let part = Slab { buffer: &slab, z0, words };
+                        let (list, _) =
+                            self.compactor(gpu).compact(gpu, part, spec, options.surface_only, None, None).await?;
+                        points.push(list);
                     }
+                }
+                if let Some(host) = grid.as_mut() {
+                    let bytes = bytes.unwrap_or_default();
                     *exact_tests.get_or_insert(0) += listed as u64;
                     let start = wpr as usize * spec.dims.y as usize * z0 as usize;
                     let dst = &mut host.words[start..start + words as usize];

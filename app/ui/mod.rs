@@ -264,8 +264,17 @@ impl ViewerApp {
             let (mode, mesh) = (self.mode, mesh.clone());
             let colourer = self.colourer.clone();
             async move {
-                let options =
-                    Options { read_grid: true, compact: true, surface_only: true, mode, ..Default::default() };
+                // Presized so that a voxelization maps once (the visible voxels of a surface at N voxels along
+                // its longest axis are a few N²; more than this compacts again at the exact size).
+                let n = u64::from(spec.dims.max_element());
+                let options = Options {
+                    read_grid: true,
+                    compact: true,
+                    surface_only: true,
+                    mode,
+                    list_capacity: Some(12 * n * n),
+                    ..Default::default()
+                };
                 let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
                     Ok(out) => match (out.points, out.grid) {
                         (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms, None)),
@@ -467,10 +476,9 @@ impl ViewerApp {
         ui.separator();
 
         if self.pending.is_some() {
-            ui.horizontal(|ui| {
-                ui.spinner();
-                ui.label("voxelizing…");
-            });
+            // No spinner: it repaints every frame, and on a software adapter (SwiftShader) those frames queue
+            // ahead of the voxelization's readback on the one GPU queue, delaying the result by up to a second.
+            ui.label("voxelizing…");
         }
         if let Some(s) = &self.stats {
             egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {

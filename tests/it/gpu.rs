@@ -221,18 +221,23 @@ fn compaction_lists_exactly_the_set_voxels() {
         let mesh = meshvox::mesh::load(name).expect("mesh");
         let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("grid");
         let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
-        let out =
-            v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..Default::default() }).expect("gpu");
-        let g = out.grid.expect("grid");
-        let list = out.points.expect("points");
-        assert_eq!(list.count as u64, g.count(), "{name}");
-        let mut points: Vec<[u32; 3]> = list.read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
-        points.sort();
-        let mut expected: Vec<[u32; 3]> = g.iter_set().map(|p| p.to_array()).collect();
-        expected.sort();
-        assert_eq!(points, expected, "{name}");
-        if gpu.timestamps {
-            assert!(out.gpu_ms.is_some_and(|ms| ms > 0.0), "{name}: timestamps supported but no gpu_ms");
+        // Sized by a count readback (None); presized with room to spare, read back with the grid in one map; and
+        // presized too short (10 entries), which must compact again at the exact size.
+        for capacity in [None, Some(1 << 22), Some(10)] {
+            let what = format!("{name}, list capacity {capacity:?}");
+            let options = Options { read_grid: true, compact: true, list_capacity: capacity, ..Default::default() };
+            let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
+            let g = out.grid.expect("grid");
+            let list = out.points.expect("points");
+            assert_eq!(list.count as u64, g.count(), "{what}");
+            let mut points: Vec<[u32; 3]> = list.read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+            points.sort();
+            let mut expected: Vec<[u32; 3]> = g.iter_set().map(|p| p.to_array()).collect();
+            expected.sort();
+            assert_eq!(points, expected, "{what}");
+            if gpu.timestamps {
+                assert!(out.gpu_ms.is_some_and(|ms| ms > 0.0), "{what}: timestamps supported but no gpu_ms");
+            }
         }
     }
 }
