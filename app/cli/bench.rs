@@ -90,6 +90,15 @@ struct Row {
     paper_ms: Option<f64>,
 }
 
+impl Row {
+    /// The first table cells: mesh, triangles, N, the mode where asked, grid and voxels.
+    fn head(&self, mode: bool) -> String {
+        let [x, y, z] = self.dims;
+        let mode = if mode { format!(" | {}", self.mode) } else { String::new() };
+        format!("{} | {} | {}{mode} | {x}x{y}x{z} | {}", self.mesh, self.triangles, self.n, self.voxels)
+    }
+}
+
 #[derive(serde::Serialize)]
 struct EngineInfo {
     backend: String,
@@ -304,14 +313,8 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
         for r in rows {
             let speedup = r.paper_ms.map(|p| p / r.voxelize_ms);
             md += &format!(
-                "| {} | {} | {} | {}x{}x{} | {} | {} | {:.2} | {} | {} | {} |\n",
-                r.mesh,
-                r.triangles,
-                r.n,
-                r.dims[0],
-                r.dims[1],
-                r.dims[2],
-                r.voxels,
+                "| {} | {} | {:.2} | {} | {} | {} |\n",
+                r.head(false),
                 r.backend,
                 r.voxelize_ms,
                 opt(r.gpu_ms, 2),
@@ -325,15 +328,8 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
         md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|\n";
         for r in rows {
             md += &format!(
-                "| {} | {} | {} | {} | {}x{}x{} | {} | {} | {:.2} | {} | {:.1} | {} | {} |\n",
-                r.mesh,
-                r.triangles,
-                r.n,
-                r.mode,
-                r.dims[0],
-                r.dims[1],
-                r.dims[2],
-                r.voxels,
+                "| {} | {} | {:.2} | {} | {:.1} | {} | {} |\n",
+                r.head(true),
                 r.backend,
                 r.voxelize_ms,
                 opt(r.gpu_ms, 2),
@@ -341,6 +337,20 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
                 opt(r.peak_mib, 0),
                 r.exact_tests.map_or("-".to_string(), |n| n.to_string()),
             );
+        }
+        // The load-balancing figure (issue 3): the first mesh's time over the second's at the same resolution,
+        // mode and backend; the original program's one thread per triangle made the 12-triangle cube the slower.
+        let first = rows.first().map(|r| r.mesh.clone());
+        let mut ratios = String::new();
+        for a in rows.iter().filter(|r| Some(&r.mesh) == first.as_ref()) {
+            let same = |b: &&Row| b.mesh != a.mesh && b.n == a.n && b.mode == a.mode && b.backend == a.backend;
+            if let Some(b) = rows.iter().find(same) {
+                let ratio = a.voxelize_ms / b.voxelize_ms;
+                ratios += &format!("- {} / {} at {} ({}) on {}: {ratio:.2}x\n", a.mesh, b.mesh, a.n, a.mode, a.backend);
+            }
+        }
+        if !ratios.is_empty() {
+            md += &format!("\n{ratios}");
         }
     }
     md
