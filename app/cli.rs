@@ -2,6 +2,7 @@
 //! line naming the file and the problem, with a non-zero exit status; output files are written to a temporary
 //! file beside the target and renamed into place, so a failure never leaves half a file behind.
 
+mod batch;
 mod bench;
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -39,10 +40,12 @@ enum Command {
     Bench(BenchArgs),
     /// Voxelize a mesh and render the voxels to a PNG, without a window.
     Render(RenderArgs),
+    /// Voxelize many meshes (files, directories, glob patterns) with one engine, outputs mirroring the inputs.
+    Batch(batch::BatchArgs),
 }
 
 /// Limits on what one request may take, shared by the commands that load and voxelize a mesh.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 struct LimitArgs {
     /// Refuse meshes with more triangles than this (counted before the file is parsed).
     #[arg(long, value_name = "N", default_value_t = mesh::LoadLimits::DEFAULT_MAX_TRIANGLES)]
@@ -53,7 +56,7 @@ struct LimitArgs {
 }
 
 /// Voxel colours from the mesh's materials, shared by the commands that voxelize.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 struct ColourArgs {
     /// Colour the voxels from the mesh's materials, textures and vertex colours: the colour of the surface point
     /// nearest each voxel's centre (default: on when the mesh has any colour).
@@ -176,7 +179,7 @@ struct ViewArgs {
     resolution: u32,
 }
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 #[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
 struct VoxelizeArgs {
     /// Mesh file (.obj, .gltf, .glb) or builtin:NAME (see `meshvox builtins`).
@@ -271,6 +274,11 @@ pub fn main() -> ExitCode {
         Some(Command::View(args)) => view(&args),
         Some(Command::Voxelize(args)) => voxelize(&args),
         Some(Command::Bench(args)) => bench::bench(&args),
+        // Its own exit status: some files may have failed while the run as a whole went through.
+        Some(Command::Batch(args)) => match batch::batch(&args) {
+            Ok(code) => return code,
+            Err(e) => Err(e),
+        },
         Some(Command::Render(args)) => render(&args),
         Some(Command::Builtins) => {
             for name in builtin::NAMES {
@@ -312,6 +320,38 @@ fn ms(since: Instant) -> f64 {
 }
 
 fn voxelize(args: &VoxelizeArgs) -> Result<()> {
+    let format = output_format(args)?;
+    // An unwritable destination should fail before the mesh is even read.
+    drop(temp_beside(&args.output)?);
+    let t_load = Instant::now();
+    let mesh = args.limits.load(&args.mesh)?;
+    let load_ms = ms(t_load);
+    let engine = Engine::open(args.backend)?;
+    let stats = voxelize_loaded(args, format, &engine, &mesh, load_ms)?;
+    let d = &stats["dims"];
+    eprintln!(
+        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
+        args.mesh,
+        mesh.triangles.len(),
+        d[0],
+        d[1],
+        d[2],
+        stats["voxel_size"].as_f64().unwrap_or_default(),
+        stats["voxels"],
+        Mode::from(args.mode),
+        stats["voxelize_ms"].as_f64().unwrap_or_default(),
+        stats["backend"].as_str().unwrap_or_default(),
+        args.output.display(),
+        stats["bytes"],
+    );
+    if args.stats_json {
+        println!("{stats}");
+    }
+    Ok(())
+}
+
+/// The output format `-o` names, checked against `--merge`.
+fn output_format(args: &VoxelizeArgs) -> Result<VoxelFormat> {
     let format = VoxelFormat::from_extension(&args.output).ok_or_else(|| {
         anyhow!(
             "{}: unknown output format (use a .npy, .binvox or .vox extension, or .glb, .ply or .obj for a mesh)",
@@ -321,29 +361,36 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     if args.merge && !matches!(format, VoxelFormat::Mesh(_)) {
         bail!("--merge joins the faces of a mesh output: use a .glb, .ply or .obj file");
     }
+    Ok(format)
+}
+
+/// Voxelizes a loaded mesh as `args` ask, on `engine`, and writes the output atomically; returns the
+/// `--stats-json` object. Shared by `voxelize` and `batch`, so both write the same bytes.
+fn voxelize_loaded(
+    args: &VoxelizeArgs,
+    format: VoxelFormat,
+    engine: &Engine,
+    mesh: &mesh::Mesh,
+    load_ms: f64,
+) -> Result<serde_json::Value> {
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
-
-    let t_load = Instant::now();
-    let mesh = args.limits.load(&args.mesh)?;
-    let load_ms = ms(t_load);
     let resolution = match (args.resolution, args.voxel_size) {
         (Some(n), _) => Resolution::Count(n),
         (None, Some(h)) => Resolution::VoxelSize(h),
         (None, None) => bail!("give -r N or --voxel-size H"),
     };
-    let spec = args.limits.grid(&args.mesh, &mesh, resolution, args.axis.into(), Some(format))?;
+    let spec = args.limits.grid(&args.mesh, mesh, resolution, args.axis.into(), Some(format))?;
 
-    let engine = Engine::open(args.backend)?;
     let t_vox = Instant::now();
     let mode = Mode::from(args.mode);
-    let result = engine.voxelize(&mesh, spec, mode)?;
+    let result = engine.voxelize(mesh, spec, mode)?;
     let voxelize_ms = ms(t_vox);
     let grid = result.grid;
     let voxels = grid.count();
     let t_colour = Instant::now();
-    let colours = match args.colour.wanted(&args.mesh, &mesh) {
-        true => Some(engine.colour(&mesh, &grid)?),
+    let colours = match args.colour.wanted(&args.mesh, mesh) {
+        true => Some(engine.colour(mesh, &grid)?),
         false => None,
     };
     let colour_ms = colours.as_ref().map(|_| ms(t_colour));
@@ -364,49 +411,31 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         Ok(voxel::export::write_coloured(&grid, colours.as_ref().map(|c| &c.0), format, args.merge, out)?)
     })?;
     let write_ms = ms(t_write);
-
     let d = spec.dims;
-    let backend = result.backend;
-    eprintln!(
-        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({mode}) in {voxelize_ms:.1} ms on {backend}; wrote {} ({} bytes)",
-        args.mesh,
-        mesh.triangles.len(),
-        d.x,
-        d.y,
-        d.z,
-        spec.voxel_size,
-        voxels,
-        args.output.display(),
-        bytes,
-    );
-    if args.stats_json {
-        let stats = serde_json::json!({
-            "mesh": args.mesh,
-            "triangles": mesh.triangles.len(),
-            "dims": [d.x, d.y, d.z],
-            "origin": [spec.origin.x, spec.origin.y, spec.origin.z],
-            "voxel_size": spec.voxel_size,
-            "voxels": voxels,
-            "mode": mode.name(),
-            "backend": backend,
-            "threads": rayon::current_num_threads(),
-            "gpu_ms": result.gpu_ms,
-            "exact_tests": result.exact_tests,
-            "setup_ms": engine.setup_ms,
-            "output": args.output.display().to_string(),
-            "format": format.extension(),
-            "colour": colours.as_ref().map(|(_, backend)| backend),
-            "colour_ms": colour_ms,
-            "colours_output": colours_file.as_ref().map(|p| p.display().to_string()),
-            "bytes": bytes,
-            "warnings": mesh.warnings,
-            "load_ms": load_ms,
-            "voxelize_ms": voxelize_ms,
-            "write_ms": write_ms,
-        });
-        println!("{stats}");
-    }
-    Ok(())
+    Ok(serde_json::json!({
+        "mesh": args.mesh,
+        "triangles": mesh.triangles.len(),
+        "dims": [d.x, d.y, d.z],
+        "origin": [spec.origin.x, spec.origin.y, spec.origin.z],
+        "voxel_size": spec.voxel_size,
+        "voxels": voxels,
+        "mode": mode.name(),
+        "backend": result.backend,
+        "threads": rayon::current_num_threads(),
+        "gpu_ms": result.gpu_ms,
+        "exact_tests": result.exact_tests,
+        "setup_ms": engine.setup_ms,
+        "output": args.output.display().to_string(),
+        "format": format.extension(),
+        "colour": colours.as_ref().map(|(_, backend)| backend),
+        "colour_ms": colour_ms,
+        "colours_output": colours_file.as_ref().map(|p| p.display().to_string()),
+        "bytes": bytes,
+        "warnings": mesh.warnings,
+        "load_ms": load_ms,
+        "voxelize_ms": voxelize_ms,
+        "write_ms": write_ms,
+    }))
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).
@@ -519,6 +548,15 @@ impl Engine {
     }
 
     /// Host triangles to host grid, including the upload and readback on the GPU.
+    /// Where voxelizations run, as `backend` says it.
+    fn label(&self) -> String {
+        match (&self.gpu, &self.cpu_reason) {
+            (Some((gpu, _)), _) => format!("gpu: {}", gpu.summary),
+            (None, Some(reason)) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
+            (None, None) => format!("cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
     fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec, mode: Mode) -> Result<EngineResult> {
         let cpu_label = || match &self.cpu_reason {
             Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),

@@ -324,3 +324,91 @@ fn bench_seed_suite_writes_json_and_its_markdown_section() {
     assert!(text.ends_with("<!-- bench seed end -->\n\nkept below\n") && !text.contains("\nold\n"), "{text}");
     assert!(text.contains("| builtin:rotated-cube | 12 | 150 | 150x"), "{text}");
 }
+
+/// `meshvox batch` over a folder like a user's dataset: two `model.obj` in different folders, a file named
+/// directly, a broken file. Each good file's output equals `meshvox voxelize`'s byte for byte, the broken one is
+/// named on stderr and in the manifest with a non-zero exit, shards partition the list, and `--skip-existing`
+/// finishes an interrupted run.
+#[test]
+fn batch_mirrors_paths_matches_voxelize_reports_failures_shards_and_resumes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path();
+    let input = root.join("in");
+    std::fs::create_dir_all(input.join("a")).expect("mkdir");
+    std::fs::create_dir_all(input.join("b/c")).expect("mkdir");
+    let cube =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/rotated-cube.obj")).expect("cube");
+    // A decimal tetrahedron away from the origin, as exported files are.
+    let tetra =
+        "v 10.1 -3.3 7.7\nv 11.25 -3.3 7.7\nv 10.1 -2.05 7.7\nv 10.1 -3.3 8.93\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    std::fs::write(input.join("a/model.obj"), &cube).expect("write");
+    std::fs::write(input.join("b/model.obj"), tetra).expect("write");
+    std::fs::write(input.join("b/c/broken.obj"), "v 0 0 0\nf 1 2 3\n").expect("write");
+    std::fs::write(input.join("notes.txt"), "not a mesh").expect("write");
+    let single = root.join("single.obj");
+    std::fs::write(&single, tetra).expect("write");
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    let run = |extra: &[&str], out: &str| {
+        let mut args =
+            vec!["batch".to_string(), s(&input), s(&single), "-o".into(), out.into(), "-r".into(), "23".into()];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        meshvox(&args, root)
+    };
+    let manifest = |path: &Path| -> Vec<Value> {
+        std::fs::read_to_string(path)
+            .expect("manifest")
+            .lines()
+            .map(|l| serde_json::from_str(l).expect("json"))
+            .collect()
+    };
+
+    let out = run(&["--manifest", "all.jsonl", "--format", "binvox"], "out");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().filter(|l| l.starts_with("error: ")).count(), 1, "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("error: ") && l.contains("broken.obj")), "{stderr}");
+    assert!(stderr.contains("4 files: 3 done, 0 skipped, 1 failed"), "{stderr}");
+    for (source, output) in [
+        (input.join("a/model.obj"), "out/a/model.binvox"),
+        (input.join("b/model.obj"), "out/b/model.binvox"),
+        (single.clone(), "out/single.binvox"),
+    ] {
+        let reference = root.join("reference.binvox");
+        let one = meshvox(&["voxelize", &s(&source), "-r", "23", "-o", &s(&reference)], root);
+        assert!(one.status.success());
+        let ours = std::fs::read(root.join(output)).expect(output);
+        assert!(ours == std::fs::read(&reference).expect("reference"), "{output} differs from voxelize's");
+    }
+    assert!(!root.join("out/b/c/broken.binvox").exists() && !root.join("out/notes.binvox").exists());
+    let lines = manifest(&root.join("all.jsonl"));
+    assert_eq!(lines.len(), 4);
+    let failed: Vec<&Value> = lines.iter().filter(|l| l["status"] == "failed").collect();
+    assert_eq!(failed.len(), 1);
+    assert!(failed[0]["error"].as_str().is_some_and(|e| e.contains("line 2")), "{}", failed[0]);
+    assert!(lines.iter().filter(|l| l["status"] == "done").all(|l| l["voxels"].as_u64().is_some_and(|v| v > 0)));
+
+    // Shards: disjoint, and together every input, for several N.
+    let all: std::collections::BTreeSet<String> =
+        lines.iter().map(|l| l["mesh"].as_str().unwrap_or("").to_string()).collect();
+    for n in 1..=5 {
+        let mut union = std::collections::BTreeSet::new();
+        for i in 0..n {
+            let name = format!("shard-{i}-{n}.jsonl");
+            let _ = run(&["--shard", &format!("{i}/{n}"), "--manifest", &name], &format!("shards-{n}"));
+            for l in manifest(&root.join(&name)) {
+                assert!(union.insert(l["mesh"].as_str().unwrap_or("").to_string()), "{l} in two shards of {n}");
+            }
+        }
+        assert_eq!(union, all, "shards of {n}");
+    }
+
+    // An interrupted run: one output missing (and a temporary file left behind); --skip-existing does the rest.
+    std::fs::remove_file(root.join("out/b/model.binvox")).expect("remove");
+    let out = run(&["--format", "binvox", "--skip-existing", "--manifest", "resume.jsonl"], "out");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("4 files: 1 done, 2 skipped, 1 failed"), "{stderr}");
+    assert!(root.join("out/b/model.binvox").exists());
+    let resumed = manifest(&root.join("resume.jsonl"));
+    assert_eq!(resumed.iter().filter(|l| l["status"] == "skipped").count(), 2);
+}

@@ -1,0 +1,283 @@
+//! `meshvox batch`: a dataset of meshes voxelized with one engine (adapter, device, pipelines) for the whole run,
+//! meshes parsed on worker threads ahead of the voxelization, outputs mirroring the inputs' paths, a
+//! deterministic `--shard I/N` slice for cluster job arrays, `--skip-existing` to resume and a JSONL manifest.
+
+use super::{BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, output_format, voxelize_loaded};
+use anyhow::{Context, Result, anyhow, bail};
+use meshvox::voxel::export::VoxelFormat;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// The mesh formats a directory is searched for.
+const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb", "stl", "ply"];
+
+#[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
+pub struct BatchArgs {
+    /// Mesh files, directories (searched recursively for .obj, .gltf, .glb, .stl and .ply) or glob patterns.
+    #[arg(value_name = "INPUTS", required = true)]
+    inputs: Vec<String>,
+    /// Output directory: a file found under a directory argument DIR goes to OUTDIR/<its path relative to DIR>,
+    /// a file named directly to OUTDIR/<its name>, with the format's extension.
+    #[arg(short = 'o', long = "output", value_name = "OUTDIR")]
+    output: PathBuf,
+    /// Number of voxels along the axis chosen by --axis.
+    #[arg(short = 'r', long = "resolution", value_name = "N")]
+    resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units, instead of -r.
+    #[arg(long = "voxel-size", value_name = "H")]
+    voxel_size: Option<f64>,
+    /// Axis along which -r counts voxels.
+    #[arg(long, value_enum, default_value_t = super::AxisArg::Longest)]
+    axis: super::AxisArg,
+    /// Output format (the extension of every output file).
+    #[arg(long, value_name = "FORMAT", default_value = "npy", value_parser = ["npy", "binvox", "vox", "glb", "ply", "obj"])]
+    format: String,
+    /// For mesh outputs, join coplanar faces of the same colour into rectangles.
+    #[arg(long)]
+    merge: bool,
+    /// What to voxelize.
+    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
+    mode: ModeArg,
+    /// Where to voxelize (one engine for the whole run).
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    backend: BackendArg,
+    /// Threads parsing meshes ahead of the voxelization (default: the number of cores).
+    #[arg(long, value_name = "J")]
+    jobs: Option<usize>,
+    /// Only the I-th of N deterministic slices of the sorted input list (0 <= I < N), for job arrays.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    shard: Option<(usize, usize)>,
+    /// Skip inputs whose output already exists (outputs are renamed into place only when complete).
+    #[arg(long)]
+    skip_existing: bool,
+    /// Write one JSON line per input: the `--stats-json` keys plus `status` (done, skipped, failed) and `error`.
+    #[arg(long, value_name = "FILE.jsonl")]
+    manifest: Option<PathBuf>,
+    #[command(flatten)]
+    colour: ColourArgs,
+    #[command(flatten)]
+    limits: LimitArgs,
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (i, n) = s.split_once('/').ok_or_else(|| format!("'{s}': expected I/N, e.g. 0/4"))?;
+    match (i.trim().parse::<usize>(), n.trim().parse::<usize>()) {
+        (Ok(i), Ok(n)) if n > 0 && i < n => Ok((i, n)),
+        _ => Err(format!("'{s}': expected I/N with 0 <= I < N")),
+    }
+}
+
+/// One input and where its output goes (relative to OUTDIR, without extension).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct Item {
+    source: PathBuf,
+    relative: PathBuf,
+}
+
+fn is_mesh(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| MESH_EXTENSIONS.contains(&e.to_lowercase().as_str()))
+}
+
+/// Every mesh file under `dir`, recursively, with its path relative to `dir`.
+fn walk(dir: &Path, root: &Path, out: &mut Vec<Item>) -> Result<()> {
+    let entries = std::fs::read_dir(dir).with_context(|| format!("{}: cannot list", dir.display()))?;
+    for entry in entries {
+        let path = entry.with_context(|| format!("{}: cannot list", dir.display()))?.path();
+        if path.is_dir() {
+            walk(&path, root, out)?;
+        } else if is_mesh(&path) {
+            let relative = path.strip_prefix(root).unwrap_or(&path).to_path_buf();
+            out.push(Item { source: path, relative });
+        }
+    }
+    Ok(())
+}
+
+/// The sorted, de-duplicated inputs: files, directories and glob patterns.
+fn discover(inputs: &[String]) -> Result<Vec<Item>> {
+    let mut items = Vec::new();
+    for input in inputs {
+        let path = Path::new(input);
+        if path.is_dir() {
+            walk(path, path, &mut items)?;
+        } else if path.is_file() {
+            let name = path.file_name().map(PathBuf::from).ok_or_else(|| anyhow!("{input}: not a file name"))?;
+            items.push(Item { source: path.to_path_buf(), relative: name });
+        } else {
+            let matches = glob::glob(input).map_err(|e| anyhow!("{input}: not a file, directory or pattern: {e}"))?;
+            let mut found = false;
+            for m in matches {
+                let m = m.with_context(|| input.clone())?;
+                if m.is_file() && is_mesh(&m) {
+                    let name = m.file_name().map(PathBuf::from).ok_or_else(|| anyhow!("{}: no name", m.display()))?;
+                    items.push(Item { source: m, relative: name });
+                    found = true;
+                }
+            }
+            if !found {
+                bail!("{input}: no such file or directory, and no mesh file matches it as a pattern");
+            }
+        }
+    }
+    items.sort();
+    items.dedup();
+    Ok(items)
+}
+
+/// The `index`-th of `count` slices: every item whose position in the sorted list is `index` modulo `count`.
+fn shard(items: Vec<Item>, (index, count): (usize, usize)) -> Vec<Item> {
+    items.into_iter().enumerate().filter(|(k, _)| k % count == index).map(|(_, item)| item).collect()
+}
+
+/// `meshvox batch`.
+pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
+    let started = Instant::now();
+    let mut items = discover(&args.inputs)?;
+    if let Some(s) = args.shard {
+        items = shard(items, s);
+    }
+    let format = VoxelFormat::from_extension(Path::new(&format!("x.{}", args.format)))
+        .ok_or_else(|| anyhow!("{}: unknown format", args.format))?;
+    // Two inputs mapping onto one output would overwrite each other: refused before any work.
+    let mut outputs: Vec<(PathBuf, &Item)> =
+        items.iter().map(|i| (args.output.join(&i.relative).with_extension(format.extension()), i)).collect();
+    outputs.sort_by(|a, b| a.0.cmp(&b.0));
+    if let Some(w) = outputs.windows(2).find(|w| w[0].0 == w[1].0) {
+        bail!(
+            "{} and {} would both be written to {}; pass their directory instead",
+            w[0].1.source.display(),
+            w[1].1.source.display(),
+            w[0].0.display()
+        );
+    }
+    let template = VoxelizeArgs {
+        mesh: String::new(),
+        resolution: args.resolution,
+        voxel_size: args.voxel_size,
+        axis: args.axis,
+        output: PathBuf::new(),
+        merge: args.merge,
+        mode: args.mode,
+        stats_json: false,
+        backend: args.backend,
+        colour: args.colour.clone(),
+        limits: args.limits.clone(),
+    };
+    let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+    let mut manifest = match &args.manifest {
+        Some(path) => Some(std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?,
+        )),
+        None => None,
+    };
+    let engine = Engine::open(args.backend)?;
+    let total = items.len();
+    let (mut done, mut skipped, mut failed) = (0usize, 0usize, 0usize);
+    let bar = files_bar(total as u64);
+    let mut last_line = Instant::now();
+    let next = AtomicUsize::new(0);
+    // Parsing runs ahead on `jobs` threads; the bounded channel is the back-pressure that keeps memory to a few
+    // meshes however long the list is.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Result<(meshvox::mesh::Mesh, f64)>)>(2 * jobs);
+    std::thread::scope(|scope| -> Result<()> {
+        for _ in 0..jobs {
+            let tx = tx.clone();
+            let (items, next, template, format, out_dir) = (&items, &next, &template, format, &args.output);
+            let skip = args.skip_existing;
+            scope.spawn(move || {
+                loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(item) = items.get(k) else { break };
+                    let output = out_dir.join(&item.relative).with_extension(format.extension());
+                    let loaded = if skip && output.exists() {
+                        Err(anyhow!(SKIPPED))
+                    } else {
+                        let t = Instant::now();
+                        template.limits.load(&item.source.display().to_string()).map(|m| (m, ms(t)))
+                    };
+                    if tx.send((k, loaded)).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        drop(tx);
+        for (k, loaded) in rx {
+            let item = &items[k];
+            let output = args.output.join(&item.relative).with_extension(format.extension());
+            let name = item.source.display().to_string();
+            let result = loaded.and_then(|(mesh, load_ms)| {
+                if let Some(parent) = output.parent() {
+                    std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
+                }
+                let args = VoxelizeArgs { mesh: name.clone(), output: output.clone(), ..template.clone() };
+                let format = output_format(&args)?;
+                voxelize_loaded(&args, format, &engine, &mesh, load_ms)
+            });
+            let line = match result {
+                Ok(mut stats) => {
+                    done += 1;
+                    stats["status"] = "done".into();
+                    stats["error"] = serde_json::Value::Null;
+                    stats
+                }
+                Err(e) if e.to_string() == SKIPPED => {
+                    skipped += 1;
+                    serde_json::json!({ "mesh": name, "output": output.display().to_string(), "status": "skipped", "error": null })
+                }
+                Err(e) => {
+                    failed += 1;
+                    // Loader errors name the file already.
+                    let message = format!("{e:#}");
+                    let line = if message.contains(&name) { message.clone() } else { format!("{name}: {message}") };
+                    bar.suspend(|| eprintln!("error: {line}"));
+                    serde_json::json!({ "mesh": name, "output": output.display().to_string(), "status": "failed", "error": format!("{e:#}") })
+                }
+            };
+            if let Some(m) = manifest.as_mut() {
+                writeln!(m, "{line}").context("manifest: write failed")?;
+            }
+            bar.inc(1);
+            bar.set_message(format!("{failed} failed"));
+            if bar.is_hidden() && last_line.elapsed().as_secs_f64() >= 5.0 {
+                last_line = Instant::now();
+                eprintln!(
+                    "{} of {total} files ({done} done, {skipped} skipped, {failed} failed)",
+                    done + skipped + failed
+                );
+            }
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    if let Some(mut m) = manifest {
+        m.flush().context("manifest: write failed")?;
+    }
+    let secs = started.elapsed().as_secs_f64();
+    eprintln!(
+        "{total} files: {done} done, {skipped} skipped, {failed} failed in {secs:.1} s ({:.1} files/s) on {}",
+        (done + failed) as f64 / secs.max(1e-9),
+        engine.label()
+    );
+    Ok(if failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
+}
+
+/// The marker of an input skipped by `--skip-existing` (not an error).
+const SKIPPED: &str = "skipped: the output exists";
+
+/// A progress bar over files on a terminal (files/s, ETA, failures); hidden otherwise (then plain lines).
+fn files_bar(len: u64) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("[{bar:40}] {pos}/{len} files, {per_sec}, ETA {eta}, {msg}")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}
