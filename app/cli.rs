@@ -550,18 +550,21 @@ impl Engine {
     /// Host triangles to host grid, including the upload and readback on the GPU.
     /// Where voxelizations run, as `backend` says it.
     fn label(&self) -> String {
-        match (&self.gpu, &self.cpu_reason) {
-            (Some((gpu, _)), _) => format!("gpu: {}", gpu.summary),
-            (None, Some(reason)) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
-            (None, None) => format!("cpu ({} threads)", rayon::current_num_threads()),
+        match &self.gpu {
+            Some((gpu, _)) => format!("gpu: {}", gpu.summary),
+            None => self.cpu_label(),
+        }
+    }
+
+    /// `backend` for a voxelization on the CPU.
+    fn cpu_label(&self) -> String {
+        match &self.cpu_reason {
+            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
+            None => format!("cpu ({} threads)", rayon::current_num_threads()),
         }
     }
 
     fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec, mode: Mode) -> Result<EngineResult> {
-        let cpu_label = || match &self.cpu_reason {
-            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
-            None => format!("cpu ({} threads)", rayon::current_num_threads()),
-        };
         if let Some((gpu, v)) = &self.gpu {
             let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
             let options = meshvox::gpu::voxelize::Options { read_grid: true, mode, ..Default::default() };
@@ -592,7 +595,7 @@ impl Engine {
             voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|done, _| bar.set_position(done as u64))
                 .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
         bar.finish_and_clear();
-        Ok(EngineResult { grid, backend: cpu_label(), gpu_ms: None, exact_tests: Some(stats.exact_tests) })
+        Ok(EngineResult { grid, backend: self.cpu_label(), gpu_ms: None, exact_tests: Some(stats.exact_tests) })
     }
 }
 

@@ -139,26 +139,12 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     if let Some(s) = args.shard {
         items = shard(items, s);
     }
-    let format = VoxelFormat::from_extension(Path::new(&format!("x.{}", args.format)))
-        .ok_or_else(|| anyhow!("{}: unknown format", args.format))?;
-    // Two inputs mapping onto one output would overwrite each other: refused before any work.
-    let mut outputs: Vec<(PathBuf, &Item)> =
-        items.iter().map(|i| (args.output.join(&i.relative).with_extension(format.extension()), i)).collect();
-    outputs.sort_by(|a, b| a.0.cmp(&b.0));
-    if let Some(w) = outputs.windows(2).find(|w| w[0].0 == w[1].0) {
-        bail!(
-            "{} and {} would both be written to {}; pass their directory instead",
-            w[0].1.source.display(),
-            w[1].1.source.display(),
-            w[0].0.display()
-        );
-    }
     let template = VoxelizeArgs {
         mesh: String::new(),
         resolution: args.resolution,
         voxel_size: args.voxel_size,
         axis: args.axis,
-        output: PathBuf::new(),
+        output: PathBuf::from(format!("x.{}", args.format)),
         merge: args.merge,
         mode: args.mode,
         stats_json: false,
@@ -166,6 +152,21 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         colour: args.colour.clone(),
         limits: args.limits.clone(),
     };
+    // The same format and --merge check as `voxelize`, once.
+    let format = output_format(&template)?;
+    let outputs: Vec<PathBuf> =
+        items.iter().map(|i| args.output.join(&i.relative).with_extension(format.extension())).collect();
+    // Two inputs mapping onto one output would overwrite each other: refused before any work.
+    let mut order: Vec<usize> = (0..items.len()).collect();
+    order.sort_by(|&a, &b| outputs[a].cmp(&outputs[b]));
+    if let Some(w) = order.windows(2).find(|w| outputs[w[0]] == outputs[w[1]]) {
+        bail!(
+            "{} and {} would both be written to {}; pass their directory instead",
+            items[w[0]].source.display(),
+            items[w[1]].source.display(),
+            outputs[w[0]].display()
+        );
+    }
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     let mut manifest = match &args.manifest {
         Some(path) => Some(std::io::BufWriter::new(
@@ -181,22 +182,24 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let next = AtomicUsize::new(0);
     // Parsing runs ahead on `jobs` threads; the bounded channel is the back-pressure that keeps memory to a few
     // meshes however long the list is.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Result<(meshvox::mesh::Mesh, f64)>)>(2 * jobs);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Loaded)>(2 * jobs);
     std::thread::scope(|scope| -> Result<()> {
         for _ in 0..jobs {
             let tx = tx.clone();
-            let (items, next, template, format, out_dir) = (&items, &next, &template, format, &args.output);
+            let (items, outputs, next, template) = (&items, &outputs, &next, &template);
             let skip = args.skip_existing;
             scope.spawn(move || {
                 loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(item) = items.get(k) else { break };
-                    let output = out_dir.join(&item.relative).with_extension(format.extension());
-                    let loaded = if skip && output.exists() {
-                        Err(anyhow!(SKIPPED))
+                    let loaded = if skip && outputs[k].exists() {
+                        Loaded::Skipped
                     } else {
                         let t = Instant::now();
-                        template.limits.load(&item.source.display().to_string()).map(|m| (m, ms(t)))
+                        match template.limits.load(&item.source.display().to_string()) {
+                            Ok(mesh) => Loaded::Mesh(Box::new(mesh), ms(t)),
+                            Err(e) => Loaded::Failed(e),
+                        }
                     };
                     if tx.send((k, loaded)).is_err() {
                         break;
@@ -206,29 +209,28 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         }
         drop(tx);
         for (k, loaded) in rx {
-            let item = &items[k];
-            let output = args.output.join(&item.relative).with_extension(format.extension());
-            let name = item.source.display().to_string();
-            let result = loaded.and_then(|(mesh, load_ms)| {
-                if let Some(parent) = output.parent() {
-                    std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
+            let output = &outputs[k];
+            let name = items[k].source.display().to_string();
+            let result = match loaded {
+                Loaded::Skipped => None,
+                Loaded::Failed(e) => Some(Err(e)),
+                Loaded::Mesh(mesh, load_ms) => {
+                    let args = VoxelizeArgs { mesh: name.clone(), output: output.clone(), ..template.clone() };
+                    Some(voxelize_one(&args, format, &engine, &mesh, load_ms))
                 }
-                let args = VoxelizeArgs { mesh: name.clone(), output: output.clone(), ..template.clone() };
-                let format = output_format(&args)?;
-                voxelize_loaded(&args, format, &engine, &mesh, load_ms)
-            });
+            };
             let line = match result {
-                Ok(mut stats) => {
+                Some(Ok(mut stats)) => {
                     done += 1;
                     stats["status"] = "done".into();
                     stats["error"] = serde_json::Value::Null;
                     stats
                 }
-                Err(e) if e.to_string() == SKIPPED => {
+                None => {
                     skipped += 1;
                     serde_json::json!({ "mesh": name, "output": output.display().to_string(), "status": "skipped", "error": null })
                 }
-                Err(e) => {
+                Some(Err(e)) => {
                     failed += 1;
                     // Loader errors name the file already.
                     let message = format!("{e:#}");
@@ -265,8 +267,27 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     Ok(if failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
 }
 
-/// The marker of an input skipped by `--skip-existing` (not an error).
-const SKIPPED: &str = "skipped: the output exists";
+/// One input's voxelization into `args.output`, creating its folder first.
+fn voxelize_one(
+    args: &VoxelizeArgs,
+    format: VoxelFormat,
+    engine: &Engine,
+    mesh: &meshvox::mesh::Mesh,
+    load_ms: f64,
+) -> Result<serde_json::Value> {
+    if let Some(parent) = args.output.parent() {
+        std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
+    }
+    voxelize_loaded(args, format, engine, mesh, load_ms)
+}
+
+/// What a parsing thread hands the voxelizing thread for one input.
+enum Loaded {
+    /// `--skip-existing` and the output exists.
+    Skipped,
+    Mesh(Box<meshvox::mesh::Mesh>, f64),
+    Failed(anyhow::Error),
+}
 
 /// A progress bar over files on a terminal (files/s, ETA, failures); hidden otherwise (then plain lines).
 fn files_bar(len: u64) -> indicatif::ProgressBar {

@@ -2,7 +2,7 @@
 //! instanced drawing and sparse output, without a CPU loop over the dense grid.
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
-use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
+use super::voxelize::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::GridSpec;
 use glam::UVec3;
@@ -150,8 +150,8 @@ impl Compactor {
         capacity: u64,
     ) -> (wgpu::Buffer, wgpu::Buffer) {
         let (uniform, groups) = Self::prepare(gpu, &slab, spec, surface_only);
-        let counters = compact_buffer(&gpu.device, "compact counters", 8);
-        let points = compact_buffer(&gpu.device, "voxel list", capacity * 8);
+        let counters = storage_buffer(&gpu.device, "compact counters", 8, wgpu::BufferUsages::COPY_SRC);
+        let points = storage_buffer(&gpu.device, "voxel list", capacity * 8, wgpu::BufferUsages::COPY_SRC);
         self.run(gpu, slab.buffer, &self.write, (&points, &counters, &uniform), groups, timer);
         (points, counters)
     }
@@ -170,8 +170,8 @@ impl Compactor {
         let device = &gpu.device;
         let (uniform, counters, groups) = scoped(device, || {
             let (uniform, groups) = Self::prepare(gpu, &slab, spec, surface_only);
-            let counters = compact_buffer(device, "compact counters", 8);
-            let placeholder = compact_buffer(device, "no points yet", 8);
+            let counters = storage_buffer(device, "compact counters", 8, wgpu::BufferUsages::COPY_SRC);
+            let placeholder = storage_buffer(device, "no points yet", 8, wgpu::BufferUsages::COPY_SRC);
             let buffers = (&placeholder, &counters, &uniform);
             self.run(gpu, slab.buffer, &self.count, buffers, groups, timer.as_deref_mut());
             Ok((uniform, counters, groups))
@@ -191,7 +191,8 @@ impl Compactor {
             });
         }
         let points = scoped(device, || {
-            let points = compact_buffer(device, "voxel list", bytes);
+            // Never empty: at least one entry (8 bytes), as the list has always been allocated.
+            let points = storage_buffer(device, "voxel list", bytes.max(8), wgpu::BufferUsages::COPY_SRC);
             self.run(gpu, slab.buffer, &self.write, (&points, &counters, &uniform), groups, timer);
             Ok(points)
         })
@@ -227,14 +228,4 @@ impl Compactor {
         })
         .await
     }
-}
-
-/// A storage buffer the compaction passes write and the host may copy from.
-fn compact_buffer(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: size.max(8),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    })
 }

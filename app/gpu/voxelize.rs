@@ -610,12 +610,11 @@ impl GpuVoxelizer {
                 if listed as u64 > unsure_entries {
                     return Ok(Attempt::Overflow);
                 }
-                if let Some((list, counters, capacity)) = presized.take() {
+                if let Some((list, _, capacity)) = presized.take() {
                     let count = first_word(&parts.next().unwrap_or_default()).unwrap_or(0);
                     if count as u64 <= capacity {
                         points.push(CompactVoxels { buffer: list, count });
                     } else {
-                        drop((list, counters));
                         let part = Slab { buffer: &slab, z0, words };
                         let (list, _) =
                             self.compactor(gpu).compact(gpu, part, spec, options.surface_only, None, None).await?;

@@ -683,22 +683,26 @@ pub fn set_run(row: &mut [u32], x0: u32, x1: u32) {
     }
 }
 
-/// Calls `emit(x0, x1, y, z)` for every run of voxels the triangle overlaps (each voxel once), deciding unsure
-/// voxels exactly. Returns how many voxel tests needed the exact path.
-pub fn voxelize_triangle(s: &TriangleSetup, thin: bool, mut emit: impl FnMut(u32, u32, u32, u32)) -> u64 {
-    let shrink = thin.then(|| thin_shrink(s));
-    let mut exact = 0;
+/// Walks the work items `items` of one triangle (see [`walk`]), then decides the voxels the f32 decision was
+/// unsure of exactly, as the shader's `exact` pass does; `fill(x0, x1, y, z)` receives every run of overlapped
+/// voxels. Returns how many voxel tests needed the exact path.
+pub fn voxelize_items(
+    s: &TriangleSetup,
+    thin: Option<&ThinShrink>,
+    items: std::ops::Range<u32>,
+    mut fill: impl FnMut(u32, u32, u32, u32),
+) -> u64 {
     let mut unsure = Vec::new();
-    for item in 0..work_items(s) {
-        walk(s, item, shrink.as_ref(), |p| unsure.push(p), &mut emit);
+    for item in items {
+        walk(s, item, thin, |p| unsure.push(p), &mut fill);
     }
-    for p in unsure {
-        exact += 1;
-        if if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) } {
-            emit(p.x, p.x, p.y, p.z);
+    for &p in &unsure {
+        let overlaps = if thin.is_some() { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) };
+        if overlaps {
+            fill(p.x, p.x, p.y, p.z);
         }
     }
-    exact
+    unsure.len() as u64
 }
 
 /// Maps every triangle of `mesh` into the grid space of `spec` and onto its lattice. Both backends voxelize
@@ -786,23 +790,13 @@ pub fn voxelize_grid_space_mode(
             let mut exact_tests = 0;
             for &t in bin {
                 let (s, shrink) = &setups[t as usize];
-                let mut fill = |x0: u32, x1: u32, y: u32, z: u32| {
+                // Work items are z-major, so the band's layers are one contiguous range of them.
+                let cpr = chunks_per_row(s);
+                let items = (s.lo.z.max(z0) - s.lo.z) * cpr..(s.hi.z.min(z1) - s.lo.z + 1) * cpr;
+                exact_tests += voxelize_items(s, shrink.as_ref(), items, |x0, x1, y, z| {
                     let row = ((z - z0) as usize * dims.y as usize + y as usize) * wpr;
                     set_run(&mut words[row..row + wpr], x0, x1);
-                };
-                let mut unsure = Vec::new();
-                let cpr = chunks_per_row(s);
-                for z in s.lo.z.max(z0)..=s.hi.z.min(z1) {
-                    for item in (z - s.lo.z) * cpr..(z - s.lo.z + 1) * cpr {
-                        walk(s, item, shrink.as_ref(), |p| unsure.push(p), &mut fill);
-                    }
-                }
-                for p in unsure {
-                    exact_tests += 1;
-                    if if thin { voxel_overlaps_exact_thin(s, p) } else { voxel_overlaps_exact(s, p) } {
-                        fill(p.x, p.x, p.y, p.z);
-                    }
-                }
+                });
             }
             exact.fetch_add(exact_tests, Ordering::Relaxed);
         });
