@@ -266,6 +266,9 @@ impl From<AxisArg> for Axis {
 pub fn main() -> ExitCode {
     quiet_headless_vulkan();
     let cli = Cli::parse();
+    if matches!(cli.command, Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_))) {
+        remove_partials_on_interrupt();
+    }
     let result = match cli.command {
         None => view(&ViewArgs {
             mesh: format!("builtin:{}", builtin::DEFAULT),
@@ -451,37 +454,82 @@ fn progress_bar(len: u64, message: &'static str) -> ProgressBar {
     bar
 }
 
+/// The temporary outputs being written at this moment. The Ctrl-C handler ([`remove_partials_on_interrupt`])
+/// deletes them, so an interrupted `voxelize`, `render` or `batch` leaves finished files and nothing else.
+static PARTIALS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn partials() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while the lock was held leaves the list as valid as before.
+    PARTIALS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// On Ctrl-C (or SIGTERM): removes the unfinished outputs and exits with status 130. The lock is held to the
+/// end, so an output is either renamed into place whole before it (and stays) or removed; never half of each.
+pub fn remove_partials_on_interrupt() {
+    let installed = ctrlc::set_handler(|| {
+        let partials = partials();
+        for path in partials.iter() {
+            let _ = std::fs::remove_file(path);
+        }
+        eprintln!("\ninterrupted: {} unfinished output(s) removed", partials.len());
+        std::process::exit(130);
+    });
+    if let Err(e) = installed {
+        eprintln!("warning: cannot handle Ctrl-C ({e}); an interrupted run may leave .partial files");
+    }
+}
+
+/// A temporary output file, listed in [`PARTIALS`] from its creation until it is renamed into place or
+/// dropped (which deletes it).
+struct Partial(Option<tempfile::NamedTempFile>);
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        if let Some(file) = &self.0 {
+            partials().retain(|p| p != file.path());
+        }
+    }
+}
+
 /// A temporary file in the directory of `output`, to be renamed onto it once complete.
-fn temp_beside(output: &Path) -> Result<tempfile::NamedTempFile> {
+fn temp_beside(output: &Path) -> Result<Partial> {
     let dir = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    tempfile::Builder::new()
+    let mut list = partials();
+    let file = tempfile::Builder::new()
         .prefix(".meshvox-")
         .suffix(".partial")
         .tempfile_in(&dir)
-        .with_context(|| format!("{}: cannot write here", output.display()))
+        .with_context(|| format!("{}: cannot write here", output.display()))?;
+    list.push(file.path().to_path_buf());
+    Ok(Partial(Some(file)))
 }
 
 /// Writes through `write` into `temp` and renames it to `path`; on any error the temporary file is removed.
 fn write_atomically(
-    temp: tempfile::NamedTempFile,
+    mut temp: Partial,
     path: &Path,
     write: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<()>,
 ) -> Result<u64> {
-    let mut out = std::io::BufWriter::new(temp.as_file());
+    let file = temp.0.as_ref().ok_or_else(|| anyhow!("{}: no temporary file", path.display()))?;
+    let mut out = std::io::BufWriter::new(file.as_file());
     write(&mut out).with_context(|| format!("{}: write failed", path.display()))?;
     out.flush().with_context(|| format!("{}: write failed", path.display()))?;
     drop(out);
-    let bytes = temp.as_file().metadata().map(|m| m.len()).unwrap_or(0);
+    let bytes = file.as_file().metadata().map(|m| m.len()).unwrap_or(0);
     // Temporary files are created private (0600); the result should get ordinary file permissions.
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
-        let _ = temp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
+        let _ = file.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
     }
-    temp.persist(path).map_err(|e| anyhow!("{}: cannot create: {}", path.display(), e.error))?;
+    let mut list = partials();
+    let file = temp.0.take().ok_or_else(|| anyhow!("{}: no temporary file", path.display()))?;
+    let temp_path = file.path().to_path_buf();
+    list.retain(|p| *p != temp_path);
+    file.persist(path).map_err(|e| anyhow!("{}: cannot create: {}", path.display(), e.error))?;
     Ok(bytes)
 }
 
@@ -500,6 +548,27 @@ struct Engine {
     setup_ms: f64,
     /// Why `--backend auto` chose the CPU although there is an adapter (a software one), for `backend`.
     cpu_reason: Option<String>,
+    /// Taken around each GPU voxelization and colouring: `batch` calls the engine from several threads, and
+    /// one device's work, error scopes and uncaptured-error slot are then kept to one file at a time.
+    gpu_turn: std::sync::Mutex<()>,
+    /// Nanoseconds spent in those turns, for `batch`'s account of what bounds a run.
+    gpu_busy_ns: std::sync::atomic::AtomicU64,
+    /// Whether a CPU voxelization draws its own triangle progress bar (not under `batch`'s bar over files).
+    bars: bool,
+}
+
+/// See [`Engine::gpu_turn`].
+struct GpuTurn<'a> {
+    _lock: std::sync::MutexGuard<'a, ()>,
+    started: Instant,
+    busy_ns: &'a std::sync::atomic::AtomicU64,
+}
+
+impl Drop for GpuTurn<'_> {
+    fn drop(&mut self) {
+        let ns = self.started.elapsed().as_nanos() as u64;
+        self.busy_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+    }
 }
 
 struct EngineResult {
@@ -511,10 +580,38 @@ struct EngineResult {
 }
 
 impl Engine {
+    fn with(
+        gpu: Option<(meshvox::gpu::Gpu, meshvox::gpu::voxelize::GpuVoxelizer)>,
+        fallback: bool,
+        setup_ms: f64,
+        cpu_reason: Option<String>,
+    ) -> Engine {
+        Engine {
+            gpu,
+            fallback,
+            setup_ms,
+            cpu_reason,
+            gpu_turn: Default::default(),
+            gpu_busy_ns: Default::default(),
+            bars: true,
+        }
+    }
+
+    /// One thread's turn on the device (see `gpu_turn`), timed into `gpu_busy_ns` when it ends.
+    fn gpu_turn(&self) -> GpuTurn<'_> {
+        let lock = self.gpu_turn.lock().unwrap_or_else(|e| e.into_inner());
+        GpuTurn { _lock: lock, started: Instant::now(), busy_ns: &self.gpu_busy_ns }
+    }
+
+    /// Milliseconds the device was in use by this engine, or `None` on the CPU.
+    fn gpu_busy_ms(&self) -> Option<f64> {
+        self.gpu.as_ref().map(|_| self.gpu_busy_ns.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6)
+    }
+
     fn open(backend: BackendArg) -> Result<Engine> {
         let t = Instant::now();
         if backend == BackendArg::Cpu {
-            return Ok(Engine { gpu: None, fallback: false, setup_ms: 0.0, cpu_reason: None });
+            return Ok(Engine::with(None, false, 0.0, None));
         }
         let opened = meshvox::gpu::Gpu::adapter_blocking().and_then(|adapter| {
             let summary = meshvox::gpu::AdapterSummary::from_info(&adapter.get_info());
@@ -528,20 +625,15 @@ impl Engine {
         match opened {
             Ok(Ok(gpu)) => {
                 let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-                Ok(Engine {
-                    gpu: Some((gpu, v)),
-                    fallback: backend == BackendArg::Auto,
-                    setup_ms: ms(t),
-                    cpu_reason: None,
-                })
+                Ok(Engine::with(Some((gpu, v)), backend == BackendArg::Auto, ms(t), None))
             }
             Ok(Err(software)) => {
                 let reason = format!("auto: the only adapter, {}, is software", software.name);
-                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t), cpu_reason: Some(reason) })
+                Ok(Engine::with(None, true, ms(t), Some(reason)))
             }
             Err(e) if backend == BackendArg::Auto => {
                 eprintln!("note: {e}; using the CPU voxelizer");
-                Ok(Engine { gpu: None, fallback: true, setup_ms: ms(t), cpu_reason: None })
+                Ok(Engine::with(None, true, ms(t), None))
             }
             Err(e) => Err(e.into()),
         }
@@ -568,7 +660,10 @@ impl Engine {
         if let Some((gpu, v)) = &self.gpu {
             let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
             let options = meshvox::gpu::voxelize::Options { read_grid: true, mode, ..Default::default() };
-            match v.voxelize(gpu, &tris, spec, &options) {
+            let turn = self.gpu_turn();
+            let voxelized = v.voxelize(gpu, &tris, spec, &options);
+            drop(turn);
+            match voxelized {
                 Ok(out) => {
                     let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
                     let mut backend = format!("gpu: {}", gpu.summary);
@@ -589,7 +684,10 @@ impl Engine {
                 Err(e) => return Err(e.into()),
             }
         }
-        let bar = progress_bar(mesh.triangles.len() as u64, "voxelizing");
+        let bar = match self.bars {
+            true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
+            false => ProgressBar::hidden(),
+        };
         let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
         let (grid, stats) =
             voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|done, _| bar.set_position(done as u64))
@@ -608,7 +706,10 @@ impl Engine {
         if let Some((gpu, _)) = &self.gpu {
             use meshvox::gpu::colour::GpuColourer;
             if GpuColourer::fits(gpu, grid, tris.len(), shading) {
-                match GpuColourer::new(gpu).colour(gpu, grid, &tris, shading) {
+                let turn = self.gpu_turn();
+                let coloured = GpuColourer::new(gpu).colour(gpu, grid, &tris, shading);
+                drop(turn);
+                match coloured {
                     Ok(c) => return Ok((c, format!("gpu: {}", gpu.summary))),
                     Err(e) if self.fallback && e.is_device_failure() => {
                         eprintln!("warning: {e}; colouring on the CPU instead");

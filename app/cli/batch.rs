@@ -1,5 +1,5 @@
 //! `meshvox batch`: a dataset of meshes voxelized with one engine (adapter, device, pipelines) for the whole run,
-//! meshes parsed on worker threads ahead of the voxelization, outputs mirroring the inputs' paths, a
+//! parsing and writing on worker threads overlapping the voxelization, outputs mirroring the inputs' paths, a
 //! deterministic `--shard I/N` slice for cluster job arrays, `--skip-existing` to resume and a JSONL manifest.
 
 use super::{BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, output_format, voxelize_loaded};
@@ -44,7 +44,7 @@ pub struct BatchArgs {
     /// Where to voxelize (one engine for the whole run).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
-    /// Threads parsing meshes ahead of the voxelization (default: the number of cores).
+    /// Worker threads, each parsing, voxelizing and writing one file at a time (default: the number of cores).
     #[arg(long, value_name = "J")]
     jobs: Option<usize>,
     /// Only the I-th of N deterministic slices of the sorted input list (0 <= I < N), for job arrays.
@@ -168,124 +168,173 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         );
     }
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+    // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
     let mut manifest = match &args.manifest {
-        Some(path) => Some(std::io::BufWriter::new(
+        Some(path) => Some(std::io::LineWriter::new(
             std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?,
         )),
         None => None,
     };
-    let engine = Engine::open(args.backend)?;
+    let mut engine = Engine::open(args.backend)?;
+    engine.bars = false;
     let total = items.len();
-    let (mut done, mut skipped, mut failed) = (0usize, 0usize, 0usize);
+    let mut tally = Tally::default();
     let bar = files_bar(total as u64);
     let mut last_line = Instant::now();
     let next = AtomicUsize::new(0);
-    // Parsing runs ahead on `jobs` threads; the bounded channel is the back-pressure that keeps memory to a few
-    // meshes however long the list is.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Loaded)>(2 * jobs);
+    let loop_started = Instant::now();
+    // Every worker takes the next input and parses, voxelizes and writes it, so parsing and writing on some
+    // workers overlap the voxelization on another (the engine gives the GPU to one file at a time). Each
+    // worker holds one mesh and one grid, which bounds memory however long the list is; results come back
+    // through a bounded channel.
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Outcome)>(2 * jobs);
     std::thread::scope(|scope| -> Result<()> {
         for _ in 0..jobs {
             let tx = tx.clone();
-            let (items, outputs, next, template) = (&items, &outputs, &next, &template);
+            let (items, outputs, next, template, engine) = (&items, &outputs, &next, &template, &engine);
             let skip = args.skip_existing;
             scope.spawn(move || {
                 loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(item) = items.get(k) else { break };
-                    let loaded = if skip && outputs[k].exists() {
-                        Loaded::Skipped
-                    } else {
-                        let t = Instant::now();
-                        match template.limits.load(&item.source.display().to_string()) {
-                            Ok(mesh) => Loaded::Mesh(Box::new(mesh), ms(t)),
-                            Err(e) => Loaded::Failed(e),
+                    let outcome = match skip && outputs[k].exists() {
+                        true => Outcome::Skipped,
+                        false => {
+                            let args = VoxelizeArgs {
+                                mesh: item.source.display().to_string(),
+                                output: outputs[k].clone(),
+                                ..template.clone()
+                            };
+                            match voxelize_one(&args, format, engine) {
+                                Ok(stats) => Outcome::Done(stats),
+                                Err(e) => Outcome::Failed(e),
+                            }
                         }
                     };
-                    if tx.send((k, loaded)).is_err() {
+                    if tx.send((k, outcome)).is_err() {
                         break;
                     }
                 }
             });
         }
         drop(tx);
-        for (k, loaded) in rx {
-            let output = &outputs[k];
+        for (k, outcome) in rx {
+            let output = outputs[k].display().to_string();
             let name = items[k].source.display().to_string();
-            let result = match loaded {
-                Loaded::Skipped => None,
-                Loaded::Failed(e) => Some(Err(e)),
-                Loaded::Mesh(mesh, load_ms) => {
-                    let args = VoxelizeArgs { mesh: name.clone(), output: output.clone(), ..template.clone() };
-                    Some(voxelize_one(&args, format, &engine, &mesh, load_ms))
-                }
-            };
-            let line = match result {
-                Some(Ok(mut stats)) => {
-                    done += 1;
+            let line = match outcome {
+                Outcome::Done(mut stats) => {
+                    tally.done += 1;
+                    for (stage, key) in tally.stage_ms.iter_mut().zip(STAGES) {
+                        *stage += stats[key].as_f64().unwrap_or(0.0);
+                    }
                     stats["status"] = "done".into();
                     stats["error"] = serde_json::Value::Null;
                     stats
                 }
-                None => {
-                    skipped += 1;
-                    serde_json::json!({ "mesh": name, "output": output.display().to_string(), "status": "skipped", "error": null })
+                Outcome::Skipped => {
+                    tally.skipped += 1;
+                    serde_json::json!({ "mesh": name, "output": output, "status": "skipped", "error": null })
                 }
-                Some(Err(e)) => {
-                    failed += 1;
+                Outcome::Failed(e) => {
+                    tally.failed += 1;
                     // Loader errors name the file already.
                     let message = format!("{e:#}");
                     let line = if message.contains(&name) { message.clone() } else { format!("{name}: {message}") };
                     bar.suspend(|| eprintln!("error: {line}"));
-                    serde_json::json!({ "mesh": name, "output": output.display().to_string(), "status": "failed", "error": format!("{e:#}") })
+                    serde_json::json!({ "mesh": name, "output": output, "status": "failed", "error": message })
                 }
             };
             if let Some(m) = manifest.as_mut() {
                 writeln!(m, "{line}").context("manifest: write failed")?;
             }
             bar.inc(1);
-            bar.set_message(format!("{failed} failed"));
+            bar.set_message(format!("{} failed", tally.failed));
             if bar.is_hidden() && last_line.elapsed().as_secs_f64() >= 5.0 {
                 last_line = Instant::now();
-                eprintln!(
-                    "{} of {total} files ({done} done, {skipped} skipped, {failed} failed)",
-                    done + skipped + failed
-                );
+                eprintln!("{} of {total} files ({})", tally.finished(), tally.counts());
             }
         }
         Ok(())
     })?;
     bar.finish_and_clear();
-    if let Some(mut m) = manifest {
-        m.flush().context("manifest: write failed")?;
-    }
     let secs = started.elapsed().as_secs_f64();
     eprintln!(
-        "{total} files: {done} done, {skipped} skipped, {failed} failed in {secs:.1} s ({:.1} files/s) on {}",
-        (done + failed) as f64 / secs.max(1e-9),
+        "{total} files: {} in {secs:.1} s ({:.1} files/s) on {}",
+        tally.counts(),
+        (tally.done + tally.failed) as f64 / secs.max(1e-9),
         engine.label()
     );
-    Ok(if failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
+    if tally.done > 0 {
+        eprintln!("{}", tally.stages(jobs, loop_started.elapsed().as_secs_f64(), &engine));
+    }
+    Ok(if tally.failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
 }
 
-/// One input's voxelization into `args.output`, creating its folder first.
-fn voxelize_one(
-    args: &VoxelizeArgs,
-    format: VoxelFormat,
-    engine: &Engine,
-    mesh: &meshvox::mesh::Mesh,
-    load_ms: f64,
-) -> Result<serde_json::Value> {
+/// The stages of one file, as `--stats-json` keys: their times add up to what a worker spends on it.
+const STAGES: [&str; 4] = ["load_ms", "voxelize_ms", "colour_ms", "write_ms"];
+
+/// Counts and stage times so far.
+#[derive(Default)]
+struct Tally {
+    done: usize,
+    skipped: usize,
+    failed: usize,
+    /// Milliseconds summed over the done files, per entry of [`STAGES`].
+    stage_ms: [f64; 4],
+}
+
+impl Tally {
+    fn finished(&self) -> usize {
+        self.done + self.skipped + self.failed
+    }
+
+    fn counts(&self) -> String {
+        format!("{} done, {} skipped, {} failed", self.done, self.skipped, self.failed)
+    }
+
+    /// Where the workers' time went, as shares of `jobs` workers × `wall` seconds, so that it is plain whether
+    /// parsing, voxelizing or writing bounds the run; for the GPU, also how much of the wall time it was busy.
+    fn stages(&self, jobs: usize, wall: f64, engine: &Engine) -> String {
+        let capacity = jobs as f64 * wall * 1e3;
+        let share = |ms: f64| 100.0 * ms / capacity.max(1e-9);
+        let [load, voxelize, colour, write] = self.stage_ms;
+        let idle = (capacity - self.stage_ms.iter().sum::<f64>()).max(0.0);
+        let per_file = |ms: f64| ms / self.done as f64;
+        let mut line = format!(
+            "time of {jobs} workers: parse {:.0}% ({:.2} ms/file), voxelize {:.0}% ({:.2} ms/file)",
+            share(load),
+            per_file(load),
+            share(voxelize),
+            per_file(voxelize)
+        );
+        if colour > 0.0 {
+            line += &format!(", colour {:.0}% ({:.2} ms/file)", share(colour), per_file(colour));
+        }
+        line += &format!(", write {:.0}% ({:.2} ms/file), other {:.0}%", share(write), per_file(write), share(idle));
+        if let Some(busy) = engine.gpu_busy_ms() {
+            line += &format!("; the GPU was in use {:.0}% of the wall time", 100.0 * busy / (wall * 1e3).max(1e-9));
+        }
+        line
+    }
+}
+
+/// One input parsed, voxelized and written into `args.output` (its folder created first).
+fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Result<serde_json::Value> {
+    let t = Instant::now();
+    let mesh = args.limits.load(&args.mesh)?;
+    let load_ms = ms(t);
     if let Some(parent) = args.output.parent() {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
     }
-    voxelize_loaded(args, format, engine, mesh, load_ms)
+    voxelize_loaded(args, format, engine, &mesh, load_ms)
 }
 
-/// What a parsing thread hands the voxelizing thread for one input.
-enum Loaded {
+/// What became of one input.
+enum Outcome {
     /// `--skip-existing` and the output exists.
     Skipped,
-    Mesh(Box<meshvox::mesh::Mesh>, f64),
+    /// Its `--stats-json` object.
+    Done(serde_json::Value),
     Failed(anyhow::Error),
 }
 

@@ -328,7 +328,7 @@ fn bench_seed_suite_writes_json_and_its_markdown_section() {
 /// `meshvox batch` over a folder like a user's dataset: two `model.obj` in different folders, a file named
 /// directly, a broken file. Each good file's output equals `meshvox voxelize`'s byte for byte, the broken one is
 /// named on stderr and in the manifest with a non-zero exit, shards partition the list, and `--skip-existing`
-/// finishes an interrupted run.
+/// makes only what is missing.
 #[test]
 fn batch_mirrors_paths_matches_voxelize_reports_failures_shards_and_resumes() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -344,13 +344,28 @@ fn batch_mirrors_paths_matches_voxelize_reports_failures_shards_and_resumes() {
     std::fs::write(input.join("a/model.obj"), &cube).expect("write");
     std::fs::write(input.join("b/model.obj"), tetra).expect("write");
     std::fs::write(input.join("b/c/broken.obj"), "v 0 0 0\nf 1 2 3\n").expect("write");
+    std::fs::write(input.join("b/c/empty.stl"), "").expect("write");
+    std::fs::write(input.join("b/c/truncated.glb"), b"glTF\x02\x00\x00\x00").expect("write");
     std::fs::write(input.join("notes.txt"), "not a mesh").expect("write");
     let single = root.join("single.obj");
     std::fs::write(&single, tetra).expect("write");
     let s = |p: &Path| p.to_string_lossy().into_owned();
+    // The shared meshes as users name them: patterns, since their folder holds both Duck.gltf and Duck.glb,
+    // which would go to one output (refused, checked below).
+    let shared = crate::common::shared_meshes();
+    let shared_inputs: Vec<String> = match &shared {
+        Some(dir) => ["*.obj", "gltf/*.glb", "gltf/cube-external/*.gltf"].iter().map(|p| s(&dir.join(p))).collect(),
+        None => Vec::new(),
+    };
+    let shared_names: Vec<String> = shared_inputs
+        .iter()
+        .flat_map(|p| glob::glob(p).expect("pattern").map(|f| f.expect("glob").to_path_buf()))
+        .map(|f| s(&f))
+        .collect();
     let run = |extra: &[&str], out: &str| {
         let mut args =
             vec!["batch".to_string(), s(&input), s(&single), "-o".into(), out.into(), "-r".into(), "23".into()];
+        args.extend(shared_inputs.iter().cloned());
         args.extend(extra.iter().map(|a| a.to_string()));
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         meshvox(&args, root)
@@ -365,28 +380,49 @@ fn batch_mirrors_paths_matches_voxelize_reports_failures_shards_and_resumes() {
 
     let out = run(&["--manifest", "all.jsonl", "--format", "binvox"], "out");
     let stderr = String::from_utf8_lossy(&out.stderr);
+    let total = 6 + shared_names.len();
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert_eq!(stderr.lines().filter(|l| l.starts_with("error: ")).count(), 1, "{stderr}");
-    assert!(stderr.lines().any(|l| l.starts_with("error: ") && l.contains("broken.obj")), "{stderr}");
-    assert!(stderr.contains("4 files: 3 done, 0 skipped, 1 failed"), "{stderr}");
-    for (source, output) in [
-        (input.join("a/model.obj"), "out/a/model.binvox"),
-        (input.join("b/model.obj"), "out/b/model.binvox"),
-        (single.clone(), "out/single.binvox"),
-    ] {
+    // One line per bad file, naming it.
+    assert_eq!(stderr.lines().filter(|l| l.starts_with("error: ")).count(), 3, "{stderr}");
+    for bad in ["broken.obj", "empty.stl", "truncated.glb"] {
+        assert!(stderr.lines().any(|l| l.starts_with("error: ") && l.contains(bad)), "{bad}: {stderr}");
+    }
+    assert!(stderr.contains(&format!("{total} files: {} done, 0 skipped, 3 failed", total - 3)), "{stderr}");
+    assert!(stderr.contains("time of ") && stderr.contains("voxelize"), "no account of the stages: {stderr}");
+    let mut expected = vec![
+        (input.join("a/model.obj"), "a/model.binvox".to_string()),
+        (input.join("b/model.obj"), "b/model.binvox".to_string()),
+        (single.clone(), "single.binvox".to_string()),
+    ];
+    for name in &shared_names {
+        let path = Path::new(name);
+        let output = path.with_extension("binvox").file_name().map(|f| s(Path::new(f))).expect("name");
+        expected.push((path.to_path_buf(), output));
+    }
+    for (source, output) in &expected {
         let reference = root.join("reference.binvox");
-        let one = meshvox(&["voxelize", &s(&source), "-r", "23", "-o", &s(&reference)], root);
-        assert!(one.status.success());
-        let ours = std::fs::read(root.join(output)).expect(output);
+        let one = meshvox(&["voxelize", &s(source), "-r", "23", "-o", &s(&reference)], root);
+        assert!(one.status.success(), "{}", String::from_utf8_lossy(&one.stderr));
+        let ours = std::fs::read(root.join("out").join(output)).expect(output);
         assert!(ours == std::fs::read(&reference).expect("reference"), "{output} differs from voxelize's");
     }
-    assert!(!root.join("out/b/c/broken.binvox").exists() && !root.join("out/notes.binvox").exists());
+    let written = std::fs::read_dir(root.join("out")).expect("out").count();
+    assert_eq!(written, 3 + shared_names.len(), "top level of out/: a/, b/, single and the shared meshes");
+    assert!(!root.join("out/b/c").exists() && !root.join("out/notes.binvox").exists());
     let lines = manifest(&root.join("all.jsonl"));
-    assert_eq!(lines.len(), 4);
+    assert_eq!(lines.len(), total);
     let failed: Vec<&Value> = lines.iter().filter(|l| l["status"] == "failed").collect();
-    assert_eq!(failed.len(), 1);
-    assert!(failed[0]["error"].as_str().is_some_and(|e| e.contains("line 2")), "{}", failed[0]);
+    assert_eq!(failed.len(), 3);
+    assert!(failed.iter().any(|l| l["error"].as_str().is_some_and(|e| e.contains("line 2"))), "{failed:?}");
     assert!(lines.iter().filter(|l| l["status"] == "done").all(|l| l["voxels"].as_u64().is_some_and(|v| v > 0)));
+
+    // The shared folder named as a directory: Duck.gltf and Duck.glb would both become Duck.binvox.
+    if let Some(dir) = &shared {
+        let out = meshvox(&["batch", &s(dir), "-o", "dup", "-r", "23"], root);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains("Duck.npy"), "{stderr}");
+        assert!(!root.join("dup").exists(), "nothing is written when outputs collide");
+    }
 
     // Shards: disjoint, and together every input, for several N.
     let all: std::collections::BTreeSet<String> =
@@ -403,12 +439,99 @@ fn batch_mirrors_paths_matches_voxelize_reports_failures_shards_and_resumes() {
         assert_eq!(union, all, "shards of {n}");
     }
 
-    // An interrupted run: one output missing (and a temporary file left behind); --skip-existing does the rest.
+    // One output missing: --skip-existing makes only that one (an interrupted run is the next test).
     std::fs::remove_file(root.join("out/b/model.binvox")).expect("remove");
     let out = run(&["--format", "binvox", "--skip-existing", "--manifest", "resume.jsonl"], "out");
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("4 files: 1 done, 2 skipped, 1 failed"), "{stderr}");
+    assert!(stderr.contains(&format!("{total} files: 1 done, {} skipped, 3 failed", total - 4)), "{stderr}");
     assert!(root.join("out/b/model.binvox").exists());
     let resumed = manifest(&root.join("resume.jsonl"));
-    assert_eq!(resumed.iter().filter(|l| l["status"] == "skipped").count(), 2);
+    assert_eq!(resumed.iter().filter(|l| l["status"] == "skipped").count(), total - 4);
+}
+
+/// Ctrl-C in the middle of a batch: the files finished before it stay and are complete (equal to `voxelize`'s),
+/// the ones in progress leave nothing (no `.partial` file), the exit status is 130, and `--skip-existing` then
+/// finishes the rest.
+#[test]
+fn batch_interrupted_by_ctrl_c_leaves_complete_files_and_resumes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let root = dir.path();
+    let input = root.join("in");
+    std::fs::create_dir_all(&input).expect("mkdir");
+    // A 20,000-triangle sphere off the origin in decimals, heavy enough at 160 that the run can be caught
+    // halfway.
+    let (rings, segments) = (100, 100);
+    let mut obj = String::new();
+    for i in 0..=rings {
+        let theta = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let phi = std::f64::consts::TAU * j as f64 / segments as f64;
+            let (x, y, z) = (theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
+            obj += &format!("v {:.6} {:.6} {:.6}\n", 3.1 + 1.37 * x, -2.2 + 1.37 * y, 0.7 + 1.37 * z);
+        }
+    }
+    for i in 0..rings {
+        for j in 0..segments {
+            let v = |i: usize, j: usize| i * segments + j % segments + 1;
+            obj += &format!(
+                "f {} {} {}\nf {} {} {}\n",
+                v(i, j),
+                v(i + 1, j),
+                v(i + 1, j + 1),
+                v(i, j),
+                v(i + 1, j + 1),
+                v(i, j + 1)
+            );
+        }
+    }
+    let count = 80;
+    for k in 0..count {
+        std::fs::write(input.join(format!("sphere{k:02}.obj")), &obj).expect("write");
+    }
+    let reference = root.join("reference.npy");
+    let one = meshvox(&["voxelize", "in/sphere00.obj", "-r", "160", "-o", "reference.npy"], root);
+    assert!(one.status.success(), "{}", String::from_utf8_lossy(&one.stderr));
+    let reference = std::fs::read(reference).expect("reference");
+
+    let args = ["batch", "in", "-o", "out", "-r", "160", "--backend", "cpu", "--jobs", "2"];
+    let child = Command::new(env!("CARGO_BIN_EXE_meshvox"))
+        .args(args)
+        .current_dir(root)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let outputs = || -> Vec<std::path::PathBuf> {
+        std::fs::read_dir(root.join("out")).map(|d| d.map(|e| e.expect("entry").path()).collect()).unwrap_or_default()
+    };
+    let finished =
+        |files: &[std::path::PathBuf]| files.iter().filter(|p| p.extension().is_some_and(|e| e == "npy")).count();
+    let started = std::time::Instant::now();
+    while finished(&outputs()) < 3 {
+        assert!(started.elapsed().as_secs() < 120, "no outputs after two minutes");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let kill = Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    assert!(kill.success());
+    let out = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let left = outputs();
+    let done = finished(&left);
+    assert!(done < count, "the run finished before Ctrl-C reached it; nothing was tested");
+    assert_eq!(left.len(), done, "files besides finished outputs were left: {left:?}");
+    for path in &left {
+        assert!(std::fs::read(path).expect("output") == reference, "{} is not complete", path.display());
+    }
+
+    let out = meshvox(&[&args[..], &["--skip-existing"]].concat(), root);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let expect = format!("{count} files: {} done, {done} skipped, 0 failed", count - done);
+    assert!(stderr.contains(&expect), "{stderr}");
+    let all = outputs();
+    assert_eq!(all.len(), count);
+    for path in &all {
+        assert!(std::fs::read(path).expect("output") == reference, "{} differs", path.display());
+    }
 }
