@@ -20,11 +20,11 @@ mod web_entry {
     use meshvox::ui::{DEFAULT_RESOLUTION, ViewerApp, web_options};
     use wasm_bindgen::prelude::*;
 
-    /// Starts the app on the canvas `canvas_id`, showing `mesh` (a bundled name, as after `builtin:`) at
-    /// `resolution` voxels along the longest axis (0 for the default). `adapter_name` names the adapter where
-    /// the browser leaves wgpu's adapter name empty.
+    /// Starts the app on the canvas `canvas_id` in the state of the page's URL query `query` (see
+    /// [`meshvox::ui::url`]: `?mesh=torus&r=96&axis=y&mode=solid&cam=…`; absent parts take the defaults).
+    /// `adapter_name` names the adapter where the browser leaves wgpu's adapter name empty.
     #[wasm_bindgen]
-    pub async fn start(canvas_id: String, mesh: String, resolution: u32, adapter_name: String) -> Result<(), JsValue> {
+    pub async fn start(canvas_id: String, query: String, adapter_name: String) -> Result<(), JsValue> {
         // Logs go to the browser console; warnings and errors are what the browser test watches for.
         let _ = eframe::WebLogger::init(log::LevelFilter::Info);
         let canvas = web_sys::window()
@@ -33,14 +33,16 @@ mod web_entry {
             .ok_or_else(|| JsValue::from_str(&format!("no element #{canvas_id} on the page")))?
             .dyn_into::<web_sys::HtmlCanvasElement>()
             .map_err(|_| JsValue::from_str(&format!("#{canvas_id} is not a canvas")))?;
-        let spec = format!("builtin:{}", if mesh.is_empty() { meshvox::mesh::builtin::DEFAULT } else { &mesh });
-        let resolution = if resolution == 0 { DEFAULT_RESOLUTION } else { resolution };
+        let state = meshvox::ui::url::UrlState::parse(&query);
+        let spec = format!("builtin:{}", state.mesh.as_deref().unwrap_or(meshvox::mesh::builtin::DEFAULT));
+        let resolution = state.resolution.unwrap_or(DEFAULT_RESOLUTION);
         eframe::WebRunner::new()
             .start(
                 canvas,
                 web_options(),
                 Box::new(move |cc| {
                     let mut app = ViewerApp::new(cc, &spec, resolution)?;
+                    app.apply_url(&state);
                     app.name_adapter(&adapter_name);
                     Ok(Box::new(app) as Box<dyn eframe::App>)
                 }),

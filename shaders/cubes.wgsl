@@ -1,5 +1,7 @@
 // Instanced voxel cubes, generated from vertex_index (no vertex buffer): instance i is voxel i of the compacted
-// list (two u32 per voxel: x | y << 16, z), vertex v is corner v % 6 of face v / 6. Faces are lit by a key and a
+// list (two u32 per voxel: x | y << 16, z), vertex v is corner v % 6 of face v / 6. `vs_cube` reads the list and
+// the colours from storage buffers; `vs_cube_attributes` gets the same two values as per-instance vertex
+// attributes, for WebGL2, whose vertex shaders cannot read storage buffers. Faces are lit by a key and a
 // fill directional light plus ambient, so all six face directions read differently, and their borders are
 // darkened so single voxels stand out. A second pipeline draws the source mesh translucently on top.
 
@@ -29,8 +31,26 @@ struct CubeOut {
 
 @vertex
 fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> CubeOut {
-    let packed = voxels[2u * ii];
-    let cell = vec3<f32>(f32(packed & 0xffffu), f32(packed >> 16u), f32(voxels[2u * ii + 1u]));
+    var colour = vec3<f32>(0.0);
+    if view.options.z != 0.0 {
+        colour = unpack4x8unorm(colours[ii]).rgb;
+    }
+    return cube_vertex(vi, vec2<u32>(voxels[2u * ii], voxels[2u * ii + 1u]), colour);
+}
+
+@vertex
+fn vs_cube_attributes(
+    @builtin(vertex_index) vi: u32,
+    @location(0) voxel: vec2<u32>,
+    @location(1) colour: vec4<f32>,
+) -> CubeOut {
+    return cube_vertex(vi, voxel, colour.rgb);
+}
+
+// Corner `vi` of the cube of the voxel packed as `voxel` (x | y << 16, z), with its sRGB colour `colour` (used
+// when options.z is 1).
+fn cube_vertex(vi: u32, voxel: vec2<u32>, colour: vec3<f32>) -> CubeOut {
+    let cell = vec3<f32>(f32(voxel.x & 0xffffu), f32(voxel.x >> 16u), f32(voxel.y));
     let face = vi / 6u;
     let axis = face / 2u;
     let positive = face % 2u == 1u;
@@ -59,7 +79,7 @@ fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
     out.uv = uv;
     out.albedo = view.color.rgb;
     if view.options.z != 0.0 {
-        out.albedo = decode(unpack4x8unorm(colours[ii]).rgb);
+        out.albedo = decode(colour);
     }
     return out;
 }

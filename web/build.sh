@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Builds the web page: the release wasm of the meshvox binary, its JS bindings (wasm-bindgen-cli, whose version
-# must equal Cargo.lock's wasm-bindgen) and index.html, as a self-contained static site in web/dist/.
+# Builds the web page as a self-contained static site in web/dist/: index.html and two builds of the meshvox
+# binary's release wasm with their JS bindings (wasm-bindgen-cli, whose version must equal Cargo.lock's
+# wasm-bindgen): meshvox.js for browsers with WebGPU, meshvox_gl.js (`--features webgl`: CPU voxelization, WebGL2
+# drawing) for the others; the page loads only the one it needs. Each wasm is shrunk with wasm-opt (npm's
+# binaryen, installed into web/node_modules).
 # `bash web/build.sh --serve [PORT]` then serves it on http://127.0.0.1:PORT (default 8080).
 # Run as root on a fresh machine, it installs the wasm32 target and wasm-bindgen-cli first.
 set -euo pipefail
@@ -16,15 +19,29 @@ if [ "$(wasm-bindgen --version 2>/dev/null | awk '{print $2}')" != "$want" ]; th
   cargo install wasm-bindgen-cli --version "$want" --quiet
 fi
 
-cargo build --locked --release --target wasm32-unknown-unknown --bin meshvox
+if [ ! -x web/node_modules/.bin/wasm-opt ]; then
+  (cd web && npm ci --no-audit --no-fund --loglevel=error)
+fi
+
 rm -rf web/dist
 mkdir -p web/dist
-wasm-bindgen --target web --no-typescript --out-dir web/dist --out-name meshvox \
-  target/wasm32-unknown-unknown/release/meshvox.wasm
+# The features the Rust wasm32 target enables by default, which wasm-opt must accept.
+features="--enable-bulk-memory --enable-nontrapping-float-to-int --enable-sign-ext --enable-mutable-globals
+  --enable-reference-types --enable-multivalue"
+for build in webgpu webgl; do
+  if [ $build = webgpu ]; then name=meshvox; flags=(); else name=meshvox_gl; flags=(--features webgl); fi
+  cargo build --locked --release --target wasm32-unknown-unknown --bin meshvox "${flags[@]}"
+  wasm-bindgen --target web --no-typescript --out-dir web/dist --out-name $name \
+    target/wasm32-unknown-unknown/release/meshvox.wasm
+  raw=$(stat -c %s web/dist/${name}_bg.wasm)
+  # shellcheck disable=SC2086
+  web/node_modules/.bin/wasm-opt -Oz $features web/dist/${name}_bg.wasm -o web/dist/${name}_bg.opt.wasm
+  mv web/dist/${name}_bg.opt.wasm web/dist/${name}_bg.wasm
+  size=$(stat -c %s web/dist/${name}_bg.wasm)
+  gz=$(gzip -9 -c web/dist/${name}_bg.wasm | wc -c)
+  echo "web/dist: ${name}_bg.wasm ($build) $size bytes after wasm-opt (was $raw), $gz gzipped" >&2
+done
 cp web/index.html web/dist/index.html
-raw=$(stat -c %s web/dist/meshvox_bg.wasm)
-gz=$(gzip -9 -c web/dist/meshvox_bg.wasm | wc -c)
-echo "web/dist: meshvox_bg.wasm $raw bytes ($gz gzipped)" >&2
 
 if [ "${1:-}" = "--serve" ]; then
   port="${2:-8080}"

@@ -224,6 +224,12 @@ impl Gpu {
         self.health.lost.lock().is_ok_and(|l| l.is_some())
     }
 
+    /// Whether this device runs compute shaders (WebGL2 does not: the app then voxelizes on the CPU).
+    pub fn has_compute(&self) -> bool {
+        let l = self.device.limits();
+        l.max_compute_workgroups_per_dimension > 0 && l.max_storage_buffers_per_shader_stage > 0
+    }
+
     /// Largest buffer this device can bind as one storage binding (and allocate).
     pub fn max_binding_bytes(&self) -> u64 {
         let l = self.device.limits();

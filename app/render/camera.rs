@@ -14,9 +14,12 @@ pub struct OrbitCamera {
 }
 
 impl OrbitCamera {
+    /// The vertical field of view of every camera, in degrees.
+    pub const FOV_Y: f32 = 35.0;
+
     /// A camera looking at the box `[min, max]` from the given angles, far enough that the whole box is in view.
     pub fn framing(min: Vec3, max: Vec3, yaw: f32, pitch: f32) -> OrbitCamera {
-        let fov_y: f32 = 35.0;
+        let fov_y = OrbitCamera::FOV_Y;
         let radius = ((max - min).length() * 0.5).max(1e-6);
         // The bounding sphere fits the narrower of the two field-of-view angles (square images: the same).
         let distance = radius / (fov_y.to_radians() * 0.5).sin() * 1.05;

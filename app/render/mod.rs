@@ -56,6 +56,8 @@ pub struct Scene {
     pub voxels: CompactVoxels,
     /// Whether each instance has a colour (sRGB RGBA8, one u32 per instance, in the list's order).
     pub coloured: bool,
+    /// The instances' colours, if any (bound as a vertex buffer on WebGL2).
+    colours: Option<wgpu::Buffer>,
     mesh: Option<(wgpu::Buffer, u32)>,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -70,6 +72,28 @@ impl Scene {
     }
 }
 
+/// Whether `device` has WebGL2's limits (`wgpu::Limits::downlevel_webgl2_defaults`), the only ones without
+/// storage buffers: its vertex shaders then get the voxels as per-instance vertex attributes, and its textures
+/// cannot be viewed in another format, so offscreen targets are not sRGB and the shader encodes.
+pub fn is_webgl2(device: &wgpu::Device) -> bool {
+    device.limits().max_storage_buffers_per_shader_stage == 0
+}
+
+/// Usage of the buffers that carry instances (voxel list, colours): read by the vertex shader as storage
+/// buffers, or as vertex buffers on WebGL2.
+fn instance_usage(device: &wgpu::Device) -> wgpu::BufferUsages {
+    match is_webgl2(device) {
+        true => wgpu::BufferUsages::VERTEX,
+        false => wgpu::BufferUsages::STORAGE,
+    }
+}
+
+/// The format of offscreen targets on `device`: [`TARGET_FORMAT`], or plain Rgba8Unorm on WebGL2 (see
+/// [`is_webgl2`]).
+pub fn target_format(device: &wgpu::Device) -> wgpu::TextureFormat {
+    if is_webgl2(device) { wgpu::TextureFormat::Rgba8Unorm } else { TARGET_FORMAT }
+}
+
 /// Uploads a host grid's set voxels in the compacted layout, for grids voxelized on the CPU.
 pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVoxels {
     let packed: Vec<u32> = grid.iter_set().flat_map(|v| [v.x | (v.y << 16), v.z]).collect();
@@ -78,7 +102,7 @@ pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVo
     let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("voxel list"),
         contents,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        usage: instance_usage(device) | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     });
     CompactVoxels { buffer, count }
 }
@@ -103,7 +127,7 @@ pub fn coloured_instances(
     let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("voxel colours"),
         contents,
-        usage: wgpu::BufferUsages::STORAGE,
+        usage: instance_usage(device),
     });
     (instances_from_grid(device, shown), buffer)
 }
@@ -115,6 +139,8 @@ pub struct CubeRenderer {
     mesh: wgpu::RenderPipeline,
     /// Whether the shader must apply the sRGB transfer function itself (non-sRGB targets such as egui's).
     encode_srgb: bool,
+    /// Instances come as vertex attributes (WebGL2; see [`is_webgl2`]) rather than from storage buffers.
+    attributes: bool,
 }
 
 impl CubeRenderer {
@@ -123,22 +149,21 @@ impl CubeRenderer {
             label: Some("cubes.wgsl"),
             source: wgpu::ShaderSource::Wgsl(CUBES_WGSL.into()),
         });
+        let attributes = is_webgl2(device);
+        let view = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let storage = [view, storage_vertex(1), storage_vertex(2)];
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cubes"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage_vertex(1),
-                storage_vertex(2),
-            ],
+            entries: if attributes { &storage[..1] } else { &storage },
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("cubes"),
@@ -192,12 +217,23 @@ impl CubeRenderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x3],
         };
+        // On WebGL2: the voxel (two u32) and its colour (RGBA8, when there are colours) per instance.
+        let instance = |stride, attributes| {
+            Some(wgpu::VertexBufferLayout {
+                array_stride: stride,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes,
+            })
+        };
+        let voxel_attribute = wgpu::vertex_attr_array![0 => Uint32x2];
+        let colour_attribute = wgpu::vertex_attr_array![1 => Unorm8x4];
+        let instances = [instance(8, &voxel_attribute[..]), instance(4, &colour_attribute[..])];
         CubeRenderer {
             cubes: make(
                 "cubes",
-                "vs_cube",
+                if attributes { "vs_cube_attributes" } else { "vs_cube" },
                 "fs_cube",
-                &[],
+                if attributes { &instances } else { &[] },
                 None,
                 true,
                 wgpu::CompareFunction::LessEqual,
@@ -217,6 +253,7 @@ impl CubeRenderer {
             ),
             layout,
             encode_srgb: !format.is_srgb(),
+            attributes,
         }
     }
 
@@ -235,28 +272,35 @@ impl CubeRenderer {
         mesh: Option<&Mesh>,
     ) -> Scene {
         let coloured = colours.is_some();
-        let colours = colours.unwrap_or_else(|| {
-            device.create_buffer(&wgpu::BufferDescriptor {
+        // Without colours the shader ignores them, but something must be bound: a word of storage, or (as
+        // vertex attributes) the voxel list itself, which has two words per instance where one is read.
+        let colours = match (colours, self.attributes) {
+            (Some(c), _) => Some(c),
+            (None, true) => None,
+            (None, false) => Some(device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("no voxel colours"),
                 size: 4,
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
-            })
-        });
+            })),
+        };
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("view"),
             size: std::mem::size_of::<ViewUniform>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+        if !self.attributes {
+            entries.push(wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() });
+            if let Some(c) = &colours {
+                entries.push(wgpu::BindGroupEntry { binding: 2, resource: c.as_entire_binding() });
+            }
+        }
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("cubes"),
             layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: colours.as_entire_binding() },
-            ],
+            entries: &entries,
         });
         let mesh = mesh.filter(|m| !m.triangles.is_empty()).map(|m| {
             // Into the drawing frame: anchor-relative positions moved by the anchor's offset from the grid origin,
@@ -271,7 +315,7 @@ impl CubeRenderer {
             });
             (buffer, m.triangles.len() as u32 * 3)
         });
-        Scene { spec, voxels, coloured, mesh, uniform, bind_group }
+        Scene { spec, voxels, coloured, colours, mesh, uniform, bind_group }
     }
 
     /// Writes the camera and style for the next draw.
@@ -296,6 +340,11 @@ impl CubeRenderer {
         pass.set_bind_group(0, &scene.bind_group, &[]);
         if scene.voxels.count > 0 {
             pass.set_pipeline(&self.cubes);
+            if self.attributes {
+                let list = scene.voxels.buffer.slice(..);
+                pass.set_vertex_buffer(0, list);
+                pass.set_vertex_buffer(1, scene.colours.as_ref().map_or(list, |c| c.slice(..)));
+            }
             pass.draw(0..36, 0..scene.voxels.count);
         }
         if let (true, Some((buffer, vertices))) = (style.show_mesh, &scene.mesh) {
@@ -304,6 +353,11 @@ impl CubeRenderer {
             pass.draw(0..*vertices, 0..1);
         }
     }
+}
+
+/// The sRGB transfer function (the shader's `encode`), for clear colours of targets that are not sRGB.
+fn encode_srgb(linear: f32) -> f32 {
+    if linear <= 0.003_130_8 { linear * 12.92 } else { 1.055 * linear.powf(1.0 / 2.4) - 0.055 }
 }
 
 fn storage_vertex(binding: u32) -> wgpu::BindGroupLayoutEntry {
@@ -334,6 +388,9 @@ pub struct RenderTarget {
     resolved: wgpu::Texture,
     resolved_view: wgpu::TextureView,
     gamma_view: wgpu::TextureView,
+    /// Whether the target encodes sRGB itself; otherwise the background is encoded here (as the shader encodes
+    /// the cubes).
+    srgb: bool,
 }
 
 impl RenderTarget {
@@ -354,26 +411,26 @@ impl RenderTarget {
             })
         };
         let attach = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let format = target_format(device);
+        let gamma_format = [wgpu::TextureFormat::Rgba8Unorm];
         let resolved = texture(
             "voxel view",
-            TARGET_FORMAT,
+            format,
             1,
             attach | wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::TEXTURE_BINDING,
-            &[wgpu::TextureFormat::Rgba8Unorm],
+            if format == TARGET_FORMAT { &gamma_format } else { &[] },
         );
         RenderTarget {
             width: size.width,
             height: size.height,
-            msaa: texture("voxel view msaa", TARGET_FORMAT, TARGET_SAMPLES, attach, &[])
-                .create_view(&Default::default()),
+            msaa: texture("voxel view msaa", format, TARGET_SAMPLES, attach, &[]).create_view(&Default::default()),
             depth: texture("voxel view depth", DEPTH_FORMAT, TARGET_SAMPLES, attach, &[])
                 .create_view(&Default::default()),
             resolved_view: resolved.create_view(&Default::default()),
-            gamma_view: resolved.create_view(&wgpu::TextureViewDescriptor {
-                format: Some(wgpu::TextureFormat::Rgba8Unorm),
-                ..Default::default()
-            }),
+            gamma_view: resolved
+                .create_view(&wgpu::TextureViewDescriptor { format: Some(gamma_format[0]), ..Default::default() }),
             resolved,
+            srgb: format.is_srgb(),
         }
     }
 
@@ -396,7 +453,10 @@ impl RenderTarget {
         if let Some(scene) = scene {
             renderer.update(queue, scene, camera, self.width as f32 / self.height as f32, style);
         }
-        let bg = style.background;
+        let bg = match self.srgb {
+            true => style.background,
+            false => style.background.map(encode_srgb),
+        };
         let mut encoder = device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -474,7 +534,7 @@ pub struct Offscreen {
 
 impl Offscreen {
     pub fn new(gpu: &Gpu) -> Offscreen {
-        Offscreen { renderer: CubeRenderer::new(&gpu.device, TARGET_FORMAT, TARGET_SAMPLES) }
+        Offscreen { renderer: CubeRenderer::new(&gpu.device, target_format(&gpu.device), TARGET_SAMPLES) }
     }
 
     /// Renders `scene` from `camera` into a `width` × `height` RGBA image.

@@ -8,6 +8,7 @@
 //! A voxelization is a future ([`GpuVoxelizer::voxelize_async`]): natively it is driven to completion on the
 //! spot, in the browser it is spawned and the app picks the result up in a later frame.
 
+pub mod url;
 #[cfg(target_arch = "wasm32")]
 pub mod web;
 
@@ -16,7 +17,7 @@ use crate::gpu::compact::CompactVoxels;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::{self, Mesh, builtin};
-use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_FORMAT, TARGET_SAMPLES};
+use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_SAMPLES};
 use crate::voxel::colour::{self, VoxelColours};
 use crate::voxel::export;
 use crate::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, budget, cpu};
@@ -67,7 +68,8 @@ struct Pending {
 
 pub struct ViewerApp {
     gpu: Gpu,
-    voxelizer: Rc<GpuVoxelizer>,
+    /// The compute pipelines; `None` where the device has no compute (WebGL2), and the CPU voxelizes.
+    voxelizer: Option<Rc<GpuVoxelizer>>,
     /// The colour pipelines, compiled the first time a mesh with colour is voxelized.
     colourer: Rc<std::cell::OnceCell<GpuColourer>>,
     renderer: CubeRenderer,
@@ -93,6 +95,13 @@ pub struct ViewerApp {
     needs_voxelize: bool,
     needs_framing: bool,
     pending: Option<Pending>,
+    /// A note for the user that is not an error (a shared link named a file that only its maker had).
+    notice: Option<String>,
+    /// A camera from a shared link (`?cam=`), taken instead of the framing of the first voxelization.
+    camera_from_url: Option<OrbitCamera>,
+    /// The query last written to the page's address bar.
+    #[cfg(target_arch = "wasm32")]
+    url_written: String,
 }
 
 /// What to do after the GPU device is lost: eframe's device (which also draws) does not come back by itself.
@@ -117,8 +126,8 @@ impl ViewerApp {
         // Gpu::from_parts records errors nobody captured (wgpu's default is a panic) and device loss, so the
         // viewer can report them and keep running.
         let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
-        let voxelizer = Rc::new(GpuVoxelizer::new(&gpu));
-        let renderer = CubeRenderer::new(&rs.device, TARGET_FORMAT, TARGET_SAMPLES);
+        let voxelizer = gpu.has_compute().then(|| Rc::new(GpuVoxelizer::new(&gpu)));
+        let renderer = CubeRenderer::new(&rs.device, render::target_format(&rs.device), TARGET_SAMPLES);
         let mut app = ViewerApp {
             gpu,
             voxelizer,
@@ -143,11 +152,51 @@ impl ViewerApp {
             needs_voxelize: false,
             needs_framing: true,
             pending: None,
+            notice: None,
+            camera_from_url: None,
+            #[cfg(target_arch = "wasm32")]
+            url_written: String::new(),
         };
         #[cfg(target_arch = "wasm32")]
         web::attach(&cc.egui_ctx);
         app.open(mesh_spec.to_string());
         Ok(app)
+    }
+
+    /// Takes the axis, mode and camera of a shared link (the mesh and resolution are `new`'s). A file named by
+    /// the link was opened on the computer that made it, and only its name travels: the panel says so.
+    pub fn apply_url(&mut self, state: &url::UrlState) {
+        if let Some(axis) = state.axis {
+            self.axis = axis;
+        }
+        if let Some(mode) = state.mode {
+            self.mode = mode;
+        }
+        self.camera_from_url = state.camera;
+        if let (Some(file), None) = (&state.file, &state.mesh) {
+            self.notice = Some(format!("this link showed {file}, a file on the computer that made it: open it again"));
+        }
+    }
+
+    /// The panel's note that is not an error, if any.
+    pub fn notice(&self) -> Option<&str> {
+        self.notice.as_deref()
+    }
+
+    /// The current view as a shared link's query (see [`url`]); the camera once something has been framed.
+    pub fn url_state(&self) -> url::UrlState {
+        let (mesh, file) = match self.mesh_label.strip_prefix("builtin:") {
+            Some(name) => (Some(name.to_string()), None),
+            None => (None, self.mesh_label.rsplit(['/', '\\']).next().map(str::to_string)),
+        };
+        url::UrlState {
+            mesh,
+            file: file.filter(|f| !f.is_empty()),
+            resolution: Some(self.resolution),
+            axis: Some(self.axis),
+            mode: Some(self.mode),
+            camera: self.stats.as_ref().map(|_| self.camera),
+        }
     }
 
     /// The stats of the last voxelization (for tests and the web page).
@@ -222,6 +271,10 @@ impl ViewerApp {
     pub fn set_mesh(&mut self, label: String, loaded: Result<Mesh, mesh::MeshError>) {
         match loaded {
             Ok(m) => {
+                // A link's note about its file is answered once another mesh is opened.
+                if self.mesh.is_some() {
+                    self.notice = None;
+                }
                 self.mesh_label = label;
                 self.mesh = Some(Arc::new(m));
                 self.error = None;
@@ -275,6 +328,24 @@ impl ViewerApp {
                     list_capacity: Some(12 * n * n),
                     ..Default::default()
                 };
+                let on_cpu = || {
+                    cpu::voxelize_grid_space_mode(&triangles, spec, mode, &|_, _| {})
+                        .map(|(grid, _)| (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None, None))
+                        .map_err(|e| e.to_string())
+                };
+                let Some(voxelizer) = voxelizer else {
+                    // No compute on this device (WebGL2): the CPU voxelizer, compiled into the page, makes the grid.
+                    let result = match (on_cpu(), mesh.shading.as_ref()) {
+                        (Ok((points, grid, _, _)), Some(shading)) => {
+                            let colours = colour::colour_voxels(&grid, &triangles, shading);
+                            Ok((points, grid, None, Some(colours)))
+                        }
+                        (result, _) => result,
+                    };
+                    *outcome.borrow_mut() = Some(result);
+                    ctx.request_repaint();
+                    return;
+                };
                 let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
                     Ok(out) => match (out.points, out.grid) {
                         (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms, None)),
@@ -284,11 +355,7 @@ impl ViewerApp {
                     // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
                     Err(e) if e.is_device_failure() && !gpu.is_lost() => {
                         log::warn!("{e}; voxelizing on the CPU instead");
-                        cpu::voxelize_grid_space_mode(&triangles, spec, mode, &|_, _| {})
-                            .map(|(grid, _)| {
-                                (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None, None)
-                            })
-                            .map_err(|e| e.to_string())
+                        on_cpu()
                     }
                     Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
                     Err(e) => Err(e.to_string()),
@@ -353,7 +420,7 @@ impl ViewerApp {
         });
         if p.frame {
             let (lo, hi) = scene.bounds();
-            self.camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
+            self.camera = self.camera_from_url.take().unwrap_or_else(|| OrbitCamera::framing(lo, hi, 35.0, 25.0));
         }
         self.scene = Some(scene);
         self.scene_version += 1;
@@ -374,7 +441,7 @@ impl ViewerApp {
     /// Tells the web page what is shown (`window.meshvoxStatus`); nothing to do natively.
     fn publish(&self) {
         #[cfg(target_arch = "wasm32")]
-        web::publish_status(self.stats.as_ref(), &self.gpu.summary, self.error.as_deref());
+        web::publish_status(self.stats.as_ref(), &self.gpu.summary, self.voxelizer.is_some(), self.error.as_deref());
     }
 
     fn panel(&mut self, ui: &mut egui::Ui) {
@@ -417,6 +484,12 @@ impl ViewerApp {
             web::open_file_picker();
         }
         ui.label(egui::RichText::new("Drop an .obj, .gltf, .glb, .stl or .ply file anywhere.").small().weak());
+        if let Some(notice) = &self.notice {
+            ui.add(
+                egui::Label::new(egui::RichText::new(notice).small().color(egui::Color32::from_rgb(240, 160, 64)))
+                    .wrap(),
+            );
+        }
         ui.separator();
 
         ui.label("Resolution (voxels along the axis)");
@@ -502,6 +575,13 @@ impl ViewerApp {
                 ui.end_row();
             });
             ui.add(egui::Label::new(egui::RichText::new(format!("adapter: {}", self.gpu.summary.name)).small()).wrap());
+        }
+        if self.voxelizer.is_none() {
+            let note = match cfg!(target_arch = "wasm32") {
+                true => "WebGL2 (this browser has no WebGPU): voxelized on the CPU in WebAssembly, one thread",
+                false => "this device has no compute shaders: voxelized on the CPU",
+            };
+            ui.add(egui::Label::new(egui::RichText::new(note).small().weak()).wrap());
         }
         {
             ui.separator();
@@ -734,6 +814,15 @@ impl eframe::App for ViewerApp {
         if self.needs_voxelize {
             ui.ctx().request_repaint();
         }
+        // The address bar follows the view, once a drag has ended (browsers throttle frequent rewrites).
+        #[cfg(target_arch = "wasm32")]
+        if !ui.input(|i| i.pointer.any_down()) {
+            let query = self.url_state().query();
+            if query != self.url_written {
+                web::replace_query(&query);
+                self.url_written = query;
+            }
+        }
     }
 }
 
@@ -777,10 +866,20 @@ pub fn native_options() -> eframe::NativeOptions {
     }
 }
 
-/// Web page options: WebGPU through wgpu (the page checks for WebGPU before it starts the app).
+/// Web page options: WebGPU through wgpu; in the `webgl` build (which the page loads where there is no WebGPU)
+/// WebGL2 only.
 #[cfg(target_arch = "wasm32")]
 pub fn web_options() -> eframe::WebOptions {
-    eframe::WebOptions { wgpu_options: wgpu_configuration(), ..Default::default() }
+    let wgpu_options = wgpu_configuration();
+    #[cfg(feature = "webgl")]
+    let wgpu_options = {
+        let mut options = wgpu_options;
+        if let egui_wgpu::WgpuSetup::CreateNew(create) = &mut options.wgpu_setup {
+            create.instance_descriptor.backends = wgpu::Backends::GL;
+        }
+        options
+    };
+    eframe::WebOptions { wgpu_options, ..Default::default() }
 }
 
 /// Colours a voxelized grid on the GPU when it fits there, else (and when the GPU fails) on the CPU.

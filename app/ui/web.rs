@@ -75,6 +75,18 @@ pub(crate) fn download(name: &str, bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// Rewrites the address bar's query (no new history entry), so copying it shares the current view.
+pub(crate) fn replace_query(query: &str) {
+    let Some(window) = web_sys::window() else { return };
+    let location = window.location();
+    let path = location.pathname().unwrap_or_default();
+    let hash = location.hash().unwrap_or_default();
+    let url = if query.is_empty() { format!("{path}{hash}") } else { format!("{path}?{query}{hash}") };
+    if let Ok(history) = window.history() {
+        let _ = history.replace_state_with_url(&JsValue::NULL, "", Some(&url));
+    }
+}
+
 /// Opens the browser's file dialog through the page's file input (its change handler sends the file).
 pub(crate) fn open_file_picker() {
     let input = web_sys::window()
@@ -87,9 +99,10 @@ pub(crate) fn open_file_picker() {
     }
 }
 
-/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, mesh, resolution, mode, voxels, voxelize_ms, gpu_ms,
-/// triangles, dims, coloured, error }`. `ready` turns true with the first finished voxelization.
-pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, error: Option<&str>) {
+/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, voxelizer, mesh, resolution, mode, voxels,
+/// voxelize_ms, gpu_ms, triangles, dims, coloured, error }`. `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the
+/// WebGL2 fallback), `voxelizer` `gpu` or `cpu`. `ready` turns true with the first finished voxelization.
+pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, on_gpu: bool, error: Option<&str>) {
     let status = js_sys::Object::new();
     let set = |key: &str, value: JsValue| {
         let _ = js_sys::Reflect::set(&status, &key.into(), &value);
@@ -97,6 +110,7 @@ pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, er
     set("ready", stats.is_some().into());
     set("adapter", adapter.name.as_str().into());
     set("backend", adapter.backend.as_str().into());
+    set("voxelizer", if on_gpu { "gpu" } else { "cpu" }.into());
     set("error", error.map_or(JsValue::NULL, JsValue::from));
     if let Some(s) = stats {
         set("mesh", s.mesh.as_str().into());

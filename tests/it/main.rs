@@ -19,3 +19,4 @@ mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;
 mod ui_snapshot;
+mod url_state;

@@ -1,5 +1,7 @@
-// Browser test of the web page: headless Chromium (Debian's `chromium`, driven by playwright-core) with the WebGPU
-// flag set from ../shared/PLATFORM.md loads web/dist (built by web/build.sh) from a local server, and
+// Browser test of the web page, run twice in headless Chromium (Debian's `chromium`, driven by playwright-core)
+// on web/dist (built by web/build.sh) from a local server: once with the WebGPU flag set from
+// ../shared/PLATFORM.md (the WebGPU build), once with WebGPU switched off (the WebGL2 build: CPU voxelization in
+// wasm, WebGL2 drawing on SwiftShader). With WebGPU it
 //  - waits for window.meshvoxStatus.ready and checks the default mesh's voxel count against the native CLI,
 //  - changes the resolution through the page hook, then by typing into the panel's resolution field, and checks
 //    the new counts against the CLI,
@@ -11,10 +13,13 @@
 //  - downloads the coloured Duck in each export format (.vox, .binvox, .npy with .colors.npy, .glb) and compares
 //    each file byte for byte with the CLI's for the same input,
 //  - loads a decimal OBJ box with tessellated faces on the grid's boundaries at 99 and checks page == CLI == shell,
-//  - in a page without WebGPU, checks that the page says so instead of showing a blank canvas,
 //  - fails on any uncaught exception, panic or console error,
 //  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
 //    rewrites it).
+// Without WebGPU it checks that the WebGL2 build is the one loaded, the default mesh, a resolution change and an
+// opened coloured file against the CLI, the screenshot against its own golden, that a shared link (?mesh=…&r=…
+// &axis=…&mode=…&cam=…) restores its view and that the address bar follows changes; and that a page with neither
+// WebGPU nor WebGL2 says so. Both print their wasm's size and the time to the first voxels.
 // The CLI reference is `meshvox voxelize --backend cpu` (the CPU reference voxelizer) from MESHVOX_BIN, by default
 // target/debug/meshvox. Run: `node web/tests/browser.mjs` (tests/run.sh does, after `cargo test`).
 import { chromium } from "playwright-core";
@@ -40,6 +45,7 @@ function check(ok, what) {
 }
 
 for (const [p, hint] of [[path.join(dist, "meshvox_bg.wasm"), "run `bash web/build.sh` first"],
+  [path.join(dist, "meshvox_gl_bg.wasm"), "run `bash web/build.sh` first (it makes the WebGL2 build too)"],
   [bin, "build the CLI first (`cargo build`), or set MESHVOX_BIN"], [chromiumPath, "apt-get install chromium"]]) {
   if (!existsSync(p)) throw new Error(`${p} is missing: ${hint}`);
 }
@@ -49,17 +55,20 @@ if (!existsSync(meshes)) {
 }
 
 /** Voxel count of the native CLI (CPU reference) for `spec` at `resolution`. */
-function cliVoxels(spec, resolution, mode = "surface") {
+function cliVoxels(spec, resolution, mode = "surface", axis = "longest") {
   const out = path.join(tmpdir(), `meshvox-web-test-${process.pid}.npy`);
   const json = execFileSync(bin, ["voxelize", spec, "-r", String(resolution), "-o", out, "--stats-json",
-    "--backend", "cpu", "--mode", mode], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
+    "--backend", "cpu", "--mode", mode, "--axis", axis], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
   return JSON.parse(json.split("\n")[0]).voxels;
 }
 
-// A static server for web/dist; wasm needs its MIME type for streaming compilation.
+// A static server for web/dist, mounted in a subfolder as a deployment would be (the page must use relative URLs
+// only); wasm needs its MIME type for streaming compilation.
 const types = { ".html": "text/html", ".js": "text/javascript", ".wasm": "application/wasm" };
+const mount = "/tools/meshvox/";
 const server = createServer(async (req, res) => {
-  const name = decodeURIComponent(new URL(req.url, "http://x").pathname);
+  const full = decodeURIComponent(new URL(req.url, "http://x").pathname);
+  const name = full.startsWith(mount) ? full.slice(mount.length - 1) : "/outside-the-mount";
   const file = path.join(dist, name === "/" ? "index.html" : name);
   try {
     if (!file.startsWith(dist) || !(await stat(file)).isFile()) throw new Error("not found");
@@ -70,29 +79,34 @@ const server = createServer(async (req, res) => {
   }
 });
 await new Promise((r) => server.listen(0, "127.0.0.1", r));
-const url = `http://127.0.0.1:${server.address().port}/`;
+const url = `http://127.0.0.1:${server.address().port}${mount}`;
 
-// playwright-core gives each launch a fresh temporary profile (PLATFORM.md asks for one).
-const browser = await chromium.launch({
-  executablePath: chromiumPath,
-  headless: true,
-  args: ["--no-sandbox", "--enable-unsafe-webgpu", "--enable-features=Vulkan", "--use-vulkan=swiftshader",
-    "--use-angle=vulkan", "--use-webgpu-adapter=swiftshader", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-quic"],
-});
+const quiet = ["--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+  "--disable-quic"];
+const flags = {
+  webgpu: ["--no-sandbox", "--enable-unsafe-webgpu", "--enable-features=Vulkan", "--use-vulkan=swiftshader",
+    "--use-angle=vulkan", "--use-webgpu-adapter=swiftshader", ...quiet],
+  webgl2: ["--no-sandbox", "--disable-features=WebGPU", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    ...quiet],
+};
 const errors = [];
-try {
+
+/** A page of a fresh browser (playwright-core gives each launch a fresh temporary profile, as PLATFORM.md asks),
+ * its console errors collected into `errors`. */
+async function openPage(browser, what) {
   const page = await browser.newPage({ viewport: { width: 960, height: 600 } });
-  page.on("pageerror", (e) => errors.push(`uncaught: ${e.message}`));
+  page.on("pageerror", (e) => errors.push(`uncaught (${what}): ${e.message}`));
   page.on("console", (m) => {
-    if (m.type() === "error") errors.push(`console.error: ${m.text()}`);
+    if (m.type() === "error") errors.push(`console.error (${what}): ${m.text()}`);
     if (process.env.VERBOSE) console.log(`  [${m.type()}] ${m.text()}`);
   });
+  return page;
+}
 
-  const opened = performance.now();
-  await page.goto(url);
-  /** Waits until meshvoxStatus satisfies `want` (a JSON-able partial status) and returns the status. */
-  const status = async (want, what) => {
+/** A function that waits until meshvoxStatus on `page` satisfies `want` (a JSON-able partial status) and
+ * returns the status. */
+function statusOf(page) {
+  return async (want, what) => {
     try {
       await page.waitForFunction((w) => {
         const s = window.meshvoxStatus;
@@ -106,10 +120,47 @@ try {
     if (s.error) throw new Error(`${what}: the page reports an error: ${s.error}`);
     return s;
   };
+}
 
+/** The size of a file in web/dist and its gzip -9 size, as "N bytes (M gzipped)". */
+async function sizeOf(name) {
+  const bytes = await readFile(path.join(dist, name));
+  const { gzipSync } = await import("node:zlib");
+  return `${bytes.length} bytes (${gzipSync(bytes, { level: 9 }).length} gzipped)`;
+}
+
+async function withBrowser(kind, run) {
+  const browser = await chromium.launch({ executablePath: chromiumPath, headless: true, args: flags[kind] });
+  try {
+    await run(browser);
+  } finally {
+    await browser.close();
+  }
+}
+
+try {
+  await withBrowser("webgpu", webgpuPath);
+  await withBrowser("webgl2", webgl2Path);
+} finally {
+  server.close();
+}
+check(errors.length === 0, `no page errors or console errors${errors.length ? ": " + errors.join(" | ") : ""}`);
+if (failures > 0) {
+  console.log(`browser test: ${failures} check(s) failed`);
+  process.exit(1);
+}
+console.log("browser test: all checks passed");
+
+/** The page on the browser's WebGPU: everything the page does. */
+async function webgpuPath(browser) {
+  const page = await openPage(browser, "WebGPU");
+  const status = statusOf(page);
+  const opened = performance.now();
+  await page.goto(url);
   const first = await status({ ready: true }, "start");
   const firstMs = performance.now() - opened;
-  console.log(`first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
+  console.log(`WebGPU build: meshvox_bg.wasm ${await sizeOf("meshvox_bg.wasm")}; ` +
+    `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
     `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms (compute passes ${first.gpu_ms.toFixed(1)} ms)`);
   check(first.backend === "BrowserWebGpu", `the page voxelizes on the browser's WebGPU (backend ${first.backend})`);
   const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
@@ -302,27 +353,79 @@ try {
     `after the bad files the page still voxelizes: the box @72 ${recovered.voxels} == CLI ${recoveredCli}`);
   await rm(boxObj, { force: true });
 
-  // A browser without WebGPU: the page must say so (the same Chromium, with navigator.gpu taken away).
-  const plain = await browser.newPage({ viewport: { width: 960, height: 600 } });
-  plain.on("pageerror", (e) => errors.push(`uncaught (no-WebGPU page): ${e.message}`));
-  await plain.addInitScript(() => delete Navigator.prototype.gpu);
+}
+
+/** The page without WebGPU: the WebGL2 build, CPU voxelization in wasm; shared links; no WebGL2 either. */
+async function webgl2Path(browser) {
+  const page = await openPage(browser, "WebGL2");
+  const status = statusOf(page);
+  const opened = performance.now();
+  await page.goto(url);
+  const first = await status({ ready: true }, "start without WebGPU");
+  const firstMs = performance.now() - opened;
+  const build = await page.evaluate(() => window.meshvoxStarted?.build);
+  console.log(`WebGL2 build: meshvox_gl_bg.wasm ${await sizeOf("meshvox_gl_bg.wasm")}; ` +
+    `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" (${first.backend}); ` +
+    `${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms on the CPU`);
+  check(build === "webgl2" && first.backend === "Gl" && first.voxelizer === "cpu",
+    `without WebGPU the page runs the WebGL2 build (build ${build}, backend ${first.backend}, voxelizer ${first.voxelizer})`);
+  const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
+  check(first.voxels === defaultCli,
+    `WebGL2: default mesh builtin:${first.mesh} @${first.resolution}: page ${first.voxels} == CLI ${defaultCli}`);
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await compareScreenshot(page, `web-default.${slug(first)}`);
+
+  await page.evaluate(() => window.meshvoxSetResolution(96));
+  const changed = await status({ ready: true, resolution: 96 }, "WebGL2: resolution change");
+  const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
+  check(changed.voxels === changedCli, `WebGL2: resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
+  const search = () => page.evaluate(() => decodeURIComponent(location.search));
+  await page.waitForFunction(() => location.search.includes("r=96"), null, { timeout: 10_000 }).catch(() => {});
+  const afterChange = await search();
+  check(afterChange.includes(`mesh=${changed.mesh}`) && afterChange.includes("r=96") && afterChange.includes("cam="),
+    `the address bar follows the view: ${afterChange}`);
+
+  // An opened file: the coloured Duck (or, without ../shared, the tessellated box made here).
+  const file = existsSync(meshes) ? path.join(meshes, "gltf/Duck.glb") : path.join(tmpdir(), `meshvox-gl-box-${process.pid}.obj`);
+  if (!existsSync(meshes)) await writeFile(file, tessellatedBox(5, 0xb0c5));
+  await page.setInputFiles("#meshvox-file", file);
+  const opened2 = await status({ ready: true, mesh: path.basename(file) }, `WebGL2: opening ${path.basename(file)}`);
+  const fileCli = cliVoxels(file, opened2.resolution);
+  check(opened2.voxels === fileCli && opened2.coloured === file.endsWith(".glb"),
+    `WebGL2: ${path.basename(file)} @${opened2.resolution} through the file input: page ${opened2.voxels} == CLI ` +
+    `${fileCli}, coloured ${opened2.coloured} (${opened2.voxelize_ms.toFixed(0)} ms)`);
+  const withFile = await search();
+  check(withFile.includes(`file=${path.basename(file)}`), `a file's name (not its content) goes into the link: ${withFile}`);
+
+  // A shared link restores its view: mesh, resolution, axis, mode and camera; the camera is written back as given.
+  const shared = await openPage(browser, "WebGL2 link");
+  const cam = "30,20,3.5,0.5,0.25,0.5";
+  await shared.goto(`${url}?mesh=torus&r=40&axis=y&mode=solid&cam=${cam}`);
+  const linked = await statusOf(shared)({ ready: true }, "opening a shared link");
+  const linkedCli = cliVoxels("builtin:torus", 40, "solid", "y");
+  await shared.waitForFunction(() => location.search.includes("cam="), null, { timeout: 10_000 }).catch(() => {});
+  const linkedSearch = await shared.evaluate(() => decodeURIComponent(location.search));
+  check(linked.mesh === "torus" && linked.resolution === 40 && linked.mode === "solid" && linked.voxels === linkedCli &&
+    linkedSearch.includes(`cam=${cam}`) && linkedSearch.includes("axis=y"),
+    `a shared link restores torus @40 along y, solid (${linked.voxels} == CLI ${linkedCli}) and its camera: ${linkedSearch}`);
+
+  // Neither WebGPU nor WebGL2: the page says so instead of showing a blank canvas.
+  const plain = await openPage(browser, "no WebGL2");
+  await plain.addInitScript(() => {
+    delete Navigator.prototype.gpu;
+    const getContext = HTMLCanvasElement.prototype.getContext;
+    HTMLCanvasElement.prototype.getContext = function (kind, ...rest) {
+      return kind === "webgl2" ? null : getContext.call(this, kind, ...rest);
+    };
+  });
   await plain.goto(url);
   await plain.waitForFunction(() => window.meshvoxStatus?.error, null, { timeout: 30_000 });
-  const noGpu = await plain.evaluate(() => ({ status: window.meshvoxStatus,
+  const none = await plain.evaluate(() => ({ status: window.meshvoxStatus,
     text: document.getElementById("meshvox-message").innerText,
     visible: !document.getElementById("meshvox-message").hidden }));
-  check(noGpu.status.error === "no-webgpu" && noGpu.visible && noGpu.text.includes("no WebGPU"),
-    `without WebGPU the page says so ("${noGpu.text.split("\n")[0]}")`);
-} finally {
-  await browser.close();
-  server.close();
+  check(none.status.error === "no-webgpu-or-webgl2" && none.visible && none.text.includes("neither WebGPU nor WebGL2"),
+    `without WebGPU and WebGL2 the page says so ("${none.text.split("\n")[0]}")`);
 }
-check(errors.length === 0, `no page errors or console errors${errors.length ? ": " + errors.join(" | ") : ""}`);
-if (failures > 0) {
-  console.log(`browser test: ${failures} check(s) failed`);
-  process.exit(1);
-}
-console.log("browser test: all checks passed");
 
 /** OBJ text of the box [-0.5, 0.5]^3, each face an m x m grid of cells with jittered inner points, written with
  * ten decimals (so almost no coordinate is exact in binary), two triangles per cell. */
@@ -370,7 +473,7 @@ async function clickLikeAUser(page, x, y) {
 
 function slug(s) {
   const name = (s.adapter.split(/\s+/)[0] || "unknown").toLowerCase();
-  return `webgpu-${name}`.replace(/[^a-z0-9-]/g, "");
+  return `${s.backend === "Gl" ? "webgl2" : "webgpu"}-${name}`.replace(/[^a-z0-9-]/g, "");
 }
 
 /** Compares a 256-pixel-wide screenshot with tests/snapshots/NAME.png using ImageMagick, with a tolerance for
