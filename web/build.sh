@@ -2,8 +2,8 @@
 # Builds the web page as a self-contained static site in web/dist/: index.html and two builds of the meshvox
 # binary's release wasm with their JS bindings (wasm-bindgen-cli, whose version must equal Cargo.lock's
 # wasm-bindgen): meshvox.js for browsers with WebGPU, meshvox_gl.js (`--features webgl`: CPU voxelization, WebGL2
-# drawing) for the others; the page loads only the one it needs. Each wasm is shrunk with wasm-opt (npm's
-# binaryen, installed into web/node_modules).
+# drawing) for the others; the page loads only the one it needs. Each wasm is built with the size-optimised `web`
+# profile and shrunk with wasm-opt (npm's binaryen, installed into web/node_modules).
 # `bash web/build.sh --serve [PORT]` then serves it on http://127.0.0.1:PORT (default 8080).
 # Run as root on a fresh machine, it installs the wasm32 target and wasm-bindgen-cli first.
 set -euo pipefail
@@ -30,12 +30,15 @@ features="--enable-bulk-memory --enable-nontrapping-float-to-int --enable-sign-e
   --enable-reference-types --enable-multivalue"
 for build in webgpu webgl; do
   if [ $build = webgpu ]; then name=meshvox; flags=(); else name=meshvox_gl; flags=(--features webgl); fi
-  cargo build --locked --release --target wasm32-unknown-unknown --bin meshvox "${flags[@]}"
+  # The `web` profile (Cargo.toml): size-optimised, whole-program LTO.
+  cargo build --locked --profile web --target wasm32-unknown-unknown --bin meshvox "${flags[@]}"
   wasm-bindgen --target web --no-typescript --out-dir web/dist --out-name $name \
-    target/wasm32-unknown-unknown/release/meshvox.wasm
+    target/wasm32-unknown-unknown/web/meshvox.wasm
   raw=$(stat -c %s web/dist/${name}_bg.wasm)
+  # -O1: on this LTO'd code it shrinks the gzipped wasm as much as -Oz (measured: 1.75 vs 1.78 MB) in 13 s
+  # instead of 5 minutes.
   # shellcheck disable=SC2086
-  web/node_modules/.bin/wasm-opt -Oz $features web/dist/${name}_bg.wasm -o web/dist/${name}_bg.opt.wasm
+  web/node_modules/.bin/wasm-opt -O1 $features web/dist/${name}_bg.wasm -o web/dist/${name}_bg.opt.wasm
   mv web/dist/${name}_bg.opt.wasm web/dist/${name}_bg.wasm
   size=$(stat -c %s web/dist/${name}_bg.wasm)
   gz=$(gzip -9 -c web/dist/${name}_bg.wasm | wc -c)

@@ -158,7 +158,10 @@ impl ViewerApp {
             url_written: String::new(),
         };
         #[cfg(target_arch = "wasm32")]
-        web::attach(&cc.egui_ctx);
+        {
+            web::attach(&cc.egui_ctx);
+            cc.egui_ctx.set_fonts(web::fonts());
+        }
         app.open(mesh_spec.to_string());
         Ok(app)
     }

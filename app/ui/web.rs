@@ -31,6 +31,23 @@ thread_local! {
     static CONTEXT: RefCell<Option<egui::Context>> = const { RefCell::new(None) };
 }
 
+/// egui's proportional font and its icons for both families: the page embeds no monospace font (see
+/// Cargo.toml), and shows no code.
+pub(crate) fn fonts() -> egui::FontDefinitions {
+    let mut fonts = egui::FontDefinitions::empty();
+    let icons = egui::FontData::from_static(epaint_default_fonts::EGUI_ICONS)
+        .tweak(egui::FontTweak { scale: 0.9, ..Default::default() });
+    fonts.font_data.insert(
+        "Ubuntu-Light".into(),
+        std::sync::Arc::new(egui::FontData::from_static(epaint_default_fonts::UBUNTU_LIGHT)),
+    );
+    fonts.font_data.insert("egui-icons".into(), std::sync::Arc::new(icons));
+    for family in [egui::FontFamily::Proportional, egui::FontFamily::Monospace] {
+        fonts.families.insert(family, vec!["Ubuntu-Light".into(), "egui-icons".into()]);
+    }
+    fonts
+}
+
 /// Remembers the egui context, so messages can wake the app.
 pub(crate) fn attach(ctx: &egui::Context) {
     CONTEXT.with(|c| *c.borrow_mut() = Some(ctx.clone()));
