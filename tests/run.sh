@@ -41,9 +41,9 @@ export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 cargo test --locked --all-targets "$@"
 [ $# -gt 0 ] && exit 0
 
-# The web page: build web/dist, then drive it in headless Chromium and compare with the CLI built above.
+# The web page: build web/dist (both builds; it installs web/node_modules for wasm-opt, which also holds the
+# browser test's playwright-core), then drive it in headless Chromium and compare with the CLI built above.
 bash web/build.sh
-(cd web && npm ci --no-audit --no-fund --loglevel=error)
 node web/tests/browser.mjs
 
 # The fuzz targets, briefly, over their kept corpus (nightly and cargo-fuzz are installed if missing).
