@@ -130,6 +130,13 @@ struct RenderArgs {
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "512x512", value_parser = parse_size)]
     size: (u32, u32),
+    /// The axis pointing up (the camera orbits around it); default: glTF and the builtins y, STL z, OBJ and PLY
+    /// z when the model is flat along z, else y.
+    #[arg(long, value_enum)]
+    up: Option<UpArg>,
+    /// A preset view instead of --yaw/--pitch.
+    #[arg(long, value_enum)]
+    view: Option<ViewArg>,
     /// Camera angle around the vertical axis, degrees.
     #[arg(long, default_value_t = 35.0, allow_negative_numbers = true)]
     yaw: f32,
@@ -177,6 +184,9 @@ struct ViewArgs {
     /// Initial resolution.
     #[arg(short = 'r', long = "resolution", value_name = "N", default_value_t = meshvox::ui::DEFAULT_RESOLUTION)]
     resolution: u32,
+    /// The axis pointing up (default: guessed per mesh, as for `render`).
+    #[arg(long, value_enum)]
+    up: Option<UpArg>,
 }
 
 #[derive(clap::Args, Clone)]
@@ -244,6 +254,48 @@ impl From<ModeArg> for Mode {
     }
 }
 
+/// The axis pointing up in the view (`render::camera::UpAxis`).
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum UpArg {
+    Y,
+    Z,
+}
+
+impl From<UpArg> for meshvox::render::camera::UpAxis {
+    fn from(u: UpArg) -> Self {
+        match u {
+            UpArg::Y => Self::Y,
+            UpArg::Z => Self::Z,
+        }
+    }
+}
+
+/// A preset view (`render::camera::ViewPreset`).
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ViewArg {
+    Front,
+    Back,
+    Left,
+    Right,
+    Top,
+    Bottom,
+    Iso,
+}
+
+impl From<ViewArg> for meshvox::render::camera::ViewPreset {
+    fn from(v: ViewArg) -> Self {
+        match v {
+            ViewArg::Front => Self::Front,
+            ViewArg::Back => Self::Back,
+            ViewArg::Left => Self::Left,
+            ViewArg::Right => Self::Right,
+            ViewArg::Top => Self::Top,
+            ViewArg::Bottom => Self::Bottom,
+            ViewArg::Iso => Self::Iso,
+        }
+    }
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum AxisArg {
     Longest,
@@ -273,6 +325,7 @@ pub fn main() -> ExitCode {
         None => view(&ViewArgs {
             mesh: format!("builtin:{}", builtin::DEFAULT),
             resolution: meshvox::ui::DEFAULT_RESOLUTION,
+            up: None,
         }),
         Some(Command::View(args)) => view(&args),
         Some(Command::Voxelize(args)) => voxelize(&args),
@@ -785,7 +838,11 @@ fn render(args: &RenderArgs) -> Result<()> {
     let offscreen = Offscreen::new(&gpu);
     let scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
     let (lo, hi) = scene.bounds();
-    let camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch);
+    let up = args.up.map_or_else(|| mesh.guess_up(), Into::into);
+    let mut camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch).with_up(up);
+    if let Some(view) = args.view {
+        camera.look(view.into());
+    }
     let style = Style { show_mesh: args.show_mesh, ..Default::default() };
     let (w, h) = args.size;
     let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
@@ -812,11 +869,17 @@ fn view(args: &ViewArgs) -> Result<()> {
         bail!("no display (neither DISPLAY nor WAYLAND_DISPLAY is set); {HEADLESS}");
     }
     let mesh = args.mesh.clone();
-    let resolution = args.resolution;
+    let (resolution, up) = (args.resolution, args.up);
     eframe::run_native(
         "meshvox",
         meshvox::ui::native_options(),
-        Box::new(move |cc| Ok(Box::new(meshvox::ui::ViewerApp::new(cc, &mesh, resolution)?))),
+        Box::new(move |cc| {
+            let mut app = meshvox::ui::ViewerApp::new(cc, &mesh, resolution)?;
+            if let Some(up) = up {
+                app.set_up(up.into());
+            }
+            Ok(Box::new(app))
+        }),
     )
     .map_err(|e| anyhow!("cannot open the viewer window: {e}; {HEADLESS}"))
 }

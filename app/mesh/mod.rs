@@ -63,6 +63,22 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Which axis is probably up in this mesh's file (only the view uses it; grids and outputs do not change).
+    /// glTF is Y-up by its specification, and the bundled meshes are Y-up. STL files come from CAD and 3D
+    /// printing, which are Z-up. OBJ and PLY carry no convention: a flat model (its extent along Z under half
+    /// of the next smallest) lies on its Z axis, so Z; anything else Y, the convention of most exporters.
+    pub fn guess_up(&self) -> UpAxis {
+        match Format::detect(Path::new(&self.name), &[]) {
+            Some(Format::Stl) => UpAxis::Z,
+            Some(Format::Obj | Format::Ply) => {
+                let Some(b) = self.bounds() else { return UpAxis::Y };
+                let e = b.extent();
+                if e.z < 0.5 * e.x.min(e.y) { UpAxis::Z } else { UpAxis::Y }
+            }
+            _ => UpAxis::Y,
+        }
+    }
+
     /// The world-space bounding box of all triangles, or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
         let mut it = self.triangles.iter().flatten();
@@ -203,6 +219,27 @@ impl LoadLimits {
 impl Default for LoadLimits {
     fn default() -> LoadLimits {
         LoadLimits { max_triangles: Self::DEFAULT_MAX_TRIANGLES, max_file_bytes: None }
+    }
+}
+
+/// The axis that points up in a mesh's world: the viewer orbits around it and its presets are named after it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum UpAxis {
+    #[default]
+    Y,
+    Z,
+}
+
+impl UpAxis {
+    pub fn name(self) -> &'static str {
+        match self {
+            UpAxis::Y => "y",
+            UpAxis::Z => "z",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<UpAxis> {
+        [UpAxis::Y, UpAxis::Z].into_iter().find(|u| u.name() == name.to_ascii_lowercase())
     }
 }
 

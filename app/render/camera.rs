@@ -1,8 +1,11 @@
-//! An orbit camera around a target point, Y up, framing a box.
+//! An orbit camera around a target point, Y or Z up, framing a box, with the usual preset views.
 
+pub use crate::mesh::UpAxis;
 use glam::{Mat4, Vec3};
 
-/// Orbit camera: `yaw` around +Y and `pitch` above the horizon, both in degrees, at `distance` from `target`.
+/// Orbit camera: `yaw` around the up axis and `pitch` above the horizon, both in degrees, at `distance` from
+/// `target`. The angles live in a Y-up frame (yaw 0 looks at the model's front: from +Z for Y up, from -Y for
+/// Z up, as glTF and CAD define front), which `up` turns into the world.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OrbitCamera {
     pub target: Vec3,
@@ -11,6 +14,70 @@ pub struct OrbitCamera {
     pub pitch: f32,
     /// Vertical field of view in degrees.
     pub fov_y: f32,
+    pub up: UpAxis,
+}
+
+/// The preset views, on the panel's buttons, keys 1 to 7 and `render --view`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViewPreset {
+    Front,
+    Back,
+    Left,
+    Right,
+    Top,
+    Bottom,
+    Iso,
+}
+
+impl ViewPreset {
+    pub const ALL: [ViewPreset; 7] = [
+        ViewPreset::Front,
+        ViewPreset::Back,
+        ViewPreset::Left,
+        ViewPreset::Right,
+        ViewPreset::Top,
+        ViewPreset::Bottom,
+        ViewPreset::Iso,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ViewPreset::Front => "front",
+            ViewPreset::Back => "back",
+            ViewPreset::Left => "left",
+            ViewPreset::Right => "right",
+            ViewPreset::Top => "top",
+            ViewPreset::Bottom => "bottom",
+            ViewPreset::Iso => "iso",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<ViewPreset> {
+        ViewPreset::ALL.into_iter().find(|v| v.name() == name)
+    }
+
+    /// Yaw and pitch in degrees. Top and bottom stop a degree short of the pole, where yaw is undefined; iso
+    /// looks down the cube's diagonal.
+    pub fn angles(self) -> (f32, f32) {
+        match self {
+            ViewPreset::Front => (0.0, 0.0),
+            ViewPreset::Back => (180.0, 0.0),
+            ViewPreset::Left => (270.0, 0.0),
+            ViewPreset::Right => (90.0, 0.0),
+            ViewPreset::Top => (0.0, 89.0),
+            ViewPreset::Bottom => (0.0, -89.0),
+            ViewPreset::Iso => (45.0, 35.264),
+        }
+    }
+}
+
+/// A direction of the camera's Y-up frame in the world of `up`: Z up maps the frame's (x, y, z) to (x, -z, y),
+/// a rotation, so the frame's front (+Z) becomes the world's -Y.
+fn to_world(up: UpAxis, v: Vec3) -> Vec3 {
+    match up {
+        UpAxis::Y => v,
+        UpAxis::Z => Vec3::new(v.x, -v.z, v.y),
+    }
 }
 
 impl OrbitCamera {
@@ -23,17 +90,33 @@ impl OrbitCamera {
         let radius = ((max - min).length() * 0.5).max(1e-6);
         // The bounding sphere fits the narrower of the two field-of-view angles (square images: the same).
         let distance = radius / (fov_y.to_radians() * 0.5).sin() * 1.05;
-        OrbitCamera { target: (min + max) * 0.5, distance, yaw, pitch, fov_y }
+        OrbitCamera { target: (min + max) * 0.5, distance, yaw, pitch, fov_y, up: UpAxis::Y }
+    }
+
+    /// The same camera orbiting around another up axis.
+    pub fn with_up(self, up: UpAxis) -> OrbitCamera {
+        OrbitCamera { up, ..self }
+    }
+
+    /// Turns to a preset view, keeping the target and distance.
+    pub fn look(&mut self, preset: ViewPreset) {
+        (self.yaw, self.pitch) = preset.angles();
+    }
+
+    /// The world's up direction.
+    pub fn up_vector(&self) -> Vec3 {
+        to_world(self.up, Vec3::Y)
     }
 
     pub fn eye(&self) -> Vec3 {
         let (yaw, pitch) = (self.yaw.to_radians(), self.pitch.clamp(-89.0, 89.0).to_radians());
-        self.target + Vec3::new(pitch.cos() * yaw.sin(), pitch.sin(), pitch.cos() * yaw.cos()) * self.distance
+        let offset = Vec3::new(pitch.cos() * yaw.sin(), pitch.sin(), pitch.cos() * yaw.cos());
+        self.target + to_world(self.up, offset) * self.distance
     }
 
     /// World to clip space for a viewport of the given aspect ratio (width / height); depth in [0, 1].
     pub fn view_proj(&self, aspect: f32) -> Mat4 {
-        let view = glam::camera::rh::view::look_at_mat4(self.eye(), self.target, Vec3::Y);
+        let view = glam::camera::rh::view::look_at_mat4(self.eye(), self.target, self.up_vector());
         // With a wide viewport the vertical fov stays; with a tall one the horizontal fov is held instead, so
         // the framed box stays in view in both.
         let fov = if aspect >= 1.0 {
@@ -60,7 +143,7 @@ impl OrbitCamera {
     /// Moves the target in the view plane by fractions of the distance.
     pub fn pan(&mut self, dx: f32, dy: f32) {
         let forward = (self.target - self.eye()).normalize_or_zero();
-        let right = forward.cross(Vec3::Y).normalize_or_zero();
+        let right = forward.cross(self.up_vector()).normalize_or_zero();
         let up = right.cross(forward);
         self.target += (right * -dx + up * dy) * self.distance;
     }

@@ -17,6 +17,7 @@ use crate::gpu::compact::CompactVoxels;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::{self, Mesh, builtin};
+use crate::render::camera::{UpAxis, ViewPreset};
 use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_SAMPLES};
 use crate::voxel::colour::{self, VoxelColours};
 use crate::voxel::export;
@@ -87,6 +88,10 @@ pub struct ViewerApp {
     cut_on: bool,
     style: Style,
     camera: OrbitCamera,
+    /// The axis the camera orbits around: the mesh's guess ([`Mesh::guess_up`]) unless the user or a link chose.
+    up: UpAxis,
+    /// Whether `up` was chosen (then a newly opened mesh keeps it).
+    up_chosen: bool,
     grid: Option<VoxelGrid>,
     /// The shown grid's voxel colours, when its mesh has colour.
     colours: Option<VoxelColours>,
@@ -145,6 +150,8 @@ impl ViewerApp {
             cut_on: false,
             style: Style::default(),
             camera: OrbitCamera::framing(glam::Vec3::ZERO, glam::Vec3::ONE, 35.0, 25.0),
+            up: UpAxis::Y,
+            up_chosen: false,
             grid: None,
             colours: None,
             stats: None,
@@ -175,10 +182,30 @@ impl ViewerApp {
         if let Some(mode) = state.mode {
             self.mode = mode;
         }
+        if let Some(up) = state.up {
+            self.set_up(up);
+        }
         self.camera_from_url = state.camera;
         if let (Some(file), None) = (&state.file, &state.mesh) {
             self.notice = Some(format!("this link showed {file}, a file on the computer that made it: open it again"));
         }
+    }
+
+    /// Orbits around `up` from now on, for this mesh and the next ones (`--up`, the panel, a link).
+    pub fn set_up(&mut self, up: UpAxis) {
+        self.up = up;
+        self.up_chosen = true;
+        self.camera.up = up;
+    }
+
+    /// The camera the view is drawn from.
+    pub fn camera(&self) -> &OrbitCamera {
+        &self.camera
+    }
+
+    /// Turns the camera to a preset view (the panel's buttons, keys 1 to 7).
+    pub fn look(&mut self, preset: ViewPreset) {
+        self.camera.look(preset);
     }
 
     /// The panel's note that is not an error, if any.
@@ -198,6 +225,7 @@ impl ViewerApp {
             resolution: Some(self.resolution),
             axis: Some(self.axis),
             mode: Some(self.mode),
+            up: Some(self.up),
             camera: self.stats.as_ref().map(|_| self.camera),
         }
     }
@@ -279,6 +307,9 @@ impl ViewerApp {
                     self.notice = None;
                 }
                 self.mesh_label = label;
+                if !self.up_chosen {
+                    self.up = m.guess_up();
+                }
                 self.mesh = Some(Arc::new(m));
                 self.error = None;
                 self.needs_voxelize = true;
@@ -423,7 +454,8 @@ impl ViewerApp {
         });
         if p.frame {
             let (lo, hi) = scene.bounds();
-            self.camera = self.camera_from_url.take().unwrap_or_else(|| OrbitCamera::framing(lo, hi, 35.0, 25.0));
+            let framed = OrbitCamera::framing(lo, hi, 35.0, 25.0).with_up(self.up);
+            self.camera = self.camera_from_url.take().unwrap_or(framed);
         }
         self.scene = Some(scene);
         self.scene_version += 1;
@@ -543,6 +575,24 @@ impl ViewerApp {
             ui.checkbox(&mut self.style.voxel_colours, "Voxel colours")
                 .on_hover_text("the mesh's colour at the surface point nearest each voxel; off: one flat colour");
         }
+        ui.horizontal(|ui| {
+            ui.label("Up");
+            for up in [UpAxis::Y, UpAxis::Z] {
+                // Capitals, so that they read apart from the resolution axis's x, y, z.
+                let label = up.name().to_uppercase();
+                if ui.radio(self.up == up, label).on_hover_text("the axis the view orbits around").clicked() {
+                    self.set_up(up);
+                }
+            }
+        });
+        ui.horizontal_wrapped(|ui| {
+            ui.label("View");
+            for (k, preset) in ViewPreset::ALL.into_iter().enumerate() {
+                if ui.small_button(preset.name()).on_hover_text(format!("key {}", k + 1)).clicked() {
+                    self.look(preset);
+                }
+            }
+        });
         ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
         if ui.button("Reset view").clicked() {
@@ -716,6 +766,19 @@ impl ViewerApp {
         ui.painter().image(view.texture, rect, uv, egui::Color32::WHITE);
     }
 
+    /// Keys 1 to 7 turn to the preset views, unless a text field has the keyboard.
+    fn preset_keys(&mut self, ctx: &egui::Context) {
+        use egui::Key::{Num1, Num2, Num3, Num4, Num5, Num6, Num7};
+        if ctx.memory(|m| m.focused().is_some()) {
+            return;
+        }
+        for (key, preset) in [Num1, Num2, Num3, Num4, Num5, Num6, Num7].into_iter().zip(ViewPreset::ALL) {
+            if ctx.input(|i| i.key_pressed(key)) {
+                self.look(preset);
+            }
+        }
+    }
+
     fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
         let rect = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
@@ -804,6 +867,7 @@ impl ViewerApp {
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.take_dropped_files(ui.ctx());
+        self.preset_keys(ui.ctx());
         #[cfg(target_arch = "wasm32")]
         self.take_web_commands();
         self.finish_voxelize();

@@ -1,10 +1,12 @@
 //! The viewer's state as a URL query, so a view in the web page can be shared by copying the address bar:
 //! `?mesh=NAME` (a bundled mesh) or `?file=NAME` (a file opened from the visitor's computer: its name is kept, its
 //! contents are not), `r=N`, `axis=longest|x|y|z`, `mode=surface|solid|surface6` and
-//! `cam=yaw,pitch,distance,x,y,z` (the orbit camera, its target in the drawing frame of the grid). Plain Rust, so
+//! `up=y|z` (the axis the camera orbits around) and `cam=yaw,pitch,distance,x,y,z` (the orbit camera, its target in
+//! the drawing frame of the grid). Plain Rust, so
 //! it is tested natively; the page reads it at start and the app rewrites it as the user changes the view.
 
 use crate::render::OrbitCamera;
+use crate::render::camera::UpAxis;
 use crate::voxel::{Axis, Mode};
 
 /// What a URL query says; every part is optional (absent or unreadable parts keep the app's defaults).
@@ -17,6 +19,8 @@ pub struct UrlState {
     pub resolution: Option<u32>,
     pub axis: Option<Axis>,
     pub mode: Option<Mode>,
+    pub up: Option<UpAxis>,
+    /// Its `up` is the link's `up` (Y when the link has none).
     pub camera: Option<OrbitCamera>,
 }
 
@@ -43,6 +47,7 @@ fn parse_camera(s: &str) -> Option<OrbitCamera> {
             yaw,
             pitch: pitch.clamp(-89.0, 89.0),
             fov_y: OrbitCamera::FOV_Y,
+            up: UpAxis::Y,
         }),
         _ => None,
     }
@@ -68,9 +73,13 @@ impl UrlState {
                 "r" => state.resolution = value.parse().ok().filter(|&r| (1..=4096).contains(&r)),
                 "axis" => state.axis = parse_axis(&value),
                 "mode" => state.mode = Mode::from_name(&value),
+                "up" => state.up = UpAxis::from_name(&value),
                 "cam" => state.camera = parse_camera(&value),
                 _ => {}
             }
+        }
+        if let (Some(camera), Some(up)) = (state.camera.as_mut(), state.up) {
+            camera.up = up;
         }
         state
     }
@@ -92,6 +101,9 @@ impl UrlState {
         }
         if let Some(m) = self.mode {
             parts.push(format!("mode={}", m.name()));
+        }
+        if let Some(u) = self.up {
+            parts.push(format!("up={}", u.name()));
         }
         if let Some(c) = &self.camera {
             // Angles to a tenth of a degree; lengths to five significant digits of the distance.

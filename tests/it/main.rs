@@ -20,3 +20,4 @@ mod seed_and_real_meshes;
 mod shaders;
 mod ui_snapshot;
 mod url_state;
+mod view;

@@ -74,7 +74,7 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
     offscreen.render(gpu, &scene, &camera, &style, SIZE, SIZE).expect("render")
 }
 
-fn check_snapshot(name: &str, image: &image::RgbaImage, slug: &str) {
+pub(crate) fn check_snapshot(name: &str, image: &image::RgbaImage, slug: &str) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots");
     let golden = dir.join(format!("{name}.{slug}.png"));
     let new = dir.join(format!("{name}.{slug}.new.png"));

@@ -35,6 +35,7 @@ fn a_query_reads_what_it_can_and_writes_back_the_same() {
             yaw: 359.96,
             pitch: 0.04,
             fov_y: OrbitCamera::FOV_Y,
+            up: meshvox::render::camera::UpAxis::Y,
         }),
         ..Default::default()
     };
@@ -45,7 +46,7 @@ fn a_query_reads_what_it_can_and_writes_back_the_same() {
 
 #[test]
 fn a_shared_link_restores_mesh_resolution_axis_mode_and_camera_in_the_app() {
-    let query = "mesh=torus&r=40&axis=y&mode=solid&cam=30,20,3.5,0.5,0.25,0.5";
+    let query = "mesh=torus&r=40&axis=y&mode=solid&up=z&cam=30,20,3.5,0.5,0.25,0.5";
     let state = UrlState::parse(query);
     let mut harness =
         Harness::builder().with_size([512.0, 512.0]).with_pixels_per_point(0.5).wgpu().build_eframe(|cc| {
@@ -60,8 +61,9 @@ fn a_shared_link_restores_mesh_resolution_axis_mode_and_camera_in_the_app() {
     assert_eq!((stats.mesh.as_str(), stats.resolution, stats.mode), ("torus", 40, Mode::Solid));
     // Counted along y: 40 voxels along y, whichever axis is the torus's longest.
     assert_eq!(stats.dims[1], 40, "{:?}", stats.dims);
-    // The camera is the link's, not a framing, and the app's own link is the one it was opened with.
+    // The camera is the link's (orbiting Z), not a framing, and the app's own link is the one it was opened with.
     assert_eq!(app.url_state().query(), query);
+    assert_eq!(app.camera().up_vector(), glam::Vec3::Z);
 
     // A file's link: the default mesh is shown, and the panel says the file must be opened again.
     let file = UrlState::parse("file=scan.obj&r=32");

@@ -1,0 +1,174 @@
+//! The viewer's orientation: the up axis guessed per file format (and chosen with `--up` or the panel), preset
+//! views on keys and buttons, and a Z-up model drawn upright, the way its Y-up original is.
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use meshvox::gpu::Gpu;
+use meshvox::render::camera::{UpAxis, ViewPreset};
+use meshvox::render::{Offscreen, OrbitCamera, Style, instances_from_grid};
+use meshvox::ui::ViewerApp;
+use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+
+fn guess(name: &str, text: &str) -> UpAxis {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join(name);
+    std::fs::write(&path, text).expect("write");
+    meshvox::mesh::load_path(&path).expect("load").guess_up()
+}
+
+/// A box of the given extents as OBJ text, in decimals.
+fn box_obj(e: [f64; 3]) -> String {
+    let mut s = String::new();
+    for k in 0..8 {
+        let c = |i: usize| if k >> i & 1 == 1 { e[i] + 0.13 } else { 0.13 };
+        s += &format!("v {:.4} {:.4} {:.4}\n", c(0), c(1), c(2));
+    }
+    for f in ["1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6"] {
+        s += &format!("f {f}\n");
+    }
+    s
+}
+
+#[test]
+fn the_up_axis_is_guessed_from_the_format_and_the_shape() {
+    assert_eq!(meshvox::mesh::load("builtin:knot").expect("knot").guess_up(), UpAxis::Y);
+    // A plate lying on z: Z up. A tower along z: not flat, Y (the exporters' convention).
+    assert_eq!(guess("plate.obj", &box_obj([4.0, 3.0, 0.4])), UpAxis::Z);
+    assert_eq!(guess("tower.obj", &box_obj([1.0, 1.0, 5.0])), UpAxis::Y);
+    assert_eq!(
+        guess(
+            "plate.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n2 0 0\n0 2 0.1\n3 0 1 2\n"
+        ),
+        UpAxis::Z
+    );
+    // STL comes from CAD and 3D printing: Z up whatever the shape.
+    assert_eq!(
+        guess(
+            "part.stl",
+            "solid p\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 3\nendloop\nendfacet\nendsolid p\n"
+        ),
+        UpAxis::Z
+    );
+    if let Some(dir) = crate::common::shared_meshes() {
+        let duck = meshvox::mesh::load_path(&dir.join("gltf/Duck.glb")).expect("duck");
+        assert_eq!(duck.guess_up(), UpAxis::Y, "glTF is Y-up by its specification");
+        let bunny = meshvox::mesh::load_path(&dir.join("stanford-bunny.obj")).expect("bunny");
+        assert_eq!(bunny.guess_up(), UpAxis::Y);
+    }
+}
+
+#[test]
+fn preset_keys_and_buttons_turn_the_camera_and_up_z_orbits_around_z() {
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 32).expect("the app starts"));
+    harness.run();
+    let framed = *harness.state().camera();
+    assert_eq!((framed.yaw, framed.pitch), (35.0, 25.0), "the first view is the framing");
+    for (key, preset) in [(egui::Key::Num5, ViewPreset::Top), (egui::Key::Num1, ViewPreset::Front)] {
+        harness.key_press(key);
+        harness.run();
+        let c = harness.state().camera();
+        assert_eq!((c.yaw, c.pitch), preset.angles(), "key {key:?}: {}", preset.name());
+        assert_eq!((c.target, c.distance), (framed.target, framed.distance), "presets keep the framing");
+    }
+    // The front view looks along -z with y up: the eye is straight in front, on +z.
+    let c = *harness.state().camera();
+    let dir = (c.eye() - c.target).normalize();
+    assert!(dir.abs_diff_eq(glam::Vec3::Z, 1e-5), "front eye direction {dir}");
+    harness.get_by_label("iso").click();
+    harness.run();
+    assert_eq!((harness.state().camera().yaw, harness.state().camera().pitch), ViewPreset::Iso.angles());
+
+    // Up z: the front view's eye moves to -y, and up is +z.
+    harness.get_by_label("Z").click();
+    harness.run();
+    harness.key_press(egui::Key::Num1);
+    harness.run();
+    let c = *harness.state().camera();
+    assert_eq!(c.up_vector(), glam::Vec3::Z);
+    let dir = (c.eye() - c.target).normalize();
+    assert!(dir.abs_diff_eq(-glam::Vec3::Y, 1e-5), "front eye direction with z up {dir}");
+}
+
+/// Draws a mesh voxelized on the CPU from the front, orbiting `up`.
+fn front_view(gpu: &Gpu, mesh: &meshvox::mesh::Mesh, up: UpAxis) -> image::RgbaImage {
+    let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(64), Axis::Longest).expect("grid");
+    let grid = cpu::voxelize(mesh, spec, &|_, _| {}).expect("cpu");
+    let offscreen = Offscreen::new(gpu);
+    let scene = offscreen.renderer.scene(&gpu.device, instances_from_grid(&gpu.device, &grid.exposed()), spec, None);
+    let (lo, hi) = scene.bounds();
+    let mut camera = OrbitCamera::framing(lo, hi, 0.0, 0.0).with_up(up);
+    camera.look(ViewPreset::Front);
+    offscreen.render(gpu, &scene, &camera, &Style::default(), 256, 256).expect("render")
+}
+
+#[test]
+fn a_z_up_bunny_is_drawn_upright_like_the_y_up_original() {
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let gpu = match Gpu::new_blocking() {
+        Ok(g) => g,
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
+        Err(e) => return eprintln!("\n*** SKIPPED: {e} ***\n"),
+    };
+    let source = std::fs::read_to_string(dir.join("stanford-bunny.obj")).expect("bunny");
+    // The same bunny with z up, as a scanner or CAD tool would write it: (x, y, z) -> (x, -z, y).
+    let z_up: String = source
+        .lines()
+        .map(|l| match l.split_whitespace().collect::<Vec<_>>()[..] {
+            ["v", x, y, z, ..] => format!("v {x} {} {y}\n", -z.parse::<f64>().expect("z")),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let path = tmp.path().join("bunny-z-up.obj");
+    std::fs::write(&path, z_up).expect("write");
+    let original = meshvox::mesh::load_path(&dir.join("stanford-bunny.obj")).expect("load");
+    let turned = meshvox::mesh::load_path(&path).expect("load");
+    let upright = front_view(&gpu, &original, UpAxis::Y);
+    let z = front_view(&gpu, &turned, UpAxis::Z);
+    // Not pixel for pixel: the turned bunny's grid starts at its own minimum corner, so voxel boundaries
+    // fall a fraction of a voxel apart; the silhouettes agree up to that.
+    let differing =
+        upright.pixels().zip(z.pixels()).filter(|(p, q)| p.0.iter().zip(q.0).any(|(a, b)| a.abs_diff(b) > 40));
+    let differing = differing.count();
+    assert!(differing < 256 * 256 * 3 / 100, "{differing} pixels differ between the Y-up and the Z-up bunny");
+    // And drawn orbiting y (the guess for a bunny that is not flat), the Z-up bunny would lie on its back.
+    let lying = front_view(&gpu, &turned, UpAxis::Y);
+    let lying_differs =
+        upright.pixels().zip(lying.pixels()).filter(|(p, q)| p.0.iter().zip(q.0).any(|(a, b)| a.abs_diff(b) > 40));
+    assert!(lying_differs.count() > 256 * 256 / 20, "the view did not depend on the up axis");
+    crate::render_snapshots::check_snapshot("bunny-z-up-front", &z, &gpu.summary.slug());
+}
+
+#[test]
+fn render_takes_a_preset_view_and_an_up_axis() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |extra: &[&str], out: &str| {
+        let mut args = vec!["render", "builtin:torus", "-r", "24", "--size", "96x96", "-o", out];
+        args.extend_from_slice(extra);
+        let o = crate::cli::meshvox(&args, dir.path());
+        assert!(o.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&o.stderr));
+        image::open(dir.path().join(out)).expect("png").to_rgba8()
+    };
+    let top = run(&["--view", "top"], "top.png");
+    let front = run(&["--view", "front"], "front.png");
+    let front_z = run(&["--view", "front", "--up", "z"], "front-z.png");
+    // The torus lies in the xz plane: from the top (y up) it is a ring, from the front a flat band; with z up the
+    // front view looks along +y, down onto the ring again.
+    let covered = |i: &image::RgbaImage| i.pixels().filter(|p| p[0] > p[2].saturating_add(40)).count();
+    assert!(covered(&top) > covered(&front) * 2, "top {} vs front {}", covered(&top), covered(&front));
+    assert!(
+        covered(&front_z) > covered(&front) * 2,
+        "front with z up {} vs y up {}",
+        covered(&front_z),
+        covered(&front)
+    );
+    let bad =
+        crate::cli::meshvox(&["render", "builtin:torus", "-r", "8", "--view", "under", "-o", "x.png"], dir.path());
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && stderr.contains("front") && stderr.contains("iso"), "{stderr}");
+}
