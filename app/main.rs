@@ -68,6 +68,12 @@ mod web_entry {
         web::send(Command::SetCut(cut));
     }
 
+    /// Turns to a preset view: `front`, `back`, `left`, `right`, `top`, `bottom` or `iso` (the panel's buttons).
+    #[wasm_bindgen(js_name = setView)]
+    pub fn set_view(view: String) {
+        web::send(Command::SetView(view));
+    }
+
     /// Shows a bundled mesh (the name after `builtin:`).
     #[wasm_bindgen(js_name = loadBuiltin)]
     pub fn load_builtin(name: String) {

@@ -114,9 +114,14 @@ impl OrbitCamera {
         self.target + to_world(self.up, offset) * self.distance
     }
 
+    /// World to view space (right-handed, looking down -z).
+    pub fn view(&self) -> Mat4 {
+        glam::camera::rh::view::look_at_mat4(self.eye(), self.target, self.up_vector())
+    }
+
     /// World to clip space for a viewport of the given aspect ratio (width / height); depth in [0, 1].
     pub fn view_proj(&self, aspect: f32) -> Mat4 {
-        let view = glam::camera::rh::view::look_at_mat4(self.eye(), self.target, self.up_vector());
+        let view = self.view();
         // With a wide viewport the vertical fov stays; with a tall one the horizontal fov is held instead, so
         // the framed box stays in view in both.
         let fov = if aspect >= 1.0 {
@@ -147,4 +152,62 @@ impl OrbitCamera {
         let up = right.cross(forward);
         self.target += (right * -dx + up * dy) * self.distance;
     }
+}
+
+impl OrbitCamera {
+    /// The ray through a point of the viewport, `uv` from (0, 0) at its top left to (1, 1) at its bottom right:
+    /// its origin on the near plane and its unit direction, in the drawing frame.
+    pub fn ray(&self, aspect: f32, uv: glam::Vec2) -> (Vec3, Vec3) {
+        let inverse = self.view_proj(aspect).inverse();
+        let ndc = glam::Vec2::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+        let near = inverse.project_point3(ndc.extend(0.0));
+        let far = inverse.project_point3(ndc.extend(1.0));
+        (near, (far - near).normalize_or_zero())
+    }
+}
+
+/// The first voxel for which `set` holds along the ray from `origin` in direction `dir`, in grid coordinates
+/// (voxel `(i, j, k)` spans `[i, i + 1] × [j, j + 1] × [k, k + 1]`) over a grid of `dims`: the cells the ray
+/// crosses, in order (Amanatides and Woo's traversal), from where it enters the grid's box.
+pub fn first_voxel_on_ray(
+    origin: Vec3,
+    dir: Vec3,
+    dims: glam::UVec3,
+    set: impl Fn(glam::UVec3) -> bool,
+) -> Option<glam::UVec3> {
+    let size = dims.as_vec3();
+    // Where the ray enters the box [0, dims] (slab test); from inside, where it starts.
+    let inv = dir.recip();
+    let (t0, t1) = ((Vec3::ZERO - origin) * inv, (size - origin) * inv);
+    let (t_enter, t_exit) = (t0.min(t1).max_element().max(0.0), t0.max(t1).min_element());
+    if t_enter.is_nan() || t_exit.is_nan() || t_enter > t_exit {
+        return None;
+    }
+    let start = origin + dir * t_enter;
+    let mut cell = start.floor().clamp(Vec3::ZERO, size - 1.0).as_ivec3();
+    let step = dir.signum().as_ivec3();
+    let next_boundary = cell.as_vec3() + dir.signum().max(Vec3::ZERO);
+    // Distances along the ray to the next boundary on each axis and between boundaries (infinite along an axis
+    // the ray does not move on).
+    let mut t_max = Vec3::select(dir.cmpeq(Vec3::ZERO), Vec3::INFINITY, (next_boundary - start) * inv);
+    let t_delta = Vec3::select(dir.cmpeq(Vec3::ZERO), Vec3::INFINITY, inv.abs());
+    let limit = dims.as_ivec3();
+    for _ in 0..(dims.x + dims.y + dims.z + 3) {
+        if cell.cmplt(glam::IVec3::ZERO).any() || cell.cmpge(limit).any() {
+            return None;
+        }
+        if set(cell.as_uvec3()) {
+            return Some(cell.as_uvec3());
+        }
+        let axis = if t_max.x <= t_max.y && t_max.x <= t_max.z {
+            0
+        } else if t_max.y <= t_max.z {
+            1
+        } else {
+            2
+        };
+        cell[axis] += step[axis];
+        t_max[axis] += t_delta[axis];
+    }
+    None
 }

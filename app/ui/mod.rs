@@ -38,6 +38,8 @@ pub struct Stats {
     pub mode: Mode,
     pub gpu_ms: Option<f64>,
     pub voxelize_ms: f64,
+    /// Edge length of a voxel, in the mesh's units.
+    pub voxel_size: f64,
     /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
     pub coloured: bool,
 }
@@ -100,6 +102,10 @@ pub struct ViewerApp {
     needs_voxelize: bool,
     needs_framing: bool,
     pending: Option<Pending>,
+    /// The voxel under the pointer, if any.
+    hover: Option<glam::UVec3>,
+    /// Where the viewport was drawn last.
+    viewport_rect: egui::Rect,
     /// A note for the user that is not an error (a shared link named a file that only its maker had).
     notice: Option<String>,
     /// A camera from a shared link (`?cam=`), taken instead of the framing of the first voxelization.
@@ -159,6 +165,8 @@ impl ViewerApp {
             needs_voxelize: false,
             needs_framing: true,
             pending: None,
+            hover: None,
+            viewport_rect: egui::Rect::NOTHING,
             notice: None,
             camera_from_url: None,
             #[cfg(target_arch = "wasm32")]
@@ -450,6 +458,7 @@ impl ViewerApp {
             mode: p.mode,
             gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
+            voxel_size: grid.spec.voxel_size,
             coloured: colours.is_some(),
         });
         if p.frame {
@@ -476,7 +485,13 @@ impl ViewerApp {
     /// Tells the web page what is shown (`window.meshvoxStatus`); nothing to do natively.
     fn publish(&self) {
         #[cfg(target_arch = "wasm32")]
-        web::publish_status(self.stats.as_ref(), &self.gpu.summary, self.voxelizer.is_some(), self.error.as_deref());
+        web::publish_status(
+            self.stats.as_ref(),
+            &self.gpu.summary,
+            self.voxelizer.is_some(),
+            self.hover,
+            self.error.as_deref(),
+        );
     }
 
     fn panel(&mut self, ui: &mut egui::Ui) {
@@ -613,6 +628,14 @@ impl ViewerApp {
                 ui.end_row();
                 ui.label("grid");
                 ui.label(format!("{}×{}×{}", s.dims[0], s.dims[1], s.dims[2]));
+                ui.end_row();
+                // In the mesh's own units, whatever they are (glTF: metres).
+                ui.label("size");
+                let size = s.dims.map(|d| short_number(d as f64 * s.voxel_size));
+                ui.label(format!("{} × {} × {}", size[0], size[1], size[2])).on_hover_text("in the mesh's units");
+                ui.end_row();
+                ui.label("voxel");
+                ui.label(short_number(s.voxel_size)).on_hover_text("edge length, in the mesh's units");
                 ui.end_row();
                 ui.label("voxels");
                 ui.label(format!("{} ({})", s.voxels, s.mode));
@@ -766,6 +789,59 @@ impl ViewerApp {
         ui.painter().image(view.texture, rect, uv, egui::Color32::WHITE);
     }
 
+    /// Finds the voxel under the pointer at `pos` (in the viewport `rect`) along the camera's ray: the first set
+    /// voxel of the shown grid (before the cut, when there is one).
+    fn hover_voxel(&mut self, pos: Option<egui::Pos2>, rect: egui::Rect) {
+        let hover = match (pos, &self.grid) {
+            (Some(pos), Some(grid)) if rect.width() > 0.0 && rect.height() > 0.0 => {
+                let uv = glam::Vec2::new((pos.x - rect.left()) / rect.width(), (pos.y - rect.top()) / rect.height());
+                let (origin, dir) = self.camera.ray(rect.width() / rect.height(), uv);
+                let h = grid.spec.voxel_size as f32;
+                let keep = self.cut_on.then(|| (self.cut.axis, self.cut.keep(&grid.spec)));
+                render::camera::first_voxel_on_ray(origin / h, dir, grid.spec.dims, |p| {
+                    grid.get(p.x, p.y, p.z) && keep.is_none_or(|(axis, keep)| p[axis] < keep)
+                })
+            }
+            _ => None,
+        };
+        if hover != self.hover {
+            self.hover = hover;
+            #[cfg(target_arch = "wasm32")]
+            web::publish_hover(hover);
+        }
+    }
+
+    /// The hovered voxel's index and the world position of its centre, as the viewport shows it.
+    pub fn hover_text(&self) -> Option<String> {
+        let (v, grid) = (self.hover?, self.grid.as_ref()?);
+        let centre = grid.spec.origin + (v.as_dvec3() + 0.5) * grid.spec.voxel_size;
+        let [x, y, z] = centre.to_array().map(short_number);
+        Some(format!("voxel ({}, {}, {}) at ({x}, {y}, {z})", v.x, v.y, v.z))
+    }
+
+    /// [`ViewerApp::hover_text`] at the viewport's bottom right.
+    fn hover_label(&self, ui: &egui::Ui, rect: egui::Rect) {
+        let Some(text) = self.hover_text() else { return };
+        let at = rect.right_bottom() + egui::vec2(-8.0, -8.0);
+        ui.painter().text(
+            at,
+            egui::Align2::RIGHT_BOTTOM,
+            text,
+            egui::FontId::proportional(13.0),
+            egui::Color32::LIGHT_GRAY,
+        );
+    }
+
+    /// Where the viewport was drawn in the last frame, in points.
+    pub fn viewport_rect(&self) -> egui::Rect {
+        self.viewport_rect
+    }
+
+    /// The voxel under the pointer (for tests and the web page's status).
+    pub fn hover(&self) -> Option<glam::UVec3> {
+        self.hover
+    }
+
     /// Keys 1 to 7 turn to the preset views, unless a text field has the keyboard.
     fn preset_keys(&mut self, ctx: &egui::Context) {
         use egui::Key::{Num1, Num2, Num3, Num4, Num5, Num6, Num7};
@@ -802,6 +878,10 @@ impl ViewerApp {
             self.needs_voxelize = true;
         }
         self.draw_view(ui, frame, rect);
+        self.viewport_rect = rect;
+        self.hover_voxel(response.hover_pos(), rect);
+        self.hover_label(ui, rect);
+        axis_gizmo(ui.painter(), rect, &self.camera);
         if self.stats.as_ref().is_some_and(|s| s.voxels == 0) {
             ui.painter().text(
                 rect.center(),
@@ -844,6 +924,12 @@ impl ViewerApp {
                 },
                 web::Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
                 web::Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
+                web::Command::SetView(name) => match ViewPreset::from_name(&name) {
+                    Some(preset) => self.look(preset),
+                    None => {
+                        self.fail(format!("unknown view '{name}': use front, back, left, right, top, bottom or iso"))
+                    }
+                },
                 web::Command::LoadFiles(files) => {
                     let loaded = mesh::load_files(&files);
                     let name = files
@@ -890,6 +976,42 @@ impl eframe::App for ViewerApp {
                 self.url_written = query;
             }
         }
+    }
+}
+
+/// A length for people: five significant digits, no trailing zeros.
+fn short_number(x: f64) -> String {
+    let digits = (4 - x.abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize;
+    let s = format!("{x:.digits$}");
+    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { &s };
+    s.to_string()
+}
+
+/// The world axes as seen from the camera, in the viewport's bottom-left corner: x red, y green, z blue, the
+/// ones pointing away drawn first and dimmer.
+fn axis_gizmo(painter: &egui::Painter, rect: egui::Rect, camera: &OrbitCamera) {
+    let centre = rect.left_bottom() + egui::vec2(44.0, -44.0);
+    let view = camera.view();
+    let mut axes: Vec<(glam::Vec3, &str, egui::Color32)> = [
+        (glam::Vec3::X, "x", egui::Color32::from_rgb(230, 80, 70)),
+        (glam::Vec3::Y, "y", egui::Color32::from_rgb(110, 200, 80)),
+        (glam::Vec3::Z, "z", egui::Color32::from_rgb(80, 140, 240)),
+    ]
+    .into_iter()
+    .map(|(axis, name, colour)| (view.transform_vector3(axis), name, colour))
+    .collect();
+    axes.sort_by(|a, b| a.0.z.total_cmp(&b.0.z));
+    for (v, name, colour) in axes {
+        let colour = if v.z < -0.1 { colour.gamma_multiply(0.55) } else { colour };
+        let tip = centre + egui::vec2(v.x, -v.y) * 30.0;
+        painter.line_segment([centre, tip], egui::Stroke::new(2.0, colour));
+        painter.text(
+            tip + egui::vec2(v.x, -v.y) * 8.0,
+            egui::Align2::CENTER_CENTER,
+            name,
+            egui::FontId::proportional(12.0),
+            colour,
+        );
     }
 }
 

@@ -18,6 +18,8 @@ pub enum Command {
     /// `x:0.5` and the like, or anything else for no cut.
     SetCut(String),
     LoadBuiltin(String),
+    /// A preset view: `front`, `back`, `left`, `right`, `top`, `bottom` or `iso`.
+    SetView(String),
     /// One mesh file, or a mesh with the files it refers to (see [`crate::mesh::load_files`]).
     LoadFiles(Vec<(String, Vec<u8>)>),
     /// Download the current grid in a format named by its extension.
@@ -116,10 +118,27 @@ pub(crate) fn open_file_picker() {
     }
 }
 
+/// Sets `window.meshvoxStatus.hover`: the `[i, j, k]` of the voxel under the pointer, or `null`.
+pub(crate) fn publish_hover(hover: Option<glam::UVec3>) {
+    let Some(window) = web_sys::window() else { return };
+    let Ok(status) = js_sys::Reflect::get(&window, &"meshvoxStatus".into()) else { return };
+    let value = match hover {
+        Some(v) => js_sys::Array::of3(&v.x.into(), &v.y.into(), &v.z.into()).into(),
+        None => JsValue::NULL,
+    };
+    let _ = js_sys::Reflect::set(&status, &"hover".into(), &value);
+}
+
 /// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, voxelizer, mesh, resolution, mode, voxels,
-/// voxelize_ms, gpu_ms, triangles, dims, coloured, error }`. `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the
+/// voxelize_ms, gpu_ms, triangles, dims, voxel_size, coloured, hover, error }`. `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the
 /// WebGL2 fallback), `voxelizer` `gpu` or `cpu`. `ready` turns true with the first finished voxelization.
-pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, on_gpu: bool, error: Option<&str>) {
+pub(crate) fn publish_status(
+    stats: Option<&Stats>,
+    adapter: &AdapterSummary,
+    on_gpu: bool,
+    hover: Option<glam::UVec3>,
+    error: Option<&str>,
+) {
     let status = js_sys::Object::new();
     let set = |key: &str, value: JsValue| {
         let _ = js_sys::Reflect::set(&status, &key.into(), &value);
@@ -141,8 +160,10 @@ pub(crate) fn publish_status(stats: Option<&Stats>, adapter: &AdapterSummary, on
         let dims = js_sys::Array::of3(&s.dims[0].into(), &s.dims[1].into(), &s.dims[2].into());
         set("dims", dims.into());
         set("coloured", s.coloured.into());
+        set("voxel_size", s.voxel_size.into());
     }
     if let Some(window) = web_sys::window() {
         let _ = js_sys::Reflect::set(&window, &"meshvoxStatus".into(), &status);
     }
+    publish_hover(hover);
 }

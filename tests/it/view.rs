@@ -172,3 +172,73 @@ fn render_takes_a_preset_view_and_an_up_axis() {
     let stderr = String::from_utf8_lossy(&bad.stderr);
     assert!(!bad.status.success() && stderr.contains("front") && stderr.contains("iso"), "{stderr}");
 }
+
+/// The traversal against brute force: random rays through a grid with random voxels set, the first set voxel
+/// found by stepping along the ray a thousandth of a voxel at a time.
+#[test]
+fn the_first_voxel_on_a_ray_is_the_one_brute_force_finds() {
+    use glam::{UVec3, Vec3};
+    let dims = UVec3::new(13, 7, 10);
+    let mut rng = crate::common::Rng::new(16);
+    let set: Vec<bool> = (0..dims.x * dims.y * dims.z).map(|_| rng.below(12) == 0).collect();
+    let index = |p: UVec3| ((p.z * dims.y + p.y) * dims.x + p.x) as usize;
+    let (mut hits, mut misses) = (0, 0);
+    for _ in 0..300 {
+        let mut r = || rng.unit() as f32;
+        let origin = Vec3::new(r() * 40.0 - 13.0, r() * 30.0 - 11.0, r() * 34.0 - 12.0);
+        let target = Vec3::new(r(), r(), r()) * dims.as_vec3();
+        let dir = (target - origin).normalize();
+        let found = meshvox::render::camera::first_voxel_on_ray(origin, dir, dims, |p| set[index(p)]);
+        let mut expected = None;
+        for step in 0..200_000 {
+            let p = origin + dir * (step as f32 * 1e-3);
+            if p.cmpge(Vec3::ZERO).all() && p.cmplt(dims.as_vec3()).all() {
+                let cell = p.floor().as_uvec3();
+                if set[index(cell)] {
+                    expected = Some(cell);
+                    break;
+                }
+            }
+        }
+        assert_eq!(found, expected, "ray from {origin} along {dir}");
+        if found.is_some() { hits += 1 } else { misses += 1 }
+    }
+    assert!(hits > 100 && misses > 0, "{hits} hits, {misses} misses: the rays do not test both");
+}
+
+/// Hovering the middle of the viewport of a box seen from the front names the voxel in the middle of its front
+/// face, and the index is the one the panel shows.
+#[test]
+fn hovering_shows_the_voxel_under_the_pointer() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("box.obj");
+    // A unit box centred on the origin, written in decimals: at 31 voxels the middle one is 15.
+    let mut obj = String::new();
+    for k in 0..8 {
+        let c = |i: usize| if k >> i & 1 == 1 { "0.5000" } else { "-0.5000" };
+        obj += &format!("v {} {} {}\n", c(0), c(1), c(2));
+    }
+    for f in ["1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6"] {
+        obj += &format!("f {f}\n");
+    }
+    std::fs::write(&path, obj).expect("write");
+    let spec = path.to_string_lossy().into_owned();
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, &spec, 31).expect("the app starts"));
+    harness.run();
+    harness.key_press(egui::Key::Num1);
+    harness.run();
+    let centre = harness.state().viewport_rect().center();
+    harness.input_mut().events.push(egui::Event::PointerMoved(centre));
+    harness.run();
+    assert_eq!(harness.state().hover(), Some(glam::UVec3::new(15, 15, 30)));
+    assert_eq!(harness.state().hover_text().as_deref(), Some("voxel (15, 15, 30) at (0, 0, 0.48387)"));
+    // Off the model: nothing.
+    let corner = harness.state().viewport_rect().right_top() + egui::vec2(-3.0, 3.0);
+    harness.input_mut().events.push(egui::Event::PointerMoved(corner));
+    harness.run();
+    assert_eq!(harness.state().hover(), None);
+}

@@ -13,6 +13,7 @@
 //  - downloads the coloured Duck in each export format (.vox, .binvox, .npy with .colors.npy, .glb) and compares
 //    each file byte for byte with the CLI's for the same input,
 //  - loads a decimal OBJ box with tessellated faces on the grid's boundaries at 99 and checks page == CLI == shell,
+//    then at 31 from the front hovers the middle of the viewport and reads the voxel from meshvoxStatus.hover,
 //  - fails on any uncaught exception, panic or console error,
 //  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
 //    rewrites it).
@@ -323,6 +324,18 @@ async function webgpuPath(browser) {
   const shell = 99 ** 3 - 97 ** 3;
   check(box.voxels === boxCli && boxCli === shell,
     `decimal tessellated box @99: page ${box.voxels} == CLI ${boxCli} == the grid's shell ${shell}`);
+
+  // Hovering: at 31 voxels, from the front, the pointer in the middle of the viewport (right of the 260-point
+  // panel) is over the middle voxel of the box's front face, (15, 15, 30).
+  await page.evaluate(() => window.meshvoxSetResolution(31));
+  await status({ ready: true, resolution: 31 }, "the box at 31");
+  await page.evaluate(() => window.meshvoxSetView("front"));
+  await page.mouse.move((260 + 960) / 2, 300);
+  const hovered = await page.waitForFunction(() => JSON.stringify(window.meshvoxStatus?.hover) === "[15,15,30]", null,
+    { timeout: 20_000 }).then(() => true, () => false);
+  const hover = await page.evaluate(() => window.meshvoxStatus.hover);
+  check(hovered, `hovering the middle of the box's front face names voxel [15,15,30] (meshvoxStatus.hover ${JSON.stringify(hover)})`);
+  await page.mouse.move(5, 590);
 
   // Broken files from tests/corpus/bad through the file input: the panel shows one line naming the file, and the
   // page keeps working. Then a resolution the wasm heap cannot hold: refused with what fits, nothing allocated.
