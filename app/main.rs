@@ -68,6 +68,12 @@ mod web_entry {
         web::send(Command::SetCut(cut));
     }
 
+    /// Downloads the viewport as a PNG (the panel's Screenshot button).
+    #[wasm_bindgen]
+    pub fn screenshot() {
+        web::send(Command::Screenshot);
+    }
+
     /// Turns to a preset view: `front`, `back`, `left`, `right`, `top`, `bottom` or `iso` (the panel's buttons).
     #[wasm_bindgen(js_name = setView)]
     pub fn set_view(view: String) {

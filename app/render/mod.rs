@@ -499,6 +499,15 @@ impl RenderTarget {
 
     /// Reads the resolved image back (rows are padded to 256 bytes in the copy).
     pub async fn read_async(&self, gpu: &Gpu) -> Result<image::RgbaImage, GpuError> {
+        self.read_later(gpu).await
+    }
+
+    /// Copies the resolved image out now and returns the future of its pixels, which does not borrow the target
+    /// (the app's screenshot outlives the frame that asked for it).
+    pub fn read_later(
+        &self,
+        gpu: &Gpu,
+    ) -> impl std::future::Future<Output = Result<image::RgbaImage, GpuError>> + 'static + use<> {
         let (width, height) = (self.width, self.height);
         let row = width * 4;
         let padded = row.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
@@ -518,12 +527,16 @@ impl RenderTarget {
             wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
         );
         gpu.queue.submit([encoder.finish()]);
-        let bytes = crate::gpu::map_read_async(&gpu.device, &readback).await?;
-        let mut pixels = Vec::with_capacity((row * height) as usize);
-        for r in 0..height as usize {
-            pixels.extend_from_slice(&bytes[r * padded as usize..][..row as usize]);
+        let device = gpu.device.clone();
+        async move {
+            let bytes = crate::gpu::map_read_async(&device, &readback).await?;
+            let mut pixels = Vec::with_capacity((row * height) as usize);
+            for r in 0..height as usize {
+                pixels.extend_from_slice(&bytes[r * padded as usize..][..row as usize]);
+            }
+            image::RgbaImage::from_raw(width, height, pixels)
+                .ok_or_else(|| GpuError::Device("image size mismatch".into()))
         }
-        image::RgbaImage::from_raw(width, height, pixels).ok_or_else(|| GpuError::Device("image size mismatch".into()))
     }
 }
 

@@ -106,6 +106,8 @@ pub struct ViewerApp {
     hover: Option<glam::UVec3>,
     /// Where the viewport was drawn last.
     viewport_rect: egui::Rect,
+    /// Save the viewport once it is drawn this frame.
+    screenshot_requested: bool,
     /// A note for the user that is not an error (a shared link named a file that only its maker had).
     notice: Option<String>,
     /// A camera from a shared link (`?cam=`), taken instead of the framing of the first voxelization.
@@ -167,6 +169,7 @@ impl ViewerApp {
             pending: None,
             hover: None,
             viewport_rect: egui::Rect::NOTHING,
+            screenshot_requested: false,
             notice: None,
             camera_from_url: None,
             #[cfg(target_arch = "wasm32")]
@@ -610,10 +613,15 @@ impl ViewerApp {
         });
         ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
-        if ui.button("Reset view").clicked() {
-            self.needs_framing = true;
-            self.needs_voxelize = true;
-        }
+        ui.horizontal(|ui| {
+            if ui.button("Reset view").clicked() {
+                self.needs_framing = true;
+                self.needs_voxelize = true;
+            }
+            if ui.button("Screenshot").on_hover_text("the viewport as a PNG").clicked() {
+                self.screenshot_requested = true;
+            }
+        });
         ui.separator();
 
         if self.pending.is_some() {
@@ -689,12 +697,57 @@ impl ViewerApp {
         }
     }
 
+    /// The mesh's name without folder or extension, for the names of exports and screenshots.
+    fn file_stem(&self) -> &str {
+        self.mesh_label.rsplit(['/', '\\', ':']).next().unwrap_or("voxels").split('.').next().unwrap_or("voxels")
+    }
+
+    /// Saves the viewport as a PNG: natively through the save dialog, in the browser as a download.
+    fn save_screenshot(&mut self) {
+        let Some(view) = &self.view else { return };
+        let name = format!("{}-{}.png", self.file_stem(), self.resolution);
+        let pixels = view.target.read_later(&self.gpu);
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            let image = match pollster::block_on(pixels) {
+                Ok(image) => image,
+                Err(e) => return self.fail(format!("screenshot: {e}")),
+            };
+            let Some(path) = rfd::FileDialog::new().set_file_name(&name).add_filter("png", &["png"]).save_file() else {
+                return;
+            };
+            let partial = path.with_extension("partial");
+            let saved = image.save_with_format(&partial, image::ImageFormat::Png).map_err(|e| e.to_string());
+            if let Err(e) = saved.and_then(|()| std::fs::rename(&partial, &path).map_err(|e| e.to_string())) {
+                let _ = std::fs::remove_file(&partial);
+                self.fail(format!("{}: {e}", path.display()));
+            }
+        }
+        #[cfg(target_arch = "wasm32")]
+        wasm_bindgen_futures::spawn_local(async move {
+            let png = pixels.await.map_err(|e| e.to_string()).and_then(|image| {
+                let mut bytes = std::io::Cursor::new(Vec::new());
+                image.write_to(&mut bytes, image::ImageFormat::Png).map_err(|e| e.to_string())?;
+                Ok(bytes.into_inner())
+            });
+            match png.and_then(|bytes| web::download(&name, &bytes)) {
+                Ok(()) => {}
+                Err(e) => web::send(web::Command::Failed(format!("screenshot: {e}"))),
+            }
+        });
+    }
+
+    /// The viewport as drawn last, read back (what the Screenshot button saves).
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn screenshot(&self) -> Option<image::RgbaImage> {
+        self.view.as_ref().and_then(|v| v.target.read(&self.gpu).ok())
+    }
+
     /// The files an export of the current grid makes, named after the mesh and resolution: the grid in `format`
     /// with its colours where the format holds them, and for `.npy` of a coloured grid the colour array beside it.
     fn export_files(&self, format: export::VoxelFormat) -> Result<Vec<(String, Vec<u8>)>, String> {
         let grid = self.grid.as_ref().ok_or("nothing is voxelized yet")?;
-        let stem = self.mesh_label.rsplit(['/', ':']).next().unwrap_or("voxels").split('.').next().unwrap_or("voxels");
-        let name = format!("{stem}-{}.{}", self.resolution, format.extension());
+        let name = format!("{}-{}.{}", self.file_stem(), self.resolution, format.extension());
         let colours = self.colours.as_ref();
         let mut bytes = Vec::new();
         export::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
@@ -787,6 +840,9 @@ impl ViewerApp {
         }
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         ui.painter().image(view.texture, rect, uv, egui::Color32::WHITE);
+        if std::mem::take(&mut self.screenshot_requested) {
+            self.save_screenshot();
+        }
     }
 
     /// Finds the voxel under the pointer at `pos` (in the viewport `rect`) along the camera's ray: the first set
@@ -924,6 +980,7 @@ impl ViewerApp {
                 },
                 web::Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
                 web::Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
+                web::Command::Screenshot => self.screenshot_requested = true,
                 web::Command::SetView(name) => match ViewPreset::from_name(&name) {
                     Some(preset) => self.look(preset),
                     None => {

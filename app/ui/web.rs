@@ -18,6 +18,8 @@ pub enum Command {
     /// `x:0.5` and the like, or anything else for no cut.
     SetCut(String),
     LoadBuiltin(String),
+    /// Download the viewport as a PNG (the Screenshot button).
+    Screenshot,
     /// A preset view: `front`, `back`, `left`, `right`, `top`, `bottom` or `iso`.
     SetView(String),
     /// One mesh file, or a mesh with the files it refers to (see [`crate::mesh::load_files`]).

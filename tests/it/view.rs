@@ -242,3 +242,34 @@ fn hovering_shows_the_voxel_under_the_pointer() {
     harness.run();
     assert_eq!(harness.state().hover(), None);
 }
+
+/// The Screenshot button saves exactly the viewport: the image has the viewport's size in pixels and the pixels
+/// egui shows there (the axis gizmo, drawn by egui on top, aside).
+#[test]
+fn the_screenshot_is_the_viewport() {
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 24).expect("the app starts"));
+    harness.run();
+    let shot = harness.state().screenshot().expect("a screenshot");
+    let rect = harness.state().viewport_rect();
+    let (w, h) = ((rect.width() * 0.5).round() as u32, (rect.height() * 0.5).round() as u32);
+    assert_eq!(shot.dimensions(), (w, h), "the viewport is {rect:?} at half a pixel per point");
+    let screen = harness.render().expect("render");
+    let (x0, y0) = ((rect.left() * 0.5).round() as u32, (rect.top() * 0.5).round() as u32);
+    // The top two thirds: clear of the gizmo in the bottom-left corner.
+    let mut differing = 0;
+    for y in 0..h * 2 / 3 {
+        for x in 0..w {
+            let (p, q) = (shot.get_pixel(x, y), screen.get_pixel(x0 + x, y0 + y));
+            if p.0.iter().zip(q.0).take(3).any(|(a, b)| a.abs_diff(b) > 3) {
+                differing += 1;
+            }
+        }
+    }
+    assert!(differing <= (w * h / 100) as usize, "{differing} pixels of the screenshot differ from the screen");
+    let voxels = shot.pixels().filter(|p| p[0] > p[2].saturating_add(40)).count();
+    assert!(voxels > (w * h / 20) as usize, "the screenshot shows the voxels ({voxels} pixels)");
+}

@@ -337,6 +337,26 @@ async function webgpuPath(browser) {
   check(hovered, `hovering the middle of the box's front face names voxel [15,15,30] (meshvoxStatus.hover ${JSON.stringify(hover)})`);
   await page.mouse.move(5, 590);
 
+  // The Screenshot button's download: a PNG of exactly the viewport (the canvas right of the panel).
+  const shots = [];
+  const onShot = (d) => shots.push(d);
+  page.on("download", onShot);
+  await page.evaluate(() => window.meshvoxScreenshot());
+  for (const deadline = Date.now() + 30_000; shots.length === 0 && Date.now() < deadline;) await page.waitForTimeout(100);
+  page.off("download", onShot);
+  if (shots.length === 1) {
+    const png = await readFile(await shots[0].path());
+    const [w, h] = [png.readUInt32BE(16), png.readUInt32BE(20)];
+    const viewport = await page.evaluate(() => {
+      const c = document.getElementById("meshvox_canvas");
+      return [c.width, c.height];
+    });
+    check(png.subarray(1, 4).toString() === "PNG" && Math.abs(w - (viewport[0] - 260)) <= 2 && h === viewport[1],
+      `Screenshot downloads ${shots[0].suggestedFilename()}, ${w}x${h}: the viewport of the ${viewport.join("x")} canvas`);
+  } else {
+    check(false, `Screenshot downloads one PNG (got ${shots.length})`);
+  }
+
   // Broken files from tests/corpus/bad through the file input: the panel shows one line naming the file, and the
   // page keeps working. Then a resolution the wasm heap cannot hold: refused with what fits, nothing allocated.
   const afterError = async (want, what) => {
