@@ -132,11 +132,11 @@ struct RenderArgs {
     size: (u32, u32),
     /// The axis pointing up (the camera orbits around it); default: glTF and the builtins y, STL z, OBJ and PLY
     /// z when the model is flat along z, else y.
-    #[arg(long, value_enum)]
-    up: Option<UpArg>,
-    /// A preset view instead of --yaw/--pitch.
-    #[arg(long, value_enum)]
-    view: Option<ViewArg>,
+    #[arg(long, value_name = "y|z", value_parser = parse_up)]
+    up: Option<meshvox::render::camera::UpAxis>,
+    /// A preset view instead of --yaw/--pitch: front, back, left, right, top, bottom or iso.
+    #[arg(long, value_name = "VIEW", value_parser = parse_view)]
+    view: Option<meshvox::render::camera::ViewPreset>,
     /// Camera angle around the vertical axis, degrees.
     #[arg(long, default_value_t = 35.0, allow_negative_numbers = true)]
     yaw: f32,
@@ -185,8 +185,8 @@ struct ViewArgs {
     #[arg(short = 'r', long = "resolution", value_name = "N", default_value_t = meshvox::ui::DEFAULT_RESOLUTION)]
     resolution: u32,
     /// The axis pointing up (default: guessed per mesh, as for `render`).
-    #[arg(long, value_enum)]
-    up: Option<UpArg>,
+    #[arg(long, value_name = "y|z", value_parser = parse_up)]
+    up: Option<meshvox::render::camera::UpAxis>,
 }
 
 #[derive(clap::Args, Clone)]
@@ -254,46 +254,18 @@ impl From<ModeArg> for Mode {
     }
 }
 
-/// The axis pointing up in the view (`render::camera::UpAxis`).
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum UpArg {
-    Y,
-    Z,
+/// `--up y|z`.
+fn parse_up(s: &str) -> Result<meshvox::render::camera::UpAxis, String> {
+    meshvox::render::camera::UpAxis::from_name(s).ok_or_else(|| format!("'{s}': use y or z"))
 }
 
-impl From<UpArg> for meshvox::render::camera::UpAxis {
-    fn from(u: UpArg) -> Self {
-        match u {
-            UpArg::Y => Self::Y,
-            UpArg::Z => Self::Z,
-        }
-    }
-}
-
-/// A preset view (`render::camera::ViewPreset`).
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum ViewArg {
-    Front,
-    Back,
-    Left,
-    Right,
-    Top,
-    Bottom,
-    Iso,
-}
-
-impl From<ViewArg> for meshvox::render::camera::ViewPreset {
-    fn from(v: ViewArg) -> Self {
-        match v {
-            ViewArg::Front => Self::Front,
-            ViewArg::Back => Self::Back,
-            ViewArg::Left => Self::Left,
-            ViewArg::Right => Self::Right,
-            ViewArg::Top => Self::Top,
-            ViewArg::Bottom => Self::Bottom,
-            ViewArg::Iso => Self::Iso,
-        }
-    }
+/// `--view NAME`, one of the preset views.
+fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
+    use meshvox::render::camera::ViewPreset;
+    ViewPreset::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = ViewPreset::ALL.iter().map(|v| v.name()).collect();
+        format!("'{s}': use one of {}", names.join(", "))
+    })
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -838,10 +810,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let offscreen = Offscreen::new(&gpu);
     let scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
     let (lo, hi) = scene.bounds();
-    let up = args.up.map_or_else(|| mesh.guess_up(), Into::into);
+    let up = args.up.unwrap_or_else(|| mesh.guess_up());
     let mut camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch).with_up(up);
     if let Some(view) = args.view {
-        camera.look(view.into());
+        camera.look(view);
     }
     let style = Style { show_mesh: args.show_mesh, ..Default::default() };
     let (w, h) = args.size;
@@ -876,7 +848,7 @@ fn view(args: &ViewArgs) -> Result<()> {
         Box::new(move |cc| {
             let mut app = meshvox::ui::ViewerApp::new(cc, &mesh, resolution)?;
             if let Some(up) = up {
-                app.set_up(up.into());
+                app.set_up(up);
             }
             Ok(Box::new(app))
         }),

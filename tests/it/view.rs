@@ -58,13 +58,19 @@ fn the_up_axis_is_guessed_from_the_format_and_the_shape() {
     }
 }
 
-#[test]
-fn preset_keys_and_buttons_turn_the_camera_and_up_z_orbits_around_z() {
-    let mut harness = Harness::builder()
+/// The viewer on `mesh` at `resolution`, 512 x 512 points at half a pixel per point.
+fn viewer(mesh: &str, resolution: u32) -> Harness<'static, ViewerApp> {
+    let mesh = mesh.to_string();
+    Harness::builder()
         .with_size([512.0, 512.0])
         .with_pixels_per_point(0.5)
         .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 32).expect("the app starts"));
+        .build_eframe(move |cc| ViewerApp::new(cc, &mesh, resolution).expect("the app starts"))
+}
+
+#[test]
+fn preset_keys_and_buttons_turn_the_camera_and_up_z_orbits_around_z() {
+    let mut harness = viewer("builtin:torus", 32);
     harness.run();
     let framed = *harness.state().camera();
     assert_eq!((framed.yaw, framed.pitch), (35.0, 25.0), "the first view is the framing");
@@ -222,12 +228,7 @@ fn hovering_shows_the_voxel_under_the_pointer() {
         obj += &format!("f {f}\n");
     }
     std::fs::write(&path, obj).expect("write");
-    let spec = path.to_string_lossy().into_owned();
-    let mut harness = Harness::builder()
-        .with_size([512.0, 512.0])
-        .with_pixels_per_point(0.5)
-        .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, &spec, 31).expect("the app starts"));
+    let mut harness = viewer(&path.to_string_lossy(), 31);
     harness.run();
     harness.key_press(egui::Key::Num1);
     harness.run();
@@ -247,11 +248,7 @@ fn hovering_shows_the_voxel_under_the_pointer() {
 /// egui shows there (the axis gizmo, drawn by egui on top, aside).
 #[test]
 fn the_screenshot_is_the_viewport() {
-    let mut harness = Harness::builder()
-        .with_size([512.0, 512.0])
-        .with_pixels_per_point(0.5)
-        .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 24).expect("the app starts"));
+    let mut harness = viewer("builtin:torus", 24);
     harness.run();
     let shot = harness.state().screenshot().expect("a screenshot");
     let rect = harness.state().viewport_rect();
