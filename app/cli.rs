@@ -153,6 +153,12 @@ struct RenderArgs {
     /// Overlay the source mesh, translucent.
     #[arg(long)]
     show_mesh: bool,
+    /// Darken face corners in creases by ambient occlusion (the default).
+    #[arg(long, overrides_with = "no_ao")]
+    ao: bool,
+    /// Flat faces without ambient occlusion.
+    #[arg(long)]
+    no_ao: bool,
     /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
@@ -772,50 +778,65 @@ fn render(args: &RenderArgs) -> Result<()> {
     // On a software adapter `auto` voxelizes on the CPU (faster there; see `Engine::open`) and only draws on it.
     let cpu = args.backend == BackendArg::Cpu
         || (args.backend == BackendArg::Auto && gpu.summary.is_software() && !software_gpu_preferred());
-    let (voxels, colours, backend) = if cpu || colour {
-        // Colours and cut-aways need the whole grid on the host.
+    let ao = !args.no_ao;
+    // What a host grid gives: its shown voxels (exposed, before the cut) as instances, and their occlusion.
+    let from_grid = |grid: &voxel::VoxelGrid| {
+        let occupied = args.cut.map(|c| c.occupied(grid));
+        let occupied = occupied.as_ref().unwrap_or(grid);
+        let shown = occupied.exposed();
+        let occlusion = ao.then(|| meshvox::render::occlusion_buffer(&gpu.device, occupied, &shown));
+        (shown, occlusion)
+    };
+    let (voxels, colours, backend, occlusion) = if cpu || colour {
+        // Colours, cut-aways and occlusion need the whole grid on the host.
         let engine = Engine::open(args.backend)?;
         let result = engine.voxelize(&mesh, spec, mode)?;
         let grid = result.grid;
-        let shown = args.cut.map_or_else(|| grid.exposed(), |cut| cut.apply(&grid));
+        let (shown, occlusion) = from_grid(&grid);
         if colour {
             let (c, _) = engine.colour(&mesh, &grid)?;
             let (voxels, colours) = meshvox::render::coloured_instances(&gpu.device, &grid, &shown, &c);
-            (voxels, Some(colours), result.backend)
+            (voxels, Some(colours), result.backend, occlusion)
         } else {
-            (instances_from_grid(&gpu.device, &shown), None, result.backend)
+            (instances_from_grid(&gpu.device, &shown), None, result.backend, occlusion)
         }
     } else {
-        // On the device that draws. A cut-away needs the whole grid on the host (the cut exposes interior
-        // voxels); otherwise the GPU compacts the visible voxels straight into the instance buffer.
+        // On the device that draws. A cut-away or occlusion needs the whole grid on the host (the cut exposes
+        // interior voxels); otherwise the GPU compacts the visible voxels straight into the instance buffer.
         let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-        let cut = args.cut;
+        let host = args.cut.is_some() || ao;
         let options = meshvox::gpu::voxelize::Options {
-            compact: cut.is_none(),
-            read_grid: cut.is_some(),
+            compact: !host,
+            read_grid: host,
             surface_only: true,
             mode,
             ..Default::default()
         };
         let out = v.voxelize(&gpu, &tris, spec, &options)?;
-        let voxels = match (cut, out.points, out.grid) {
-            (Some(cut), _, Some(grid)) => instances_from_grid(&gpu.device, &cut.apply(&grid)),
-            (None, Some(points), _) => points,
+        let backend = format!("gpu: {}", gpu.summary);
+        match (out.grid, out.points) {
+            (Some(grid), _) => {
+                let (shown, occlusion) = from_grid(&grid);
+                (instances_from_grid(&gpu.device, &shown), None, backend, occlusion)
+            }
+            (None, Some(points)) => (points, None, backend, None),
             _ => bail!("the GPU returned no voxels"),
-        };
-        (voxels, None, format!("gpu: {}", gpu.summary))
+        }
     };
     let voxelize_ms = ms(t);
     let count = voxels.count;
     let offscreen = Offscreen::new(&gpu);
-    let scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
+    let mut scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
+    if let Some(occlusion) = occlusion {
+        scene = offscreen.renderer.with_occlusion(&gpu.device, scene, occlusion);
+    }
     let (lo, hi) = scene.bounds();
     let up = args.up.unwrap_or_else(|| mesh.guess_up());
     let mut camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch).with_up(up);
     if let Some(view) = args.view {
         camera.look(view);
     }
-    let style = Style { show_mesh: args.show_mesh, ..Default::default() };
+    let style = Style { show_mesh: args.show_mesh, ao, ..Default::default() };
     let (w, h) = args.size;
     let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
     write_atomically(temp, &args.output, |out| {

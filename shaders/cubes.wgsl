@@ -13,7 +13,8 @@ struct View {
     color: vec4<f32>,
     mesh_color: vec4<f32>,
     // x: 1 when the target is not sRGB and the shader must encode; y: edge darkening strength (0 = off);
-    // z: 1 to draw each voxel's own colour from `colours` instead of `color`.
+    // z: 1 to draw each voxel's own colour from `colours` instead of `color`; w: 1 to darken corners by the
+    // ambient occlusion in `occlusion`.
     options: vec4<f32>,
 }
 
@@ -21,12 +22,17 @@ struct View {
 @group(0) @binding(1) var<storage, read> voxels: array<u32>;
 // One sRGB RGBA8 colour per instance (r in the low byte), when options.z is 1.
 @group(0) @binding(2) var<storage, read> colours: array<u32>;
+// Ambient occlusion, two words per instance, when options.w is 1: 2 bits per face corner, face f's corner
+// u + 2 v at bit (4 f + u + 2 v) * 2, from 0 (in a crease) to 3 (open); see render::ambient_occlusion.
+@group(0) @binding(3) var<storage, read> occlusion: array<u32>;
 
 struct CubeOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) @interpolate(flat) face: u32,
     @location(1) uv: vec2<f32>,
     @location(2) @interpolate(flat) albedo: vec3<f32>,
+    // The face's four corner occlusions (1 = open), at uv (0, 0), (1, 0), (0, 1), (1, 1).
+    @location(3) @interpolate(flat) ao: vec4<f32>,
 }
 
 @vertex
@@ -35,7 +41,11 @@ fn vs_cube(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> 
     if view.options.z != 0.0 {
         colour = unpack4x8unorm(colours[ii]).rgb;
     }
-    return cube_vertex(vi, vec2<u32>(voxels[2u * ii], voxels[2u * ii + 1u]), colour);
+    var ao = vec2<u32>(0xffffffffu);
+    if view.options.w != 0.0 {
+        ao = vec2<u32>(occlusion[2u * ii], occlusion[2u * ii + 1u]);
+    }
+    return cube_vertex(vi, vec2<u32>(voxels[2u * ii], voxels[2u * ii + 1u]), colour, ao);
 }
 
 @vertex
@@ -43,13 +53,14 @@ fn vs_cube_attributes(
     @builtin(vertex_index) vi: u32,
     @location(0) voxel: vec2<u32>,
     @location(1) colour: vec4<f32>,
+    @location(2) ao: vec2<u32>,
 ) -> CubeOut {
-    return cube_vertex(vi, voxel, colour.rgb);
+    return cube_vertex(vi, voxel, colour.rgb, ao);
 }
 
 // Corner `vi` of the cube of the voxel packed as `voxel` (x | y << 16, z), with its sRGB colour `colour` (used
-// when options.z is 1).
-fn cube_vertex(vi: u32, voxel: vec2<u32>, colour: vec3<f32>) -> CubeOut {
+// when options.z is 1) and its ambient occlusion words `ao` (used when options.w is 1).
+fn cube_vertex(vi: u32, voxel: vec2<u32>, colour: vec3<f32>, ao: vec2<u32>) -> CubeOut {
     let cell = vec3<f32>(f32(voxel.x & 0xffffu), f32(voxel.x >> 16u), f32(voxel.y));
     let face = vi / 6u;
     let axis = face / 2u;
@@ -81,6 +92,9 @@ fn cube_vertex(vi: u32, voxel: vec2<u32>, colour: vec3<f32>) -> CubeOut {
     if view.options.z != 0.0 {
         out.albedo = decode(colour);
     }
+    let bit = face * 8u;
+    let corners = (select(ao.x, ao.y, bit >= 32u) >> (bit % 32u)) & 0xffu;
+    out.ao = vec4<f32>(vec4<u32>(corners, corners >> 2u, corners >> 4u, corners >> 6u) & vec4<u32>(3u)) / 3.0;
     return out;
 }
 
@@ -119,7 +133,10 @@ fn fs_cube(in: CubeOut) -> @location(0) vec4<f32> {
     let border = min(in.uv, 1.0 - in.uv) / rate;
     let strength = view.options.y * (1.0 - smoothstep(0.1, 0.3, max(rate.x, rate.y)));
     let edge = 1.0 - strength * (1.0 - smoothstep(0.0, 1.5, min(border.x, border.y)));
-    return vec4<f32>(encode(in.albedo * light * edge), 1.0);
+    // The corners' occlusion interpolated across the face, as voxel editors shade creases.
+    let open = mix(mix(in.ao.x, in.ao.y, in.uv.x), mix(in.ao.z, in.ao.w, in.uv.x), in.uv.y);
+    let occlusion = mix(1.0, 0.4 + 0.6 * open, view.options.w);
+    return vec4<f32>(encode(in.albedo * light * edge * occlusion), 1.0);
 }
 
 struct MeshOut {

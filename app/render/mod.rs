@@ -25,6 +25,8 @@ pub struct Style {
     pub color: [f32; 3],
     /// Draw the voxels' own colours where the scene has them (otherwise `color`).
     pub voxel_colours: bool,
+    /// Darken face corners by ambient occlusion where the scene has it ([`CubeRenderer::with_occlusion`]).
+    pub ao: bool,
     pub background: [f32; 3],
 }
 
@@ -35,6 +37,7 @@ impl Default for Style {
             edges: true,
             color: [0.86, 0.36, 0.08],
             voxel_colours: true,
+            ao: true,
             background: [0.018, 0.02, 0.026],
         }
     }
@@ -58,6 +61,8 @@ pub struct Scene {
     pub coloured: bool,
     /// The instances' colours, if any (bound as a vertex buffer on WebGL2).
     colours: Option<wgpu::Buffer>,
+    /// The instances' ambient occlusion, if any (see [`ambient_occlusion`]).
+    occlusion: Option<wgpu::Buffer>,
     mesh: Option<(wgpu::Buffer, u32)>,
     uniform: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
@@ -132,6 +137,55 @@ pub fn coloured_instances(
     (instances_from_grid(device, shown), buffer)
 }
 
+/// Per-corner ambient occlusion of the faces of each voxel of `shown`, in its `iter_set` order (the order
+/// [`instances_from_grid`] lists them), from the voxels of `occupied` around them. A face corner looks at the
+/// three cells in front of the face that touch it (two along the face's edges, one diagonal): open (3) with none
+/// set, one less for each set one, and 0 when both edge cells are set (a crease), the rule of voxel editors.
+/// 2 bits per corner, face `f` (axis `f / 2`, positive when `f` is odd) and corner `u + 2 v` (`u` along axis
+/// `(f / 2 + 1) % 3`, `v` along `(f / 2 + 2) % 3`) at bit `(4 f + u + 2 v) * 2` of two words.
+pub fn ambient_occlusion(occupied: &VoxelGrid, shown: &VoxelGrid) -> Vec<[u32; 2]> {
+    use rayon::prelude::*;
+    let dims = occupied.spec.dims.as_ivec3();
+    let set = |p: glam::IVec3| {
+        p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(dims).all() && occupied.get(p.x as u32, p.y as u32, p.z as u32)
+    };
+    let voxels: Vec<glam::UVec3> = shown.iter_set().collect();
+    voxels
+        .par_iter()
+        .map(|v| {
+            let mut bits = 0u64;
+            for f in 0..6 {
+                let axis = f / 2;
+                let mut front = v.as_ivec3();
+                front[axis] += if f % 2 == 1 { 1 } else { -1 };
+                for c in 0..4 {
+                    let mut side1 = front;
+                    side1[(axis + 1) % 3] += if c & 1 == 1 { 1 } else { -1 };
+                    let mut side2 = front;
+                    side2[(axis + 2) % 3] += if c & 2 == 2 { 1 } else { -1 };
+                    let mut corner = side1;
+                    corner[(axis + 2) % 3] = side2[(axis + 2) % 3];
+                    let (a, b) = (set(side1), set(side2));
+                    let open = if a && b { 0 } else { 3 - a as u64 - b as u64 - set(corner) as u64 };
+                    bits |= open << ((4 * f + c) * 2);
+                }
+            }
+            [bits as u32, (bits >> 32) as u32]
+        })
+        .collect()
+}
+
+/// Uploads [`ambient_occlusion`] for the instances of `shown`.
+pub fn occlusion_buffer(device: &wgpu::Device, occupied: &VoxelGrid, shown: &VoxelGrid) -> wgpu::Buffer {
+    let words = ambient_occlusion(occupied, shown);
+    let contents: &[u8] = if words.is_empty() { &[0; 8] } else { bytemuck::cast_slice(&words) };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("voxel occlusion"),
+        contents,
+        usage: instance_usage(device),
+    })
+}
+
 /// Pipelines for one target format and sample count.
 pub struct CubeRenderer {
     layout: wgpu::BindGroupLayout,
@@ -160,7 +214,7 @@ impl CubeRenderer {
             },
             count: None,
         };
-        let storage = [view, storage_vertex(1), storage_vertex(2)];
+        let storage = [view, storage_vertex(1), storage_vertex(2), storage_vertex(3)];
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cubes"),
             entries: if attributes { &storage[..1] } else { &storage },
@@ -227,7 +281,12 @@ impl CubeRenderer {
         };
         let voxel_attribute = wgpu::vertex_attr_array![0 => Uint32x2];
         let colour_attribute = wgpu::vertex_attr_array![1 => Unorm8x4];
-        let instances = [instance(8, &voxel_attribute[..]), instance(4, &colour_attribute[..])];
+        let occlusion_attribute = wgpu::vertex_attr_array![2 => Uint32x2];
+        let instances = [
+            instance(8, &voxel_attribute[..]),
+            instance(4, &colour_attribute[..]),
+            instance(8, &occlusion_attribute[..]),
+        ];
         CubeRenderer {
             cubes: make(
                 "cubes",
@@ -272,36 +331,13 @@ impl CubeRenderer {
         mesh: Option<&Mesh>,
     ) -> Scene {
         let coloured = colours.is_some();
-        // Without colours the shader ignores them, but something must be bound: a word of storage, or (as
-        // vertex attributes) the voxel list itself, which has two words per instance where one is read.
-        let colours = match (colours, self.attributes) {
-            (Some(c), _) => Some(c),
-            (None, true) => None,
-            (None, false) => Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("no voxel colours"),
-                size: 4,
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
-            })),
-        };
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("view"),
             size: std::mem::size_of::<ViewUniform>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
-        if !self.attributes {
-            entries.push(wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() });
-            if let Some(c) = &colours {
-                entries.push(wgpu::BindGroupEntry { binding: 2, resource: c.as_entire_binding() });
-            }
-        }
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("cubes"),
-            layout: &self.layout,
-            entries: &entries,
-        });
+        let bind_group = self.bind_group(device, &uniform, &voxels, colours.as_ref(), None);
         let mesh = mesh.filter(|m| !m.triangles.is_empty()).map(|m| {
             // Into the drawing frame: anchor-relative positions moved by the anchor's offset from the grid origin,
             // which is taken in f64.
@@ -315,7 +351,48 @@ impl CubeRenderer {
             });
             (buffer, m.triangles.len() as u32 * 3)
         });
-        Scene { spec, voxels, coloured, colours, mesh, uniform, bind_group }
+        Scene { spec, voxels, coloured, colours, occlusion: None, mesh, uniform, bind_group }
+    }
+
+    /// `scene` with ambient occlusion per instance (from [`occlusion_buffer`] of the grid its instances came
+    /// from), drawn when [`Style::ao`] is on.
+    pub fn with_occlusion(&self, device: &wgpu::Device, scene: Scene, occlusion: wgpu::Buffer) -> Scene {
+        let bind_group =
+            self.bind_group(device, &scene.uniform, &scene.voxels, scene.colours.as_ref(), Some(&occlusion));
+        Scene { occlusion: Some(occlusion), bind_group, ..scene }
+    }
+
+    /// The scene's bindings: on the storage path the uniform, list, colours and occlusion (a small unread buffer
+    /// standing in for absent ones); on WebGL2 the uniform only, the rest being vertex buffers.
+    fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        uniform: &wgpu::Buffer,
+        voxels: &CompactVoxels,
+        colours: Option<&wgpu::Buffer>,
+        occlusion: Option<&wgpu::Buffer>,
+    ) -> wgpu::BindGroup {
+        let placeholder = (!self.attributes).then(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("unused instance data"),
+                size: 8,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        });
+        let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }];
+        if let Some(placeholder) = &placeholder {
+            entries.push(wgpu::BindGroupEntry { binding: 1, resource: voxels.buffer.as_entire_binding() });
+            let colours = colours.unwrap_or(placeholder);
+            entries.push(wgpu::BindGroupEntry { binding: 2, resource: colours.as_entire_binding() });
+            let occlusion = occlusion.unwrap_or(placeholder);
+            entries.push(wgpu::BindGroupEntry { binding: 3, resource: occlusion.as_entire_binding() });
+        }
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("cubes"),
+            layout: &self.layout,
+            entries: &entries,
+        })
     }
 
     /// Writes the camera and style for the next draw.
@@ -329,7 +406,7 @@ impl CubeRenderer {
                 if self.encode_srgb { 1.0 } else { 0.0 },
                 if style.edges { 0.45 } else { 0.0 },
                 if style.voxel_colours && scene.coloured { 1.0 } else { 0.0 },
-                0.0,
+                if style.ao && scene.occlusion.is_some() { 1.0 } else { 0.0 },
             ],
         };
         queue.write_buffer(&scene.uniform, 0, bytemuck::bytes_of(&u));
@@ -341,9 +418,12 @@ impl CubeRenderer {
         if scene.voxels.count > 0 {
             pass.set_pipeline(&self.cubes);
             if self.attributes {
+                // Absent colours and occlusion are not read; the list itself stands in (it is long enough:
+                // two words per instance).
                 let list = scene.voxels.buffer.slice(..);
                 pass.set_vertex_buffer(0, list);
                 pass.set_vertex_buffer(1, scene.colours.as_ref().map_or(list, |c| c.slice(..)));
+                pass.set_vertex_buffer(2, scene.occlusion.as_ref().map_or(list, |o| o.slice(..)));
             }
             pass.draw(0..36, 0..scene.voxels.count);
         }
@@ -591,8 +671,13 @@ impl Cut {
         (self.fraction as f64 * spec.dims[self.axis] as f64).round() as u32
     }
 
+    /// The voxels of `grid` before the cut (what a cut-away view's voxels and their occlusion come from).
+    pub fn occupied(&self, grid: &VoxelGrid) -> VoxelGrid {
+        grid.cut(self.axis, self.keep(&grid.spec))
+    }
+
     /// The voxels of `grid` a cut-away view draws: those before the cut with an empty neighbour.
     pub fn apply(&self, grid: &VoxelGrid) -> VoxelGrid {
-        grid.cut(self.axis, self.keep(&grid.spec)).exposed()
+        self.occupied(grid).exposed()
     }
 }

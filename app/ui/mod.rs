@@ -283,7 +283,9 @@ impl ViewerApp {
     /// GPU's list (exposed voxels only) leaves out.
     fn rebuild_scene(&mut self) {
         let (Some(grid), Some(mesh)) = (&self.grid, &self.mesh) else { return };
-        let shown = if self.cut_on { self.cut.apply(grid) } else { grid.exposed() };
+        let cut = self.cut_on.then(|| self.cut.occupied(grid));
+        let occupied = cut.as_ref().unwrap_or(grid);
+        let shown = occupied.exposed();
         let device = &self.gpu.device;
         let (points, colours) = match &self.colours {
             Some(c) => {
@@ -292,7 +294,11 @@ impl ViewerApp {
             }
             None => (render::instances_from_grid(device, &shown), None),
         };
-        self.scene = Some(self.renderer.coloured_scene(device, points, colours, grid.spec, Some(mesh)));
+        let mut scene = self.renderer.coloured_scene(device, points, colours, grid.spec, Some(mesh));
+        if self.style.ao {
+            scene = self.renderer.with_occlusion(device, scene, render::occlusion_buffer(device, occupied, &shown));
+        }
+        self.scene = Some(scene);
         self.scene_version += 1;
     }
 
@@ -473,7 +479,8 @@ impl ViewerApp {
         self.scene_version += 1;
         self.grid = Some(grid);
         self.colours = colours;
-        if self.cut_on {
+        // Occlusion and cut-aways come from the host grid, in its order.
+        if self.cut_on || self.style.ao {
             self.rebuild_scene();
         }
         self.error = None;
@@ -612,6 +619,11 @@ impl ViewerApp {
             }
         });
         ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
+        if ui.checkbox(&mut self.style.ao, "Ambient occlusion").on_hover_text("darken corners and creases").changed()
+            && self.style.ao
+        {
+            self.rebuild_scene();
+        }
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
         ui.horizontal(|ui| {
             if ui.button("Reset view").clicked() {

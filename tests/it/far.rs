@@ -182,6 +182,7 @@ fn render_of_a_far_mesh_matches_the_render_at_the_origin() {
         mode: Mode::Surface,
         cut: None,
         colour: false,
+        ao: true,
     };
     let a = render(gpu, &case(&path));
     let b = render(gpu, &case(&far));

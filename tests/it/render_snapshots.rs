@@ -26,6 +26,8 @@ pub(crate) struct Case {
     pub cut: Option<Cut>,
     /// Draw the voxels in the mesh's colours (computed by the GPU colour pass).
     pub colour: bool,
+    /// Darken corners by ambient occlusion (the instances then come from the host grid).
+    pub ao: bool,
 }
 
 pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
@@ -63,11 +65,18 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
             }
             (instances_from_grid(&gpu.device, &shown), None)
         }
+        None if case.ao => (instances_from_grid(&gpu.device, &grid.exposed()), None),
         None => (out.points.expect("points"), None),
     };
     let show_mesh = case.show_mesh;
     let offscreen = Offscreen::new(gpu);
-    let scene = offscreen.renderer.coloured_scene(&gpu.device, points, colours, spec, Some(&mesh));
+    let mut scene = offscreen.renderer.coloured_scene(&gpu.device, points, colours, spec, Some(&mesh));
+    if case.ao {
+        let occupied = case.cut.map(|c| c.occupied(&grid));
+        let occupied = occupied.as_ref().unwrap_or(&grid);
+        let occlusion = meshvox::render::occlusion_buffer(&gpu.device, occupied, &occupied.exposed());
+        scene = offscreen.renderer.with_occlusion(&gpu.device, scene, occlusion);
+    }
     let (lo, hi) = scene.bounds();
     let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
     let style = Style { show_mesh, ..Default::default() };
@@ -172,16 +181,21 @@ fn renderer_goldens() {
         mode,
         cut: cut.map(|c| Cut::parse(c).expect("cut")),
         colour: false,
+        ao: false,
     };
     let mut cases = vec![
         case("rotated-cube-30", "builtin:rotated-cube".into(), 30, false, Mode::Surface, None),
         // A solid cut away through the middle: the filled inside shows on the cut.
         case("knot-48-solid-cut-z", "builtin:knot".into(), 48, false, Mode::Solid, Some("z:0.5")),
+        // Ambient occlusion on, and the same knot without it.
+        Case { ao: true, ..case("knot-48-ao", "builtin:knot".into(), 48, false, Mode::Surface, None) },
+        case("knot-48", "builtin:knot".into(), 48, false, Mode::Surface, None),
     ];
     if let Some(dir) = crate::common::shared_meshes() {
         let p = |f: &str| dir.join(f).to_string_lossy().into_owned();
         cases.push(case("suzanne-96", p("suzanne.obj"), 96, false, Mode::Surface, None));
         cases.push(case("bunny-64", p("stanford-bunny.obj"), 64, false, Mode::Surface, None));
+        cases.push(Case { ao: true, ..case("bunny-64-ao", p("stanford-bunny.obj"), 64, false, Mode::Surface, None) });
         cases.push(case("duck-64-mesh", p("gltf/Duck.glb"), 64, true, Mode::Surface, None));
         cases.push(case("bunny-64-solid-cut-x", p("stanford-bunny.obj"), 64, false, Mode::Solid, Some("x:0.5")));
         cases.push(case("spot-64-surface6", p("spot.obj"), 64, false, Mode::Surface6, None));
@@ -227,6 +241,9 @@ fn render_cpu_voxelized(gpu: &Gpu, mesh: &str, resolution: u32) -> image::RgbaIm
     };
     let offscreen = Offscreen::new(gpu);
     let scene = offscreen.renderer.coloured_scene(&gpu.device, points, colours, spec, Some(&mesh));
+    // With ambient occlusion, so that its vertex attribute on WebGL2 is compared too.
+    let occlusion = meshvox::render::occlusion_buffer(&gpu.device, &grid, &grid.exposed());
+    let scene = offscreen.renderer.with_occlusion(&gpu.device, scene, occlusion);
     let (lo, hi) = scene.bounds();
     let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
     offscreen.render(gpu, &scene, &camera, &Style::default(), SIZE, SIZE).expect("render")

@@ -270,3 +270,83 @@ fn the_screenshot_is_the_viewport() {
     let voxels = shot.pixels().filter(|p| p[0] > p[2].saturating_add(40)).count();
     assert!(voxels > (w * h / 20) as usize, "the screenshot shows the voxels ({voxels} pixels)");
 }
+
+/// Ambient occlusion per face corner: open faces stay at 3, a face next to a wall is darkened on that side, a
+/// crease (both edge neighbours set) is 0; and drawn, the crease is darker than the open face.
+#[test]
+fn an_inner_corner_is_darker_than_an_open_face() {
+    use meshvox::voxel::{GridSpec, VoxelGrid};
+    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: glam::UVec3::new(4, 4, 4) };
+    let mut grid = VoxelGrid::new(spec).expect("grid");
+    // An L in the xy plane: a floor of two voxels and a wall voxel on the first.
+    for (x, y, z) in [(0, 0, 0), (1, 0, 0), (0, 1, 0)] {
+        grid.set(x, y, z);
+    }
+    let ao = meshvox::render::ambient_occlusion(&grid, &grid);
+    let order: Vec<glam::UVec3> = grid.iter_set().collect();
+    let corners = |v: glam::UVec3, face: usize| {
+        let words = ao[order.iter().position(|&p| p == v).expect("listed")];
+        let bits = (u64::from(words[1]) << 32) | u64::from(words[0]);
+        (0..4).map(|c| (bits >> ((4 * face + c) * 2)) & 3).collect::<Vec<_>>()
+    };
+    // The floor voxel (1, 0, 0)'s top face (+y, face 3): its corners toward -x touch the wall (0, 1, 0).
+    // Corner c = u + 2 v, u along z and v along x for a y face.
+    assert_eq!(corners(glam::UVec3::new(1, 0, 0), 3), vec![2, 2, 3, 3]);
+    // The wall's +x face (face 1) meets the floor's top along its -y edge (u along y).
+    assert_eq!(corners(glam::UVec3::new(0, 1, 0), 1), vec![2, 3, 2, 3]);
+    // The floor's bottom (-y, face 2) is open.
+    assert_eq!(corners(glam::UVec3::new(1, 0, 0), 2), vec![3, 3, 3, 3]);
+    // A crease: fill the corner cell in front of (1, 0, 0)'s +z face from both sides.
+    let mut crease = grid.clone();
+    crease.set(2, 0, 1);
+    crease.set(1, 1, 1);
+    let ao = meshvox::render::ambient_occlusion(&crease, &crease);
+    let order: Vec<glam::UVec3> = crease.iter_set().collect();
+    let words = ao[order.iter().position(|&p| p == glam::UVec3::new(1, 0, 0)).expect("listed")];
+    // Face 5 (+z), corner u = 1 (toward +x), v = 1 (toward +y): both edge cells set.
+    assert_eq!((words[1] >> ((4 * 5 + 3) * 2 - 32)) & 3, 0);
+
+    // Drawn: a stair of boxes seen from the iso view; with occlusion the image only gets darker, and some
+    // pixels (the creases) much darker, while most (open faces) do not change.
+    let gpu = match Gpu::new_blocking() {
+        Ok(g) => g,
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
+        Err(e) => return eprintln!("\n*** SKIPPED: {e} ***\n"),
+    };
+    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: glam::UVec3::new(12, 12, 12) };
+    let mut stairs = VoxelGrid::new(spec).expect("grid");
+    for x in 0..12 {
+        for y in 0..(12 - x) / 3 {
+            for z in 0..12 {
+                stairs.set(x, y, z);
+            }
+        }
+    }
+    let draw = |ao: bool| {
+        let offscreen = Offscreen::new(&gpu);
+        let shown = stairs.exposed();
+        let mut scene = offscreen.renderer.scene(&gpu.device, instances_from_grid(&gpu.device, &shown), spec, None);
+        scene = offscreen.renderer.with_occlusion(
+            &gpu.device,
+            scene,
+            meshvox::render::occlusion_buffer(&gpu.device, &stairs, &shown),
+        );
+        let (lo, hi) = scene.bounds();
+        let mut camera = OrbitCamera::framing(lo, hi, 0.0, 0.0);
+        camera.look(ViewPreset::Iso);
+        offscreen
+            .render(&gpu, &scene, &camera, &Style { ao, edges: false, ..Default::default() }, 128, 128)
+            .expect("render")
+    };
+    let (on, off) = (draw(true), draw(false));
+    let luma = |p: &image::Rgba<u8>| p[0] as i32 + p[1] as i32 + p[2] as i32;
+    let (mut darker, mut same, mut lighter) = (0, 0, 0);
+    for (a, b) in on.pixels().zip(off.pixels()) {
+        match luma(a) - luma(b) {
+            d if d < -30 => darker += 1,
+            d if d > 6 => lighter += 1,
+            _ => same += 1,
+        }
+    }
+    assert!(darker > 200 && lighter == 0 && same > darker, "darker {darker}, same {same}, lighter {lighter}");
+}
