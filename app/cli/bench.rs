@@ -17,6 +17,9 @@ pub enum Suite {
     Seed,
     /// Bunny, Suzanne, teapot, rotated cube and a generated ~1M-triangle knot at 256, 512, 1024 and 2048.
     Scale,
+    /// The viewer's frame time with ambient occlusion off and on: the bundled knot at 532 (just over a million
+    /// visible voxels) drawn at 512x512 with 4x MSAA.
+    Frame,
 }
 
 impl Suite {
@@ -24,6 +27,7 @@ impl Suite {
         match self {
             Suite::Seed => "seed",
             Suite::Scale => "scale",
+            Suite::Frame => "frame",
         }
     }
 }
@@ -197,11 +201,15 @@ fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
                 .collect();
             Ok((meshes, cases))
         }
+        Some(Suite::Frame) => Err(anyhow!("the frame suite has no voxelization cases")),
     }
 }
 
 /// `meshvox bench`: a markdown table on stdout, and the files `--out` and `--markdown` ask for.
 pub fn bench(args: &BenchArgs) -> Result<()> {
+    if args.suite == Some(Suite::Frame) {
+        return frame_times(args);
+    }
     let (meshes, cases) = cases(args)?;
     let mut rows = Vec::new();
     let mut engines = Vec::new();
@@ -354,6 +362,59 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
         }
     }
     md
+}
+
+/// `--suite frame`: median frame times (draw and wait for the image) of the knot at 532 with occlusion off and on.
+fn frame_times(args: &BenchArgs) -> Result<()> {
+    use meshvox::render::{Offscreen, OrbitCamera, RenderTarget, Style, instances_from_grid, occlusion_buffer};
+    let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
+    let mesh = meshvox::mesh::load("builtin:knot")?;
+    let bounds = mesh.bounds().ok_or_else(|| anyhow!("the knot is empty"))?;
+    let spec = GridSpec::fit(bounds, Resolution::Count(532), meshvox::voxel::Axis::Longest)?;
+    let grid = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {})?;
+    let shown = grid.exposed();
+    let t = Instant::now();
+    let occlusion = occlusion_buffer(&gpu.device, &grid, &shown);
+    let occlusion_ms = ms(t);
+    let offscreen = Offscreen::new(&gpu);
+    let scene = offscreen.renderer.scene(&gpu.device, instances_from_grid(&gpu.device, &shown), spec, None);
+    let scene = offscreen.renderer.with_occlusion(&gpu.device, scene, occlusion);
+    let (lo, hi) = scene.bounds();
+    let camera = OrbitCamera::framing(lo, hi, 35.0, 25.0);
+    let target = RenderTarget::new(&gpu.device, 512, 512);
+    let mut times = Vec::new();
+    for ao in [false, true] {
+        let style = Style { ao, ..Default::default() };
+        let mut frames = Vec::new();
+        // One frame to warm up, then the timed ones; reading the image back waits for each to finish.
+        for run in 0..=args.runs.max(1) {
+            let t = Instant::now();
+            target.draw(&gpu.device, &gpu.queue, &offscreen.renderer, Some(&scene), &camera, &style);
+            target.read(&gpu)?;
+            if run > 0 {
+                frames.push(ms(t));
+            }
+        }
+        times.push(median(frames));
+    }
+    let md = format!(
+        "Frame time of the viewer's renderer (`meshvox bench --suite frame --runs {}`): the bundled knot at 532, {} \
+         visible voxels, 512x512 at 4x MSAA on {}; machine: {}.\n\n| ambient occlusion | ms per frame |\n|---|---:|\n\
+         | off | {:.1} |\n| on | {:.1} |\n\nOn/off: {:.2}x. Computing the occlusion once for the scene: {:.0} ms on the CPU.\n",
+        args.runs,
+        shown.count(),
+        gpu.summary,
+        machine(),
+        times[0],
+        times[1],
+        times[1] / times[0],
+        occlusion_ms
+    );
+    println!("{md}");
+    if let Some(path) = &args.markdown {
+        write_section(path, "bench frame", &md)?;
+    }
+    Ok(())
 }
 
 /// Replaces the text between `<!-- NAME begin -->` and `<!-- NAME end -->` in `path` with `body`, or appends the
