@@ -52,8 +52,9 @@ struct View {
     drawn: Option<(OrbitCamera, Style, u64)>,
 }
 
-/// What a finished voxelization hands back to the app.
-type Outcome = Result<(CompactVoxels, VoxelGrid, Option<f64>, Option<VoxelColours>), String>;
+/// What a finished voxelization hands back to the app: the GPU's list of exposed voxels (none from the CPU),
+/// the grid, the GPU time and the colours.
+type Outcome = Result<(Option<CompactVoxels>, VoxelGrid, Option<f64>, Option<VoxelColours>), String>;
 
 /// A voxelization in flight, and where its task leaves the outcome.
 struct Pending {
@@ -279,10 +280,18 @@ impl ViewerApp {
         self.rebuild_scene();
     }
 
-    /// Rebuilds the drawn voxels from the host grid: the cut-away needs the voxels behind the cut, which the
-    /// GPU's list (exposed voxels only) leaves out.
+    /// Rebuilds the drawn voxels from the host grid (see [`ViewerApp::scene_from_grid`]).
     fn rebuild_scene(&mut self) {
         let (Some(grid), Some(mesh)) = (&self.grid, &self.mesh) else { return };
+        let scene = self.scene_from_grid(grid, mesh);
+        self.scene = Some(scene);
+        self.scene_version += 1;
+    }
+
+    /// The drawn voxels built from the host grid `grid`, in its order: what colours and occlusion (one entry per
+    /// instance) and the cut-away (the voxels behind the cut, which the GPU's list of exposed voxels leaves out)
+    /// need; `mesh` is the overlay.
+    fn scene_from_grid(&self, grid: &VoxelGrid, mesh: &Mesh) -> Scene {
         let cut = self.cut_on.then(|| self.cut.occupied(grid));
         let occupied = cut.as_ref().unwrap_or(grid);
         let shown = occupied.exposed();
@@ -294,12 +303,11 @@ impl ViewerApp {
             }
             None => (render::instances_from_grid(device, &shown), None),
         };
-        let mut scene = self.renderer.coloured_scene(device, points, colours, grid.spec, Some(mesh));
-        if self.style.ao {
-            scene = self.renderer.with_occlusion(device, scene, render::occlusion_buffer(device, occupied, &shown));
+        let scene = self.renderer.coloured_scene(device, points, colours, grid.spec, Some(mesh));
+        match self.style.ao {
+            true => self.renderer.with_occlusion(device, scene, render::occlusion_buffer(device, occupied, &shown)),
+            false => scene,
         }
-        self.scene = Some(scene);
-        self.scene_version += 1;
     }
 
     pub fn set_resolution(&mut self, resolution: u32) {
@@ -381,35 +389,26 @@ impl ViewerApp {
                 };
                 let on_cpu = || {
                     cpu::voxelize_grid_space_mode(&triangles, spec, mode, &|_, _| {})
-                        .map(|(grid, _)| (render::instances_from_grid(&gpu.device, &grid.exposed()), grid, None, None))
+                        .map(|(grid, _)| (None, grid, None, None))
                         .map_err(|e| e.to_string())
                 };
-                let Some(voxelizer) = voxelizer else {
+                let result = match &voxelizer {
                     // No compute on this device (WebGL2): the CPU voxelizer, compiled into the page, makes the grid.
-                    let result = match (on_cpu(), mesh.shading.as_ref()) {
-                        (Ok((points, grid, _, _)), Some(shading)) => {
-                            let colours = colour::colour_voxels(&grid, &triangles, shading);
-                            Ok((points, grid, None, Some(colours)))
+                    None => on_cpu(),
+                    Some(voxelizer) => match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
+                        Ok(out) => match (out.points, out.grid) {
+                            (Some(points), Some(grid)) => Ok((Some(points), grid, out.gpu_ms, None)),
+                            _ => Err("no voxels came back".to_string()),
+                        },
+                        // The device still draws but could not voxelize (out of memory, hung): the CPU makes the
+                        // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
+                        Err(e) if e.is_device_failure() && !gpu.is_lost() => {
+                            log::warn!("{e}; voxelizing on the CPU instead");
+                            on_cpu()
                         }
-                        (result, _) => result,
-                    };
-                    *outcome.borrow_mut() = Some(result);
-                    ctx.request_repaint();
-                    return;
-                };
-                let result = match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
-                    Ok(out) => match (out.points, out.grid) {
-                        (Some(points), Some(grid)) => Ok((points, grid, out.gpu_ms, None)),
-                        _ => Err("no voxels came back".to_string()),
+                        Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
+                        Err(e) => Err(e.to_string()),
                     },
-                    // The device still draws but could not voxelize (out of memory, hung): the CPU makes the
-                    // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
-                    Err(e) if e.is_device_failure() && !gpu.is_lost() => {
-                        log::warn!("{e}; voxelizing on the CPU instead");
-                        on_cpu()
-                    }
-                    Err(e @ GpuError::DeviceLost(_)) => Err(format!("{e}: {RESTART}")),
-                    Err(e) => Err(e.to_string()),
                 };
                 let result = match (result, mesh.shading.as_ref()) {
                     (Ok((points, grid, gpu_ms, _)), Some(shading)) => {
@@ -449,14 +448,6 @@ impl ViewerApp {
                 return self.fail(e);
             }
         };
-        // The GPU's list is in no particular order; colours go with a list built from the host grid.
-        let scene = match &colours {
-            Some(c) => {
-                let (points, buffer) = render::coloured_instances(&self.gpu.device, &grid, &grid.exposed(), c);
-                self.renderer.coloured_scene(&self.gpu.device, points, Some(buffer), p.spec, Some(&p.mesh))
-            }
-            None => self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh)),
-        };
         let d = grid.spec.dims;
         self.stats = Some(Stats {
             mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
@@ -470,6 +461,15 @@ impl ViewerApp {
             voxel_size: grid.spec.voxel_size,
             coloured: colours.is_some(),
         });
+        self.colours = colours;
+        // The GPU's list is in no particular order: it is drawn as it is unless colours, occlusion or a cut-away
+        // need a list in the host grid's order.
+        let scene = match points {
+            Some(points) if self.colours.is_none() && !self.style.ao && !self.cut_on => {
+                self.renderer.scene(&self.gpu.device, points, p.spec, Some(&p.mesh))
+            }
+            _ => self.scene_from_grid(&grid, &p.mesh),
+        };
         if p.frame {
             let (lo, hi) = scene.bounds();
             let framed = OrbitCamera::framing(lo, hi, 35.0, 25.0).with_up(self.up);
@@ -478,11 +478,6 @@ impl ViewerApp {
         self.scene = Some(scene);
         self.scene_version += 1;
         self.grid = Some(grid);
-        self.colours = colours;
-        // Occlusion and cut-aways come from the host grid, in its order.
-        if self.cut_on || self.style.ao {
-            self.rebuild_scene();
-        }
         self.error = None;
         self.publish();
     }
@@ -721,30 +716,22 @@ impl ViewerApp {
         let pixels = view.target.read_later(&self.gpu);
         #[cfg(not(target_arch = "wasm32"))]
         {
-            let image = match pollster::block_on(pixels) {
-                Ok(image) => image,
+            let png = match pollster::block_on(pixels).map_err(|e| e.to_string()).and_then(|image| png_bytes(&image)) {
+                Ok(png) => png,
                 Err(e) => return self.fail(format!("screenshot: {e}")),
             };
             let Some(path) = rfd::FileDialog::new().set_file_name(&name).add_filter("png", &["png"]).save_file() else {
                 return;
             };
-            let partial = path.with_extension("partial");
-            let saved = image.save_with_format(&partial, image::ImageFormat::Png).map_err(|e| e.to_string());
-            if let Err(e) = saved.and_then(|()| std::fs::rename(&partial, &path).map_err(|e| e.to_string())) {
-                let _ = std::fs::remove_file(&partial);
-                self.fail(format!("{}: {e}", path.display()));
+            if let Err(e) = save_file(&path, &png) {
+                self.fail(e);
             }
         }
         #[cfg(target_arch = "wasm32")]
         wasm_bindgen_futures::spawn_local(async move {
-            let png = pixels.await.map_err(|e| e.to_string()).and_then(|image| {
-                let mut bytes = std::io::Cursor::new(Vec::new());
-                image.write_to(&mut bytes, image::ImageFormat::Png).map_err(|e| e.to_string())?;
-                Ok(bytes.into_inner())
-            });
-            match png.and_then(|bytes| web::download(&name, &bytes)) {
-                Ok(()) => {}
-                Err(e) => web::send(web::Command::Failed(format!("screenshot: {e}"))),
+            let png = pixels.await.map_err(|e| e.to_string()).and_then(|image| png_bytes(&image));
+            if let Err(e) = png.and_then(|bytes| web::download(&name, &bytes)) {
+                web::send(web::Command::Failed(format!("screenshot: {e}")));
             }
         });
     }
@@ -792,11 +779,8 @@ impl ViewerApp {
             targets.push(export::colours_npy_path(&path));
         }
         for (target, (_, bytes)) in targets.iter().zip(&files) {
-            let partial = target.with_extension("partial");
-            let result = std::fs::write(&partial, bytes).and_then(|()| std::fs::rename(&partial, target));
-            if let Err(e) = result {
-                let _ = std::fs::remove_file(&partial);
-                self.error = Some(format!("{}: {e}", target.display()));
+            if let Err(e) = save_file(target, bytes) {
+                self.error = Some(e);
                 return;
             }
         }
@@ -1048,12 +1032,27 @@ impl eframe::App for ViewerApp {
     }
 }
 
-/// A length for people: five significant digits, no trailing zeros.
+/// `image` encoded as PNG.
+fn png_bytes(image: &image::RgbaImage) -> Result<Vec<u8>, String> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, image::ImageFormat::Png).map_err(|e| e.to_string())?;
+    Ok(bytes.into_inner())
+}
+
+/// Writes `bytes` to `target` through a `.partial` file renamed into place, so a failed write leaves no file
+/// that looks complete; the error names the file.
+#[cfg(not(target_arch = "wasm32"))]
+fn save_file(target: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    let partial = target.with_extension("partial");
+    std::fs::write(&partial, bytes).and_then(|()| std::fs::rename(&partial, target)).map_err(|e| {
+        let _ = std::fs::remove_file(&partial);
+        format!("{}: {e}", target.display())
+    })
+}
+
+/// A length for people: five significant digits, no trailing zeros (as in shared links).
 fn short_number(x: f64) -> String {
-    let digits = (4 - x.abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize;
-    let s = format!("{x:.digits$}");
-    let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { &s };
-    s.to_string()
+    url::short(x, url::five_significant(x))
 }
 
 /// The world axes as seen from the camera, in the viewport's bottom-left corner: x red, y green, z blue, the
@@ -1148,7 +1147,7 @@ async fn colour_grid(
     triangles: &[[glam::Vec3; 3]],
     shading: &mesh::Shading,
 ) -> Result<VoxelColours, String> {
-    if GpuColourer::fits(gpu, grid, triangles.len(), shading) {
+    if gpu.has_compute() && GpuColourer::fits(gpu, grid, triangles.len(), shading) {
         let c = colourer.get_or_init(|| GpuColourer::new(gpu));
         match c.colour_async(gpu, grid, triangles, shading).await {
             Ok(colours) => return Ok(colours),

@@ -53,8 +53,13 @@ fn parse_camera(s: &str) -> Option<OrbitCamera> {
     }
 }
 
+/// The decimals that give `x` five significant digits (at most 12).
+pub(crate) fn five_significant(x: f64) -> usize {
+    (4 - x.abs().max(1e-12).log10().floor() as i32).clamp(0, 12) as usize
+}
+
 /// A number with at most `decimals` decimals and no trailing zeros, so the address bar stays short.
-fn short(x: f32, decimals: usize) -> String {
+pub(crate) fn short(x: f64, decimals: usize) -> String {
     let s = format!("{x:.decimals$}");
     let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.') } else { &s };
     if s == "-0" { "0".to_string() } else { s.to_string() }
@@ -107,10 +112,10 @@ impl UrlState {
         }
         if let Some(c) = &self.camera {
             // Angles to a tenth of a degree; lengths to five significant digits of the distance.
-            let digits = (4 - c.distance.abs().max(1e-6).log10().floor() as i32).clamp(0, 8) as usize;
-            let cam = [short(c.yaw, 1), short(c.pitch, 1), short(c.distance, digits)]
+            let digits = five_significant(f64::from(c.distance)).min(8);
+            let cam = [short(c.yaw.into(), 1), short(c.pitch.into(), 1), short(c.distance.into(), digits)]
                 .into_iter()
-                .chain(c.target.to_array().map(|t| short(t, digits)))
+                .chain(c.target.to_array().map(|t| short(t.into(), digits)))
                 .collect::<Vec<_>>()
                 .join(",");
             parts.push(format!("cam={cam}"));

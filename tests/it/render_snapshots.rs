@@ -164,14 +164,7 @@ fn assert_shows_colours(name: &str, image: &image::RgbaImage) {
 
 #[test]
 fn renderer_goldens() {
-    let gpu = match Gpu::new_blocking() {
-        Ok(g) => g,
-        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
-        Err(e) => {
-            eprintln!("\n*** SKIPPED render snapshots: {e} ***\n");
-            return;
-        }
-    };
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
     let slug = gpu.summary.slug();
     let case = |name: &str, mesh: String, resolution, show_mesh, mode, cut: Option<&str>| Case {
         name: name.into(),
@@ -212,7 +205,7 @@ fn renderer_goldens() {
     let mut failures = Vec::new();
     for c in cases {
         let name = c.name.clone();
-        let image = render(&gpu, &c);
+        let image = render(gpu, &c);
         if c.colour {
             assert_shows_colours(&name, &image);
         } else {
@@ -253,25 +246,18 @@ fn render_cpu_voxelized(gpu: &Gpu, mesh: &str, resolution: u32) -> image::RgbaIm
 /// a device opened with WebGL2's limits, draws what the storage-buffer renderer draws: plain and coloured voxels.
 #[test]
 fn the_webgl2_renderer_draws_what_the_storage_renderer_draws() {
-    let adapter = match Gpu::adapter_blocking() {
-        Ok(a) => a,
-        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
-        Err(e) => {
-            eprintln!("\n*** SKIPPED the WebGL2 renderer test: {e} ***\n");
-            return;
-        }
-    };
-    let webgl2 = pollster::block_on(Gpu::from_adapter_with_limits(adapter, wgpu::Limits::downlevel_webgl2_defaults()))
+    let Some((full, _)) = crate::gpu::gpu() else { return };
+    assert!(!meshvox::render::is_webgl2(&full.device));
+    let limits = wgpu::Limits::downlevel_webgl2_defaults();
+    let webgl2 = pollster::block_on(Gpu::from_adapter_with_limits(full.adapter.clone(), limits))
         .expect("a device with WebGL2's limits");
     assert!(meshvox::render::is_webgl2(&webgl2.device) && !webgl2.has_compute());
-    let full = Gpu::new_blocking().expect("gpu");
-    assert!(!meshvox::render::is_webgl2(&full.device));
     let mut meshes = vec![("rotated-cube", "builtin:rotated-cube".to_string(), 30)];
     if let Some(dir) = crate::common::shared_meshes() {
         meshes.push(("duck-colour", dir.join("gltf/Duck.glb").to_string_lossy().into_owned(), 48));
     }
     for (name, mesh, resolution) in meshes {
-        let a = render_cpu_voxelized(&full, &mesh, resolution);
+        let a = render_cpu_voxelized(full, &mesh, resolution);
         let b = render_cpu_voxelized(&webgl2, &mesh, resolution);
         if name.ends_with("colour") {
             assert_shows_colours(name, &b);

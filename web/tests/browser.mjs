@@ -152,30 +152,36 @@ if (failures > 0) {
 }
 console.log("browser test: all checks passed");
 
-/** The page on the browser's WebGPU: everything the page does. */
-async function webgpuPath(browser) {
-  const page = await openPage(browser, "WebGPU");
+/** Opens the page and checks what both builds must show: the default mesh with the CLI's voxel count, the first
+ * view against its golden (downscaled so goldens stay small), and a resolution change to 96 with the CLI's count.
+ * Returns the page, its status waiter, the first and the changed status, and the time from navigation to the
+ * first voxels. */
+async function startAndCheckBasics(browser, label) {
+  const page = await openPage(browser, label);
   const status = statusOf(page);
   const opened = performance.now();
   await page.goto(url);
-  const first = await status({ ready: true }, "start");
+  const first = await status({ ready: true }, `${label}: start`);
   const firstMs = performance.now() - opened;
+  const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
+  check(first.voxels === defaultCli,
+    `${label}: default mesh builtin:${first.mesh} @${first.resolution}: page ${first.voxels} == CLI ${defaultCli}`);
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  await compareScreenshot(page, `web-default.${slug(first)}`);
+  await page.evaluate(() => window.meshvoxSetResolution(96));
+  const changed = await status({ ready: true, resolution: 96 }, `${label}: resolution change`);
+  const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
+  check(changed.voxels === changedCli, `${label}: resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
+  return { page, status, first, firstMs, changed };
+}
+
+/** The page on the browser's WebGPU: everything the page does. */
+async function webgpuPath(browser) {
+  const { page, status, first, firstMs } = await startAndCheckBasics(browser, "WebGPU");
   console.log(`WebGPU build: meshvox_bg.wasm ${await sizeOf("meshvox_bg.wasm")}; ` +
     `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
     `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms (compute passes ${first.gpu_ms.toFixed(1)} ms)`);
   check(first.backend === "BrowserWebGpu", `the page voxelizes on the browser's WebGPU (backend ${first.backend})`);
-  const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
-  check(first.voxels === defaultCli,
-    `default mesh builtin:${first.mesh} @${first.resolution}: page ${first.voxels} == CLI ${defaultCli}`);
-
-  // The screenshot of the first view, compared with its golden (downscaled so goldens stay small).
-  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-  await compareScreenshot(page, `web-default.${slug(first)}`);
-
-  await page.evaluate(() => window.meshvoxSetResolution(96));
-  const changed = await status({ ready: true, resolution: 96 }, "resolution change");
-  const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
-  check(changed.voxels === changedCli, `resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
 
   // And through the panel: click the slider's number field, type a value, press Enter.
   await clickLikeAUser(page, 136, 167);
@@ -390,28 +396,13 @@ async function webgpuPath(browser) {
 
 /** The page without WebGPU: the WebGL2 build, CPU voxelization in wasm; shared links; no WebGL2 either. */
 async function webgl2Path(browser) {
-  const page = await openPage(browser, "WebGL2");
-  const status = statusOf(page);
-  const opened = performance.now();
-  await page.goto(url);
-  const first = await status({ ready: true }, "start without WebGPU");
-  const firstMs = performance.now() - opened;
+  const { page, status, first, firstMs, changed } = await startAndCheckBasics(browser, "WebGL2");
   const build = await page.evaluate(() => window.meshvoxStarted?.build);
   console.log(`WebGL2 build: meshvox_gl_bg.wasm ${await sizeOf("meshvox_gl_bg.wasm")}; ` +
     `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" (${first.backend}); ` +
     `${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms on the CPU`);
   check(build === "webgl2" && first.backend === "Gl" && first.voxelizer === "cpu",
     `without WebGPU the page runs the WebGL2 build (build ${build}, backend ${first.backend}, voxelizer ${first.voxelizer})`);
-  const defaultCli = cliVoxels(`builtin:${first.mesh}`, first.resolution);
-  check(first.voxels === defaultCli,
-    `WebGL2: default mesh builtin:${first.mesh} @${first.resolution}: page ${first.voxels} == CLI ${defaultCli}`);
-  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-  await compareScreenshot(page, `web-default.${slug(first)}`);
-
-  await page.evaluate(() => window.meshvoxSetResolution(96));
-  const changed = await status({ ready: true, resolution: 96 }, "WebGL2: resolution change");
-  const changedCli = cliVoxels(`builtin:${changed.mesh}`, 96);
-  check(changed.voxels === changedCli, `WebGL2: resolution 96: page ${changed.voxels} == CLI ${changedCli}`);
   const search = () => page.evaluate(() => decodeURIComponent(location.search));
   await page.waitForFunction(() => location.search.includes("r=96"), null, { timeout: 10_000 }).catch(() => {});
   const afterChange = await search();
