@@ -159,6 +159,10 @@ struct RenderArgs {
     /// Flat faces without ambient occlusion.
     #[arg(long)]
     no_ao: bool,
+    /// Draw a floor grid under the model: lines at multiples of a power of ten in the mesh's units, every tenth
+    /// brighter (the viewer shows it by default).
+    #[arg(long)]
+    floor: bool,
     /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
@@ -836,7 +840,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     if let Some(view) = args.view {
         camera.look(view);
     }
-    let style = Style { show_mesh: args.show_mesh, ao, ..Default::default() };
+    let style = Style { show_mesh: args.show_mesh, ao, floor: args.floor, ..Default::default() };
     let (w, h) = args.size;
     let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
     write_atomically(temp, &args.output, |out| {

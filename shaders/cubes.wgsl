@@ -3,7 +3,8 @@
 // the colours from storage buffers; `vs_cube_attributes` gets the same two values as per-instance vertex
 // attributes, for WebGL2, whose vertex shaders cannot read storage buffers. Faces are lit by a key and a
 // fill directional light plus ambient, so all six face directions read differently, and their borders are
-// darkened so single voxels stand out. A second pipeline draws the source mesh translucently on top.
+// darkened so single voxels stand out. A second pipeline draws the floor grid under the model, a third the
+// source mesh translucently on top.
 
 struct View {
     view_proj: mat4x4<f32>,
@@ -16,6 +17,12 @@ struct View {
     // z: 1 to draw each voxel's own colour from `colours` instead of `color`; w: 1 to darken corners by the
     // ambient occlusion in `occlusion`.
     options: vec4<f32>,
+    // The floor grid (render::Floor), in the drawing frame: the square's corners (w of `floor_min`: the up axis's
+    // index; w of `floor_max`: the line spacing), and the phase that puts lines at world multiples of the spacing
+    // (w: 1 when the eye is above the floor, 0 to hide it).
+    floor_min: vec4<f32>,
+    floor_max: vec4<f32>,
+    floor_phase: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -137,6 +144,56 @@ fn fs_cube(in: CubeOut) -> @location(0) vec4<f32> {
     let open = mix(mix(in.ao.x, in.ao.y, in.uv.x), mix(in.ao.z, in.ao.w, in.uv.x), in.uv.y);
     let occlusion = mix(1.0, 0.4 + 0.6 * open, view.options.w);
     return vec4<f32>(encode(in.albedo * light * edge * occlusion), 1.0);
+}
+
+struct FloorOut {
+    @builtin(position) clip: vec4<f32>,
+    // The point of the floor, in the drawing frame.
+    @location(0) position: vec3<f32>,
+}
+
+@vertex
+fn vs_floor(@builtin(vertex_index) vi: u32) -> FloorOut {
+    var corners = array<vec2<f32>, 6>(
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 0.0), vec2<f32>(1.0, 1.0),
+        vec2<f32>(0.0, 0.0), vec2<f32>(1.0, 1.0), vec2<f32>(0.0, 1.0),
+    );
+    let up = u32(view.floor_min.w);
+    let uv = corners[vi % 6u];
+    var p = view.floor_min.xyz;
+    p[(up + 1u) % 3u] = mix(view.floor_min[(up + 1u) % 3u], view.floor_max[(up + 1u) % 3u], uv.x);
+    p[(up + 2u) % 3u] = mix(view.floor_min[(up + 2u) % 3u], view.floor_max[(up + 2u) % 3u], uv.y);
+    var out: FloorOut;
+    out.position = p;
+    // Seen from below, the floor would hide the model: every corner goes outside the clip volume instead.
+    out.clip = select(vec4<f32>(2.0, 2.0, 2.0, 1.0), view.view_proj * vec4<f32>(p, 1.0), view.floor_phase.w != 0.0);
+    return out;
+}
+
+// Anti-aliased lines about a pixel wide where a coordinate of `coord` is an integer: 1 on a line, 0 between.
+// Lines closer together than a few pixels fade out instead of turning into a moiré.
+fn grid_lines(coord: vec2<f32>) -> f32 {
+    let rate = max(fwidth(coord), vec2<f32>(1e-6));
+    let distance = abs(fract(coord - 0.5) - 0.5) / rate;
+    let line = 1.0 - min(min(distance.x, distance.y), 1.0);
+    return line * (1.0 - smoothstep(0.12, 0.35, max(rate.x, rate.y)));
+}
+
+@fragment
+fn fs_floor(in: FloorOut) -> @location(0) vec4<f32> {
+    let up = u32(view.floor_min.w);
+    let a = (up + 1u) % 3u;
+    let b = (up + 2u) % 3u;
+    // In spacings from the world origin (up to a whole number of major lines), so lines sit at world multiples.
+    let world = vec2<f32>(in.position[a] + view.floor_phase[a], in.position[b] + view.floor_phase[b]);
+    let coord = world / view.floor_max.w;
+    let strength = max(0.22 * grid_lines(coord), 0.5 * grid_lines(coord / 10.0));
+    // Fades toward the square's rim, so the floor has no hard edge.
+    let centre = 0.5 * (view.floor_min.xyz + view.floor_max.xyz);
+    let half = 0.5 * (view.floor_max[a] - view.floor_min[a]);
+    let r = length(vec2<f32>(in.position[a] - centre[a], in.position[b] - centre[b])) / half;
+    let fade = 1.0 - smoothstep(0.55, 1.0, r);
+    return vec4<f32>(encode(vec3<f32>(0.62, 0.66, 0.72)), strength * fade);
 }
 
 struct MeshOut {

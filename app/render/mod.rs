@@ -10,6 +10,7 @@ use crate::mesh::Mesh;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::{GridSpec, VoxelGrid};
 pub use camera::OrbitCamera;
+use camera::UpAxis;
 use wgpu::util::DeviceExt;
 
 pub const CUBES_WGSL: &str = include_str!("../../shaders/cubes.wgsl");
@@ -27,6 +28,8 @@ pub struct Style {
     pub voxel_colours: bool,
     /// Darken face corners by ambient occlusion where the scene has it ([`CubeRenderer::with_occlusion`]).
     pub ao: bool,
+    /// Draw a grid of lines in the plane under the model (see [`Floor`]).
+    pub floor: bool,
     pub background: [f32; 3],
 }
 
@@ -38,6 +41,8 @@ impl Default for Style {
             color: [0.86, 0.36, 0.08],
             voxel_colours: true,
             ao: true,
+            // Off for images (`render`, thumbnails); the viewer turns it on.
+            floor: false,
             background: [0.018, 0.02, 0.026],
         }
     }
@@ -51,6 +56,10 @@ struct ViewUniform {
     color: [f32; 4],
     mesh_color: [f32; 4],
     options: [f32; 4],
+    // The floor (see `Floor` and cubes.wgsl).
+    floor_min: [f32; 4],
+    floor_max: [f32; 4],
+    floor_phase: [f32; 4],
 }
 
 /// GPU data of one voxelized mesh, ready to draw.
@@ -74,6 +83,52 @@ impl Scene {
     /// its shape to f32 on the way to the screen.
     pub fn bounds(&self) -> (glam::Vec3, glam::Vec3) {
         (glam::Vec3::ZERO, (self.spec.dims.as_dvec3() * self.spec.voxel_size).as_vec3())
+    }
+}
+
+/// The floor grid: a square of lines in the plane of the grid's lowest face along the up axis, centred under the
+/// model and reaching past it, that shows which way is down and, by its spacing, how big the model is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Floor {
+    /// The up axis's index (1 for Y, 2 for Z).
+    pub up: usize,
+    /// The square's corners in the drawing frame (relative to the grid origin); both lie in the floor's plane.
+    pub min: glam::Vec3,
+    pub max: glam::Vec3,
+    /// Distance between lines in mesh units: a power of ten, chosen so that 4 to 40 lines cross the model.
+    /// Every tenth line is brighter.
+    pub spacing: f64,
+    /// The world coordinates of the drawing frame's origin modulo ten spacings: lines lie where a drawing-frame
+    /// coordinate plus this is a multiple of the spacing, at the same world positions wherever the grid is.
+    pub phase: glam::Vec3,
+}
+
+impl Floor {
+    /// The floor of grid `spec` seen with `up` up.
+    pub fn new(spec: &GridSpec, up: UpAxis) -> Floor {
+        let up = match up {
+            UpAxis::Y => 1,
+            UpAxis::Z => 2,
+        };
+        let size = spec.dims.as_dvec3() * spec.voxel_size;
+        let (a, b) = ((up + 1) % 3, (up + 2) % 3);
+        let extent = size[a].max(size[b]).max(spec.voxel_size);
+        let spacing = 10f64.powf((extent / 4.0).log10().floor());
+        // The square reaches 30% of the model's larger side beyond it on each side; the shader fades its rim.
+        let half = 0.8 * extent;
+        let (mut min, mut max) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
+        for axis in [a, b] {
+            let centre = 0.5 * size[axis];
+            (min[axis], max[axis]) = (centre - half, centre + half);
+        }
+        let phase = spec.origin.map(|o| o.rem_euclid(10.0 * spacing));
+        Floor { up, min: min.as_vec3(), max: max.as_vec3(), spacing, phase: phase.as_vec3() }
+    }
+
+    /// Whether `eye` (in the drawing frame) is above the floor; from below it is not drawn, as it would cover the
+    /// model.
+    pub fn seen_from(&self, eye: glam::Vec3) -> bool {
+        eye[self.up] > self.min[self.up]
     }
 }
 
@@ -190,6 +245,7 @@ pub fn occlusion_buffer(device: &wgpu::Device, occupied: &VoxelGrid, shown: &Vox
 pub struct CubeRenderer {
     layout: wgpu::BindGroupLayout,
     cubes: wgpu::RenderPipeline,
+    floor: wgpu::RenderPipeline,
     mesh: wgpu::RenderPipeline,
     /// Whether the shader must apply the sRGB transfer function itself (non-sRGB targets such as egui's).
     encode_srgb: bool,
@@ -298,6 +354,17 @@ impl CubeRenderer {
                 wgpu::CompareFunction::LessEqual,
                 Some(wgpu::Face::Back),
             ),
+            // Translucent lines behind the voxels, seen from both sides (from below it is not drawn at all).
+            floor: make(
+                "floor",
+                "vs_floor",
+                "fs_floor",
+                &[],
+                Some(wgpu::BlendState::ALPHA_BLENDING),
+                false,
+                wgpu::CompareFunction::LessEqual,
+                None,
+            ),
             // The surface lies inside its conservative voxel shell, so the overlay ignores depth: a translucent
             // ghost of the front faces over the voxels.
             mesh: make(
@@ -397,6 +464,8 @@ impl CubeRenderer {
 
     /// Writes the camera and style for the next draw.
     pub fn update(&self, queue: &wgpu::Queue, scene: &Scene, camera: &OrbitCamera, aspect: f32, style: &Style) {
+        let floor = Floor::new(&scene.spec, camera.up);
+        let seen = style.floor && floor.seen_from(camera.eye());
         let u = ViewUniform {
             view_proj: camera.view_proj(aspect).to_cols_array_2d(),
             grid: [scene.spec.voxel_size as f32, 0.0, 0.0, 0.0],
@@ -408,6 +477,9 @@ impl CubeRenderer {
                 if style.voxel_colours && scene.coloured { 1.0 } else { 0.0 },
                 if style.ao && scene.occlusion.is_some() { 1.0 } else { 0.0 },
             ],
+            floor_min: floor.min.extend(floor.up as f32).to_array(),
+            floor_max: floor.max.extend(floor.spacing as f32).to_array(),
+            floor_phase: floor.phase.extend(if seen { 1.0 } else { 0.0 }).to_array(),
         };
         queue.write_buffer(&scene.uniform, 0, bytemuck::bytes_of(&u));
     }
@@ -426,6 +498,11 @@ impl CubeRenderer {
                 pass.set_vertex_buffer(2, scene.occlusion.as_ref().map_or(list, |o| o.slice(..)));
             }
             pass.draw(0..36, 0..scene.voxels.count);
+        }
+        if style.floor {
+            // A camera below the floor is handled in the shader, which has the eye (`update`).
+            pass.set_pipeline(&self.floor);
+            pass.draw(0..6, 0..1);
         }
         if let (true, Some((buffer, vertices))) = (style.show_mesh, &scene.mesh) {
             pass.set_pipeline(&self.mesh);

@@ -157,7 +157,7 @@ impl ViewerApp {
             mode: Mode::Surface,
             cut: render::Cut { axis: 0, fraction: 0.5 },
             cut_on: false,
-            style: Style::default(),
+            style: Style { floor: true, ..Style::default() },
             camera: OrbitCamera::framing(glam::Vec3::ZERO, glam::Vec3::ONE, 35.0, 25.0),
             up: UpAxis::Y,
             up_chosen: false,
@@ -620,6 +620,9 @@ impl ViewerApp {
             self.rebuild_scene();
         }
         ui.checkbox(&mut self.style.edges, "Darken cube edges");
+        ui.checkbox(&mut self.style.floor, "Floor grid").on_hover_text(
+            "lines under the model at multiples of a power of ten in the mesh's units; every tenth brighter",
+        );
         ui.horizontal(|ui| {
             if ui.button("Reset view").clicked() {
                 self.needs_framing = true;
@@ -652,6 +655,13 @@ impl ViewerApp {
                 ui.label("voxel");
                 ui.label(short_number(s.voxel_size)).on_hover_text("edge length, in the mesh's units");
                 ui.end_row();
+                if let (true, Some(scene)) = (self.style.floor, &self.scene) {
+                    let spacing = short_number(render::Floor::new(&scene.spec, self.up).spacing);
+                    ui.label("floor lines");
+                    ui.label(format!("every {spacing}"))
+                        .on_hover_text("in the mesh's units; every tenth line brighter");
+                    ui.end_row();
+                }
                 ui.label("voxels");
                 ui.label(format!("{} ({})", s.voxels, s.mode));
                 ui.end_row();

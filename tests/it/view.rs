@@ -342,3 +342,106 @@ fn an_inner_corner_is_darker_than_an_open_face() {
     }
     assert!(darker > 200 && lighter == 0 && same > darker, "darker {darker}, same {same}, lighter {lighter}");
 }
+
+#[test]
+fn the_floor_grid_lies_under_the_model_at_world_multiples_of_its_spacing() {
+    use meshvox::render::Floor;
+    use meshvox::voxel::VoxelGrid;
+    // A power of ten with 4 to 40 lines across the model's wider horizontal side, whatever its size.
+    for (size, up) in [(0.0093, UpAxis::Y), (0.83, UpAxis::Y), (3.99, UpAxis::Z), (4.0, UpAxis::Y), (1234.5, UpAxis::Z)]
+    {
+        let spec =
+            GridSpec { origin: glam::DVec3::splat(-7.31), voxel_size: size / 30.0, dims: glam::UVec3::splat(30) };
+        let floor = Floor::new(&spec, up);
+        let across = size / floor.spacing;
+        assert!((4.0..40.0 + 1e-9).contains(&across), "{across} lines across a model of {size}");
+        assert!((floor.spacing.log10() - floor.spacing.log10().round()).abs() < 1e-9, "spacing {}", floor.spacing);
+        let up_index = if up == UpAxis::Y { 1 } else { 2 };
+        assert_eq!((floor.up, floor.min[up_index], floor.max[up_index]), (up_index, 0.0, 0.0), "the plane");
+    }
+
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    // A decimal box of voxels, 0.83 by 0.52 by 0.61, with one voxel of 0.0277 (spacing 0.1).
+    let draw = |origin: glam::DVec3, up: UpAxis, view: ViewPreset, floor: bool| {
+        let spec = GridSpec { origin, voxel_size: 0.83 / 30.0, dims: glam::UVec3::new(30, 19, 22) };
+        let mut grid = VoxelGrid::new(spec).expect("grid");
+        for (x, y, z) in (4..26).flat_map(|x| (0..15).flat_map(move |y| (3..20).map(move |z| (x, y, z)))) {
+            grid.set(x, y, z);
+        }
+        let offscreen = Offscreen::new(gpu);
+        let scene =
+            offscreen.renderer.scene(&gpu.device, instances_from_grid(&gpu.device, &grid.exposed()), spec, None);
+        let (lo, hi) = scene.bounds();
+        let mut camera = OrbitCamera::framing(lo, hi, 0.0, 0.0).with_up(up);
+        camera.look(view);
+        let style = Style { floor, ao: false, ..Default::default() };
+        offscreen.render(gpu, &scene, &camera, &style, 160, 160).expect("render")
+    };
+    let differing = |a: &image::RgbaImage, b: &image::RgbaImage, by: u8| {
+        a.pixels().zip(b.pixels()).filter(|(p, q)| p.0.iter().zip(q.0).any(|(s, t)| s.abs_diff(t) > by)).count()
+    };
+    let background = Style::default().background.map(|c| (c.powf(1.0 / 2.2) * 255.0) as i32);
+    let origin = glam::DVec3::new(0.137, -2.291, 5.063);
+    for up in [UpAxis::Y, UpAxis::Z] {
+        let (off, on) = (draw(origin, up, ViewPreset::Iso, false), draw(origin, up, ViewPreset::Iso, true));
+        // The floor shows around the model and never in front of it: pixels of the model keep their colour
+        // (up to its anti-aliased silhouette), background pixels light up.
+        let is_model = |p: &image::Rgba<u8>| p.0.iter().zip(background).any(|(&c, b)| (c as i32 - b).abs() > 24);
+        let model: Vec<usize> =
+            (0..off.len() / 4).filter(|&i| is_model(off.get_pixel(i as u32 % 160, i as u32 / 160))).collect();
+        let covered = model
+            .iter()
+            .filter(|&&i| {
+                let (x, y) = (i as u32 % 160, i as u32 / 160);
+                off.get_pixel(x, y).0.iter().zip(on.get_pixel(x, y).0).any(|(s, t)| s.abs_diff(t) > 12)
+            })
+            .count();
+        assert!(
+            model.len() > 3000 && covered * 50 < model.len(),
+            "{up:?}: {covered} of {} model pixels changed",
+            model.len()
+        );
+        let lit = differing(&off, &on, 12) - covered;
+        assert!(lit > 400, "{up:?}: the floor changed only {lit} background pixels");
+        // Seen from below, the floor is not drawn at all.
+        let (off, on) = (draw(origin, up, ViewPreset::Bottom, false), draw(origin, up, ViewPreset::Bottom, true));
+        assert_eq!(differing(&off, &on, 0), 0, "{up:?}: the floor was drawn seen from below");
+    }
+    // The lines stay at world positions: the model moved by whole multiples of ten spacings (1.0), ten million units away, in the floor's plane draws the
+    // same image; moved by half a spacing, the lines move under it.
+    let on = draw(origin, UpAxis::Y, ViewPreset::Iso, true);
+    let moved = draw(origin + glam::DVec3::new(1.0e7, 0.0, -30.0), UpAxis::Y, ViewPreset::Iso, true);
+    assert!(
+        differing(&on, &moved, 2) < 20,
+        "{} pixels differ after a move by whole spacings",
+        differing(&on, &moved, 2)
+    );
+    let half = draw(origin + glam::DVec3::new(0.05, 0.0, 0.05), UpAxis::Y, ViewPreset::Iso, true);
+    assert!(differing(&on, &half, 12) > 200, "moving by half a spacing did not move the lines");
+}
+
+#[test]
+fn the_camera_stays_framed_when_the_resolution_changes() {
+    let mut harness = viewer("builtin:torus", 32);
+    harness.run();
+    harness.key_press(egui::Key::Num7);
+    harness.run();
+    let before = *harness.state().camera();
+    let first = harness.state().stats().expect("voxelized").clone();
+    for resolution in [57, 129, 20] {
+        harness.state_mut().set_resolution(resolution);
+        harness.run();
+        let s = harness.state().stats().expect("voxelized").clone();
+        assert_eq!(s.resolution, resolution);
+        assert_eq!(*harness.state().camera(), before, "the camera moved at {resolution}");
+        // The grid still fills the same box, up to the rounding of its sides to whole voxels, so the framing
+        // that fitted it still does.
+        for axis in 0..3 {
+            let (old, new) = (first.dims[axis] as f64 * first.voxel_size, s.dims[axis] as f64 * s.voxel_size);
+            let slack = first.voxel_size.max(s.voxel_size);
+            assert!((old - new).abs() <= slack, "axis {axis} at {resolution}: {old} then {new}");
+        }
+        let centre = glam::DVec3::from_array(s.dims.map(|d| d as f64 * s.voxel_size * 0.5)).as_vec3();
+        assert!(centre.distance(before.target) <= s.voxel_size as f32 * 1.8, "centre {centre} at {resolution}");
+    }
+}

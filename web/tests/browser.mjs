@@ -26,7 +26,7 @@
 import { chromium } from "playwright-core";
 import { createServer } from "node:http";
 import { readFile, readdir, writeFile, stat, mkdtemp, rm } from "node:fs/promises";
-import { existsSync } from "node:fs";
+import { existsSync, mkdtempSync, rmSync } from "node:fs";
 import { execFileSync } from "node:child_process";
 import { tmpdir } from "node:os";
 import path from "node:path";
@@ -38,6 +38,9 @@ const meshes = path.resolve(root, "../shared/meshes");
 const bin = process.env.MESHVOX_BIN ?? path.join(root, "target/debug/meshvox");
 const chromiumPath = process.env.CHROMIUM ?? "/usr/bin/chromium";
 const snapshots = path.join(root, "tests/snapshots");
+// Every file the test writes (CLI outputs, generated meshes) goes here, and goes away however the test ends.
+const scratch = mkdtempSync(path.join(tmpdir(), "meshvox-web-test-"));
+process.on("exit", () => rmSync(scratch, { recursive: true, force: true }));
 
 let failures = 0;
 function check(ok, what) {
@@ -57,7 +60,7 @@ if (!existsSync(meshes)) {
 
 /** Voxel count of the native CLI (CPU reference) for `spec` at `resolution`. */
 function cliVoxels(spec, resolution, mode = "surface", axis = "longest") {
-  const out = path.join(tmpdir(), `meshvox-web-test-${process.pid}.npy`);
+  const out = path.join(scratch, "cli.npy");
   const json = execFileSync(bin, ["voxelize", spec, "-r", String(resolution), "-o", out, "--stats-json",
     "--backend", "cpu", "--mode", mode, "--axis", axis], { encoding: "utf8", stdio: ["ignore", "pipe", "pipe"] });
   return JSON.parse(json.split("\n")[0]).voxels;
@@ -252,7 +255,7 @@ async function webgpuPath(browser) {
     // Far from the origin: Suzanne moved to UTM-like coordinates (ten decimals) must give the voxels of Suzanne
     // where she was; f32 positions would have rounded her onto 0.5-unit steps.
     const suzanne = path.join(meshes, "suzanne.obj");
-    const farObj = path.join(tmpdir(), `meshvox-web-far-${process.pid}.obj`);
+    const farObj = path.join(scratch, "suzanne-far.obj");
     const offset = [4500000.37, 5400000.81, 312.25];
     await writeFile(farObj, (await readFile(suzanne, "utf8")).split("\n").map((line) => {
       const w = line.trim().split(/\s+/);
@@ -280,7 +283,7 @@ async function webgpuPath(browser) {
     await status({ ready: true, mesh: "Duck.glb" }, "loading Duck.glb");
     await page.evaluate(() => window.meshvoxSetResolution(48));
     await status({ ready: true, mesh: "Duck.glb", resolution: 48, coloured: true }, "Duck.glb at 48");
-    const work = await mkdtemp(path.join(tmpdir(), "meshvox-web-export-"));
+    const work = await mkdtemp(path.join(scratch, "export-"));
     for (const format of ["vox", "binvox", "npy", "glb"]) {
       const expected = format === "npy" ? ["Duck-48.npy", "Duck-48.colors.npy"] : [`Duck-48.${format}`];
       const downloads = [];
@@ -320,7 +323,7 @@ async function webgpuPath(browser) {
   // triangulated (as remeshers and CAD exporters write them), at 99 voxels: every face lies on a grid boundary,
   // the first or the last, so every voxel of the grid's shell and no other must be set (the case that once lost
   // the last layer of each axis). Made here, so it runs without ../shared too.
-  const boxObj = path.join(tmpdir(), `meshvox-web-box-${process.pid}.obj`);
+  const boxObj = path.join(scratch, "tessellated-box.obj");
   await writeFile(boxObj, tessellatedBox(7, 0x5eed));
   await page.setInputFiles("#meshvox-file", boxObj);
   await status({ ready: true, mesh: path.basename(boxObj) }, "loading the tessellated box");
@@ -410,7 +413,7 @@ async function webgl2Path(browser) {
     `the address bar follows the view: ${afterChange}`);
 
   // An opened file: the coloured Duck (or, without ../shared, the tessellated box made here).
-  const file = existsSync(meshes) ? path.join(meshes, "gltf/Duck.glb") : path.join(tmpdir(), `meshvox-gl-box-${process.pid}.obj`);
+  const file = existsSync(meshes) ? path.join(meshes, "gltf/Duck.glb") : path.join(scratch, "tessellated-box-gl.obj");
   if (!existsSync(meshes)) await writeFile(file, tessellatedBox(5, 0xb0c5));
   await page.setInputFiles("#meshvox-file", file);
   const opened2 = await status({ ready: true, mesh: path.basename(file) }, `WebGL2: opening ${path.basename(file)}`);
@@ -503,7 +506,7 @@ function slug(s) {
 /** Compares a 256-pixel-wide screenshot with tests/snapshots/NAME.png using ImageMagick, with a tolerance for
  * anti-aliasing and text rasterisation differences. */
 async function compareScreenshot(page, name) {
-  const work = await mkdtemp(path.join(tmpdir(), "meshvox-shot-"));
+  const work = await mkdtemp(path.join(scratch, "shot-"));
   const full = path.join(work, "full.png");
   const small = path.join(snapshots, `${name}.new.png`);
   const golden = path.join(snapshots, `${name}.png`);
