@@ -375,13 +375,16 @@ impl ViewerApp {
                 (self.gpu.clone(), self.voxelizer.clone(), outcome.clone(), ctx.clone());
             let (mode, mesh) = (self.mode, mesh.clone());
             let colourer = self.colourer.clone();
+            // The GPU compacts the visible voxels into a list only when the scene can be drawn from it: colours,
+            // occlusion and a cut-away need a list in the host grid's order, built from the grid instead.
+            let compact = mesh.shading.is_none() && !self.style.ao && !self.cut_on;
             async move {
                 // Presized so that a voxelization maps once (the visible voxels of a surface at N voxels along
                 // its longest axis are a few N²; more than this compacts again at the exact size).
                 let n = u64::from(spec.dims.max_element());
                 let options = Options {
                     read_grid: true,
-                    compact: true,
+                    compact,
                     surface_only: true,
                     mode,
                     list_capacity: Some(12 * n * n),
@@ -396,9 +399,9 @@ impl ViewerApp {
                     // No compute on this device (WebGL2): the CPU voxelizer, compiled into the page, makes the grid.
                     None => on_cpu(),
                     Some(voxelizer) => match voxelizer.voxelize_async(&gpu, &triangles, spec, &options).await {
-                        Ok(out) => match (out.points, out.grid) {
-                            (Some(points), Some(grid)) => Ok((Some(points), grid, out.gpu_ms, None)),
-                            _ => Err("no voxels came back".to_string()),
+                        Ok(out) => match out.grid {
+                            Some(grid) => Ok((out.points, grid, out.gpu_ms, None)),
+                            None => Err("no voxels came back".to_string()),
                         },
                         // The device still draws but could not voxelize (out of memory, hung): the CPU makes the
                         // same grid. A lost device cannot draw either; that needs a restart, and the panel says so.
