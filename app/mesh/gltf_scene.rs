@@ -3,8 +3,10 @@
 //! The default scene is walked (every scene when none is marked), each node's transform (matrix or TRS) is
 //! multiplied down the hierarchy in f64 (read from the JSON text, since the crate keeps them in f32: a model placed
 //! far from the origin by a node translation must not have that translation rounded), and every TRIANGLES / TRIANGLE_STRIP / TRIANGLE_FAN primitive is turned into
-//! world-space triangles. Point and line primitives are skipped with a warning. Images are never decoded.
+//! world-space triangles. Point and line primitives are skipped with a warning. What optimizers write (quantized,
+//! meshopt- and Draco-compressed data, sparse accessors) is read through [`super::gltf_data`].
 
+use super::gltf_data;
 use super::material::{Material, Shading, Texture, TextureRef, Wrap};
 use super::{Externals, LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DMat4, DQuat, DVec3, Vec4};
@@ -23,10 +25,13 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     let transforms = node_transforms_f64(bytes);
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes).map_err(crate_err)?;
     // The crate's validation indexes `accessors` with a primitive's POSITION index before checking it (a panic
-    // on a dangling index), so those references are checked first, and then the crate validates the rest.
-    let json = document.into_json();
+    // on a dangling index), so those references are checked first; the required extensions meshvox reads are
+    // taken off the list the crate checks (it knows fewer), and then the crate validates the rest.
+    let mut json = document.into_json();
     check_primitive_references(&json).map_err(err)?;
-    let document = gltf::Document::from_json(json).map_err(crate_err)?;
+    gltf_data::accept_required_extensions(&mut json)
+        .map_err(|message| MeshError::Unsupported { path: path.to_path_buf(), message })?;
+    let document = validate(json).map_err(crate_err)?;
     // glTF 1.0 is a different format that happens to parse; only the major version 2 is read.
     let version = &document.as_json().asset.version;
     if !version.starts_with("2.") {
@@ -72,18 +77,40 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
-    let buffers = read_buffers(&document, base, blob).map_err(err)?;
+    let data = gltf_data::Data::new(document.as_json(), read_buffers(&document, base, blob).map_err(err)?);
     let mut mesh = Mesh::default();
-    let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &buffers, base);
+    let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
     mesh.shading = Some(shading);
     let mut pieces = Vec::new();
     for (gmesh, world) in instances {
         for primitive in gmesh.primitives() {
-            pieces.extend(read_primitive(&mut mesh, path, &buffers, &gmesh, &primitive, world, &tex_sets)?);
+            let source = Source { document: &document, data: &data, path };
+            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, world, &tex_sets)?);
         }
     }
     mesh.push_pieces(pieces);
     Ok(mesh)
+}
+
+/// The crate's validation (as `Document::from_json`), less its one rule that glTF does not have: an accessor
+/// without sparse data may have no buffer view (it is then zeros), as the accessors of a Draco-compressed
+/// primitive do; such an accessor is only an error if it is read.
+fn validate(json: gltf::json::Root) -> Result<gltf::Document, gltf::Error> {
+    use gltf::json::validation::{Error, Validate};
+    let mut errors = Vec::new();
+    json.validate(&json, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        let bufferless = error == Error::Missing
+            && path.as_str().starts_with("accessors[")
+            && path.as_str().ends_with("].bufferView");
+        if !bufferless {
+            errors.push((path, error));
+        }
+    });
+    match errors.is_empty() {
+        true => Ok(gltf::Document::from_json_without_validation(json)),
+        false => Err(gltf::Error::Validation(errors)),
+    }
 }
 
 /// Every node's local transform in f64, read from the JSON text (the GLB's JSON chunk or the whole `.gltf`);
@@ -194,17 +221,18 @@ fn decode_data_uri(data: &str) -> Result<Vec<u8>, String> {
 }
 
 /// Every buffer's bytes: the GLB's BIN chunk, a base64 data URI, or a file read through `base` (beside the
-/// `.gltf`, or among the files opened with it). Each error names the buffer; a missing file is named too (the
-/// operating system's own message names neither).
-fn read_buffers(
-    document: &gltf::Document,
-    base: Externals,
-    mut blob: Option<Vec<u8>>,
-) -> Result<Vec<gltf::buffer::Data>, String> {
+/// `.gltf`, or among the files opened with it); nothing for a meshopt fallback buffer, whose views are decoded
+/// from another. Each error names the buffer; a missing file is named too (the operating system's own message
+/// names neither).
+fn read_buffers(document: &gltf::Document, base: Externals, mut blob: Option<Vec<u8>>) -> Result<Vec<Vec<u8>>, String> {
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let name = format!("buffers[{}]", buffer.index());
-        let mut data = match buffer.source() {
+        if gltf_data::is_meshopt_fallback(document.as_json(), buffer.index()) {
+            buffers.push(Vec::new());
+            continue;
+        }
+        let data = match buffer.source() {
             gltf::buffer::Source::Bin => {
                 blob.take().ok_or_else(|| format!("{name} is the GLB's BIN chunk, which is missing"))?
             }
@@ -223,29 +251,41 @@ fn read_buffers(
         if data.len() < buffer.length() {
             return Err(format!("{name} has {} bytes but its byteLength is {}", data.len(), buffer.length()));
         }
-        // The crate's reader expects buffers padded to four bytes, as its own import does.
-        while !data.len().is_multiple_of(4) {
-            data.push(0);
-        }
-        buffers.push(gltf::buffer::Data(data));
+        buffers.push(data);
     }
     Ok(buffers)
+}
+
+/// Where a primitive's data comes from: its document, the decoded buffers, and the file (for messages).
+#[derive(Clone, Copy)]
+struct Source<'a> {
+    document: &'a gltf::Document,
+    data: &'a gltf_data::Data,
+    path: &'a Path,
+}
+
+/// A primitive's vertex arrays before they are placed in the world.
+struct Arrays {
+    positions: Vec<[f64; 3]>,
+    indices: Option<Vec<u32>>,
+    uvs: Vec<[f32; 2]>,
+    colors: Vec<Vec4>,
 }
 
 /// One triangle primitive as a [`Piece`] in world space (f64); `None`, with a warning on `mesh`, for a primitive
 /// that makes no triangles.
 fn read_primitive(
     mesh: &mut Mesh,
-    path: &Path,
-    buffers: &[gltf::buffer::Data],
+    source: Source,
     gmesh: &gltf::Mesh,
     primitive: &gltf::Primitive,
     world: DMat4,
     tex_sets: &[u32],
 ) -> Result<Option<Piece>, MeshError> {
+    let path = source.path;
     let name = gmesh.name().unwrap_or("").to_string();
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
-    let mode = primitive.mode();
+    let mut mode = primitive.mode();
     if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         mesh.warnings.push(format!(
             "{}: skipped {mode:?} primitive {} of mesh {} '{name}' (only triangles are voxelized)",
@@ -255,34 +295,27 @@ fn read_primitive(
         ));
         return Ok(None);
     }
-    // The crate's reader stops quietly at the end of a short buffer view, which would drop triangles without a
-    // word: every accessor this primitive reads is checked against the glTF rules first.
-    if let Some(accessor) = primitive.get(&gltf::Semantic::Positions) {
-        check_accessor(&accessor, buffers).map_err(err)?;
-        check_kind(&accessor, "POSITION", &[gltf::accessor::DataType::F32], gltf::accessor::Dimensions::Vec3)
-            .map_err(err)?;
-    }
-    if let Some(accessor) = primitive.indices() {
-        check_accessor(&accessor, buffers).map_err(err)?;
-        // The crate's index reader reaches `unreachable!()` on any other component type.
-        use gltf::accessor::DataType::{U8, U16, U32};
-        check_kind(&accessor, "indices", &[U8, U16, U32], gltf::accessor::Dimensions::Scalar).map_err(err)?;
-    }
-    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-    let Some(positions) = reader.read_positions() else {
-        mesh.warnings.push(format!(
-            "{}: primitive {} of mesh {} '{name}' has no POSITION attribute",
-            path.display(),
-            primitive.index(),
-            gmesh.index()
-        ));
-        return Ok(None);
+    let material = primitive.material().index().unwrap_or(tex_sets.len().saturating_sub(1));
+    let set = tex_sets.get(material).copied().unwrap_or(0);
+    let arrays = match gltf_data::draco(source.document, primitive, source.data, set) {
+        Some(decoded) => {
+            // Draco streams hold triangle lists whatever the primitive's mode says.
+            mode = Mode::Triangles;
+            let d = decoded.map_err(err)?;
+            Arrays {
+                positions: d.positions,
+                indices: Some(d.triangles.into_iter().flatten().collect()),
+                uvs: d.uvs.unwrap_or_default(),
+                colors: d.colors.map(|c| c.into_iter().map(Vec4::from).collect()).unwrap_or_default(),
+            }
+        }
+        None => match read_arrays(mesh, source, gmesh, primitive, set)? {
+            Some(arrays) => arrays,
+            None => return Ok(None),
+        },
     };
-    let positions: Vec<DVec3> = positions.map(|p| world.transform_point3(DVec3::from(p.map(f64::from)))).collect();
-    let indices: Vec<u32> = match reader.read_indices() {
-        Some(ix) => ix.into_u32().collect(),
-        None => (0..positions.len() as u32).collect(),
-    };
+    let positions: Vec<DVec3> = arrays.positions.iter().map(|&p| world.transform_point3(DVec3::from(p))).collect();
+    let indices = arrays.indices.unwrap_or_else(|| (0..positions.len() as u32).collect());
     if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
         mesh.warnings.push(format!(
             "{}: primitive {} of mesh {} '{name}' has {} indices, not a multiple of 3; the last {} are ignored",
@@ -313,19 +346,61 @@ fn read_primitive(
         Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
         _ => unreachable!("filtered above"),
     };
+    let part = Part {
+        name,
+        mesh: gmesh.index() as u32,
+        primitive: primitive.index() as u32,
+        material: primitive.material().index().map(|i| i as u32),
+    };
+    let (uvs, colors) = (arrays.uvs, arrays.colors);
+    Ok(Some(Piece { part, positions, triangles, uvs, colors, material: material as u32 }))
+}
+
+/// A primitive's arrays read from its accessors: positions (floats, or integers as `KHR_mesh_quantization`
+/// allows, dequantized by the node transform), indices, texture coordinate set `set` and the first colours.
+/// `None`, with a warning, for a primitive without positions.
+fn read_arrays(
+    mesh: &mut Mesh,
+    source: Source,
+    gmesh: &gltf::Mesh,
+    primitive: &gltf::Primitive,
+    set: u32,
+) -> Result<Option<Arrays>, MeshError> {
+    use gltf::accessor::DataType::{F32, I8, I16, U8, U16, U32};
+    use gltf::accessor::Dimensions::{Scalar, Vec2, Vec3, Vec4 as Vec4D};
+    let path = source.path;
+    let name = gmesh.name().unwrap_or("");
+    let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
+    let Some(accessor) = primitive.get(&gltf::Semantic::Positions) else {
+        mesh.warnings.push(format!(
+            "{}: primitive {} of mesh {} '{name}' has no POSITION attribute",
+            path.display(),
+            primitive.index(),
+            gmesh.index()
+        ));
+        return Ok(None);
+    };
+    gltf_data::check_kind(&accessor, "POSITION", &[F32, I8, U8, I16, U16], &[Vec3], true).map_err(err)?;
+    let positions: Vec<[f64; 3]> =
+        gltf_data::read(&accessor, source.data).map_err(err)?.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+    let indices = match primitive.indices() {
+        Some(accessor) => {
+            gltf_data::check_kind(&accessor, "indices", &[U8, U16, U32], &[Scalar], false).map_err(err)?;
+            Some(gltf_data::read(&accessor, source.data).map_err(err)?.into_iter().map(|i| i as u32).collect())
+        }
+        None => None,
+    };
     // Colour attributes are optional: one that cannot be read costs only its colour, with a warning.
-    let material = primitive.material().index().unwrap_or(tex_sets.len().saturating_sub(1));
-    let set = tex_sets.get(material).copied().unwrap_or(0);
-    let mut attribute = |semantic: gltf::Semantic, what: &str| -> bool {
-        let Some(accessor) = primitive.get(&semantic) else { return false };
-        match check_accessor(&accessor, buffers).and_then(|()| {
-            if accessor.count() == positions.len() {
-                Ok(())
-            } else {
-                Err(format!("{} values for {} vertices", accessor.count(), positions.len()))
-            }
-        }) {
-            Ok(()) => true,
+    let mut optional = |semantic: gltf::Semantic, what: &str, types: &[gltf::accessor::DataType], shapes| {
+        let accessor = primitive.get(&semantic)?;
+        let read = gltf_data::check_kind(&accessor, what, types, shapes, true)
+            .and_then(|()| gltf_data::read(&accessor, source.data))
+            .and_then(|values| match values.len() / accessor.dimensions().multiplicity() {
+                n if n == positions.len() => Ok((values, accessor.dimensions().multiplicity())),
+                n => Err(format!("{n} values for {} vertices", positions.len())),
+            });
+        match read {
+            Ok(values) => Some(values),
             Err(e) => {
                 mesh.warnings.push(format!(
                     "{}: mesh {} '{name}' primitive {}: {what} ignored: {e}",
@@ -333,97 +408,21 @@ fn read_primitive(
                     gmesh.index(),
                     primitive.index()
                 ));
-                false
+                None
             }
         }
     };
-    let uvs = match attribute(gltf::Semantic::TexCoords(set), "texture coordinates") {
-        true => reader.read_tex_coords(set).map_or_else(Vec::new, |t| t.into_f32().collect()),
-        false => Vec::new(),
-    };
-    let colors = match attribute(gltf::Semantic::Colors(0), "vertex colours") {
-        true => reader.read_colors(0).map_or_else(Vec::new, |c| c.into_rgba_f32().map(Vec4::from).collect()),
-        false => Vec::new(),
-    };
-    let part = Part {
-        name,
-        mesh: gmesh.index() as u32,
-        primitive: primitive.index() as u32,
-        material: primitive.material().index().map(|i| i as u32),
-    };
-    Ok(Some(Piece { part, positions, triangles, uvs, colors, material: material as u32 }))
-}
-
-/// Checks that an accessor holds what glTF allows for its use (`what`): one of `types`, with `dimensions`.
-fn check_kind(
-    accessor: &gltf::Accessor,
-    what: &str,
-    types: &[gltf::accessor::DataType],
-    dimensions: gltf::accessor::Dimensions,
-) -> Result<(), String> {
-    if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions || accessor.normalized() {
-        let allowed: Vec<String> = types.iter().map(|t| format!("{t:?}")).collect();
-        return Err(format!(
-            "accessors[{}]: {what} must be {dimensions:?} of {} (it is {:?} of {:?}{})",
-            accessor.index(),
-            allowed.join("/"),
-            accessor.dimensions(),
-            accessor.data_type(),
-            if accessor.normalized() { ", normalized" } else { "" }
-        ));
-    }
-    Ok(())
-}
-
-/// Checks an accessor against the glTF 2.0 rules on buffers before it is read: its buffer view lies within the
-/// buffer's data, the stride is at least one element, and `count` elements from the accessor's offset fit in the
-/// view. Sparse accessors are refused (no mesh exporter meshvox's users meet writes them for positions or
-/// indices). The message names the object, as `accessors[1]`.
-fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
-    let name = format!("accessors[{}]", accessor.index());
-    if accessor.sparse().is_some() {
-        return Err(format!("{name}: sparse accessors are not supported"));
-    }
-    let Some(view) = accessor.view() else {
-        return Err(format!("{name}: has no bufferView (all-zero data is not a mesh)"));
-    };
-    let view_name = format!("bufferViews[{}]", view.index());
-    let buffer = view.buffer();
-    let data = buffers.get(buffer.index()).map_or(0, |d| d.0.len());
-    let view_end = view.offset().checked_add(view.length());
-    if view_end.is_none_or(|end| end > data) {
-        return Err(format!(
-            "{view_name}: bytes {}..{} lie outside buffers[{}], which has {data} bytes",
-            view.offset(),
-            view.offset().saturating_add(view.length()),
-            buffer.index()
-        ));
-    }
-    let element = accessor.size();
-    let stride = view.stride().unwrap_or(element);
-    if stride < element {
-        return Err(format!(
-            "{view_name}: byteStride {stride} is smaller than one element of {name} ({element} bytes)"
-        ));
-    }
-    let count = accessor.count();
-    if count == 0 {
-        // The crate's reader computes `count - 1` and, with that wrapped, returns no reader at all: an index
-        // accessor of count 0 was then read as "no indices" and every vertex taken in order.
-        return Err(format!("{name}: count is 0 (glTF requires at least 1)"));
-    }
-    let needed = (count - 1)
-        .checked_mul(stride)
-        .and_then(|n| n.checked_add(element))
-        .and_then(|n| n.checked_add(accessor.offset()));
-    match needed {
-        Some(n) if n <= view.length() => Ok(()),
-        _ => Err(format!(
-            "{name}: {count} elements of {element} bytes (stride {stride}, offset {}) do not fit in {view_name} of {} bytes",
-            accessor.offset(),
-            view.length()
-        )),
-    }
+    let uvs = optional(gltf::Semantic::TexCoords(set), "texture coordinates", &[F32, I8, U8, I16, U16], &[Vec2])
+        .map(|(v, _)| v.chunks_exact(2).map(|t| [t[0] as f32, t[1] as f32]).collect())
+        .unwrap_or_default();
+    let colors = optional(gltf::Semantic::Colors(0), "vertex colours", &[F32, U8, U16], &[Vec3, Vec4D])
+        .map(|(v, n)| {
+            v.chunks_exact(n)
+                .map(|c| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, c.get(3).map_or(1.0, |&a| a as f32)))
+                .collect()
+        })
+        .unwrap_or_default();
+    Ok(Some(Arrays { positions, indices, uvs, colors }))
 }
 
 /// The file's materials (and, last, glTF's default material for primitives without one), the textures their
@@ -433,7 +432,7 @@ fn read_materials(
     warnings: &mut Vec<String>,
     path: &Path,
     document: &gltf::Document,
-    buffers: &[gltf::buffer::Data],
+    data: &gltf_data::Data,
     base: Externals,
 ) -> (Shading, Vec<u32>) {
     let mut shading = Shading::default();
@@ -447,7 +446,7 @@ fn read_materials(
         if let Some(info) = pbr.base_color_texture() {
             let t = info.texture();
             let slot = &mut decoded[t.index()];
-            let index = *slot.get_or_insert_with(|| match read_texture(&t, buffers, base) {
+            let index = *slot.get_or_insert_with(|| match read_texture(document, &t, data, base) {
                 Ok(texture) => {
                     shading.textures.push(texture);
                     Some(shading.textures.len() as u32 - 1)
@@ -479,8 +478,15 @@ fn read_materials(
     (shading, tex_sets)
 }
 
-/// Decodes one texture's image with its sampler's wrap modes and magnification filter.
-fn read_texture(texture: &gltf::Texture, buffers: &[gltf::buffer::Data], base: Externals) -> Result<Texture, String> {
+/// Decodes one texture's image with its sampler's wrap modes and magnification filter: the `EXT_texture_webp`
+/// image when there is one, else the core `source`. `KHR_texture_basisu` (KTX2) images are not decoded; a
+/// texture with only such an image is refused, and its material keeps its base colour.
+fn read_texture(
+    document: &gltf::Document,
+    texture: &gltf::Texture,
+    data: &gltf_data::Data,
+    base: Externals,
+) -> Result<Texture, String> {
     let sampler = texture.sampler();
     let wrap = |w: gltf::texture::WrappingMode| match w {
         gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -488,12 +494,23 @@ fn read_texture(texture: &gltf::Texture, buffers: &[gltf::buffer::Data], base: E
         gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     };
     let nearest = sampler.mag_filter() == Some(gltf::texture::MagFilter::Nearest);
-    let image = texture.source();
+    let extension_image = |name: &str| {
+        let index = texture.extension_value(name)?.get("source")?.as_u64()?;
+        document.images().nth(usize::try_from(index).ok()?)
+    };
+    let ktx2 = "a KHR_texture_basisu (KTX2) image, which meshvox does not decode: the base colour is used instead";
+    let image = match (extension_image("EXT_texture_webp"), texture.source()) {
+        (Some(webp), _) => webp,
+        (None, Some(image)) => image,
+        (None, None) if texture.extension_value("KHR_texture_basisu").is_some() => return Err(ktx2.into()),
+        (None, None) => return Err("names no image".into()),
+    };
     let bytes: std::borrow::Cow<[u8]> = match image.source() {
-        gltf::image::Source::View { view, .. } => {
-            let data = buffers.get(view.buffer().index()).map_or(&[][..], |d| &d.0[..]);
-            let range = view.offset()..view.offset().saturating_add(view.length());
-            data.get(range).ok_or_else(|| format!("images[{}] lies outside its buffer", image.index()))?.into()
+        gltf::image::Source::View { view, mime_type } => {
+            if mime_type == "image/ktx2" {
+                return Err(ktx2.into());
+            }
+            data.view(&view).map_err(|e| format!("images[{}]: {e}", image.index()))?.into()
         }
         gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
             Some(data) => decode_data_uri(data)?.into(),

@@ -4,6 +4,7 @@
 //! This is the bottom layer: it knows nothing about grids or GPUs.
 
 pub mod builtin;
+mod gltf_data;
 mod gltf_scene;
 pub mod material;
 mod obj;
@@ -179,6 +180,9 @@ pub enum MeshError {
     Obj { path: PathBuf, message: String },
     #[error("{}: invalid glTF: {message}", path.display())]
     Gltf { path: PathBuf, message: String },
+    /// A valid file that needs something meshvox does not read (a glTF extension).
+    #[error("{}: {message}", path.display())]
+    Unsupported { path: PathBuf, message: String },
     #[error("{}: invalid STL: {message}", path.display())]
     Stl { path: PathBuf, message: String },
     #[error("{}: invalid PLY: {message}", path.display())]

@@ -15,6 +15,7 @@ mod hostile;
 mod mesh_export;
 mod mesh_loading;
 mod modes;
+mod optimized_gltf;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;

@@ -1,0 +1,306 @@
+//! glTF as optimizers write it: the shared Duck run through gltfpack, gltf-pipeline and glTF-Transform (the npm
+//! tools tests/run.sh installs into web/node_modules), quantized, meshopt- and Draco-compressed and with a WebP
+//! texture, must voxelize like the original on the CPU and the GPU and keep its colours; sparse accessors, a
+//! material's second texture coordinate set, KHR_materials_variants and a KTX2 texture in a file made here; and
+//! one clear line for a required extension meshvox cannot read.
+
+use crate::cli::meshvox;
+use meshvox::mesh::Mesh;
+use meshvox::voxel::colour::colour_voxels;
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use std::path::{Path, PathBuf};
+
+/// The npm tool `name` from web/node_modules, or `None` (with a loud message) where it is not installed. Under
+/// `CI=true` it must be: tests/run.sh installs it before `cargo test`.
+fn tool(name: &str) -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("web/node_modules/.bin").join(name);
+    if path.exists() {
+        return Some(path);
+    }
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("CI=true but {} is missing: tests/run.sh installs it (npm ci in web/)", path.display());
+    }
+    eprintln!("\n*** SKIPPED optimized glTF tests: {} is missing (run npm ci in web/) ***\n", path.display());
+    None
+}
+
+/// Runs an npm tool and returns the file it wrote.
+fn make(tool: &Path, args: &[&str], output: &Path) -> PathBuf {
+    let out = std::process::Command::new(tool).args(args).output().expect("the tool runs");
+    assert!(
+        out.status.success() && output.exists(),
+        "{} {args:?} failed: {}{}",
+        tool.display(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    output.to_path_buf()
+}
+
+/// The mesh's surface at `r` voxels along its longest axis on the CPU, with its grid-space triangles.
+fn voxelize(mesh: &Mesh, r: u32) -> (VoxelGrid, Vec<[glam::Vec3; 3]>) {
+    let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("grid");
+    let tris = cpu::grid_space_triangles(mesh, &spec).expect("grid space");
+    let (grid, _) = cpu::voxelize_grid_space_mode(&tris, spec, Mode::Surface, &|_, _| {}).expect("voxelize");
+    (grid, tris)
+}
+
+/// Voxels set in one grid and not the other, cell by cell (the grids have the same dims).
+fn differing(a: &VoxelGrid, b: &VoxelGrid) -> u64 {
+    let d = a.spec.dims;
+    let mut n = 0;
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                n += u64::from(a.get(x, y, z) != b.get(x, y, z));
+            }
+        }
+    }
+    n
+}
+
+/// Mean absolute difference per channel (sRGB bytes) between the colours of the voxels set in both grids.
+fn colour_error(a: (&VoxelGrid, &[[u8; 4]]), b: (&VoxelGrid, &[[u8; 4]])) -> f64 {
+    let index = |grid: &VoxelGrid, colours: &[[u8; 4]]| -> std::collections::HashMap<glam::UVec3, [u8; 4]> {
+        grid.iter_set().zip(colours.iter().copied()).collect()
+    };
+    let (ca, cb) = (index(a.0, a.1), index(b.0, b.1));
+    let (mut sum, mut n) = (0u64, 0u64);
+    for (v, x) in &ca {
+        if let Some(y) = cb.get(v) {
+            sum += (0..3).map(|c| x[c].abs_diff(y[c]) as u64).sum::<u64>();
+            n += 3;
+        }
+    }
+    sum as f64 / n.max(1) as f64
+}
+
+#[test]
+fn optimized_ducks_voxelize_and_colour_like_the_original() {
+    let Some(dir) = crate::common::shared_meshes() else { return };
+    let (Some(gltfpack), Some(pipeline), Some(transform)) =
+        (tool("gltfpack"), tool("gltf-pipeline"), tool("gltf-transform"))
+    else {
+        return;
+    };
+    let duck = dir.join("gltf/Duck.glb");
+    let input = duck.to_str().expect("utf-8 path");
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let original = meshvox::mesh::load_path(&duck).expect("load");
+    let r = 64;
+    let (reference, reference_tris) = voxelize(&original, r);
+    let reference_colours = colour_voxels(&reference, &reference_tris, original.shading.as_ref().expect("textured"));
+    let gpu = crate::gpu::gpu();
+    let variants: [(&str, &Path, &[&str], &[&str]); 9] = [
+        ("gltfpack", &gltfpack, &[], &["KHR_mesh_quantization"]),
+        ("gltfpack -cc", &gltfpack, &["-cc"], &["KHR_mesh_quantization", "EXT_meshopt_compression"]),
+        ("gltfpack -cc -ce khr", &gltfpack, &["-cc", "-ce", "khr"], &["KHR_meshopt_compression"]),
+        ("gltfpack -cc -vpf", &gltfpack, &["-cc", "-vpf"], &["EXT_meshopt_compression"]),
+        ("gltf-pipeline -d", &pipeline, &["-d"], &["KHR_draco_mesh_compression"]),
+        ("gltf-transform draco", &transform, &["draco"], &["KHR_draco_mesh_compression"]),
+        ("gltf-transform meshopt", &transform, &["meshopt"], &["EXT_meshopt_compression"]),
+        ("gltf-transform quantize", &transform, &["quantize"], &["KHR_mesh_quantization"]),
+        ("gltf-transform webp", &transform, &["webp"], &["EXT_texture_webp"]),
+    ];
+    for (k, (label, program, flags, required)) in variants.into_iter().enumerate() {
+        let output = tmp.path().join(format!("duck-{k}.glb"));
+        let out = output.to_str().expect("utf-8 path");
+        let args: Vec<&str> = match label.split(' ').next() {
+            Some("gltf-transform") => [flags[0], input, out].into_iter().chain(flags[1..].iter().copied()).collect(),
+            _ => ["-i", input, "-o", out].into_iter().chain(flags.iter().copied()).collect(),
+        };
+        let file = make(program, &args, &output);
+        let bytes = std::fs::read(&file).expect("read");
+        let text = String::from_utf8_lossy(&bytes);
+        for extension in required {
+            assert!(text.contains(extension), "{label}: the file does not use {extension}");
+        }
+        let mesh = meshvox::mesh::load_path(&file).unwrap_or_else(|e| panic!("{label}: {e}"));
+        assert!(mesh.warnings.is_empty(), "{label}: {:?}", mesh.warnings);
+        let (grid, tris) = voxelize(&mesh, r);
+        assert_eq!(grid.spec.dims, reference.spec.dims, "{label}: dims");
+        // Quantization moves vertices by a fraction of a voxel: a few boundary voxels may change.
+        let changed = differing(&grid, &reference);
+        eprintln!(
+            "{label}: {} bytes, {changed} of {} voxels differ",
+            std::fs::metadata(&file).map_or(0, |m| m.len()),
+            reference.count()
+        );
+        assert!(changed * 100 <= reference.count(), "{label}: {changed} of {} voxels differ", reference.count());
+        let colours = colour_voxels(&grid, &tris, mesh.shading.as_ref().expect("textured"));
+        let error = colour_error((&grid, &colours.rgba), (&reference, &reference_colours.rgba));
+        // The colour issue's bound against an independent computation is a mean error under 6 levels.
+        assert!(error < 6.0, "{label}: colours differ from the original's by {error:.2} levels on average");
+        if let Some((gpu, voxelizer)) = gpu {
+            let options = meshvox::gpu::voxelize::Options { read_grid: true, ..Default::default() };
+            let out = voxelizer.voxelize(gpu, &tris, grid.spec, &options).unwrap_or_else(|e| panic!("{label}: {e}"));
+            crate::common::assert_same_grid(&out.grid.expect("grid"), &grid, label);
+        }
+    }
+}
+
+/// A 2×2 PNG: red at the top left, green at the top right, blue at the bottom left, white at the bottom right.
+fn quadrant_png() -> Vec<u8> {
+    let mut image = image::RgbaImage::new(2, 2);
+    for (x, y, colour) in [(0, 0, [255, 0, 0]), (1, 0, [0, 255, 0]), (0, 1, [0, 0, 255]), (1, 1, [255, 255, 255])] {
+        image.put_pixel(x, y, image::Rgba([colour[0], colour[1], colour[2], 255]));
+    }
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
+    png
+}
+
+/// A glTF (JSON with one embedded buffer) of a box 0.3 × 0.7 × 1.1 at (4.2, -1.3, 0.6), as 12 triangles over 8
+/// corners, whose positions come from a sparse accessor over zeros: every corner is a substitution. Two texture
+/// coordinate sets put every corner at the quadrant image's green (set 0) or red (set 1) texel; the material
+/// reads set `tex_coord`, from the PNG or, with `ktx2`, from a KTX2 image it cannot decode. `extra` is merged
+/// into the root (extensions, variants).
+fn sparse_box(tex_coord: u32, ktx2: bool, extra: serde_json::Value) -> Vec<u8> {
+    use base64::Engine;
+    let corners: Vec<[f32; 3]> = (0..8)
+        .map(|k| {
+            let c = |i: usize, size: f32, at: f32| if k >> i & 1 == 1 { at + size } else { at };
+            [c(0, 0.3, 4.2), c(1, 0.7, -1.3), c(2, 1.1, 0.6)]
+        })
+        .collect();
+    let faces: [[u16; 4]; 6] = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    let indices: Vec<u16> = faces.iter().flat_map(|f| [f[0], f[1], f[2], f[0], f[2], f[3]]).collect();
+    let mut bin = Vec::new();
+    let view = |bytes: Vec<u8>, bin: &mut Vec<u8>| {
+        while !bin.len().is_multiple_of(4) {
+            bin.push(0);
+        }
+        let v = serde_json::json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
+        bin.extend(bytes);
+        v
+    };
+    let sparse_indices: Vec<u8> = (0u8..8).rev().collect();
+    let sparse_values: Vec<u8> = (0..8).rev().flat_map(|k: usize| corners[k]).flat_map(f32::to_le_bytes).collect();
+    let green: Vec<u8> = (0..8).flat_map(|_| [0.75f32, 0.25]).flat_map(f32::to_le_bytes).collect();
+    let red: Vec<u8> = (0..8).flat_map(|_| [0.25f32, 0.25]).flat_map(f32::to_le_bytes).collect();
+    let views = vec![
+        view(indices.iter().flat_map(|i| i.to_le_bytes()).collect(), &mut bin),
+        view(sparse_indices, &mut bin),
+        view(sparse_values, &mut bin),
+        view(green, &mut bin),
+        view(red, &mut bin),
+        view(if ktx2 { b"\xabKTX 20\xbb\r\n\x1a\n".to_vec() } else { quadrant_png() }, &mut bin),
+    ];
+    let (min, max) = (corners[0], corners[7]);
+    let mut json = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [{
+            "attributes": { "POSITION": 1, "TEXCOORD_0": 2, "TEXCOORD_1": 3 },
+            "indices": 0,
+            "material": 0,
+        }]}],
+        "materials": [{ "pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 1.0, 0.0, 1.0],
+            "baseColorTexture": { "index": 0, "texCoord": tex_coord },
+        }}],
+        "textures": [if ktx2 {
+            serde_json::json!({ "sampler": 0, "extensions": { "KHR_texture_basisu": { "source": 0 } } })
+        } else {
+            serde_json::json!({ "sampler": 0, "source": 0 })
+        }],
+        "samplers": [{ "magFilter": 9728, "minFilter": 9728 }],
+        "images": [{ "bufferView": 5, "mimeType": if ktx2 { "image/ktx2" } else { "image/png" } }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5123, "count": 36, "type": "SCALAR" },
+            { "componentType": 5126, "count": 8, "type": "VEC3", "min": min, "max": max,
+              "sparse": { "count": 8, "indices": { "bufferView": 1, "componentType": 5121 }, "values": { "bufferView": 2 } } },
+            { "bufferView": 3, "componentType": 5126, "count": 8, "type": "VEC2" },
+            { "bufferView": 4, "componentType": 5126, "count": 8, "type": "VEC2" },
+        ],
+        "bufferViews": views,
+    });
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    json["buffers"] = serde_json::json!([{ "byteLength": bin.len(), "uri": uri }]);
+    if let (Some(root), Some(extra)) = (json.as_object_mut(), extra.as_object()) {
+        root.extend(extra.clone());
+    }
+    serde_json::to_vec_pretty(&json).expect("json")
+}
+
+#[test]
+fn sparse_positions_the_materials_uv_set_variants_and_ktx2_textures() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let load = |name: &str, bytes: Vec<u8>| {
+        let path = tmp.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        meshvox::mesh::load_path(&path)
+    };
+    // Sparse positions over zeros: the box where its corners were put, at 0.3 / 16 per voxel.
+    let mesh = load("set1.gltf", sparse_box(1, false, serde_json::json!({}))).expect("sparse box");
+    let b = mesh.bounds().expect("bounds");
+    let expected = [(4.2, 4.5), (-1.3, -0.6), (0.6, 1.7)];
+    for (axis, (lo, hi)) in expected.into_iter().enumerate() {
+        assert!((b.min[axis] - lo).abs() < 1e-6 && (b.max[axis] - hi).abs() < 1e-6, "axis {axis}: {b:?}");
+    }
+    let (grid, tris) = voxelize(&mesh, 16);
+    assert_eq!(grid.spec.dims, glam::UVec3::new(5, 11, 16));
+    // Every voxel of the box's shell and none inside.
+    let d = grid.spec.dims;
+    let shell = d.x * d.y * d.z - (d.x - 2) * (d.y - 2) * (d.z - 2);
+    assert_eq!(grid.count(), u64::from(shell));
+    // The material reads set 1 (red); set 0 would be green.
+    let colours =
+        |mesh: &Mesh, grid: &VoxelGrid, tris| colour_voxels(grid, tris, mesh.shading.as_ref().expect("shading")).rgba;
+    let red = colours(&mesh, &grid, &tris);
+    assert!(red.iter().all(|c| *c == [255, 0, 0, 255]), "texCoord 1: {:?}", &red[..4]);
+    let set0 = load("set0.gltf", sparse_box(0, false, serde_json::json!({}))).expect("set 0");
+    assert!(colours(&set0, &grid, &tris).iter().all(|c| *c == [0, 255, 0, 255]), "texCoord 0 is green");
+
+    // KHR_materials_variants, even required, only picks materials: the default one is used.
+    let variants = serde_json::json!({
+        "extensionsUsed": ["KHR_materials_variants"],
+        "extensionsRequired": ["KHR_materials_variants"],
+        "extensions": { "KHR_materials_variants": { "variants": [{ "name": "plain" }] } },
+    });
+    let mut bytes = sparse_box(1, false, variants);
+    let mut json: serde_json::Value = serde_json::from_slice(&bytes).expect("json");
+    json["meshes"][0]["primitives"][0]["extensions"] =
+        serde_json::json!({ "KHR_materials_variants": { "mappings": [{ "material": 0, "variants": [0] }] } });
+    bytes = serde_json::to_vec(&json).expect("json");
+    let with_variants = load("variants.gltf", bytes).expect("variants are ignored safely");
+    assert!(with_variants.warnings.is_empty(), "{:?}", with_variants.warnings);
+    assert!(colours(&with_variants, &grid, &tris).iter().all(|c| *c == [255, 0, 0, 255]));
+
+    // A KTX2 (Basis Universal) texture is not decoded: a warning naming it, and the base colour (yellow).
+    let basisu =
+        serde_json::json!({ "extensionsUsed": ["KHR_texture_basisu"], "extensionsRequired": ["KHR_texture_basisu"] });
+    let ktx2 = load("ktx2.gltf", sparse_box(1, true, basisu)).expect("a KTX2 texture falls back");
+    assert!(
+        ktx2.warnings.len() == 1 && ktx2.warnings[0].contains("KHR_texture_basisu"),
+        "one warning naming the extension: {:?}",
+        ktx2.warnings
+    );
+    assert!(colours(&ktx2, &grid, &tris).iter().all(|c| *c == [255, 255, 0, 255]), "the base colour");
+}
+
+#[test]
+fn an_unsupported_required_extension_is_named_in_one_line() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let required = serde_json::json!({
+        "extensionsUsed": ["EXT_mesh_gpu_instancing", "KHR_mesh_quantization", "ACME_teleport"],
+        "extensionsRequired": ["EXT_mesh_gpu_instancing", "KHR_mesh_quantization", "ACME_teleport"],
+    });
+    let path = tmp.path().join("instanced.gltf");
+    std::fs::write(&path, sparse_box(0, false, required)).expect("write");
+    let out = meshvox(&["voxelize", path.to_str().expect("utf-8"), "-r", "8", "-o", "x.npy"], tmp.path());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
+    assert!(
+        stderr.contains(
+            "requires the glTF extensions EXT_mesh_gpu_instancing and ACME_teleport, which meshvox cannot read"
+        ),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("invalid glTF"), "a valid file is not invalid: {stderr}");
+    assert!(!tmp.path().join("x.npy").exists());
+}
