@@ -2,8 +2,10 @@
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
 # GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh, binvox
-# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), and Chromium
-# and Node.js for the browser test (web/build.sh adds the wasm32 target and wasm-bindgen-cli).
+# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), Node.js
+# with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
+# playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
+# for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
 # `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test, then each fuzz
 # target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
@@ -11,7 +13,8 @@ cd "$(dirname "$0")/.."
 
 # lavapipe for the GPU tests; Xvfb, ImageMagick and the X libraries winit loads for the desktop test.
 # Chromium (with SwiftShader's WebGPU) and Node.js for the browser test.
-packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1 chromium"
+packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1 chromium
+  clang llvm"
 command -v node >/dev/null 2>&1 || packages="$packages nodejs npm"
 if [ "$(id -u)" = 0 ]; then
   missing=$(for p in $packages; do dpkg -s "$p" >/dev/null 2>&1 || echo "$p"; done)
@@ -37,6 +40,9 @@ if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh
   "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
+
+# gltfpack, gltf-pipeline and glTF-Transform for the optimized-glTF tests (and what the web build needs).
+bash web/install.sh
 
 cargo test --locked --all-targets "$@"
 [ $# -gt 0 ] && exit 0

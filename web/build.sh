@@ -19,12 +19,8 @@ if [ "$(wasm-bindgen --version 2>/dev/null | awk '{print $2}')" != "$want" ]; th
   cargo install wasm-bindgen-cli --version "$want" --quiet
 fi
 
-# web/node_modules (binaryen's wasm-opt, and playwright-core for the browser test), reinstalled when the lock
-# file changes.
-if ! cmp -s web/package-lock.json web/node_modules/.meshvox-installed-lock; then
-  (cd web && npm ci --no-audit --no-fund --loglevel=error)
-  cp web/package-lock.json web/node_modules/.meshvox-installed-lock
-fi
+# web/node_modules (binaryen's wasm-opt, among others).
+bash web/install.sh
 
 rm -rf web/dist
 mkdir -p web/dist

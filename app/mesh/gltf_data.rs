@@ -104,7 +104,12 @@ impl Data {
             .enumerate()
             .map(|(i, view)| {
                 let (name, ext) = meshopt(view.extensions.as_ref().map(|e| &e.others))?;
-                Some(decode_meshopt_view(&buffers, ext).map_err(|e| format!("bufferViews[{i}] ({name}): {e}")))
+                let length = view.byte_length.0 as usize;
+                let decoded = decode_meshopt_view(&buffers, ext).and_then(|bytes| match bytes.len() {
+                    n if n == length => Ok(bytes),
+                    n => Err(format!("decodes to {n} bytes, but its byteLength is {length}")),
+                });
+                Some(decoded.map_err(|e| format!("bufferViews[{i}] ({name}): {e}")))
             })
             .collect();
         Data { buffers, decoded }

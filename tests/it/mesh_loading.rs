@@ -284,10 +284,10 @@ fn broken_input_is_an_error_naming_the_file() {
         ),
         ("view past its buffer", r#"{"buffer":0,"byteOffset":36,"byteLength":600}"#, r#""count":3"#, "bufferViews[1]"),
         (
-            "sparse indices",
+            "sparse indices past their view",
             r#"{"buffer":0,"byteOffset":36,"byteLength":6}"#,
-            r#""count":3,"sparse":{"count":1,"indices":{"bufferView":1,"componentType":5123},"values":{"bufferView":1}}"#,
-            "sparse",
+            r#""count":3,"sparse":{"count":4,"indices":{"bufferView":1,"componentType":5123},"values":{"bufferView":1}}"#,
+            "4 sparse indices of 2 bytes do not fit in bufferViews[1]",
         ),
     ] {
         let bytes = raw_gltf(r#"{"buffer":0,"byteOffset":0,"byteLength":36}"#, views, index_accessor);

@@ -94,12 +94,8 @@ gltf("node-cycle.gltf", doc(data, extra=lambda d: d.update(nodes=[{"mesh": 0, "c
 gltf("node-graph-not-tree.gltf", doc(data, extra=lambda d: d.update(nodes=[{"children": [i + 1, i + 1]} for i in range(40)] + [{"mesh": 0}])))
 gltf("mesh-out-of-range.gltf", doc(data, extra=lambda d: d.update(nodes=[{"mesh": 5}])))
 gltf("accessor-out-of-range.gltf", doc(data, extra=lambda d: d["meshes"][0]["primitives"][0].update(indices=7)))
-gltf("sparse-indices.gltf", doc(data, accessors=[
-    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.1,0.2,0.3], "max": [1.7,1.9,0.3]},
-    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR",
-     "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 1}}}]))
 gltf("no-position.gltf", doc(data, extra=lambda d: d["meshes"][0]["primitives"][0].update(attributes={"NORMAL": 0})))
-gltf("required-extension.gltf", doc(data, extra=lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"], extensionsUsed=["KHR_draco_mesh_compression"])))
+gltf("required-extension.gltf", doc(data, extra=lambda d: d.update(extensionsRequired=["EXT_mesh_gpu_instancing"], extensionsUsed=["EXT_mesh_gpu_instancing"])))
 # --- bad GLB
 d_glb = doc(data, uri=False)
 good_glb = glb(d_glb, data)
@@ -146,5 +142,20 @@ def two_buffers(d):
     for v in d["bufferViews"]: v["buffer"] = 1
 w(odd, "zero-length-bin-chunk.glb", glb(doc(data, uri=False, extra=two_buffers), b""))
 w(odd, "single-triangle.glb", good_glb)
+# Indices [0, 1, 1] whose sparse substitution sets the third to 2: the triangle only exists with it applied.
+sparse_data = blob_tri()[:36] + struct.pack("<HHHHH", 0, 1, 1, 2, 2) + b"\x00\x00"
+gltf("sparse-indices.gltf", doc(sparse_data, views=[{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6},
+    {"buffer": 0, "byteOffset": 42, "byteLength": 2}, {"buffer": 0, "byteOffset": 44, "byteLength": 2}], accessors=[
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.1,0.2,0.3], "max": [1.7,1.9,0.3]},
+    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR",
+     "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5123}, "values": {"bufferView": 3}}}]), where=odd)
+# KHR_mesh_quantization: normalized int16 positions (the triangle on a 32767 lattice) dequantized by the node's
+# scale and translation, as gltfpack writes them.
+quantized = struct.pack("<9h", 0, 0, 0, 32767, 0, 0, 0, 32767, 0) + b"\x00\x00" + struct.pack("<HHH", 0, 1, 2) + b"\x00\x00"
+gltf("quantized-positions.gltf", doc(quantized, views=[{"buffer": 0, "byteOffset": 0, "byteLength": 18}, {"buffer": 0, "byteOffset": 20, "byteLength": 6}], accessors=[
+    {"bufferView": 0, "componentType": 5122, "normalized": True, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+    extra=lambda d: d.update(extensionsUsed=["KHR_mesh_quantization"], extensionsRequired=["KHR_mesh_quantization"],
+                             nodes=[{"mesh": 0, "scale": [1.6, 1.7, 1.0], "translation": [0.1, 0.2, 0.3]}])), where=odd)
 w(odd, "single-triangle.stl", b"solid-looking header of a binary STL".ljust(80, b" ") + struct.pack("<I", 1) + stl_tri)
 w(odd, "quad-with-colours.ply", ply_head.replace("vertex 3", "vertex 4") + "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1.5 0 0 0 255 0\n1.5 1.5 0 0 0 255\n0 1.5 0.2 255 255 255\n4 0 1 2 3\n")

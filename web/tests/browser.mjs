@@ -268,6 +268,20 @@ async function webgpuPath(browser) {
     check(far.voxels === nearCli && farCli === nearCli,
       `Suzanne moved by ${offset} @${far.resolution}: page ${far.voxels} == CLI ${farCli} == CLI at the origin ${nearCli}`);
 
+    // glTF as optimizers write it: the Duck through gltfpack (quantized and meshopt-compressed) and through
+    // glTF-Transform's Draco compression opens in the page, coloured, with the CLI's voxels.
+    for (const [tool, args, name] of [["gltfpack", ["-cc"], "duck-meshopt.glb"], ["gltf-transform", ["draco"], "duck-draco.glb"]]) {
+      const out = path.join(scratch, name);
+      const input = path.join(meshes, "gltf/Duck.glb");
+      const toolArgs = tool === "gltfpack" ? ["-i", input, "-o", out, ...args] : [...args, input, out];
+      execFileSync(path.join(root, "web/node_modules/.bin", tool), toolArgs, { stdio: "ignore" });
+      await page.setInputFiles("#meshvox-file", out);
+      const packed = await status({ ready: true, mesh: name }, `opening ${name} (${tool} ${args.join(" ")})`);
+      const packedCli = cliVoxels(out, packed.resolution);
+      check(packed.voxels === packedCli && packed.coloured && !packed.error,
+        `${name} (${tool} ${args.join(" ")}) through the file input: page ${packed.voxels} == CLI ${packedCli}, coloured ${packed.coloured}`);
+    }
+
     // A glTF with an external .bin and textures, picked together: it opens, coloured, with the CLI's voxels.
     const cube = path.join(meshes, "gltf/cube-external");
     const cubeFiles = (await readdir(cube)).filter((f) => !f.endsWith(".md")).map((f) => path.join(cube, f));
