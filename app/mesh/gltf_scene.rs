@@ -264,6 +264,12 @@ struct Source<'a> {
     path: &'a Path,
 }
 
+/// The file, mesh and primitive a warning is about: `duck.glb: mesh 0 'LOD3spShape' primitive 0`.
+fn about(path: &Path, gmesh: &gltf::Mesh, primitive: &gltf::Primitive) -> String {
+    let name = gmesh.name().unwrap_or("");
+    format!("{}: mesh {} '{name}' primitive {}", path.display(), gmesh.index(), primitive.index())
+}
+
 /// A primitive's vertex arrays before they are placed in the world.
 struct Arrays {
     positions: Vec<[f64; 3]>,
@@ -288,10 +294,8 @@ fn read_primitive(
     let mut mode = primitive.mode();
     if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         mesh.warnings.push(format!(
-            "{}: skipped {mode:?} primitive {} of mesh {} '{name}' (only triangles are voxelized)",
-            path.display(),
-            primitive.index(),
-            gmesh.index()
+            "{}: skipped, a {mode:?} primitive (only triangles are voxelized)",
+            about(path, gmesh, primitive)
         ));
         return Ok(None);
     }
@@ -318,10 +322,8 @@ fn read_primitive(
     let indices = arrays.indices.unwrap_or_else(|| (0..positions.len() as u32).collect());
     if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
         mesh.warnings.push(format!(
-            "{}: primitive {} of mesh {} '{name}' has {} indices, not a multiple of 3; the last {} are ignored",
-            path.display(),
-            primitive.index(),
-            gmesh.index(),
+            "{}: {} indices, not a multiple of 3; the last {} are ignored",
+            about(path, gmesh, primitive),
             indices.len(),
             indices.len() % 3
         ));
@@ -369,15 +371,9 @@ fn read_arrays(
     use gltf::accessor::DataType::{F32, I8, I16, U8, U16, U32};
     use gltf::accessor::Dimensions::{Scalar, Vec2, Vec3, Vec4 as Vec4D};
     let path = source.path;
-    let name = gmesh.name().unwrap_or("");
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let Some(accessor) = primitive.get(&gltf::Semantic::Positions) else {
-        mesh.warnings.push(format!(
-            "{}: primitive {} of mesh {} '{name}' has no POSITION attribute",
-            path.display(),
-            primitive.index(),
-            gmesh.index()
-        ));
+        mesh.warnings.push(format!("{}: no POSITION attribute", about(path, gmesh, primitive)));
         return Ok(None);
     };
     gltf_data::check_kind(&accessor, "POSITION", &[F32, I8, U8, I16, U16], &[Vec3], true).map_err(err)?;
@@ -402,12 +398,7 @@ fn read_arrays(
         match read {
             Ok(values) => Some(values),
             Err(e) => {
-                mesh.warnings.push(format!(
-                    "{}: mesh {} '{name}' primitive {}: {what} ignored: {e}",
-                    path.display(),
-                    gmesh.index(),
-                    primitive.index()
-                ));
+                mesh.warnings.push(format!("{}: {what} ignored: {e}", about(path, gmesh, primitive)));
                 None
             }
         }

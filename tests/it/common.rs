@@ -10,14 +10,19 @@ use std::path::PathBuf;
 /// `../shared/meshes`, or `None` (with a loud message) when this checkout has no shared folder beside it.
 /// Under `CI=true` a missing folder is a failure, not a skip.
 pub fn shared_meshes() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
-    if dir.is_dir() {
-        return Some(dir);
+    required(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"), "the real-mesh tests", "")
+}
+
+/// `path` if it exists; otherwise `None` with a loud message that `what` did not run (and how to get it), or,
+/// under `CI=true`, a failure.
+pub fn required(path: PathBuf, what: &str, how: &str) -> Option<PathBuf> {
+    if path.exists() {
+        return Some(path);
     }
     if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("CI=true but {} is missing: the real-mesh tests cannot run", dir.display());
+        panic!("CI=true but {} is missing: {what} cannot run{how}", path.display());
     }
-    eprintln!("\n*** SKIPPED: {} not found; real-mesh tests did not run ***\n", dir.display());
+    eprintln!("\n*** SKIPPED: {} not found; {what} did not run{how} ***\n", path.display());
     None
 }
 

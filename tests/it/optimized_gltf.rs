@@ -14,14 +14,7 @@ use std::path::{Path, PathBuf};
 /// `CI=true` it must be: tests/run.sh installs it before `cargo test`.
 fn tool(name: &str) -> Option<PathBuf> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("web/node_modules/.bin").join(name);
-    if path.exists() {
-        return Some(path);
-    }
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("CI=true but {} is missing: tests/run.sh installs it (npm ci in web/)", path.display());
-    }
-    eprintln!("\n*** SKIPPED optimized glTF tests: {} is missing (run npm ci in web/) ***\n", path.display());
-    None
+    crate::common::required(path, "the optimized glTF tests", " (bash web/install.sh installs it)")
 }
 
 /// Runs an npm tool and returns the file it wrote.
