@@ -67,6 +67,18 @@ pub(super) fn accept_required_extensions(json: &mut gltf::json::Root) -> Result<
     Ok(())
 }
 
+/// Warnings for the extensions the file uses that change its colours in a way meshvox does not follow.
+pub(super) fn colour_warnings(json: &gltf::json::Root) -> Vec<String> {
+    let used = |name: &str| json.extensions_used.iter().any(|e| e == name);
+    let mut warnings = Vec::new();
+    if used("KHR_materials_pbrSpecularGlossiness") {
+        warnings.push(
+            "uses KHR_materials_pbrSpecularGlossiness, whose diffuse colour and texture are not read: voxel colours come from the metallic-roughness base colour".into(),
+        );
+    }
+    warnings
+}
+
 /// The value of extension `name` in an object's `extensions` (kept by the gltf crate's `extensions` feature).
 fn extension<'a>(others: Option<&'a serde_json::Map<String, Value>>, name: &str) -> Option<&'a Value> {
     others?.get(name)
@@ -88,36 +100,65 @@ pub(super) fn is_meshopt_fallback(json: &gltf::json::Root, index: usize) -> bool
         && meshopt(others).is_some_and(|(_, v)| v.get("fallback").and_then(Value::as_bool) == Some(true))
 }
 
-/// The file's buffers and, for each buffer view compressed with meshopt, its decoded bytes (or why they could
-/// not be decoded: an error only if something reads the view).
+/// A meshopt-compressed buffer view: its extension's name and object, and its bytes once something reads it.
+struct Compressed {
+    name: &'static str,
+    ext: Value,
+    byte_length: usize,
+    decoded: std::cell::OnceCell<Result<Vec<u8>, String>>,
+}
+
+/// The file's buffers and its meshopt-compressed buffer views, which are decoded when first read (so views
+/// nothing reads cost nothing, and cannot fail the load).
 pub(super) struct Data {
     pub buffers: Vec<Vec<u8>>,
-    decoded: Vec<Option<Result<Vec<u8>, String>>>,
+    compressed: Vec<Option<Compressed>>,
+    /// Bytes decoded so far, against `decode_limit`: 1024 per byte of the file's buffers (meshopt's codecs
+    /// reach perhaps 64:1 on constant data), so views that all point at the same compressed stream cannot
+    /// multiply it without bound.
+    decoded_bytes: std::cell::Cell<u64>,
+    decode_limit: u64,
 }
 
 impl Data {
-    /// Decodes every meshopt-compressed view of `json` from `buffers`.
     pub fn new(json: &gltf::json::Root, buffers: Vec<Vec<u8>>) -> Data {
-        let decoded = json
+        let compressed = json
             .buffer_views
             .iter()
-            .enumerate()
-            .map(|(i, view)| {
+            .map(|view| {
                 let (name, ext) = meshopt(view.extensions.as_ref().map(|e| &e.others))?;
-                let length = view.byte_length.0 as usize;
-                let decoded = decode_meshopt_view(&buffers, ext).and_then(|bytes| match bytes.len() {
-                    n if n == length => Ok(bytes),
-                    n => Err(format!("decodes to {n} bytes, but its byteLength is {length}")),
-                });
-                Some(decoded.map_err(|e| format!("bufferViews[{i}] ({name}): {e}")))
+                let byte_length = view.byte_length.0 as usize;
+                Some(Compressed { name, ext: ext.clone(), byte_length, decoded: Default::default() })
             })
             .collect();
-        Data { buffers, decoded }
+        let total: u64 = buffers.iter().map(|b| b.len() as u64).sum();
+        Data {
+            buffers,
+            compressed,
+            decoded_bytes: Default::default(),
+            decode_limit: total.saturating_mul(1024).saturating_add(1 << 20),
+        }
+    }
+
+    /// All the bytes of the file's buffers: an accessor without a buffer view (zeros with sparse substitutions)
+    /// may not have more elements than this, since nothing in the file backs them.
+    pub fn total_bytes(&self) -> usize {
+        self.buffers.iter().map(Vec::len).sum()
     }
 
     /// The bytes of buffer view `view`: decoded, or its range of its buffer.
     pub fn view(&self, view: &gltf::buffer::View) -> Result<&[u8], String> {
-        if let Some(decoded) = self.decoded.get(view.index()).and_then(Option::as_ref) {
+        if let Some(c) = self.compressed.get(view.index()).and_then(Option::as_ref) {
+            let decoded = c.decoded.get_or_init(|| {
+                let room = self.decode_limit.saturating_sub(self.decoded_bytes.get());
+                let bytes = decode_meshopt_view(&self.buffers, &c.ext, room).and_then(|bytes| match bytes.len() {
+                    n if n == c.byte_length => Ok(bytes),
+                    n => Err(format!("decodes to {n} bytes, but its byteLength is {}", c.byte_length)),
+                });
+                let bytes = bytes.map_err(|e| format!("bufferViews[{}] ({}): {e}", view.index(), c.name))?;
+                self.decoded_bytes.set(self.decoded_bytes.get() + bytes.len() as u64);
+                Ok(bytes)
+            });
             return decoded.as_deref().map_err(Clone::clone);
         }
         let buffer = view.buffer().index();
@@ -151,8 +192,9 @@ struct Meshopt {
 }
 
 /// Decodes one compressed view: meshoptimizer's vertex codec (ATTRIBUTES) or index codec (TRIANGLES), then the
-/// view's filter.
-fn decode_meshopt_view(buffers: &[Vec<u8>], ext: &Value) -> Result<Vec<u8>, String> {
+/// view's filter. It may decode to at most `room` bytes, and to at most 1024 per compressed byte (the decoders
+/// allocate `count × byteStride` before they read a byte, so a hostile count must be refused first).
+fn decode_meshopt_view(buffers: &[Vec<u8>], ext: &Value, room: u64) -> Result<Vec<u8>, String> {
     let m: Meshopt = serde_json::from_value(ext.clone()).map_err(|e| format!("malformed extension object: {e}"))?;
     let source = buffers.get(m.buffer).ok_or_else(|| format!("names buffers[{}], which does not exist", m.buffer))?;
     let encoded =
@@ -165,17 +207,20 @@ fn decode_meshopt_view(buffers: &[Vec<u8>], ext: &Value) -> Result<Vec<u8>, Stri
                 source.len()
             )
         })?;
-    // The decoders allocate count × stride bytes up front; the compressed stream cannot be smaller than a
-    // fraction of that, which keeps a hostile count from asking for terabytes.
-    let size = m.count.checked_mul(m.byte_stride).filter(|&n| n <= encoded.len().saturating_mul(1024) + 65536);
-    let Some(size) = size else {
+    let size = (m.count as u64).saturating_mul(m.byte_stride as u64);
+    let most = (encoded.len() as u64).saturating_mul(1024).saturating_add(65536).min(room);
+    if size > most {
         return Err(format!(
-            "{} elements of {} bytes cannot come from {} compressed bytes",
+            "{} elements of {} bytes cannot come from {} compressed bytes (or would pass the file's decoding budget)",
             m.count,
             m.byte_stride,
             encoded.len()
         ));
-    };
+    }
+    let filter = m.filter.as_deref().unwrap_or("NONE");
+    if m.mode != "ATTRIBUTES" && filter != "NONE" {
+        return Err(format!("filter {filter} on mode {} (filters apply to ATTRIBUTES only)", m.mode));
+    }
     let mut bytes = match (m.mode.as_str(), m.byte_stride) {
         ("ATTRIBUTES", stride) if stride % 4 == 0 && (4..=256).contains(&stride) => {
             decode_vertices(encoded, m.count, stride)?
@@ -188,8 +233,7 @@ fn decode_meshopt_view(buffers: &[Vec<u8>], ext: &Value) -> Result<Vec<u8>, Stri
         ("INDICES", _) => return Err("mode INDICES (index sequences) is not decoded".into()),
         (mode, _) => return Err(format!("unknown mode \"{mode}\"")),
     };
-    debug_assert_eq!(bytes.len(), size);
-    match (m.filter.as_deref().unwrap_or("NONE"), m.byte_stride) {
+    match (filter, m.byte_stride) {
         ("NONE", _) => {}
         ("OCTAHEDRAL", 4) => bytes.chunks_exact_mut(4).for_each(|v| octahedral(v, 1)),
         ("OCTAHEDRAL", 8) => bytes.chunks_exact_mut(8).for_each(|v| octahedral(v, 2)),
@@ -314,17 +358,30 @@ fn component(bytes: &[u8], ty: DataType, normalized: bool) -> f64 {
     if normalized { (value / max).max(-1.0) } else { value }
 }
 
+/// Whether an accessor's integer components may, must or must not be normalized (floats never are).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Normalized {
+    Never,
+    Allowed,
+    Required,
+}
+
 /// Checks that an accessor holds what glTF (with `KHR_mesh_quantization`) allows for its use `what`: one of
-/// `types`, with `dimensions`, and normalized only where `normalized` allows it (integers only).
+/// `types`, with one of `dimensions`, normalized as `normalized` says.
 pub(super) fn check_kind(
     accessor: &gltf::Accessor,
     what: &str,
     types: &[DataType],
     dimensions: &[Dimensions],
-    normalized: bool,
+    normalized: Normalized,
 ) -> Result<(), String> {
     let ty = accessor.data_type();
-    let bad_normalized = accessor.normalized() && (!normalized || ty == DataType::F32);
+    let integer = ty != DataType::F32;
+    let bad_normalized = match normalized {
+        Normalized::Never => accessor.normalized(),
+        Normalized::Allowed => accessor.normalized() && !integer,
+        Normalized::Required => accessor.normalized() != integer,
+    };
     if !types.contains(&ty) || !dimensions.contains(&accessor.dimensions()) || bad_normalized {
         let allowed: Vec<String> = types.iter().map(|t| format!("{t:?}")).collect();
         let shapes: Vec<String> = dimensions.iter().map(|d| format!("{d:?}")).collect();
@@ -333,7 +390,11 @@ pub(super) fn check_kind(
             accessor.index(),
             shapes.join("/"),
             allowed.join("/"),
-            if normalized { ", integers optionally normalized" } else { "" },
+            match normalized {
+                Normalized::Never => "",
+                Normalized::Allowed => ", integers optionally normalized",
+                Normalized::Required => ", integers normalized",
+            },
             accessor.dimensions(),
             ty,
             if accessor.normalized() { ", normalized" } else { "" }
@@ -390,7 +451,10 @@ pub(super) fn read(accessor: &gltf::Accessor, data: &Data) -> Result<Vec<f64>, S
                 }
             }
         }
-        None if accessor.sparse().is_some() => values = vec![0.0; count.saturating_mul(components)],
+        None if accessor.sparse().is_some() && count <= data.total_bytes() => values = vec![0.0; count * components],
+        None if accessor.sparse().is_some() => {
+            return Err(format!("{name}: {count} elements without a bufferView are more than the file's bytes"));
+        }
         None => return Err(format!("{name}: has no bufferView (all-zero data is not a mesh)")),
     }
     if let Some(sparse) = accessor.sparse() {
@@ -443,10 +507,17 @@ pub(super) fn draco(
     tex_coord: u32,
 ) -> Option<Result<Draco, String>> {
     let ext = primitive.extension_value("KHR_draco_mesh_compression")?;
-    Some(decode_draco(document, data, ext, tex_coord).map_err(|e| format!("KHR_draco_mesh_compression: {e}")))
+    let decoded = decode_draco(document, primitive, data, ext, tex_coord);
+    Some(decoded.map_err(|e| format!("KHR_draco_mesh_compression: {e}")))
 }
 
-fn decode_draco(document: &gltf::Document, data: &Data, ext: &Value, tex_coord: u32) -> Result<Draco, String> {
+fn decode_draco(
+    document: &gltf::Document,
+    primitive: &gltf::Primitive,
+    data: &Data,
+    ext: &Value,
+    tex_coord: u32,
+) -> Result<Draco, String> {
     use draco_core::geometry_attribute::PointAttribute;
     let view_index = ext.get("bufferView").and_then(Value::as_u64).ok_or("no bufferView")?;
     let view = usize::try_from(view_index).ok().and_then(|i| document.views().nth(i));
@@ -458,6 +529,18 @@ fn decode_draco(document: &gltf::Document, data: &Data, ext: &Value, tex_coord: 
         .decode(&mut buffer, &mut mesh)
         .map_err(|e| format!("the stream in bufferViews[{view_index}] does not decode ({e})"))?;
     let points = mesh.num_points();
+    // The extension requires the decoded counts to be the accessors' (which the triangle limit was checked on).
+    let declared = |semantic: gltf::Semantic| primitive.get(&semantic).map(|a| a.count());
+    if let Some(count) = primitive.indices().map(|a| a.count())
+        && count != mesh.num_faces() * 3
+    {
+        return Err(format!("the stream has {} triangles but the indices accessor {count} indices", mesh.num_faces()));
+    }
+    if let Some(count) = declared(gltf::Semantic::Positions)
+        && count != points
+    {
+        return Err(format!("the stream has {points} points but the POSITION accessor {count}"));
+    }
     let attribute = |semantic: &str| -> Result<Option<&PointAttribute>, String> {
         let Some(id) = ext.get("attributes").and_then(|a| a.get(semantic)) else { return Ok(None) };
         let id = id.as_u64().ok_or_else(|| format!("attribute id of {semantic} is not a number"))?;

@@ -79,6 +79,8 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     }
     let data = gltf_data::Data::new(document.as_json(), read_buffers(&document, base, blob).map_err(err)?);
     let mut mesh = Mesh::default();
+    let colour_warnings = gltf_data::colour_warnings(document.as_json());
+    mesh.warnings.extend(colour_warnings.into_iter().map(|w| format!("{}: {w}", path.display())));
     let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
     mesh.shading = Some(shading);
     let mut pieces = Vec::new();
@@ -370,43 +372,46 @@ fn read_arrays(
 ) -> Result<Option<Arrays>, MeshError> {
     use gltf::accessor::DataType::{F32, I8, I16, U8, U16, U32};
     use gltf::accessor::Dimensions::{Scalar, Vec2, Vec3, Vec4 as Vec4D};
+    use gltf_data::Normalized::{Allowed, Never, Required};
     let path = source.path;
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let Some(accessor) = primitive.get(&gltf::Semantic::Positions) else {
         mesh.warnings.push(format!("{}: no POSITION attribute", about(path, gmesh, primitive)));
         return Ok(None);
     };
-    gltf_data::check_kind(&accessor, "POSITION", &[F32, I8, U8, I16, U16], &[Vec3], true).map_err(err)?;
+    gltf_data::check_kind(&accessor, "POSITION", &[F32, I8, U8, I16, U16], &[Vec3], Allowed).map_err(err)?;
     let positions: Vec<[f64; 3]> =
         gltf_data::read(&accessor, source.data).map_err(err)?.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
     let indices = match primitive.indices() {
         Some(accessor) => {
-            gltf_data::check_kind(&accessor, "indices", &[U8, U16, U32], &[Scalar], false).map_err(err)?;
+            gltf_data::check_kind(&accessor, "indices", &[U8, U16, U32], &[Scalar], Never).map_err(err)?;
             Some(gltf_data::read(&accessor, source.data).map_err(err)?.into_iter().map(|i| i as u32).collect())
         }
         None => None,
     };
     // Colour attributes are optional: one that cannot be read costs only its colour, with a warning.
-    let mut optional = |semantic: gltf::Semantic, what: &str, types: &[gltf::accessor::DataType], shapes| {
-        let accessor = primitive.get(&semantic)?;
-        let read = gltf_data::check_kind(&accessor, what, types, shapes, true)
-            .and_then(|()| gltf_data::read(&accessor, source.data))
-            .and_then(|values| match values.len() / accessor.dimensions().multiplicity() {
-                n if n == positions.len() => Ok((values, accessor.dimensions().multiplicity())),
-                n => Err(format!("{n} values for {} vertices", positions.len())),
-            });
-        match read {
-            Ok(values) => Some(values),
-            Err(e) => {
-                mesh.warnings.push(format!("{}: {what} ignored: {e}", about(path, gmesh, primitive)));
-                None
+    let mut optional =
+        |semantic: gltf::Semantic, what: &str, types: &[gltf::accessor::DataType], shapes, normalized| {
+            let accessor = primitive.get(&semantic)?;
+            let read = gltf_data::check_kind(&accessor, what, types, shapes, normalized)
+                .and_then(|()| gltf_data::read(&accessor, source.data))
+                .and_then(|values| match values.len() / accessor.dimensions().multiplicity() {
+                    n if n == positions.len() => Ok((values, accessor.dimensions().multiplicity())),
+                    n => Err(format!("{n} values for {} vertices", positions.len())),
+                });
+            match read {
+                Ok(values) => Some(values),
+                Err(e) => {
+                    mesh.warnings.push(format!("{}: {what} ignored: {e}", about(path, gmesh, primitive)));
+                    None
+                }
             }
-        }
-    };
-    let uvs = optional(gltf::Semantic::TexCoords(set), "texture coordinates", &[F32, I8, U8, I16, U16], &[Vec2])
-        .map(|(v, _)| v.chunks_exact(2).map(|t| [t[0] as f32, t[1] as f32]).collect())
-        .unwrap_or_default();
-    let colors = optional(gltf::Semantic::Colors(0), "vertex colours", &[F32, U8, U16], &[Vec3, Vec4D])
+        };
+    let uvs =
+        optional(gltf::Semantic::TexCoords(set), "texture coordinates", &[F32, I8, U8, I16, U16], &[Vec2], Allowed)
+            .map(|(v, _)| v.chunks_exact(2).map(|t| [t[0] as f32, t[1] as f32]).collect())
+            .unwrap_or_default();
+    let colors = optional(gltf::Semantic::Colors(0), "vertex colours", &[F32, U8, U16], &[Vec3, Vec4D], Required)
         .map(|(v, n)| {
             v.chunks_exact(n)
                 .map(|c| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, c.get(3).map_or(1.0, |&a| a as f32)))

@@ -167,8 +167,9 @@ fn sparse_box(tex_coord: u32, ktx2: bool, extra: serde_json::Value) -> Vec<u8> {
         bin.extend(bytes);
         v
     };
-    let sparse_indices: Vec<u8> = (0u8..8).rev().collect();
-    let sparse_values: Vec<u8> = (0..8).rev().flat_map(|k: usize| corners[k]).flat_map(f32::to_le_bytes).collect();
+    // glTF requires the sparse indices to increase strictly.
+    let sparse_indices: Vec<u8> = (0u8..8).collect();
+    let sparse_values: Vec<u8> = (0..8).flat_map(|k: usize| corners[k]).flat_map(f32::to_le_bytes).collect();
     let green: Vec<u8> = (0..8).flat_map(|_| [0.75f32, 0.25]).flat_map(f32::to_le_bytes).collect();
     let red: Vec<u8> = (0..8).flat_map(|_| [0.25f32, 0.25]).flat_map(f32::to_le_bytes).collect();
     let views = vec![
@@ -273,6 +274,23 @@ fn sparse_positions_the_materials_uv_set_variants_and_ktx2_textures() {
         ktx2.warnings
     );
     assert!(colours(&ktx2, &grid, &tris).iter().all(|c| *c == [255, 255, 0, 255]), "the base colour");
+
+    // Specular-glossiness materials keep their diffuse colour in an extension meshvox does not read: said once.
+    let spec_gloss = serde_json::json!({ "extensionsUsed": ["KHR_materials_pbrSpecularGlossiness"] });
+    let glossy = load("glossy.gltf", sparse_box(1, false, spec_gloss)).expect("loads");
+    assert!(glossy.warnings.len() == 1 && glossy.warnings[0].contains("KHR_materials_pbrSpecularGlossiness"));
+
+    // The hostile corpus's valid sparse and quantized files, read as they mean: indices [0, 1, 1] whose sparse
+    // substitution makes the third 2 (a real triangle, not a segment), and int16 positions on a 32767 lattice
+    // placed by the node's scale (1.6, 1.7, 1) and translation (0.1, 0.2, 0.3).
+    let odd = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus/odd");
+    let sparse = meshvox::mesh::load_path(&odd.join("sparse-indices.gltf")).expect("sparse indices");
+    let [[a, b, c]] = sparse.triangles[..] else { panic!("one triangle: {:?}", sparse.triangles) };
+    assert!((b - a).cross(c - a).length() > 1.0, "the substitution was not applied: {a} {b} {c}");
+    let quantized = meshvox::mesh::load_path(&odd.join("quantized-positions.gltf")).expect("quantized");
+    let q = quantized.bounds().expect("bounds");
+    let (lo, hi) = (glam::DVec3::new(0.1, 0.2, 0.3), glam::DVec3::new(1.7, 1.9, 0.3));
+    assert!(q.min.abs_diff_eq(lo, 1e-6) && q.max.abs_diff_eq(hi, 1e-6), "{q:?}");
 }
 
 #[test]
@@ -296,4 +314,113 @@ fn an_unsupported_required_extension_is_named_in_one_line() {
     );
     assert!(!stderr.contains("invalid glTF"), "a valid file is not invalid: {stderr}");
     assert!(!tmp.path().join("x.npy").exists());
+}
+
+/// A glTF whose positions are `count` elements of one meshopt-compressed buffer view (`stride` bytes each, read as
+/// `component_type` VEC3, normalized) with `filter`, as consecutive triangles; buffer 1 is the extension's
+/// fallback, with no data.
+fn meshopt_points(encoded: &[u8], count: usize, stride: usize, component_type: u32, filter: &str) -> Vec<u8> {
+    use base64::Engine;
+    let mut bin = encoded.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let indices: Vec<u8> = (0..count as u16).flat_map(u16::to_le_bytes).collect();
+    let index_offset = bin.len();
+    bin.extend(&indices);
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    let json = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "extensionsUsed": ["EXT_meshopt_compression", "KHR_mesh_quantization"],
+        "extensionsRequired": ["EXT_meshopt_compression", "KHR_mesh_quantization"],
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "mesh": 0 }],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1 }] }],
+        "accessors": [
+            { "bufferView": 0, "componentType": component_type, "normalized": true, "count": count, "type": "VEC3",
+              "min": [-1, -1, -1], "max": [1, 1, 1] },
+            { "bufferView": 1, "componentType": 5123, "count": count, "type": "SCALAR" },
+        ],
+        "bufferViews": [
+            { "buffer": 1, "byteLength": count * stride, "byteStride": stride, "extensions": { "EXT_meshopt_compression": {
+                "buffer": 0, "byteLength": encoded.len(), "byteStride": stride, "count": count,
+                "mode": "ATTRIBUTES", "filter": filter } } },
+            { "buffer": 0, "byteOffset": index_offset, "byteLength": indices.len() },
+        ],
+        "buffers": [
+            { "byteLength": bin.len(), "uri": uri },
+            { "byteLength": count * stride, "extensions": { "EXT_meshopt_compression": { "fallback": true } } },
+        ],
+    });
+    serde_json::to_vec(&json).expect("json")
+}
+
+/// The positions of a loaded mesh, triangle corner by corner, in world space.
+fn corners(mesh: &Mesh) -> Vec<glam::DVec3> {
+    mesh.triangles.iter().flatten().map(|v| mesh.anchor + v.as_dvec3()).collect()
+}
+
+#[test]
+fn meshopt_filters_decode_what_meshoptimizer_encodes() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let mut rng = crate::common::Rng::new(18);
+    let count = 96;
+    let load = |name: &str, bytes: Vec<u8>| {
+        let path = tmp.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        meshvox::mesh::load_path(&path).unwrap_or_else(|e| panic!("{name}: {e}"))
+    };
+    // OCTAHEDRAL, 8 bits: unit normals in meshoptimizer's octahedral encoding (meshopt_encodeFilterOct: x and
+    // y folded onto the octahedron, z holding the scale), decoded back to normalized int8 vectors.
+    let normals: Vec<glam::DVec3> = (0..count)
+        .map(|_| glam::DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5).normalize())
+        .collect();
+    let octahedral: Vec<[i8; 4]> = normals
+        .iter()
+        .map(|n| {
+            let s = 1.0 / (n.x.abs() + n.y.abs() + n.z.abs());
+            let (x, y) = (n.x * s, n.y * s);
+            let (u, v) = match n.z >= 0.0 {
+                true => (x, y),
+                false => ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum()),
+            };
+            [(u * 127.0).round() as i8, (v * 127.0).round() as i8, 127, 0]
+        })
+        .collect();
+    let encoded = meshopt::encoding::encode_vertex_buffer(&octahedral).expect("encode");
+    let mesh = load("octahedral.gltf", meshopt_points(&encoded, count, 4, 5120, "OCTAHEDRAL"));
+    let decoded = corners(&mesh);
+    assert_eq!(decoded.len(), count);
+    for (n, d) in normals.iter().zip(&decoded) {
+        assert!((d.length() - 1.0).abs() < 0.02 && n.distance(*d) < 0.03, "normal {n} decoded as {d}");
+    }
+    // QUATERNION, 16 bits (meshopt_encodeFilterQuat): the three smaller components, scaled by √2, in cyclic
+    // order after the largest, whose index is in the fourth's low bits; the decoded first three components
+    // are the quaternion's x, y, z (up to the double cover's sign).
+    let quaternions: Vec<glam::DQuat> = (0..count)
+        .map(|_| {
+            glam::DQuat::from_xyzw(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5).normalize()
+        })
+        .collect();
+    let packed: Vec<[i16; 4]> = quaternions
+        .iter()
+        .map(|q| {
+            let q = q.to_array();
+            let largest = (0..4).max_by(|&a, &b| q[a].abs().total_cmp(&q[b].abs())).expect("four");
+            let sign = if q[largest] < 0.0 { -1.0 } else { 1.0 };
+            let c = |k: usize| (q[(largest + k) & 3] * std::f64::consts::SQRT_2 * sign * 32767.0).round() as i16;
+            [c(1), c(2), c(3), (32767 & !3) | largest as i16]
+        })
+        .collect();
+    let encoded = meshopt::encoding::encode_vertex_buffer(&packed).expect("encode");
+    let mesh = load("quaternion.gltf", meshopt_points(&encoded, count, 8, 5122, "QUATERNION"));
+    for (q, d) in quaternions.iter().zip(corners(&mesh)) {
+        let xyz = glam::DVec3::new(q.x, q.y, q.z);
+        let (largest, sign) = q
+            .to_array()
+            .iter()
+            .fold((0.0f64, 1.0), |(m, s), &c| if c.abs() > m { (c.abs(), c.signum()) } else { (m, s) });
+        assert!(largest > 0.0 && (xyz * sign).distance(d) < 2e-4, "quaternion {q} decoded as {d}");
+    }
 }

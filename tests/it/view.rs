@@ -416,6 +416,10 @@ fn the_floor_grid_lies_under_the_model_at_world_multiples_of_its_spacing() {
         "{} pixels differ after a move by whole spacings",
         differing(&on, &moved, 2)
     );
+    // Moved by one spacing, the minor lines fall where they were but every tenth (brighter) one moves: the
+    // phase is taken modulo ten spacings, not one.
+    let one = draw(origin + glam::DVec3::new(0.1, 0.0, 0.0), UpAxis::Y, ViewPreset::Iso, true);
+    assert!(differing(&on, &one, 12) > 40, "a move by one spacing did not move the bright lines");
     let half = draw(origin + glam::DVec3::new(0.05, 0.0, 0.05), UpAxis::Y, ViewPreset::Iso, true);
     assert!(differing(&on, &half, 12) > 200, "moving by half a spacing did not move the lines");
 }
