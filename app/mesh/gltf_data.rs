@@ -19,6 +19,7 @@ const READ: &[&str] = &[
     "KHR_draco_mesh_compression",
     "KHR_texture_transform",
     "EXT_texture_webp",
+    "EXT_mesh_gpu_instancing",
 ];
 
 /// Extensions a voxelization can do without: they change how a surface shades (or, for `KHR_texture_basisu`,
@@ -567,4 +568,69 @@ fn decode_draco(
     });
     let triangles = mesh.faces().iter().map(|f| f.map(|p| p.0)).collect();
     Ok(Draco { triangles, positions, uvs, colors })
+}
+
+/// A node's `EXT_mesh_gpu_instancing`: the accessors of its instances' translations, rotations and scales
+/// (each optional, all of `count` elements).
+pub(super) struct Instancing<'a> {
+    translation: Option<gltf::Accessor<'a>>,
+    rotation: Option<gltf::Accessor<'a>>,
+    scale: Option<gltf::Accessor<'a>>,
+    pub count: usize,
+}
+
+/// The node's instancing, if it has the extension: its accessors checked for kind and count (not yet read, so
+/// the triangle limit can count the instances before any buffer is).
+pub(super) fn instancing<'a>(
+    document: &'a gltf::Document,
+    node: &gltf::Node,
+) -> Result<Option<Instancing<'a>>, String> {
+    use DataType::{F32, I8, I16, U8, U16};
+    let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else { return Ok(None) };
+    let what = format!("nodes[{}]: EXT_mesh_gpu_instancing", node.index());
+    let accessor = |name: &str, types: &[DataType], shape: Dimensions| -> Result<Option<gltf::Accessor<'a>>, String> {
+        let Some(index) = ext.get("attributes").and_then(|a| a.get(name)) else { return Ok(None) };
+        let accessor = index.as_u64().and_then(|i| usize::try_from(i).ok()).and_then(|i| document.accessors().nth(i));
+        let accessor = accessor.ok_or_else(|| format!("{what} {name} names no accessor ({index})"))?;
+        check_kind(&accessor, &format!("{what} {name}"), types, &[shape], Normalized::Allowed)?;
+        Ok(Some(accessor))
+    };
+    // Floats, or the integers KHR_mesh_quantization allows (rotations normalized).
+    let translation = accessor("TRANSLATION", &[F32, I8, U8, I16, U16], Dimensions::Vec3)?;
+    let rotation = accessor("ROTATION", &[F32, I8, I16], Dimensions::Vec4)?;
+    let scale = accessor("SCALE", &[F32, I8, U8, I16, U16], Dimensions::Vec3)?;
+    let counts: Vec<usize> = [&translation, &rotation, &scale].into_iter().flatten().map(|a| a.count()).collect();
+    let Some(&count) = counts.first() else { return Err(format!("{what} has no TRANSLATION, ROTATION or SCALE")) };
+    if counts.iter().any(|&c| c != count) {
+        return Err(format!("{what}: its attributes have different counts ({counts:?})"));
+    }
+    Ok(Some(Instancing { translation, rotation, scale, count }))
+}
+
+impl Instancing<'_> {
+    /// Each instance's transform, translation × rotation × scale, in f64.
+    pub fn transforms(&self, data: &Data) -> Result<Vec<glam::DMat4>, String> {
+        let column = |accessor: &Option<gltf::Accessor>, default: &[f64]| -> Result<Vec<f64>, String> {
+            match accessor {
+                Some(a) => read(a, data),
+                None => Ok(default.repeat(self.count)),
+            }
+        };
+        let t = column(&self.translation, &[0.0; 3])?;
+        let r = column(&self.rotation, &[0.0, 0.0, 0.0, 1.0])?;
+        let s = column(&self.scale, &[1.0; 3])?;
+        Ok((0..self.count)
+            .map(|i| {
+                let rotation = glam::DQuat::from_xyzw(r[4 * i], r[4 * i + 1], r[4 * i + 2], r[4 * i + 3]);
+                // Quantized rotations are only nearly unit length.
+                let rotation =
+                    if rotation.length_squared() > 0.0 { rotation.normalize() } else { glam::DQuat::IDENTITY };
+                glam::DMat4::from_scale_rotation_translation(
+                    glam::DVec3::from_slice(&s[3 * i..]),
+                    rotation,
+                    glam::DVec3::from_slice(&t[3 * i..]),
+                )
+            })
+            .collect())
+    }
 }

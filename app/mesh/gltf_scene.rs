@@ -45,8 +45,9 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
     // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
     let mut stack: Vec<(gltf::Node, DMat4, usize)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
-    let mut instances: Vec<(gltf::Mesh, DMat4)> = Vec::new();
-    // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node.
+    let mut instances: Vec<(gltf::Mesh, DMat4, Option<gltf_data::Instancing>)> = Vec::new();
+    // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node, and
+    // once per instance of EXT_mesh_gpu_instancing.
     let mut triangles: u64 = 0;
     // glTF requires the nodes to form trees, so a walk meets each node at most once per scene. A node listed as
     // a child twice (or by two parents) makes a graph whose walk doubles at every level: 40 such levels are a
@@ -71,9 +72,12 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         };
         let world = parent * local;
         if let Some(gmesh) = node.mesh() {
-            triangles = triangles.saturating_add(gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>());
+            let instancing = gltf_data::instancing(&document, &node).map_err(err)?;
+            let copies = instancing.as_ref().map_or(1, |i| i.count as u64);
+            let per_copy = gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>();
+            triangles = triangles.saturating_add(per_copy.saturating_mul(copies));
             limits.check_triangles(path, triangles)?;
-            instances.push((gmesh, world));
+            instances.push((gmesh, world, instancing));
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
@@ -84,7 +88,17 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
     mesh.shading = Some(shading);
     let mut pieces = Vec::new();
-    for (gmesh, world) in instances {
+    let mut placed = Vec::new();
+    for (gmesh, world, instancing) in instances {
+        match instancing {
+            Some(instancing) => {
+                let transforms = instancing.transforms(&data).map_err(err)?;
+                placed.extend(transforms.into_iter().map(|m| (gmesh.clone(), world * m)));
+            }
+            None => placed.push((gmesh, world)),
+        }
+    }
+    for (gmesh, world) in placed {
         for primitive in gmesh.primitives() {
             let source = Source { document: &document, data: &data, path };
             pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, world, &tex_sets)?);

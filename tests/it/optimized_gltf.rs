@@ -297,19 +297,17 @@ fn sparse_positions_the_materials_uv_set_variants_and_ktx2_textures() {
 fn an_unsupported_required_extension_is_named_in_one_line() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let required = serde_json::json!({
-        "extensionsUsed": ["EXT_mesh_gpu_instancing", "KHR_mesh_quantization", "ACME_teleport"],
-        "extensionsRequired": ["EXT_mesh_gpu_instancing", "KHR_mesh_quantization", "ACME_teleport"],
+        "extensionsUsed": ["MSFT_lod", "KHR_mesh_quantization", "ACME_teleport"],
+        "extensionsRequired": ["MSFT_lod", "KHR_mesh_quantization", "ACME_teleport"],
     });
-    let path = tmp.path().join("instanced.gltf");
+    let path = tmp.path().join("lod.gltf");
     std::fs::write(&path, sparse_box(0, false, required)).expect("write");
     let out = meshvox(&["voxelize", path.to_str().expect("utf-8"), "-r", "8", "-o", "x.npy"], tmp.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert_eq!(stderr.lines().count(), 1, "one line: {stderr}");
     assert!(
-        stderr.contains(
-            "requires the glTF extensions EXT_mesh_gpu_instancing and ACME_teleport, which meshvox cannot read"
-        ),
+        stderr.contains("requires the glTF extensions MSFT_lod and ACME_teleport, which meshvox cannot read"),
         "{stderr}"
     );
     assert!(!stderr.contains("invalid glTF"), "a valid file is not invalid: {stderr}");
@@ -422,5 +420,87 @@ fn meshopt_filters_decode_what_meshoptimizer_encodes() {
             .iter()
             .fold((0.0f64, 1.0), |(m, s), &c| if c.abs() > m { (c.abs(), c.signum()) } else { (m, s) });
         assert!(largest > 0.0 && (xyz * sign).distance(d) < 2e-4, "quaternion {q} decoded as {d}");
+    }
+}
+
+#[test]
+fn gpu_instancing_places_every_instance_like_separate_nodes() {
+    use base64::Engine;
+    let tmp = tempfile::tempdir().expect("tempdir");
+    // The box three times: as three nodes, and as one node with EXT_mesh_gpu_instancing's TRANSLATION,
+    // ROTATION (a quarter turn about y for the second) and SCALE accessors.
+    let placements = [
+        ([0.0f32, 0.0, 0.0], [0.0f32, 0.0, 0.0, 1.0], [1.0f32, 1.0, 1.0]),
+        (
+            [2.5, 0.0, 0.0],
+            [0.0, std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2],
+            [1.0, 1.0, 1.0],
+        ),
+        ([0.0, 0.0, 3.0], [0.0, 0.0, 0.0, 1.0], [2.0, 0.5, 1.0]),
+    ];
+    let mut nodes: serde_json::Value =
+        serde_json::from_slice(&sparse_box(0, false, serde_json::json!({}))).expect("json");
+    nodes["nodes"] = placements
+        .iter()
+        .map(|(t, r, s)| serde_json::json!({ "mesh": 0, "translation": t, "rotation": r, "scale": s }))
+        .collect();
+    nodes["scenes"] = serde_json::json!([{ "nodes": [0, 1, 2] }]);
+    let separate = tmp.path().join("separate.gltf");
+    std::fs::write(&separate, serde_json::to_vec(&nodes).expect("json")).expect("write");
+
+    let mut instanced = nodes.clone();
+    let bytes: Vec<u8> = [0, 1, 2]
+        .iter()
+        .flat_map(|&k| placements.iter().flat_map(move |p| [&p.0[..], &p.1[..], &p.2[..]][k].to_vec()))
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let buffer = instanced["buffers"].as_array().map_or(0, Vec::len);
+    let (views, accessors) = (
+        instanced["bufferViews"].as_array().map_or(0, Vec::len),
+        instanced["accessors"].as_array().map_or(0, Vec::len),
+    );
+    instanced["buffers"]
+        .as_array_mut()
+        .expect("buffers")
+        .push(serde_json::json!({ "byteLength": bytes.len(), "uri": uri }));
+    for (k, (offset, length, shape)) in [(0, 36, "VEC3"), (36, 48, "VEC4"), (84, 36, "VEC3")].into_iter().enumerate() {
+        instanced["bufferViews"]
+            .as_array_mut()
+            .expect("views")
+            .push(serde_json::json!({ "buffer": buffer, "byteOffset": offset, "byteLength": length }));
+        instanced["accessors"]
+            .as_array_mut()
+            .expect("accessors")
+            .push(serde_json::json!({ "bufferView": views + k, "componentType": 5126, "count": 3, "type": shape }));
+    }
+    instanced["nodes"] = serde_json::json!([{ "mesh": 0, "extensions": { "EXT_mesh_gpu_instancing": { "attributes": {
+        "TRANSLATION": accessors, "ROTATION": accessors + 1, "SCALE": accessors + 2 } } } }]);
+    instanced["scenes"] = serde_json::json!([{ "nodes": [0] }]);
+    instanced["extensionsUsed"] = serde_json::json!(["EXT_mesh_gpu_instancing"]);
+    instanced["extensionsRequired"] = serde_json::json!(["EXT_mesh_gpu_instancing"]);
+    let one_node = tmp.path().join("instanced.gltf");
+    std::fs::write(&one_node, serde_json::to_vec(&instanced).expect("json")).expect("write");
+
+    let reference = meshvox::mesh::load_path(&separate).expect("three nodes");
+    assert_eq!(reference.triangles.len(), 36);
+    let (expected, _) = voxelize(&reference, 40);
+    let mut files = vec![("one node with EXT_mesh_gpu_instancing", one_node)];
+    // gltfpack -mi turns nodes that share a mesh into instances, as it does for scenes with many copies.
+    if let Some(gltfpack) = tool("gltfpack") {
+        let packed = tmp.path().join("packed.glb");
+        let (input, output) = (separate.to_str().expect("utf-8"), packed.to_str().expect("utf-8"));
+        files.push(("gltfpack -mi", make(&gltfpack, &["-i", input, "-o", output, "-mi", "-noq"], &packed)));
+    }
+    for (label, file) in files {
+        let text = String::from_utf8_lossy(&std::fs::read(&file).expect("read")).into_owned();
+        assert!(text.contains("EXT_mesh_gpu_instancing"), "{label}: not instanced");
+        let mesh = meshvox::mesh::load_path(&file).unwrap_or_else(|e| panic!("{label}: {e}"));
+        assert_eq!(mesh.triangles.len(), 36, "{label}: three boxes");
+        let (grid, _) = voxelize(&mesh, 40);
+        assert_eq!(grid.spec.dims, expected.spec.dims, "{label}");
+        let changed = differing(&grid, &expected);
+        assert!(changed * 200 <= expected.count(), "{label}: {changed} of {} voxels differ", expected.count());
     }
 }

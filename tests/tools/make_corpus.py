@@ -95,7 +95,7 @@ gltf("node-graph-not-tree.gltf", doc(data, extra=lambda d: d.update(nodes=[{"chi
 gltf("mesh-out-of-range.gltf", doc(data, extra=lambda d: d.update(nodes=[{"mesh": 5}])))
 gltf("accessor-out-of-range.gltf", doc(data, extra=lambda d: d["meshes"][0]["primitives"][0].update(indices=7)))
 gltf("no-position.gltf", doc(data, extra=lambda d: d["meshes"][0]["primitives"][0].update(attributes={"NORMAL": 0})))
-gltf("required-extension.gltf", doc(data, extra=lambda d: d.update(extensionsRequired=["EXT_mesh_gpu_instancing"], extensionsUsed=["EXT_mesh_gpu_instancing"])))
+gltf("required-extension.gltf", doc(data, extra=lambda d: d.update(extensionsRequired=["MSFT_lod"], extensionsUsed=["MSFT_lod"])))
 # --- bad GLB
 d_glb = doc(data, uri=False)
 good_glb = glb(d_glb, data)
