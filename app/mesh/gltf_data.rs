@@ -274,10 +274,7 @@ fn decode_vertices(encoded: &[u8], count: usize, stride: usize) -> Result<Vec<u8
 }
 
 /// meshoptimizer's index codec (triangle lists), to little-endian bytes of `T`.
-fn decode_indices<T: Copy + Default + Into<u32> + TryFrom<u32>>(
-    encoded: &[u8],
-    count: usize,
-) -> Result<Vec<u8>, String> {
+fn decode_indices<T: Copy + Default + Into<u32>>(encoded: &[u8], count: usize) -> Result<Vec<u8>, String> {
     if !count.is_multiple_of(3) {
         return Err(format!("{count} indices are not whole triangles"));
     }
@@ -334,15 +331,6 @@ fn exponential(v: &mut [u8]) {
     let exponent = (word as i32) >> 24;
     let power = f32::from_bits(((exponent + 127) as u32) << 23);
     v.copy_from_slice(&(power * mantissa as f32).to_le_bytes());
-}
-
-/// The size in bytes of one component of `ty`.
-fn component_size(ty: DataType) -> usize {
-    match ty {
-        DataType::I8 | DataType::U8 => 1,
-        DataType::I16 | DataType::U16 => 2,
-        DataType::U32 | DataType::F32 => 4,
-    }
 }
 
 /// One component as f64: floats as they are, integers as their value or, normalized, mapped to [0, 1] (unsigned)
@@ -413,7 +401,7 @@ pub(super) fn read(accessor: &gltf::Accessor, data: &Data) -> Result<Vec<f64>, S
     let ty = accessor.data_type();
     let normalized = accessor.normalized();
     let components = accessor.dimensions().multiplicity();
-    let width = component_size(ty);
+    let width = ty.size();
     let element = accessor.size();
     let count = accessor.count();
     if count == 0 {
