@@ -53,6 +53,23 @@ struct LimitArgs {
     /// Host memory a voxelization may use (512M, 8G, …); default: what the machine has available.
     #[arg(long, value_name = "SIZE", value_parser = meshvox::memory::parse_size)]
     max_memory: Option<u64>,
+    /// The most a mesh file, and the mesh with every file it refers to, may have (512M, 2G, …); larger files are
+    /// refused before they are read. Default: --max-memory, or four fifths of the memory available.
+    #[arg(long, value_name = "SIZE", value_parser = meshvox::memory::parse_size)]
+    max_file_size: Option<u64>,
+    /// A folder the files a mesh refers to (glTF buffers and images, OBJ material libraries and textures) may
+    /// also lie in, besides the mesh's own folder (repeatable).
+    #[arg(long, value_name = "DIR", value_parser = parse_dir)]
+    resource_root: Vec<PathBuf>,
+}
+
+/// An existing directory, for --resource-root.
+fn parse_dir(s: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.is_dir() {
+        true => Ok(path),
+        false => Err(format!("'{s}' is not a directory")),
+    }
 }
 
 /// Voxel colours from the mesh's materials, shared by the commands that voxelize.
@@ -84,7 +101,11 @@ impl ColourArgs {
 
 impl LimitArgs {
     fn load(&self, spec: &str) -> Result<mesh::Mesh> {
-        let limits = mesh::LoadLimits { max_triangles: self.max_triangles, max_file_bytes: self.max_memory };
+        let limits = mesh::LoadLimits {
+            max_triangles: self.max_triangles,
+            max_file_bytes: self.max_file_size.or(self.max_memory),
+            resource_roots: self.resource_root.clone(),
+        };
         let mesh = mesh::load_with(spec, &limits)?;
         for w in &mesh.warnings {
             eprintln!("warning: {w}");

@@ -75,37 +75,92 @@ fn parse_shard(s: &str) -> Result<(usize, usize), String> {
 struct Item {
     source: PathBuf,
     relative: PathBuf,
+    /// Why the input is refused before it is read: a symbolic link found under a directory argument that leads
+    /// outside it (and outside every --resource-root).
+    refused: Option<String>,
 }
 
 fn is_mesh(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| MESH_EXTENSIONS.contains(&e.to_lowercase().as_str()))
 }
 
-/// Every mesh file under `dir`, recursively, with its path relative to `dir`.
-fn walk(dir: &Path, root: &Path, out: &mut Vec<Item>) -> Result<()> {
+/// A directory argument being walked: the folders its symbolic links may lead into (its own real path, then the
+/// resource roots), and the real paths of the folders walked so far (a link back up must not loop).
+struct Walk {
+    root: PathBuf,
+    inside: Vec<PathBuf>,
+    walked: std::collections::HashSet<PathBuf>,
+}
+
+impl Walk {
+    /// Where a symbolic link at `path` leads, if that is inside the walked folder or a resource root.
+    fn follow(&self, path: &Path) -> Result<PathBuf, String> {
+        let real =
+            std::fs::canonicalize(path).map_err(|e| format!("{}: a broken symbolic link: {e}", path.display()))?;
+        match self.inside.iter().any(|dir| real.starts_with(dir)) {
+            true => Ok(real),
+            false => Err(format!(
+                "{}: refused: a symbolic link to {}, outside {} (and every --resource-root)",
+                path.display(),
+                real.display(),
+                self.inside[0].display()
+            )),
+        }
+    }
+}
+
+/// Every mesh file under `dir`, recursively, with its path relative to the walk's root. Symbolic links are
+/// followed only where they lead inside the root or a resource root: a link to a directory elsewhere (`/`, or a
+/// parent, which would loop) is left out with a warning, a mesh file elsewhere is listed as refused.
+fn walk(dir: &Path, walk_state: &mut Walk, out: &mut Vec<Item>) -> Result<()> {
     let entries = std::fs::read_dir(dir).with_context(|| format!("{}: cannot list", dir.display()))?;
+    let mut paths: Vec<(PathBuf, std::fs::FileType)> = Vec::new();
     for entry in entries {
-        let path = entry.with_context(|| format!("{}: cannot list", dir.display()))?.path();
-        if path.is_dir() {
-            walk(&path, root, out)?;
+        let entry = entry.with_context(|| format!("{}: cannot list", dir.display()))?;
+        let file_type = entry.file_type().with_context(|| format!("{}: cannot list", dir.display()))?;
+        paths.push((entry.path(), file_type));
+    }
+    for (path, file_type) in paths {
+        let relative = path.strip_prefix(&walk_state.root).unwrap_or(&path).to_path_buf();
+        if file_type.is_dir() {
+            if let Ok(real) = std::fs::canonicalize(&path) {
+                walk_state.walked.insert(real);
+            }
+            walk(&path, walk_state, out)?;
+        } else if file_type.is_symlink() && path.is_dir() {
+            match walk_state.follow(&path) {
+                Ok(real) => match walk_state.walked.insert(real) {
+                    true => walk(&path, walk_state, out)?,
+                    false => eprintln!(
+                        "warning: {}: a symbolic link to a folder already walked; not followed",
+                        path.display()
+                    ),
+                },
+                Err(e) => eprintln!("warning: {e}; not followed"),
+            }
         } else if is_mesh(&path) {
-            let relative = path.strip_prefix(root).unwrap_or(&path).to_path_buf();
-            out.push(Item { source: path, relative });
+            let refused = if file_type.is_symlink() { walk_state.follow(&path).err() } else { None };
+            out.push(Item { source: path, relative, refused });
         }
     }
     Ok(())
 }
 
-/// The sorted, de-duplicated inputs: files, directories and glob patterns.
-fn discover(inputs: &[String]) -> Result<Vec<Item>> {
+/// The sorted, de-duplicated inputs: files, directories and glob patterns. Files named directly or matched by a
+/// pattern are read wherever they are; see [`walk`] for directories.
+fn discover(inputs: &[String], resource_roots: &[PathBuf]) -> Result<Vec<Item>> {
     let mut items = Vec::new();
     for input in inputs {
         let path = Path::new(input);
         if path.is_dir() {
-            walk(path, path, &mut items)?;
+            let real = std::fs::canonicalize(path).with_context(|| format!("{input}: cannot list"))?;
+            let mut inside = vec![real.clone()];
+            inside.extend(resource_roots.iter().filter_map(|r| std::fs::canonicalize(r).ok()));
+            let mut state = Walk { root: path.to_path_buf(), inside, walked: [real].into() };
+            walk(path, &mut state, &mut items)?;
         } else if path.is_file() {
             let name = path.file_name().map(PathBuf::from).ok_or_else(|| anyhow!("{input}: not a file name"))?;
-            items.push(Item { source: path.to_path_buf(), relative: name });
+            items.push(Item { source: path.to_path_buf(), relative: name, refused: None });
         } else {
             let matches = glob::glob(input).map_err(|e| anyhow!("{input}: not a file, directory or pattern: {e}"))?;
             let mut found = false;
@@ -113,7 +168,7 @@ fn discover(inputs: &[String]) -> Result<Vec<Item>> {
                 let m = m.with_context(|| input.clone())?;
                 if m.is_file() && is_mesh(&m) {
                     let name = m.file_name().map(PathBuf::from).ok_or_else(|| anyhow!("{}: no name", m.display()))?;
-                    items.push(Item { source: m, relative: name });
+                    items.push(Item { source: m, relative: name, refused: None });
                     found = true;
                 }
             }
@@ -135,7 +190,7 @@ fn shard(items: Vec<Item>, (index, count): (usize, usize)) -> Vec<Item> {
 /// `meshvox batch`.
 pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let started = Instant::now();
-    let mut items = discover(&args.inputs)?;
+    let mut items = discover(&args.inputs, &args.limits.resource_root)?;
     if let Some(s) = args.shard {
         items = shard(items, s);
     }
@@ -197,9 +252,10 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
                 loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(item) = items.get(k) else { break };
-                    let outcome = match skip && outputs[k].exists() {
-                        true => Outcome::Skipped,
-                        false => {
+                    let outcome = match (&item.refused, skip && outputs[k].exists()) {
+                        (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
+                        (None, true) => Outcome::Skipped,
+                        (None, false) => {
                             let args = VoxelizeArgs {
                                 mesh: item.source.display().to_string(),
                                 output: outputs[k].clone(),

@@ -6,9 +6,10 @@
 //! world-space triangles. Point and line primitives are skipped with a warning. What optimizers write (quantized,
 //! meshopt- and Draco-compressed data, sparse accessors) is read through [`super::gltf_data`].
 
+use super::files::{Externals, ReadError, RefStyle};
 use super::gltf_data;
 use super::material::{Material, Shading, Texture, TextureRef, Wrap};
-use super::{Externals, LoadLimits, Mesh, MeshError, Part, Piece};
+use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DMat4, DQuat, DVec3, Vec4};
 use gltf::mesh::Mode;
 use std::path::Path;
@@ -81,7 +82,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
-    let data = gltf_data::Data::new(document.as_json(), read_buffers(&document, base, blob).map_err(err)?);
+    let data = gltf_data::Data::new(document.as_json(), read_buffers(path, &document, base, blob)?);
     let mut mesh = Mesh::default();
     let colour_warnings = gltf_data::colour_warnings(document.as_json());
     mesh.warnings.extend(colour_warnings.into_iter().map(|w| format!("{}: {w}", path.display())));
@@ -237,10 +238,16 @@ fn decode_data_uri(data: &str) -> Result<Vec<u8>, String> {
 }
 
 /// Every buffer's bytes: the GLB's BIN chunk, a base64 data URI, or a file read through `base` (beside the
-/// `.gltf`, or among the files opened with it); nothing for a meshopt fallback buffer, whose views are decoded
-/// from another. Each error names the buffer; a missing file is named too (the operating system's own message
-/// names neither).
-fn read_buffers(document: &gltf::Document, base: Externals, mut blob: Option<Vec<u8>>) -> Result<Vec<Vec<u8>>, String> {
+/// `.gltf` under the rules of `files.rs`, exactly `byteLength` bytes, or among the files opened with it); nothing
+/// for a meshopt fallback buffer, whose views are decoded from another. Each error names the buffer; a refused
+/// reference is a [`MeshError::Refused`], since the file may be valid glTF.
+fn read_buffers(
+    path: &Path,
+    document: &gltf::Document,
+    base: Externals,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<Vec<u8>>, MeshError> {
+    let invalid = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let name = format!("buffers[{}]", buffer.index());
@@ -250,22 +257,28 @@ fn read_buffers(document: &gltf::Document, base: Externals, mut blob: Option<Vec
         }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => {
-                blob.take().ok_or_else(|| format!("{name} is the GLB's BIN chunk, which is missing"))?
+                blob.take().ok_or_else(|| invalid(format!("{name} is the GLB's BIN chunk, which is missing")))?
             }
             gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
-                Some(data) => decode_data_uri(data).map_err(|e| format!("{name}: {e}"))?,
+                Some(data) => decode_data_uri(data).map_err(|e| invalid(format!("{name}: {e}")))?,
                 None => match base {
                     Externals::None => {
-                        return Err(format!(
+                        return Err(invalid(format!(
                             "{name} is in a separate file ({uri}), which cannot be read here: use a .glb or embedded buffers, or open the files together"
-                        ));
+                        )));
                     }
-                    other => other.read(uri).map_err(|e| format!("{name}: {e}"))?.into_owned(),
+                    other => match other.read(None, uri, RefStyle::Uri, Some(buffer.length() as u64)) {
+                        Ok((bytes, _)) => bytes.into_owned(),
+                        Err(e @ ReadError::Refused(_)) => {
+                            return Err(MeshError::Refused { path: path.to_path_buf(), message: e.about(&name) });
+                        }
+                        Err(e) => return Err(invalid(e.about(&name))),
+                    },
                 },
             },
         };
         if data.len() < buffer.length() {
-            return Err(format!("{name} has {} bytes but its byteLength is {}", data.len(), buffer.length()));
+            return Err(invalid(format!("{name} has {} bytes but its byteLength is {}", data.len(), buffer.length())));
         }
         buffers.push(data);
     }
@@ -524,7 +537,9 @@ fn read_texture(
         }
         gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
             Some(data) => decode_data_uri(data)?.into(),
-            None => base.read(uri)?,
+            None => {
+                base.read(None, uri, RefStyle::Uri, None).map_err(|e| e.about(&format!("images[{}]", image.index())))?.0
+            }
         },
     };
     Texture::decode(&bytes, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())], nearest)

@@ -4,6 +4,7 @@
 //! This is the bottom layer: it knows nothing about grids or GPUs.
 
 pub mod builtin;
+mod files;
 mod gltf_data;
 mod gltf_scene;
 pub mod material;
@@ -11,6 +12,7 @@ mod obj;
 mod ply;
 mod stl;
 
+use files::{Access, Externals};
 use glam::{DVec3, Vec3, Vec4};
 pub use material::Shading;
 use material::TriangleShading;
@@ -195,17 +197,25 @@ pub enum MeshError {
     UnknownBuiltin { name: String },
     #[error("{}: {triangles} triangles is more than the limit of {limit} (raise it with --max-triangles)", path.display())]
     TooManyTriangles { path: PathBuf, triangles: u64, limit: u64 },
-    #[error("{}: the file is {} but only {} of memory is available; it was not read", path.display(), crate::memory::human(*size), crate::memory::human(*available))]
-    FileTooLarge { path: PathBuf, size: u64, available: u64 },
+    #[error("{}: the file is {}, more than the limit of {} (--max-file-size); it was not read", path.display(), crate::memory::human(*size), crate::memory::human(*limit))]
+    FileTooLarge { path: PathBuf, size: u64, limit: u64 },
+    /// The file, or a file it refers to, breaks a rule for untrusted input (see docs/untrusted-files.md).
+    #[error("{}: {message}", path.display())]
+    Refused { path: PathBuf, message: String },
 }
 
-/// Limits on what a load may take in, checked before the file is read whole or parsed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Limits on what a load may take in, checked before the file is read whole or parsed, and where the files a
+/// mesh refers to may lie (docs/untrusted-files.md).
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LoadLimits {
     /// Largest number of triangles a mesh may have (counted from the file's structure before it is parsed).
     pub max_triangles: u64,
-    /// Largest file size in bytes; by default the memory available when the load starts.
+    /// The most bytes the mesh file may have, and the mesh with every file it refers to together; by default the
+    /// memory budget ([`crate::memory::default_budget`]) when the load starts.
     pub max_file_bytes: Option<u64>,
+    /// Folders besides the mesh's own that the files it refers to may lie in (a shared `textures/` beside a
+    /// folder of models, say). References are still resolved against the referencing file's folder.
+    pub resource_roots: Vec<PathBuf>,
 }
 
 impl LoadLimits {
@@ -222,7 +232,7 @@ impl LoadLimits {
 
 impl Default for LoadLimits {
     fn default() -> LoadLimits {
-        LoadLimits { max_triangles: Self::DEFAULT_MAX_TRIANGLES, max_file_bytes: None }
+        LoadLimits { max_triangles: Self::DEFAULT_MAX_TRIANGLES, max_file_bytes: None, resource_roots: Vec::new() }
     }
 }
 
@@ -294,19 +304,14 @@ pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
     load_path_with(path, &LoadLimits::default())
 }
 
-/// [`load_path`] within `limits`. A file larger than the memory available (or `max_file_bytes`) is refused
-/// before it is read.
+/// [`load_path`] within `limits`. The file and everything it refers to must be regular files; the file is
+/// checked against `max_file_bytes` before it is read, and the files it refers to must lie inside its folder
+/// or one of `resource_roots` (see `files.rs`).
 pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    let io = |source| MeshError::Io { path: path.to_path_buf(), source };
-    let size = std::fs::metadata(path).map_err(io)?.len();
-    if let Some(available) = limits.max_file_bytes.or_else(crate::memory::available)
-        && size > available
-    {
-        return Err(MeshError::FileTooLarge { path: path.to_path_buf(), size, available });
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
-    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    load_bytes_impl(path, &bytes, Externals::Dir(&base), limits)
+    let limit = limits.max_file_bytes.or_else(crate::memory::default_budget).unwrap_or(u64::MAX);
+    let access = Access::new(path, &limits.resource_roots, limit)?;
+    let bytes = access.read_mesh(path)?;
+    load_bytes_impl(path, &bytes, Externals::Dir(&access), limits)
 }
 
 /// Loads a mesh from memory (a browser upload, a drag-and-drop). `name` supplies the extension that picks the
@@ -325,37 +330,6 @@ pub fn load_files(files: &[(String, Vec<u8>)]) -> Result<Mesh, MeshError> {
         return Err(MeshError::UnsupportedFormat { path: PathBuf::from(names.join(", ")) });
     };
     load_bytes_impl(Path::new(name), bytes, Externals::Files(files), &LoadLimits::default())
-}
-
-/// Where a file's external references (glTF buffers and images, OBJ material libraries and textures) are read
-/// from: beside it on disk, among files handed over together, or nowhere.
-#[derive(Clone, Copy)]
-pub(crate) enum Externals<'a> {
-    None,
-    Dir(&'a Path),
-    Files(&'a [(String, Vec<u8>)]),
-}
-
-impl<'a> Externals<'a> {
-    /// The bytes of `uri` (relative, percent-encoded as glTF URIs are).
-    pub(crate) fn read(&self, uri: &str) -> Result<std::borrow::Cow<'a, [u8]>, String> {
-        let decoded = urlencoding::decode(uri).map_err(|e| format!("bad URI {uri}: {e}"))?;
-        match *self {
-            Externals::None => Err(format!("{uri} is a separate file, which cannot be read here")),
-            Externals::Dir(dir) => {
-                let file = dir.join(&*decoded);
-                std::fs::read(&file).map(Into::into).map_err(|e| format!("cannot read {}: {e}", file.display()))
-            }
-            Externals::Files(files) => {
-                let wanted = Path::new(&*decoded).file_name();
-                files
-                    .iter()
-                    .find(|(name, _)| Path::new(name).file_name() == wanted)
-                    .map(|(_, bytes)| bytes.as_slice().into())
-                    .ok_or_else(|| format!("{uri} was not among the files opened together with it"))
-            }
-        }
-    }
 }
 
 fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {

@@ -6,10 +6,12 @@
 //! faces will make (so an oversized mesh is refused before it is parsed) and checks every vertex and face
 //! statement, naming the line of the first problem.
 
+use super::files::{Externals, ReadError, RefStyle};
 use super::material::{Material, Shading, Texture, TextureRef, Wrap};
-use super::{Externals, LoadLimits, Mesh, MeshError, Part, Piece};
+use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DVec3, Vec4};
-use std::path::Path;
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let obj_err = |message: String| MeshError::Obj { path: path.to_path_buf(), message };
@@ -18,21 +20,42 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
 
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(bytes);
-    // Materials only matter for the part table, so a missing or broken .mtl is a warning, not an error.
-    let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| match base {
-        Externals::Dir(dir) => tobj::load_mtl(dir.join(mtl)),
-        other => match other.read(&mtl.to_string_lossy()) {
-            Ok(text) => tobj::load_mtl_buf(&mut std::io::BufReader::new(&text[..])),
-            Err(_) => Err(tobj::LoadError::OpenFileFailed),
-        },
+    // Each material library read, in order, with the number of materials it added (tobj appends them in that
+    // order) and its folder on disk, which its textures' names are relative to; and why any was not read.
+    let libraries: RefCell<Vec<(usize, Option<PathBuf>)>> = RefCell::default();
+    let unread: RefCell<Vec<ReadError>> = RefCell::default();
+    // Materials only matter for colour and the part table, so a missing or broken .mtl is a warning, not an error.
+    let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| {
+        match base.read(None, &mtl.to_string_lossy(), RefStyle::Path, None) {
+            Ok((text, real)) => {
+                let loaded = tobj::load_mtl_buf(&mut std::io::BufReader::new(&text[..]));
+                if let Ok((materials, _)) = &loaded {
+                    let folder = real.and_then(|r| r.parent().map(Path::to_path_buf));
+                    libraries.borrow_mut().push((materials.len(), folder));
+                }
+                loaded
+            }
+            Err(e) => {
+                unread.borrow_mut().push(e);
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
     })
     // The quick scan lets number-like words such as `1.2.3` through; tobj refuses them without saying where, so
     // the strict scan finds the line.
     .map_err(|e| obj_err(scan(bytes, true).err().unwrap_or_else(|| e.to_string())))?;
 
     let mut mesh = Mesh::default();
+    for e in unread.into_inner() {
+        let line = match e {
+            ReadError::Refused(_) => e.about("material library"),
+            ReadError::Failed(_) => format!("material library not loaded: {e}"),
+        };
+        mesh.warnings.push(format!("{}: {line}", path.display()));
+    }
     let materials = match materials {
         Ok(m) => m,
+        Err(tobj::LoadError::OpenFileFailed) => Vec::new(),
         Err(e) => {
             // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
             if bytes.windows(6).any(|w| w == b"mtllib") {
@@ -41,7 +64,10 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
             Vec::new()
         }
     };
-    let shading = read_materials(&mut mesh.warnings, path, &materials, base);
+    // Each material's library folder, where its texture names start.
+    let folders: Vec<Option<PathBuf>> =
+        libraries.into_inner().into_iter().flat_map(|(n, folder)| std::iter::repeat_n(folder, n)).collect();
+    let shading = read_materials(&mut mesh.warnings, path, &materials, &folders, base);
     let default_material = shading.materials.len() as u32 - 1;
     mesh.shading = Some(shading);
     // tobj parses coordinates as f64 (its `use_f64` feature), so a mesh far from the origin keeps its shape
@@ -102,24 +128,33 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     Ok(mesh)
 }
 
-/// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`), then a white default for faces without a
-/// material. A texture that cannot be read costs its material only the texture, with a warning.
-fn read_materials(warnings: &mut Vec<String>, path: &Path, materials: &[tobj::Material], base: Externals) -> Shading {
+/// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`, relative to the folder of the library that
+/// defined the material: `folders[i]` for material `i`, the mesh's folder when unknown), then a white default for
+/// faces without a material. A texture that cannot be read costs its material only the texture, with a warning.
+fn read_materials(
+    warnings: &mut Vec<String>,
+    path: &Path,
+    materials: &[tobj::Material],
+    folders: &[Option<PathBuf>],
+    base: Externals,
+) -> Shading {
     let mut shading = Shading::default();
-    // Texture file -> index in `shading.textures`, so materials sharing one decode it once.
-    let mut decoded: Vec<(String, Option<u32>)> = Vec::new();
-    for m in materials {
+    // (Library folder, texture name) -> index in `shading.textures`, so materials sharing one decode it once.
+    let mut decoded: Vec<(Option<&Path>, String, Option<u32>)> = Vec::new();
+    for (i, m) in materials.iter().enumerate() {
         let base_color = m.diffuse.map_or(Vec4::ONE, |d| Vec4::new(d[0] as f32, d[1] as f32, d[2] as f32, 1.0));
+        let folder = folders.get(i).and_then(Option::as_deref);
         // `map_Kd -s 1 1 1 wood.png`: the options come first, the file name last.
         let file = m.diffuse_texture.as_deref().and_then(|t| t.split_whitespace().last());
         let texture = file.and_then(|file| {
-            if let Some((_, index)) = decoded.iter().find(|(f, _)| f == file) {
+            if let Some((_, _, index)) = decoded.iter().find(|(d, f, _)| *d == folder && f == file) {
                 return *index;
             }
             // Texture names in MTL files are plain paths, not URIs: `%` in one is a percent sign.
             let read = base
-                .read(&urlencoding::encode(file))
-                .and_then(|bytes| Texture::decode(&bytes, [Wrap::Repeat; 2], false));
+                .read(folder, file, RefStyle::Path, None)
+                .map_err(|e| e.to_string())
+                .and_then(|(bytes, _)| Texture::decode(&bytes, [Wrap::Repeat; 2], false));
             let index = match read {
                 Ok(t) => {
                     shading.textures.push(t);
@@ -130,7 +165,7 @@ fn read_materials(warnings: &mut Vec<String>, path: &Path, materials: &[tobj::Ma
                     None
                 }
             };
-            decoded.push((file.to_string(), index));
+            decoded.push((folder, file.to_string(), index));
             index
         });
         let texture = texture.map(|texture| TextureRef { texture, transform: TextureRef::IDENTITY });

@@ -1,10 +1,13 @@
 //! Hostile input as users meet it: the corpus of broken files in `tests/corpus/bad` (and the fuzzers' kept
 //! crashers in `tests/fuzz/regressions`) must each give one clean error line, a non-zero exit, no panic and no
 //! output file; the odd-but-valid files in `tests/corpus/odd` must voxelize; absurd resolutions must be refused
-//! before anything large is allocated, with a message that says what fits.
+//! before anything large is allocated, with a message that says what fits. The corpus runs within
+//! `common::Bounds::HOSTILE` (address space, CPU time, wall time); `untrusted.rs` has the cases a file cannot hold
+//! (devices, FIFOs, links, references out of the folder).
 //!
 //! `tests/tools/make_corpus.py` wrote the corpus; `tests/corpus/README.md` says what is wrong with each file.
 
+use super::common::{Bounds, meshvox_bounded};
 use meshvox::mesh;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -59,7 +62,9 @@ fn every_bad_file_is_one_clean_error_without_output() {
         // The CLI: one line, exit status 1, nothing written.
         let dir = tempfile::tempdir().expect("tempdir");
         let path = file.to_string_lossy();
-        let out = meshvox(&["voxelize", &path, "-r", "16", "-o", "out.npy", "--backend", "cpu"], dir.path());
+        // Bounded: an unbounded read or a hang fails the test instead of exhausting the machine.
+        let args = ["voxelize", &path, "-r", "16", "-o", "out.npy", "--backend", "cpu"];
+        let out = meshvox_bounded(&args, dir.path(), &Bounds::HOSTILE);
         let line = the_error_line(&out, &name);
         assert!(line.contains(&name), "{name}: the error does not name the file: {line}");
         assert!(leftovers(dir.path()).is_empty(), "{name}: left {:?}", leftovers(dir.path()));
@@ -74,8 +79,8 @@ fn odd_but_valid_files_voxelize() {
         let name = file.file_name().expect("name").to_string_lossy().into_owned();
         let dir = tempfile::tempdir().expect("tempdir");
         let path = file.to_string_lossy();
-        let out =
-            meshvox(&["voxelize", &path, "-r", "24", "-o", "out.npy", "--backend", "cpu", "--stats-json"], dir.path());
+        let args = ["voxelize", &path, "-r", "24", "-o", "out.npy", "--backend", "cpu", "--stats-json"];
+        let out = meshvox_bounded(&args, dir.path(), &Bounds::HOSTILE);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{name}: {stderr}");
         let stdout = String::from_utf8_lossy(&out.stdout);
@@ -135,7 +140,7 @@ fn the_triangle_limit_refuses_a_mesh_before_reading_it_whole() {
     // A file larger than the memory there is (here: --max-memory) is not read at all.
     let out = meshvox(&["voxelize", &path, "-r", "8", "-o", "small.npy", "--max-memory", "1K"], dir.path());
     let line = the_error_line(&out, "a file larger than the memory");
-    assert!(line.contains("many.obj: the file is 9.8 KiB but only 1.0 KiB of memory"), "{line}");
+    assert!(line.contains("many.obj: the file is 9.8 KiB, more than the limit of 1.0 KiB (--max-file-size)"), "{line}");
     assert!(!dir.path().join("small.npy").exists());
 }
 

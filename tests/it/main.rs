@@ -20,5 +20,6 @@ mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;
 mod ui_snapshot;
+mod untrusted;
 mod url_state;
 mod view;
