@@ -9,8 +9,9 @@ use anyhow::{Context, Result, anyhow, bail};
 use bench::BenchArgs;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use meshvox::engine::{self, Backend, Engine, Request};
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{self, Axis, GridSpec, Mode, Resolution, export::VoxelFormat};
+use meshvox::voxel::{self, Axis, Mode, Resolution, export::VoxelFormat};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -85,17 +86,18 @@ struct ColourArgs {
 }
 
 impl ColourArgs {
-    /// Whether to colour this mesh's voxels; says so when --colour meets a mesh without colour.
-    fn wanted(&self, name: &str, mesh: &mesh::Mesh) -> bool {
-        if self.no_colour {
-            return false;
-        }
-        if self.colour && mesh.shading.is_none() {
+    /// Whether to colour this mesh's voxels.
+    fn wanted(&self, mesh: &mesh::Mesh) -> bool {
+        !self.no_colour && mesh.shading.is_some()
+    }
+
+    /// Says so when --colour meets a mesh without colour.
+    fn note_if_colourless(&self, name: &str, mesh: &mesh::Mesh) {
+        if self.colour && !self.no_colour && mesh.shading.is_none() {
             eprintln!(
                 "note: {name} has no colours (materials, textures or vertex colours); the voxels stay uncoloured"
             );
         }
-        mesh.shading.is_some()
     }
 }
 
@@ -113,25 +115,32 @@ impl LimitArgs {
         Ok(mesh)
     }
 
-    /// Lays the grid over the mesh and checks the memory it needs, before anything large is allocated.
-    fn grid(
+    /// A request within these limits (colour as `colour` says; no progress, no cancel).
+    fn request(
         &self,
-        name: &str,
-        mesh: &mesh::Mesh,
         resolution: Resolution,
         axis: Axis,
+        mode: Mode,
         format: Option<VoxelFormat>,
-    ) -> Result<GridSpec> {
-        let bounds = mesh.bounds().ok_or_else(|| anyhow!("{name}: contains no triangles"))?;
-        let spec = GridSpec::fit(bounds, resolution, axis).with_context(|| name.to_string())?;
-        // An explicit --max-memory is taken as given.
-        if let Some(budget) = self.max_memory.or_else(meshvox::memory::default_budget) {
-            let triangles = mesh.triangles.len() as u64;
-            voxel::budget::check(&spec, bounds, axis, triangles, format, budget)
-                .map_err(|e| anyhow!("{name}: {e} (or raise --max-memory)"))?;
+        colour: &ColourArgs,
+    ) -> Request<'static> {
+        Request {
+            axis,
+            colour: colour.no_colour.then_some(false),
+            max_memory: self.max_memory,
+            format,
+            ..Request::new(resolution, mode)
         }
-        Ok(spec)
     }
+}
+
+/// Opens the engine, telling what opening noticed (no adapter under `auto`).
+fn open_engine(backend: BackendArg) -> Result<Engine> {
+    let engine = Engine::open(backend.into())?;
+    for notice in engine.notices() {
+        eprintln!("{notice}");
+    }
+    Ok(engine)
 }
 
 #[derive(clap::Args)]
@@ -275,6 +284,16 @@ enum ModeArg {
     Surface6,
 }
 
+impl From<BackendArg> for Backend {
+    fn from(b: BackendArg) -> Backend {
+        match b {
+            BackendArg::Auto => Backend::Auto,
+            BackendArg::Gpu => Backend::Gpu,
+            BackendArg::Cpu => Backend::Cpu,
+        }
+    }
+}
+
 impl From<ModeArg> for Mode {
     fn from(m: ModeArg) -> Mode {
         match m {
@@ -385,8 +404,8 @@ fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
-    let engine = Engine::open(args.backend)?;
-    let stats = voxelize_loaded(args, format, &engine, &mesh, load_ms)?;
+    let engine = open_engine(args.backend)?;
+    let stats = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
     let d = &stats["dims"];
     eprintln!(
         "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
@@ -431,6 +450,7 @@ fn voxelize_loaded(
     engine: &Engine,
     mesh: &mesh::Mesh,
     load_ms: f64,
+    bars: bool,
 ) -> Result<serde_json::Value> {
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
@@ -439,62 +459,45 @@ fn voxelize_loaded(
         (None, Some(h)) => Resolution::VoxelSize(h),
         (None, None) => bail!("give -r N or --voxel-size H"),
     };
-    let spec = args.limits.grid(&args.mesh, mesh, resolution, args.axis.into(), Some(format))?;
-
-    let t_vox = Instant::now();
-    let mode = Mode::from(args.mode);
-    let result = engine.voxelize(mesh, spec, mode)?;
-    let voxelize_ms = ms(t_vox);
-    let grid = result.grid;
-    let voxels = grid.count();
-    let t_colour = Instant::now();
-    let colours = match args.colour.wanted(&args.mesh, mesh) {
-        true => Some(engine.colour(mesh, &grid)?),
-        false => None,
+    args.colour.note_if_colourless(&args.mesh, mesh);
+    let bar = match bars {
+        true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
+        false => ProgressBar::hidden(),
     };
-    let colour_ms = colours.as_ref().map(|_| ms(t_colour));
+    let progress = |done: usize, _: usize| bar.set_position(done as u64);
+    let request = Request {
+        progress: Some(&progress),
+        ..args.limits.request(resolution, args.axis.into(), args.mode.into(), Some(format), &args.colour)
+    };
+    let voxelized = engine.voxelize(&args.mesh, mesh, &request)?;
+    bar.finish_and_clear();
+    for notice in &voxelized.notices {
+        eprintln!("{notice}");
+    }
 
     let t_write = Instant::now();
     // The colour array beside an .npy grid is written first (atomically too), so a grid never appears without
     // the colours it was asked for.
-    let colours_file = match (&colours, format) {
-        (Some((c, _)), VoxelFormat::Npy) => {
+    let colours_file = match (&voxelized.colours, format) {
+        (Some(colours), VoxelFormat::Npy) => {
             let path = voxel::export::colours_npy_path(&args.output);
             let temp = temp_beside(&path)?;
-            write_atomically(temp, &path, |out| Ok(voxel::export::write_colours_npy(&grid, c, out)?))?;
+            write_atomically(temp, &path, |out| Ok(voxel::export::write_colours_npy(&voxelized.grid, colours, out)?))?;
             Some(path)
         }
         _ => None,
     };
-    let bytes = write_atomically(temp, &args.output, |out| {
-        Ok(voxel::export::write_coloured(&grid, colours.as_ref().map(|c| &c.0), format, args.merge, out)?)
-    })?;
-    let write_ms = ms(t_write);
-    let d = spec.dims;
-    Ok(serde_json::json!({
-        "mesh": args.mesh,
-        "triangles": mesh.triangles.len(),
-        "dims": [d.x, d.y, d.z],
-        "origin": [spec.origin.x, spec.origin.y, spec.origin.z],
-        "voxel_size": spec.voxel_size,
-        "voxels": voxels,
-        "mode": mode.name(),
-        "backend": result.backend,
-        "threads": rayon::current_num_threads(),
-        "gpu_ms": result.gpu_ms,
-        "exact_tests": result.exact_tests,
-        "setup_ms": engine.setup_ms,
-        "output": args.output.display().to_string(),
-        "format": format.extension(),
-        "colour": colours.as_ref().map(|(_, backend)| backend),
-        "colour_ms": colour_ms,
-        "colours_output": colours_file.as_ref().map(|p| p.display().to_string()),
-        "bytes": bytes,
-        "warnings": mesh.warnings,
-        "load_ms": load_ms,
-        "voxelize_ms": voxelize_ms,
-        "write_ms": write_ms,
-    }))
+    let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, args.merge, out)?))?;
+    let report = meshvox::Report {
+        output: args.output.display().to_string(),
+        format: format.extension().to_string(),
+        colours_output: colours_file.as_ref().map(|p| p.display().to_string()),
+        bytes,
+        load_ms,
+        write_ms: ms(t_write),
+        ..voxelized.report
+    };
+    Ok(serde_json::to_value(report)?)
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).
@@ -589,198 +592,6 @@ fn write_atomically(
     Ok(bytes)
 }
 
-/// `MESHVOX_SOFTWARE_GPU=1`: let `--backend auto` use a software adapter for compute as it would a hardware one
-/// (to exercise the GPU path's fallbacks where the only adapter is lavapipe).
-fn software_gpu_preferred() -> bool {
-    std::env::var("MESHVOX_SOFTWARE_GPU").is_ok_and(|v| v == "1")
-}
-
-/// A voxelization backend, opened once: the GPU (adapter, device and compiled pipelines) or the CPU.
-struct Engine {
-    gpu: Option<(meshvox::gpu::Gpu, meshvox::gpu::voxelize::GpuVoxelizer)>,
-    /// Whether the CPU may stand in when the GPU cannot take a request.
-    fallback: bool,
-    /// Time to acquire the adapter and compile the pipelines (not part of `voxelize_ms`).
-    setup_ms: f64,
-    /// Why `--backend auto` chose the CPU although there is an adapter (a software one), for `backend`.
-    cpu_reason: Option<String>,
-    /// Taken around each GPU voxelization and colouring: `batch` calls the engine from several threads, and
-    /// one device's work, error scopes and uncaptured-error slot are then kept to one file at a time.
-    gpu_turn: std::sync::Mutex<()>,
-    /// Nanoseconds spent in those turns, for `batch`'s account of what bounds a run.
-    gpu_busy_ns: std::sync::atomic::AtomicU64,
-    /// Whether a CPU voxelization draws its own triangle progress bar (not under `batch`'s bar over files).
-    bars: bool,
-}
-
-/// See [`Engine::gpu_turn`].
-struct GpuTurn<'a> {
-    _lock: std::sync::MutexGuard<'a, ()>,
-    started: Instant,
-    busy_ns: &'a std::sync::atomic::AtomicU64,
-}
-
-impl Drop for GpuTurn<'_> {
-    fn drop(&mut self) {
-        let ns = self.started.elapsed().as_nanos() as u64;
-        self.busy_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
-    }
-}
-
-struct EngineResult {
-    grid: voxel::VoxelGrid,
-    backend: String,
-    gpu_ms: Option<f64>,
-    /// Voxel tests the exact integer path decided (see `voxel::cpu::voxel_decision`).
-    exact_tests: Option<u64>,
-}
-
-impl Engine {
-    fn with(
-        gpu: Option<(meshvox::gpu::Gpu, meshvox::gpu::voxelize::GpuVoxelizer)>,
-        fallback: bool,
-        setup_ms: f64,
-        cpu_reason: Option<String>,
-    ) -> Engine {
-        Engine {
-            gpu,
-            fallback,
-            setup_ms,
-            cpu_reason,
-            gpu_turn: Default::default(),
-            gpu_busy_ns: Default::default(),
-            bars: true,
-        }
-    }
-
-    /// One thread's turn on the device (see `gpu_turn`), timed into `gpu_busy_ns` when it ends.
-    fn gpu_turn(&self) -> GpuTurn<'_> {
-        let lock = self.gpu_turn.lock().unwrap_or_else(|e| e.into_inner());
-        GpuTurn { _lock: lock, started: Instant::now(), busy_ns: &self.gpu_busy_ns }
-    }
-
-    /// Milliseconds the device was in use by this engine, or `None` on the CPU.
-    fn gpu_busy_ms(&self) -> Option<f64> {
-        self.gpu.as_ref().map(|_| self.gpu_busy_ns.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6)
-    }
-
-    fn open(backend: BackendArg) -> Result<Engine> {
-        let t = Instant::now();
-        if backend == BackendArg::Cpu {
-            return Ok(Engine::with(None, false, 0.0, None));
-        }
-        let opened = meshvox::gpu::Gpu::adapter_blocking().and_then(|adapter| {
-            let summary = meshvox::gpu::AdapterSummary::from_info(&adapter.get_info());
-            if backend == BackendArg::Auto && summary.is_software() && !software_gpu_preferred() {
-                // A software adapter runs compute on the same cores, slower than the CPU voxelizer (see
-                // bench/RESULTS.md); no device is opened, so no pipelines are compiled either.
-                return Ok(Err(summary));
-            }
-            pollster::block_on(meshvox::gpu::Gpu::from_adapter(adapter)).map(Ok)
-        });
-        match opened {
-            Ok(Ok(gpu)) => {
-                let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-                Ok(Engine::with(Some((gpu, v)), backend == BackendArg::Auto, ms(t), None))
-            }
-            Ok(Err(software)) => {
-                let reason = format!("auto: the only adapter, {}, is software", software.name);
-                Ok(Engine::with(None, true, ms(t), Some(reason)))
-            }
-            Err(e) if backend == BackendArg::Auto => {
-                eprintln!("note: {e}; using the CPU voxelizer");
-                Ok(Engine::with(None, true, ms(t), None))
-            }
-            Err(e) => Err(e.into()),
-        }
-    }
-
-    /// Host triangles to host grid, including the upload and readback on the GPU.
-    /// Where voxelizations run, as `backend` says it.
-    fn label(&self) -> String {
-        match &self.gpu {
-            Some((gpu, _)) => format!("gpu: {}", gpu.summary),
-            None => self.cpu_label(),
-        }
-    }
-
-    /// `backend` for a voxelization on the CPU.
-    fn cpu_label(&self) -> String {
-        match &self.cpu_reason {
-            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
-            None => format!("cpu ({} threads)", rayon::current_num_threads()),
-        }
-    }
-
-    fn voxelize(&self, mesh: &mesh::Mesh, spec: GridSpec, mode: Mode) -> Result<EngineResult> {
-        if let Some((gpu, v)) = &self.gpu {
-            let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
-            let options = meshvox::gpu::voxelize::Options { read_grid: true, mode, ..Default::default() };
-            let turn = self.gpu_turn();
-            let voxelized = v.voxelize(gpu, &tris, spec, &options);
-            drop(turn);
-            match voxelized {
-                Ok(out) => {
-                    let grid = out.grid.ok_or_else(|| anyhow!("the GPU returned no grid"))?;
-                    let mut backend = format!("gpu: {}", gpu.summary);
-                    if out.decided_on_cpu {
-                        // Exact either way; said so that timings are not taken for the GPU's.
-                        backend.push_str(" (overflow: decided on the CPU)");
-                    }
-                    return Ok(EngineResult { grid, backend, gpu_ms: out.gpu_ms, exact_tests: out.exact_tests });
-                }
-                Err(e @ meshvox::gpu::GpuError::TooLarge { .. }) if self.fallback => {
-                    eprintln!("note: {e}; using the CPU voxelizer");
-                }
-                // Lost, out of memory, hung: the same grid comes from the CPU, said loudly because it is slower
-                // and because the GPU may need looking at.
-                Err(e) if self.fallback && e.is_device_failure() => {
-                    eprintln!("warning: {e}; voxelizing on the CPU instead");
-                }
-                Err(e) => return Err(e.into()),
-            }
-        }
-        let bar = match self.bars {
-            true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
-            false => ProgressBar::hidden(),
-        };
-        let tris = voxel::cpu::grid_space_triangles(mesh, &spec)?;
-        let (grid, stats) =
-            voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, &|done, _| bar.set_position(done as u64))
-                .with_context(|| format!("{}×{}×{} grid", spec.dims.x, spec.dims.y, spec.dims.z))?;
-        bar.finish_and_clear();
-        Ok(EngineResult { grid, backend: self.cpu_label(), gpu_ms: None, exact_tests: Some(stats.exact_tests) })
-    }
-}
-
-impl Engine {
-    /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU;
-    /// returns the colours and where they were computed.
-    fn colour(&self, mesh: &mesh::Mesh, grid: &voxel::VoxelGrid) -> Result<(voxel::colour::VoxelColours, String)> {
-        let shading = mesh.shading.as_ref().ok_or_else(|| anyhow!("the mesh has no colours"))?;
-        let tris = voxel::cpu::grid_space_triangles(mesh, &grid.spec)?;
-        if let Some((gpu, _)) = &self.gpu {
-            use meshvox::gpu::colour::GpuColourer;
-            if GpuColourer::fits(gpu, grid, tris.len(), shading) {
-                let turn = self.gpu_turn();
-                let coloured = GpuColourer::new(gpu).colour(gpu, grid, &tris, shading);
-                drop(turn);
-                match coloured {
-                    Ok(c) => return Ok((c, format!("gpu: {}", gpu.summary))),
-                    Err(e) if self.fallback && e.is_device_failure() => {
-                        eprintln!("warning: {e}; colouring on the CPU instead");
-                    }
-                    Err(e) => return Err(e.into()),
-                }
-            } else if !self.fallback {
-                bail!("the grid or the mesh's textures are too large for one GPU binding; colour with --backend cpu");
-            }
-        }
-        let colours = voxel::colour::colour_voxels(grid, &tris, shading);
-        Ok((colours, format!("cpu ({} threads)", rayon::current_num_threads())))
-    }
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -794,15 +605,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let temp = temp_beside(&args.output)?;
     let mesh = args.limits.load(&args.mesh)?;
-    let spec = args.limits.grid(&args.mesh, &mesh, Resolution::Count(args.resolution), args.axis.into(), None)?;
-    let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     let mode = Mode::from(args.mode);
+    let request = args.limits.request(Resolution::Count(args.resolution), args.axis.into(), mode, None, &args.colour);
+    let spec = engine::plan(&args.mesh, &mesh, &request)?;
+    let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     let t = Instant::now();
     let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-    let colour = args.colour.wanted(&args.mesh, &mesh);
+    let colour = args.colour.wanted(&mesh);
+    args.colour.note_if_colourless(&args.mesh, &mesh);
     // On a software adapter `auto` voxelizes on the CPU (faster there; see `Engine::open`) and only draws on it.
     let cpu = args.backend == BackendArg::Cpu
-        || (args.backend == BackendArg::Auto && gpu.summary.is_software() && !software_gpu_preferred());
+        || (args.backend == BackendArg::Auto && gpu.summary.is_software() && !engine::software_gpu_preferred());
     let ao = !args.no_ao;
     // What a host grid gives: its shown voxels (exposed, before the cut) as instances, and their occlusion.
     let from_grid = |grid: &voxel::VoxelGrid| {
@@ -814,13 +627,15 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let (voxels, colours, backend, occlusion) = if cpu || colour {
         // Colours, cut-aways and occlusion need the whole grid on the host.
-        let engine = Engine::open(args.backend)?;
-        let result = engine.voxelize(&mesh, spec, mode)?;
+        let engine = open_engine(args.backend)?;
+        let result = engine.voxelize_spec(&mesh, spec, mode, None)?;
+        result.notices.iter().for_each(|n| eprintln!("{n}"));
         let grid = result.grid;
         let (shown, occlusion) = from_grid(&grid);
         if colour {
-            let (c, _) = engine.colour(&mesh, &grid)?;
-            let (voxels, colours) = meshvox::render::coloured_instances(&gpu.device, &grid, &shown, &c);
+            let c = engine.colour(&mesh, &grid)?;
+            c.notices.iter().for_each(|n| eprintln!("{n}"));
+            let (voxels, colours) = meshvox::render::coloured_instances(&gpu.device, &grid, &shown, &c.colours);
             (voxels, Some(colours), result.backend, occlusion)
         } else {
             (instances_from_grid(&gpu.device, &shown), None, result.backend, occlusion)

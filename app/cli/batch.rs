@@ -2,7 +2,9 @@
 //! parsing and writing on worker threads overlapping the voxelization, outputs mirroring the inputs' paths, a
 //! deterministic `--shard I/N` slice for cluster job arrays, `--skip-existing` to resume and a JSONL manifest.
 
-use super::{BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, output_format, voxelize_loaded};
+use super::{
+    BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, open_engine, output_format, voxelize_loaded,
+};
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::voxel::export::VoxelFormat;
 use std::io::{IsTerminal, Write};
@@ -230,8 +232,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         )),
         None => None,
     };
-    let mut engine = Engine::open(args.backend)?;
-    engine.bars = false;
+    let engine = open_engine(args.backend)?;
     let total = items.len();
     let mut tally = Tally::default();
     let bar = files_bar(total as u64);
@@ -382,7 +383,7 @@ fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Re
     if let Some(parent) = args.output.parent() {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
     }
-    voxelize_loaded(args, format, engine, &mesh, load_ms)
+    voxelize_loaded(args, format, engine, &mesh, load_ms, false)
 }
 
 /// What became of one input.

@@ -3,7 +3,7 @@
 //! 2048 with peak memory; `--out` and `--markdown` write the results, so `bench/RESULTS.md` is written by the
 //! tool, not pasted.
 
-use super::{BackendArg, Engine, ModeArg, median, ms};
+use super::{BackendArg, Engine, ModeArg, median, ms, open_engine};
 use anyhow::{Context, Result, anyhow};
 use meshvox::mesh::{self, Mesh, builtin};
 use meshvox::voxel::{Axis, GridSpec, Mode, Resolution};
@@ -215,8 +215,8 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     let mut engines = Vec::new();
     for &backend in &args.backends {
         let t = Instant::now();
-        let engine = match Engine::open(backend) {
-            Ok(e) if backend != BackendArg::Gpu || e.gpu.is_some() => e,
+        let engine = match open_engine(backend) {
+            Ok(e) if backend != BackendArg::Gpu || e.uses_gpu() => e,
             Ok(_) => continue,
             Err(e) => {
                 eprintln!("note: skipping the GPU backend: {e:#}");
@@ -224,7 +224,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             }
         };
         let cold = ms(t);
-        let warm = Engine::open(backend).map(|e| e.setup_ms).unwrap_or(f64::NAN);
+        let warm = Engine::open(backend.into()).map(|e| e.setup_ms()).unwrap_or(f64::NAN);
         let mut label = None;
         for case in &cases {
             let (name, m) = &meshes[case.mesh];
@@ -239,7 +239,8 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
                 // The previous run's grid is dropped first, so the peak is one run's.
                 drop(last.take());
                 let t = Instant::now();
-                let out = engine.voxelize(m, spec, case.mode)?;
+                let out = engine.voxelize_spec(m, spec, case.mode, None)?;
+                out.notices.iter().for_each(|n| eprintln!("{n}"));
                 runs.push(ms(t));
                 gpu.extend(out.gpu_ms);
                 last = Some(out);

@@ -6,6 +6,7 @@ mod colour;
 mod common;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;
+mod engine;
 mod exactness;
 mod far;
 mod formats;

@@ -1,0 +1,79 @@
+//! The library's engine is what the CLI runs (issue 28): for every output format, on shared meshes with and
+//! without colour, the bytes `meshvox voxelize` writes are the bytes `Engine::voxelize` and `Voxelized::write`
+//! give through the public API, and the `--stats-json` line is the engine's `Report` with the CLI's output fields
+//! filled in.
+
+use super::common::shared_meshes;
+use meshvox::voxel::export::VoxelFormat;
+use meshvox::voxel::{Mode, Resolution};
+use meshvox::{Backend, Engine, Request};
+
+#[test]
+fn the_cli_writes_what_the_public_api_writes() {
+    let Some(dir) = shared_meshes() else { return };
+    let engine = Engine::open(Backend::Cpu).expect("the CPU engine");
+    let out = tempfile::tempdir().expect("tempdir");
+    for (file, n, mode) in [("suzanne.obj", 40, Mode::Solid), ("gltf/Duck.glb", 33, Mode::Surface)] {
+        let path = dir.join(file).to_string_lossy().into_owned();
+        let mesh = meshvox::mesh::load(&path).expect("load");
+        for ext in ["npy", "binvox", "vox", "glb", "ply", "obj"] {
+            let target = out.path().join(format!("grid.{ext}"));
+            let format = VoxelFormat::from_extension(&target).expect("a format");
+            let cli = super::cli::meshvox(
+                &[
+                    "voxelize",
+                    &path,
+                    "-r",
+                    &n.to_string(),
+                    "--mode",
+                    mode.name(),
+                    "-o",
+                    &target.to_string_lossy(),
+                    "--backend",
+                    "cpu",
+                    "--stats-json",
+                ],
+                out.path(),
+            );
+            let stats = super::cli::stats(&cli);
+
+            let request = Request { format: Some(format), ..Request::new(Resolution::Count(n), mode) };
+            let result = engine.voxelize(&path, &mesh, &request).expect("voxelize through the API");
+            let mut bytes = Vec::new();
+            result.write(format, false, &mut bytes).expect("write");
+            let written = std::fs::read(&target).expect("the CLI's output");
+            assert!(
+                written == bytes,
+                "{file} as .{ext}: the CLI wrote {} bytes, the API {}",
+                written.len(),
+                bytes.len()
+            );
+            if let (Some(colours), "npy") = (&result.colours, ext) {
+                let mut api = Vec::new();
+                meshvox::voxel::export::write_colours_npy(&result.grid, colours, &mut api).expect("colours");
+                let cli = std::fs::read(out.path().join("grid.colors.npy")).expect("the CLI's colours");
+                assert!(cli == api, "{file}: .colors.npy differs");
+            }
+
+            // The report: every field but the times and what only writing knows.
+            let mut report = serde_json::to_value(&result.report).expect("a report serializes");
+            let mut stats = stats;
+            for key in
+                ["load_ms", "voxelize_ms", "colour_ms", "write_ms", "output", "format", "bytes", "colours_output"]
+            {
+                report[key] = serde_json::Value::Null;
+                stats[key] = serde_json::Value::Null;
+            }
+            assert_eq!(report, stats, "{file} as .{ext}");
+            for entry in std::fs::read_dir(out.path()).expect("ls") {
+                std::fs::remove_file(entry.expect("entry").path()).expect("rm");
+            }
+        }
+        assert_eq!(result_is_coloured(&engine, &path, &mesh), file.ends_with(".glb"), "{file}");
+    }
+}
+
+fn result_is_coloured(engine: &Engine, name: &str, mesh: &meshvox::mesh::Mesh) -> bool {
+    let request = Request::new(Resolution::Count(8), Mode::Surface);
+    engine.voxelize(name, mesh, &request).expect("voxelize").colours.is_some()
+}
