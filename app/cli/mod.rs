@@ -1,0 +1,288 @@
+//! Command-line interface: one file per subcommand (`voxelize`, `render`, `view`, `batch`, `bench`), the
+//! arguments they share here, and `output` (atomic writes, Ctrl-C). Errors are reported as one line naming the file
+//! and the problem, with a non-zero exit status; output files are written to a temporary file beside the target and
+//! renamed into place, so a failure never leaves half a file behind. Every subcommand voxelizes through the library's
+//! [`meshvox::Engine`].
+
+mod batch;
+mod bench;
+mod output;
+mod render;
+mod view;
+mod voxelize;
+
+use anyhow::Result;
+use bench::BenchArgs;
+use clap::{Parser, Subcommand, ValueEnum};
+use meshvox::engine::{self, Backend, Engine, Request};
+use meshvox::mesh::{self, builtin};
+use meshvox::voxel::{Axis, Mode, Resolution, export::VoxelFormat};
+use output::remove_partials_on_interrupt;
+use render::RenderArgs;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+use view::ViewArgs;
+use voxelize::{VoxelizeArgs, output_format, voxelize_loaded};
+
+#[derive(Parser)]
+#[command(
+    name = "meshvox",
+    version,
+    about = "GPU mesh voxelizer and voxel viewer",
+    after_help = "Without a command, meshvox opens the viewer on builtin:rotated-cube."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Open the viewer window on a mesh (the default command).
+    View(ViewArgs),
+    /// Voxelize a mesh and write the grid as .npy, .binvox or .vox, or the voxel model as .glb, .ply or .obj.
+    Voxelize(VoxelizeArgs),
+    /// List the bundled meshes accepted as builtin:NAME.
+    Builtins,
+    /// Time voxelization on the CPU and GPU backends over a fixed set of meshes and resolutions.
+    Bench(BenchArgs),
+    /// Voxelize a mesh and render the voxels to a PNG, without a window.
+    Render(RenderArgs),
+    /// Voxelize many meshes (files, directories, glob patterns) with one engine, outputs mirroring the inputs.
+    Batch(batch::BatchArgs),
+}
+
+/// Limits on what one request may take, shared by the commands that load and voxelize a mesh.
+#[derive(clap::Args, Clone)]
+struct LimitArgs {
+    /// Refuse meshes with more triangles than this (counted before the file is parsed).
+    #[arg(long, value_name = "N", default_value_t = mesh::LoadLimits::DEFAULT_MAX_TRIANGLES)]
+    max_triangles: u64,
+    /// Host memory a voxelization may use (512M, 8G, …); default: what the machine has available.
+    #[arg(long, value_name = "SIZE", value_parser = meshvox::memory::parse_size)]
+    max_memory: Option<u64>,
+    /// The most a mesh file, and the mesh with every file it refers to, may have (512M, 2G, …); larger files are
+    /// refused before they are read. Default: --max-memory, or four fifths of the memory available.
+    #[arg(long, value_name = "SIZE", value_parser = meshvox::memory::parse_size)]
+    max_file_size: Option<u64>,
+    /// A folder the files a mesh refers to (glTF buffers and images, OBJ material libraries and textures) may
+    /// also lie in, besides the mesh's own folder (repeatable).
+    #[arg(long, value_name = "DIR", value_parser = parse_dir)]
+    resource_root: Vec<PathBuf>,
+}
+
+/// An existing directory, for --resource-root.
+fn parse_dir(s: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(s);
+    match path.is_dir() {
+        true => Ok(path),
+        false => Err(format!("'{s}' is not a directory")),
+    }
+}
+
+/// Voxel colours from the mesh's materials, shared by the commands that voxelize.
+#[derive(clap::Args, Clone)]
+struct ColourArgs {
+    /// Colour the voxels from the mesh's materials, textures and vertex colours: the colour of the surface point
+    /// nearest each voxel's centre (default: on when the mesh has any colour).
+    #[arg(long, overrides_with = "no_colour")]
+    colour: bool,
+    /// Leave the voxels uncoloured even when the mesh has colour.
+    #[arg(long)]
+    no_colour: bool,
+}
+
+impl ColourArgs {
+    /// Whether to colour this mesh's voxels.
+    fn wanted(&self, mesh: &mesh::Mesh) -> bool {
+        !self.no_colour && mesh.shading.is_some()
+    }
+
+    /// Says so when --colour meets a mesh without colour.
+    fn note_if_colourless(&self, name: &str, mesh: &mesh::Mesh) {
+        if self.colour && !self.no_colour && mesh.shading.is_none() {
+            eprintln!(
+                "note: {name} has no colours (materials, textures or vertex colours); the voxels stay uncoloured"
+            );
+        }
+    }
+}
+
+impl LimitArgs {
+    fn load(&self, spec: &str) -> Result<mesh::Mesh> {
+        let limits = mesh::LoadLimits {
+            max_triangles: self.max_triangles,
+            max_file_bytes: self.max_file_size.or(self.max_memory),
+            resource_roots: self.resource_root.clone(),
+        };
+        let mesh = mesh::load_with(spec, &limits)?;
+        for w in &mesh.warnings {
+            eprintln!("warning: {w}");
+        }
+        Ok(mesh)
+    }
+
+    /// A request within these limits (colour as `colour` says; no progress, no cancel).
+    fn request(
+        &self,
+        resolution: Resolution,
+        axis: Axis,
+        mode: Mode,
+        format: Option<VoxelFormat>,
+        colour: &ColourArgs,
+    ) -> Request<'static> {
+        Request {
+            axis,
+            colour: colour.no_colour.then_some(false),
+            max_memory: self.max_memory,
+            format,
+            ..Request::new(resolution, mode)
+        }
+    }
+}
+
+/// Opens the engine, telling what opening noticed (no adapter under `auto`).
+fn open_engine(backend: BackendArg) -> Result<Engine> {
+    let engine = Engine::open(backend.into())?;
+    for notice in engine.notices() {
+        eprintln!("{notice}");
+    }
+    Ok(engine)
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum BackendArg {
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+/// What to voxelize (`voxel::Mode`).
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ModeArg {
+    /// The conservative surface: every voxel a triangle touches (26-separating).
+    Surface,
+    /// The surface plus every voxel whose centre is inside (generalized winding number >= 1/2).
+    Solid,
+    /// The thin surface (6-separating): no face-connected leak from inside a closed mesh.
+    Surface6,
+}
+
+impl From<BackendArg> for Backend {
+    fn from(b: BackendArg) -> Backend {
+        match b {
+            BackendArg::Auto => Backend::Auto,
+            BackendArg::Gpu => Backend::Gpu,
+            BackendArg::Cpu => Backend::Cpu,
+        }
+    }
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::Surface => Mode::Surface,
+            ModeArg::Solid => Mode::Solid,
+            ModeArg::Surface6 => Mode::Surface6,
+        }
+    }
+}
+
+/// `--up y|z`.
+fn parse_up(s: &str) -> Result<meshvox::render::camera::UpAxis, String> {
+    meshvox::render::camera::UpAxis::from_name(s).ok_or_else(|| format!("'{s}': use y or z"))
+}
+
+/// `--view NAME`, one of the preset views.
+fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
+    use meshvox::render::camera::ViewPreset;
+    ViewPreset::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = ViewPreset::ALL.iter().map(|v| v.name()).collect();
+        format!("'{s}': use one of {}", names.join(", "))
+    })
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum AxisArg {
+    Longest,
+    X,
+    Y,
+    Z,
+}
+
+impl From<AxisArg> for Axis {
+    fn from(a: AxisArg) -> Axis {
+        match a {
+            AxisArg::Longest => Axis::Longest,
+            AxisArg::X => Axis::X,
+            AxisArg::Y => Axis::Y,
+            AxisArg::Z => Axis::Z,
+        }
+    }
+}
+
+pub fn main() -> ExitCode {
+    quiet_headless_vulkan();
+    let cli = Cli::parse();
+    if matches!(cli.command, Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_))) {
+        remove_partials_on_interrupt();
+    }
+    let result = match cli.command {
+        None => view::view(&ViewArgs {
+            mesh: format!("builtin:{}", builtin::DEFAULT),
+            resolution: meshvox::ui::DEFAULT_RESOLUTION,
+            up: None,
+        }),
+        Some(Command::View(args)) => view::view(&args),
+        Some(Command::Voxelize(args)) => voxelize::voxelize(&args),
+        Some(Command::Bench(args)) => bench::bench(&args),
+        // Its own exit status: some files may have failed while the run as a whole went through.
+        Some(Command::Batch(args)) => match batch::batch(&args) {
+            Ok(code) => return code,
+            Err(e) => Err(e),
+        },
+        Some(Command::Render(args)) => render::render(&args),
+        Some(Command::Builtins) => {
+            for name in builtin::NAMES {
+                println!("builtin:{name:<14} {}", builtin::describe(name));
+            }
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Keeps Mesa's Vulkan device-selection layer from probing for a Wayland compositor where there can be none.
+///
+/// Every Mesa install enables that layer implicitly. When the instance has the Wayland surface extension (wgpu
+/// enables every window-system extension the driver offers) the layer calls `wl_display_connect` to find the
+/// GPU driving the display, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment.` twice when that variable is missing, as on servers, in containers and in CI: an alarming line
+/// on every headless run although nothing is wrong. The layer only reorders adapters, and wgpu chooses among
+/// them itself, so where there is no runtime directory the layer is switched off through its documented
+/// `NODEVICE_SELECT` variable.
+#[allow(unsafe_code)]
+fn quiet_headless_vulkan() {
+    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| Path::new(&d).is_dir());
+    if !runtime_dir && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: this runs first thing in `main`, before any other thread exists (no rayon pool, no wgpu
+        // instance), so nothing can read the environment while it changes.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
+fn ms(since: Instant) -> f64 {
+    (since.elapsed().as_secs_f64() * 1e3 * 1000.0).round() / 1000.0
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}

@@ -1,0 +1,164 @@
+//! `meshvox voxelize`: one mesh to one output file, through the engine; `batch` shares [`voxelize_loaded`].
+
+use super::output::{temp_beside, write_atomically};
+use super::{AxisArg, BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, Request, ms, open_engine};
+use anyhow::{Result, anyhow, bail};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use meshvox::mesh;
+use meshvox::voxel::{self, Mode, Resolution, export::VoxelFormat};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args, Clone)]
+#[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
+pub(super) struct VoxelizeArgs {
+    /// Mesh file (.obj, .gltf, .glb) or builtin:NAME (see `meshvox builtins`).
+    #[arg(value_name = "MESH")]
+    pub(super) mesh: String,
+    /// Number of voxels along the axis chosen by --axis.
+    #[arg(short = 'r', long = "resolution", value_name = "N")]
+    pub(super) resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units, instead of -r.
+    #[arg(long = "voxel-size", value_name = "H", allow_negative_numbers = true)]
+    pub(super) voxel_size: Option<f64>,
+    /// Axis along which -r counts voxels.
+    #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
+    pub(super) axis: AxisArg,
+    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; or .glb, .ply or .obj for the voxel model's
+    /// outer faces as a mesh in world space.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    pub(super) output: PathBuf,
+    /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
+    #[arg(long)]
+    pub(super) merge: bool,
+    /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
+    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
+    pub(super) mode: ModeArg,
+    /// Print a JSON object with the statistics as the last line of stdout.
+    #[arg(long)]
+    pub(super) stats_json: bool,
+    /// Where to voxelize: the GPU when there is an adapter (auto), only the GPU, or only the CPU.
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    pub(super) backend: BackendArg,
+    #[command(flatten)]
+    pub(super) colour: ColourArgs,
+    #[command(flatten)]
+    pub(super) limits: LimitArgs,
+}
+
+pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
+    let format = output_format(args)?;
+    // An unwritable destination should fail before the mesh is even read.
+    drop(temp_beside(&args.output)?);
+    let t_load = Instant::now();
+    let mesh = args.limits.load(&args.mesh)?;
+    let load_ms = ms(t_load);
+    let engine = open_engine(args.backend)?;
+    let stats = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
+    let d = &stats["dims"];
+    eprintln!(
+        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
+        args.mesh,
+        mesh.triangles.len(),
+        d[0],
+        d[1],
+        d[2],
+        stats["voxel_size"].as_f64().unwrap_or_default(),
+        stats["voxels"],
+        Mode::from(args.mode),
+        stats["voxelize_ms"].as_f64().unwrap_or_default(),
+        stats["backend"].as_str().unwrap_or_default(),
+        args.output.display(),
+        stats["bytes"],
+    );
+    if args.stats_json {
+        println!("{stats}");
+    }
+    Ok(())
+}
+
+/// The output format `-o` names, checked against `--merge`.
+pub(super) fn output_format(args: &VoxelizeArgs) -> Result<VoxelFormat> {
+    let format = VoxelFormat::from_extension(&args.output).ok_or_else(|| {
+        anyhow!(
+            "{}: unknown output format (use a .npy, .binvox or .vox extension, or .glb, .ply or .obj for a mesh)",
+            args.output.display()
+        )
+    })?;
+    if args.merge && !matches!(format, VoxelFormat::Mesh(_)) {
+        bail!("--merge joins the faces of a mesh output: use a .glb, .ply or .obj file");
+    }
+    Ok(format)
+}
+
+/// Voxelizes a loaded mesh as `args` ask, on `engine`, and writes the output atomically; returns the
+/// `--stats-json` object. Shared by `voxelize` and `batch`, so both write the same bytes.
+pub(super) fn voxelize_loaded(
+    args: &VoxelizeArgs,
+    format: VoxelFormat,
+    engine: &Engine,
+    mesh: &mesh::Mesh,
+    load_ms: f64,
+    bars: bool,
+) -> Result<serde_json::Value> {
+    // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
+    let temp = temp_beside(&args.output)?;
+    let resolution = match (args.resolution, args.voxel_size) {
+        (Some(n), _) => Resolution::Count(n),
+        (None, Some(h)) => Resolution::VoxelSize(h),
+        (None, None) => bail!("give -r N or --voxel-size H"),
+    };
+    args.colour.note_if_colourless(&args.mesh, mesh);
+    let bar = match bars {
+        true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
+        false => ProgressBar::hidden(),
+    };
+    let progress = |done: usize, _: usize| bar.set_position(done as u64);
+    let request = Request {
+        progress: Some(&progress),
+        ..args.limits.request(resolution, args.axis.into(), args.mode.into(), Some(format), &args.colour)
+    };
+    let voxelized = engine.voxelize(&args.mesh, mesh, &request)?;
+    bar.finish_and_clear();
+    for notice in &voxelized.notices {
+        eprintln!("{notice}");
+    }
+
+    let t_write = Instant::now();
+    // The colour array beside an .npy grid is written first (atomically too), so a grid never appears without
+    // the colours it was asked for.
+    let colours_file = match (&voxelized.colours, format) {
+        (Some(colours), VoxelFormat::Npy) => {
+            let path = voxel::export::colours_npy_path(&args.output);
+            let temp = temp_beside(&path)?;
+            write_atomically(temp, &path, |out| Ok(voxel::export::write_colours_npy(&voxelized.grid, colours, out)?))?;
+            Some(path)
+        }
+        _ => None,
+    };
+    let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, args.merge, out)?))?;
+    let report = meshvox::Report {
+        output: args.output.display().to_string(),
+        format: format.extension().to_string(),
+        colours_output: colours_file.as_ref().map(|p| p.display().to_string()),
+        bytes,
+        load_ms,
+        write_ms: ms(t_write),
+        ..voxelized.report
+    };
+    Ok(serde_json::to_value(report)?)
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).
+pub(super) fn progress_bar(len: u64, message: &'static str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} triangles ({eta})") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(message);
+    bar
+}
