@@ -6,7 +6,7 @@
 //! whether they do, and callers colour larger grids with the CPU reference.
 
 use super::readback::read_buffer;
-use super::voxelize::{pipeline, scoped, storage_entry, uniform_entry};
+use super::util::{pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;

@@ -2,7 +2,7 @@
 //! instanced drawing and sparse output, without a CPU loop over the dense grid.
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
-use super::voxelize::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
+use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::GridSpec;
 use glam::UVec3;

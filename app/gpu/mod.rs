@@ -5,6 +5,7 @@ pub mod colour;
 pub mod compact;
 mod readback;
 mod solid;
+mod util;
 pub mod voxelize;
 
 pub use readback::watchdog;
@@ -237,11 +238,7 @@ impl Gpu {
     }
 }
 
-/// Splits `groups` workgroups into a 2D dispatch within the 65,535-per-dimension limit.
-pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
-    let x = groups.clamp(1, 65_535);
-    (x, groups.div_ceil(x))
-}
+pub(crate) use util::dispatch_2d;
 
 /// Maps a MAP_READ buffer whose copy has been submitted and returns its bytes once the GPU is done.
 pub async fn map_read_async(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {

@@ -6,7 +6,7 @@
 //! (which only open meshes have) are found on the host, where welding vertices by position is a sort.
 
 use super::readback::{first_word, read_buffer};
-use super::voxelize::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
+use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};

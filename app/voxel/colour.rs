@@ -21,7 +21,7 @@
 //! ones; their colours then differ only across a material or texture seam.
 
 use super::VoxelGrid;
-use super::cpu::{ceil, dot3, floor};
+use super::exact::{ceil, dot3, floor};
 use crate::mesh::Shading;
 use crate::mesh::material::{SRGB_TO_LINEAR, Texture, TriangleShading, Wrap};
 use glam::{IVec3, UVec3, Vec2, Vec3, Vec4};

@@ -33,23 +33,13 @@
 //! is a superset of the exact range), and every voxel outside the filled interval still goes through the full
 //! test, so the result equals testing the whole bounding box.
 
+pub use super::exact::{ERROR_FACTOR, ceil, dot3, exact_normal_component, floor};
 use super::lattice::{Lattice, on_lattice};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
 use glam::{IVec3, UVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-
-/// Relative factor of the forward error bounds: `2^-19`, i.e. 32 units of f32 roundoff. The derivations at
-/// [`setup_triangle`] and [`setup_edges`] need at most 14 (a sum of at most six products in any order, plus the
-/// set-up's own roundings); the rest covers the roundings in computing the bounds themselves.
-pub const ERROR_FACTOR: f32 = 1.0 / 524_288.0;
-
-/// `a · b`.
-#[inline]
-pub fn dot3(a: Vec3, b: Vec3) -> f32 {
-    a.x * b.x + a.y * b.y + a.z * b.z
-}
 
 /// `a · q + d`: an edge function.
 #[inline]
@@ -104,24 +94,6 @@ fn orientation(sign: i32) -> f32 {
     if sign >= 0 { 1.0 } else { -1.0 }
 }
 
-/// WGSL's `floor`. Without SSE4.1 (not in the x86-64 baseline) `f32::floor` is a libm call, which took a tenth
-/// of the CPU voxelizer's time; a value of magnitude `2^23` or more is already an integer.
-#[inline]
-pub fn floor(x: f32) -> f32 {
-    if x.abs() < 8_388_608.0 {
-        let t = x as i32 as f32;
-        if t > x { t - 1.0 } else { t }
-    } else {
-        x
-    }
-}
-
-/// WGSL's `ceil` (see [`floor`]).
-#[inline]
-pub fn ceil(x: f32) -> f32 {
-    -floor(-x)
-}
-
 /// `-1`, `0` or `1`: the sign of `x` (WGSL's `sign`; unlike `f32::signum`, zero for zero).
 #[inline]
 pub fn sign(x: f32) -> f32 {
@@ -162,13 +134,6 @@ fn setup_edges(a: [f32; 3], b: [f32; 3], o: f32, wa: f32, wb: f32) -> Edges {
         e.eps[i] = if aligned { 0.0 } else { ERROR_FACTOR * (normal.x.abs() * wa + normal.y.abs() * wb) };
     }
     e
-}
-
-/// Component `k` of the exact normal `e0 × e1` of lattice edge vectors (each product below `2^48`).
-#[inline]
-pub fn exact_normal_component(e0: IVec3, e1: IVec3, k: usize) -> i128 {
-    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-    e0[i] as i128 * e1[j] as i128 - e0[j] as i128 * e1[i] as i128
 }
 
 /// Computes everything the per-voxel test needs for the lattice triangle `v` (grid space) in a grid of `dims`

@@ -20,6 +20,7 @@
 pub mod budget;
 pub mod colour;
 pub mod cpu;
+pub mod exact;
 pub mod export;
 mod grid;
 mod lattice;

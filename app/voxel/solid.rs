@@ -87,10 +87,10 @@ pub fn crossing_setup(t: [Vec3; 3], dims: UVec3, lattice: Lattice) -> CrossingSe
     let min = t[0].min(t[1]).min(t[2]);
     let max = t[0].max(t[1]).max(t[2]);
     // Centre lines at y + 1/2 within [min, max]: exact, the lattice values minus 1/2 being exact in f32.
-    let lo_y = super::cpu::ceil(min.y - 0.5).max(0.0);
-    let lo_z = super::cpu::ceil(min.z - 0.5).max(0.0);
-    let hi_y = super::cpu::floor(max.y - 0.5).min(dims.y as f32 - 1.0);
-    let hi_z = super::cpu::floor(max.z - 0.5).min(dims.z as f32 - 1.0);
+    let lo_y = super::exact::ceil(min.y - 0.5).max(0.0);
+    let lo_z = super::exact::ceil(min.z - 0.5).max(0.0);
+    let hi_y = super::exact::floor(max.y - 0.5).min(dims.y as f32 - 1.0);
+    let hi_z = super::exact::floor(max.z - 0.5).min(dims.z as f32 - 1.0);
     if sign == 0 || lo_y > hi_y || lo_z > hi_z {
         return CrossingSetup { v, sign: 0, lo: [1, 1], hi: [0, 0] };
     }
@@ -119,7 +119,7 @@ pub fn beyond_plane(t: &[IVec3; 3], sign: i32, k: u32, y: u32, z: u32, unit: i32
     let d = p - t[0] * 2;
     let mut f = 0i128;
     for c in 0..3 {
-        f += super::cpu::exact_normal_component(e0, e1, c) * d[c] as i128;
+        f += super::exact::exact_normal_component(e0, e1, c) * d[c] as i128;
     }
     f * sign as i128 >= 0
 }
@@ -139,9 +139,9 @@ pub fn crossing_voxel_exact(
     dims_x: u32,
     unit: i32,
 ) -> u32 {
-    let below = super::cpu::floor(x - 0.5) + 0.5;
+    let below = super::exact::floor(x - 0.5) + 0.5;
     let clear = (x - below).min(below + 1.0 - x);
-    let guess = super::cpu::ceil(x - 0.5);
+    let guess = super::exact::ceil(x - 0.5);
     if clear > err {
         return guess.clamp(0.0, dims_x as f32) as u32;
     }
@@ -174,7 +174,7 @@ pub fn row_crossing_estimate(t: [Vec3; 3], y: u32, z: u32) -> (f32, f32) {
     let (dy, dz) = (y as f32 + 0.5 - t[0].y, z as f32 + 0.5 - t[0].z);
     let q = (n.y * dy + n.z * dz) / n.x;
     let x = t[0].x - q;
-    let err = super::cpu::ERROR_FACTOR
+    let err = super::exact::ERROR_FACTOR
         * ((nabs.y * dy.abs() + nabs.z * dz.abs() + q.abs() * nabs.x) / n.x.abs() + q.abs() + x.abs());
     (x, err)
 }
@@ -288,7 +288,7 @@ pub fn cone_solid_angle(a: Vec3, b: Vec3) -> f32 {
     let la = a.length();
     let lb = b.length();
     let num = a.y * b.z - a.z * b.y;
-    let den = la * lb + super::cpu::dot3(a, b) + a.x * lb + b.x * la;
+    let den = la * lb + super::exact::dot3(a, b) + a.x * lb + b.x * la;
     2.0 * num.atan2(den)
 }
 
