@@ -14,7 +14,7 @@ use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Mesh;
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::export::VoxelFormat;
+use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{self, Axis, GridError, GridSpec, Mode, Resolution, VoxelGrid};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -439,7 +439,7 @@ impl Voxelized {
         format: VoxelFormat,
         merge: bool,
         out: &mut impl std::io::Write,
-    ) -> Result<(), voxel::export::FormatError> {
-        voxel::export::write_coloured(&self.grid, self.colours.as_ref(), format, merge, out)
+    ) -> Result<(), voxel::formats::FormatError> {
+        voxel::formats::write_coloured(&self.grid, self.colours.as_ref(), format, merge, out)
     }
 }

@@ -6,7 +6,7 @@ use super::{
     BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, open_engine, output_format, voxelize_loaded,
 };
 use anyhow::{Context, Result, anyhow, bail};
-use meshvox::voxel::export::VoxelFormat;
+use meshvox::voxel::formats::VoxelFormat;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};

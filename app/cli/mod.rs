@@ -16,7 +16,7 @@ use bench::BenchArgs;
 use clap::{Parser, Subcommand, ValueEnum};
 use meshvox::engine::{self, Backend, Engine, Request};
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{Axis, Mode, Resolution, export::VoxelFormat};
+use meshvox::voxel::{Axis, Mode, Resolution, formats::VoxelFormat};
 use output::remove_partials_on_interrupt;
 use render::RenderArgs;
 use std::path::{Path, PathBuf};

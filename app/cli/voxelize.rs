@@ -5,7 +5,7 @@ use super::{AxisArg, BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, Request
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh;
-use meshvox::voxel::{self, Mode, Resolution, export::VoxelFormat};
+use meshvox::voxel::{self, Mode, Resolution, formats::VoxelFormat};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -130,9 +130,9 @@ pub(super) fn voxelize_loaded(
     // the colours it was asked for.
     let colours_file = match (&voxelized.colours, format) {
         (Some(colours), VoxelFormat::Npy) => {
-            let path = voxel::export::colours_npy_path(&args.output);
+            let path = voxel::formats::colours_npy_path(&args.output);
             let temp = temp_beside(&path)?;
-            write_atomically(temp, &path, |out| Ok(voxel::export::write_colours_npy(&voxelized.grid, colours, out)?))?;
+            write_atomically(temp, &path, |out| Ok(voxel::formats::write_colours_npy(&voxelized.grid, colours, out)?))?;
             Some(path)
         }
         _ => None,

@@ -20,7 +20,7 @@ use crate::mesh::{self, Mesh, builtin};
 use crate::render::camera::{UpAxis, ViewPreset};
 use crate::render::{self, CubeRenderer, OrbitCamera, RenderTarget, Scene, Style, TARGET_SAMPLES};
 use crate::voxel::colour::{self, VoxelColours};
-use crate::voxel::export;
+use crate::voxel::formats;
 use crate::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, budget, cpu};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -691,8 +691,8 @@ impl ViewerApp {
             ui.separator();
             ui.horizontal(|ui| {
                 ui.label("Export");
-                use export::VoxelFormat::{Binvox, Mesh, Npy, Vox};
-                for format in [Vox, Binvox, Npy, Mesh(crate::voxel::mesh_export::MeshFormat::Glb)] {
+                use formats::VoxelFormat::{Binvox, Mesh, Npy, Vox};
+                for format in [Vox, Binvox, Npy, Mesh(crate::voxel::formats::mesh::MeshFormat::Glb)] {
                     if ui
                         .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
                         .on_hover_text(match format {
@@ -757,17 +757,17 @@ impl ViewerApp {
 
     /// The files an export of the current grid makes, named after the mesh and resolution: the grid in `format`
     /// with its colours where the format holds them, and for `.npy` of a coloured grid the colour array beside it.
-    fn export_files(&self, format: export::VoxelFormat) -> Result<Vec<(String, Vec<u8>)>, String> {
+    fn export_files(&self, format: formats::VoxelFormat) -> Result<Vec<(String, Vec<u8>)>, String> {
         let grid = self.grid.as_ref().ok_or("nothing is voxelized yet")?;
         let name = format!("{}-{}.{}", self.file_stem(), self.resolution, format.extension());
         let colours = self.colours.as_ref();
         let mut bytes = Vec::new();
-        export::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+        formats::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
         let mut files = vec![(name.clone(), bytes)];
-        if let (Some(c), export::VoxelFormat::Npy) = (colours, format) {
+        if let (Some(c), formats::VoxelFormat::Npy) = (colours, format) {
             let mut bytes = Vec::new();
-            export::write_colours_npy(grid, c, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
-            let path = export::colours_npy_path(std::path::Path::new(&name));
+            formats::write_colours_npy(grid, c, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+            let path = formats::colours_npy_path(std::path::Path::new(&name));
             files.push((path.display().to_string(), bytes));
         }
         Ok(files)
@@ -775,7 +775,7 @@ impl ViewerApp {
 
     /// Saves an export through a save dialog (the colour array, if any, beside the chosen file).
     #[cfg(not(target_arch = "wasm32"))]
-    fn export(&mut self, format: export::VoxelFormat) {
+    fn export(&mut self, format: formats::VoxelFormat) {
         let files = match self.export_files(format) {
             Ok(f) => f,
             Err(e) => return self.fail(e),
@@ -789,7 +789,7 @@ impl ViewerApp {
         };
         let mut targets = vec![path.clone()];
         if files.len() > 1 {
-            targets.push(export::colours_npy_path(&path));
+            targets.push(formats::colours_npy_path(&path));
         }
         for (target, (_, bytes)) in targets.iter().zip(&files) {
             if let Err(e) = save_file(target, bytes) {
@@ -801,7 +801,7 @@ impl ViewerApp {
 
     /// Hands an export to the browser as downloads.
     #[cfg(target_arch = "wasm32")]
-    fn download(&mut self, format: export::VoxelFormat) {
+    fn download(&mut self, format: formats::VoxelFormat) {
         let result =
             self.export_files(format).and_then(|files| files.iter().try_for_each(|(n, b)| web::download(n, b)));
         if let Err(e) = result {
@@ -1005,7 +1005,7 @@ impl ViewerApp {
                     self.set_mesh(name.unwrap_or("files").to_string(), loaded);
                 }
                 web::Command::Export(ext) => {
-                    match export::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
+                    match formats::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
                         Some(format) => self.download(format),
                         None => self.fail(format!("unknown export format '{ext}': use vox, binvox, npy or glb")),
                     }

@@ -6,7 +6,7 @@
 //! what is small (per-triangle bookkeeping of the CPU walk, the `.vox` writer's list, which grows with the set
 //! voxels rather than the grid) so a request near the limit is judged by what dominates.
 
-use super::export::VoxelFormat;
+use super::formats::VoxelFormat;
 use super::{Axis, GridError, GridSpec, Resolution};
 use crate::mesh::Aabb;
 

@@ -21,11 +21,9 @@ pub mod budget;
 pub mod colour;
 pub mod cpu;
 pub mod exact;
-pub mod export;
+pub mod formats;
 mod grid;
 mod lattice;
-pub mod mesh_export;
-pub mod palette;
 pub mod solid;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};

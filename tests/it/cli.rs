@@ -1,7 +1,7 @@
 //! The `meshvox voxelize` command as a user runs it: outputs, `--stats-json`, and clean one-line failures that
 //! leave no partial files behind.
 
-use meshvox::voxel::export;
+use meshvox::voxel::formats;
 use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -57,9 +57,9 @@ fn voxelize_builtin_to_every_format_with_stats() {
         assert_eq!(*dims.iter().max().expect("max"), 32, "longest axis gets N");
         let bytes = std::fs::read(dir.path().join(&name)).expect("output exists");
         let grid = match ext {
-            "npy" => export::read_npy(&mut &bytes[..]),
-            "binvox" => export::read_binvox(&mut &bytes[..]),
-            _ => export::read_vox(&bytes),
+            "npy" => formats::read_npy(&mut &bytes[..]),
+            "binvox" => formats::read_binvox(&mut &bytes[..]),
+            _ => formats::read_vox(&bytes),
         }
         .expect("readable");
         assert_eq!(grid.count(), s["voxels"].as_u64().expect("voxels"), "{ext}: file and stats agree");

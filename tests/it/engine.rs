@@ -4,7 +4,7 @@
 //! filled in.
 
 use super::common::shared_meshes;
-use meshvox::voxel::export::VoxelFormat;
+use meshvox::voxel::formats::VoxelFormat;
 use meshvox::voxel::{Mode, Resolution};
 use meshvox::{Backend, Engine, Request};
 
@@ -50,7 +50,7 @@ fn the_cli_writes_what_the_public_api_writes() {
             );
             if let (Some(colours), "npy") = (&result.colours, ext) {
                 let mut api = Vec::new();
-                meshvox::voxel::export::write_colours_npy(&result.grid, colours, &mut api).expect("colours");
+                meshvox::voxel::formats::write_colours_npy(&result.grid, colours, &mut api).expect("colours");
                 let cli = std::fs::read(out.path().join("grid.colors.npy")).expect("the CLI's colours");
                 assert!(cli == api, "{file}: .colors.npy differs");
             }

@@ -3,7 +3,7 @@
 
 use crate::common::Rng;
 use glam::{DVec3, UVec3};
-use meshvox::voxel::export::{self, VoxelFormat};
+use meshvox::voxel::formats::{self, VoxelFormat};
 use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
 use std::process::Command;
 
@@ -31,7 +31,7 @@ fn voxelized(mesh: &str, r: u32) -> VoxelGrid {
 
 fn encode(g: &VoxelGrid, f: VoxelFormat) -> Vec<u8> {
     let mut out = Vec::new();
-    export::write(g, f, &mut out).expect("write");
+    formats::write(g, f, &mut out).expect("write");
     out
 }
 
@@ -55,7 +55,7 @@ fn npy_round_trip() {
         assert_eq!((10 + hlen) % 64, 0, "{name}");
         assert_eq!(bytes[10 + hlen - 1], b'\n', "{name}");
         assert_eq!(bytes.len() - 10 - hlen, g.spec.voxel_count() as usize, "{name}: one byte per voxel");
-        let back = export::read_npy(&mut &bytes[..]).expect("read");
+        let back = formats::read_npy(&mut &bytes[..]).expect("read");
         assert_eq!(back.spec.dims, g.spec.dims, "{name}");
         assert_eq!(back.words, g.words, "{name}");
     }
@@ -65,7 +65,7 @@ fn npy_round_trip() {
 fn binvox_round_trip() {
     for (name, g) in test_grids() {
         let bytes = encode(&g, VoxelFormat::Binvox);
-        let back = export::read_binvox(&mut &bytes[..]).expect("read");
+        let back = formats::read_binvox(&mut &bytes[..]).expect("read");
         let d = g.spec.dims;
         let dim = d.max_element();
         assert_eq!(back.spec.dims, UVec3::splat(dim), "{name}: binvox is cubic");
@@ -85,7 +85,7 @@ fn vox_round_trip_and_split_into_models() {
     grids.push(("big 300x20x270".into(), random_grid(UVec3::new(300, 20, 270), 0.02, 5)));
     for (name, g) in grids {
         let bytes = encode(&g, VoxelFormat::Vox);
-        let back = export::read_vox(&bytes).expect("read");
+        let back = formats::read_vox(&bytes).expect("read");
         assert_eq!(back.spec.dims, g.spec.dims, "{name}");
         assert_eq!(back.words, g.words, "{name}");
         let data = dot_vox::load_bytes(&bytes).expect("dot_vox parses it");

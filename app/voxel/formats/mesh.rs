@@ -19,10 +19,10 @@
 //! * **Memory.** The unmerged faces are generated twice (count, then write) straight from the bit grid, so the
 //!   writer holds no per-face data; `--merge` holds one direction's faces (8 bytes each) and one plane's mask.
 
-use super::colour::{VoxelColours, voxel_rank, word_ranks};
-use super::export::FormatError;
-use super::{GridSpec, VoxelGrid};
+use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
+use crate::voxel::colour::{VoxelColours, voxel_rank, word_ranks};
+use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, IVec3, UVec3};
 use std::io::Write;
 

@@ -1,0 +1,132 @@
+//! `.npy`: dtype `uint8` (0/1), shape `(dims_x, dims_y, dims_z)`, C order, so `a[x, y, z]` is voxel `(x, y, z)`;
+//! and the colours beside it as `uint8` `(dims_x, dims_y, dims_z, 4)`. Written by hand: the format is a ten-line
+//! header plus raw bytes, and the crates for it pull in a whole Python-literal parser.
+
+use super::error::{FormatError, invalid};
+use crate::voxel::colour::VoxelColours;
+use crate::voxel::{GridSpec, VoxelGrid};
+use glam::{DVec3, UVec3};
+use std::io::{Read, Write};
+
+/// Writes the voxel colours as an `.npy` array of dtype `uint8`, shape `(dims_x, dims_y, dims_z, 4)`, C order:
+/// sRGB RGBA, alpha 255 where a voxel is set and all zero where none is.
+pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    write_npy_header(&format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
+    let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
+    // The dense array is x-major here and z-fastest in the file: one x-slice (y × z × 4 bytes) at a time.
+    let mut slice = vec![0u8; ny * nz * 4];
+    let mut by_x: Vec<Vec<(u32, u32, [u8; 4])>> = vec![Vec::new(); nx];
+    for (v, c) in grid.iter_set().zip(&colours.rgba) {
+        by_x[v.x as usize].push((v.y, v.z, *c));
+    }
+    for column in by_x {
+        slice.fill(0);
+        for (y, z, c) in column {
+            let at = (y as usize * nz + z as usize) * 4;
+            slice[at..at + 4].copy_from_slice(&c);
+        }
+        out.write_all(&slice)?;
+    }
+    Ok(())
+}
+
+fn write_npy_header(shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
+    let mut header = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': {shape}, }}");
+    // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
+    let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
+    header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
+    header.push('\n');
+    out.write_all(NPY_MAGIC)?;
+    out.write_all(&[1, 0])?;
+    out.write_all(&(header.len() as u16).to_le_bytes())?;
+    out.write_all(header.as_bytes())?;
+    Ok(())
+}
+
+const NPY_MAGIC: &[u8] = b"\x93NUMPY";
+
+/// Writes an `.npy` file. Works through the grid 32 x-slices at a time so memory stays at one slab.
+pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    write_npy_header(&format!("({}, {}, {})", d.x, d.y, d.z), out)?;
+
+    let (ny, nz) = (d.y as usize, d.z as usize);
+    let wpr = grid.spec.words_per_row();
+    let mut slab = vec![0u8; 32 * ny * nz];
+    for xw in 0..wpr {
+        slab.fill(0);
+        for z in 0..nz {
+            for y in 0..ny {
+                let word = grid.words[(z * ny + y) * wpr + xw];
+                let mut bits = word;
+                while bits != 0 {
+                    let b = bits.trailing_zeros() as usize;
+                    slab[(b * ny + y) * nz + z] = 1;
+                    bits &= bits - 1;
+                }
+            }
+        }
+        let slices = (d.x as usize - xw * 32).min(32);
+        out.write_all(&slab[..slices * ny * nz])?;
+    }
+    Ok(())
+}
+
+/// Reads an `.npy` file of dtype `uint8`/`bool`, C order, three dimensions. Origin 0 and voxel size 1, since
+/// the format carries no placement.
+pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
+    const F: &str = "npy";
+    let mut pre = [0u8; 10];
+    input.read_exact(&mut pre)?;
+    if &pre[..6] != NPY_MAGIC {
+        return Err(invalid(F, "missing magic"));
+    }
+    let len = match pre[6] {
+        1 => u16::from_le_bytes([pre[8], pre[9]]) as usize,
+        2 | 3 => {
+            let mut more = [0u8; 2];
+            input.read_exact(&mut more)?;
+            u32::from_le_bytes([pre[8], pre[9], more[0], more[1]]) as usize
+        }
+        v => return Err(invalid(F, format!("unsupported version {v}"))),
+    };
+    let mut header = vec![0u8; len];
+    input.read_exact(&mut header)?;
+    let header = String::from_utf8_lossy(&header);
+    let field = |key: &str| -> Option<String> {
+        let start = header.find(&format!("'{key}'"))? + key.len() + 2;
+        let rest = header[start..].trim_start().strip_prefix(':')?.trim_start();
+        let end = if rest.starts_with('(') { rest.find(')')? + 1 } else { rest.find(',')? };
+        Some(rest[..end].trim().to_string())
+    };
+    let descr = field("descr").ok_or_else(|| invalid(F, "no descr"))?;
+    if !matches!(descr.as_str(), "'|u1'" | "'|b1'" | "'u1'" | "'<u1'") {
+        return Err(invalid(F, format!("dtype {descr} is not uint8")));
+    }
+    if field("fortran_order").as_deref() != Some("False") {
+        return Err(invalid(F, "Fortran order is not supported"));
+    }
+    let shape = field("shape").ok_or_else(|| invalid(F, "no shape"))?;
+    let dims: Vec<u32> = shape
+        .trim_matches(|c| c == '(' || c == ')')
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| s.trim().parse::<u32>().map_err(|_| invalid(F, format!("bad shape {shape}"))))
+        .collect::<Result<_, _>>()?;
+    let [x, y, z] = dims[..] else {
+        return Err(invalid(F, format!("shape {shape} is not three-dimensional")));
+    };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(x, y, z) };
+    let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
+    let mut plane = vec![0u8; y as usize * z as usize];
+    for xi in 0..x {
+        input.read_exact(&mut plane)?;
+        for (i, &v) in plane.iter().enumerate() {
+            if v != 0 {
+                grid.set(xi, (i / z as usize) as u32, (i % z as usize) as u32);
+            }
+        }
+    }
+    Ok(grid)
+}
