@@ -1,4 +1,4 @@
-//! The grid convention of the README: how resolution, axis and voxel size become dims, and the bit layout.
+//! The grid convention of docs/formats.md: how resolution, axis and voxel size become dims, and the bit layout.
 
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::mesh::Aabb;
