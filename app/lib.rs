@@ -1,3 +1,26 @@
+//! meshvox: a mesh voxelizer. It loads triangle meshes ([`mesh`]: OBJ, glTF/GLB, STL, PLY), voxelizes them with the
+//! conservative triangle/box overlap test of Schwarz & Seidel 2010 on the GPU (WGSL compute passes on wgpu, [`gpu`])
+//! or on the CPU (the exact reference the shaders mirror, [`voxel`]), fills solids by the generalized winding number,
+//! colours voxels from materials, writes standard formats ([`voxel::formats`]) and draws voxels ([`render`], [`ui`]).
+//!
+//! [`Engine`] is the front door: open it once per process, then voxelize loaded meshes with a [`Request`].
+//!
+//! ```
+//! use meshvox::voxel::{Mode, Resolution, formats::VoxelFormat};
+//! use meshvox::{Backend, Engine, Request};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let mesh = meshvox::mesh::load("builtin:torus")?;
+//! let engine = Engine::open(Backend::Cpu)?; // Backend::Auto takes the GPU where there is one
+//! let result = engine.voxelize("builtin:torus", &mesh, &Request::new(Resolution::Count(32), Mode::Solid))?;
+//! assert_eq!(result.report.dims[0], 32); // 32 voxels along the longest axis, x for this torus
+//! let mut npy = Vec::new();
+//! result.write(VoxelFormat::Npy, false, &mut npy)?;
+//! # Ok(())
+//! # }
+//! ```
+//!
+//! ARCHITECTURE.md in the repository has the data flow and the layer rules.
+
 // The engine blocks on the GPU (pollster); the page's async path through it is the next step of issue 28, and
 // until then the viewer in the browser voxelizes through `gpu` and `voxel` directly.
 #[cfg(not(target_arch = "wasm32"))]

@@ -6,7 +6,7 @@
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
-# `bash tests/run.sh` runs everything: `cargo test`, then the web build and the browser test, then each fuzz
+# `bash tests/run.sh` runs everything: `cargo test` (and the doctests), then the web build and the browser test, then each fuzz
 # target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -46,6 +46,8 @@ bash web/install.sh
 
 cargo test --locked --all-targets "$@"
 [ $# -gt 0 ] && exit 0
+# The crate documentation's example (the engine through the public API); --all-targets leaves doctests out.
+cargo test --locked --doc
 
 # The web page: build web/dist (both builds; it installs web/node_modules for wasm-opt, which also holds the
 # browser test's playwright-core), then drive it in headless Chromium and compare with the CLI built above.
