@@ -3,7 +3,7 @@
 //! deterministic `--shard I/N` slice for cluster job arrays, `--skip-existing` to resume and a JSONL manifest.
 
 use super::{
-    BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, ms, open_engine, output_format, voxelize_loaded,
+    BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, check_merge, ms, open_engine, voxelize_loaded,
 };
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::voxel::formats::VoxelFormat;
@@ -201,7 +201,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         resolution: args.resolution,
         voxel_size: args.voxel_size,
         axis: args.axis,
-        output: PathBuf::from(format!("x.{}", args.format)),
+        output: PathBuf::new(),
         merge: args.merge,
         mode: args.mode,
         stats_json: false,
@@ -209,8 +209,9 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         colour: args.colour.clone(),
         limits: args.limits.clone(),
     };
-    // The same format and --merge check as `voxelize`, once.
-    let format = output_format(&template)?;
+    // clap allows only the formats' names; the same --merge check as `voxelize`, once.
+    let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
+    check_merge(format, args.merge)?;
     let outputs: Vec<PathBuf> =
         items.iter().map(|i| args.output.join(&i.relative).with_extension(format.extension())).collect();
     // Two inputs mapping onto one output would overwrite each other: refused before any work.
@@ -263,7 +264,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
                                 ..template.clone()
                             };
                             match voxelize_one(&args, format, engine) {
-                                Ok(stats) => Outcome::Done(stats),
+                                Ok(report) => Outcome::Done(Box::new(report)),
                                 Err(e) => Outcome::Failed(e),
                             }
                         }
@@ -279,11 +280,13 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
             let output = outputs[k].display().to_string();
             let name = items[k].source.display().to_string();
             let line = match outcome {
-                Outcome::Done(mut stats) => {
+                Outcome::Done(report) => {
                     tally.done += 1;
-                    for (stage, key) in tally.stage_ms.iter_mut().zip(STAGES) {
-                        *stage += stats[key].as_f64().unwrap_or(0.0);
+                    let times = [report.load_ms, report.voxelize_ms, report.colour_ms.unwrap_or(0.0), report.write_ms];
+                    for (stage, ms) in tally.stage_ms.iter_mut().zip(times) {
+                        *stage += ms;
                     }
+                    let mut stats = serde_json::to_value(&report).context("the report")?;
                     stats["status"] = "done".into();
                     stats["error"] = serde_json::Value::Null;
                     stats
@@ -327,16 +330,14 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     Ok(if tally.failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
 }
 
-/// The stages of one file, as `--stats-json` keys: their times add up to what a worker spends on it.
-const STAGES: [&str; 4] = ["load_ms", "voxelize_ms", "colour_ms", "write_ms"];
-
 /// Counts and stage times so far.
 #[derive(Default)]
 struct Tally {
     done: usize,
     skipped: usize,
     failed: usize,
-    /// Milliseconds summed over the done files, per entry of [`STAGES`].
+    /// Milliseconds summed over the done files per stage (load, voxelize, colour, write: together what a worker
+    /// spends on a file).
     stage_ms: [f64; 4],
 }
 
@@ -376,7 +377,7 @@ impl Tally {
 }
 
 /// One input parsed, voxelized and written into `args.output` (its folder created first).
-fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Result<serde_json::Value> {
+fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Result<meshvox::Report> {
     let t = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t);
@@ -390,8 +391,8 @@ fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Re
 enum Outcome {
     /// `--skip-existing` and the output exists.
     Skipped,
-    /// Its `--stats-json` object.
-    Done(serde_json::Value),
+    /// Its report (the `--stats-json` fields).
+    Done(Box<meshvox::Report>),
     Failed(anyhow::Error),
 }
 

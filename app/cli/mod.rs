@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 use view::ViewArgs;
-use voxelize::{VoxelizeArgs, output_format, voxelize_loaded};
+use voxelize::{VoxelizeArgs, check_merge, voxelize_loaded};
 
 #[derive(Parser)]
 #[command(

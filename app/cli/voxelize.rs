@@ -7,7 +7,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh;
 use meshvox::voxel::{self, Mode, Resolution, formats::VoxelFormat};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Clone)]
@@ -48,52 +48,55 @@ pub(super) struct VoxelizeArgs {
 }
 
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
-    let format = output_format(args)?;
+    let format = output_format(&args.output, args.merge)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
     let engine = open_engine(args.backend)?;
-    let stats = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
-    let d = &stats["dims"];
+    let report = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
+    let [x, y, z] = report.dims;
     eprintln!(
-        "{}: {} triangles -> {}x{}x{} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
+        "{}: {} triangles -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
         args.mesh,
-        mesh.triangles.len(),
-        d[0],
-        d[1],
-        d[2],
-        stats["voxel_size"].as_f64().unwrap_or_default(),
-        stats["voxels"],
+        report.triangles,
+        report.voxel_size,
+        report.voxels,
         Mode::from(args.mode),
-        stats["voxelize_ms"].as_f64().unwrap_or_default(),
-        stats["backend"].as_str().unwrap_or_default(),
+        report.voxelize_ms,
+        report.backend,
         args.output.display(),
-        stats["bytes"],
+        report.bytes,
     );
     if args.stats_json {
-        println!("{stats}");
+        println!("{}", serde_json::to_string(&report)?);
     }
     Ok(())
 }
 
 /// The output format `-o` names, checked against `--merge`.
-pub(super) fn output_format(args: &VoxelizeArgs) -> Result<VoxelFormat> {
-    let format = VoxelFormat::from_extension(&args.output).ok_or_else(|| {
+pub(super) fn output_format(output: &Path, merge: bool) -> Result<VoxelFormat> {
+    let format = VoxelFormat::from_extension(output).ok_or_else(|| {
         anyhow!(
             "{}: unknown output format (use a .npy, .binvox or .vox extension, or .glb, .ply or .obj for a mesh)",
-            args.output.display()
+            output.display()
         )
     })?;
-    if args.merge && !matches!(format, VoxelFormat::Mesh(_)) {
-        bail!("--merge joins the faces of a mesh output: use a .glb, .ply or .obj file");
-    }
+    check_merge(format, merge)?;
     Ok(format)
 }
 
-/// Voxelizes a loaded mesh as `args` ask, on `engine`, and writes the output atomically; returns the
-/// `--stats-json` object. Shared by `voxelize` and `batch`, so both write the same bytes.
+/// `--merge` joins the faces of mesh outputs only.
+pub(super) fn check_merge(format: VoxelFormat, merge: bool) -> Result<()> {
+    if merge && !matches!(format, VoxelFormat::Mesh(_)) {
+        bail!("--merge joins the faces of a mesh output: use a .glb, .ply or .obj file");
+    }
+    Ok(())
+}
+
+/// Voxelizes a loaded mesh as `args` ask, on `engine`, and writes the output atomically; returns the report with
+/// its output fields filled in. Shared by `voxelize` and `batch`, so both write the same bytes.
 pub(super) fn voxelize_loaded(
     args: &VoxelizeArgs,
     format: VoxelFormat,
@@ -101,7 +104,7 @@ pub(super) fn voxelize_loaded(
     mesh: &mesh::Mesh,
     load_ms: f64,
     bars: bool,
-) -> Result<serde_json::Value> {
+) -> Result<meshvox::Report> {
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
     let resolution = match (args.resolution, args.voxel_size) {
@@ -138,7 +141,7 @@ pub(super) fn voxelize_loaded(
         _ => None,
     };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, args.merge, out)?))?;
-    let report = meshvox::Report {
+    Ok(meshvox::Report {
         output: args.output.display().to_string(),
         format: format.extension().to_string(),
         colours_output: colours_file.as_ref().map(|p| p.display().to_string()),
@@ -146,8 +149,7 @@ pub(super) fn voxelize_loaded(
         load_ms,
         write_ms: ms(t_write),
         ..voxelized.report
-    };
-    Ok(serde_json::to_value(report)?)
+    })
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).

@@ -33,7 +33,12 @@ pub enum VoxelFormat {
 impl VoxelFormat {
     /// The format named by a file's extension.
     pub fn from_extension(path: &std::path::Path) -> Option<VoxelFormat> {
-        match path.extension()?.to_str()?.to_ascii_lowercase().as_str() {
+        VoxelFormat::from_name(path.extension()?.to_str()?)
+    }
+
+    /// The format named by its extension without the dot (`npy`, `binvox`, `vox`, `glb`, `ply`, `obj`), in any case.
+    pub fn from_name(name: &str) -> Option<VoxelFormat> {
+        match name.to_ascii_lowercase().as_str() {
             "npy" => Some(VoxelFormat::Npy),
             "binvox" => Some(VoxelFormat::Binvox),
             "vox" => Some(VoxelFormat::Vox),
