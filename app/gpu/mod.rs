@@ -4,6 +4,7 @@
 pub mod colour;
 pub mod compact;
 mod readback;
+mod run;
 mod solid;
 mod util;
 pub mod voxelize;

@@ -7,10 +7,10 @@
 //! [`Options`] to exercise the chunked paths on small inputs.
 
 use super::compact::{CompactVoxels, Compactor, Slab};
-use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
-use super::solid::{SolidPipelines, SolidRun};
-use super::util::{ErrorScopes, pipeline, pipeline_with, scoped, storage_buffer, storage_entry, uniform_entry};
-use super::{Gpu, GpuError, dispatch_2d};
+use super::run::Run;
+use super::solid::SolidPipelines;
+use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
+use super::{Gpu, GpuError};
 use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu, on_lattice};
 use glam::Vec3;
 use std::sync::OnceLock;
@@ -21,27 +21,27 @@ pub const VOXELIZE_WGSL: &str = include_str!("../../shaders/voxelize.wgsl");
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
 pub const SETUP_BYTES: u64 = 256;
 /// Bytes of one grid-space triangle as uploaded (nine f32).
-const TRIANGLE_BYTES: u64 = 36;
+pub(super) const TRIANGLE_BYTES: u64 = 36;
 /// Bytes of one entry of the unsure list (triangle, x, y, z).
-const UNSURE_BYTES: u64 = 16;
+pub(super) const UNSURE_BYTES: u64 = 16;
 /// Default capacity of the unsure list (4 MiB). Meshes with very many faces on voxel boundaries can exceed it;
 /// the grid is then decided by the CPU reference instead (see [`GpuVoxelizer::voxelize_async`]), as exact and
 /// only slower. Real meshes need far less: the bunny at 512 lists 120 tests, a cube at 512 about 2,000.
-const UNSURE_ENTRIES: u64 = 1 << 18;
-const WG: u32 = 64;
-const SCAN_WG: u32 = 256;
+pub(super) const UNSURE_ENTRIES: u64 = 1 << 18;
+pub(super) const WG: u32 = 64;
+pub(super) const SCAN_WG: u32 = 256;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
-    dims: [u32; 3],
-    tri_count: u32,
-    words_per_row: u32,
-    slab_z0: u32,
-    slab_z1: u32,
-    block_count: u32,
-    lattice_scale: f32,
-    _pad: [u32; 3],
+pub(super) struct Params {
+    pub(super) dims: [u32; 3],
+    pub(super) tri_count: u32,
+    pub(super) words_per_row: u32,
+    pub(super) slab_z0: u32,
+    pub(super) slab_z1: u32,
+    pub(super) block_count: u32,
+    pub(super) lattice_scale: f32,
+    pub(super) _pad: [u32; 3],
 }
 
 /// What to do besides voxelizing.
@@ -83,7 +83,7 @@ pub struct GpuOutput {
 }
 
 /// How one attempt on the GPU ended.
-enum Attempt {
+pub(super) enum Attempt {
     Done(GpuOutput),
     /// More voxel tests were unsure than the list holds: the grid on the GPU is incomplete.
     Overflow,
@@ -91,22 +91,22 @@ enum Attempt {
 
 /// Compiled pipelines, reusable for any number of voxelizations on one device.
 pub struct GpuVoxelizer {
-    layout: wgpu::BindGroupLayout,
-    dispatch_layout: wgpu::BindGroupLayout,
-    setup: wgpu::ComputePipeline,
-    scan_blocks: wgpu::ComputePipeline,
-    scan_block_sums: wgpu::ComputePipeline,
-    add_block_offsets: wgpu::ComputePipeline,
-    voxelize: wgpu::ComputePipeline,
-    prepare_exact: wgpu::ComputePipeline,
-    exact: wgpu::ComputePipeline,
+    pub(super) layout: wgpu::BindGroupLayout,
+    pub(super) dispatch_layout: wgpu::BindGroupLayout,
+    pub(super) setup: wgpu::ComputePipeline,
+    pub(super) scan_blocks: wgpu::ComputePipeline,
+    pub(super) scan_block_sums: wgpu::ComputePipeline,
+    pub(super) add_block_offsets: wgpu::ComputePipeline,
+    pub(super) voxelize: wgpu::ComputePipeline,
+    pub(super) prepare_exact: wgpu::ComputePipeline,
+    pub(super) exact: wgpu::ComputePipeline,
     /// Compiled on first use: the CLI's grid readback never compacts.
-    compactor: OnceLock<Compactor>,
-    module: wgpu::ShaderModule,
+    pub(super) compactor: OnceLock<Compactor>,
+    pub(super) module: wgpu::ShaderModule,
     /// The thin test's `voxelize` and `exact` pipelines, and the solid passes: compiled on first use, so pages
     /// and runs that never ask for them do not pay for their compilation (seconds on SwiftShader).
-    thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
-    solid: OnceLock<SolidPipelines>,
+    pub(super) thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
+    pub(super) solid: OnceLock<SolidPipelines>,
 }
 
 impl GpuVoxelizer {
@@ -152,7 +152,7 @@ impl GpuVoxelizer {
         }
     }
 
-    fn compactor(&self, gpu: &Gpu) -> &Compactor {
+    pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {
         self.compactor.get_or_init(|| Compactor::new(gpu))
     }
 
@@ -242,6 +242,7 @@ impl GpuVoxelizer {
         })
     }
 
+    /// One attempt on the GPU, in the named steps of [`Run`].
     async fn run(
         &self,
         gpu: &Gpu,
@@ -249,309 +250,38 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<Attempt, GpuError> {
-        let device = &gpu.device;
         // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
-        let triangles: &[[Vec3; 3]] = &triangles;
-        let lattice_scale = lattice.scale();
-        let limit = gpu.max_binding_bytes();
-        let wpr = spec.words_per_row() as u64;
-        let layer_bytes = wpr * 4 * spec.dims.y as u64;
-        let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
-        let slab_bytes = slab_layers as u64 * layer_bytes;
-
-        let fit = (limit / SETUP_BYTES).min(limit / TRIANGLE_BYTES) as usize;
-        let batch = options.max_batch_triangles.unwrap_or(fit).min(fit).max(1).min(triangles.len().max(1));
-        let batches = triangles.len().div_ceil(batch).max(1);
-
-        let mut grid = if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None };
-        // Collected after every slab: at most set-up, voxelize, exact, the solid fill and two compaction passes
-        // in between.
-        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 6));
-        let mut gpu_ms = 0.0;
-        let mut exact_tests = None;
-        let mut points: Vec<CompactVoxels> = Vec::new();
-        // The presized list and its counters (see `Options::list_capacity`) until its length comes back.
-        let mut presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)> = None;
-        let mut solid_run: Option<SolidRun> = None;
-        let (walk, exact) = if options.mode == Mode::Surface6 {
-            let (w, e) = self.thin.get_or_init(|| {
-                let one = [Some(&self.layout)];
-                let thin = [("THIN", 1.0)];
-                (
-                    pipeline_with(device, &self.module, &one, "voxelize", &thin),
-                    pipeline_with(device, &self.module, &one, "exact", &thin),
-                )
-            });
-            (w, e)
-        } else {
-            (&self.voxelize, &self.exact)
-        };
-
-        let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
-        // At most 65,535 workgroups for the `exact` pass's one-dimensional indirect dispatch.
-        let unsure_entries =
-            options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, (limit / UNSURE_BYTES).min(65_535 * WG as u64));
-        let (params, tris_buf, setups, offsets, block_sums, slab, dispatch, unsure, unsure_count) =
-            scoped(device, || {
-                Ok((
-                    device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("voxelize params"),
-                        size: std::mem::size_of::<Params>() as u64,
-                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    }),
-                    storage_buffer(device, "triangles", batch as u64 * TRIANGLE_BYTES, wgpu::BufferUsages::empty()),
-                    storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, wgpu::BufferUsages::empty()),
-                    storage_buffer(device, "offsets", batch as u64 * 4, wgpu::BufferUsages::empty()),
-                    storage_buffer(device, "block sums", (blocks_max + 1) * 4, wgpu::BufferUsages::empty()),
-                    storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC),
-                    storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT),
-                    storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, wgpu::BufferUsages::empty()),
-                    storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC),
-                ))
-            })
-            .await?;
-        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("voxelize"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: tris_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: setups.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: offsets.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: block_sums.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: slab.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: unsure.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 7, resource: unsure_count.as_entire_binding() },
-            ],
-        });
-        let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("voxelize dispatch"),
-            layout: &self.dispatch_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: dispatch.as_entire_binding() }],
-        });
-
-        for (b, chunk) in triangles.chunks(batch.max(1)).enumerate() {
-            let tri_count = chunk.len() as u32;
-            let block_count = tri_count.div_ceil(SCAN_WG);
-            let flat: &[f32] = bytemuck::cast_slice(chunk);
-            scoped(device, || {
-                gpu.queue.write_buffer(&tris_buf, 0, bytemuck::cast_slice(flat));
-                let p = Params {
-                    dims: spec.dims.to_array(),
-                    tri_count,
-                    words_per_row: wpr as u32,
-                    slab_z0: 0,
-                    slab_z1: 0,
-                    block_count,
-                    lattice_scale,
-                    _pad: [0; 3],
-                };
-                gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
-                let mut encoder = device.create_command_encoder(&Default::default());
-                {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("setup + scan"),
-                        timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                    });
-                    pass.set_bind_group(0, &bind, &[]);
-                    pass.set_bind_group(1, &bind_dispatch, &[]);
-                    let (x, y) = dispatch_2d(tri_count.div_ceil(WG));
-                    pass.set_pipeline(&self.setup);
-                    pass.dispatch_workgroups(x, y, 1);
-                    pass.set_pipeline(&self.scan_blocks);
-                    pass.dispatch_workgroups(block_count.max(1), 1, 1);
-                    pass.set_pipeline(&self.scan_block_sums);
-                    pass.dispatch_workgroups(1, 1, 1);
-                    pass.set_pipeline(&self.add_block_offsets);
-                    pass.dispatch_workgroups(block_count.max(1), 1, 1);
-                }
-                gpu.queue.submit([encoder.finish()]);
-                Ok(())
-            })
-            .await?;
-            if options.mode == Mode::Solid && solid_run.is_none() {
-                if batches > 1 {
+        let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
+        for (b, chunk) in triangles.chunks(run.batch).enumerate() {
+            let batch = run.set_up_batch(chunk).await?;
+            if options.mode == Mode::Solid && b == 0 {
+                if run.batches > 1 {
                     // The crossing lists need every triangle at once; meshes too large for one binding get the
                     // CPU reference's solid instead (flagged as decided on the CPU).
                     return Ok(Attempt::Overflow);
                 }
-                let solid = self.solid.get_or_init(|| SolidPipelines::new(device, &self.module));
-                solid_run = Some(solid.prepare(gpu, triangles, &tris_buf, spec, lattice, &slab).await?);
+                run.prepare_solid(&triangles, lattice).await?;
             }
-
-            for s in 0..slabs {
-                let z0 = s * slab_layers;
-                let z1 = (z0 + slab_layers).min(spec.dims.z);
-                let p = Params {
-                    dims: spec.dims.to_array(),
-                    tri_count,
-                    words_per_row: wpr as u32,
-                    slab_z0: z0,
-                    slab_z1: z1,
-                    block_count,
-                    lattice_scale,
-                    _pad: [0; 3],
-                };
-                let words = wpr * spec.dims.y as u64 * (z1 - z0) as u64;
-                scoped(device, || {
-                    gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
-                    let mut encoder = device.create_command_encoder(&Default::default());
-                    encoder.clear_buffer(&slab, 0, None);
-                    encoder.clear_buffer(&unsure_count, 0, None);
-                    {
-                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                            label: Some("voxelize"),
-                            timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                        });
-                        pass.set_bind_group(0, &bind, &[]);
-                        pass.set_pipeline(walk);
-                        pass.dispatch_workgroups_indirect(&dispatch, 0);
-                        pass.set_bind_group(1, &bind_dispatch, &[]);
-                        pass.set_pipeline(&self.prepare_exact);
-                        pass.dispatch_workgroups(1, 1, 1);
-                    }
-                    {
-                        // A pass of its own: `dispatch` was just written as storage and is now read as indirect
-                        // arguments.
-                        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                            label: Some("exact"),
-                            timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                        });
-                        pass.set_bind_group(0, &bind, &[]);
-                        pass.set_pipeline(exact);
-                        pass.dispatch_workgroups_indirect(&dispatch, 12);
-                    }
-                    if let (Some(run), Some(solid)) = (&solid_run, self.solid.get()) {
-                        solid.fill(gpu, run, &mut encoder, z0, z1, timer.as_mut().and_then(|t| t.next_pass()));
-                    }
-                    gpu.queue.submit([encoder.finish()]);
-                    Ok(())
-                })
-                .await?;
+            let last_batch = b + 1 == run.batches;
+            for s in 0..run.slabs {
+                let slab = run.slab(s);
+                run.encode_slab(batch, slab).await?;
                 // Compaction only makes sense on the finished grid, so it waits for the last batch.
-                if options.compact && b + 1 == batches {
-                    if batches > 1 {
-                        // Earlier batches live in the host grid; put the merged slab back before compacting.
-                        let host = grid.as_ref().ok_or_else(|| {
-                            GpuError::Device("compaction over several triangle batches needs read_grid".into())
-                        })?;
-                        let start = wpr as usize * spec.dims.y as usize * z0 as usize;
-                        let mine = read_buffer(device, &gpu.queue, &slab, 0, words * 4).await?;
-                        let merged: Vec<u32> = bytemuck::cast_slice::<u8, u32>(&mine)
-                            .iter()
-                            .zip(&host.words[start..start + words as usize])
-                            .map(|(a, b)| a | b)
-                            .collect();
-                        gpu.queue.write_buffer(&slab, 0, bytemuck::cast_slice(&merged));
-                    }
-                    let part = Slab { buffer: &slab, z0, words };
-                    let single = slabs == 1 && batches == 1;
-                    if let Some(capacity) = options.list_capacity.filter(|_| single) {
-                        let capacity = capacity.min(spec.voxel_count()).min(gpu.max_binding_bytes() / 8).max(1);
-                        let (list, counters) = self.compactor(gpu).compact_presized(
-                            gpu,
-                            part,
-                            spec,
-                            options.surface_only,
-                            timer.as_mut(),
-                            capacity,
-                        );
-                        presized = Some((list, counters, capacity));
-                    } else {
-                        // The unsure count comes back with the compactor's voxel count, so checking costs no
-                        // readback.
-                        let probe = Some(&unsure_count);
-                        let (list, listed) = self
-                            .compactor(gpu)
-                            .compact(gpu, part, spec, options.surface_only, timer.as_mut(), probe)
-                            .await?;
-                        if listed.is_some_and(|n| n as u64 > unsure_entries) {
-                            return Ok(Attempt::Overflow);
-                        }
-                        points.push(list);
-                    }
-                }
-                // The slab and this slab's pass times come back in one read.
-                let mut encoder = device.create_command_encoder(&Default::default());
-                let timed = timer.as_mut().map_or(0, |t| t.resolve(&mut encoder));
-                gpu.queue.submit([encoder.finish()]);
-                let mut ranges = Vec::new();
-                if grid.is_some() {
-                    ranges.push((&slab, 0, words * 4));
-                }
-                if grid.is_some() || presized.is_some() {
-                    ranges.push((&unsure_count, 0, 4));
-                }
-                if let Some((_, counters, _)) = &presized {
-                    // Word 1: the write pass's cursor, which counts every listed voxel.
-                    ranges.push((counters, 4, 4));
-                }
-                if let Some(t) = timer.as_ref().filter(|_| timed > 0) {
-                    ranges.push((t.resolved(), 0, timed));
-                }
-                let parts =
-                    if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
-                let mut parts = parts.into_iter();
-                let bytes = if grid.is_some() { parts.next() } else { None };
-                let listed = if grid.is_some() || presized.is_some() {
-                    first_word(&parts.next().unwrap_or_default()).unwrap_or(0)
-                } else {
-                    0
-                };
-                if listed as u64 > unsure_entries {
+                if options.compact && last_batch && run.compact_slab(slab).await? {
                     return Ok(Attempt::Overflow);
                 }
-                if let Some((list, _, capacity)) = presized.take() {
-                    let count = first_word(&parts.next().unwrap_or_default()).unwrap_or(0);
-                    if count as u64 <= capacity {
-                        points.push(CompactVoxels { buffer: list, count });
-                    } else {
-                        let part = Slab { buffer: &slab, z0, words };
-                        let (list, _) =
-                            self.compactor(gpu).compact(gpu, part, spec, options.surface_only, None, None).await?;
-                        points.push(list);
-                    }
-                }
-                if let Some(host) = grid.as_mut() {
-                    let bytes = bytes.unwrap_or_default();
-                    *exact_tests.get_or_insert(0) += listed as u64;
-                    let start = wpr as usize * spec.dims.y as usize * z0 as usize;
-                    let dst = &mut host.words[start..start + words as usize];
-                    for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
-                        *d |= *s;
-                    }
-                }
-                if let (Some(t), Some(bytes)) = (timer.as_mut(), parts.next()) {
-                    gpu_ms += t.finish(&gpu.queue, &bytes);
+                if run.read_back_slab(slab).await? {
+                    return Ok(Attempt::Overflow);
                 }
             }
         }
-        if grid.is_none() {
-            // Nothing was read back: wait for the work so timings and errors are complete.
-            wait(device)?;
-        }
-        let points = match points.len() {
-            0 => None,
-            1 => points.pop(),
-            _ => Some(self.compactor(gpu).concat(gpu, points).await?),
-        };
-        let gpu_ms = gpu.timestamps.then_some(gpu_ms);
-        Ok(Attempt::Done(GpuOutput {
-            grid,
-            points,
-            gpu_ms,
-            slabs,
-            batches: batches as u32,
-            exact_tests,
-            decided_on_cpu: false,
-        }))
+        run.finish().await
     }
 }
 
 /// Layers per z-slab and the number of slabs: as many whole layers as one binding (or `max_slab_bytes`) holds.
-fn slab_plan(gpu: &Gpu, spec: GridSpec, options: &Options) -> Result<(u32, u32), GpuError> {
+pub(super) fn slab_plan(gpu: &Gpu, spec: GridSpec, options: &Options) -> Result<(u32, u32), GpuError> {
     let limit = gpu.max_binding_bytes();
     let layer_bytes = spec.words_per_row() as u64 * 4 * spec.dims.y as u64;
     if layer_bytes > limit {

@@ -1,0 +1,425 @@
+//! One voxelization on the GPU (the body of [`GpuVoxelizer::voxelize_async`]) as the steps it takes, each named
+//! for what it does:
+//!
+//! 1. [`Run::allocate`]: the buffers and bind groups every batch and slab reuse.
+//! 2. per triangle batch, [`Run::set_up_batch`]: upload the triangles, then the `setup` and prefix-sum passes
+//!    (`scan_blocks`, `scan_block_sums`, `add_block_offsets`); for a solid, [`Run::prepare_solid`] once.
+//! 3. per z-slab, [`Run::encode_slab`]: the walk (`voxelize`), `prepare_exact` and `exact` passes, and the solid
+//!    fill; on the last batch [`Run::compact_slab`] when a voxel list is wanted; then [`Run::read_back_slab`]: the
+//!    slab, the unsure count, the list's length and the pass times in one map.
+//! 4. [`Run::finish`]: the list joined, the output gathered.
+//!
+//! Each step that allocates or submits runs inside error scopes ([`scoped`]), so a failure names its step.
+
+use super::compact::{CompactVoxels, Slab};
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
+use super::solid::SolidRun;
+use super::util::{pipeline_with, scoped, storage_buffer};
+use super::voxelize::{
+    Attempt, GpuOutput, GpuVoxelizer, Options, Params, SCAN_WG, SETUP_BYTES, TRIANGLE_BYTES, UNSURE_BYTES,
+    UNSURE_ENTRIES, WG, slab_plan,
+};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid};
+use glam::Vec3;
+
+/// A bind group entry for a whole buffer.
+fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+}
+
+/// The buffers of one voxelization and the bind groups over them.
+struct Buffers {
+    params: wgpu::Buffer,
+    triangles: wgpu::Buffer,
+    slab: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+    unsure_count: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    bind_dispatch: wgpu::BindGroup,
+    /// Bound above and used only by the shaders; held so that their lifetime is plainly this run's.
+    _scratch: [wgpu::Buffer; 4],
+}
+
+/// One batch of triangles as the passes see it.
+#[derive(Clone, Copy)]
+pub(super) struct Batch {
+    tri_count: u32,
+    block_count: u32,
+}
+
+/// One z-slab: layers `z0..z1`, `words` grid words.
+#[derive(Clone, Copy)]
+pub(super) struct SlabRange {
+    z0: u32,
+    z1: u32,
+    words: u64,
+}
+
+/// A voxelization in progress: what the steps hand on to each other.
+pub(super) struct Run<'a> {
+    v: &'a GpuVoxelizer,
+    gpu: &'a Gpu,
+    spec: GridSpec,
+    options: &'a Options,
+    lattice_scale: f32,
+    /// Grid words per row.
+    wpr: u64,
+    slab_layers: u32,
+    pub(super) slabs: u32,
+    /// Triangles per batch, and the number of batches.
+    pub(super) batch: usize,
+    pub(super) batches: usize,
+    /// Capacity of the unsure list.
+    unsure_entries: u64,
+    buffers: Buffers,
+    grid: Option<VoxelGrid>,
+    timer: Option<PassTimer>,
+    gpu_ms: f64,
+    exact_tests: Option<u64>,
+    points: Vec<CompactVoxels>,
+    /// The presized list and its counters (see `Options::list_capacity`) until its length comes back.
+    presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)>,
+    solid: Option<SolidRun>,
+}
+
+impl<'a> Run<'a> {
+    /// Plans slabs and batches for `triangles` (already on the lattice) and allocates what every step reuses.
+    pub(super) async fn allocate(
+        v: &'a GpuVoxelizer,
+        gpu: &'a Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        lattice: Lattice,
+        options: &'a Options,
+    ) -> Result<Run<'a>, GpuError> {
+        let device = &gpu.device;
+        let limit = gpu.max_binding_bytes();
+        let wpr = spec.words_per_row() as u64;
+        let layer_bytes = wpr * 4 * spec.dims.y as u64;
+        let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
+        let slab_bytes = slab_layers as u64 * layer_bytes;
+        let fit = (limit / SETUP_BYTES).min(limit / TRIANGLE_BYTES) as usize;
+        let batch = options.max_batch_triangles.unwrap_or(fit).min(fit).max(1).min(triangles.len().max(1));
+        let batches = triangles.len().div_ceil(batch).max(1);
+        let blocks_max = (batch as u64).div_ceil(SCAN_WG as u64);
+        // At most 65,535 workgroups for the `exact` pass's one-dimensional indirect dispatch.
+        let unsure_entries =
+            options.max_unsure.unwrap_or(UNSURE_ENTRIES).clamp(1, (limit / UNSURE_BYTES).min(65_535 * WG as u64));
+        let none = wgpu::BufferUsages::empty();
+        let buffers = scoped(device, || {
+            let params = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("voxelize params"),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let triangles = storage_buffer(device, "triangles", batch as u64 * TRIANGLE_BYTES, none);
+            let setups = storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, none);
+            let offsets = storage_buffer(device, "offsets", batch as u64 * 4, none);
+            let block_sums = storage_buffer(device, "block sums", (blocks_max + 1) * 4, none);
+            let slab = storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC);
+            let dispatch = storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT);
+            let unsure = storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, none);
+            let unsure_count = storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC);
+            let entry = bind_entry;
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("voxelize"),
+                layout: &v.layout,
+                entries: &[
+                    entry(0, &params),
+                    entry(1, &triangles),
+                    entry(2, &setups),
+                    entry(3, &offsets),
+                    entry(4, &block_sums),
+                    entry(5, &slab),
+                    entry(6, &unsure),
+                    entry(7, &unsure_count),
+                ],
+            });
+            let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("voxelize dispatch"),
+                layout: &v.dispatch_layout,
+                entries: &[entry(0, &dispatch)],
+            });
+            let _scratch = [setups, offsets, block_sums, unsure];
+            Ok(Buffers { params, triangles, slab, dispatch, unsure_count, bind, bind_dispatch, _scratch })
+        })
+        .await?;
+        Ok(Run {
+            v,
+            gpu,
+            spec,
+            options,
+            lattice_scale: lattice.scale(),
+            wpr,
+            slab_layers,
+            slabs,
+            batch,
+            batches,
+            unsure_entries,
+            buffers,
+            grid: if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None },
+            // Collected after every slab: at most set-up, voxelize, exact, the solid fill and two compaction
+            // passes in between.
+            timer: gpu.timestamps.then(|| PassTimer::new(device, 6)),
+            gpu_ms: 0.0,
+            exact_tests: None,
+            points: Vec::new(),
+            presized: None,
+            solid: None,
+        })
+    }
+
+    /// The shader's parameters for `batch` and the layers `z0..z1`.
+    fn params(&self, batch: Batch, z0: u32, z1: u32) -> Params {
+        Params {
+            dims: self.spec.dims.to_array(),
+            tri_count: batch.tri_count,
+            words_per_row: self.wpr as u32,
+            slab_z0: z0,
+            slab_z1: z1,
+            block_count: batch.block_count,
+            lattice_scale: self.lattice_scale,
+            _pad: [0; 3],
+        }
+    }
+
+    /// Slab `s`'s layers and words.
+    pub(super) fn slab(&self, s: u32) -> SlabRange {
+        let z0 = s * self.slab_layers;
+        let z1 = (z0 + self.slab_layers).min(self.spec.dims.z);
+        SlabRange { z0, z1, words: self.wpr * self.spec.dims.y as u64 * (z1 - z0) as u64 }
+    }
+
+    /// The walk and exact pipelines of the mode (the thin surface's are compiled on first use).
+    fn walk_and_exact(&self) -> (&'a wgpu::ComputePipeline, &'a wgpu::ComputePipeline) {
+        let v = self.v;
+        if self.options.mode != Mode::Surface6 {
+            return (&v.voxelize, &v.exact);
+        }
+        let (w, e) = v.thin.get_or_init(|| {
+            let one = [Some(&v.layout)];
+            let thin = [("THIN", 1.0)];
+            (
+                pipeline_with(&self.gpu.device, &v.module, &one, "voxelize", &thin),
+                pipeline_with(&self.gpu.device, &v.module, &one, "exact", &thin),
+            )
+        });
+        (w, e)
+    }
+
+    /// Uploads one batch of triangles and runs the set-up and prefix-sum passes over it.
+    pub(super) async fn set_up_batch(&mut self, chunk: &[[Vec3; 3]]) -> Result<Batch, GpuError> {
+        let tri_count = chunk.len() as u32;
+        let batch = Batch { tri_count, block_count: tri_count.div_ceil(SCAN_WG) };
+        let (gpu, v) = (self.gpu, self.v);
+        let params = self.params(batch, 0, 0);
+        let (b, timer) = (&self.buffers, &mut self.timer);
+        scoped(&gpu.device, || {
+            gpu.queue.write_buffer(&b.triangles, 0, bytemuck::cast_slice(chunk));
+            gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("setup + scan"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_bind_group(1, &b.bind_dispatch, &[]);
+                let (x, y) = dispatch_2d(tri_count.div_ceil(WG));
+                pass.set_pipeline(&v.setup);
+                pass.dispatch_workgroups(x, y, 1);
+                pass.set_pipeline(&v.scan_blocks);
+                pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
+                pass.set_pipeline(&v.scan_block_sums);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(&v.add_block_offsets);
+                pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await?;
+        Ok(batch)
+    }
+
+    /// Lists the crossings of every row for the solid fill (once; all triangles are in the one batch).
+    pub(super) async fn prepare_solid(&mut self, triangles: &[[Vec3; 3]], lattice: Lattice) -> Result<(), GpuError> {
+        let v = self.v;
+        let solid = v.solid.get_or_init(|| super::solid::SolidPipelines::new(&self.gpu.device, &v.module));
+        let b = &self.buffers;
+        self.solid = Some(solid.prepare(self.gpu, triangles, &b.triangles, self.spec, lattice, &b.slab).await?);
+        Ok(())
+    }
+
+    /// The walk, the exact pass and the solid fill over one slab, into the cleared slab buffer.
+    pub(super) async fn encode_slab(&mut self, batch: Batch, slab: SlabRange) -> Result<(), GpuError> {
+        let (gpu, v) = (self.gpu, self.v);
+        let params = self.params(batch, slab.z0, slab.z1);
+        let (walk, exact) = self.walk_and_exact();
+        let (b, timer, solid_run) = (&self.buffers, &mut self.timer, &self.solid);
+        scoped(&gpu.device, || {
+            gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(&b.slab, 0, None);
+            encoder.clear_buffer(&b.unsure_count, 0, None);
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxelize"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_pipeline(walk);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+                pass.set_bind_group(1, &b.bind_dispatch, &[]);
+                pass.set_pipeline(&v.prepare_exact);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+            {
+                // A pass of its own: `dispatch` was just written as storage and is now read as indirect arguments.
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("exact"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_pipeline(exact);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 12);
+            }
+            if let (Some(run), Some(solid)) = (solid_run, v.solid.get()) {
+                solid.fill(gpu, run, &mut encoder, slab.z0, slab.z1, timer.as_mut().and_then(|t| t.next_pass()));
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await
+    }
+
+    /// Compacts the finished slab's voxels into a list (on the last batch). Returns whether the unsure list
+    /// overflowed (then the grid on the GPU is incomplete).
+    pub(super) async fn compact_slab(&mut self, slab: SlabRange) -> Result<bool, GpuError> {
+        let (gpu, spec, options) = (self.gpu, self.spec, self.options);
+        let b = &self.buffers;
+        if self.batches > 1 {
+            // Earlier batches live in the host grid; put the merged slab back before compacting.
+            let host = self
+                .grid
+                .as_ref()
+                .ok_or_else(|| GpuError::Device("compaction over several triangle batches needs read_grid".into()))?;
+            let start = self.layer_start(slab.z0);
+            let mine = read_buffer(&gpu.device, &gpu.queue, &b.slab, 0, slab.words * 4).await?;
+            let merged: Vec<u32> = bytemuck::cast_slice::<u8, u32>(&mine)
+                .iter()
+                .zip(&host.words[start..start + slab.words as usize])
+                .map(|(a, b)| a | b)
+                .collect();
+            gpu.queue.write_buffer(&b.slab, 0, bytemuck::cast_slice(&merged));
+        }
+        let part = Slab { buffer: &b.slab, z0: slab.z0, words: slab.words };
+        let single = self.slabs == 1 && self.batches == 1;
+        let compactor = self.v.compactor(gpu);
+        if let Some(capacity) = options.list_capacity.filter(|_| single) {
+            let capacity = capacity.min(spec.voxel_count()).min(gpu.max_binding_bytes() / 8).max(1);
+            let (list, counters) =
+                compactor.compact_presized(gpu, part, spec, options.surface_only, self.timer.as_mut(), capacity);
+            self.presized = Some((list, counters, capacity));
+            return Ok(false);
+        }
+        // The unsure count comes back with the compactor's voxel count, so checking costs no readback.
+        let probe = Some(&b.unsure_count);
+        let (list, listed) =
+            compactor.compact(gpu, part, spec, options.surface_only, self.timer.as_mut(), probe).await?;
+        if listed.is_some_and(|n| n as u64 > self.unsure_entries) {
+            return Ok(true);
+        }
+        self.points.push(list);
+        Ok(false)
+    }
+
+    /// The first grid word of layer `z`.
+    fn layer_start(&self, z: u32) -> usize {
+        self.wpr as usize * self.spec.dims.y as usize * z as usize
+    }
+
+    /// Reads back, in one map, what the slab produced: its words (into the host grid), the unsure count, the
+    /// presized list's length and the pass times. Returns whether the unsure list overflowed.
+    pub(super) async fn read_back_slab(&mut self, slab: SlabRange) -> Result<bool, GpuError> {
+        let (gpu, device) = (self.gpu, &self.gpu.device);
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let timed = self.timer.as_mut().map_or(0, |t| t.resolve(&mut encoder));
+        gpu.queue.submit([encoder.finish()]);
+        let b = &self.buffers;
+        let reading_grid = self.grid.is_some();
+        let mut ranges = Vec::new();
+        if reading_grid {
+            ranges.push((&b.slab, 0, slab.words * 4));
+        }
+        if reading_grid || self.presized.is_some() {
+            ranges.push((&b.unsure_count, 0, 4));
+        }
+        if let Some((_, counters, _)) = &self.presized {
+            // Word 1: the write pass's cursor, which counts every listed voxel.
+            ranges.push((counters, 4, 4));
+        }
+        if let Some(t) = self.timer.as_ref().filter(|_| timed > 0) {
+            ranges.push((t.resolved(), 0, timed));
+        }
+        let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
+        let mut parts = parts.into_iter();
+        let bytes = if reading_grid { parts.next() } else { None };
+        let listed = match reading_grid || self.presized.is_some() {
+            true => first_word(&parts.next().unwrap_or_default()).unwrap_or(0),
+            false => 0,
+        };
+        if listed as u64 > self.unsure_entries {
+            return Ok(true);
+        }
+        if let Some((list, _, capacity)) = self.presized.take() {
+            let count = first_word(&parts.next().unwrap_or_default()).unwrap_or(0);
+            if count as u64 <= capacity {
+                self.points.push(CompactVoxels { buffer: list, count });
+            } else {
+                let part = Slab { buffer: &b.slab, z0: slab.z0, words: slab.words };
+                let compactor = self.v.compactor(gpu);
+                let (list, _) = compactor.compact(gpu, part, self.spec, self.options.surface_only, None, None).await?;
+                self.points.push(list);
+            }
+        }
+        let start = self.layer_start(slab.z0);
+        if let Some(host) = self.grid.as_mut() {
+            let bytes = bytes.unwrap_or_default();
+            *self.exact_tests.get_or_insert(0) += listed as u64;
+            let dst = &mut host.words[start..start + slab.words as usize];
+            for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
+                *d |= *s;
+            }
+        }
+        if let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next()) {
+            self.gpu_ms += t.finish(&gpu.queue, &bytes);
+        }
+        Ok(false)
+    }
+
+    /// The output: the host grid, the voxel list (joined if there were several slabs), the times.
+    pub(super) async fn finish(mut self) -> Result<Attempt, GpuError> {
+        let gpu = self.gpu;
+        if self.grid.is_none() {
+            // Nothing was read back: wait for the work so timings and errors are complete.
+            wait(&gpu.device)?;
+        }
+        let points = match self.points.len() {
+            0 => None,
+            1 => self.points.pop(),
+            _ => Some(self.v.compactor(gpu).concat(gpu, self.points).await?),
+        };
+        Ok(Attempt::Done(GpuOutput {
+            grid: self.grid,
+            points,
+            gpu_ms: gpu.timestamps.then_some(self.gpu_ms),
+            slabs: self.slabs,
+            batches: self.batches as u32,
+            exact_tests: self.exact_tests,
+            decided_on_cpu: false,
+        }))
+    }
+}
