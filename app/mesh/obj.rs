@@ -20,112 +20,136 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
 
     let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(bytes);
-    // Each material library read, in order, with the number of materials it added (tobj appends them in that
-    // order) and its folder on disk, which its textures' names are relative to; and why any was not read.
-    let libraries: RefCell<Vec<(usize, Option<PathBuf>)>> = RefCell::default();
-    let unread: RefCell<Vec<ReadError>> = RefCell::default();
-    // Materials only matter for colour and the part table, so a missing or broken .mtl is a warning, not an error.
-    let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| {
-        match base.read(None, &mtl.to_string_lossy(), RefStyle::Path, None) {
-            Ok((text, real)) => {
-                let loaded = tobj::load_mtl_buf(&mut std::io::BufReader::new(&text[..]));
-                if let Ok((materials, _)) = &loaded {
-                    let folder = real.and_then(|r| r.parent().map(Path::to_path_buf));
-                    libraries.borrow_mut().push((materials.len(), folder));
-                }
-                loaded
-            }
-            Err(e) => {
-                unread.borrow_mut().push(e);
-                Err(tobj::LoadError::OpenFileFailed)
-            }
-        }
-    })
-    // The quick scan lets number-like words such as `1.2.3` through; tobj refuses them without saying where, so
-    // the strict scan finds the line.
-    .map_err(|e| obj_err(scan(bytes, true).err().unwrap_or_else(|| e.to_string())))?;
+    let libraries = Libraries { base, read: RefCell::default(), unread: RefCell::default() };
+    let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| libraries.load(mtl))
+        // The quick scan lets number-like words such as `1.2.3` through; tobj refuses them without saying where,
+        // so the strict scan finds the line.
+        .map_err(|e| obj_err(scan(bytes, true).err().unwrap_or_else(|| e.to_string())))?;
 
     let mut mesh = Mesh::default();
-    for e in unread.into_inner() {
-        let line = match e {
-            ReadError::Refused(_) => e.about("material library"),
-            ReadError::Failed(_) => format!("material library not loaded: {e}"),
-        };
-        mesh.warnings.push(format!("{}: {line}", path.display()));
-    }
-    let materials = match materials {
-        Ok(m) => m,
-        Err(tobj::LoadError::OpenFileFailed) => Vec::new(),
-        Err(e) => {
-            // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
-            if bytes.windows(6).any(|w| w == b"mtllib") {
-                mesh.warnings.push(format!("{}: material library not loaded: {e}", path.display()));
-            }
-            Vec::new()
-        }
-    };
-    // Each material's library folder, where its texture names start.
-    let folders: Vec<Option<PathBuf>> =
-        libraries.into_inner().into_iter().flat_map(|(n, folder)| std::iter::repeat_n(folder, n)).collect();
+    let (materials, folders) = libraries.finish(path, bytes, materials, &mut mesh.warnings);
     let shading = read_materials(&mut mesh.warnings, path, &materials, &folders, base);
     let default_material = shading.materials.len() as u32 - 1;
-    mesh.shading = Some(shading);
+    let textured = |id: usize| shading.materials[id].texture.is_some();
     // tobj parses coordinates as f64 (its `use_f64` feature), so a mesh far from the origin keeps its shape
     // until `push_pieces` takes offsets from its centre.
     let mut pieces = Vec::with_capacity(models.len());
     for (index, model) in models.into_iter().enumerate() {
-        let m = model.mesh;
-        let vertex_count = m.positions.len() / 3;
-        if let Some(&bad) = m.indices.iter().find(|&&i| i as usize >= vertex_count) {
-            return Err(obj_err(format!(
-                "object '{}' refers to vertex {} but has {vertex_count}",
-                model.name,
-                bad as u64 + 1
-            )));
-        }
-        let mut positions: Vec<DVec3> = m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
-        let mut triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        // Vertex colours (`v x y z r g b`, as MeshLab and scanners write them) are sRGB like texels.
-        let mut colors: Vec<Vec4> = match m.vertex_color.len() == m.positions.len() {
-            true => m.vertex_color.chunks_exact(3).map(|c| srgb_to_linear([c[0], c[1], c[2]])).collect(),
-            false => Vec::new(),
-        };
-        let material = m.material_id.filter(|&id| id < materials.len());
-        let textured =
-            material.is_some_and(|id| mesh.shading.as_ref().is_some_and(|s| s.materials[id].texture.is_some()));
-        let mut uvs = Vec::new();
-        if textured && m.texcoord_indices.len() == m.indices.len() && !m.texcoords.is_empty() {
-            // Texture coordinates have their own indices: every corner becomes a vertex of its own. OBJ's v
-            // runs up the image, the texture's rows down.
-            let uv_count = m.texcoords.len() / 2;
-            if let Some(&bad) = m.texcoord_indices.iter().find(|&&i| i as usize >= uv_count) {
-                return Err(obj_err(format!(
-                    "object '{}' refers to texture coordinate {} but has {uv_count}",
-                    model.name,
-                    bad as u64 + 1
-                )));
-            }
-            uvs = m
-                .texcoord_indices
-                .iter()
-                .map(|&i| {
-                    let i = i as usize * 2;
-                    [m.texcoords[i] as f32, (1.0 - m.texcoords[i + 1]) as f32]
-                })
-                .collect();
-            positions = m.indices.iter().map(|&i| positions[i as usize]).collect();
-            if !colors.is_empty() {
-                colors = m.indices.iter().map(|&i| colors[i as usize]).collect();
-            }
-            triangles = (0..triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
-        }
-        let part =
-            Part { name: model.name, mesh: index as u32, primitive: 0, material: m.material_id.map(|id| id as u32) };
-        let material = material.map_or(default_material, |id| id as u32);
-        pieces.push(Piece { part, positions, triangles, uvs, colors, material });
+        let material = model.mesh.material_id.filter(|&id| id < materials.len());
+        let mut piece = piece(model, index as u32, material.is_some_and(textured)).map_err(obj_err)?;
+        piece.material = material.map_or(default_material, |id| id as u32);
+        pieces.push(piece);
     }
+    mesh.shading = Some(shading);
     mesh.push_pieces(pieces);
     Ok(mesh)
+}
+
+/// The material libraries an OBJ names, read as tobj asks for them, through `base` (under the rules of `files.rs`).
+/// Materials only matter for colour and the part table, so a missing, refused or broken `.mtl` is a warning.
+struct Libraries<'a> {
+    base: Externals<'a>,
+    /// Each library read, in order, with the number of materials it added (tobj appends them in that order) and
+    /// its folder on disk, which its textures' names are relative to.
+    read: RefCell<Vec<(usize, Option<PathBuf>)>>,
+    /// Why a library was not read.
+    unread: RefCell<Vec<ReadError>>,
+}
+
+impl Libraries<'_> {
+    /// tobj's material loader.
+    fn load(&self, mtl: &Path) -> tobj::MTLLoadResult {
+        match self.base.read(None, &mtl.to_string_lossy(), RefStyle::Path, None) {
+            Ok((text, real)) => {
+                let loaded = tobj::load_mtl_buf(&mut std::io::BufReader::new(&text[..]));
+                if let Ok((materials, _)) = &loaded {
+                    let folder = real.and_then(|r| r.parent().map(Path::to_path_buf));
+                    self.read.borrow_mut().push((materials.len(), folder));
+                }
+                loaded
+            }
+            Err(e) => {
+                self.unread.borrow_mut().push(e);
+                Err(tobj::LoadError::OpenFileFailed)
+            }
+        }
+    }
+
+    /// The materials tobj gathered and each one's library folder (where its texture names start), with a warning
+    /// for each library not read.
+    fn finish(
+        self,
+        path: &Path,
+        bytes: &[u8],
+        materials: Result<Vec<tobj::Material>, tobj::LoadError>,
+        warnings: &mut Vec<String>,
+    ) -> (Vec<tobj::Material>, Vec<Option<PathBuf>>) {
+        for e in self.unread.into_inner() {
+            let line = match e {
+                ReadError::Refused(_) => e.about("material library"),
+                ReadError::Failed(_) => format!("material library not loaded: {e}"),
+            };
+            warnings.push(format!("{}: {line}", path.display()));
+        }
+        let materials = match materials {
+            Ok(m) => m,
+            Err(tobj::LoadError::OpenFileFailed) => Vec::new(),
+            Err(e) => {
+                // tobj reports "no mtllib" as an error too; only mention it when the file asked for a library.
+                if bytes.windows(6).any(|w| w == b"mtllib") {
+                    warnings.push(format!("{}: material library not loaded: {e}", path.display()));
+                }
+                Vec::new()
+            }
+        };
+        let folders = self.read.into_inner().into_iter().flat_map(|(n, folder)| std::iter::repeat_n(folder, n));
+        (materials, folders.collect())
+    }
+}
+
+/// One OBJ object or group as a piece (its `material` is set by the caller): positions in f64, vertex colours,
+/// and, when its material is `textured`, texture coordinates per corner.
+fn piece(model: tobj::Model, index: u32, textured: bool) -> Result<Piece, String> {
+    let m = model.mesh;
+    let vertex_count = m.positions.len() / 3;
+    if let Some(&bad) = m.indices.iter().find(|&&i| i as usize >= vertex_count) {
+        return Err(format!("object '{}' refers to vertex {} but has {vertex_count}", model.name, bad as u64 + 1));
+    }
+    let mut positions: Vec<DVec3> = m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
+    let mut triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    // Vertex colours (`v x y z r g b`, as MeshLab and scanners write them) are sRGB like texels.
+    let mut colors: Vec<Vec4> = match m.vertex_color.len() == m.positions.len() {
+        true => m.vertex_color.chunks_exact(3).map(|c| srgb_to_linear([c[0], c[1], c[2]])).collect(),
+        false => Vec::new(),
+    };
+    let mut uvs = Vec::new();
+    if textured && m.texcoord_indices.len() == m.indices.len() && !m.texcoords.is_empty() {
+        // Texture coordinates have their own indices: every corner becomes a vertex of its own. OBJ's v runs up
+        // the image, the texture's rows down.
+        let uv_count = m.texcoords.len() / 2;
+        if let Some(&bad) = m.texcoord_indices.iter().find(|&&i| i as usize >= uv_count) {
+            return Err(format!(
+                "object '{}' refers to texture coordinate {} but has {uv_count}",
+                model.name,
+                bad as u64 + 1
+            ));
+        }
+        uvs = m
+            .texcoord_indices
+            .iter()
+            .map(|&i| {
+                let i = i as usize * 2;
+                [m.texcoords[i] as f32, (1.0 - m.texcoords[i + 1]) as f32]
+            })
+            .collect();
+        positions = m.indices.iter().map(|&i| positions[i as usize]).collect();
+        if !colors.is_empty() {
+            colors = m.indices.iter().map(|&i| colors[i as usize]).collect();
+        }
+        triangles = (0..triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+    }
+    let part = Part { name: model.name, mesh: index, primitive: 0, material: m.material_id.map(|id| id as u32) };
+    Ok(Piece { part, positions, triangles, uvs, colors, material: 0 })
 }
 
 /// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`, relative to the folder of the library that
