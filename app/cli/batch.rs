@@ -196,35 +196,10 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     if let Some(s) = args.shard {
         items = shard(items, s);
     }
-    let template = VoxelizeArgs {
-        mesh: String::new(),
-        resolution: args.resolution,
-        voxel_size: args.voxel_size,
-        axis: args.axis,
-        output: PathBuf::new(),
-        merge: args.merge,
-        mode: args.mode,
-        stats_json: false,
-        backend: args.backend,
-        colour: args.colour.clone(),
-        limits: args.limits.clone(),
-    };
     // clap allows only the formats' names; the same --merge check as `voxelize`, once.
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
-    let outputs: Vec<PathBuf> =
-        items.iter().map(|i| args.output.join(&i.relative).with_extension(format.extension())).collect();
-    // Two inputs mapping onto one output would overwrite each other: refused before any work.
-    let mut order: Vec<usize> = (0..items.len()).collect();
-    order.sort_by(|&a, &b| outputs[a].cmp(&outputs[b]));
-    if let Some(w) = order.windows(2).find(|w| outputs[w[0]] == outputs[w[1]]) {
-        bail!(
-            "{} and {} would both be written to {}; pass their directory instead",
-            items[w[0]].source.display(),
-            items[w[1]].source.display(),
-            outputs[w[0]].display()
-        );
-    }
+    let outputs = plan_outputs(args, &items, format)?;
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
     let mut manifest = match &args.manifest {
@@ -245,65 +220,15 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     // worker holds one mesh and one grid, which bounds memory however long the list is; results come back
     // through a bounded channel.
     let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Outcome)>(2 * jobs);
+    let work = Work { args, items: &items, outputs: &outputs, format, engine: &engine, next: &next };
     std::thread::scope(|scope| -> Result<()> {
         for _ in 0..jobs {
-            let tx = tx.clone();
-            let (items, outputs, next, template, engine) = (&items, &outputs, &next, &template, &engine);
-            let skip = args.skip_existing;
-            scope.spawn(move || {
-                loop {
-                    let k = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(item) = items.get(k) else { break };
-                    let outcome = match (&item.refused, skip && outputs[k].exists()) {
-                        (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
-                        (None, true) => Outcome::Skipped,
-                        (None, false) => {
-                            let args = VoxelizeArgs {
-                                mesh: item.source.display().to_string(),
-                                output: outputs[k].clone(),
-                                ..template.clone()
-                            };
-                            match voxelize_one(&args, format, engine) {
-                                Ok(report) => Outcome::Done(Box::new(report)),
-                                Err(e) => Outcome::Failed(e),
-                            }
-                        }
-                    };
-                    if tx.send((k, outcome)).is_err() {
-                        break;
-                    }
-                }
-            });
+            let (tx, work) = (tx.clone(), &work);
+            scope.spawn(move || work.run(&tx));
         }
         drop(tx);
         for (k, outcome) in rx {
-            let output = outputs[k].display().to_string();
-            let name = items[k].source.display().to_string();
-            let line = match outcome {
-                Outcome::Done(report) => {
-                    tally.done += 1;
-                    let times = [report.load_ms, report.voxelize_ms, report.colour_ms.unwrap_or(0.0), report.write_ms];
-                    for (stage, ms) in tally.stage_ms.iter_mut().zip(times) {
-                        *stage += ms;
-                    }
-                    let mut stats = serde_json::to_value(&report).context("the report")?;
-                    stats["status"] = "done".into();
-                    stats["error"] = serde_json::Value::Null;
-                    stats
-                }
-                Outcome::Skipped => {
-                    tally.skipped += 1;
-                    serde_json::json!({ "mesh": name, "output": output, "status": "skipped", "error": null })
-                }
-                Outcome::Failed(e) => {
-                    tally.failed += 1;
-                    // Loader errors name the file already.
-                    let message = format!("{e:#}");
-                    let line = if message.contains(&name) { message.clone() } else { format!("{name}: {message}") };
-                    bar.suspend(|| eprintln!("error: {line}"));
-                    serde_json::json!({ "mesh": name, "output": output, "status": "failed", "error": message })
-                }
-            };
+            let line = tally.record(outcome, &items[k].source, &outputs[k], &bar)?;
             if let Some(m) = manifest.as_mut() {
                 writeln!(m, "{line}").context("manifest: write failed")?;
             }
@@ -330,6 +255,74 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     Ok(if tally.failed > 0 { std::process::ExitCode::FAILURE } else { std::process::ExitCode::SUCCESS })
 }
 
+/// Each input's output path; two inputs mapping onto one output would overwrite each other, so that is refused
+/// before any work.
+fn plan_outputs(args: &BatchArgs, items: &[Item], format: VoxelFormat) -> Result<Vec<PathBuf>> {
+    let outputs: Vec<PathBuf> =
+        items.iter().map(|i| args.output.join(&i.relative).with_extension(format.extension())).collect();
+    let mut order: Vec<usize> = (0..items.len()).collect();
+    order.sort_by(|&a, &b| outputs[a].cmp(&outputs[b]));
+    if let Some(w) = order.windows(2).find(|w| outputs[w[0]] == outputs[w[1]]) {
+        bail!(
+            "{} and {} would both be written to {}; pass their directory instead",
+            items[w[0]].source.display(),
+            items[w[1]].source.display(),
+            outputs[w[0]].display()
+        );
+    }
+    Ok(outputs)
+}
+
+/// What every worker shares: the inputs, their outputs, the engine, and the index of the next input to take.
+struct Work<'a> {
+    args: &'a BatchArgs,
+    items: &'a [Item],
+    outputs: &'a [PathBuf],
+    format: VoxelFormat,
+    engine: &'a Engine,
+    next: &'a AtomicUsize,
+}
+
+impl Work<'_> {
+    /// One worker: takes inputs until none is left (or the receiver is gone), sending each one's outcome.
+    fn run(&self, tx: &std::sync::mpsc::SyncSender<(usize, Outcome)>) {
+        loop {
+            let k = self.next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = self.items.get(k) else { break };
+            let output = &self.outputs[k];
+            let outcome = match (&item.refused, self.args.skip_existing && output.exists()) {
+                (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
+                (None, true) => Outcome::Skipped,
+                (None, false) => match voxelize_one(&self.voxelize_args(item, output), self.format, self.engine) {
+                    Ok(report) => Outcome::Done(Box::new(report)),
+                    Err(e) => Outcome::Failed(e),
+                },
+            };
+            if tx.send((k, outcome)).is_err() {
+                break;
+            }
+        }
+    }
+
+    /// The `voxelize` arguments for one input.
+    fn voxelize_args(&self, item: &Item, output: &Path) -> VoxelizeArgs {
+        let args = self.args;
+        VoxelizeArgs {
+            mesh: item.source.display().to_string(),
+            resolution: args.resolution,
+            voxel_size: args.voxel_size,
+            axis: args.axis,
+            output: output.to_path_buf(),
+            merge: args.merge,
+            mode: args.mode,
+            stats_json: false,
+            backend: args.backend,
+            colour: args.colour.clone(),
+            limits: args.limits.clone(),
+        }
+    }
+}
+
 /// Counts and stage times so far.
 #[derive(Default)]
 struct Tally {
@@ -342,6 +335,42 @@ struct Tally {
 }
 
 impl Tally {
+    /// Counts one input's outcome and returns its manifest line; a failure is also printed as one `error:` line.
+    fn record(
+        &mut self,
+        outcome: Outcome,
+        source: &Path,
+        output: &Path,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<serde_json::Value> {
+        let (name, output) = (source.display().to_string(), output.display().to_string());
+        Ok(match outcome {
+            Outcome::Done(report) => {
+                self.done += 1;
+                let times = [report.load_ms, report.voxelize_ms, report.colour_ms.unwrap_or(0.0), report.write_ms];
+                for (stage, ms) in self.stage_ms.iter_mut().zip(times) {
+                    *stage += ms;
+                }
+                let mut stats = serde_json::to_value(&report).context("the report")?;
+                stats["status"] = "done".into();
+                stats["error"] = serde_json::Value::Null;
+                stats
+            }
+            Outcome::Skipped => {
+                self.skipped += 1;
+                serde_json::json!({ "mesh": name, "output": output, "status": "skipped", "error": null })
+            }
+            Outcome::Failed(e) => {
+                self.failed += 1;
+                // Loader errors name the file already.
+                let message = format!("{e:#}");
+                let line = if message.contains(&name) { message.clone() } else { format!("{name}: {message}") };
+                bar.suspend(|| eprintln!("error: {line}"));
+                serde_json::json!({ "mesh": name, "output": output, "status": "failed", "error": message })
+            }
+        })
+    }
+
     fn finished(&self) -> usize {
         self.done + self.skipped + self.failed
     }
