@@ -1,0 +1,247 @@
+//! The viewer's side panel, section by section: the mesh (picker, Open…, notices), what to voxelize (resolution,
+//! axis, mode), how to show it (cut-away, colours, up axis, preset views, overlays, screenshot), the status (stats,
+//! adapter, backend note), export, and the last error.
+
+#[cfg(target_arch = "wasm32")]
+use super::web;
+use super::{ViewerApp, short_number};
+use crate::mesh::builtin;
+use crate::render::{self, camera::UpAxis, camera::ViewPreset};
+use crate::voxel::{Axis, Mode, formats};
+
+impl ViewerApp {
+    pub(super) fn panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("meshvox");
+        ui.label(egui::RichText::new("GPU mesh voxelizer").weak());
+        ui.separator();
+        self.mesh_section(ui);
+        self.voxelize_section(ui);
+        self.view_section(ui);
+        self.status_section(ui);
+        self.export_section(ui);
+        if let Some(e) = &self.error {
+            ui.separator();
+            ui.colored_label(egui::Color32::from_rgb(255, 110, 90), e);
+        }
+    }
+
+    /// The mesh picker, Open…, and the notice about a link's file.
+    fn mesh_section(&mut self, ui: &mut egui::Ui) {
+        let mesh_label = ui.label("Mesh");
+        let mut picked = None;
+        egui::ComboBox::from_id_salt("mesh")
+            .selected_text(self.mesh_label.rsplit('/').next().unwrap_or(&self.mesh_label).to_string())
+            .width(200.0)
+            .show_ui(ui, |ui| {
+                for name in builtin::NAMES {
+                    let spec = format!("builtin:{name}");
+                    if ui
+                        .selectable_label(self.mesh_label == spec, spec.as_str())
+                        .on_hover_text(builtin::describe(name))
+                        .clicked()
+                    {
+                        picked = Some(spec);
+                    }
+                }
+            })
+            .response
+            .labelled_by(mesh_label.id);
+        if let Some(spec) = picked {
+            self.open(spec);
+        }
+        #[cfg(not(target_arch = "wasm32"))]
+        if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY; or drop a file on the window").clicked()
+            && let Some(path) =
+                rfd::FileDialog::new().add_filter("meshes", &["obj", "gltf", "glb", "stl", "ply"]).pick_file()
+        {
+            let loaded = crate::mesh::load_path(&path);
+            self.set_mesh(path.display().to_string(), loaded);
+        }
+        #[cfg(target_arch = "wasm32")]
+        if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY (pick a .gltf or .obj together with the files it refers to); or drop files on the page").clicked() {
+            web::open_file_picker();
+        }
+        ui.label(egui::RichText::new("Drop an .obj, .gltf, .glb, .stl or .ply file anywhere.").small().weak());
+        if let Some(notice) = &self.notice {
+            ui.add(
+                egui::Label::new(egui::RichText::new(notice).small().color(egui::Color32::from_rgb(240, 160, 64)))
+                    .wrap(),
+            );
+        }
+        ui.separator();
+    }
+
+    /// Resolution, axis and mode: what to voxelize.
+    fn voxelize_section(&mut self, ui: &mut egui::Ui) {
+        ui.label("Resolution (voxels along the axis)");
+        let mut r = self.resolution;
+        // The range reaches the current resolution when it is larger (`view -r 2000`, the page's hook), so the
+        // slider shows the value the panel's messages refer to instead of its own maximum.
+        let range = 4..=self.resolution.max(512);
+        if ui.add(egui::Slider::new(&mut r, range).logarithmic(true).text("N")).changed() {
+            self.set_resolution(r);
+        }
+        ui.horizontal(|ui| {
+            ui.label("Axis");
+            for (axis, label) in [(Axis::Longest, "longest"), (Axis::X, "x"), (Axis::Y, "y"), (Axis::Z, "z")] {
+                if ui.radio_value(&mut self.axis, axis, label).changed() {
+                    self.needs_voxelize = true;
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("Mode");
+            for mode in Mode::ALL {
+                let hint = match mode {
+                    Mode::Surface => "every voxel a triangle touches (26-separating)",
+                    Mode::Solid => "the surface plus every voxel whose centre is inside (winding number ≥ ½)",
+                    Mode::Surface6 => "the thin surface: no face-connected leak from inside a closed mesh",
+                };
+                if ui.radio(self.mode == mode, mode.name()).on_hover_text(hint).clicked() {
+                    self.set_mode(mode);
+                }
+            }
+        });
+    }
+
+    /// Cut-away, colours, up axis, preset views, overlays, reset and screenshot: how to show it.
+    fn view_section(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let mut changed = ui
+                .checkbox(&mut self.cut_on, "Cut away")
+                .on_hover_text("hide the voxels beyond a plane to see inside")
+                .changed();
+            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
+                changed |= ui.radio_value(&mut self.cut.axis, axis, *label).changed();
+            }
+            if changed {
+                self.rebuild_scene();
+            }
+        });
+        if self.cut_on && ui.add(egui::Slider::new(&mut self.cut.fraction, 0.0..=1.0).text("cut")).changed() {
+            self.rebuild_scene();
+        }
+        if self.colours.is_some() {
+            ui.checkbox(&mut self.style.voxel_colours, "Voxel colours")
+                .on_hover_text("the mesh's colour at the surface point nearest each voxel; off: one flat colour");
+        }
+        ui.horizontal(|ui| {
+            ui.label("Up");
+            for up in [UpAxis::Y, UpAxis::Z] {
+                // Capitals, so that they read apart from the resolution axis's x, y, z.
+                let label = up.name().to_uppercase();
+                if ui.radio(self.up == up, label).on_hover_text("the axis the view orbits around").clicked() {
+                    self.set_up(up);
+                }
+            }
+        });
+        ui.horizontal_wrapped(|ui| {
+            ui.label("View");
+            for (k, preset) in ViewPreset::ALL.into_iter().enumerate() {
+                if ui.small_button(preset.name()).on_hover_text(format!("key {}", k + 1)).clicked() {
+                    self.look(preset);
+                }
+            }
+        });
+        ui.checkbox(&mut self.style.show_mesh, "Show the mesh");
+        if ui.checkbox(&mut self.style.ao, "Ambient occlusion").on_hover_text("darken corners and creases").changed()
+            && self.style.ao
+        {
+            self.rebuild_scene();
+        }
+        ui.checkbox(&mut self.style.edges, "Darken cube edges");
+        ui.checkbox(&mut self.style.floor, "Floor grid").on_hover_text(
+            "lines under the model at multiples of a power of ten in the mesh's units; every tenth brighter",
+        );
+        ui.horizontal(|ui| {
+            if ui.button("Reset view").clicked() {
+                self.needs_framing = true;
+                self.needs_voxelize = true;
+            }
+            if ui.button("Screenshot").on_hover_text("the viewport as a PNG").clicked() {
+                self.screenshot_requested = true;
+            }
+        });
+        ui.separator();
+    }
+
+    /// The stats of the last voxelization, the adapter, and how this device voxelizes.
+    fn status_section(&mut self, ui: &mut egui::Ui) {
+        if self.pending.is_some() {
+            // No spinner: it repaints every frame, and on a software adapter (SwiftShader) those frames queue
+            // ahead of the voxelization's readback on the one GPU queue, delaying the result by up to a second.
+            ui.label("voxelizing…");
+        }
+        if let Some(s) = &self.stats {
+            egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
+                ui.label("triangles");
+                ui.label(s.triangles.to_string());
+                ui.end_row();
+                ui.label("grid");
+                ui.label(format!("{}×{}×{}", s.dims[0], s.dims[1], s.dims[2]));
+                ui.end_row();
+                // In the mesh's own units, whatever they are (glTF: metres).
+                ui.label("size");
+                let size = s.dims.map(|d| short_number(d as f64 * s.voxel_size));
+                ui.label(format!("{} × {} × {}", size[0], size[1], size[2])).on_hover_text("in the mesh's units");
+                ui.end_row();
+                ui.label("voxel");
+                ui.label(short_number(s.voxel_size)).on_hover_text("edge length, in the mesh's units");
+                ui.end_row();
+                if let (true, Some(scene)) = (self.style.floor, &self.scene) {
+                    let spacing = short_number(render::Floor::new(&scene.spec, self.up).spacing);
+                    ui.label("floor lines");
+                    ui.label(format!("every {spacing}"))
+                        .on_hover_text("in the mesh's units; every tenth line brighter");
+                    ui.end_row();
+                }
+                ui.label("voxels");
+                ui.label(format!("{} ({})", s.voxels, s.mode));
+                ui.end_row();
+                ui.label("backend");
+                ui.label(&self.gpu.summary.backend);
+                ui.end_row();
+                ui.label("GPU ms");
+                ui.label(s.gpu_ms.map_or("n/a".to_string(), |ms| format!("{ms:.2}")));
+                ui.end_row();
+                ui.label("total ms");
+                ui.label(format!("{:.1}", s.voxelize_ms));
+                ui.end_row();
+            });
+            ui.add(egui::Label::new(egui::RichText::new(format!("adapter: {}", self.gpu.summary.name)).small()).wrap());
+        }
+        if self.voxelizer.is_none() {
+            let note = match cfg!(target_arch = "wasm32") {
+                true => "WebGL2 (this browser has no WebGPU): voxelized on the CPU in WebAssembly, one thread",
+                false => "this device has no compute shaders: voxelized on the CPU",
+            };
+            ui.add(egui::Label::new(egui::RichText::new(note).small().weak()).wrap());
+        }
+    }
+
+    /// The export buttons.
+    fn export_section(&mut self, ui: &mut egui::Ui) {
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("Export");
+            use formats::VoxelFormat::{Binvox, Mesh, Npy, Vox};
+            for format in [Vox, Binvox, Npy, Mesh(formats::MeshFormat::Glb)] {
+                if ui
+                    .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
+                    .on_hover_text(match format {
+                        Npy => "numpy uint8 grid (and .colors.npy beside it when coloured)",
+                        Vox => "MagicaVoxel, with a palette of the voxel colours",
+                        Binvox => "binvox, occupancy only",
+                        _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
+                    })
+                    .clicked()
+                {
+                    #[cfg(not(target_arch = "wasm32"))]
+                    self.export(format);
+                    #[cfg(target_arch = "wasm32")]
+                    self.download(format);
+                }
+            }
+        });
+    }
+}
