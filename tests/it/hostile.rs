@@ -7,7 +7,7 @@
 //!
 //! `tests/tools/make_corpus.py` wrote the corpus; `tests/corpus/README.md` says what is wrong with each file.
 
-use super::common::{Bounds, meshvox_bounded};
+use super::bounded::{Bounds, meshvox_bounded};
 use meshvox::mesh;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -7,7 +7,8 @@
 //! The escapes read a file that is a valid buffer for the glTF that names it (the same bytes load when copied into
 //! the folder, checked first), so without the rules each of those runs would succeed: the tests can fail.
 
-use super::common::{Bounds, meshvox_bounded, shared_meshes};
+use super::bounded::{Bounds, meshvox_bounded};
+use super::common::shared_meshes;
 use meshvox::mesh::{self, LoadLimits, MeshError};
 use std::path::{Path, PathBuf};
 use std::process::Output;
