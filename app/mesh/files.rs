@@ -59,6 +59,48 @@ impl std::fmt::Display for ReadError {
     }
 }
 
+/// The bytes one load may take in: the files it reads and the textures it decodes, together. A decoded texture
+/// is counted too, since a small image can decode to hundreds of megabytes and a file can name thousands.
+#[derive(Debug)]
+pub(crate) struct Budget {
+    limit: u64,
+    spent: Cell<u64>,
+}
+
+impl Budget {
+    pub(crate) fn new(limit: u64) -> Budget {
+        Budget { limit, spent: Cell::new(0) }
+    }
+
+    pub(crate) fn limit(&self) -> u64 {
+        self.limit
+    }
+
+    /// Counts `bytes`, or returns the total they would make when that is over the limit.
+    pub(crate) fn spend(&self, bytes: u64) -> Result<(), u64> {
+        let total = self.spent.get().saturating_add(bytes);
+        if total > self.limit {
+            return Err(total);
+        }
+        self.spent.set(total);
+        Ok(())
+    }
+
+    /// Why `size` more bytes (`total` in all) are refused.
+    pub(crate) fn over(&self, size: u64, total: u64) -> String {
+        let human = crate::memory::human;
+        match size > self.limit {
+            true => format!("is {}, more than the limit of {} (--max-file-size)", human(size), human(self.limit)),
+            false => format!(
+                "is {}, which would bring what this mesh reads to {}, more than the limit of {} (--max-file-size)",
+                human(size),
+                human(total),
+                human(self.limit)
+            ),
+        }
+    }
+}
+
 /// The rules one load from disk reads under: the folders references may resolve into and the byte budget.
 #[derive(Debug)]
 pub(crate) struct Access {
@@ -66,10 +108,8 @@ pub(crate) struct Access {
     base: PathBuf,
     /// Canonical folders a reference's real path may lie in: `base`, then the caller's resource roots.
     roots: Vec<PathBuf>,
-    /// The most bytes one file may have, and all files of this load together.
-    limit: u64,
-    /// Bytes read (or about to be) so far in this load.
-    spent: Cell<u64>,
+    /// The most bytes one file may have, and all files (and decoded textures) of this load together.
+    budget: Budget,
 }
 
 impl Access {
@@ -92,7 +132,7 @@ impl Access {
             }
             roots.push(root);
         }
-        Ok(Access { base, roots, limit, spent: Cell::new(0) })
+        Ok(Access { base, roots, budget: Budget::new(limit) })
     }
 
     /// The mesh file's folder, where its own references are resolved.
@@ -104,7 +144,7 @@ impl Access {
     pub(crate) fn read_mesh(&self, path: &Path) -> Result<Vec<u8>, MeshError> {
         self.read_regular(path, None).map_err(|e| match e {
             Refusal::TooLarge { size, .. } => {
-                MeshError::FileTooLarge { path: path.to_path_buf(), size, limit: self.limit }
+                MeshError::FileTooLarge { path: path.to_path_buf(), size, limit: self.budget.limit() }
             }
             Refusal::Io(source) => MeshError::Io { path: path.to_path_buf(), source },
             Refusal::Rule(message) => MeshError::Refused { path: path.to_path_buf(), message },
@@ -125,7 +165,7 @@ impl Access {
         let real = self.resolve(from, reference, style)?;
         let bytes = self.read_regular(&real, exact).map_err(|e| match e {
             Refusal::TooLarge { size, total } => {
-                ReadError::Refused(format!("{shown} {}", self.over_limit(size, total)))
+                ReadError::Refused(format!("{shown} {}", self.budget.over(size, total)))
             }
             Refusal::Io(e) => ReadError::Failed(format!("cannot read {}: {e}", real.display())),
             Refusal::Rule(m) => ReadError::Refused(format!("{shown} {m}")),
@@ -186,28 +226,9 @@ impl Access {
         Ok(bytes)
     }
 
-    /// Why `size` more bytes (`total` in all) are refused.
-    fn over_limit(&self, size: u64, total: u64) -> String {
-        let human = crate::memory::human;
-        match size > self.limit {
-            true => format!("is {}, more than the limit of {} (--max-file-size)", human(size), human(self.limit)),
-            false => format!(
-                "is {}, which would bring what this mesh reads to {}, more than the limit of {} (--max-file-size)",
-                human(size),
-                human(total),
-                human(self.limit)
-            ),
-        }
-    }
-
     /// Counts `bytes` against the load's budget, or refuses them.
     fn spend(&self, bytes: u64) -> Result<(), Refusal> {
-        let total = self.spent.get().saturating_add(bytes);
-        if total > self.limit {
-            return Err(Refusal::TooLarge { size: bytes, total });
-        }
-        self.spent.set(total);
-        Ok(())
+        self.budget.spend(bytes).map_err(|total| Refusal::TooLarge { size: bytes, total })
     }
 }
 
@@ -292,12 +313,20 @@ fn quote(reference: &str) -> String {
 /// handed over together (found by file name, as a browser hands them over), or nowhere.
 #[derive(Clone, Copy)]
 pub(crate) enum Externals<'a> {
-    None,
+    None(&'a Budget),
     Dir(&'a Access),
-    Files(&'a [(String, Vec<u8>)]),
+    Files(&'a [(String, Vec<u8>)], &'a Budget),
 }
 
 impl<'a> Externals<'a> {
+    /// What this load may still take in (decoded textures count against it).
+    pub(crate) fn budget(&self) -> &'a Budget {
+        match *self {
+            Externals::None(budget) | Externals::Files(_, budget) => budget,
+            Externals::Dir(access) => &access.budget,
+        }
+    }
+
     /// The bytes of `reference`, written in `style`, relative to the folder `from` (the mesh's folder when `None`).
     /// `exact` as in [`Access::read_reference`]. On disk, also the file's real path (its folder resolves the
     /// references inside it, as an MTL's textures).
@@ -309,14 +338,14 @@ impl<'a> Externals<'a> {
         exact: Option<u64>,
     ) -> Result<(Cow<'a, [u8]>, Option<PathBuf>), ReadError> {
         match *self {
-            Externals::None => {
+            Externals::None(_) => {
                 Err(ReadError::Failed(format!("{} is a separate file, which cannot be read here", quote(reference))))
             }
             Externals::Dir(access) => {
                 let (bytes, real) = access.read_reference(from.unwrap_or(access.base()), reference, style, exact)?;
                 Ok((bytes.into(), Some(real)))
             }
-            Externals::Files(files) => {
+            Externals::Files(files, _) => {
                 let decoded = match style {
                     RefStyle::Uri => urlencoding::decode(reference)
                         .map_err(|e| ReadError::Failed(format!("bad URI {}: {e}", quote(reference))))?,

@@ -262,7 +262,7 @@ fn read_buffers(
             gltf::buffer::Source::Uri(uri) => match uri.strip_prefix("data:") {
                 Some(data) => decode_data_uri(data).map_err(|e| invalid(format!("{name}: {e}")))?,
                 None => match base {
-                    Externals::None => {
+                    Externals::None(_) => {
                         return Err(invalid(format!(
                             "{name} is in a separate file ({uri}), which cannot be read here: use a .glb or embedded buffers, or open the files together"
                         )));
@@ -542,6 +542,6 @@ fn read_texture(
             }
         },
     };
-    Texture::decode(&bytes, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())], nearest)
+    Texture::decode(&bytes, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())], nearest, base.budget())
         .map_err(|e| format!("images[{}]: {e}", image.index()))
 }

@@ -31,13 +31,26 @@ pub struct Texture {
 }
 
 impl Texture {
-    /// Decodes an encoded image (PNG or JPEG, guessed from its bytes) into RGBA8.
-    pub fn decode(bytes: &[u8], wrap: [Wrap; 2], nearest: bool) -> Result<Texture, String> {
-        let image = image::load_from_memory(bytes).map_err(|e| e.to_string())?.into_rgba8();
-        let (width, height) = image.dimensions();
+    /// Decodes an encoded image (PNG, JPEG or WebP, guessed from its bytes) into RGBA8, within `budget`: the
+    /// decoder may allocate no more than what is left of it (and no more than the image crate's default of
+    /// 512 MiB), and the texels are counted against it.
+    pub(crate) fn decode(
+        bytes: &[u8],
+        wrap: [Wrap; 2],
+        nearest: bool,
+        budget: &super::files::Budget,
+    ) -> Result<Texture, String> {
+        let reader = || image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
+        // The size from the header first: an image over the budget is refused before it is decoded. The decoder
+        // itself stays within the image crate's default limits (512 MiB).
+        let (width, height) = reader().map_err(|e| e.to_string())?.into_dimensions().map_err(|e| e.to_string())?;
         if width == 0 || height == 0 {
             return Err("the image is empty".into());
         }
+        let texel_bytes = width as u64 * height as u64 * 4;
+        budget.spend(texel_bytes).map_err(|total| format!("decoded, it {}", budget.over(texel_bytes, total)))?;
+        let image = reader().map_err(|e| e.to_string())?.decode().map_err(|e| e.to_string())?.into_rgba8();
+        let (width, height) = image.dimensions();
         let texels = image.pixels().map(|p| u32::from_le_bytes(p.0)).collect();
         Ok(Texture { width, height, texels, wrap, nearest })
     }

@@ -12,7 +12,7 @@ mod obj;
 mod ply;
 mod stl;
 
-use files::{Access, Externals};
+use files::{Access, Budget, Externals};
 use glam::{DVec3, Vec3, Vec4};
 pub use material::Shading;
 use material::TriangleShading;
@@ -222,6 +222,13 @@ impl LoadLimits {
     /// The default triangle limit: 100 million triangles are 3.6 GB as grid-space coordinates alone.
     pub const DEFAULT_MAX_TRIANGLES: u64 = 100_000_000;
 
+    /// The bytes a load may take in: `max_file_bytes`, or the memory budget, or where the platform does not say
+    /// how much memory there is, the wasm32 heap's 2 GiB in the browser and no limit elsewhere.
+    pub(crate) fn byte_limit(&self) -> u64 {
+        let unknown = if cfg!(target_arch = "wasm32") { 2 << 30 } else { u64::MAX };
+        self.max_file_bytes.or_else(crate::memory::default_budget).unwrap_or(unknown)
+    }
+
     pub(crate) fn check_triangles(&self, path: &Path, triangles: u64) -> Result<(), MeshError> {
         if triangles > self.max_triangles {
             return Err(MeshError::TooManyTriangles { path: path.to_path_buf(), triangles, limit: self.max_triangles });
@@ -308,8 +315,7 @@ pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
 /// checked against `max_file_bytes` before it is read, and the files it refers to must lie inside its folder
 /// or one of `resource_roots` (see `files.rs`).
 pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    let limit = limits.max_file_bytes.or_else(crate::memory::default_budget).unwrap_or(u64::MAX);
-    let access = Access::new(path, &limits.resource_roots, limit)?;
+    let access = Access::new(path, &limits.resource_roots, limits.byte_limit())?;
     let bytes = access.read_mesh(path)?;
     load_bytes_impl(path, &bytes, Externals::Dir(&access), limits)
 }
@@ -317,7 +323,8 @@ pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshErro
 /// Loads a mesh from memory (a browser upload, a drag-and-drop). `name` supplies the extension that picks the
 /// format. External files (glTF `.bin` buffers, OBJ material libraries) cannot be resolved this way.
 pub fn load_bytes(name: &str, bytes: &[u8]) -> Result<Mesh, MeshError> {
-    load_bytes_impl(Path::new(name), bytes, Externals::None, &LoadLimits::default())
+    let limits = LoadLimits::default();
+    load_bytes_impl(Path::new(name), bytes, Externals::None(&Budget::new(limits.byte_limit())), &limits)
 }
 
 /// Loads a mesh from several files picked or dropped together (a `.gltf` with its `.bin` and textures, an `.obj`
@@ -329,7 +336,8 @@ pub fn load_files(files: &[(String, Vec<u8>)]) -> Result<Mesh, MeshError> {
         let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
         return Err(MeshError::UnsupportedFormat { path: PathBuf::from(names.join(", ")) });
     };
-    load_bytes_impl(Path::new(name), bytes, Externals::Files(files), &LoadLimits::default())
+    let limits = LoadLimits::default();
+    load_bytes_impl(Path::new(name), bytes, Externals::Files(files, &Budget::new(limits.byte_limit())), &limits)
 }
 
 fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {

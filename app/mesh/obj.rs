@@ -178,7 +178,7 @@ fn read_materials(
             let read = base
                 .read(folder, file, RefStyle::Path, None)
                 .map_err(|e| e.to_string())
-                .and_then(|(bytes, _)| Texture::decode(&bytes, [Wrap::Repeat; 2], false));
+                .and_then(|(bytes, _)| Texture::decode(&bytes, [Wrap::Repeat; 2], false, base.budget()));
             let index = match read {
                 Ok(t) => {
                     shading.textures.push(t);

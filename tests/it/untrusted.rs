@@ -279,6 +279,35 @@ fn textures_and_material_libraries_outside_the_rules_are_warnings_with_the_base_
     let too_big = case.voxelize(&mesh, &["--max-file-size", &limit]);
     case.warned(&too_big, &["images[0] refused: \"red.png\" is", "(--max-file-size)"]);
 
+    // Decoded textures count against the same budget: one 2048x2048 PNG of one colour (a few KiB, 16 MiB decoded)
+    // used by eight textures is decoded twice within 40 MiB, and the rest are refused with the base colour.
+    let flat = image::RgbaImage::from_pixel(2048, 2048, image::Rgba([90, 160, 220, 255]));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    flat.write_to(&mut bytes, image::ImageFormat::Png).expect("encode");
+    assert!(bytes.get_ref().len() < 100_000, "the PNG compresses");
+    case.write("flat.png", bytes.into_inner());
+    let many = serde_json::json!({
+        "asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1.5, 1.375, 0.5]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 24}],
+        "buffers": [{"uri": "tri.bin", "byteLength": 60}],
+        "materials": (0..8).map(|t| serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": t}}})).collect::<Vec<_>>(),
+        "textures": (0..8).map(|_| serde_json::json!({"source": 0})).collect::<Vec<_>>(),
+        "images": [{"uri": "flat.png"}],
+    });
+    let mesh = case.write("many.gltf", many.to_string());
+    let out = case.voxelize(&mesh, &["--max-file-size", "40M"]);
+    let stats = case.warned(
+        &out,
+        &["textures[2] not used: images[0]: decoded, it is 16.0 MiB, which would bring", "(--max-file-size)"],
+    );
+    assert!(stats["colour"].is_string(), "the first textures still colour: {stats}");
+    let refused = String::from_utf8_lossy(&out.stderr).matches("decoded, it is 16.0 MiB").count();
+    assert_eq!(refused, 6, "{}", String::from_utf8_lossy(&out.stderr));
+
     // OBJ: a material library that is a device, and a texture that is one.
     let obj = "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0.5\nf 1 2 3\n";
     let mesh = case.write("a.obj", obj);
