@@ -183,6 +183,11 @@ pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<GridSpec, Engi
     Ok(spec)
 }
 
+/// `mesh`'s triangles in `spec`'s grid space, as both the voxelizer and the colour pass take them.
+fn grid_space(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[glam::Vec3; 3]>, EngineError> {
+    voxel::cpu::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid { mesh: mesh.name.clone(), error })
+}
+
 /// A grid as [`Engine::voxelize_spec`] made it.
 pub struct Voxels {
     pub grid: VoxelGrid,
@@ -299,13 +304,15 @@ impl Engine {
         let spec = plan(name, mesh, request)?;
         request.cancelled()?;
         let t = Instant::now();
-        let voxels = self.voxelize_spec(mesh, spec, request.mode, request.progress)?;
+        // Grid-space triangles once, for the voxels and their colours.
+        let tris = grid_space(mesh, &spec)?;
+        let voxels = self.voxelize_triangles(&tris, spec, request.mode, request.progress)?;
         let voxelize_ms = ms(t);
         let mut notices = voxels.notices;
         request.cancelled()?;
         let t = Instant::now();
         let colours = match request.colour != Some(false) && mesh.shading.is_some() {
-            true => Some(self.colour(mesh, &voxels.grid)?),
+            true => Some(self.colour_triangles(mesh, &tris, &voxels.grid)?),
             false => None,
         };
         let colour_ms = colours.as_ref().map(|_| ms(t));
@@ -345,13 +352,22 @@ impl Engine {
         mode: Mode,
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
-        let grid_error = |error| EngineError::Grid { mesh: mesh.name.clone(), error };
-        let tris = voxel::cpu::grid_space_triangles(mesh, &spec).map_err(grid_error)?;
+        self.voxelize_triangles(&grid_space(mesh, &spec)?, spec, mode, progress)
+    }
+
+    /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles.
+    fn voxelize_triangles(
+        &self,
+        tris: &[[glam::Vec3; 3]],
+        spec: GridSpec,
+        mode: Mode,
+        progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+    ) -> Result<Voxels, EngineError> {
         let mut notices = Vec::new();
         if let Some((gpu, v)) = &self.gpu {
             let options = Options { read_grid: true, mode, ..Default::default() };
             let turn = self.gpu_turn();
-            let voxelized = v.voxelize(gpu, &tris, spec, &options);
+            let voxelized = v.voxelize(gpu, tris, spec, &options);
             drop(turn);
             match voxelized {
                 Ok(out) => {
@@ -375,7 +391,7 @@ impl Engine {
             }
         }
         let silent = |_: usize, _: usize| {};
-        let (grid, stats) = voxel::cpu::voxelize_grid_space_mode(&tris, spec, mode, progress.unwrap_or(&silent))
+        let (grid, stats) = voxel::cpu::voxelize_grid_space_mode(tris, spec, mode, progress.unwrap_or(&silent))
             .map_err(|error| {
                 let d = spec.dims;
                 EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error }
@@ -385,15 +401,23 @@ impl Engine {
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU.
     pub fn colour(&self, mesh: &Mesh, grid: &VoxelGrid) -> Result<Colours, EngineError> {
+        self.colour_triangles(mesh, &grid_space(mesh, &grid.spec)?, grid)
+    }
+
+    /// [`Engine::colour`] from the mesh's grid-space triangles.
+    fn colour_triangles(
+        &self,
+        mesh: &Mesh,
+        tris: &[[glam::Vec3; 3]],
+        grid: &VoxelGrid,
+    ) -> Result<Colours, EngineError> {
         let shading = mesh.shading.as_ref().ok_or(EngineError::NoColour)?;
-        let tris = voxel::cpu::grid_space_triangles(mesh, &grid.spec)
-            .map_err(|error| EngineError::Grid { mesh: mesh.name.clone(), error })?;
         let mut notices = Vec::new();
         if let Some((gpu, _)) = &self.gpu {
             use crate::gpu::colour::GpuColourer;
             if GpuColourer::fits(gpu, grid, tris.len(), shading) {
                 let turn = self.gpu_turn();
-                let coloured = GpuColourer::new(gpu).colour(gpu, grid, &tris, shading);
+                let coloured = GpuColourer::new(gpu).colour(gpu, grid, tris, shading);
                 drop(turn);
                 match coloured {
                     Ok(colours) => return Ok(Colours { colours, backend: format!("gpu: {}", gpu.summary), notices }),
@@ -406,7 +430,7 @@ impl Engine {
                 return Err(EngineError::ColourTooLarge);
             }
         }
-        let colours = voxel::colour::colour_voxels(grid, &tris, shading);
+        let colours = voxel::colour::colour_voxels(grid, tris, shading);
         Ok(Colours { colours, backend: format!("cpu ({} threads)", rayon::current_num_threads()), notices })
     }
 
