@@ -14,7 +14,7 @@ mod voxelize;
 use anyhow::Result;
 use bench::BenchArgs;
 use clap::{Parser, Subcommand, ValueEnum};
-use meshvox::engine::{self, Backend, Engine, Request};
+use meshvox::engine::{Backend, Engine, Request};
 use meshvox::mesh::{self, builtin};
 use meshvox::voxel::{Axis, Mode, Resolution, formats::VoxelFormat};
 use output::remove_partials_on_interrupt;

@@ -1,12 +1,11 @@
-//! `meshvox render`: voxelize (through the engine, or compacted on the drawing device), draw offscreen, write a
-//! PNG.
+//! `meshvox render`: voxelize through the engine on the device that draws, draw offscreen, write a PNG.
 
 use super::output::{temp_beside, write_atomically};
-use super::{AxisArg, BackendArg, ColourArgs, LimitArgs, ModeArg, engine, ms, open_engine, parse_up, parse_view};
+use super::{AxisArg, BackendArg, ColourArgs, LimitArgs, ModeArg, parse_up, parse_view};
 use anyhow::{Context, Result, anyhow, bail};
-use meshvox::voxel::{self, Mode, Resolution};
+use meshvox::voxel::{Mode, Resolution};
+use meshvox::{Engine, Request};
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(clap::Args)]
 pub(super) struct RenderArgs {
@@ -83,7 +82,7 @@ pub(super) fn parse_size(s: &str) -> Result<(u32, u32), String> {
 
 /// `meshvox render`: voxelize, compact, draw offscreen, write a PNG.
 pub(super) fn render(args: &RenderArgs) -> Result<()> {
-    use meshvox::render::{Offscreen, OrbitCamera, Style, instances_from_grid};
+    use meshvox::render::{Offscreen, OrbitCamera, Showing, Style};
     if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
         bail!("{}: the output must be a .png file", args.output.display());
     }
@@ -91,76 +90,32 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let mesh = args.limits.load(&args.mesh)?;
     let mode = Mode::from(args.mode);
     let request = args.limits.request(Resolution::Count(args.resolution), args.axis.into(), mode, None, &args.colour);
-    let spec = engine::plan(&args.mesh, &mesh, &request)?;
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
-    let t = Instant::now();
-    let tris = voxel::cpu::grid_space_triangles(&mesh, &spec)?;
-    let colour = args.colour.wanted(&mesh);
     args.colour.note_if_colourless(&args.mesh, &mesh);
-    // On a software adapter `auto` voxelizes on the CPU (faster there; see `Engine::open`) and only draws on it.
-    let cpu = args.backend == BackendArg::Cpu
-        || (args.backend == BackendArg::Auto && gpu.summary.is_software() && !engine::software_gpu_preferred());
-    let ao = !args.no_ao;
-    // What a host grid gives: its shown voxels (exposed, before the cut) as instances, and their occlusion.
-    let from_grid = |grid: &voxel::VoxelGrid| {
-        let occupied = args.cut.map(|c| c.occupied(grid));
-        let occupied = occupied.as_ref().unwrap_or(grid);
-        let shown = occupied.exposed();
-        let occlusion = ao.then(|| meshvox::render::occlusion_buffer(&gpu.device, occupied, &shown));
-        (shown, occlusion)
-    };
-    let (voxels, colours, backend, occlusion) = if cpu || colour {
-        // Colours, cut-aways and occlusion need the whole grid on the host.
-        let engine = open_engine(args.backend)?;
-        let result = engine.voxelize_spec(&mesh, spec, mode, None)?;
-        result.notices.iter().for_each(|n| eprintln!("{n}"));
-        let grid = result.grid;
-        let (shown, occlusion) = from_grid(&grid);
-        if colour {
-            let c = engine.colour(&mesh, &grid)?;
-            c.notices.iter().for_each(|n| eprintln!("{n}"));
-            let (voxels, colours) = meshvox::render::coloured_instances(&gpu.device, &grid, &shown, &c.colours);
-            (voxels, Some(colours), result.backend, occlusion)
-        } else {
-            (instances_from_grid(&gpu.device, &shown), None, result.backend, occlusion)
-        }
-    } else {
-        // On the device that draws. A cut-away or occlusion needs the whole grid on the host (the cut exposes
-        // interior voxels); otherwise the GPU compacts the visible voxels straight into the instance buffer.
-        let v = meshvox::gpu::voxelize::GpuVoxelizer::new(&gpu);
-        let host = args.cut.is_some() || ao;
-        let options = meshvox::gpu::voxelize::Options {
-            compact: !host,
-            read_grid: host,
-            surface_only: true,
-            mode,
-            ..Default::default()
-        };
-        let out = v.voxelize(&gpu, &tris, spec, &options)?;
-        let backend = format!("gpu: {}", gpu.summary);
-        match (out.grid, out.points) {
-            (Some(grid), _) => {
-                let (shown, occlusion) = from_grid(&grid);
-                (instances_from_grid(&gpu.device, &shown), None, backend, occlusion)
-            }
-            (None, Some(points)) => (points, None, backend, None),
-            _ => bail!("the GPU returned no voxels"),
-        }
-    };
-    let voxelize_ms = ms(t);
-    let count = voxels.count;
+    let showing = Showing { cut: args.cut, ao: !args.no_ao };
+    // On the device that draws, so that the GPU's list of visible voxels can be drawn where it may be.
+    let engine = Engine::on_device(&gpu, args.backend.into())?;
+    let request = Request { instances: showing.from_gpu_list(args.colour.wanted(&mesh)), ..request };
+    let result = engine.voxelize(&args.mesh, &mesh, &request)?;
+    result.notices.iter().for_each(|n| eprintln!("{n}"));
+    let (spec, backend, voxelize_ms) = (result.grid.spec, &result.report.backend, result.report.voxelize_ms);
     let offscreen = Offscreen::new(&gpu);
-    let mut scene = offscreen.renderer.coloured_scene(&gpu.device, voxels, colours, spec, Some(&mesh));
-    if let Some(occlusion) = occlusion {
-        scene = offscreen.renderer.with_occlusion(&gpu.device, scene, occlusion);
-    }
+    let scene = offscreen.renderer.voxel_scene(
+        &gpu.device,
+        &result.grid,
+        result.instances,
+        result.colours.as_ref(),
+        showing,
+        Some(&mesh),
+    );
+    let count = scene.voxels.count;
     let (lo, hi) = scene.bounds();
     let up = args.up.unwrap_or_else(|| mesh.guess_up());
     let mut camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch).with_up(up);
     if let Some(view) = args.view {
         camera.look(view);
     }
-    let style = Style { show_mesh: args.show_mesh, ao, floor: args.floor, ..Default::default() };
+    let style = Style { show_mesh: args.show_mesh, ao: showing.ao, floor: args.floor, ..Default::default() };
     let (w, h) = args.size;
     let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
     write_atomically(temp, &args.output, |out| {

@@ -65,6 +65,8 @@ impl std::fmt::Display for AdapterSummary {
 pub enum GpuError {
     #[error("no GPU adapter found ({0}); use --backend cpu, or install a Vulkan driver (mesa-vulkan-drivers)")]
     NoAdapter(String),
+    #[error("this device has no compute shaders (WebGL2); use --backend cpu")]
+    NoCompute,
     #[error("the GPU adapter refused a device: {0}")]
     RequestDevice(String),
     #[error(

@@ -16,5 +16,5 @@ pub use camera::OrbitCamera;
 pub use cubes::{CUBES_WGSL, CubeRenderer, DEPTH_FORMAT, Scene, Style};
 pub use cut::Cut;
 pub use floor::Floor;
-pub use instances::{ambient_occlusion, coloured_instances, instances_from_grid, is_webgl2, occlusion_buffer};
+pub use instances::{Showing, ambient_occlusion, coloured_instances, instances_from_grid, is_webgl2, occlusion_buffer};
 pub use target::{Offscreen, RenderTarget, TARGET_FORMAT, TARGET_SAMPLES, target_format};

@@ -210,7 +210,7 @@ impl ViewerApp {
             });
             ui.add(egui::Label::new(egui::RichText::new(format!("adapter: {}", self.gpu.summary.name)).small()).wrap());
         }
-        if self.voxelizer.is_none() {
+        if !self.engine.uses_gpu() {
             let note = match cfg!(target_arch = "wasm32") {
                 true => "WebGL2 (this browser has no WebGPU): voxelized on the CPU in WebAssembly, one thread",
                 false => "this device has no compute shaders: voxelized on the CPU",

@@ -5,8 +5,11 @@
 //! The browser runs the app on one thread, so a thread-local queue is all the synchronisation needed; every
 //! message asks egui for a repaint, since an idle page only runs frames when something happens.
 
-use super::Stats;
+use super::{Stats, ViewerApp};
 use crate::gpu::AdapterSummary;
+use crate::mesh;
+use crate::render::{self, camera::ViewPreset};
+use crate::voxel::{Mode, formats};
 use std::cell::RefCell;
 use wasm_bindgen::{JsCast, JsValue};
 
@@ -168,4 +171,43 @@ pub(crate) fn publish_status(
         let _ = js_sys::Reflect::set(&window, &"meshvoxStatus".into(), &status);
     }
     publish_hover(hover);
+}
+
+impl ViewerApp {
+    /// Carries out what the page asked for (file input, test hooks, dropped files read in the background).
+    pub(super) fn take_web_commands(&mut self) {
+        for command in take() {
+            match command {
+                Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
+                Command::SetMode(name) => match Mode::from_name(&name) {
+                    Some(mode) => self.set_mode(mode),
+                    None => self.fail(format!("unknown mode '{name}': use surface, solid or surface6")),
+                },
+                Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
+                Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
+                Command::Screenshot => self.screenshot_requested = true,
+                Command::SetView(name) => match ViewPreset::from_name(&name) {
+                    Some(preset) => self.look(preset),
+                    None => {
+                        self.fail(format!("unknown view '{name}': use front, back, left, right, top, bottom or iso"))
+                    }
+                },
+                Command::LoadFiles(files) => {
+                    let loaded = mesh::load_files(&files);
+                    let name = files
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .find(|n| mesh::Format::detect(std::path::Path::new(n), &[]).is_some());
+                    self.set_mesh(name.unwrap_or("files").to_string(), loaded);
+                }
+                Command::Export(ext) => {
+                    match formats::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
+                        Some(format) => self.download(format),
+                        None => self.fail(format!("unknown export format '{ext}': use vox, binvox, npy or glb")),
+                    }
+                }
+                Command::Failed(e) => self.fail(e),
+            }
+        }
+    }
 }

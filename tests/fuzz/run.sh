@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs meshvox's fuzz targets (see "Fuzzing" in the README). `bash tests/fuzz/run.sh [SECONDS] [TARGET...]` runs
+# Runs meshvox's fuzz targets (see docs/limits.md). `bash tests/fuzz/run.sh [SECONDS] [TARGET...]` runs
 # each target (default: obj, gltf, voxelize, stl_ply) for SECONDS (default 20) starting from its kept corpus in
 # tests/fuzz/corpus/TARGET and the hostile corpus, on a scratch copy, so the kept corpus only changes when a
 # longer run is minimized into it on purpose. Installs a nightly toolchain and cargo-fuzz if they are missing.

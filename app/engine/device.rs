@@ -1,0 +1,223 @@
+//! The engine's GPU side: which adapter it takes (or adopts), and a request's voxels and colours on it, with the
+//! CPU standing in where the engine allows.
+//!
+//! Three ways to get a GPU engine, each with its rule written here once:
+//! - [`Engine::open`] (`auto|gpu`): its own adapter and device. Under `auto` a software adapter such as lavapipe
+//!   is not used for compute, since it runs on the same cores and is slower than the CPU walk
+//!   (`MESHVOX_SOFTWARE_GPU=1` overrides); no adapter is a notice, and the CPU voxelizes.
+//! - [`Engine::on_device`]: the same rule on a device a client already has (`render` draws on it).
+//! - [`Engine::interactive`]: the viewer's device, used for compute whatever the adapter, since its voxels are
+//!   drawn there and the GPU's instance list saves a round trip through the host; the CPU where the device has no
+//!   compute (WebGL2).
+//!
+//! A device that also draws (the last two) falls back to the CPU only while it is alive: a lost device cannot
+//! draw either, so the error goes to the client.
+
+use super::{Backend, Colours, Engine, EngineError, Notice, Voxels, software_gpu_preferred};
+use crate::gpu::colour::GpuColourer;
+use crate::gpu::voxelize::{GpuVoxelizer, Options};
+use crate::gpu::{AdapterSummary, Gpu, GpuError};
+use crate::mesh::Shading;
+use crate::voxel::{GridSpec, Mode, VoxelGrid};
+use glam::Vec3;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU64, Ordering};
+use web_time::Instant;
+
+/// A device and its compiled pipelines.
+pub(super) struct OnGpu {
+    pub(super) gpu: Gpu,
+    voxelizer: GpuVoxelizer,
+    /// Compiled the first time a coloured mesh is voxelized.
+    colourer: OnceLock<GpuColourer>,
+    /// Whether the CPU may stand in when the GPU cannot take a request.
+    fallback: bool,
+    /// The client draws on this device too (see the module's documentation).
+    shared: bool,
+    /// Taken around each voxelization and colouring, so that threads sharing the engine (`batch`) take turns on
+    /// the device. An async lock, since it is held across the awaits of the device's work.
+    turn: async_lock::Mutex<()>,
+    /// Nanoseconds spent in those turns, for `batch`'s account of what bounds a run.
+    busy_ns: AtomicU64,
+}
+
+impl Engine {
+    /// Opens `backend`: for `Gpu` and `Auto` the adapter, a device and the pipelines (blocking; see the module's
+    /// documentation for `auto`'s rule). What opening noticed is in [`Engine::notices`].
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn open(backend: Backend) -> Result<Engine, EngineError> {
+        let t = Instant::now();
+        if backend == Backend::Cpu {
+            return Ok(Engine::cpu(None));
+        }
+        let auto = backend == Backend::Auto;
+        let opened = Gpu::adapter_blocking().and_then(|adapter| {
+            let summary = AdapterSummary::from_info(&adapter.get_info());
+            if auto && summary.is_software() && !software_gpu_preferred() {
+                // No device is opened, so no pipelines are compiled either.
+                return Ok(Err(summary));
+            }
+            pollster::block_on(Gpu::from_adapter(adapter)).map(Ok)
+        });
+        match opened {
+            Ok(Ok(gpu)) => Ok(Engine::gpu(gpu, auto, false, t)),
+            Ok(Err(software)) => Ok(Engine::cpu(Some(software_reason(&software)))),
+            Err(e) if auto => {
+                let mut engine = Engine::cpu(None);
+                engine.opened.push(Notice { warning: false, message: format!("{e}; using the CPU voxelizer") });
+                Ok(engine)
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// An engine on a device the client opened and draws on, chosen by `backend` as [`Engine::open`] chooses.
+    pub fn on_device(gpu: &Gpu, backend: Backend) -> Result<Engine, EngineError> {
+        let t = Instant::now();
+        match backend {
+            Backend::Cpu => Ok(Engine::cpu(None)),
+            Backend::Gpu if !gpu.has_compute() => Err(GpuError::NoCompute.into()),
+            Backend::Gpu => Ok(Engine::gpu(gpu.clone(), false, true, t)),
+            Backend::Auto if !gpu.has_compute() => Ok(Engine::cpu(Some(no_compute_reason()))),
+            Backend::Auto if gpu.summary.is_software() && !software_gpu_preferred() => {
+                Ok(Engine::cpu(Some(software_reason(&gpu.summary))))
+            }
+            Backend::Auto => Ok(Engine::gpu(gpu.clone(), true, true, t)),
+        }
+    }
+
+    /// The viewer's engine: compute on its drawing device whatever the adapter (see the module's documentation),
+    /// the CPU standing in where that device has no compute or fails.
+    pub fn interactive(gpu: &Gpu) -> Engine {
+        match gpu.has_compute() {
+            true => Engine::gpu(gpu.clone(), true, true, Instant::now()),
+            false => Engine::cpu(Some(no_compute_reason())),
+        }
+    }
+
+    fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant) -> Engine {
+        let voxelizer = GpuVoxelizer::new(&gpu);
+        let (colourer, turn, busy_ns) = (OnceLock::new(), async_lock::Mutex::new(()), AtomicU64::new(0));
+        let on_gpu = OnGpu { gpu, voxelizer, colourer, fallback, shared, turn, busy_ns };
+        Engine { gpu: Some(on_gpu), setup_ms: super::ms(since), ..Engine::cpu(None) }
+    }
+
+    /// The adapter voxelizations run on, if any.
+    pub fn adapter(&self) -> Option<&AdapterSummary> {
+        self.gpu.as_ref().map(|g| &g.gpu.summary)
+    }
+}
+
+fn software_reason(software: &AdapterSummary) -> String {
+    format!("auto: the only adapter, {}, is software", software.name)
+}
+
+fn no_compute_reason() -> String {
+    "the device has no compute shaders (WebGL2)".to_string()
+}
+
+impl OnGpu {
+    /// The grid on the GPU, or (`Ok(Err(..))`) why the CPU is to make it instead.
+    pub(super) async fn voxels(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        mode: Mode,
+        instances: bool,
+    ) -> Result<Result<Voxels, Notice>, EngineError> {
+        // Presized so that a voxelization maps once (the visible voxels of a surface at N voxels along its
+        // longest axis are a few N²; more than this compacts again at the exact size).
+        let n = u64::from(spec.dims.max_element());
+        let list_capacity = instances.then_some(12 * n * n);
+        let options = Options {
+            read_grid: true,
+            compact: instances,
+            surface_only: true,
+            mode,
+            list_capacity,
+            ..Default::default()
+        };
+        let voxelized = {
+            let _turn = self.turn().await;
+            self.voxelizer.voxelize_async(&self.gpu, tris, spec, &options).await
+        };
+        match voxelized {
+            Ok(out) => {
+                let grid = out.grid.ok_or(EngineError::NoGrid)?;
+                let mut backend = format!("gpu: {}", self.gpu.summary);
+                if out.decided_on_cpu {
+                    // Exact either way; said so that timings are not taken for the GPU's.
+                    backend.push_str(" (overflow: decided on the CPU)");
+                }
+                let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.points);
+                Ok(Ok(Voxels { grid, backend, gpu_ms, exact_tests, instances, notices: Vec::new() }))
+            }
+            Err(e @ GpuError::TooLarge { .. }) if self.fallback => {
+                Ok(Err(Notice { warning: false, message: format!("{e}; using the CPU voxelizer") }))
+            }
+            // Lost, out of memory, hung: the same grid comes from the CPU, said loudly because it is slower and
+            // because the GPU may need looking at.
+            Err(e) if self.may_stand_in(&e) => {
+                Ok(Err(Notice { warning: true, message: format!("{e}; voxelizing on the CPU instead") }))
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// The grid's colours on the GPU, or (`Ok(Err(..))`) what to say, if anything, as the CPU makes them instead.
+    pub(super) async fn colours(
+        &self,
+        grid: &VoxelGrid,
+        tris: &[[Vec3; 3]],
+        shading: &Shading,
+    ) -> Result<Result<Colours, Option<Notice>>, EngineError> {
+        if !GpuColourer::fits(&self.gpu, grid, tris.len(), shading) {
+            return if self.fallback { Ok(Err(None)) } else { Err(EngineError::ColourTooLarge) };
+        }
+        let coloured = {
+            let _turn = self.turn().await;
+            let colourer = self.colourer.get_or_init(|| GpuColourer::new(&self.gpu));
+            colourer.colour_async(&self.gpu, grid, tris, shading).await
+        };
+        match coloured {
+            Ok(colours) => {
+                Ok(Ok(Colours { colours, backend: format!("gpu: {}", self.gpu.summary), notices: Vec::new() }))
+            }
+            Err(e) if self.may_stand_in(&e) => {
+                Ok(Err(Some(Notice { warning: true, message: format!("{e}; colouring on the CPU instead") })))
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that
+    /// does not also draw or is still alive.
+    fn may_stand_in(&self, e: &GpuError) -> bool {
+        self.fallback && e.is_device_failure() && !(self.shared && self.gpu.is_lost())
+    }
+
+    /// One request's turn on the device.
+    async fn turn(&self) -> Turn<'_> {
+        let lock = self.turn.lock().await;
+        Turn { _lock: lock, started: Instant::now(), busy_ns: &self.busy_ns }
+    }
+
+    /// Milliseconds of turns so far.
+    pub(super) fn busy_ms(&self) -> f64 {
+        self.busy_ns.load(Ordering::Relaxed) as f64 * 1e-6
+    }
+}
+
+/// A turn on the device, timed into `busy_ns` when it ends.
+struct Turn<'a> {
+    _lock: async_lock::MutexGuard<'a, ()>,
+    started: Instant,
+    busy_ns: &'a AtomicU64,
+}
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        let ns = self.started.elapsed().as_nanos() as u64;
+        self.busy_ns.fetch_add(ns, Ordering::Relaxed);
+    }
+}

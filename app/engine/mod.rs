@@ -1,0 +1,370 @@
+//! The engine: the one way a client voxelizes a loaded mesh "the best way this machine allows". It is opened
+//! once per process with a [`Backend`] choice (or adopts a client's device: [`device`]), then
+//! [`Engine::voxelize`] (blocking) or [`Engine::voxelize_async`] (natively and in the browser) takes a mesh and a
+//! [`Request`] and gives a [`Voxelized`]: the grid, its colours, the GPU's instance list when asked for, and a
+//! typed [`Report`] (the `--stats-json` fields).
+//!
+//! What lives here, once: fitting the grid and checking it against the memory budget before anything large is
+//! allocated, the GPU with the CPU standing in when a grid does not fit the adapter or the device fails, colour
+//! with the same fallback, and the GPU turn lock that keeps one device's work to one request at a time when
+//! several threads share the engine (`batch`). What happened along the way comes back as [`Notice`]s for the
+//! client to show; the library prints nothing.
+
+#[cfg(feature = "gpu")]
+pub mod device;
+mod report;
+
+pub use report::{Notice, Report, Voxelized};
+
+use crate::mesh::Mesh;
+use crate::voxel::colour::VoxelColours;
+use crate::voxel::formats::VoxelFormat;
+use crate::voxel::{self, Axis, GridError, GridSpec, Mode, Resolution, VoxelGrid};
+use glam::Vec3;
+use std::sync::atomic::{AtomicBool, Ordering};
+use web_time::Instant;
+
+/// Where voxelizations run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Backend {
+    /// The GPU when there is a hardware adapter and the request fits it, else the CPU (said in a [`Notice`]).
+    #[default]
+    Auto,
+    /// Only the GPU: no adapter, or a request it cannot take, is an error.
+    Gpu,
+    /// Only the CPU voxelizer (rayon's threads); no adapter is looked for.
+    Cpu,
+}
+
+/// Why a request failed. Each message names the mesh where the mesh is the cause.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    #[cfg(feature = "gpu")]
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    /// `--backend gpu` in a build without the `gpu` feature.
+    #[error("this build of meshvox has no GPU backend (the `gpu` feature is off); use --backend cpu")]
+    NoGpuBuild,
+    /// The grid cannot be laid over the mesh, or does not fit the memory budget.
+    #[error("{mesh}: {error}{hint}", hint = if matches!(error, GridError::OverBudget { .. }) { " (or raise --max-memory)" } else { "" })]
+    Grid { mesh: String, error: GridError },
+    #[error("{mesh}: contains no triangles")]
+    Empty { mesh: String },
+    #[error("the GPU returned no grid")]
+    NoGrid,
+    #[error("the grid or the mesh's textures are too large for one GPU binding; colour with --backend cpu")]
+    ColourTooLarge,
+    #[error("the mesh has no colours")]
+    NoColour,
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// What to voxelize, and within which limits.
+#[derive(Clone, Copy)]
+pub struct Request<'a> {
+    pub resolution: Resolution,
+    pub axis: Axis,
+    pub mode: Mode,
+    /// Colour the voxels from the mesh's materials: `None` when the mesh has any colour, `Some(false)` never
+    /// (`Some(true)` on a mesh without colour leaves the voxels uncoloured, as `None` does).
+    pub colour: Option<bool>,
+    /// Host memory the request may use; `None`: four fifths of what is available ([`crate::memory`]).
+    pub max_memory: Option<u64>,
+    /// The format the grid will be written in, whose writer's memory the budget counts.
+    pub format: Option<VoxelFormat>,
+    /// Also list the exposed voxels on the GPU, for drawing them as instances on the engine's device
+    /// ([`Voxelized::instances`]; nothing where the CPU voxelizes).
+    pub instances: bool,
+    /// Called now and then with (triangles done, triangles) while the CPU voxelizes, from worker threads.
+    pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// Set to stop the request at its next stage (checked before voxelizing and before colouring).
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+impl Request<'_> {
+    /// A request for `resolution` voxels along the longest axis, in `mode`, with every other setting as default.
+    pub fn new(resolution: Resolution, mode: Mode) -> Request<'static> {
+        Request {
+            resolution,
+            axis: Axis::Longest,
+            mode,
+            colour: None,
+            max_memory: None,
+            format: None,
+            instances: false,
+            progress: None,
+            cancel: None,
+        }
+    }
+
+    fn cancelled(&self) -> Result<(), EngineError> {
+        match self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            true => Err(EngineError::Cancelled),
+            false => Ok(()),
+        }
+    }
+}
+
+/// A voxelization backend, opened once: the GPU (adapter, device and compiled pipelines) or the CPU.
+pub struct Engine {
+    #[cfg(feature = "gpu")]
+    gpu: Option<device::OnGpu>,
+    setup_ms: f64,
+    /// Why the CPU voxelizes although there is an adapter (a software one, no compute), for `backend`.
+    cpu_reason: Option<String>,
+    /// What opening noticed (no adapter under `auto`).
+    opened: Vec<Notice>,
+}
+
+/// Lays the grid over `mesh` as `request` asks and checks the memory it needs, before anything large is
+/// allocated. `name` is the mesh as the user named it, for messages.
+pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<GridSpec, EngineError> {
+    let grid_error = |error| EngineError::Grid { mesh: name.to_string(), error };
+    let bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
+    let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(grid_error)?;
+    if let Some(budget) = request.max_memory.or_else(crate::memory::default_budget) {
+        let triangles = mesh.triangles.len() as u64;
+        voxel::budget::check(&spec, bounds, request.axis, triangles, request.format, budget).map_err(grid_error)?;
+    }
+    Ok(spec)
+}
+
+/// `mesh`'s triangles in `spec`'s grid space, as both the voxelizer and the colour pass take them.
+fn grid_space(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, EngineError> {
+    voxel::cpu::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid { mesh: mesh.name.clone(), error })
+}
+
+/// A grid as [`Engine::voxelize_spec`] made it.
+pub struct Voxels {
+    pub grid: VoxelGrid,
+    /// Where, as the report's `backend` says it.
+    pub backend: String,
+    pub gpu_ms: Option<f64>,
+    pub exact_tests: Option<u64>,
+    /// The GPU's list of exposed voxels, when asked for and made there.
+    #[cfg(feature = "gpu")]
+    pub instances: Option<crate::gpu::compact::CompactVoxels>,
+    pub notices: Vec<Notice>,
+}
+
+/// Colours as [`Engine::colour`] made them.
+pub struct Colours {
+    pub colours: VoxelColours,
+    /// Where, as the report's `colour` says it.
+    pub backend: String,
+    pub notices: Vec<Notice>,
+}
+
+/// `MESHVOX_SOFTWARE_GPU=1`: let `auto` use a software adapter for compute as it would a hardware one (to exercise
+/// the GPU path's fallbacks where the only adapter is lavapipe).
+pub fn software_gpu_preferred() -> bool {
+    std::env::var("MESHVOX_SOFTWARE_GPU").is_ok_and(|v| v == "1")
+}
+
+fn ms(since: Instant) -> f64 {
+    (since.elapsed().as_secs_f64() * 1e3 * 1000.0).round() / 1000.0
+}
+
+impl Engine {
+    /// The CPU engine; `reason` says why there is no GPU where one might be expected.
+    fn cpu(reason: Option<String>) -> Engine {
+        Engine {
+            #[cfg(feature = "gpu")]
+            gpu: None,
+            setup_ms: 0.0,
+            cpu_reason: reason,
+            opened: Vec::new(),
+        }
+    }
+
+    /// Opens `backend` in a build without the GPU (the `gpu` feature off): the CPU, or an error for `Gpu`.
+    #[cfg(not(feature = "gpu"))]
+    pub fn open(backend: Backend) -> Result<Engine, EngineError> {
+        match backend {
+            Backend::Gpu => Err(EngineError::NoGpuBuild),
+            Backend::Auto | Backend::Cpu => Ok(Engine::cpu(None)),
+        }
+    }
+
+    /// What opening noticed, for the client to show once.
+    pub fn notices(&self) -> &[Notice] {
+        &self.opened
+    }
+
+    /// Whether voxelizations run on a GPU (else on the CPU).
+    pub fn uses_gpu(&self) -> bool {
+        #[cfg(feature = "gpu")]
+        return self.gpu.is_some();
+        #[cfg(not(feature = "gpu"))]
+        false
+    }
+
+    /// Milliseconds the adapter, device and pipelines took to set up (0 on the CPU).
+    pub fn setup_ms(&self) -> f64 {
+        self.setup_ms
+    }
+
+    /// Where voxelizations run, as `backend` says it.
+    pub fn label(&self) -> String {
+        #[cfg(feature = "gpu")]
+        if let Some(on) = &self.gpu {
+            return format!("gpu: {}", on.gpu.summary);
+        }
+        self.cpu_label()
+    }
+
+    fn cpu_label(&self) -> String {
+        match &self.cpu_reason {
+            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
+            None => format!("cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
+    /// Milliseconds the device was in use by this engine, or `None` on the CPU.
+    pub fn gpu_busy_ms(&self) -> Option<f64> {
+        #[cfg(feature = "gpu")]
+        return self.gpu.as_ref().map(|on| on.busy_ms());
+        #[cfg(not(feature = "gpu"))]
+        None
+    }
+
+    /// Voxelizes `mesh` (named `name` in messages and the report) as `request` asks: plan, voxelize, colour.
+    /// Blocks until done; see [`Engine::voxelize_async`].
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn voxelize(&self, name: &str, mesh: &Mesh, request: &Request) -> Result<Voxelized, EngineError> {
+        pollster::block_on(self.voxelize_async(name, mesh, request))
+    }
+
+    /// [`Engine::voxelize`] as a future, for the browser (where nothing may block) and async clients. The CPU's
+    /// work runs inside the future's poll.
+    pub async fn voxelize_async(
+        &self,
+        name: &str,
+        mesh: &Mesh,
+        request: &Request<'_>,
+    ) -> Result<Voxelized, EngineError> {
+        let spec = plan(name, mesh, request)?;
+        request.cancelled()?;
+        let t = Instant::now();
+        // Grid-space triangles once, for the voxels and their colours.
+        let tris = grid_space(mesh, &spec)?;
+        let voxels = self.voxels(&tris, spec, request.mode, request.instances, request.progress).await?;
+        let voxelize_ms = ms(t);
+        let mut notices = voxels.notices;
+        request.cancelled()?;
+        let t = Instant::now();
+        let colours = match request.colour != Some(false) && mesh.shading.is_some() {
+            true => Some(self.colours(mesh, &tris, &voxels.grid).await?),
+            false => None,
+        };
+        let colour_ms = colours.as_ref().map(|_| ms(t));
+        let d = spec.dims;
+        let report = Report {
+            mesh: name.to_string(),
+            triangles: mesh.triangles.len(),
+            dims: [d.x, d.y, d.z],
+            origin: spec.origin.to_array(),
+            voxel_size: spec.voxel_size,
+            voxels: voxels.grid.count(),
+            mode: request.mode.name().to_string(),
+            backend: voxels.backend,
+            threads: rayon::current_num_threads(),
+            gpu_ms: voxels.gpu_ms,
+            exact_tests: voxels.exact_tests,
+            setup_ms: self.setup_ms,
+            colour: colours.as_ref().map(|c| c.backend.clone()),
+            colour_ms,
+            warnings: mesh.warnings.clone(),
+            voxelize_ms,
+            ..Report::default()
+        };
+        let colours = colours.map(|c| {
+            notices.extend(c.notices);
+            c.colours
+        });
+        #[cfg(feature = "gpu")]
+        let instances = voxels.instances;
+        Ok(Voxelized {
+            grid: voxels.grid,
+            colours,
+            #[cfg(feature = "gpu")]
+            instances,
+            report,
+            notices,
+        })
+    }
+
+    /// The grid of `spec` on the GPU (with the CPU standing in where allowed) or the CPU, blocking. `progress` as
+    /// in [`Request::progress`].
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn voxelize_spec(
+        &self,
+        mesh: &Mesh,
+        spec: GridSpec,
+        mode: Mode,
+        progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+    ) -> Result<Voxels, EngineError> {
+        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, mode, false, progress))
+    }
+
+    /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles; `instances` as in [`Request::instances`].
+    async fn voxels(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        mode: Mode,
+        instances: bool,
+        progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+    ) -> Result<Voxels, EngineError> {
+        // The GPU's grid, or why the CPU stands in.
+        #[cfg(feature = "gpu")]
+        let notices = match &self.gpu {
+            Some(on) => match on.voxels(tris, spec, mode, instances).await? {
+                Ok(voxels) => return Ok(voxels),
+                Err(why) => vec![why],
+            },
+            None => Vec::new(),
+        };
+        #[cfg(not(feature = "gpu"))]
+        let (notices, _) = (Vec::new(), instances);
+        let silent = |_: usize, _: usize| {};
+        let (grid, stats) = voxel::cpu::voxelize_grid_space_mode(tris, spec, mode, progress.unwrap_or(&silent))
+            .map_err(|error| {
+                let d = spec.dims;
+                EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error }
+            })?;
+        Ok(Voxels {
+            grid,
+            backend: self.cpu_label(),
+            gpu_ms: None,
+            exact_tests: Some(stats.exact_tests),
+            #[cfg(feature = "gpu")]
+            instances: None,
+            notices,
+        })
+    }
+
+    /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn colour(&self, mesh: &Mesh, grid: &VoxelGrid) -> Result<Colours, EngineError> {
+        pollster::block_on(self.colours(mesh, &grid_space(mesh, &grid.spec)?, grid))
+    }
+
+    /// [`Engine::colour`] from the mesh's grid-space triangles.
+    async fn colours(&self, mesh: &Mesh, tris: &[[Vec3; 3]], grid: &VoxelGrid) -> Result<Colours, EngineError> {
+        let shading = mesh.shading.as_ref().ok_or(EngineError::NoColour)?;
+        #[cfg(feature = "gpu")]
+        let notices = match &self.gpu {
+            Some(on) => match on.colours(grid, tris, shading).await? {
+                Ok(colours) => return Ok(colours),
+                Err(why) => why.into_iter().collect(),
+            },
+            None => Vec::new(),
+        };
+        #[cfg(not(feature = "gpu"))]
+        let notices = Vec::new();
+        let colours = voxel::colour::colour_voxels(grid, tris, shading);
+        Ok(Colours { colours, backend: format!("cpu ({} threads)", rayon::current_num_threads()), notices })
+    }
+}

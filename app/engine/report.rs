@@ -1,0 +1,78 @@
+//! What a request gives back: [`Voxelized`] (the grid, colours, the GPU's instance list) with its [`Report`] and
+//! the [`Notice`]s a client shows.
+
+use crate::voxel::VoxelGrid;
+use crate::voxel::colour::VoxelColours;
+use crate::voxel::formats::{self, FormatError, VoxelFormat};
+
+/// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Notice {
+    pub warning: bool,
+    pub message: String,
+}
+
+impl std::fmt::Display for Notice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", if self.warning { "warning" } else { "note" }, self.message)
+    }
+}
+
+/// The statistics of one voxelization, as `meshvox voxelize --stats-json` prints them. The fields are in
+/// alphabetical order, the order that line has always had. The engine fills what it knows; a client that writes
+/// the grid fills `output`, `format`, `bytes`, `colours_output` and `write_ms` (see [`Voxelized::write`]), and
+/// `load_ms` if it loaded the mesh.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Report {
+    /// Where the grid was voxelized: `gpu: ADAPTER (API, driver)` or `cpu (N threads[; why])`.
+    pub backend: String,
+    pub bytes: u64,
+    /// Where the colours were computed, like `backend`; `None` without colour.
+    pub colour: Option<String>,
+    pub colour_ms: Option<f64>,
+    pub colours_output: Option<String>,
+    pub dims: [u32; 3],
+    /// Voxel tests decided by the exact integer path.
+    pub exact_tests: Option<u64>,
+    pub format: String,
+    /// The compute passes alone, from timestamp queries; `None` on the CPU or without timestamps.
+    pub gpu_ms: Option<f64>,
+    pub load_ms: f64,
+    pub mesh: String,
+    pub mode: String,
+    /// The grid's world minimum corner.
+    pub origin: [f64; 3],
+    pub output: String,
+    /// Adapter, device and pipeline creation, once per engine.
+    pub setup_ms: f64,
+    pub threads: usize,
+    pub triangles: usize,
+    pub voxel_size: f64,
+    /// Host triangles to host grid: grid-space conversion, upload, all passes and readback.
+    pub voxelize_ms: f64,
+    pub voxels: u64,
+    /// The mesh's load warnings.
+    pub warnings: Vec<String>,
+    pub write_ms: f64,
+}
+
+/// A finished voxelization.
+pub struct Voxelized {
+    pub grid: VoxelGrid,
+    pub colours: Option<VoxelColours>,
+    /// The exposed voxels as a list on the GPU, ready to draw as instances, when the request asked for it
+    /// ([`super::Request::instances`]) and the grid was made there.
+    #[cfg(feature = "gpu")]
+    pub instances: Option<crate::gpu::compact::CompactVoxels>,
+    pub report: Report,
+    /// Fallbacks taken and failures worked around on the way, in order.
+    pub notices: Vec<Notice>,
+}
+
+impl Voxelized {
+    /// Writes the grid (with its colours, where the format holds them) as `format` into `out`: the bytes the CLI
+    /// writes for the same request. `merge` joins coplanar faces of mesh outputs.
+    pub fn write(&self, format: VoxelFormat, merge: bool, out: &mut impl std::io::Write) -> Result<(), FormatError> {
+        formats::write_coloured(&self.grid, self.colours.as_ref(), format, merge, out)
+    }
+}
