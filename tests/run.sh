@@ -46,6 +46,12 @@ bash web/install.sh
 
 cargo test --locked --all-targets "$@"
 [ $# -gt 0 ] && exit 0
+# The core (loaders, CPU voxelizer, formats, the engine on the CPU) builds without the GPU and UI stacks: no wgpu,
+# naga, egui, eframe or winit crate in its dependency tree. The fuzz build at the end compiles it that way.
+if cargo tree --locked --no-default-features -e normal --prefix none | grep -E '^(wgpu|naga|egui|eframe|winit)'; then
+  echo "cargo tree --no-default-features: the crates above are in the core's dependency tree" >&2
+  exit 1
+fi
 # The crate documentation's example (the engine through the public API); --all-targets leaves doctests out.
 cargo test --locked --doc
 

@@ -1,4 +1,4 @@
-//! The solid passes of `shaders/voxelize.wgsl` (`count_crossings`, `allocate_rows`, `write_crossings`,
+//! The solid passes of `shaders/solid.wgsl` (`count_crossings`, `allocate_rows`, `write_crossings`,
 //! `fill_rows`) on a [`Gpu`]: the inside voxels added to the surface pass's grid slabs. The algorithm and its
 //! CPU reference are in [`crate::voxel::solid`].
 //!

@@ -1,4 +1,5 @@
-//! The voxelization pipeline of `shaders/voxelize.wgsl` on a [`Gpu`]: upload grid-space triangles, run the
+//! The voxelization pipeline of the voxelize shaders (`VOXELIZE_WGSL`: `shaders/exact.wgsl`, `surface.wgsl`,
+//! `scan.wgsl`, `thin.wgsl`, `solid.wgsl` joined at build time) on a [`Gpu`]: upload grid-space triangles, run the
 //! set-up, prefix-sum and voxelize passes, and read the bit grid back (or keep it for compaction).
 //!
 //! Grids larger than one storage binding are processed in z-slabs (each slab a whole number of word rows, so
@@ -16,7 +17,17 @@ use glam::Vec3;
 use std::sync::OnceLock;
 
 /// The WGSL source, shared with the shader validation test.
-pub const VOXELIZE_WGSL: &str = include_str!("../../shaders/voxelize.wgsl");
+pub const VOXELIZE_WGSL: &str = concat!(
+    include_str!("../../shaders/exact.wgsl"),
+    include_str!("../../shaders/surface.wgsl"),
+    include_str!("../../shaders/scan.wgsl"),
+    include_str!("../../shaders/thin.wgsl"),
+    include_str!("../../shaders/solid.wgsl"),
+);
+
+/// The files [`VOXELIZE_WGSL`] is joined from, in order (module-scope declarations in WGSL may come in any order,
+/// so each file uses what the others declare).
+pub const VOXELIZE_PARTS: [&str; 5] = ["exact.wgsl", "surface.wgsl", "scan.wgsl", "thin.wgsl", "solid.wgsl"];
 
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
 pub const SETUP_BYTES: u64 = 256;
@@ -113,7 +124,7 @@ impl GpuVoxelizer {
     pub fn new(gpu: &Gpu) -> GpuVoxelizer {
         let device = &gpu.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("voxelize.wgsl"),
+            label: Some("voxelize (exact, surface, scan, thin, solid .wgsl)"),
             source: wgpu::ShaderSource::Wgsl(VOXELIZE_WGSL.into()),
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {

@@ -1,8 +1,8 @@
 //! The CPU reference voxelizer: the Schwarz–Seidel 2010 triangle/box overlap test, computed once per triangle
 //! and evaluated per voxel, with rayon across triangles.
 //!
-//! The functions here mirror `shaders/voxelize.wgsl` one for one and carry the same names, so the two can be
-//! read side by side. Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on
+//! The functions here mirror `shaders/surface.wgsl` and `shaders/thin.wgsl` one for one and carry the same names,
+//! so the two can be read side by side. Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on
 //! coordinates rounded onto the fixed-point [`Lattice`]: voxel `(i, j, k)` is the box with minimum corner
 //! `p = (i, j, k)` and size `Δp = (1, 1, 1)`.
 //!

@@ -1,5 +1,5 @@
 //! The arithmetic the surface walk ([`super::cpu`]), the solid fill ([`super::solid`]) and the colour pass share,
-//! mirroring the functions of the same names in `shaders/voxelize.wgsl`: WGSL's `floor` and `ceil` without a libm
+//! mirroring the functions of the same names in `shaders/exact.wgsl`: WGSL's `floor` and `ceil` without a libm
 //! call, the dot product in the shader's order of operations, the exact normal of lattice edges, and the relative
 //! factor of every forward error bound. One home for them keeps the CPU references from importing each other.
 

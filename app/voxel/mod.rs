@@ -11,7 +11,7 @@
 //!   exactly on a voxel boundary sets the voxels on both sides, and degenerate triangles are voxelized as the
 //!   segment or point they are.
 //!
-//! # Bit layout (shared with `shaders/voxelize.wgsl`)
+//! # Bit layout (shared with the voxelize shaders, `shaders/surface.wgsl` and the others joined with it)
 //! One bit per voxel in `u32` words. Each x-row (fixed `y`, `z`) starts on a fresh word:
 //! `words_per_row = ceil(dims_x / 32)`, word `(z * dims_y + y) * words_per_row + x / 32`, bit `x % 32`
 //! (bit 0 is the least significant). Padding bits at the end of a row are always zero. Rows being word-aligned

@@ -1,6 +1,6 @@
 //! Solid voxelization: the surface shell plus every voxel whose centre is inside the mesh, inside meaning a
 //! generalized winding number of at least 1/2 (Jacobson et al. 2013). The CPU reference of the `solid` passes in
-//! `shaders/voxelize.wgsl`, function by function with the same names.
+//! `shaders/solid.wgsl`, function by function with the same names.
 //!
 //! # Algorithm, and why
 //! The winding number of a closed mesh at a point is the signed count of the mesh's crossings with any ray from

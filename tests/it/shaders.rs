@@ -1,48 +1,77 @@
-//! Every `.wgsl` file in `shaders/` parsed and validated by naga (through `wgpu::naga`), with all failures
-//! reported together; plus the facts the Rust side relies on: core-WebGPU workgroup sizes and the size of the
+//! Every shader module the program compiles parsed and validated by naga (through `wgpu::naga`), with all failures
+//! reported together, and every `.wgsl` file in `shaders/` part of one; plus the facts the Rust side relies on: core-WebGPU workgroup sizes and the size of the
 //! `TriangleSetup` struct that the host allocates per triangle.
 
 use wgpu::naga;
 
-fn shader_files() -> Vec<std::path::PathBuf> {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .expect("shaders/")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|e| e == "wgsl"))
-        .collect();
-    files.sort();
-    files
+fn shader_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders")
 }
 
-fn parse(path: &std::path::Path) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
-    let source = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    let module = naga::front::wgsl::parse_str(&source).map_err(|e| e.emit_to_string(&source))?;
+fn read(name: &str) -> String {
+    std::fs::read_to_string(shader_dir().join(name)).unwrap_or_else(|e| panic!("shaders/{name}: {e}"))
+}
+
+/// The modules the program compiles, each with its name: one per file, except voxelize, which is joined from
+/// several files at build time.
+fn modules() -> Vec<(&'static str, &'static str)> {
+    vec![
+        ("voxelize", meshvox::gpu::voxelize::VOXELIZE_WGSL),
+        ("colour.wgsl", meshvox::gpu::colour::COLOUR_WGSL),
+        ("compact.wgsl", meshvox::gpu::compact::COMPACT_WGSL),
+        ("cubes.wgsl", meshvox::render::CUBES_WGSL),
+    ]
+}
+
+fn parse(source: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
     // Default capabilities: nothing beyond core WebGPU, so the same shaders run in the browser.
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
         .validate(&module)
-        .map_err(|e| e.emit_to_string(&source))?;
+        .map_err(|e| e.emit_to_string(source))?;
     Ok((module, info))
 }
 
 #[test]
 fn every_wgsl_file_validates() {
-    let files = shader_files();
-    assert!(files.len() >= 2, "expected the voxelize and compact shaders, found {files:?}");
     let failures: Vec<String> =
-        files.iter().filter_map(|f| parse(f).err().map(|e| format!("{}:\n{e}", f.display()))).collect();
+        modules().iter().filter_map(|(name, source)| parse(source).err().map(|e| format!("{name}:\n{e}"))).collect();
     assert!(failures.is_empty(), "{} shader(s) failed validation:\n\n{}", failures.len(), failures.join("\n\n"));
+}
+
+#[test]
+fn the_modules_are_the_files_on_disk() {
+    // Every .wgsl file is compiled into the program: a whole module, or one part of voxelize.
+    let parts = meshvox::gpu::voxelize::VOXELIZE_PARTS;
+    let mut files: Vec<String> = std::fs::read_dir(shader_dir())
+        .expect("shaders/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".wgsl"))
+        .collect();
+    files.sort();
+    let mut used: Vec<String> = parts.iter().map(|p| p.to_string()).collect();
+    for (name, source) in modules().into_iter().skip(1) {
+        assert_eq!(source, read(name), "{name} as compiled differs from shaders/{name}");
+        used.push(name.to_string());
+    }
+    used.sort();
+    assert_eq!(files, used, "a .wgsl file in shaders/ that no module includes, or a module without its file");
+    // The joined module is its parts in order, each a whole file.
+    let joined: String = parts.iter().map(|p| read(p)).collect();
+    assert_eq!(meshvox::gpu::voxelize::VOXELIZE_WGSL, joined);
+    // The shared arithmetic stands alone: the surface and solid parts use it, it uses neither.
+    parse(&read("exact.wgsl")).expect("exact.wgsl is a module of its own");
 }
 
 #[test]
 fn workgroups_fit_core_webgpu_limits() {
     let mut problems = Vec::new();
-    for f in shader_files() {
-        let Ok((module, _)) = parse(&f) else { continue };
+    for (name, source) in modules() {
+        let Ok((module, _)) = parse(source) else { continue };
         for ep in &module.entry_points {
             let [x, y, z] = ep.workgroup_size;
             if x * y * z > 256 || x > 256 {
-                problems.push(format!("{}: {} has workgroup size {x}x{y}x{z}", f.display(), ep.name));
+                problems.push(format!("{name}: {} has workgroup size {x}x{y}x{z}", ep.name));
             }
         }
     }
@@ -51,19 +80,16 @@ fn workgroups_fit_core_webgpu_limits() {
 
 #[test]
 fn triangle_setup_size_matches_the_host() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/voxelize.wgsl");
-    let (module, _) = parse(&path).expect("valid");
+    let (module, _) = parse(meshvox::gpu::voxelize::VOXELIZE_WGSL).expect("valid");
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).expect("layout");
     let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("TriangleSetup")).expect("struct");
     assert_eq!(layouter[handle].size as u64, meshvox::gpu::voxelize::SETUP_BYTES);
-    assert_eq!(meshvox::gpu::voxelize::VOXELIZE_WGSL, std::fs::read_to_string(&path).expect("read"));
 }
 
 #[test]
 fn colour_structs_match_the_host() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/colour.wgsl");
-    let (module, _) = parse(&path).expect("valid");
+    let (module, _) = parse(meshvox::gpu::colour::COLOUR_WGSL).expect("valid");
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).expect("layout");
     let size = |name: &str| {
@@ -73,5 +99,4 @@ fn colour_structs_match_the_host() {
     // The per-triangle shading records are uploaded as the host's bytes, 56 per triangle.
     assert_eq!(size("TriangleShading"), std::mem::size_of::<meshvox::mesh::material::TriangleShading>());
     assert_eq!(size("Params"), 48);
-    assert_eq!(meshvox::gpu::colour::COLOUR_WGSL, std::fs::read_to_string(&path).expect("read"));
 }

@@ -1,0 +1,428 @@
+// ---- solid: the inside voxels, mirroring app/voxel/solid.rs (see there for the algorithm and why) ----
+//
+//   count_crossings   one invocation per work item (up to ROWS_PER_ITEM rows (y, z) under one triangle's YZ
+//                     bounding box): count, per row, the exact crossings of the row's centre line
+//   allocate_rows     per row: a segment of the crossing list (atomic bump allocation: segments are contiguous,
+//                     their order does not matter) and the counter reset to serve as the write cursor
+//   write_crossings   as count_crossings, writing each crossing's exact first voxel and sign into the segment
+//   fill_rows         per row of the current z-slab: sort the segment, then set the inside voxels (integer
+//                     counts where the crossings cancel, winding numbers with the boundary term elsewhere)
+// These passes have their own bindings (8 and up), never the surface passes' ones.
+
+struct SolidParams {
+    dims: vec3<u32>,
+    tri_count: u32,
+    words_per_row: u32,
+    slab_z0: u32,
+    slab_z1: u32,
+    edge_count: u32,
+    // The boundary loops' YZ boxes (lo.y, lo.z, hi.y, hi.z) follow the edges in `boundary`.
+    box_count: u32,
+    lattice_scale: f32,
+    item_count: u32,
+    pad: u32,
+}
+
+@group(0) @binding(8) var<uniform> solid: SolidParams;
+@group(0) @binding(9) var<storage, read> solid_triangles: array<f32>;
+@group(0) @binding(10) var<storage, read_write> row_counts: array<atomic<u32>>;
+// Per row: the segment's first index and length.
+@group(0) @binding(11) var<storage, read_write> row_segments: array<vec2<u32>>;
+@group(0) @binding(12) var<storage, read_write> crossings: array<u32>;
+// Two vec4 per edge: (a, weight), (b, 0); then one per boundary loop's box.
+@group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
+@group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
+// Per triangle, its first work item (exclusive prefix sum of its items, from the host).
+@group(0) @binding(16) var<storage, read> item_offsets: array<u32>;
+
+const RUN_STACK: u32 = 40u;
+// Rows per work item of the crossing passes: a triangle gets ceil(rows / ROWS_PER_ITEM) items (the host counts
+// them), so a dense mesh's small triangles take one invocation each and a coarse mesh's big ones spread over
+// many. (One workgroup per triangle, striding over its rows, idled most lanes on dense meshes, and lost writes on
+// lavapipe once a lane looped over tens of thousands of rows.)
+const ROWS_PER_ITEM: u32 = 32u;
+
+fn solid_vertex(t: u32, i: u32) -> vec3<f32> {
+    let b = 9u * t + 3u * i;
+    return vec3<f32>(solid_triangles[b], solid_triangles[b + 1u], solid_triangles[b + 2u]);
+}
+
+// The exact product of two i32 as a 128-bit integer.
+fn wide_product(a: i32, b: i32) -> vec4<u32> {
+    let p = mul_u32(bitcast<u32>(abs(a)), bitcast<u32>(abs(b)));
+    let r = vec4<u32>(p.x, p.y, 0u, 0u);
+    if (a < 0) != (b < 0) {
+        return wide_neg(r);
+    }
+    return r;
+}
+
+// (b - a) x (q - a) in the YZ plane, doubled lattice units: its sign.
+fn edge_yz(a: vec3<i32>, b: vec3<i32>, q: vec2<i32>) -> i32 {
+    return wide_sign(wide_add(wide_product(b.y - a.y, q.y - a.z), wide_neg(wide_product(b.z - a.z, q.x - a.y))));
+}
+
+struct CrossingSetup {
+    // Doubled lattice units, counter-clockwise in YZ.
+    v0: vec3<i32>,
+    v1: vec3<i32>,
+    v2: vec3<i32>,
+    sign: i32,
+    lo: vec2<u32>,
+    hi: vec2<u32>,
+}
+
+fn crossing_setup(t: u32) -> CrossingSetup {
+    var s: CrossingSetup;
+    let p0 = solid_vertex(t, 0u);
+    let p1 = solid_vertex(t, 1u);
+    let p2 = solid_vertex(t, 2u);
+    let u0 = vec3<i32>(p0 * solid.lattice_scale) * 2;
+    let u1 = vec3<i32>(p1 * solid.lattice_scale) * 2;
+    let u2 = vec3<i32>(p2 * solid.lattice_scale) * 2;
+    let area = edge_yz(u0, u1, u2.yz);
+    s.sign = area;
+    s.v0 = u0;
+    s.v1 = u1;
+    s.v2 = u2;
+    if area < 0 {
+        s.v1 = u2;
+        s.v2 = u1;
+    }
+    let mn = min(min(p0, p1), p2);
+    let mx = max(max(p0, p1), p2);
+    let lo_y = max(ceil(mn.y - 0.5), 0.0);
+    let lo_z = max(ceil(mn.z - 0.5), 0.0);
+    let hi_y = min(floor(mx.y - 0.5), f32(solid.dims.y) - 1.0);
+    let hi_z = min(floor(mx.z - 0.5), f32(solid.dims.z) - 1.0);
+    if area == 0 || lo_y > hi_y || lo_z > hi_z {
+        s.sign = 0;
+        s.lo = vec2<u32>(1u);
+        s.hi = vec2<u32>(0u);
+        return s;
+    }
+    s.lo = vec2<u32>(u32(lo_y), u32(lo_z));
+    s.hi = vec2<u32>(u32(hi_y), u32(hi_z));
+    return s;
+}
+
+fn covers_edge(a: vec3<i32>, b: vec3<i32>, q: vec2<i32>) -> bool {
+    let e = edge_yz(a, b, q);
+    let d = b - a;
+    return e > 0 || (e == 0 && (d.z > 0 || (d.z == 0 && d.y > 0)));
+}
+
+fn covers_row(s: CrossingSetup, y: u32, z: u32) -> bool {
+    let unit = i32(solid.lattice_scale);
+    let q = vec2<i32>(i32(2u * y + 1u) * unit, i32(2u * z + 1u) * unit);
+    return covers_edge(s.v0, s.v1, q) && covers_edge(s.v1, s.v2, q) && covers_edge(s.v2, s.v0, q);
+}
+
+// The centre of voxel k of row (y, z) is at or beyond the triangle's plane along +x (t: lattice units).
+fn beyond_plane(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, k: u32, y: u32, z: u32) -> bool {
+    let unit = i32(solid.lattice_scale);
+    let e0 = t1 - t0;
+    let e1 = t2 - t1;
+    let p = vec3<i32>(i32(2u * k + 1u), i32(2u * y + 1u), i32(2u * z + 1u)) * unit;
+    let d = p - t0 * 2;
+    var f = vec4<u32>(0u);
+    for (var c = 0u; c < 3u; c++) {
+        f = wide_add(f, wide_mul(exact_normal_component(e0, e1, c), d[c]));
+    }
+    return wide_sign(f) * sign >= 0;
+}
+
+fn crossing_voxel_at(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, k: u32, y: u32, z: u32) -> bool {
+    return k >= solid.dims.x || beyond_plane(t0, t1, t2, sign, k, y, z);
+}
+
+fn crossing_voxel_exact(t0: vec3<i32>, t1: vec3<i32>, t2: vec3<i32>, sign: i32, x: f32, err: f32, y: u32,
+                        z: u32) -> u32 {
+    let below = floor(x - 0.5) + 0.5;
+    let clear = min(x - below, below + 1.0 - x);
+    let guess = ceil(x - 0.5);
+    if clear > err {
+        return u32(clamp(guess, 0.0, f32(solid.dims.x)));
+    }
+    var k = 0u;
+    if guess >= 0.0 && guess <= f32(solid.dims.x) {
+        k = u32(guess);
+    }
+    if crossing_voxel_at(t0, t1, t2, sign, k, y, z) && (k == 0u || !crossing_voxel_at(t0, t1, t2, sign, k - 1u, y, z)) {
+        return k;
+    }
+    var lo = 0u;
+    var hi = solid.dims.x;
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2u;
+        if crossing_voxel_at(t0, t1, t2, sign, mid, y, z) {
+            hi = mid;
+        } else {
+            lo = mid + 1u;
+        }
+    }
+    return lo;
+}
+
+// The f32 crossing of row (y, z) with the triangle's plane and a bound on its error (see row_crossing_estimate
+// in solid.rs for the bound).
+fn row_crossing_estimate(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, y: u32, z: u32) -> vec2<f32> {
+    let e0 = p1 - p0;
+    let e1 = p2 - p0;
+    let n = cross(e0, e1);
+    let nabs = vec3<f32>(abs(e0.y * e1.z) + abs(e0.z * e1.y), abs(e0.z * e1.x) + abs(e0.x * e1.z),
+        abs(e0.x * e1.y) + abs(e0.y * e1.x));
+    let dy = f32(y) + 0.5 - p0.y;
+    let dz = f32(z) + 0.5 - p0.z;
+    let q = (n.y * dy + n.z * dz) / n.x;
+    let x = p0.x - q;
+    let err = ERROR_FACTOR * ((nabs.y * abs(dy) + nabs.z * abs(dz) + abs(q) * nabs.x) / abs(n.x) + abs(q) + abs(x));
+    return vec2<f32>(x, err);
+}
+
+// The packed crossing of triangle t with row (y, z) (covered by it).
+fn row_crossing(t: u32, s: CrossingSetup, y: u32, z: u32) -> u32 {
+    let p0 = solid_vertex(t, 0u);
+    let p1 = solid_vertex(t, 1u);
+    let p2 = solid_vertex(t, 2u);
+    let estimate = row_crossing_estimate(p0, p1, p2, y, z);
+    let t0 = vec3<i32>(p0 * solid.lattice_scale);
+    let t1 = vec3<i32>(p1 * solid.lattice_scale);
+    let t2 = vec3<i32>(p2 * solid.lattice_scale);
+    let k = crossing_voxel_exact(t0, t1, t2, s.sign, estimate.x, estimate.y, y, z);
+    return (k << 1u) | select(0u, 1u, s.sign > 0);
+}
+
+// The triangle of work item `item`: the last whose first item is at most `item`.
+fn item_triangle(item: u32) -> u32 {
+    var lo = 0u;
+    var hi = solid.tri_count;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if item_offsets[mid] <= item {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// Calls the pass's row action for each row of work item `item` its triangle covers: rows k * ROWS_PER_ITEM ..
+// (k + 1) * ROWS_PER_ITEM of the triangle's YZ bounding box, row-major in y.
+fn crossing_rows(item: u32, write: bool) {
+    let t = item_triangle(item);
+    let s = crossing_setup(t);
+    if s.sign == 0 {
+        return;
+    }
+    let width = s.hi.x - s.lo.x + 1u;
+    let total = width * (s.hi.y - s.lo.y + 1u);
+    let first = (item - item_offsets[t]) * ROWS_PER_ITEM;
+    let end = min(total, first + ROWS_PER_ITEM);
+    for (var i = first; i < end; i++) {
+        let y = s.lo.x + i % width;
+        let z = s.lo.y + i / width;
+        if !covers_row(s, y, z) {
+            continue;
+        }
+        let row = z * solid.dims.y + y;
+        if !write {
+            atomicAdd(&row_counts[row], 1u);
+            continue;
+        }
+        let slot = atomicAdd(&row_counts[row], 1u);
+        let segment = row_segments[row];
+        if slot < segment.y && segment.x + slot < arrayLength(&crossings) {
+            crossings[segment.x + slot] = row_crossing(t, s, y, z);
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                   @builtin(num_workgroups) groups: vec3<u32>) {
+    let item = linear_id(wid, lid, groups, 64u);
+    if item < solid.item_count {
+        crossing_rows(item, false);
+    }
+}
+
+@compute @workgroup_size(64)
+fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                 @builtin(num_workgroups) groups: vec3<u32>) {
+    let row = linear_id(wid, lid, groups, 64u);
+    if row >= solid.dims.y * solid.dims.z {
+        return;
+    }
+    let n = atomicLoad(&row_counts[row]);
+    var start = 0u;
+    if n > 0u {
+        start = atomicAdd(&crossing_total[0], n);
+    }
+    row_segments[row] = vec2<u32>(start, n);
+    atomicStore(&row_counts[row], 0u);
+}
+
+@compute @workgroup_size(64)
+fn write_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+                   @builtin(num_workgroups) groups: vec3<u32>) {
+    let item = linear_id(wid, lid, groups, 64u);
+    if item < solid.item_count {
+        crossing_rows(item, true);
+    }
+}
+
+fn crossing_sign(c: u32) -> i32 {
+    return select(-1, 1, (c & 1u) != 0u);
+}
+
+// Sets bits k0..k1 (exclusive) of the row whose first word is `base` in the slab.
+fn set_range(base: u32, k0: u32, k1: u32) {
+    var k = k0;
+    while k < k1 {
+        let b = k % 32u;
+        let n = min(32u - b, k1 - k);
+        var mask = 0xffffffffu;
+        if n < 32u {
+            mask = ((1u << n) - 1u) << b;
+        }
+        atomicOr(&solid_grid[base + k / 32u], mask);
+        k += n;
+    }
+}
+
+fn cone_solid_angle(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let la = length(a);
+    let lb = length(b);
+    let num = a.y * b.z - a.z * b.y;
+    let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
+    return 2.0 * atan2(num, den);
+}
+
+fn winding_number(count: i32, p: vec3<f32>) -> f32 {
+    var sum = 0.0;
+    for (var e = 0u; e < solid.edge_count; e++) {
+        let a = boundary[2u * e];
+        let b = boundary[2u * e + 1u];
+        sum += a.w * cone_solid_angle(a.xyz - p, b.xyz - p);
+    }
+    return f32(count) + sum * (1.0 / (4.0 * 3.14159265358979));
+}
+
+fn inside_open(count: i32, k: u32, y: u32, z: u32) -> bool {
+    return winding_number(count, vec3<f32>(f32(k) + 0.5, f32(y) + 0.5, f32(z) + 0.5)) >= 0.5;
+}
+
+fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
+    var stack: array<vec4<u32>, RUN_STACK>;
+    stack[0] = vec4<u32>(first, last, u32(inside_open(count, first, y, z)), u32(inside_open(count, last, y, z)));
+    var len = 1u;
+    while len > 0u {
+        len -= 1u;
+        let e = stack[len];
+        let a = e.x;
+        let b = e.y;
+        let ia = e.z != 0u;
+        let ib = e.w != 0u;
+        if b - a <= 1u {
+            if ia {
+                set_range(base, a, a + 1u);
+            }
+            if ib {
+                set_range(base, b, b + 1u);
+            }
+            continue;
+        }
+        let m = a + (b - a) / 2u;
+        let im = inside_open(count, m, y, z);
+        if ia == ib && ia == im {
+            if ia {
+                set_range(base, a, b + 1u);
+            }
+            continue;
+        }
+        if len + 2u > RUN_STACK {
+            if im {
+                set_range(base, a, b + 1u);
+            }
+            continue;
+        }
+        stack[len] = vec4<u32>(m, b, u32(im), u32(ib));
+        stack[len + 1u] = vec4<u32>(a, m, u32(ia), u32(im));
+        len += 2u;
+    }
+}
+
+fn near_boundary(y: u32, z: u32) -> bool {
+    let cy = f32(y) + 0.5;
+    let cz = f32(z) + 0.5;
+    for (var i = 0u; i < solid.box_count; i++) {
+        let b = boundary[2u * solid.edge_count + i];
+        if cy >= b.x && cy <= b.z && cz >= b.y && cz <= b.w {
+            return true;
+        }
+    }
+    return false;
+}
+
+// The row's crossings are solid's crossings[start .. start + n], sorted here (insertion sort: rows hold a
+// handful).
+fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
+    var total = 0;
+    for (var i = 1u; i < n; i++) {
+        let c = crossings[start + i];
+        var j = i;
+        while j > 0u && crossings[start + j - 1u] > c {
+            crossings[start + j] = crossings[start + j - 1u];
+            j -= 1u;
+        }
+        crossings[start + j] = c;
+    }
+    for (var i = 0u; i < n; i++) {
+        total += crossing_sign(crossings[start + i]);
+    }
+    let open = total != 0 || near;
+    var i = 0u;
+    var before = 0;
+    var k0 = 0u;
+    let dims_x = solid.dims.x;
+    while k0 < dims_x {
+        while i < n && (crossings[start + i] >> 1u) <= k0 {
+            before += crossing_sign(crossings[start + i]);
+            i += 1u;
+        }
+        var k1 = dims_x;
+        if i < n {
+            k1 = min(crossings[start + i] >> 1u, dims_x);
+        }
+        let count = -before;
+        if !open {
+            if count >= 1 {
+                set_range(base, k0, k1);
+            }
+        } else {
+            fill_open_run(count, k0, k1 - 1u, y, z, base);
+        }
+        k0 = k1;
+    }
+}
+
+@compute @workgroup_size(64)
+fn fill_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+             @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = linear_id(wid, lid, groups, 64u);
+    let rows = solid.dims.y * (solid.slab_z1 - solid.slab_z0);
+    if i >= rows {
+        return;
+    }
+    let y = i % solid.dims.y;
+    let z = solid.slab_z0 + i / solid.dims.y;
+    let segment = row_segments[z * solid.dims.y + y];
+    let near = near_boundary(y, z);
+    if segment.y == 0u && !near {
+        return;
+    }
+    fill_row(segment.x, segment.y, y, z, near, i * solid.words_per_row);
+}
