@@ -94,6 +94,96 @@ pub struct CubeRenderer {
     attributes: bool,
 }
 
+/// What differs between the renderer's three pipelines.
+struct Pass<'a> {
+    label: &'a str,
+    vs: &'a str,
+    fs: &'a str,
+    buffers: &'a [Option<wgpu::VertexBufferLayout<'a>>],
+    blend: Option<wgpu::BlendState>,
+    depth_write: bool,
+    compare: wgpu::CompareFunction,
+    cull: Option<wgpu::Face>,
+}
+
+/// The shader module, layout and target the pipelines share.
+struct Target<'a> {
+    module: &'a wgpu::ShaderModule,
+    layout: &'a wgpu::PipelineLayout,
+    format: wgpu::TextureFormat,
+    samples: u32,
+}
+
+/// One pipeline of the cube shader.
+fn render_pipeline(device: &wgpu::Device, target: &Target, pass: &Pass) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(pass.label),
+        layout: Some(target.layout),
+        vertex: wgpu::VertexState {
+            module: target.module,
+            entry_point: Some(pass.vs),
+            compilation_options: Default::default(),
+            buffers: pass.buffers,
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            cull_mode: pass.cull,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(pass.depth_write),
+            depth_compare: Some(pass.compare),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: wgpu::MultisampleState { count: target.samples, ..Default::default() },
+        fragment: Some(wgpu::FragmentState {
+            module: target.module,
+            entry_point: Some(pass.fs),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: target.format,
+                blend: pass.blend,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The view uniform, and on the storage path the voxel list, colours and occlusion.
+fn bind_group_layout(device: &wgpu::Device, attributes: bool) -> wgpu::BindGroupLayout {
+    let view = wgpu::BindGroupLayoutEntry {
+        binding: 0,
+        visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let storage = [view, storage_vertex(1), storage_vertex(2), storage_vertex(3)];
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("cubes"),
+        entries: if attributes { &storage[..1] } else { &storage },
+    })
+}
+
+/// On WebGL2, what the storage buffers carry elsewhere, per instance: the voxel (two u32), its colour (RGBA8,
+/// when there are colours) and its occlusion (two u32).
+const VOXEL_ATTRIBUTE: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Uint32x2];
+const COLOUR_ATTRIBUTE: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![1 => Unorm8x4];
+const OCCLUSION_ATTRIBUTE: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![2 => Uint32x2];
+const MESH_ATTRIBUTE: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+
+fn instance_buffer(stride: u64, attributes: &[wgpu::VertexAttribute]) -> Option<wgpu::VertexBufferLayout<'_>> {
+    Some(wgpu::VertexBufferLayout { array_stride: stride, step_mode: wgpu::VertexStepMode::Instance, attributes })
+}
+
 impl CubeRenderer {
     pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, samples: u32) -> CubeRenderer {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -101,123 +191,59 @@ impl CubeRenderer {
             source: wgpu::ShaderSource::Wgsl(CUBES_WGSL.into()),
         });
         let attributes = is_webgl2(device);
-        let view = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let storage = [view, storage_vertex(1), storage_vertex(2), storage_vertex(3)];
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("cubes"),
-            entries: if attributes { &storage[..1] } else { &storage },
-        });
+        let layout = bind_group_layout(device, attributes);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("cubes"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let multisample = wgpu::MultisampleState { count: samples, ..Default::default() };
-        let make = |label: &str,
-                    vs: &str,
-                    fs: &str,
-                    buffers: &[Option<wgpu::VertexBufferLayout>],
-                    blend,
-                    depth_write,
-                    compare,
-                    cull| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some(vs),
-                    compilation_options: Default::default(),
-                    buffers,
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: cull,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(depth_write),
-                    depth_compare: Some(compare),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample,
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fs),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState { format, blend, write_mask: wgpu::ColorWrites::ALL })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let mesh_layout = wgpu::VertexBufferLayout {
+        let target = Target { module: &module, layout: &pipeline_layout, format, samples };
+        let instances = [
+            instance_buffer(8, &VOXEL_ATTRIBUTE),
+            instance_buffer(4, &COLOUR_ATTRIBUTE),
+            instance_buffer(8, &OCCLUSION_ATTRIBUTE),
+        ];
+        let mesh_vertices = [Some(wgpu::VertexBufferLayout {
             array_stride: 12,
             step_mode: wgpu::VertexStepMode::Vertex,
-            attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            attributes: &MESH_ATTRIBUTE,
+        })];
+        let cubes = Pass {
+            label: "cubes",
+            vs: if attributes { "vs_cube_attributes" } else { "vs_cube" },
+            fs: "fs_cube",
+            buffers: if attributes { &instances } else { &[] },
+            blend: None,
+            depth_write: true,
+            compare: wgpu::CompareFunction::LessEqual,
+            cull: Some(wgpu::Face::Back),
         };
-        // On WebGL2: the voxel (two u32) and its colour (RGBA8, when there are colours) per instance.
-        let instance = |stride, attributes| {
-            Some(wgpu::VertexBufferLayout {
-                array_stride: stride,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes,
-            })
+        // Translucent lines behind the voxels, seen from both sides (from below it is not drawn at all).
+        let floor = Pass {
+            label: "floor",
+            vs: "vs_floor",
+            fs: "fs_floor",
+            buffers: &[],
+            blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+            depth_write: false,
+            cull: None,
+            ..cubes
         };
-        let voxel_attribute = wgpu::vertex_attr_array![0 => Uint32x2];
-        let colour_attribute = wgpu::vertex_attr_array![1 => Unorm8x4];
-        let occlusion_attribute = wgpu::vertex_attr_array![2 => Uint32x2];
-        let instances = [
-            instance(8, &voxel_attribute[..]),
-            instance(4, &colour_attribute[..]),
-            instance(8, &occlusion_attribute[..]),
-        ];
+        // The surface lies inside its conservative voxel shell, so the overlay ignores depth: a translucent
+        // ghost of the front faces over the voxels.
+        let mesh = Pass {
+            label: "mesh overlay",
+            vs: "vs_mesh",
+            fs: "fs_mesh",
+            buffers: &mesh_vertices,
+            compare: wgpu::CompareFunction::Always,
+            cull: Some(wgpu::Face::Back),
+            ..floor
+        };
         CubeRenderer {
-            cubes: make(
-                "cubes",
-                if attributes { "vs_cube_attributes" } else { "vs_cube" },
-                "fs_cube",
-                if attributes { &instances } else { &[] },
-                None,
-                true,
-                wgpu::CompareFunction::LessEqual,
-                Some(wgpu::Face::Back),
-            ),
-            // Translucent lines behind the voxels, seen from both sides (from below it is not drawn at all).
-            floor: make(
-                "floor",
-                "vs_floor",
-                "fs_floor",
-                &[],
-                Some(wgpu::BlendState::ALPHA_BLENDING),
-                false,
-                wgpu::CompareFunction::LessEqual,
-                None,
-            ),
-            // The surface lies inside its conservative voxel shell, so the overlay ignores depth: a translucent
-            // ghost of the front faces over the voxels.
-            mesh: make(
-                "mesh overlay",
-                "vs_mesh",
-                "fs_mesh",
-                &[Some(mesh_layout)],
-                Some(wgpu::BlendState::ALPHA_BLENDING),
-                false,
-                wgpu::CompareFunction::Always,
-                Some(wgpu::Face::Back),
-            ),
+            cubes: render_pipeline(device, &target, &cubes),
+            floor: render_pipeline(device, &target, &floor),
+            mesh: render_pipeline(device, &target, &mesh),
             layout,
             encode_srgb: !format.is_srgb(),
             attributes,
@@ -229,7 +255,7 @@ impl CubeRenderer {
         self.coloured_scene(device, voxels, None, spec, mesh)
     }
 
-    /// [`CubeRenderer::scene`] with a colour per instance (see [`coloured_instances`]).
+    /// [`CubeRenderer::scene`] with a colour per instance (see [`super::coloured_instances`]).
     pub fn coloured_scene(
         &self,
         device: &wgpu::Device,
@@ -262,7 +288,7 @@ impl CubeRenderer {
         Scene { spec, voxels, coloured, colours, occlusion: None, mesh, uniform, bind_group }
     }
 
-    /// `scene` with ambient occlusion per instance (from [`occlusion_buffer`] of the grid its instances came
+    /// `scene` with ambient occlusion per instance (from [`super::occlusion_buffer`] of the grid its instances came
     /// from), drawn when [`Style::ao`] is on.
     pub fn with_occlusion(&self, device: &wgpu::Device, scene: Scene, occlusion: wgpu::Buffer) -> Scene {
         let bind_group =

@@ -6,7 +6,7 @@
 use glam::{IVec3, Vec3};
 
 /// Relative factor of the forward error bounds: `2^-19`, i.e. 32 units of f32 roundoff. The derivations at
-/// [`setup_triangle`] and [`setup_edges`] need at most 14 (a sum of at most six products in any order, plus the
+/// [`setup_triangle`](super::overlap::setup_triangle) and `setup_edges` need at most 14 (a sum of at most six products in any order, plus the
 /// set-up's own roundings); the rest covers the roundings in computing the bounds themselves.
 pub const ERROR_FACTOR: f32 = 1.0 / 524_288.0;
 

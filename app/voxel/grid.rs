@@ -172,7 +172,7 @@ impl GridSpec {
     }
 
     /// Maps a world-space point into grid space, where voxel `(i, j, k)` spans `[i, i+1] × [j, j+1] × [k, k+1]`.
-    /// Both backends voxelize grid-space triangles made by [`GridSpec::snap_to_grid`], so they see the same f32
+    /// Both backends voxelize grid-space triangles made by `GridSpec::snap_to_grid`, so they see the same f32
     /// inputs; [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) maps a mesh's anchor-relative
     /// triangles without forming world coordinates.
     ///

@@ -1,5 +1,5 @@
 //! Voxel grids: the grid convention ([`GridSpec`]), the packed bit grid ([`VoxelGrid`]) shared with the GPU pass,
-//! the CPU reference voxelizer ([`cpu`]) and the file formats ([`export`]).
+//! the CPU reference voxelizer ([`cpu`]) and the file formats ([`formats`]).
 //!
 //! # Grid convention
 //! * The grid covers the axis-aligned bounding box of all triangles; its origin is the box minimum.
@@ -24,7 +24,9 @@ pub mod exact;
 pub mod formats;
 mod grid;
 mod lattice;
+pub mod overlap;
 pub mod solid;
+pub mod thin;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};

@@ -1,0 +1,334 @@
+//! The overlap test of the CPU reference: the Schwarz–Seidel 2010 triangle/box test, set up once per triangle
+//! ([`setup_triangle`]) and decided per voxel ([`voxel_decision`] in f32, [`voxel_overlaps_exact`] where f32 cannot
+//! be sure). It mirrors the functions of the same names in `shaders/surface.wgsl`; [`super::thin`] moves its values
+//! inward for `surface6`, and [`super::cpu`] walks the voxels with it.
+//!
+//! Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on coordinates rounded
+//! onto the fixed-point [`Lattice`]: voxel `(i, j, k)` is the box with minimum corner `p = (i, j, k)` and size
+//! `Δp = (1, 1, 1)`.
+//!
+//! The test (Schwarz & Seidel 2010, §3.1; the original program's write-up gives the same formulas): a triangle
+//! with normal `n` overlaps the box iff their bounding boxes overlap, the plane test holds, and for each of the
+//! XY, YZ and ZX projections the three 2D edge functions are non-negative at the box's critical corners.
+//! The plane test `(<n,p> + d1)(<n,p> + d2) <= 0` is evaluated as `<n,p> + d2 <= 0 <= <n,p> + d1`, which is the
+//! same condition because `d1 - d2 = |n_x| + |n_y| + |n_z| >= 0`, and which cannot overflow or underflow the way
+//! the product can for very large or very small triangles.
+//!
+//! # Exact decisions
+//! Every sign test is first evaluated in f32, in coordinates local to the triangle (relative to the first voxel
+//! of its range, so magnitudes follow the triangle's size, not the grid's). Each value comes with a forward error
+//! bound that holds for any evaluation order, with or without fused multiply-adds (a GPU compiler may reorder and
+//! contract float arithmetic; naga cannot forbid it). Where the value is farther from zero than its bound, its
+//! sign is the exact sign. Otherwise (a tie or near-tie: a face on a voxel boundary, a vertex on a voxel edge) the
+//! test is decided exactly in integer arithmetic on the lattice coordinates: `i128` here, 128-bit words in the
+//! shader. The grid is therefore the exact answer for the lattice triangles, identical on every backend and
+//! every conformant adapter.
+//!
+
+pub use super::exact::{ERROR_FACTOR, ceil, dot3, exact_normal_component, floor};
+use super::lattice::Lattice;
+use glam::{IVec3, UVec3, Vec2, Vec3};
+
+/// `a · q + d`: an edge function.
+#[inline]
+pub fn edge_function(a: Vec2, q: Vec2, d: f32) -> f32 {
+    a.x * q.x + a.y * q.y + d
+}
+
+/// The three edge functions of one 2D projection, with their error bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Edges {
+    pub ne: [Vec2; 3],
+    pub de: [f32; 3],
+    /// Forward error bound of each edge function's f32 value (zero when the edge is exact: `ne == 0`).
+    pub eps: [f32; 3],
+}
+
+/// Per-triangle quantities of the overlap test, computed once (`setup_triangle`). Plane and edge quantities are
+/// in local coordinates, relative to `lo`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleSetup {
+    /// Triangle normal in f32 (not normalised), with components set to exactly zero where the exact normal's are.
+    pub n: Vec3,
+    /// Plane-test offsets for the critical corner `c` and the opposite corner `Δp - c`.
+    pub d1: f32,
+    pub d2: f32,
+    /// Forward error bound of the plane-test values (zero when the exact normal is zero: then they are exact).
+    pub plane_eps: f32,
+    /// Exact signs of the normal's components: bit `k` set when `n_k > 0`, bit `k + 3` when `n_k < 0`.
+    pub normal_signs: u32,
+    /// Edge functions of the XY, YZ and ZX projections.
+    pub xy: Edges,
+    pub yz: Edges,
+    pub zx: Edges,
+    /// Inclusive voxel range of the triangle's bounding box, clamped to the grid; empty when `lo > hi`.
+    pub lo: UVec3,
+    pub hi: UVec3,
+    /// The vertices in lattice units, for exact decisions (the shader reads them from its triangle buffer).
+    pub lattice: [IVec3; 3],
+    /// Lattice steps per voxel (the shader's `params.lattice_scale`).
+    pub unit: i32,
+}
+
+/// Sign of normal component `k` from the packed `normal_signs`.
+#[inline]
+pub fn normal_sign(signs: u32, k: usize) -> i32 {
+    ((signs >> k) & 1) as i32 - ((signs >> (k + 3)) & 1) as i32
+}
+
+/// `+1` for a non-negative normal component sign, `-1` otherwise.
+#[inline]
+fn orientation(sign: i32) -> f32 {
+    if sign >= 0 { 1.0 } else { -1.0 }
+}
+
+/// `-1`, `0` or `1`: the sign of `x` (WGSL's `sign`; unlike `f32::signum`, zero for zero).
+#[inline]
+pub fn sign(x: f32) -> f32 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// Edge normals, offsets and error bounds of one projection. `a` and `b` are the projected local vertex
+/// coordinates, `o` the orientation (the exact sign of the matching normal component, +1 at 0), and `wa`, `wb`
+/// bound the magnitude of every local coordinate, voxel corner and corner plus one along the two axes.
+///
+/// Error bound: `ne` is exact (a difference of lattice values), and so are the local coordinates. The value
+/// `ne.x q.x + ne.y q.y + de`, with `de = -(ne.x a_i + ne.y b_i) + max(ne.x, 0) + max(ne.y, 0)`, is a sum of
+/// seven terms of magnitude at most `|ne.x| wa` or `|ne.y| wb` each, computed with at most ten roundings, so
+/// its error is below `10 u (|ne.x| wa + |ne.y| wb)` with `u = 2^-24`; the bound uses 32 u.
+///
+/// An axis-aligned edge normal (one zero component) is scaled to unit length, which leaves every sign unchanged.
+/// Then the value is `±(q - a_i) + 0 or 1`: lattice values summed, exact in f32 in any order (see
+/// [`Lattice`](super::Lattice): every partial sum stays below `2^24` lattice steps), so its bound is zero. This is
+/// what keeps axis-aligned faces on voxel boundaries, as in CAD models, off the exact path.
+fn setup_edges(a: [f32; 3], b: [f32; 3], o: f32, wa: f32, wb: f32) -> Edges {
+    let mut e = Edges::default();
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        let d = Vec2::new(a[j] - a[i], b[j] - b[i]);
+        let mut normal = Vec2::new(-d.y, d.x) * o;
+        let aligned = (normal.x == 0.0) != (normal.y == 0.0);
+        if aligned {
+            normal = Vec2::new(sign(normal.x), sign(normal.y));
+        }
+        e.ne[i] = normal;
+        e.de[i] = -(normal.x * a[i] + normal.y * b[i]) + normal.x.max(0.0) + normal.y.max(0.0);
+        e.eps[i] = if aligned { 0.0 } else { ERROR_FACTOR * (normal.x.abs() * wa + normal.y.abs() * wb) };
+    }
+    e
+}
+
+/// Computes everything the per-voxel test needs for the lattice triangle `v` (grid space) in a grid of `dims`
+/// voxels.
+///
+/// Plane error bound: with `a = p - lo` and `b = c - v0 + lo` (both exact, at most `w` in magnitude per axis),
+/// the exact value is `n · (a + b)`. Each f32 normal component is off by at most `2u·nabs` (two products and a
+/// difference), and the value adds six products in some order, so the error is below `14 u Σ nabs_k w_k`, where
+/// `nabs_k = |e0_i e1_j| + |e0_j e1_i|`; the bound uses 32 u. Components whose exact value is zero are stored as
+/// exact zeros and add nothing. A normal with one non-zero component (a face perpendicular to an axis) is scaled
+/// to unit length: the plane values are then `±(p_k + c_k - v0_k)`, exact as the aligned edges' in
+/// `setup_edges`, and the bound is zero.
+pub fn setup_triangle(v: [Vec3; 3], dims: UVec3, lattice: Lattice) -> TriangleSetup {
+    let (lo, hi) = voxel_range(v, dims);
+    let origin = lo.as_vec3();
+    let l = v.map(|p| p - origin);
+    let (e0, e1) = (l[1] - l[0], l[2] - l[1]);
+    // Spelled out (not `cross`) so the operations visibly match the shader's.
+    let n = Vec3::new(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    let nabs = Vec3::new(
+        (e0.y * e1.z).abs() + (e0.z * e1.y).abs(),
+        (e0.z * e1.x).abs() + (e0.x * e1.z).abs(),
+        (e0.x * e1.y).abs() + (e0.y * e1.x).abs(),
+    );
+    let units = v.map(|p| lattice.units(p));
+    let (ue0, ue1) = (units[1] - units[0], units[2] - units[1]);
+    let mut normal_signs = 0u32;
+    let mut n_exact = Vec3::ZERO;
+    let mut nabs_live = Vec3::ZERO;
+    for k in 0..3 {
+        // The f32 component is off by at most 2u nabs_k; only a component within that bound of zero (a face
+        // nearly or exactly parallel to axis k) needs the exact product.
+        let s = match certain_sign(n[k], ERROR_FACTOR * nabs[k]) {
+            2 => exact_normal_component(ue0, ue1, k).signum() as i32,
+            certain => certain,
+        };
+        normal_signs |= u32::from(s > 0) << k | u32::from(s < 0) << (k + 3);
+        if s != 0 {
+            n_exact[k] = n[k];
+            nabs_live[k] = nabs[k];
+        }
+    }
+    let aligned = n_exact.cmpne(Vec3::ZERO).bitmask().count_ones() == 1;
+    let n = if aligned { Vec3::new(sign(n_exact.x), sign(n_exact.y), sign(n_exact.z)) } else { n_exact };
+    let c = Vec3::new(
+        if normal_sign(normal_signs, 0) > 0 { 1.0 } else { 0.0 },
+        if normal_sign(normal_signs, 1) > 0 { 1.0 } else { 0.0 },
+        if normal_sign(normal_signs, 2) > 0 { 1.0 } else { 0.0 },
+    );
+    let d1 = dot3(n, c - l[0]);
+    let d2 = dot3(n, Vec3::ONE - c - l[0]);
+    // Largest magnitude of a local vertex coordinate, voxel corner or corner plus one, plus one.
+    let lmin = l[0].min(l[1]).min(l[2]);
+    let lmax = l[0].max(l[1]).max(l[2]);
+    let w = lmin.abs().max(lmax.abs()).max((hi.as_vec3() - origin) + 1.0) + 1.0;
+    let plane_eps = if aligned { 0.0 } else { ERROR_FACTOR * dot3(nabs_live, w) };
+    let xs = [l[0].x, l[1].x, l[2].x];
+    let ys = [l[0].y, l[1].y, l[2].y];
+    let zs = [l[0].z, l[1].z, l[2].z];
+    let xy = setup_edges(xs, ys, orientation(normal_sign(normal_signs, 2)), w.x, w.y);
+    let yz = setup_edges(ys, zs, orientation(normal_sign(normal_signs, 0)), w.y, w.z);
+    let zx = setup_edges(zs, xs, orientation(normal_sign(normal_signs, 1)), w.z, w.x);
+    let unit = 1i32 << lattice.shift;
+    TriangleSetup { n, d1, d2, plane_eps, normal_signs, xy, yz, zx, lo, hi, lattice: units, unit }
+}
+
+/// The voxels whose closed boxes meet the triangle's bounding box: `i` with `i <= max` and `i + 1 >= min`.
+/// Exact: lattice coordinates, `floor` and `ceil` carry no rounding.
+pub fn voxel_range(v: [Vec3; 3], dims: UVec3) -> (UVec3, UVec3) {
+    let min = v[0].min(v[1]).min(v[2]);
+    let max = v[0].max(v[1]).max(v[2]);
+    let top = (dims.as_vec3() - 1.0).max(Vec3::ZERO);
+    let lo = (min.map(ceil) - 1.0).clamp(Vec3::ZERO, top);
+    let hi = max.map(floor).clamp(Vec3::ZERO, top);
+    // A triangle entirely outside the grid (only possible for a caller-made grid) gets an empty range.
+    let outside = max.cmplt(Vec3::ZERO).any() || min.cmpgt(dims.as_vec3()).any();
+    if outside { (UVec3::ONE, UVec3::ZERO) } else { (lo.as_uvec3(), hi.as_uvec3()) }
+}
+
+/// The exact plane test of the voxel with minimum corner `p`, in lattice units (`i128`; the values stay below
+/// `2^77`): `n · (P - V0) + S Σ max(n_k, 0) >= 0` and `n · (P - V0) + S Σ min(n_k, 0) <= 0`.
+pub fn exact_plane_test(s: &TriangleSetup, p: UVec3) -> bool {
+    let v = s.lattice;
+    let (e0, e1) = (v[1] - v[0], v[2] - v[1]);
+    let d = p.as_ivec3() * s.unit - v[0];
+    let (mut base, mut pos, mut neg) = (0i128, 0i128, 0i128);
+    for k in 0..3 {
+        let nk = exact_normal_component(e0, e1, k);
+        base += nk * d[k] as i128;
+        if nk > 0 {
+            pos += nk;
+        } else {
+            neg += nk;
+        }
+    }
+    let unit = s.unit as i128;
+    base + unit * pos >= 0 && base + unit * neg <= 0
+}
+
+/// The exact sign of edge function `i` of projection `k` (0: XY, 1: YZ, 2: ZX) at the voxel with minimum corner
+/// `p`, in lattice units: `ne · (Q - V_i) + S (max(ne.x, 0) + max(ne.y, 0))` (below `2^50`).
+pub fn exact_edge_sign(s: &TriangleSetup, k: usize, i: usize, p: UVec3) -> i32 {
+    let (a, b) = (k, (k + 1) % 3);
+    let o = if normal_sign(s.normal_signs, (k + 2) % 3) >= 0 { 1i128 } else { -1 };
+    let (vi, vj) = (s.lattice[i], s.lattice[(i + 1) % 3]);
+    let ne = [-o * (vj[b] - vi[b]) as i128, o * (vj[a] - vi[a]) as i128];
+    let q = p.as_ivec3() * s.unit;
+    let value = ne[0] * (q[a] - vi[a]) as i128
+        + ne[1] * (q[b] - vi[b]) as i128
+        + s.unit as i128 * (ne[0].max(0) + ne[1].max(0));
+    value.signum() as i32
+}
+
+/// The sign of an f32 test value where its error bound makes it certain: `1` or `-1`, or `0` for a value that
+/// is exact (`eps == 0`) and zero; `2` when the exact path must decide.
+#[inline]
+pub fn certain_sign(value: f32, eps: f32) -> i32 {
+    if value > eps {
+        1
+    } else if value < -eps {
+        -1
+    } else if eps == 0.0 {
+        0
+    } else {
+        2
+    }
+}
+
+/// Plane test for the voxel with minimum corner `p` (`pl` in local coordinates), exact.
+#[inline]
+pub fn plane_test(s: &TriangleSetup, p: UVec3, pl: Vec3) -> bool {
+    let np = dot3(s.n, pl);
+    let t1 = certain_sign(np + s.d1, s.plane_eps);
+    let t2 = certain_sign(np + s.d2, s.plane_eps);
+    if t1 == -1 || t2 == 1 {
+        return false;
+    }
+    if t1 != 2 && t2 != 2 {
+        return true;
+    }
+    exact_plane_test(s, p)
+}
+
+/// The three edge-function tests of projection `k` (`e` its edges), `q` being the voxel's local minimum corner
+/// in that projection, exact.
+#[inline]
+pub fn edge_test(s: &TriangleSetup, e: &Edges, k: usize, p: UVec3, q: Vec2) -> bool {
+    let c0 = certain_sign(edge_function(e.ne[0], q, e.de[0]), e.eps[0]);
+    let c1 = certain_sign(edge_function(e.ne[1], q, e.de[1]), e.eps[1]);
+    let c2 = certain_sign(edge_function(e.ne[2], q, e.de[2]), e.eps[2]);
+    if c0 == -1 || c1 == -1 || c2 == -1 {
+        return false;
+    }
+    if c0 != 2 && c1 != 2 && c2 != 2 {
+        return true;
+    }
+    (c0 != 2 || exact_edge_sign(s, k, 0, p) >= 0)
+        && (c1 != 2 || exact_edge_sign(s, k, 1, p) >= 0)
+        && (c2 != 2 || exact_edge_sign(s, k, 2, p) >= 0)
+}
+
+/// The full Schwarz–Seidel test for the voxel with minimum corner `p`, with exact decisions where f32 is unsure.
+/// Assumes the bounding boxes overlap.
+#[inline]
+pub fn voxel_overlaps_exact(s: &TriangleSetup, p: UVec3) -> bool {
+    let pl = (p - s.lo).as_vec3();
+    plane_test(s, p, pl)
+        && edge_test(s, &s.xy, 0, p, Vec2::new(pl.x, pl.y))
+        && edge_test(s, &s.yz, 1, p, Vec2::new(pl.y, pl.z))
+        && edge_test(s, &s.zx, 2, p, Vec2::new(pl.z, pl.x))
+}
+
+/// The overlap test in f32 only: `1` when the voxel certainly overlaps, `0` when it certainly does not, `2` when
+/// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. A value `v` with bound `e`
+/// is certainly non-negative when `v - e >= 0` and certainly negative when `v + e < 0` (a rounded sum or
+/// difference of two floats has the sign of the exact one), so two minima over the eleven values decide. The
+/// common case costs little more than the plain f32 test; the shader defers the rare `2` to a separate pass.
+#[inline(always)]
+pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
+    let np = dot3(s.n, pl);
+    let v1 = np + s.d1;
+    let v2 = -(np + s.d2);
+    let values = |e: &Edges, q: Vec2| {
+        Vec3::new(
+            edge_function(e.ne[0], q, e.de[0]),
+            edge_function(e.ne[1], q, e.de[1]),
+            edge_function(e.ne[2], q, e.de[2]),
+        )
+    };
+    let xy = values(&s.xy, Vec2::new(pl.x, pl.y));
+    let yz = values(&s.yz, Vec2::new(pl.y, pl.z));
+    let zx = values(&s.zx, Vec2::new(pl.z, pl.x));
+    decide(s, v1.min(v2), xy, yz, zx)
+}
+
+/// The common end of [`voxel_decision`] and [`voxel_decision_thin`]: `plane` is the smaller of the two plane
+/// values, `xy`, `yz`, `zx` the edge values; each value `v` with bound `e` is certainly non-negative when
+/// `v - e >= 0` and certainly negative when `v + e < 0`, so two minima decide.
+#[inline(always)]
+pub(super) fn decide(s: &TriangleSetup, plane: f32, xy: Vec3, yz: Vec3, zx: Vec3) -> u32 {
+    let eps = |e: &Edges| Vec3::from_array(e.eps);
+    let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
+    let low = (plane + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
+    if low < 0.0 {
+        return 0;
+    }
+    let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
+    let high = (plane - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
+    if high >= 0.0 { 1 } else { 2 }
+}
