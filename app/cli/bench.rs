@@ -228,46 +228,8 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         let mut label = None;
         for case in &cases {
             let (name, m) = &meshes[case.mesh];
-            let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
-            let spec = GridSpec::fit(bounds, Resolution::Count(case.n), case.axis)?;
-            let measure_peak = meshvox::memory::reset_peak();
-            let before = meshvox::memory::peak_resident();
-            let mut runs = Vec::new();
-            let mut gpu = Vec::new();
-            let mut last = None;
-            for _ in 0..args.runs.max(1) {
-                // The previous run's grid is dropped first, so the peak is one run's.
-                drop(last.take());
-                let t = Instant::now();
-                let out = engine.voxelize_spec(m, spec, case.mode, None)?;
-                out.notices.iter().for_each(|n| eprintln!("{n}"));
-                runs.push(ms(t));
-                gpu.extend(out.gpu_ms);
-                last = Some(out);
-            }
-            let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
-                (true, Some(b), Some(p)) => Some(p.saturating_sub(b) as f64 / (1 << 20) as f64),
-                _ => None,
-            };
-            let out = last.ok_or_else(|| anyhow!("no runs"))?;
-            let d = out.grid.spec.dims;
-            label.get_or_insert_with(|| out.backend.clone());
-            let row = Row {
-                mesh: name.clone(),
-                triangles: m.triangles.len(),
-                n: case.n,
-                axis: format!("{:?}", case.axis).to_lowercase(),
-                mode: case.mode.to_string(),
-                dims: d.to_array(),
-                voxels: out.grid.count(),
-                backend: out.backend.clone(),
-                voxelize_ms: median(runs.clone()),
-                runs_ms: runs,
-                gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
-                exact_tests: out.exact_tests,
-                peak_mib: peak,
-                paper_ms: case.paper_ms,
-            };
+            let row = measure(&engine, name, m, case, args.runs)?;
+            label.get_or_insert_with(|| row.backend.clone());
             eprintln!("{} @{} {}: {:.2} ms on {}", row.mesh, row.n, row.mode, row.voxelize_ms, row.backend);
             rows.push(row);
         }
@@ -295,6 +257,51 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             .with_context(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(())
+}
+
+/// One case of the bench on `engine`: `repeats` voxelizations of `mesh`, their median, the GPU time and the peak
+/// memory of one run.
+fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -> Result<Row> {
+    let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
+    let spec = GridSpec::fit(bounds, Resolution::Count(case.n), case.axis)?;
+    let measure_peak = meshvox::memory::reset_peak();
+    let before = meshvox::memory::peak_resident();
+    let mut runs = Vec::new();
+    let mut gpu = Vec::new();
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        // The previous run's grid is dropped first, so the peak is one run's.
+        drop(last.take());
+        let t = Instant::now();
+        let out = engine.voxelize_spec(m, spec, case.mode, None)?;
+        out.notices.iter().for_each(|n| eprintln!("{n}"));
+        runs.push(ms(t));
+        gpu.extend(out.gpu_ms);
+        last = Some(out);
+    }
+    let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
+        (true, Some(b), Some(p)) => Some(p.saturating_sub(b) as f64 / (1 << 20) as f64),
+        _ => None,
+    };
+    let out = last.ok_or_else(|| anyhow!("no runs"))?;
+    let d = out.grid.spec.dims;
+    let row = Row {
+        mesh: name.to_string(),
+        triangles: m.triangles.len(),
+        n: case.n,
+        axis: format!("{:?}", case.axis).to_lowercase(),
+        mode: case.mode.to_string(),
+        dims: d.to_array(),
+        voxels: out.grid.count(),
+        backend: out.backend.clone(),
+        voxelize_ms: median(runs.clone()),
+        runs_ms: runs,
+        gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+        exact_tests: out.exact_tests,
+        peak_mib: peak,
+        paper_ms: case.paper_ms,
+    };
+    Ok(row)
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {

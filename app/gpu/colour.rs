@@ -142,6 +142,19 @@ impl GpuColourer {
             return Ok(VoxelColours { rgba: vec![[0; 4]; count as usize] });
         }
         let device = &gpu.device;
+        let best = scoped(device, || Ok(self.submit_passes(gpu, grid, triangles, shading))).await?;
+        let bytes = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
+        gpu.check()?;
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        let mut colours = VoxelColours { rgba: words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect() };
+        fill_interior(grid, &mut colours);
+        Ok(colours)
+    }
+
+    /// Uploads the grid, its ranks, the triangles and the shading tables, and submits the three passes (one per
+    /// step: each reads what the one before wrote). Returns the buffer of each voxel's (distance, colour).
+    fn submit_passes(&self, gpu: &Gpu, grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shading) -> wgpu::Buffer {
+        let device = &gpu.device;
         let spec = grid.spec;
         let tables = Tables::new(shading);
         let ranks = word_ranks(grid);
@@ -151,70 +164,61 @@ impl GpuColourer {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
         };
         let storage = wgpu::BufferUsages::STORAGE;
-        let best_init: Vec<[u32; 2]> = vec![[f32::INFINITY.to_bits(), NO_TRIANGLE]; count as usize];
+        let best_init: Vec<[u32; 2]> = vec![[f32::INFINITY.to_bits(), NO_TRIANGLE]; grid.count() as usize];
         let word_count = spec.word_count() as u32;
         let groups = |n: u32| dispatch_2d(n.div_ceil(WG));
         let (tri_groups, word_groups) = (groups(triangles.len() as u32), groups(word_count));
-        let best = scoped(device, || {
-            let params = |row_groups: u32| Params {
-                dims: spec.dims.to_array(),
-                words_per_row: spec.words_per_row() as u32,
-                tri_count: triangles.len() as u32,
-                word_count,
-                materials_at: tables.materials_at,
-                textures_at: tables.textures_at,
-                row_threads: row_groups * WG,
-                _pad: [0; 3],
-            };
-            let uniform = wgpu::BufferUsages::UNIFORM;
-            let tri_params = init("colour params", bytemuck::bytes_of(&params(tri_groups.0)), uniform);
-            let word_params = init("colour params", bytemuck::bytes_of(&params(word_groups.0)), uniform);
-            let buffers = [
-                init("colour triangles", bytemuck::cast_slice(triangles), storage),
-                init("colour shading", bytemuck::cast_slice(&shading.triangles), storage),
-                init("colour tables", bytemuck::cast_slice(&tables.words), storage),
-                init("colour texels", bytemuck::cast_slice(&tables.texels), storage),
-                init("colour grid", bytemuck::cast_slice(&grid.words), storage),
-                init("colour ranks", bytemuck::cast_slice(&ranks), storage),
-                init("colour best", bytemuck::cast_slice(&best_init), storage | wgpu::BufferUsages::COPY_SRC),
-            ];
-            let bind = |params: &wgpu::Buffer| {
-                let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }];
-                entries.extend(
-                    buffers
-                        .iter()
-                        .enumerate()
-                        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
-                );
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("colour"),
-                    layout: &self.layout,
-                    entries: &entries,
-                })
-            };
-            let (tri_bind, word_bind) = (bind(&tri_params), bind(&word_params));
-            let mut encoder = device.create_command_encoder(&Default::default());
-            for (pipeline, bind, (x, y)) in [
-                (&self.distance, &tri_bind, tri_groups),
-                (&self.triangle, &tri_bind, tri_groups),
-                (&self.shade, &word_bind, word_groups),
-            ] {
-                // One pass per step: each reads what the one before wrote.
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, bind, &[]);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-            let [.., best] = buffers;
-            Ok(best)
-        })
-        .await?;
-        let bytes = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
-        gpu.check()?;
-        let words: &[u32] = bytemuck::cast_slice(&bytes);
-        let mut colours = VoxelColours { rgba: words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect() };
-        fill_interior(grid, &mut colours);
-        Ok(colours)
+        let params = |row_groups: u32| Params {
+            dims: spec.dims.to_array(),
+            words_per_row: spec.words_per_row() as u32,
+            tri_count: triangles.len() as u32,
+            word_count,
+            materials_at: tables.materials_at,
+            textures_at: tables.textures_at,
+            row_threads: row_groups * WG,
+            _pad: [0; 3],
+        };
+        let uniform = wgpu::BufferUsages::UNIFORM;
+        let tri_params = init("colour params", bytemuck::bytes_of(&params(tri_groups.0)), uniform);
+        let word_params = init("colour params", bytemuck::bytes_of(&params(word_groups.0)), uniform);
+        let buffers = [
+            init("colour triangles", bytemuck::cast_slice(triangles), storage),
+            init("colour shading", bytemuck::cast_slice(&shading.triangles), storage),
+            init("colour tables", bytemuck::cast_slice(&tables.words), storage),
+            init("colour texels", bytemuck::cast_slice(&tables.texels), storage),
+            init("colour grid", bytemuck::cast_slice(&grid.words), storage),
+            init("colour ranks", bytemuck::cast_slice(&ranks), storage),
+            init("colour best", bytemuck::cast_slice(&best_init), storage | wgpu::BufferUsages::COPY_SRC),
+        ];
+        let bind = |params: &wgpu::Buffer| {
+            let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }];
+            entries.extend(
+                buffers
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32 + 1, resource: b.as_entire_binding() }),
+            );
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("colour"),
+                layout: &self.layout,
+                entries: &entries,
+            })
+        };
+        let (tri_bind, word_bind) = (bind(&tri_params), bind(&word_params));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        for (pipeline, bind, (x, y)) in [
+            (&self.distance, &tri_bind, tri_groups),
+            (&self.triangle, &tri_bind, tri_groups),
+            (&self.shade, &word_bind, word_groups),
+        ] {
+            // One pass per step: each reads what the one before wrote.
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let [.., best] = buffers;
+        best
     }
 }

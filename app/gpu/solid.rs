@@ -107,18 +107,7 @@ impl SolidPipelines {
         }
         let edges = boundary_edges(triangles, lattice);
         let boxes = boundary_boxes(&edges);
-        // Work items per triangle from the same set-up the shader computes (exact, so both count the same rows).
-        let mut offsets = Vec::with_capacity(triangles.len() + 1);
-        let mut items = 0u64;
-        for &t in triangles {
-            offsets.push(items as u32);
-            let s = crossing_setup(t, spec.dims, lattice);
-            if s.sign != 0 {
-                let rows = (s.hi[0] - s.lo[0] + 1) as u64 * (s.hi[1] - s.lo[1] + 1) as u64;
-                items += rows.div_ceil(ROWS_PER_ITEM);
-            }
-        }
-        offsets.push(items as u32);
+        let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
         }
@@ -137,33 +126,8 @@ impl SolidPipelines {
         // The edges (two vec4 each), then the loops' boxes (one vec4 each).
         let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
         edge_bytes.extend_from_slice(bytemuck::cast_slice(&boxes));
-        let (params, counts, segments, placeholder, boundary, total, item_offsets) = scoped(device, || {
-            let params = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("solid params"),
-                size: std::mem::size_of::<SolidParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let counts = storage_buffer(device, "row counts", rows * 4, wgpu::BufferUsages::empty());
-            let segments = storage_buffer(device, "row segments", rows * 8, wgpu::BufferUsages::empty());
-            let placeholder = storage_buffer(device, "crossings (placeholder)", 4, wgpu::BufferUsages::empty());
-            let boundary = storage_buffer(
-                device,
-                "boundary edges",
-                (edge_bytes.len() as u64).max(32),
-                wgpu::BufferUsages::empty(),
-            );
-            let total = storage_buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC);
-            let item_offsets =
-                storage_buffer(device, "item offsets", offsets.len() as u64 * 4, wgpu::BufferUsages::empty());
-            gpu.queue.write_buffer(&item_offsets, 0, bytemuck::cast_slice(&offsets));
-            gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(&base));
-            if !edge_bytes.is_empty() {
-                gpu.queue.write_buffer(&boundary, 0, &edge_bytes);
-            }
-            Ok((params, counts, segments, placeholder, boundary, total, item_offsets))
-        })
-        .await?;
+        let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;
+        let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets } = buffers;
         let item_groups = dispatch_2d((items as u32).div_ceil(WG));
         let row_groups = dispatch_2d((rows as u32).div_ceil(WG));
         let first = self
@@ -233,4 +197,71 @@ async fn run_passes(
         Ok(())
     })
     .await
+}
+
+/// Each triangle's first work item of the crossing passes, and the total, from the same set-up the shader
+/// computes (exact, so both count the same rows).
+fn item_offsets(triangles: &[[Vec3; 3]], spec: GridSpec, lattice: Lattice) -> (Vec<u32>, u64) {
+    let mut offsets = Vec::with_capacity(triangles.len() + 1);
+    let mut items = 0u64;
+    for &t in triangles {
+        offsets.push(items as u32);
+        let s = crossing_setup(t, spec.dims, lattice);
+        if s.sign != 0 {
+            let rows = (s.hi[0] - s.lo[0] + 1) as u64 * (s.hi[1] - s.lo[1] + 1) as u64;
+            items += rows.div_ceil(ROWS_PER_ITEM);
+        }
+    }
+    offsets.push(items as u32);
+    (offsets, items)
+}
+
+/// The solid passes' buffers besides the triangles, the slab and the crossing list (sized once counted).
+struct SolidBuffers {
+    params: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    segments: wgpu::Buffer,
+    placeholder: wgpu::Buffer,
+    boundary: wgpu::Buffer,
+    total: wgpu::Buffer,
+    item_offsets: wgpu::Buffer,
+}
+
+impl SolidBuffers {
+    /// Allocates them (inside error scopes) and uploads the parameters, work-item offsets and boundary edges.
+    async fn new(
+        gpu: &Gpu,
+        rows: u64,
+        offsets: &[u32],
+        edge_bytes: &[u8],
+        base: &SolidParams,
+    ) -> Result<SolidBuffers, GpuError> {
+        let device = &gpu.device;
+        scoped(device, || {
+            let params = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("solid params"),
+                size: std::mem::size_of::<SolidParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let none = wgpu::BufferUsages::empty();
+            let boundary = storage_buffer(device, "boundary edges", (edge_bytes.len() as u64).max(32), none);
+            let item_offsets = storage_buffer(device, "item offsets", offsets.len() as u64 * 4, none);
+            gpu.queue.write_buffer(&item_offsets, 0, bytemuck::cast_slice(offsets));
+            gpu.queue.write_buffer(&params, 0, bytemuck::bytes_of(base));
+            if !edge_bytes.is_empty() {
+                gpu.queue.write_buffer(&boundary, 0, edge_bytes);
+            }
+            Ok(SolidBuffers {
+                params,
+                counts: storage_buffer(device, "row counts", rows * 4, none),
+                segments: storage_buffer(device, "row segments", rows * 8, none),
+                placeholder: storage_buffer(device, "crossings (placeholder)", 4, none),
+                boundary,
+                total: storage_buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC),
+                item_offsets,
+            })
+        })
+        .await
+    }
 }

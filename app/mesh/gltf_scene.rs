@@ -16,6 +16,45 @@ use std::path::Path;
 
 pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
+    let Parsed { document, blob, transforms } = parse_document(path, bytes)?;
+    let instances = mesh_instances(path, &document, &transforms, limits)?;
+    let data = gltf_data::Data::new(document.as_json(), read_buffers(path, &document, base, blob)?);
+    let mut mesh = Mesh::default();
+    let colour_warnings = gltf_data::colour_warnings(document.as_json());
+    mesh.warnings.extend(colour_warnings.into_iter().map(|w| format!("{}: {w}", path.display())));
+    let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
+    mesh.shading = Some(shading);
+    let mut pieces = Vec::new();
+    let mut placed = Vec::new();
+    for (gmesh, world, instancing) in instances {
+        match instancing {
+            Some(instancing) => {
+                let transforms = instancing.transforms(&data).map_err(err)?;
+                placed.extend(transforms.into_iter().map(|m| (gmesh.clone(), world * m)));
+            }
+            None => placed.push((gmesh, world)),
+        }
+    }
+    for (gmesh, world) in placed {
+        for primitive in gmesh.primitives() {
+            let source = Source { document: &document, data: &data, path };
+            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, world, &tex_sets)?);
+        }
+    }
+    mesh.push_pieces(pieces);
+    Ok(mesh)
+}
+
+/// A glTF or GLB document, validated, with its binary chunk and the node transforms in f64.
+struct Parsed {
+    document: gltf::Document,
+    blob: Option<Vec<u8>>,
+    /// Each node's local transform read from the JSON in f64 (`None` where it could not be reread).
+    transforms: Vec<Option<DMat4>>,
+}
+
+fn parse_document(path: &Path, bytes: &[u8]) -> Result<Parsed, MeshError> {
+    let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     // The crate's own messages start with the words our error adds ("invalid glTF: invalid glTF: …").
     let crate_err = |e: gltf::Error| {
         let message = e.to_string();
@@ -38,7 +77,18 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     if !version.starts_with("2.") {
         return Err(err(format!("asset.version is \"{version}\"; only glTF 2.0 files are supported")));
     }
+    Ok(Parsed { document, blob, transforms })
+}
 
+/// The meshes the default scene (or every scene) places, with their world transforms and instancing, counting
+/// the triangles they will make against the limit before any is read.
+fn mesh_instances<'a>(
+    path: &Path,
+    document: &'a gltf::Document,
+    transforms: &[Option<DMat4>],
+    limits: &LoadLimits,
+) -> Result<Vec<(gltf::Mesh<'a>, DMat4, Option<gltf_data::Instancing<'a>>)>, MeshError> {
+    let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let roots: Vec<gltf::Node> = match document.default_scene() {
         Some(scene) => scene.nodes().collect(),
         None => document.scenes().flat_map(|s| s.nodes()).collect(),
@@ -73,7 +123,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         };
         let world = parent * local;
         if let Some(gmesh) = node.mesh() {
-            let instancing = gltf_data::instancing(&document, &node).map_err(err)?;
+            let instancing = gltf_data::instancing(document, &node).map_err(err)?;
             let copies = instancing.as_ref().map_or(1, |i| i.count as u64);
             let per_copy = gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>();
             triangles = triangles.saturating_add(per_copy.saturating_mul(copies));
@@ -82,31 +132,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
-    let data = gltf_data::Data::new(document.as_json(), read_buffers(path, &document, base, blob)?);
-    let mut mesh = Mesh::default();
-    let colour_warnings = gltf_data::colour_warnings(document.as_json());
-    mesh.warnings.extend(colour_warnings.into_iter().map(|w| format!("{}: {w}", path.display())));
-    let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
-    mesh.shading = Some(shading);
-    let mut pieces = Vec::new();
-    let mut placed = Vec::new();
-    for (gmesh, world, instancing) in instances {
-        match instancing {
-            Some(instancing) => {
-                let transforms = instancing.transforms(&data).map_err(err)?;
-                placed.extend(transforms.into_iter().map(|m| (gmesh.clone(), world * m)));
-            }
-            None => placed.push((gmesh, world)),
-        }
-    }
-    for (gmesh, world) in placed {
-        for primitive in gmesh.primitives() {
-            let source = Source { document: &document, data: &data, path };
-            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, world, &tex_sets)?);
-        }
-    }
-    mesh.push_pieces(pieces);
-    Ok(mesh)
+    Ok(instances)
 }
 
 /// The crate's validation (as `Document::from_json`), less its one rule that glTF does not have: an accessor

@@ -104,7 +104,44 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
     // Every face makes at least one triangle: a file declaring more faces than the limit is refused before its
     // body is read. (Polygons are counted exactly once read.)
     limits.check_triangles(path, face_def.count as u64)?;
-    // Elements come in the header's order; each one before the faces is read (vertices) or read past.
+    let (vertices, faces) = read_elements(&mut reader, &header, path)?;
+    if !vertex_def.properties.contains_key("x")
+        || !vertex_def.properties.contains_key("y")
+        || !vertex_def.properties.contains_key("z")
+    {
+        return Err(err("the vertex element lacks x, y or z".into()));
+    }
+    if !face_def.properties.contains_key("vertex_indices") && !face_def.properties.contains_key("vertex_index") {
+        return Err(err("the face element has no vertex_indices list".into()));
+    }
+    let triangles = fan_triangles(&faces, vertices.len()).map_err(err)?;
+    limits.check_triangles(path, triangles.len() as u64)?;
+    let coloured = vertices.iter().any(|v| v.coloured);
+    let colors = if coloured {
+        vertices.iter().map(|v| super::obj::srgb_to_linear(v.rgb.map(f64::from))).collect()
+    } else {
+        Vec::new()
+    };
+    let positions = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
+    let mut mesh = Mesh::default();
+    if coloured {
+        mesh.shading =
+            Some(super::Shading { materials: vec![super::material::Material::default()], ..Default::default() });
+    }
+    let name = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let part = Part { name, mesh: 0, primitive: 0, material: None };
+    mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors, material: 0 }]);
+    Ok(mesh)
+}
+
+/// The vertex and face elements' entries, reading the elements in the header's order: each one before the faces
+/// is read (vertices) or read past; reading stops after the faces.
+fn read_elements(
+    reader: &mut impl std::io::BufRead,
+    header: &ply_rs::ply::Header,
+    path: &Path,
+) -> Result<(Vec<Vertex>, Vec<Face>), MeshError> {
+    let err = |message: String| MeshError::Ply { path: path.to_path_buf(), message };
     let mut vertices: Vec<Vertex> = Vec::new();
     let mut faces: Vec<Face> = Vec::new();
     for (name, def) in &header.elements {
@@ -125,60 +162,38 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
         match name.as_str() {
             "vertex" => {
                 vertices = ply_rs::parser::Parser::<Vertex>::new()
-                    .read_payload_for_element(&mut reader, def, &header)
+                    .read_payload_for_element(reader, def, header)
                     .map_err(what)?;
             }
             "face" => {
                 faces = ply_rs::parser::Parser::<Face>::new()
-                    .read_payload_for_element(&mut reader, def, &header)
+                    .read_payload_for_element(reader, def, header)
                     .map_err(what)?;
                 break;
             }
             _ => {
-                ply_rs::parser::Parser::<Skip>::new()
-                    .read_payload_for_element(&mut reader, def, &header)
-                    .map_err(what)?;
+                ply_rs::parser::Parser::<Skip>::new().read_payload_for_element(reader, def, header).map_err(what)?;
             }
         }
     }
-    if !vertex_def.properties.contains_key("x")
-        || !vertex_def.properties.contains_key("y")
-        || !vertex_def.properties.contains_key("z")
-    {
-        return Err(err("the vertex element lacks x, y or z".into()));
-    }
-    if !face_def.properties.contains_key("vertex_indices") && !face_def.properties.contains_key("vertex_index") {
-        return Err(err("the face element has no vertex_indices list".into()));
-    }
-    let count = vertices.len() as i64;
+    Ok((vertices, faces))
+}
+
+/// Each face as a fan of triangles; a face with a vertex out of range or fewer than three vertices is an error.
+fn fan_triangles(faces: &[Face], vertex_count: usize) -> Result<Vec<[u32; 3]>, String> {
+    let count = vertex_count as i64;
     let mut triangles = Vec::with_capacity(faces.len());
     for (f, face) in faces.iter().enumerate() {
         if let Some(&bad) = face.indices.iter().find(|&&i| i < 0 || i >= count) {
-            return Err(err(format!("face {f} uses vertex {bad} but there are {count}")));
+            return Err(format!("face {f} uses vertex {bad} but there are {count}"));
         }
         if face.indices.len() < 3 {
-            return Err(err(format!("face {f} has {} vertices; a face needs at least 3", face.indices.len())));
+            return Err(format!("face {f} has {} vertices; a face needs at least 3", face.indices.len()));
         }
         let ix = &face.indices;
         triangles.extend((2..ix.len()).map(|k| [ix[0] as u32, ix[k - 1] as u32, ix[k] as u32]));
     }
-    limits.check_triangles(path, triangles.len() as u64)?;
-    let coloured = vertices.iter().any(|v| v.coloured);
-    let colors = if coloured {
-        vertices.iter().map(|v| super::obj::srgb_to_linear(v.rgb.map(f64::from))).collect()
-    } else {
-        Vec::new()
-    };
-    let positions = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
-    let mut mesh = Mesh::default();
-    if coloured {
-        mesh.shading =
-            Some(super::Shading { materials: vec![super::material::Material::default()], ..Default::default() });
-    }
-    let name = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    let part = Part { name, mesh: 0, primitive: 0, material: None };
-    mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors, material: 0 }]);
-    Ok(mesh)
+    Ok(triangles)
 }
 
 /// Checks what ply-rs trusts in a header, before it reads one: an element count or a format version number too

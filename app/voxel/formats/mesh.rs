@@ -367,60 +367,15 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
     if quads == 0 {
         return Err(no_faces("glb"));
     }
-    let h = spec.voxel_size;
-    let (vertices, indices) = (quads * 4, quads * 6);
-    if vertices > u32::MAX as u64 {
+    if quads * 4 > u32::MAX as u64 {
         return Err(FormatError::Invalid {
             format: "glb",
             message: format!("{quads} faces are more than 32-bit indices reach"),
         });
     }
-    let stride: u64 = if coloured { 20 } else { 12 };
-    let vertex_bytes = vertices * stride;
-    let index_bytes = indices * 4;
-    let bin_len = vertex_bytes + index_bytes;
-    let f32s = |v: DVec3| (v * h).as_vec3().to_array();
-    let mut attributes = serde_json::json!({ "POSITION": 0 });
-    let mut accessors = vec![serde_json::json!({
-        "bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": vertices, "type": "VEC3",
-        "min": f32s(lo), "max": f32s(hi),
-    })];
-    if coloured {
-        attributes["COLOR_0"] = 1.into();
-        accessors.push(serde_json::json!({
-            "bufferView": 0, "byteOffset": 12, "componentType": 5123, "normalized": true, "count": vertices,
-            "type": "VEC4",
-        }));
-    }
-    accessors.push(serde_json::json!({ "bufferView": 1, "componentType": 5125, "count": indices, "type": "SCALAR" }));
-    let mut primitive = serde_json::json!({ "attributes": attributes, "indices": accessors.len() - 1 });
-    // Coloured models use glTF's default material (white, so the vertex colours show as they are); plain ones a
-    // material in the viewer's flat colour.
-    let mut materials = Vec::new();
-    if !coloured {
-        primitive["material"] = 0.into();
-        materials.push(serde_json::json!({ "name": "voxels", "pbrMetallicRoughness": {
-            "baseColorFactor": [0.86, 0.36, 0.08, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0 } }));
-    }
-    let json = serde_json::json!({
-        "asset": { "version": "2.0", "generator": "meshvox" },
-        "scene": 0,
-        "scenes": [{ "nodes": [0] }],
-        // The origin in f64: positions are relative to it.
-        "nodes": [{ "mesh": 0, "name": "voxels", "translation": spec.origin.to_array() }],
-        "meshes": [{ "name": "voxels", "primitives": [primitive] }],
-        "materials": materials,
-        "buffers": [{ "byteLength": bin_len }],
-        "bufferViews": [
-            { "buffer": 0, "byteOffset": 0, "byteLength": vertex_bytes, "byteStride": stride, "target": 34962 },
-            { "buffer": 0, "byteOffset": vertex_bytes, "byteLength": index_bytes, "target": 34963 },
-        ],
-        "accessors": accessors,
-    });
-    let mut text = json.to_string().into_bytes();
-    while !text.len().is_multiple_of(4) {
-        text.push(b' ');
-    }
+    let layout = GlbLayout { quads, coloured, h: spec.voxel_size };
+    let text = glb_json(&layout, spec, lo, hi);
+    let bin_len = layout.bin_len();
     let total = 12 + 8 + text.len() as u64 + 8 + bin_len;
     let total = u32::try_from(total).map_err(|_| FormatError::Invalid {
         format: "glb",
@@ -434,30 +389,7 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
     out.write_all(&text)?;
     out.write_all(&(bin_len as u32).to_le_bytes())?;
     out.write_all(b"BIN\0")?;
-    let lut = &*SRGB_TO_LINEAR;
-    let mut result = Ok(());
-    faces.for_each(&mut |q| {
-        if result.is_err() {
-            return;
-        }
-        // Linear colour for glTF, as 16-bit so dark shades keep their steps.
-        let c = q.colour;
-        let linear = [lut[c[0] as usize], lut[c[1] as usize], lut[c[2] as usize], c[3] as f32 / 255.0]
-            .map(|x| (x * 65535.0).round() as u16);
-        for corner in q.corners {
-            let mut bytes = Vec::with_capacity(20);
-            for x in f32s(corner) {
-                bytes.extend_from_slice(&x.to_le_bytes());
-            }
-            if coloured {
-                for x in linear {
-                    bytes.extend_from_slice(&x.to_le_bytes());
-                }
-            }
-            result = out.write_all(&bytes);
-        }
-    });
-    result?;
+    write_glb_vertices(faces, &layout, out)?;
     for i in 0..quads as u32 {
         let b = 4 * i;
         for x in [b, b + 1, b + 2, b, b + 2, b + 3] {
@@ -465,6 +397,114 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
         }
     }
     Ok(())
+}
+
+/// The sizes of a GLB's binary chunk: four vertices (position, and colour when coloured) and six indices a quad.
+struct GlbLayout {
+    quads: u64,
+    coloured: bool,
+    /// The voxel size: positions are in voxels until scaled by it.
+    h: f64,
+}
+
+impl GlbLayout {
+    fn stride(&self) -> u64 {
+        if self.coloured { 20 } else { 12 }
+    }
+
+    fn vertex_bytes(&self) -> u64 {
+        self.quads * 4 * self.stride()
+    }
+
+    fn index_bytes(&self) -> u64 {
+        self.quads * 6 * 4
+    }
+
+    fn bin_len(&self) -> u64 {
+        self.vertex_bytes() + self.index_bytes()
+    }
+
+    /// A corner in the node's frame (relative to the grid origin), as glTF's f32.
+    fn position(&self, v: DVec3) -> [f32; 3] {
+        (v * self.h).as_vec3().to_array()
+    }
+}
+
+/// The GLB's JSON chunk, padded with spaces to a multiple of four bytes: one node at the grid origin (in f64;
+/// positions are relative to it), one mesh, its accessors into the binary chunk, and a material for plain models.
+fn glb_json(layout: &GlbLayout, spec: GridSpec, lo: DVec3, hi: DVec3) -> Vec<u8> {
+    let (vertices, indices) = (layout.quads * 4, layout.quads * 6);
+    let mut attributes = serde_json::json!({ "POSITION": 0 });
+    let mut accessors = vec![serde_json::json!({
+        "bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": vertices, "type": "VEC3",
+        "min": layout.position(lo), "max": layout.position(hi),
+    })];
+    if layout.coloured {
+        attributes["COLOR_0"] = 1.into();
+        accessors.push(serde_json::json!({
+            "bufferView": 0, "byteOffset": 12, "componentType": 5123, "normalized": true, "count": vertices,
+            "type": "VEC4",
+        }));
+    }
+    accessors.push(serde_json::json!({ "bufferView": 1, "componentType": 5125, "count": indices, "type": "SCALAR" }));
+    let mut primitive = serde_json::json!({ "attributes": attributes, "indices": accessors.len() - 1 });
+    // Coloured models use glTF's default material (white, so the vertex colours show as they are); plain ones a
+    // material in the viewer's flat colour.
+    let mut materials = Vec::new();
+    if !layout.coloured {
+        primitive["material"] = 0.into();
+        materials.push(serde_json::json!({ "name": "voxels", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.86, 0.36, 0.08, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0 } }));
+    }
+    let (vertex_bytes, index_bytes) = (layout.vertex_bytes(), layout.index_bytes());
+    let json = serde_json::json!({
+        "asset": { "version": "2.0", "generator": "meshvox" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        // The origin in f64: positions are relative to it.
+        "nodes": [{ "mesh": 0, "name": "voxels", "translation": spec.origin.to_array() }],
+        "meshes": [{ "name": "voxels", "primitives": [primitive] }],
+        "materials": materials,
+        "buffers": [{ "byteLength": layout.bin_len() }],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": vertex_bytes, "byteStride": layout.stride(), "target": 34962 },
+            { "buffer": 0, "byteOffset": vertex_bytes, "byteLength": index_bytes, "target": 34963 },
+        ],
+        "accessors": accessors,
+    });
+    let mut text = json.to_string().into_bytes();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    text
+}
+
+/// The vertices of every quad: positions, and with colours their linear RGBA as 16-bit so dark shades keep their
+/// steps.
+fn write_glb_vertices(faces: &Faces, layout: &GlbLayout, out: &mut impl Write) -> Result<(), FormatError> {
+    let lut = &*SRGB_TO_LINEAR;
+    let mut result = Ok(());
+    faces.for_each(&mut |q| {
+        if result.is_err() {
+            return;
+        }
+        let c = q.colour;
+        let linear = [lut[c[0] as usize], lut[c[1] as usize], lut[c[2] as usize], c[3] as f32 / 255.0]
+            .map(|x| (x * 65535.0).round() as u16);
+        for corner in q.corners {
+            let mut bytes = Vec::with_capacity(20);
+            for x in layout.position(corner) {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+            if layout.coloured {
+                for x in linear {
+                    bytes.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+            result = out.write_all(&bytes);
+        }
+    });
+    Ok(result?)
 }
 
 fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), FormatError> {
