@@ -20,7 +20,7 @@ use super::voxelize::{
     UNSURE_ENTRIES, WG, slab_plan,
 };
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid};
+use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid, on_lattice};
 use glam::Vec3;
 
 /// A bind group entry for a whole buffer.
@@ -421,5 +421,44 @@ impl<'a> Run<'a> {
             exact_tests: self.exact_tests,
             decided_on_cpu: false,
         }))
+    }
+}
+
+impl GpuVoxelizer {
+    /// One attempt on the GPU, in the named steps of [`Run`].
+    pub(super) async fn run(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        options: &Options,
+    ) -> Result<Attempt, GpuError> {
+        // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
+        let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
+        for (b, chunk) in triangles.chunks(run.batch).enumerate() {
+            let batch = run.set_up_batch(chunk).await?;
+            if options.mode == Mode::Solid && b == 0 {
+                if run.batches > 1 {
+                    // The crossing lists need every triangle at once; meshes too large for one binding get the
+                    // CPU reference's solid instead (flagged as decided on the CPU).
+                    return Ok(Attempt::Overflow);
+                }
+                run.prepare_solid(&triangles, lattice).await?;
+            }
+            let last_batch = b + 1 == run.batches;
+            for s in 0..run.slabs {
+                let slab = run.slab(s);
+                run.encode_slab(batch, slab).await?;
+                // Compaction only makes sense on the finished grid, so it waits for the last batch.
+                if options.compact && last_batch && run.compact_slab(slab).await? {
+                    return Ok(Attempt::Overflow);
+                }
+                if run.read_back_slab(slab).await? {
+                    return Ok(Attempt::Overflow);
+                }
+            }
+        }
+        run.finish().await
     }
 }

@@ -8,11 +8,10 @@
 //! [`Options`] to exercise the chunked paths on small inputs.
 
 use super::compact::{CompactVoxels, Compactor, Slab};
-use super::run::Run;
 use super::solid::SolidPipelines;
 use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError};
-use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu, on_lattice};
+use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu};
 use glam::Vec3;
 use std::sync::OnceLock;
 
@@ -251,43 +250,6 @@ impl GpuVoxelizer {
             exact_tests: Some(stats.exact_tests),
             decided_on_cpu: true,
         })
-    }
-
-    /// One attempt on the GPU, in the named steps of [`Run`].
-    async fn run(
-        &self,
-        gpu: &Gpu,
-        triangles: &[[Vec3; 3]],
-        spec: GridSpec,
-        options: &Options,
-    ) -> Result<Attempt, GpuError> {
-        // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
-        let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
-        let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
-        for (b, chunk) in triangles.chunks(run.batch).enumerate() {
-            let batch = run.set_up_batch(chunk).await?;
-            if options.mode == Mode::Solid && b == 0 {
-                if run.batches > 1 {
-                    // The crossing lists need every triangle at once; meshes too large for one binding get the
-                    // CPU reference's solid instead (flagged as decided on the CPU).
-                    return Ok(Attempt::Overflow);
-                }
-                run.prepare_solid(&triangles, lattice).await?;
-            }
-            let last_batch = b + 1 == run.batches;
-            for s in 0..run.slabs {
-                let slab = run.slab(s);
-                run.encode_slab(batch, slab).await?;
-                // Compaction only makes sense on the finished grid, so it waits for the last batch.
-                if options.compact && last_batch && run.compact_slab(slab).await? {
-                    return Ok(Attempt::Overflow);
-                }
-                if run.read_back_slab(slab).await? {
-                    return Ok(Attempt::Overflow);
-                }
-            }
-        }
-        run.finish().await
     }
 }
 

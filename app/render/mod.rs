@@ -3,18 +3,20 @@
 //! window: the `render` command and the tests use it headless, the app inside egui's render pass.
 //!
 //! One file per thing it owns: [`cubes`] (pipelines, style, scene), [`instances`] (voxels and their occlusion as
-//! instances), [`floor`], [`target`] (offscreen targets, images), [`cut`] and [`camera`].
+//! instances), [`scene`] (whether a scene draws the GPU's list or the grid), [`floor`], [`target`] (offscreen targets, images), [`cut`] and [`camera`].
 
 pub mod camera;
 pub mod cubes;
 pub mod cut;
 pub mod floor;
 pub mod instances;
+pub mod scene;
 pub mod target;
 
 pub use camera::OrbitCamera;
 pub use cubes::{CUBES_WGSL, CubeRenderer, DEPTH_FORMAT, Scene, Style};
 pub use cut::Cut;
 pub use floor::Floor;
-pub use instances::{Showing, ambient_occlusion, coloured_instances, instances_from_grid, is_webgl2, occlusion_buffer};
+pub use instances::{ambient_occlusion, coloured_instances, instances_from_grid, is_webgl2, occlusion_buffer};
+pub use scene::Showing;
 pub use target::{Offscreen, RenderTarget, TARGET_FORMAT, TARGET_SAMPLES, target_format};

@@ -2,9 +2,9 @@
 //! (natively at once, in the browser in a later frame), shown with its stats, or its error kept beside the voxels
 //! on screen.
 
-use super::ViewerApp;
 #[cfg(target_arch = "wasm32")]
 use super::web;
+use super::{Stats, ViewerApp};
 use crate::engine::{EngineError, Request, Voxelized};
 use crate::gpu::GpuError;
 use crate::mesh::Mesh;
@@ -14,23 +14,6 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
 use web_time::Instant;
-
-/// What the panel shows after a voxelization, and what the web page publishes.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Stats {
-    pub mesh: String,
-    pub triangles: usize,
-    pub dims: [u32; 3],
-    pub voxels: u64,
-    pub resolution: u32,
-    pub mode: Mode,
-    pub gpu_ms: Option<f64>,
-    pub voxelize_ms: f64,
-    /// Edge length of a voxel, in the mesh's units.
-    pub voxel_size: f64,
-    /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
-    pub coloured: bool,
-}
 
 /// What a finished voxelization hands back to the app, or the error to show.
 pub(super) type Outcome = Result<Voxelized, String>;

@@ -25,7 +25,6 @@ use crate::render::{self, CubeRenderer, OrbitCamera, Scene, Showing, Style, TARG
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::{Axis, Mode, VoxelGrid};
 use job::Pending;
-pub use job::Stats;
 #[cfg(not(target_arch = "wasm32"))]
 pub use platform::native_options;
 #[cfg(target_arch = "wasm32")]
@@ -34,6 +33,23 @@ pub use platform::wgpu_configuration;
 use std::rc::Rc;
 use std::sync::Arc;
 use viewport::View;
+
+/// What the panel shows after a voxelization, and what the web page publishes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    pub mesh: String,
+    pub triangles: usize,
+    pub dims: [u32; 3],
+    pub voxels: u64,
+    pub resolution: u32,
+    pub mode: Mode,
+    pub gpu_ms: Option<f64>,
+    pub voxelize_ms: f64,
+    /// Edge length of a voxel, in the mesh's units.
+    pub voxel_size: f64,
+    /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
+    pub coloured: bool,
+}
 
 pub struct ViewerApp {
     gpu: Gpu,

@@ -14,6 +14,7 @@ mod formats;
 mod gpu;
 mod grid_convention;
 mod hostile;
+mod layers;
 mod mesh_export;
 mod mesh_loading;
 mod modes;

@@ -1,0 +1,231 @@
+//! The layer rules of ARCHITECTURE.md, read from the source: every module's references to other modules
+//! (`use` items and inline paths through `crate::`, `super::` and, in the binary, `meshvox::`) form a graph in which
+//! no layer imports a higher one (memory, mesh, voxel, gpu, engine, render, ui, then the binary) and no circle of
+//! modules exists. A child's references to its own ancestors are left out: a parent module owns its children (the
+//! viewer's `impl ViewerApp` blocks live in `ui/job.rs`, `ui/viewport.rs`…), which is not a circle between peers.
+//! A reference to an item a parent re-exports from a child (`pub use job::Stats`) counts as one to that child.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// The top-level modules from the bottom layer up; `cli` stands for the binary (`main.rs` and `cli/`).
+const LAYERS: [&str; 8] = ["memory", "mesh", "voxel", "gpu", "engine", "render", "ui", "cli"];
+
+type Module = Vec<String>;
+
+struct Source {
+    module: Module,
+    /// The file's text without comments.
+    code: String,
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("app/") {
+        let path = entry.expect("entry").path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
+}
+
+/// `app/voxel/cpu.rs` is `voxel::cpu`, `app/voxel/mod.rs` is `voxel`; the binary's files are under `cli`.
+fn module_of(app: &Path, file: &Path) -> Module {
+    let rel = file.strip_prefix(app).expect("under app/");
+    let mut parts: Module = rel.iter().map(|p| p.to_string_lossy().trim_end_matches(".rs").to_string()).collect();
+    if parts.last().is_some_and(|p| p == "mod") {
+        parts.pop();
+    }
+    if parts == ["main"] {
+        return vec!["cli".to_string()];
+    }
+    parts
+}
+
+/// Drops `//` comments (line and doc comments), so that paths named in documentation are not references.
+fn without_comments(text: &str) -> String {
+    text.lines().map(|l| l.split_once("//").map_or(l, |(code, _)| code)).collect::<Vec<_>>().join("\n")
+}
+
+/// Expands `a::{b, c::{d, e}}` into `a::b`, `a::c::d`, `a::c::e`.
+fn expand(tree: &str) -> Vec<String> {
+    let tree: String = tree.split_whitespace().collect();
+    let Some(open) = tree.find('{') else { return vec![tree] };
+    let prefix = &tree[..open];
+    let inner = &tree[open + 1..tree.len() - 1];
+    let mut parts = Vec::new();
+    let (mut depth, mut start) = (0, 0);
+    for (i, c) in inner.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' => depth -= 1,
+            ',' if depth == 0 => {
+                parts.push(&inner[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    parts.push(&inner[start..]);
+    parts.into_iter().filter(|p| !p.is_empty()).flat_map(expand).map(|p| format!("{prefix}{p}")).collect()
+}
+
+/// Every path the code names: the trees of `use` items, and paths written inline.
+fn paths(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = code;
+    while let Some(at) = rest.find("use ") {
+        let before_ok = at == 0 || !rest.as_bytes()[at - 1].is_ascii_alphanumeric() && rest.as_bytes()[at - 1] != b'_';
+        let tail = &rest[at + 4..];
+        let end = tail.find(';').unwrap_or(tail.len());
+        if before_ok {
+            out.extend(expand(&tail[..end]));
+        }
+        rest = &tail[end.min(tail.len())..];
+    }
+    for root in ["crate::", "super::", "meshvox::"] {
+        for (at, _) in code.match_indices(root) {
+            if at > 0 && (code.as_bytes()[at - 1].is_ascii_alphanumeric() || code.as_bytes()[at - 1] == b'_') {
+                continue;
+            }
+            let path: String =
+                code[at..].chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == ':').collect();
+            out.push(path);
+        }
+    }
+    out
+}
+
+/// The module a path leads to, from `from`: its longest prefix that is a module, moved to the child a parent
+/// re-exports the next name from.
+fn resolve(
+    path: &str,
+    from: &Module,
+    modules: &BTreeSet<Module>,
+    reexports: &BTreeMap<(Module, String), Module>,
+) -> Option<Module> {
+    let segments: Vec<&str> = path.split("::").filter(|s| !s.is_empty() && *s != "self").collect();
+    let (mut base, rest): (Module, &[&str]) = match segments.first()? {
+        &"crate" | &"meshvox" => (Vec::new(), &segments[1..]),
+        &"super" => {
+            // `super` of `voxel::cpu` is `voxel`; a path may climb several times.
+            let mut base = from.clone();
+            let mut i = 0;
+            while segments.get(i) == Some(&"super") {
+                base.pop();
+                i += 1;
+            }
+            (base, &segments[i..])
+        }
+        // A path relative to the module itself (`use job::Pending` in `ui`).
+        first if modules.contains(&[from.clone(), vec![first.to_string()]].concat()) => (from.clone(), &segments[..]),
+        _ => return None,
+    };
+    let mut i = 0;
+    while let Some(next) = rest.get(i) {
+        let child = [base.clone(), vec![next.to_string()]].concat();
+        if modules.contains(&child) {
+            base = child;
+            i += 1;
+        } else {
+            if let Some(target) = reexports.get(&(base.clone(), next.to_string())) {
+                base = target.clone();
+            }
+            break;
+        }
+    }
+    (!base.is_empty()).then_some(base)
+}
+
+fn layer(module: &Module) -> usize {
+    LAYERS.iter().position(|l| *l == module[0]).unwrap_or_else(|| panic!("{module:?} is in no layer of LAYERS"))
+}
+
+#[test]
+fn no_layer_imports_a_higher_one_and_no_modules_import_each_other() {
+    let app = Path::new(env!("CARGO_MANIFEST_DIR")).join("app");
+    let mut files = Vec::new();
+    rust_files(&app, &mut files);
+    let sources: Vec<Source> = files
+        .iter()
+        .filter(|f| !f.ends_with("lib.rs"))
+        .map(|f| Source {
+            module: module_of(&app, f),
+            code: without_comments(&std::fs::read_to_string(f).expect("read")),
+        })
+        .collect();
+    let modules: BTreeSet<Module> = sources.iter().map(|s| s.module.clone()).collect();
+    // `pub use child::{A, B}` in a module: A and B lead to the child.
+    let mut reexports = BTreeMap::new();
+    for s in &sources {
+        for line in s.code.split(';').filter_map(|l| l.trim().strip_prefix("pub use ")) {
+            for path in expand(line) {
+                let Some((head, name)) = path.rsplit_once("::") else { continue };
+                let child = [s.module.clone(), head.split("::").map(str::to_string).collect()].concat();
+                if modules.contains(&child) {
+                    reexports.insert((s.module.clone(), name.to_string()), child);
+                }
+            }
+        }
+    }
+    let mut edges: BTreeMap<Module, BTreeSet<Module>> = BTreeMap::new();
+    let mut violations = Vec::new();
+    for s in &sources {
+        for path in paths(&s.code) {
+            let Some(to) = resolve(&path, &s.module, &modules, &reexports) else { continue };
+            if to == s.module || s.module.starts_with(&to) {
+                continue;
+            }
+            if layer(&to) > layer(&s.module) {
+                violations.push(format!("{} uses {} ({path})", s.module.join("::"), to.join("::")));
+            }
+            edges.entry(s.module.clone()).or_default().insert(to);
+        }
+    }
+    assert!(violations.is_empty(), "a lower layer imports a higher one:\n{}", violations.join("\n"));
+    // Circles: a depth-first search that finds a back edge.
+    fn visit(
+        m: &Module,
+        edges: &BTreeMap<Module, BTreeSet<Module>>,
+        state: &mut BTreeMap<Module, u8>,
+        stack: &mut Vec<Module>,
+    ) -> Option<Vec<Module>> {
+        state.insert(m.clone(), 1);
+        stack.push(m.clone());
+        for next in edges.get(m).into_iter().flatten() {
+            match state.get(next) {
+                Some(1) => {
+                    let at = stack.iter().position(|s| s == next).expect("on the stack");
+                    return Some([&stack[at..], std::slice::from_ref(next)].concat());
+                }
+                Some(_) => {}
+                None => {
+                    if let Some(circle) = visit(next, edges, state, stack) {
+                        return Some(circle);
+                    }
+                }
+            }
+        }
+        stack.pop();
+        state.insert(m.clone(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for m in &modules {
+        if !state.contains_key(m)
+            && let Some(circle) = visit(m, &edges, &mut state, &mut Vec::new())
+        {
+            let names: Vec<String> = circle.iter().map(|m| m.join("::")).collect();
+            panic!("an import circle: {}", names.join(" -> "));
+        }
+    }
+    // The graph is not empty by accident: the engine uses the GPU layer, the viewer the engine.
+    let uses = |a: &[&str], b: &[&str]| {
+        let (a, b): (Module, Module) =
+            (a.iter().map(|s| s.to_string()).collect(), b.iter().map(|s| s.to_string()).collect());
+        edges.get(&a).is_some_and(|e| e.contains(&b))
+    };
+    assert!(uses(&["engine", "device"], &["gpu", "voxelize"]), "{edges:?}");
+    assert!(uses(&["ui", "job"], &["engine"]), "{edges:?}");
+}
