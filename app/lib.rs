@@ -26,6 +26,10 @@ pub mod engine;
 pub mod gpu;
 pub mod memory;
 pub mod mesh;
+// PyO3's macros expand to `unsafe` FFI glue (the module's own code has none).
+#[cfg(feature = "python")]
+#[allow(unsafe_code)]
+mod python;
 #[cfg(feature = "gpu")]
 pub mod render;
 #[cfg(feature = "viewer")]

@@ -6,8 +6,8 @@
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
-# `bash tests/run.sh` runs everything: `cargo test` (and the doctests), then the web build and the browser test, then each fuzz
-# target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
+# `bash tests/run.sh` runs everything: `cargo test` (and the doctests), the Python package's pytest suite, the web build
+# and the browser test, then each fuzz target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -54,6 +54,21 @@ if cargo tree --locked --no-default-features -e normal --prefix none | grep -E '
 fi
 # The crate documentation's example (the engine through the public API); --all-targets leaves doctests out.
 cargo test --locked --doc
+
+# The Python package (docs/python.md): the wheel built once, in the dev profile (pyproject.toml's features: the
+# engine and the GPU, no viewer), installed into its own virtual environment, then pytest against the CLI built
+# above.
+pyvenv=target/pytest-venv
+if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed' 2>/dev/null \
+  || [ ! -x "$pyvenv/bin/maturin" ]; then
+  python3 -m venv "$pyvenv"
+  "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 pytest==9.2.0 \
+    dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0
+fi
+rm -rf target/wheels
+"$pyvenv/bin/maturin" build --quiet --profile dev --interpreter "$pyvenv/bin/python" --out target/wheels
+"$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/meshvox-*.whl
+MESHVOX_BIN="$PWD/target/debug/meshvox" "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
 
 # The web page: build web/dist (both builds; it installs web/node_modules for wasm-opt, which also holds the
 # browser test's playwright-core), then drive it in headless Chromium and compare with the CLI built above.

@@ -16,7 +16,7 @@ mod report;
 
 pub use report::{Notice, Report, Voxelized};
 
-use crate::mesh::Mesh;
+use crate::mesh::{Aabb, Mesh};
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{self, Axis, GridError, GridSpec, Mode, Resolution, VoxelGrid};
@@ -58,6 +58,8 @@ pub enum EngineError {
     NoColour,
     #[error("cancelled")]
     Cancelled,
+    #[error("bounds {min:?} to {max:?}: the minimum must be below the maximum on every axis, and both finite")]
+    Bounds { min: [f64; 3], max: [f64; 3] },
 }
 
 /// What to voxelize, and within which limits.
@@ -78,8 +80,12 @@ pub struct Request<'a> {
     pub instances: bool,
     /// Called now and then with (triangles done, triangles) while the CPU voxelizes, from worker threads.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
-    /// Set to stop the request at its next stage (checked before voxelizing and before colouring).
+    /// Set to stop the request: checked before voxelizing and before colouring, and per triangle by the CPU
+    /// voxelizer (a GPU submission runs to its end).
     pub cancel: Option<&'a AtomicBool>,
+    /// The world box the grid covers instead of the mesh's bounds, so that a dataset shares one frame; triangles
+    /// outside it are clipped.
+    pub bounds: Option<Aabb>,
 }
 
 impl Request<'_> {
@@ -95,6 +101,7 @@ impl Request<'_> {
             instances: false,
             progress: None,
             cancel: None,
+            bounds: None,
         }
     }
 
@@ -121,7 +128,12 @@ pub struct Engine {
 /// allocated. `name` is the mesh as the user named it, for messages.
 pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<GridSpec, EngineError> {
     let grid_error = |error| EngineError::Grid { mesh: name.to_string(), error };
-    let bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
+    let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
+    let bounds = match request.bounds {
+        Some(b) if b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all() => b,
+        Some(b) => return Err(EngineError::Bounds { min: b.min.to_array(), max: b.max.to_array() }),
+        None => mesh_bounds,
+    };
     let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(grid_error)?;
     if let Some(budget) = request.max_memory.or_else(crate::memory::default_budget) {
         let triangles = mesh.triangles.len() as u64;
@@ -249,7 +261,8 @@ impl Engine {
         let t = Instant::now();
         // Grid-space triangles once, for the voxels and their colours.
         let tris = grid_space(mesh, &spec)?;
-        let voxels = self.voxels(&tris, spec, request.mode, request.instances, request.progress).await?;
+        let voxels = self.voxels(&tris, spec, request).await?;
+        request.cancelled()?;
         let voxelize_ms = ms(t);
         let mut notices = voxels.notices;
         request.cancelled()?;
@@ -305,18 +318,14 @@ impl Engine {
         mode: Mode,
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
-        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, mode, false, progress))
+        let request = Request { progress, ..Request::new(Resolution::Count(1), mode) };
+        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, &request))
     }
 
-    /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles; `instances` as in [`Request::instances`].
-    async fn voxels(
-        &self,
-        tris: &[[Vec3; 3]],
-        spec: GridSpec,
-        mode: Mode,
-        instances: bool,
-        progress: Option<&(dyn Fn(usize, usize) + Sync)>,
-    ) -> Result<Voxels, EngineError> {
+    /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles, with `request`'s mode, instance list,
+    /// progress and cancel flag (its resolution is `spec`'s).
+    async fn voxels(&self, tris: &[[Vec3; 3]], spec: GridSpec, request: &Request<'_>) -> Result<Voxels, EngineError> {
+        let (mode, instances) = (request.mode, request.instances);
         // The GPU's grid, or why the CPU stands in.
         #[cfg(feature = "gpu")]
         let notices = match &self.gpu {
@@ -329,8 +338,11 @@ impl Engine {
         #[cfg(not(feature = "gpu"))]
         let (notices, _) = (Vec::new(), instances);
         let silent = |_: usize, _: usize| {};
-        let (grid, stats) = voxel::cpu::voxelize_grid_space_mode(tris, spec, mode, progress.unwrap_or(&silent))
-            .map_err(|error| {
+        let progress = request.progress.unwrap_or(&silent);
+        let never = AtomicBool::new(false);
+        let cancel = request.cancel.unwrap_or(&never);
+        let (grid, stats) =
+            voxel::cpu::voxelize_grid_space_cancellable(tris, spec, mode, progress, cancel).map_err(|error| {
                 let d = spec.dims;
                 EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error }
             })?;

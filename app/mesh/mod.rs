@@ -191,6 +191,9 @@ pub enum MeshError {
     Ply { path: PathBuf, message: String },
     #[error("{}: contains no triangles", path.display())]
     Empty { path: PathBuf },
+    /// Arrays handed over by a program ([`from_indexed`]) that do not make a mesh.
+    #[error("{name}: {message}")]
+    Arrays { name: String, message: String },
     #[error("{}: triangle {triangle} has a NaN or infinite coordinate", path.display())]
     NonFinite { path: PathBuf, triangle: usize },
     #[error("unknown builtin mesh 'builtin:{name}' (available: {})", builtin::NAMES.join(", "))]
@@ -287,6 +290,50 @@ impl Format {
             _ => None,
         }
     }
+}
+
+/// A mesh from arrays a program already has (the Python binding's `(vertices, faces)`): world-space positions and
+/// triangles indexing them. Named `name` in messages. Errors name the first bad face or vertex.
+pub fn from_indexed(name: &str, positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
+    let path = PathBuf::from(name);
+    let invalid = |message: String| MeshError::Arrays { name: name.to_string(), message };
+    if triangles.is_empty() {
+        return Err(MeshError::Empty { path });
+    }
+    if let Some((v, _)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+        return Err(invalid(format!("vertex {v} has a NaN or infinite coordinate")));
+    }
+    let count = positions.len();
+    if let Some((f, t)) = triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= count)) {
+        return Err(invalid(format!(
+            "face {f} uses vertex {} but there are {count} vertices",
+            t.iter().max().unwrap_or(&0)
+        )));
+    }
+    let part = Part { name: name.to_string(), mesh: 0, primitive: 0, material: None };
+    let mut mesh = Mesh { name: name.to_string(), ..Mesh::default() };
+    mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors: Vec::new(), material: 0 }]);
+    Ok(mesh)
+}
+
+/// The mesh's triangles as shared vertices (world space, f64; exactly equal positions merged) and faces
+/// indexing them, in triangle order: what `meshvox.load` hands Python.
+pub fn to_indexed(mesh: &Mesh) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mut index: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut positions = Vec::new();
+    let faces = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            t.map(|v| {
+                *index.entry(v.to_array().map(f32::to_bits)).or_insert_with(|| {
+                    positions.push(mesh.anchor + v.as_dvec3());
+                    positions.len() as u32 - 1
+                })
+            })
+        })
+        .collect();
+    (positions, faces)
 }
 
 /// Loads a mesh named the way the CLI accepts it: `builtin:NAME` or a path to an OBJ, glTF, GLB, STL or PLY file.

@@ -20,7 +20,7 @@ use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 
 /// Narrows the local range `[lo, hi]` to the integer `t` where `slope * t + offset` may be non-negative, the
 /// value's error bound being `eps = err_over_slope * |slope|`. Why it is conservative: the exact line crosses
@@ -270,6 +270,19 @@ pub fn voxelize_grid_space_mode(
     mode: Mode,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(VoxelGrid, CpuStats), super::GridError> {
+    voxelize_grid_space_cancellable(triangles, spec, mode, progress, &AtomicBool::new(false))
+}
+
+/// [`voxelize_grid_space_mode`] that stops early, with an incomplete grid, once `cancel` is set (checked per
+/// triangle of each band, so a Ctrl-C in the Python binding takes effect within milliseconds); the caller
+/// checks the flag and discards the grid.
+pub fn voxelize_grid_space_cancellable(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    mode: Mode,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<(VoxelGrid, CpuStats), super::GridError> {
     let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
     let mut grid = VoxelGrid::new(spec)?;
     let thin = mode == Mode::Surface6;
@@ -306,6 +319,9 @@ pub fn voxelize_grid_space_mode(
             let z1 = z0 + (words.len() / layer_words) as u32 - 1;
             let mut exact_tests = 0;
             for &t in bin {
+                if cancel.load(Ordering::Relaxed) {
+                    break;
+                }
                 let (s, shrink) = &setups[t as usize];
                 // Work items are z-major, so the band's layers are one contiguous range of them.
                 let cpr = chunks_per_row(s);
@@ -320,7 +336,7 @@ pub fn voxelize_grid_space_mode(
         let finished = done.fetch_add(batch.len(), Ordering::Relaxed) + batch.len();
         progress(finished, triangles.len());
     }
-    if mode == Mode::Solid {
+    if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
         super::solid::fill(&triangles, lattice, &mut grid);
     }
     Ok((grid, CpuStats { exact_tests: exact.into_inner() }))

@@ -77,3 +77,44 @@ fn result_is_coloured(engine: &Engine, name: &str, mesh: &meshvox::mesh::Mesh) -
     let request = Request::new(Resolution::Count(8), Mode::Surface);
     engine.voxelize(name, mesh, &request).expect("voxelize").colours.is_some()
 }
+
+/// A request's cancel flag stops the CPU walk and the request fails as cancelled; its bounds fix the grid's
+/// world box (origin at their minimum), clipping what lies outside; a mesh from arrays voxelizes like its file.
+#[test]
+fn cancel_bounds_and_arrays_through_the_engine() {
+    use meshvox::mesh::Aabb;
+    use std::sync::atomic::AtomicBool;
+    let engine = Engine::open(Backend::Cpu).expect("the CPU engine");
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let cancel = AtomicBool::new(true);
+    let request = Request { cancel: Some(&cancel), ..Request::new(Resolution::Count(48), Mode::Solid) };
+    let refused = engine.voxelize("knot", &mesh, &request);
+    assert!(matches!(refused, Err(meshvox::engine::EngineError::Cancelled)), "{:?}", refused.err());
+
+    let whole = engine.voxelize("knot", &mesh, &Request::new(Resolution::Count(48), Mode::Surface)).expect("whole");
+    let spec = whole.grid.spec;
+    // The lower half of the same grid: the same voxels in the layers it keeps.
+    let half = spec.dims.z / 2;
+    let max = spec.origin + spec.dims.as_dvec3() * spec.voxel_size;
+    let bounds =
+        Aabb { min: spec.origin, max: glam::DVec3::new(max.x, max.y, spec.origin.z + half as f64 * spec.voxel_size) };
+    let request =
+        Request { bounds: Some(bounds), ..Request::new(Resolution::VoxelSize(spec.voxel_size), Mode::Surface) };
+    let clipped = engine.voxelize("knot", &mesh, &request).expect("clipped");
+    assert_eq!(clipped.grid.spec.origin, spec.origin);
+    assert_eq!(clipped.grid.spec.dims, glam::UVec3::new(spec.dims.x, spec.dims.y, half));
+    let expected: Vec<_> = whole.grid.iter_set().filter(|v| v.z < half).collect();
+    assert_eq!(clipped.grid.iter_set().collect::<Vec<_>>(), expected);
+    let bad = Aabb { min: bounds.max, max: bounds.min };
+    let request = Request { bounds: Some(bad), ..Request::new(Resolution::Count(8), Mode::Surface) };
+    assert!(matches!(engine.voxelize("knot", &mesh, &request), Err(meshvox::engine::EngineError::Bounds { .. })));
+
+    let (positions, faces) = meshvox::mesh::to_indexed(&mesh);
+    assert!(positions.len() < 3 * faces.len(), "shared vertices are merged");
+    let again = meshvox::mesh::from_indexed("arrays", positions, faces).expect("arrays");
+    let from_arrays =
+        engine.voxelize("arrays", &again, &Request::new(Resolution::Count(48), Mode::Surface)).expect("arrays");
+    assert_eq!(from_arrays.grid.words, whole.grid.words);
+    let error = meshvox::mesh::from_indexed("arrays", vec![glam::DVec3::ZERO; 2], vec![[0, 1, 2]]).expect_err("index");
+    assert!(error.to_string().contains("face 0 uses vertex 2"), "{error}");
+}

@@ -1,0 +1,85 @@
+//! `VoxelGrid.save` from Python: a bit grid and its colours made back from the dense arrays a `meshvox.VoxelGrid`
+//! holds (which may have been edited, pickled or built by hand), written with the CLI's writers.
+
+use crate::voxel::colour::VoxelColours;
+use crate::voxel::formats::{self, FormatError, VoxelFormat};
+use crate::voxel::{GridSpec, VoxelGrid};
+use glam::{DVec3, UVec3};
+use numpy::ndarray::{ArrayView3, ArrayView4};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The bit grid of a `[x, y, z]` occupancy array (any non-zero byte is set).
+pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: f64) -> PyResult<VoxelGrid> {
+    let (nx, ny, nz) = matrix.dim();
+    let dims = [nx, ny, nz].map(|n| u32::try_from(n).unwrap_or(u32::MAX));
+    if dims.contains(&0) || dims.contains(&u32::MAX) || !(pitch.is_finite() && pitch > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "a grid of shape {:?} and pitch {pitch} cannot be written",
+            matrix.dim()
+        )));
+    }
+    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: pitch, dims: UVec3::from(dims) };
+    let mut grid = VoxelGrid::new(spec).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    for ((x, y, z), &v) in matrix.indexed_iter() {
+        if v != 0 {
+            grid.set(x as u32, y as u32, z as u32);
+        }
+    }
+    Ok(grid)
+}
+
+/// The colours of `grid`'s set voxels (in its storage order) from an `[x, y, z, rgba]` array.
+pub(super) fn colours(grid: &VoxelGrid, colors: &ArrayView4<'_, u8>) -> PyResult<VoxelColours> {
+    let d = grid.spec.dims;
+    if colors.dim() != (d.x as usize, d.y as usize, d.z as usize, 4) {
+        return Err(PyValueError::new_err(format!("colors of shape {:?} do not fit the grid", colors.dim())));
+    }
+    let rgba = grid
+        .iter_set()
+        .map(|v| {
+            let (x, y, z) = (v.x as usize, v.y as usize, v.z as usize);
+            [0, 1, 2, 3].map(|c| colors[[x, y, z, c]])
+        })
+        .collect();
+    Ok(VoxelColours { rgba })
+}
+
+/// Writes `grid` as `format` to `path` (and, for `.npy` with colours, the colour array beside it) through a
+/// temporary file in the same folder renamed into place, so a failed write leaves no file that looks complete.
+pub(super) fn write(
+    path: &Path,
+    format: VoxelFormat,
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    merge: bool,
+) -> Result<(), FormatError> {
+    if let (Some(c), VoxelFormat::Npy) = (colours, format) {
+        let beside = formats::colours_npy_path(path);
+        atomically(&beside, |out| formats::write_colours_npy(grid, c, out))?;
+    }
+    atomically(path, |out| formats::write_coloured(grid, colours, format, merge, out))
+}
+
+fn atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), FormatError>,
+) -> Result<(), FormatError> {
+    let name = path.file_name().map_or_else(|| "grid".into(), |n| n.to_string_lossy().into_owned());
+    let temp: PathBuf = path.with_file_name(format!(".{name}.{}.partial", std::process::id()));
+    let result = std::fs::File::create(&temp).map_err(FormatError::from).and_then(|file| {
+        let mut out = std::io::BufWriter::new(file);
+        write(&mut out)?;
+        out.flush()?;
+        Ok(())
+    });
+    match result.and_then(|()| std::fs::rename(&temp, path).map_err(FormatError::from)) {
+        Ok(()) => Ok(()),
+        Err(e) => {
+            let _ = std::fs::remove_file(&temp);
+            Err(e)
+        }
+    }
+}

@@ -1,0 +1,45 @@
+# Type stubs of the compiled part of meshvox (app/python/mod.rs); the public API is meshvox/__init__.py.
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+__version__: str
+
+class MeshError(ValueError): ...
+
+_Source = str | tuple[np.ndarray, np.ndarray]
+_Bounds = tuple[tuple[float, float, float], tuple[float, float, float]] | None
+
+def voxelize(
+    source: _Source,
+    resolution: int | None,
+    pitch: float | None,
+    axis: str,
+    mode: str,
+    backend: str,
+    colour: bool | None,
+    bounds: _Bounds,
+    progress: Callable[[int, int], Any] | None,
+) -> dict[str, Any]: ...
+def voxelize_many(
+    sources: Sequence[_Source],
+    resolution: int | None,
+    pitch: float | None,
+    axis: str,
+    mode: str,
+    backend: str,
+    colour: bool | None,
+    bounds: _Bounds,
+    progress: Callable[[int, int], Any] | None,
+    workers: int | None,
+) -> list[dict[str, Any]]: ...
+def load(path: str) -> tuple[np.ndarray, np.ndarray]: ...
+def backends() -> dict[str, Any]: ...
+def save(
+    path: str,
+    matrix: np.ndarray,
+    origin: tuple[float, float, float],
+    pitch: float,
+    colors: np.ndarray | None,
+    merge: bool,
+) -> None: ...

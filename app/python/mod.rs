@@ -1,0 +1,347 @@
+//! The Python binding, `meshvox._native` (feature `python`): a thin client of the engine. The package's Python
+//! code (`app/python/meshvox/`) turns what users pass (paths, trimesh meshes, arrays) into a path or a pair of
+//! arrays, and the dictionaries returned here into `meshvox.VoxelGrid`s. Every call runs through
+//! [`process::run`]: off the GIL, with progress and Ctrl-C, on engines made once per process (and again after a
+//! fork). Arrays come back without a copy beyond the one that makes them: `.matrix` is the `.npy` writer's bytes.
+
+mod process;
+
+use crate::engine::{Backend, EngineError, Request, Voxelized};
+use crate::mesh::{self, Aabb, Mesh, MeshError};
+use crate::voxel::formats::{self, VoxelFormat};
+use crate::voxel::{Axis, GridError, Mode, Resolution};
+use glam::DVec3;
+use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The package's exceptions.
+mod exceptions {
+    pyo3::create_exception!(meshvox, MeshError, pyo3::exceptions::PyValueError, "A mesh file meshvox cannot read.");
+}
+use exceptions::MeshError as PyMeshError;
+
+/// A mesh as the package hands it over: a path, or world-space vertices and faces.
+enum Input {
+    Path(PathBuf),
+    Arrays { positions: Vec<DVec3>, faces: Vec<[u32; 3]> },
+}
+
+/// What a request asks for, from the keyword arguments of `meshvox.voxelize`.
+struct Options {
+    resolution: Resolution,
+    axis: Axis,
+    mode: Mode,
+    backend: Backend,
+    colour: Option<bool>,
+    bounds: Option<Aabb>,
+}
+
+/// Why a call failed, turned into the Python exception users expect ([`into_py_err`]).
+enum Failure {
+    Mesh(MeshError),
+    Engine(EngineError),
+}
+
+fn into_py_err(failure: Failure) -> PyErr {
+    match failure {
+        // Arrays that make no mesh are the caller's values; a file that makes none is a MeshError.
+        Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(e.to_string()),
+        Failure::Mesh(e) => PyMeshError::new_err(e.to_string()),
+        Failure::Engine(e @ EngineError::Grid { error: GridError::OverBudget { .. }, .. }) => {
+            PyMemoryError::new_err(e.to_string())
+        }
+        Failure::Engine(e @ (EngineError::Grid { .. } | EngineError::Empty { .. } | EngineError::Bounds { .. })) => {
+            PyValueError::new_err(e.to_string())
+        }
+        Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
+        Failure::Engine(e) => PyRuntimeError::new_err(e.to_string()),
+    }
+}
+
+/// A path (`str` or `os.PathLike`), or a `(vertices float64 (V, 3), faces int64 (F, 3))` pair, copied out of
+/// numpy while the GIL is held.
+fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
+    if let Ok(path) = source.extract::<PathBuf>() {
+        return Ok(Input::Path(path));
+    }
+    let (vertices, faces): (PyReadonlyArray2<'_, f64>, PyReadonlyArray2<'_, i64>) = source.extract()?;
+    let (vertices, faces) = (vertices.as_array(), faces.as_array());
+    if vertices.ncols() != 3 || faces.ncols() != 3 {
+        return Err(PyValueError::new_err(format!(
+            "vertices must be (V, 3) and faces (F, 3); got {:?} and {:?}",
+            vertices.shape(),
+            faces.shape()
+        )));
+    }
+    let positions = vertices.rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect();
+    let count = vertices.nrows() as i64;
+    let mut out = Vec::with_capacity(faces.nrows());
+    for (f, row) in faces.rows().into_iter().enumerate() {
+        let face = [row[0], row[1], row[2]];
+        if let Some(&bad) = face.iter().find(|&&i| i < 0 || i >= count) {
+            return Err(PyValueError::new_err(format!("face {f} uses vertex {bad} but there are {count} vertices")));
+        }
+        out.push(face.map(|i| i as u32));
+    }
+    Ok(Input::Arrays { positions, faces: out })
+}
+
+impl Input {
+    /// The mesh (loaded from disk, without the GIL) and the name messages and stats use.
+    fn load(self) -> Result<(String, Mesh), Failure> {
+        match self {
+            Input::Path(path) => {
+                let name = path.display().to_string();
+                let mesh = mesh::load(&name).map_err(Failure::Mesh)?;
+                Ok((name, mesh))
+            }
+            Input::Arrays { positions, faces } => {
+                let mesh = mesh::from_indexed("arrays", positions, faces).map_err(Failure::Mesh)?;
+                Ok(("arrays".to_string(), mesh))
+            }
+        }
+    }
+}
+
+fn options(
+    resolution: Option<u32>,
+    pitch: Option<f64>,
+    axis: &str,
+    mode: &str,
+    backend: &str,
+    colour: Option<bool>,
+    bounds: Option<([f64; 3], [f64; 3])>,
+) -> PyResult<Options> {
+    let resolution = match (resolution, pitch) {
+        (Some(n), None) => Resolution::Count(n),
+        (None, Some(p)) if p.is_finite() && p > 0.0 => Resolution::VoxelSize(p),
+        (None, Some(p)) => return Err(PyValueError::new_err(format!("pitch must be a positive number, not {p}"))),
+        _ => return Err(PyValueError::new_err("give either resolution or pitch")),
+    };
+    let axis = match axis {
+        "longest" => Axis::Longest,
+        "x" => Axis::X,
+        "y" => Axis::Y,
+        "z" => Axis::Z,
+        _ => return Err(PyValueError::new_err(format!("axis '{axis}': use longest, x, y or z"))),
+    };
+    let mode = Mode::from_name(mode)
+        .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use surface, solid or surface6")))?;
+    let backend = match backend {
+        "auto" => Backend::Auto,
+        "gpu" => Backend::Gpu,
+        "cpu" => Backend::Cpu,
+        _ => return Err(PyValueError::new_err(format!("backend '{backend}': use auto, gpu or cpu"))),
+    };
+    let bounds = bounds.map(|(min, max)| Aabb { min: DVec3::from(min), max: DVec3::from(max) });
+    Ok(Options { resolution, axis, mode, backend, colour, bounds })
+}
+
+/// One voxelization on this process's engine, inside [`process::run`]'s working thread: `progress` as the
+/// engine calls it, `cancel` the flag Ctrl-C sets.
+fn voxelize_one(
+    input: Input,
+    options: &Options,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Voxelized, Failure> {
+    let (name, mesh) = input.load()?;
+    let engine = process::engine(options.backend).map_err(Failure::Engine)?;
+    let request = Request {
+        axis: options.axis,
+        colour: options.colour,
+        bounds: options.bounds,
+        progress: Some(progress),
+        cancel: Some(cancel),
+        ..Request::new(options.resolution, options.mode)
+    };
+    engine.voxelize(&name, &mesh, &request).map_err(Failure::Engine)
+}
+
+/// The dictionary `meshvox.VoxelGrid` is made from: `matrix` (uint8 (X, Y, Z), the `.npy` bytes), `colors`
+/// (uint8 (X, Y, Z, 4) or None), `origin`, `pitch`, `stats` (the `--stats-json` line).
+fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDict>> {
+    let d = result.grid.spec.dims;
+    let shape = [d.x as usize, d.y as usize, d.z as usize];
+    let (matrix, colors) = py
+        .detach(|| -> Result<(Vec<u8>, Option<Vec<u8>>), formats::FormatError> {
+            let mut matrix = Vec::with_capacity(shape.iter().product());
+            formats::write_npy_data(&result.grid, &mut matrix)?;
+            let colors = match &result.colours {
+                Some(c) => {
+                    let mut bytes = Vec::with_capacity(matrix.len() * 4);
+                    formats::write_colours_data(&result.grid, c, &mut bytes)?;
+                    Some(bytes)
+                }
+                None => None,
+            };
+            Ok((matrix, colors))
+        })
+        .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let dict = PyDict::new(py);
+    dict.set_item("matrix", matrix.into_pyarray(py).reshape(shape)?)?;
+    let colors = colors.map(|c| c.into_pyarray(py).reshape([shape[0], shape[1], shape[2], 4])).transpose()?;
+    dict.set_item("colors", colors)?;
+    dict.set_item("origin", result.grid.spec.origin.to_array())?;
+    dict.set_item("pitch", result.grid.spec.voxel_size)?;
+    let stats = serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    dict.set_item("stats", stats)?;
+    // Fallbacks taken on the way (the GPU out of memory, the CPU standing in), for `warnings.warn`.
+    dict.set_item("notices", result.notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
+    Ok(dict)
+}
+
+/// `meshvox._native.voxelize`: see `meshvox.voxelize`.
+#[pyfunction]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress))]
+#[allow(clippy::too_many_arguments)]
+fn voxelize<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    resolution: Option<u32>,
+    pitch: Option<f64>,
+    axis: &str,
+    mode: &str,
+    backend: &str,
+    colour: Option<bool>,
+    bounds: Option<([f64; 3], [f64; 3])>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds)?;
+    let input = input(source)?;
+    let result = process::run(py, progress, |control| {
+        voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
+    })?;
+    to_dict(py, result.map_err(into_py_err)?)
+}
+
+/// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine (as `meshvox batch`), in
+/// input order; `progress(done, total)` counts meshes.
+#[pyfunction]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers))]
+#[allow(clippy::too_many_arguments)]
+fn voxelize_many<'py>(
+    py: Python<'py>,
+    sources: Vec<Bound<'py, PyAny>>,
+    resolution: Option<u32>,
+    pitch: Option<f64>,
+    axis: &str,
+    mode: &str,
+    backend: &str,
+    colour: Option<bool>,
+    bounds: Option<([f64; 3], [f64; 3])>,
+    progress: Option<&Bound<'py, PyAny>>,
+    workers: Option<usize>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds)?;
+    let inputs: Vec<std::sync::Mutex<Option<Input>>> =
+        sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
+    let total = inputs.len();
+    let workers =
+        workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).clamp(1, total.max(1));
+    let results = process::run(py, progress, |control| {
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let slots: Vec<std::sync::Mutex<Option<Result<Voxelized, Failure>>>> =
+            (0..total).map(|_| std::sync::Mutex::new(None)).collect();
+        let pool = process::pool();
+        std::thread::scope(|scope| {
+            for _ in 0..workers {
+                scope.spawn(|| {
+                    // Each mesh's own progress is not reported: the count of finished meshes is.
+                    let quiet = |_: usize, _: usize| {};
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        if i >= total || control.cancel.load(Ordering::Relaxed) {
+                            break;
+                        }
+                        let taken = inputs[i].lock().unwrap_or_else(|e| e.into_inner()).take();
+                        let Some(input) = taken else { continue };
+                        let result = pool.install(|| voxelize_one(input, &options, &quiet, &control.cancel));
+                        *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
+                        let done = control.done.fetch_add(1, Ordering::Relaxed) + 1;
+                        control.progress(done, total);
+                    }
+                });
+            }
+        });
+        slots.into_iter().map(|s| s.into_inner().unwrap_or_else(|e| e.into_inner())).collect::<Vec<_>>()
+    })?;
+    let mut out = Vec::with_capacity(total);
+    for result in results {
+        let result = result.ok_or_else(|| PyRuntimeError::new_err("cancelled"))?;
+        out.push(to_dict(py, result.map_err(into_py_err)?)?);
+    }
+    Ok(out)
+}
+
+/// Vertices (float64 (V, 3)) and faces (int64 (F, 3)).
+type IndexedArrays<'py> = (Bound<'py, numpy::PyArray2<f64>>, Bound<'py, numpy::PyArray2<i64>>);
+
+/// `meshvox.load`: a file's triangles as shared vertices (float64 (V, 3), world space, node transforms applied)
+/// and faces (int64 (F, 3)).
+#[pyfunction]
+fn load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<IndexedArrays<'py>> {
+    let loaded = process::run(py, None, |_| Input::Path(path).load().map(|(_, m)| mesh::to_indexed(&m)))?;
+    let (positions, faces) = loaded.map_err(into_py_err)?;
+    let v: Vec<f64> = positions.iter().flat_map(|p| p.to_array()).collect();
+    let f: Vec<i64> = faces.iter().flat_map(|t| t.map(i64::from)).collect();
+    let (nv, nf) = (positions.len(), faces.len());
+    Ok((v.into_pyarray(py).reshape([nv, 3])?, f.into_pyarray(py).reshape([nf, 3])?))
+}
+
+/// `meshvox.backends`: where `auto` voxelizes on this machine and why, and what the GPU is.
+#[pyfunction]
+fn backends(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let opened = process::run(py, None, |_| process::engine(Backend::Auto).map(|e| (e.label(), e.notices().to_vec())))?;
+    let (label, notices) = opened.map_err(|e| into_py_err(Failure::Engine(e)))?;
+    let dict = PyDict::new(py);
+    dict.set_item("auto", if label.starts_with("gpu") { "gpu" } else { "cpu" })?;
+    dict.set_item("backend", &label)?;
+    dict.set_item("notes", notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
+    dict.set_item("threads", process::pool().current_num_threads())?;
+    Ok(dict)
+}
+
+/// `VoxelGrid.save`: writes a grid (from its `.matrix`, origin, pitch and colours) in the format its extension
+/// names, atomically (a temporary file beside it, renamed into place); for `.npy` with colours the
+/// `.colors.npy` beside it, as the CLI writes them.
+#[pyfunction]
+#[pyo3(signature = (path, matrix, origin, pitch, colors, merge))]
+fn save(
+    py: Python<'_>,
+    path: PathBuf,
+    matrix: numpy::PyReadonlyArray3<'_, u8>,
+    origin: [f64; 3],
+    pitch: f64,
+    colors: Option<numpy::PyReadonlyArray4<'_, u8>>,
+    merge: bool,
+) -> PyResult<()> {
+    let format = VoxelFormat::from_extension(&path).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "{}: unknown output format (use .npy, .binvox, .vox, .glb, .ply or .obj)",
+            path.display()
+        ))
+    })?;
+    let grid = from_matrix::grid(&matrix.as_array(), origin, pitch)?;
+    let colours = colors.map(|c| from_matrix::colours(&grid, &c.as_array())).transpose()?;
+    let written = process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), merge))?;
+    written.map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+}
+
+mod from_matrix;
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MeshError", m.py().get_type::<PyMeshError>())?;
+    m.add_function(wrap_pyfunction!(voxelize, m)?)?;
+    m.add_function(wrap_pyfunction!(voxelize_many, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(backends, m)?)?;
+    m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
