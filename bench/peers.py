@@ -15,6 +15,10 @@ Environments (made on first use, kept under target/peers/; delete them to start 
                              Cad2vox's file handling, not by CudaVox.run).
 A peer whose packages cannot be installed or imported is reported loudly and left out; the others still run.
 
+meshvox (Python) is the package (`maturin build --release --out target/wheels`; the newest wheel there is installed
+into target/peers/venv on every run) called in the worker like a peer, so its time is next to theirs in the same
+kind of process; the report also sets it beside the engine's own `voxelize_ms` (the binding's overhead).
+
 For each mesh and resolution N, meshvox voxelizes the surface (`-r N --mode surface`) on `--backend cpu` and
 `--backend gpu`, `--runs` times each (median of its `voxelize_ms`: host triangles to host grid). Each peer then
 gets the same grid, meshvox's voxel size, origin and dims from its stats, in a worker process (`--worker`, so that
@@ -56,8 +60,9 @@ CVX_VENV = PEERS_DIR / "cudavox-venv"
 STATUS = PEERS_DIR / "install-status.json"
 DEFAULT_MESHES = ["../shared/meshes/stanford-bunny.obj", "../shared/meshes/suzanne.obj",
                   "../shared/meshes/teapot.obj", "assets/rotated-cube.obj"]
-PEERS = ["open3d", "trimesh", "cudavox"]
-NAMES = {"open3d": "Open3D", "trimesh": "trimesh", "cudavox": "CudaVox"}
+PEERS = ["meshvox-py", "open3d", "trimesh", "cudavox"]
+NAMES = {"meshvox-py": "meshvox (Python)", "open3d": "Open3D", "trimesh": "trimesh", "cudavox": "CudaVox"}
+WHEELS = ROOT / "target" / "wheels"
 BEGIN, END = "<!-- peers.py begin -->", "<!-- peers.py end -->"
 TIE_ULPS = 2.0 ** -20  # a SAT decision within TIE_ULPS * N voxels (8 to 16 float32 ulps of N) is a tie
 
@@ -82,9 +87,17 @@ def open3d_packages():
     return pkgs
 
 
+def meshvox_wheel():
+    """The newest wheel of the Python package (`maturin build --release --out target/wheels`), else the checkout
+    itself (pip builds it: minutes)."""
+    wheels = sorted(WHEELS.glob("meshvox-*.whl"), key=lambda w: w.stat().st_mtime)
+    return str(wheels[-1]) if wheels else str(ROOT)
+
+
 def install_groups():
     """(venv, group, pip arguments); the group "base" is required, the others are peers."""
     return [(VENV, "base", ["numpy", "matplotlib"]),
+            (VENV, "meshvox-py", ["--force-reinstall", "--no-deps", meshvox_wheel()]),
             (VENV, "open3d", open3d_packages()),
             (VENV, "trimesh", ["trimesh==5.2.0", "scipy"]),
             (CVX_VENV, "cudavox", ["--no-deps", "CudaVox==1.7.0", "numpy<2"])]
@@ -117,7 +130,8 @@ def setup_envs(reinstall):
     for venv, group, args in install_groups():
         want = " ".join(args)
         prev = status.get(group)
-        if prev and prev.get("args") == want and prev.get("ok"):
+        # The package under test is installed afresh every time: its wheel changes under the same name.
+        if prev and prev.get("args") == want and prev.get("ok") and group != "meshvox-py":
             continue
         if not vpython(venv).exists():
             status[group] = {"args": want, "ok": False, "error": "no virtual environment"}
@@ -173,7 +187,22 @@ def worker(peer, jobdir):
     origin, h, dims = np.array(job["origin"], float), float(job["h"]), np.array(job["dims"], np.int64)
     info = {}
 
-    if peer == "open3d":
+    if peer == "meshvox-py":
+        # meshvox itself through its Python binding, in this process like the peers: the same grid (the CLI's
+        # origin, voxel size and box), timed around the call; the engine's own voxelize_ms is kept beside it.
+        import meshvox
+        info["version"] = f"meshvox {meshvox.__version__} (Python, in process)"
+        box = (origin, origin + dims * h)
+
+        def call(a):
+            return meshvox.voxelize(a, pitch=h, bounds=box, backend="cpu", colour=False)
+
+        def indices(grid):
+            return grid.coords().astype(np.int64)
+
+        warm = (np.array([[0.1, 0.1, 0.1], [0.9, 0.2, 0.3], [0.3, 0.8, 0.6]]), np.array([[0, 1, 2]]))
+        prepare = lambda: (v, f)  # noqa: E731
+    elif peer == "open3d":
         import ctypes.util
         if not ctypes.util.find_library("usb-1.0"):
             preload_libusb()
@@ -256,6 +285,8 @@ def worker(peer, jobdir):
         t0 = time.perf_counter()
         res = call(arg)
         times.append((time.perf_counter() - t0) * 1e3)
+        if peer == "meshvox-py":
+            info.setdefault("engine_ms", []).append(res.stats["voxelize_ms"])
         if times[-1] > job["slow_s"] * 1e3:
             info["note"] = f"a run took {times[-1] / 1e3:.1f} s, over --skip-after, so no repeats"
             break
@@ -538,6 +569,8 @@ def benchmark(args):
                          "judge_only_peer": judge(sat, only_peer, rng, args.sample)}
                     if info.get("note"):
                         r["note"] = info["note"]
+                    if info.get("engine_ms"):
+                        r["engine_ms"] = median(info["engine_ms"])
                     row["peers"][p] = r
                     del grid
                     note(f"{name} N={n}: {NAMES[p]}: {ms:.1f} ms, {r['voxels']:,} voxels "
@@ -600,6 +633,17 @@ def report(args, rows, peers, versions, backends, problems):
     L.append("")
     L.append("Δ voxels: the peer's count minus meshvox's (+voxels only the peer sets / -voxels only meshvox sets).")
     L.append("")
+    over = [(row, row["peers"]["meshvox-py"]) for row in rows if "engine_ms" in row["peers"].get("meshvox-py", {})]
+    if over:
+        L.append("meshvox (Python): `meshvox.voxelize((vertices, faces), pitch=h, bounds=box, backend=\"cpu\")` in the "
+                 "peers' process, timed around the call, against the engine's own `voxelize_ms` in the same calls:")
+        L.append("")
+        L.append("| mesh | N | engine ms | call ms | binding overhead |")
+        L.append("|---|---:|---:|---:|---:|")
+        for row, r in over:
+            e = r["engine_ms"]
+            L.append(f"| {row['mesh']} | {row['N']} | {fmt_ms(e)} | {fmt_ms(r['ms'])} | {100 * (r['ms'] - e) / e:+.1f}% |")
+        L.append("")
     # Speed-ups
     head = ["mesh", "N"]
     pairs = [(b, p) for b in ("cpu", "gpu") for p in peers]
@@ -769,7 +813,7 @@ def main():
                     "mesh is not repeated and skipped at that mesh's larger resolutions")
     ap.add_argument("--peer-timeout", type=float, default=900.0, help="seconds before a peer's worker (all its "
                     "runs on one case) is stopped")
-    ap.add_argument("--skip", default="", help="comma-separated peers to leave out (open3d,trimesh,cudavox)")
+    ap.add_argument("--skip", default="", help="comma-separated peers to leave out (meshvox-py,open3d,trimesh,cudavox)")
     ap.add_argument("--reinstall", action="store_true", help="delete and rebuild target/peers' environments")
     args = ap.parse_args()
     args.skip = [s for s in args.skip.split(",") if s]

@@ -2,13 +2,14 @@
 //! code (`app/python/meshvox/`) turns what users pass (paths, trimesh meshes, arrays) into a path or a pair of
 //! arrays, and the dictionaries returned here into `meshvox.VoxelGrid`s. Every call runs through
 //! [`process::run`]: off the GIL, with progress and Ctrl-C, on engines made once per process (and again after a
-//! fork). Arrays come back without a copy beyond the one that makes them: `.matrix` is the `.npy` writer's bytes.
+//! fork). The bit grid moves into numpy as it is; the package unpacks `.matrix` (the `.npy` writer's bytes) from
+//! it when first asked for.
 
 mod process;
 
 use crate::engine::{Backend, EngineError, Request, Voxelized};
 use crate::mesh::{self, Aabb, Mesh, MeshError};
-use crate::voxel::formats::{self, VoxelFormat};
+use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{Axis, GridError, Mode, Resolution};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
@@ -77,16 +78,18 @@ fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
             faces.shape()
         )));
     }
-    let positions = vertices.rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect();
+    // The package hands over C-contiguous arrays: read them as flat slices (rows through ndarray's iterators
+    // took a millisecond per 50,000 triangles).
+    let (Some(v), Some(f)) = (vertices.as_slice(), faces.as_slice()) else {
+        return Err(PyValueError::new_err("vertices and faces must be C-contiguous"));
+    };
+    let positions = v.chunks_exact(3).map(DVec3::from_slice).collect();
     let count = vertices.nrows() as i64;
-    let mut out = Vec::with_capacity(faces.nrows());
-    for (f, row) in faces.rows().into_iter().enumerate() {
-        let face = [row[0], row[1], row[2]];
-        if let Some(&bad) = face.iter().find(|&&i| i < 0 || i >= count) {
-            return Err(PyValueError::new_err(format!("face {f} uses vertex {bad} but there are {count} vertices")));
-        }
-        out.push(face.map(|i| i as u32));
+    if let Some(at) = f.iter().position(|&i| i < 0 || i >= count) {
+        let face = at / 3;
+        return Err(PyValueError::new_err(format!("face {face} uses vertex {} but there are {count} vertices", f[at])));
     }
+    let out = f.chunks_exact(3).map(|t| [t[0] as u32, t[1] as u32, t[2] as u32]).collect();
     Ok(Input::Arrays { positions, faces: out })
 }
 
@@ -162,36 +165,26 @@ fn voxelize_one(
     engine.voxelize(&name, &mesh, &request).map_err(Failure::Engine)
 }
 
-/// The dictionary `meshvox.VoxelGrid` is made from: `matrix` (uint8 (X, Y, Z), the `.npy` bytes), `colors`
-/// (uint8 (X, Y, Z, 4) or None), `origin`, `pitch`, `stats` (the `--stats-json` line).
+/// The dictionary `meshvox.VoxelGrid` is made from: `words` (the bit grid as it is, uint32, x-rows z-major: `.matrix`
+/// is unpacked from it when first asked for, in numpy), `shape`, `rgba` (uint8 (N, 4), one per set voxel in the
+/// grid's storage order, or None), `origin`, `pitch`, `stats` (the `--stats-json` line) and `notices`. The words
+/// move into numpy without a copy, so the call costs the engine's time and little more.
 fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDict>> {
     let d = result.grid.spec.dims;
-    let shape = [d.x as usize, d.y as usize, d.z as usize];
-    let (matrix, colors) = py
-        .detach(|| -> Result<(Vec<u8>, Option<Vec<u8>>), formats::FormatError> {
-            let mut matrix = Vec::with_capacity(shape.iter().product());
-            formats::write_npy_data(&result.grid, &mut matrix)?;
-            let colors = match &result.colours {
-                Some(c) => {
-                    let mut bytes = Vec::with_capacity(matrix.len() * 4);
-                    formats::write_colours_data(&result.grid, c, &mut bytes)?;
-                    Some(bytes)
-                }
-                None => None,
-            };
-            Ok((matrix, colors))
-        })
-        .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
     let dict = PyDict::new(py);
-    dict.set_item("matrix", matrix.into_pyarray(py).reshape(shape)?)?;
-    let colors = colors.map(|c| c.into_pyarray(py).reshape([shape[0], shape[1], shape[2], 4])).transpose()?;
-    dict.set_item("colors", colors)?;
+    dict.set_item("shape", [d.x, d.y, d.z])?;
     dict.set_item("origin", result.grid.spec.origin.to_array())?;
     dict.set_item("pitch", result.grid.spec.voxel_size)?;
     let stats = serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
     dict.set_item("stats", stats)?;
     // Fallbacks taken on the way (the GPU out of memory, the CPU standing in), for `warnings.warn`.
     dict.set_item("notices", result.notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
+    let rgba = result.colours.map(|c| {
+        let n = c.rgba.len();
+        c.rgba.into_iter().flatten().collect::<Vec<u8>>().into_pyarray(py).reshape([n, 4])
+    });
+    dict.set_item("rgba", rgba.transpose()?)?;
+    dict.set_item("words", result.grid.words.into_pyarray(py))?;
     Ok(dict)
 }
 

@@ -32,7 +32,8 @@ class VoxelGrid:
     """A voxel grid: occupancy (``matrix``), where it lies (``origin``, ``pitch``), colours and statistics.
 
     Voxel ``[x, y, z]`` is the cube with minimum corner ``origin + pitch * (x, y, z)``. Grids compare equal when
-    their shape, origin, pitch, voxels and colours are equal, and pickle (for multiprocessing and Dask).
+    their shape, origin, pitch, voxels and colours are equal, and pickle (for multiprocessing and Dask; a grid
+    from ``voxelize`` travels as its bit grid, an eighth of ``matrix``).
     """
 
     def __init__(
@@ -43,16 +44,70 @@ class VoxelGrid:
         colors: np.ndarray | None = None,
         stats: dict[str, Any] | None = None,
     ) -> None:
-        self.matrix: np.ndarray = np.asarray(matrix, dtype=bool)
+        self._matrix: np.ndarray | None = np.asarray(matrix, dtype=bool)
+        self._colors: np.ndarray | None = None if colors is None else np.asarray(colors, dtype=np.uint8)
+        self._shape: tuple[int, int, int] = tuple(int(n) for n in self._matrix.shape)  # type: ignore[assignment]
+        self._words: np.ndarray | None = None
+        self._rgba: np.ndarray | None = None
         self.pitch: float = float(pitch)
         self.origin: np.ndarray = np.asarray(origin, dtype=np.float64).reshape(3)
-        self.colors: np.ndarray | None = None if colors is None else np.asarray(colors, dtype=np.uint8)
         self.stats: dict[str, Any] = dict(stats or {})
+
+    @classmethod
+    def _packed(cls, words, shape, pitch, origin, rgba, stats) -> "VoxelGrid":
+        """A grid as the engine made it: the bit grid (uint32 words, rows along x, z-major) and one RGBA per set
+        voxel in its storage order; ``matrix`` and ``colors`` are unpacked from them when first asked for."""
+        grid = cls.__new__(cls)
+        grid._matrix, grid._colors = None, None
+        grid._shape = tuple(int(n) for n in shape)
+        grid._words, grid._rgba = words, rgba
+        grid.pitch, grid.origin = float(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
+        grid.stats = dict(stats or {})
+        return grid
+
+    def _bits_zyx(self) -> np.ndarray:
+        """The bit grid unpacked as bool (Z, Y, X), a view in storage order."""
+        nx, ny, nz = self._shape
+        rows = np.unpackbits(self._words.view(np.uint8), bitorder="little").reshape(nz, ny, -1)
+        return rows[:, :, :nx].view(np.bool_)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """bool (X, Y, Z), indexed ``[x, y, z]``: the bytes of ``meshvox voxelize -o grid.npy``."""
+        if self._matrix is None:
+            self._matrix = np.ascontiguousarray(self._bits_zyx().transpose(2, 1, 0))
+        return self._matrix
+
+    @property
+    def colors(self) -> np.ndarray | None:
+        """uint8 (X, Y, Z, 4) sRGB RGBA of the set voxels (0 elsewhere), or None: the CLI's ``.colors.npy``."""
+        if self._colors is None and self._rgba is not None:
+            colors = np.zeros(self._shape + (4,), dtype=np.uint8)
+            z, y, x = np.nonzero(self._bits_zyx())
+            colors[x, y, z] = self._rgba
+            self._colors = colors
+        return self._colors
+
+    def __getstate__(self) -> dict[str, Any]:
+        # Once unpacked, the matrix is the truth (it may have been edited); before, the bits travel.
+        if self._matrix is None and self._words is not None:
+            return {"words": self._words, "rgba": self._rgba, "shape": self._shape, "pitch": self.pitch,
+                    "origin": self.origin, "stats": self.stats}
+        return {"matrix": self.matrix, "colors": self._colors, "pitch": self.pitch, "origin": self.origin,
+                "stats": self.stats}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        if "words" in state:
+            other = VoxelGrid._packed(state["words"], state["shape"], state["pitch"], state["origin"],
+                                      state["rgba"], state["stats"])
+        else:
+            other = VoxelGrid(state["matrix"], state["pitch"], state["origin"], state["colors"], state["stats"])
+        self.__dict__.update(other.__dict__)
 
     @property
     def shape(self) -> tuple[int, int, int]:
         """Voxels along x, y and z."""
-        return tuple(int(n) for n in self.matrix.shape)  # type: ignore[return-value]
+        return self._shape
 
     @property
     def transform(self) -> np.ndarray:
@@ -68,7 +123,8 @@ class VoxelGrid:
         if order == "xyz":
             return np.argwhere(self.matrix).astype(np.int32)
         if order == "zyx":
-            return np.argwhere(self.matrix.transpose(2, 1, 0)).astype(np.int32)
+            zyx = self._bits_zyx() if self._matrix is None else self.matrix.transpose(2, 1, 0)
+            return np.argwhere(zyx).astype(np.int32)
         raise ValueError(f"order {order!r}: use 'xyz' or 'zyx'")
 
     @property
@@ -93,22 +149,20 @@ class VoxelGrid:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, VoxelGrid):
             return NotImplemented
-        same_colors = (self.colors is None and other.colors is None) or (
-            self.colors is not None and other.colors is not None and np.array_equal(self.colors, other.colors)
-        )
-        return (
-            self.shape == other.shape
-            and self.pitch == other.pitch
-            and np.array_equal(self.origin, other.origin)
-            and np.array_equal(self.matrix, other.matrix)
-            and same_colors
-        )
+        if self.shape != other.shape or self.pitch != other.pitch or not np.array_equal(self.origin, other.origin):
+            return False
+        if self._matrix is None and other._matrix is None and self._words is not None and other._words is not None:
+            same_voxels = np.array_equal(self._words, other._words)
+        else:
+            same_voxels = np.array_equal(self.matrix, other.matrix)
+        a, b = self.colors, other.colors
+        return same_voxels and ((a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b)))
 
     __hash__ = None  # type: ignore[assignment]
 
     def __repr__(self) -> str:
         return (
-            f"VoxelGrid(shape={self.shape}, voxels={int(self.matrix.sum())}, pitch={self.pitch:g}, "
+            f"VoxelGrid(shape={self.shape}, voxels={len(self.coords())}, pitch={self.pitch:g}, "
             f"origin={tuple(float(o) for o in self.origin)}, colors={self.colors is not None})"
         )
 
@@ -160,8 +214,8 @@ def _bounds(bounds: Any) -> tuple[tuple[float, float, float], tuple[float, float
 def _grid(out: dict[str, Any]) -> VoxelGrid:
     for notice in out["notices"]:
         warnings.warn(f"meshvox: {notice}", RuntimeWarning, stacklevel=3)
-    matrix = out["matrix"].view(np.bool_)
-    return VoxelGrid(matrix, out["pitch"], out["origin"], out["colors"], json.loads(out["stats"]))
+    stats = json.loads(out["stats"])
+    return VoxelGrid._packed(out["words"], out["shape"], out["pitch"], out["origin"], out["rgba"], stats)
 
 
 def voxelize(

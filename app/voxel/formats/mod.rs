@@ -13,7 +13,7 @@ pub mod vox;
 pub use binvox::{read_binvox, write_binvox};
 pub use error::FormatError;
 pub use mesh::MeshFormat;
-pub use npy::{read_npy, write_colours_data, write_colours_npy, write_npy, write_npy_data};
+pub use npy::{read_npy, write_colours_npy, write_npy};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
 use super::VoxelGrid;

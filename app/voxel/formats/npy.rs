@@ -13,12 +13,6 @@ use std::io::{Read, Write};
 pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     write_npy_header(&format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
-    write_colours_data(grid, colours, out)
-}
-
-/// The array of [`write_colours_npy`] without its header: what the Python binding hands numpy as `.colors`.
-pub fn write_colours_data(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
-    let d = grid.spec.dims;
     let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
     // The dense array is x-major here and z-fastest in the file: one x-slice (y × z × 4 bytes) at a time.
     let mut slice = vec![0u8; ny * nz * 4];
@@ -56,12 +50,6 @@ const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     write_npy_header(&format!("({}, {}, {})", d.x, d.y, d.z), out)?;
-    write_npy_data(grid, out)
-}
-
-/// The array of [`write_npy`] without its header: what the Python binding hands numpy as `.matrix`.
-pub fn write_npy_data(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
-    let d = grid.spec.dims;
     let (ny, nz) = (d.y as usize, d.z as usize);
     let wpr = grid.spec.words_per_row();
     let mut slab = vec![0u8; 32 * ny * nz];
