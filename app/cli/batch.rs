@@ -9,7 +9,6 @@ use anyhow::{Context, Result, anyhow, bail};
 use meshvox::voxel::formats::VoxelFormat;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// The mesh formats a directory is searched for.
@@ -213,21 +212,15 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let mut tally = Tally::default();
     let bar = files_bar(total as u64);
     let mut last_line = Instant::now();
-    let next = AtomicUsize::new(0);
     let loop_started = Instant::now();
-    // Every worker takes the next input and parses, voxelizes and writes it, so parsing and writing on some
-    // workers overlap the voxelization on another (the engine gives the GPU to one file at a time). Each
-    // worker holds one mesh and one grid, which bounds memory however long the list is; results come back
-    // through a bounded channel.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, Outcome)>(2 * jobs);
-    let work = Work { args, items: &items, outputs: &outputs, format, engine: &engine, next: &next };
-    std::thread::scope(|scope| -> Result<()> {
-        for _ in 0..jobs {
-            let (tx, work) = (tx.clone(), &work);
-            scope.spawn(move || work.run(&tx));
-        }
-        drop(tx);
-        for (k, outcome) in rx {
+    // Every worker takes the next input and parses, voxelizes and writes it (see `engine::work_queue`); each
+    // holds one mesh and one grid, which bounds memory however long the list is.
+    let work = Work { args, items: &items, outputs: &outputs, format, engine: &engine };
+    meshvox::engine::work_queue(
+        total,
+        jobs,
+        |k| work.outcome(k),
+        |k, outcome| -> Result<()> {
             let line = tally.record(outcome, &items[k].source, &outputs[k], &bar)?;
             if let Some(m) = manifest.as_mut() {
                 writeln!(m, "{line}").context("manifest: write failed")?;
@@ -238,9 +231,9 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
                 last_line = Instant::now();
                 eprintln!("{} of {total} files ({})", tally.finished(), tally.counts());
             }
-        }
-        Ok(())
-    })?;
+            Ok(())
+        },
+    )?;
     bar.finish_and_clear();
     let secs = started.elapsed().as_secs_f64();
     eprintln!(
@@ -273,34 +266,26 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], format: VoxelFormat) -> Result
     Ok(outputs)
 }
 
-/// What every worker shares: the inputs, their outputs, the engine, and the index of the next input to take.
+/// What every worker shares: the inputs, their outputs and the engine.
 struct Work<'a> {
     args: &'a BatchArgs,
     items: &'a [Item],
     outputs: &'a [PathBuf],
     format: VoxelFormat,
     engine: &'a Engine,
-    next: &'a AtomicUsize,
 }
 
 impl Work<'_> {
-    /// One worker: takes inputs until none is left (or the receiver is gone), sending each one's outcome.
-    fn run(&self, tx: &std::sync::mpsc::SyncSender<(usize, Outcome)>) {
-        loop {
-            let k = self.next.fetch_add(1, Ordering::Relaxed);
-            let Some(item) = self.items.get(k) else { break };
-            let output = &self.outputs[k];
-            let outcome = match (&item.refused, self.args.skip_existing && output.exists()) {
-                (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
-                (None, true) => Outcome::Skipped,
-                (None, false) => match voxelize_one(&self.voxelize_args(item, output), self.format, self.engine) {
-                    Ok(report) => Outcome::Done(Box::new(report)),
-                    Err(e) => Outcome::Failed(e),
-                },
-            };
-            if tx.send((k, outcome)).is_err() {
-                break;
-            }
+    /// Input `k`'s outcome: refused, skipped (its output exists and `--skip-existing`), done or failed.
+    fn outcome(&self, k: usize) -> Outcome {
+        let (item, output) = (&self.items[k], &self.outputs[k]);
+        match (&item.refused, self.args.skip_existing && output.exists()) {
+            (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
+            (None, true) => Outcome::Skipped,
+            (None, false) => match voxelize_one(&self.voxelize_args(item, output), self.format, self.engine) {
+                Ok(report) => Outcome::Done(Box::new(report)),
+                Err(e) => Outcome::Failed(e),
+            },
         }
     }
 

@@ -12,8 +12,12 @@
 
 #[cfg(feature = "gpu")]
 pub mod device;
+#[cfg(not(target_arch = "wasm32"))]
+mod queue;
 mod report;
 
+#[cfg(not(target_arch = "wasm32"))]
+pub use queue::work_queue;
 pub use report::{Notice, Report, Voxelized};
 
 use crate::mesh::{Aabb, Mesh};
@@ -318,7 +322,7 @@ impl Engine {
         mode: Mode,
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
-        let request = Request { progress, ..Request::new(Resolution::Count(1), mode) };
+        let request = Request { progress, ..Request::new(Resolution::VoxelSize(spec.voxel_size), mode) };
         pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, &request))
     }
 

@@ -212,8 +212,8 @@ fn voxelize<'py>(
     to_dict(py, result.map_err(into_py_err)?)
 }
 
-/// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine (as `meshvox batch`), in
-/// input order; `progress(done, total)` counts meshes.
+/// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
+/// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
 #[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers))]
 #[allow(clippy::too_many_arguments)]
@@ -237,31 +237,24 @@ fn voxelize_many<'py>(
     let workers =
         workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).clamp(1, total.max(1));
     let results = process::run(py, progress, |control| {
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let slots: Vec<std::sync::Mutex<Option<Result<Voxelized, Failure>>>> =
-            (0..total).map(|_| std::sync::Mutex::new(None)).collect();
         let pool = process::pool();
-        std::thread::scope(|scope| {
-            for _ in 0..workers {
-                scope.spawn(|| {
-                    // Each mesh's own progress is not reported: the count of finished meshes is.
-                    let quiet = |_: usize, _: usize| {};
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        if i >= total || control.cancel.load(Ordering::Relaxed) {
-                            break;
-                        }
-                        let taken = inputs[i].lock().unwrap_or_else(|e| e.into_inner()).take();
-                        let Some(input) = taken else { continue };
-                        let result = pool.install(|| voxelize_one(input, &options, &quiet, &control.cancel));
-                        *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(result);
-                        let done = control.done.fetch_add(1, Ordering::Relaxed) + 1;
-                        control.progress(done, total);
-                    }
-                });
-            }
+        let mut slots: Vec<Option<Result<Voxelized, Failure>>> = (0..total).map(|_| None).collect();
+        // Each mesh's own progress is not reported: the count of finished meshes is.
+        let quiet = |_: usize, _: usize| {};
+        let job = |i: usize| {
+            let taken = inputs[i].lock().unwrap_or_else(|e| e.into_inner()).take();
+            let input = taken.filter(|_| !control.cancel.load(Ordering::Relaxed))?;
+            Some(pool.install(|| voxelize_one(input, &options, &quiet, &control.cancel)))
+        };
+        let mut done = 0;
+        let finished = crate::engine::work_queue(total, workers, job, |i, result| {
+            slots[i] = result;
+            done += 1;
+            control.progress(done, total);
+            Ok::<(), std::convert::Infallible>(())
         });
-        slots.into_iter().map(|s| s.into_inner().unwrap_or_else(|e| e.into_inner())).collect::<Vec<_>>()
+        let Ok(()) = finished;
+        slots
     })?;
     let mut out = Vec::with_capacity(total);
     for result in results {
@@ -289,10 +282,11 @@ fn load<'py>(py: Python<'py>, path: PathBuf) -> PyResult<IndexedArrays<'py>> {
 /// `meshvox.backends`: where `auto` voxelizes on this machine and why, and what the GPU is.
 #[pyfunction]
 fn backends(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let opened = process::run(py, None, |_| process::engine(Backend::Auto).map(|e| (e.label(), e.notices().to_vec())))?;
-    let (label, notices) = opened.map_err(|e| into_py_err(Failure::Engine(e)))?;
+    let opened = process::run(py, None, |_| process::engine(Backend::Auto))?;
+    let engine = opened.map_err(|e| into_py_err(Failure::Engine(e)))?;
+    let (label, notices) = (engine.label(), engine.notices());
     let dict = PyDict::new(py);
-    dict.set_item("auto", if label.starts_with("gpu") { "gpu" } else { "cpu" })?;
+    dict.set_item("auto", if engine.uses_gpu() { "gpu" } else { "cpu" })?;
     dict.set_item("backend", &label)?;
     dict.set_item("notes", notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
     dict.set_item("threads", process::pool().current_num_threads())?;

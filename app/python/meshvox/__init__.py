@@ -196,9 +196,6 @@ def _arrays(vertices: Any, faces: Any) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"faces must have shape (F, 3), not {f.shape}")
     if len(f) == 0:
         raise ValueError("faces is empty: there is nothing to voxelize")
-    if not np.isfinite(v).all():
-        row = int(np.argwhere(~np.isfinite(v))[0][0])
-        raise ValueError(f"vertex {row} has a NaN or infinite coordinate")
     if f.dtype.kind == "u" and f.size and f.max() > np.iinfo(np.int64).max:
         raise ValueError("a face index is out of range")
     return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(f, dtype=np.int64)

@@ -50,6 +50,7 @@ const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     write_npy_header(&format!("({}, {}, {})", d.x, d.y, d.z), out)?;
+
     let (ny, nz) = (d.y as usize, d.z as usize);
     let wpr = grid.spec.words_per_row();
     let mut slab = vec![0u8; 32 * ny * nz];
