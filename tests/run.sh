@@ -55,9 +55,10 @@ fi
 # The crate documentation's example (the engine through the public API); --all-targets leaves doctests out.
 cargo test --locked --doc
 
-# The Python package (docs/python.md): the wheel built once, in the dev profile (pyproject.toml's features: the
-# engine and the GPU, no viewer), installed into its own virtual environment, then pytest against the CLI built
-# above.
+# The Python package (docs/python.md): the wheel built once, in the dev profile and with the test build's features
+# (pyproject.toml's `python` plus the default ones; `pip install .` builds it without the viewer), so that every
+# dependency it shares with the build above is reused, not compiled again (Cargo.toml lines the features up);
+# installed into its own virtual environment, then pytest against the CLI built above.
 pyvenv=target/pytest-venv
 if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed' 2>/dev/null \
   || [ ! -x "$pyvenv/bin/maturin" ]; then
@@ -66,7 +67,7 @@ if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, tr
     dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0
 fi
 rm -rf target/wheels
-"$pyvenv/bin/maturin" build --quiet --profile dev --interpreter "$pyvenv/bin/python" --out target/wheels
+"$pyvenv/bin/maturin" build --quiet --profile dev --features python,gpu,viewer,cli --interpreter "$pyvenv/bin/python" --out target/wheels
 "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/meshvox-*.whl
 MESHVOX_BIN="$PWD/target/debug/meshvox" "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
 

@@ -84,9 +84,15 @@ impl Mesh {
 
     /// The world-space bounding box of all triangles, or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
-        let mut it = self.triangles.iter().flatten();
-        let first = *it.next()?;
-        let (min, max) = it.fold((first, first), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        use rayon::prelude::*;
+        let first = self.triangles.first()?[0];
+        // In parallel over large meshes: the engine asks for this before every grid (see `local_triangles`).
+        let (min, max) = self
+            .triangles
+            .par_iter()
+            .with_min_len(1 << 14)
+            .fold(|| (first, first), |(lo, hi), t| (lo.min(t[0].min(t[1]).min(t[2])), hi.max(t[0].max(t[1]).max(t[2]))))
+            .reduce(|| (first, first), |(a, b), (c, d)| (a.min(c), b.max(d)));
         Some(Aabb { min: self.anchor + min.as_dvec3(), max: self.anchor + max.as_dvec3() })
     }
 
@@ -100,21 +106,12 @@ impl Mesh {
     /// rounded to f32 only as offsets from that anchor. The mesh must be empty.
     pub(crate) fn push_pieces(&mut self, pieces: Vec<Piece>) {
         debug_assert!(self.triangles.is_empty());
-        // Only positions a triangle uses: a stray vertex far away must not pull the anchor off the mesh.
-        let mut all = pieces
-            .iter()
-            .flat_map(|p| p.triangles.iter().flatten().map(|&i| p.positions[i as usize]))
-            .filter(|v| v.is_finite());
-        self.anchor = match all.next() {
-            Some(first) => {
-                let (lo, hi) = all.fold((first, first), |(lo, hi), v| (lo.min(v), hi.max(v)));
-                lo + (hi - lo) * 0.5
-            }
-            None => DVec3::ZERO,
-        };
-        let anchor = self.anchor;
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for piece in &pieces {
+            used_bounds(&piece.positions, &used(piece.positions.len(), &piece.triangles), &mut lo, &mut hi);
+        }
+        self.anchor = centre(lo, hi);
         for piece in pieces {
-            let local: Vec<Vec3> = piece.positions.iter().map(|&p| (p - anchor).as_vec3()).collect();
             if let Some(shading) = &mut self.shading {
                 let uv = |i: u32| piece.uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
                 let color = |i: u32| {
@@ -127,7 +124,7 @@ impl Mesh {
                     _pad: 0,
                 }));
             }
-            self.push_part(piece.part, piece.triangles.iter().map(|t| t.map(|i| local[i as usize])));
+            self.push_part(piece.part, local_triangles(&piece.positions, &piece.triangles, self.anchor));
         }
         // Colour that is all white is no colour: the mesh is then drawn in the viewer's colour.
         if self.shading.as_ref().is_some_and(|s| !s.has_colour()) {
@@ -136,13 +133,15 @@ impl Mesh {
     }
 
     /// Appends triangles that all belong to one new part.
-    pub(crate) fn push_part(&mut self, part: Part, triangles: impl IntoIterator<Item = [Vec3; 3]>) {
+    pub(crate) fn push_part(&mut self, part: Part, triangles: Vec<[Vec3; 3]>) {
         let id = self.parts.len() as u32;
         self.parts.push(part);
-        let before = self.triangles.len();
-        self.triangles.extend(triangles);
+        if self.triangles.is_empty() {
+            self.triangles = triangles;
+        } else {
+            self.triangles.extend_from_slice(&triangles);
+        }
         self.triangle_part.resize(self.triangles.len(), id);
-        debug_assert!(self.triangles.len() >= before);
     }
 
     /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
@@ -156,6 +155,44 @@ impl Mesh {
         }
         Ok(self)
     }
+}
+
+/// Which of `count` positions the triangles use.
+fn used(count: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
+    let mut used = vec![false; count];
+    for &i in triangles.iter().flatten() {
+        used[i as usize] = true;
+    }
+    used
+}
+
+/// Grows `lo..hi` by the finite positions marked used: only positions a triangle uses count, so that a stray
+/// vertex far away does not pull the anchor off the mesh. Marking them first and reading them in order is
+/// cheaper than visiting them through every triangle corner.
+fn used_bounds(positions: &[DVec3], used: &[bool], lo: &mut DVec3, hi: &mut DVec3) {
+    for (v, _) in positions.iter().zip(used).filter(|(v, used)| **used && v.is_finite()) {
+        *lo = lo.min(*v);
+        *hi = hi.max(*v);
+    }
+}
+
+/// The anchor: the centre of `lo..hi`, or the origin when nothing grew it.
+fn centre(lo: DVec3, hi: DVec3) -> DVec3 {
+    if lo.cmple(hi).all() { lo + (hi - lo) * 0.5 } else { DVec3::ZERO }
+}
+
+/// The triangles as f32 offsets from `anchor`, each corner converted where it is gathered, in parallel (on the
+/// current rayon pool): this copy is most of what building a mesh from arrays costs (the Python binding's
+/// overhead), and a plain mapping `extend` took twice as long.
+fn local_triangles(positions: &[DVec3], triangles: &[[u32; 3]], anchor: DVec3) -> Vec<[Vec3; 3]> {
+    use rayon::prelude::*;
+    let mut out = Vec::new();
+    triangles
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|t| t.map(|i| (positions[i as usize] - anchor).as_vec3()))
+        .collect_into_vec(&mut out);
+    out
 }
 
 /// One part of a mesh as a loader reads it: f64 world-space positions and triangles indexing them (every index
@@ -292,27 +329,40 @@ impl Format {
     }
 }
 
-/// A mesh from arrays a program already has (the Python binding's `(vertices, faces)`): world-space positions and
-/// triangles indexing them. Named `name` in messages. Errors name the first bad face or vertex.
-pub fn from_indexed(name: &str, positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Result<Mesh, MeshError> {
-    let path = PathBuf::from(name);
+/// A mesh from arrays a program already has (the Python binding's `(vertices, faces)`, read in place from numpy):
+/// world-space positions and triangles indexing them with any integer type. Named `name` in messages. Errors name
+/// the first bad vertex or face (a NaN or infinite coordinate; an index below zero or past the vertices).
+pub fn from_indexed<I>(name: &str, positions: &[DVec3], faces: &[[I; 3]]) -> Result<Mesh, MeshError>
+where
+    I: Copy + TryInto<u32> + std::fmt::Display,
+{
     let invalid = |message: String| MeshError::Arrays { name: name.to_string(), message };
-    if triangles.is_empty() {
-        return Err(MeshError::Empty { path });
+    if faces.is_empty() {
+        return Err(MeshError::Empty { path: PathBuf::from(name) });
     }
-    if let Some((v, _)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+    if let Some(v) = positions.iter().position(|p| !p.is_finite()) {
         return Err(invalid(format!("vertex {v} has a NaN or infinite coordinate")));
     }
     let count = positions.len();
-    if let Some((f, t)) = triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= count)) {
-        return Err(invalid(format!(
-            "face {f} uses vertex {} but there are {count} vertices",
-            t.iter().max().unwrap_or(&0)
-        )));
+    // One pass converts the indices, checks them and marks the positions used.
+    let mut used = vec![false; count];
+    let mut triangles = Vec::with_capacity(faces.len());
+    for (f, face) in faces.iter().enumerate() {
+        let mut t = [0; 3];
+        for (k, &i) in face.iter().enumerate() {
+            t[k] = match i.try_into() {
+                Ok(j) if (j as usize) < count => j,
+                _ => return Err(invalid(format!("face {f} uses vertex {i} but there are {count} vertices"))),
+            };
+            used[t[k] as usize] = true;
+        }
+        triangles.push(t);
     }
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    used_bounds(positions, &used, &mut lo, &mut hi);
+    let mut mesh = Mesh { name: name.to_string(), anchor: centre(lo, hi), ..Mesh::default() };
     let part = Part { name: name.to_string(), mesh: 0, primitive: 0, material: None };
-    let mut mesh = Mesh { name: name.to_string(), ..Mesh::default() };
-    mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors: Vec::new(), material: 0 }]);
+    mesh.push_part(part, local_triangles(positions, &triangles, mesh.anchor));
     Ok(mesh)
 }
 

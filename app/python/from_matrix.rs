@@ -2,14 +2,14 @@
 //! holds (which may have been edited, pickled or built by hand), written with the CLI's writers.
 
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::formats::atomic::write_atomically;
 use crate::voxel::formats::{self, FormatError, VoxelFormat};
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use numpy::ndarray::{ArrayView3, ArrayView4};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The bit grid of a `[x, y, z]` occupancy array (any non-zero byte is set).
 pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: f64) -> PyResult<VoxelGrid> {
@@ -47,8 +47,8 @@ pub(super) fn colours(grid: &VoxelGrid, colors: &ArrayView4<'_, u8>) -> PyResult
     Ok(VoxelColours { rgba })
 }
 
-/// Writes `grid` as `format` to `path` (and, for `.npy` with colours, the colour array beside it) through a
-/// temporary file in the same folder renamed into place, so a failed write leaves no file that looks complete.
+/// Writes `grid` as `format` to `path` (and, for `.npy` with colours, the colour array beside it first), each
+/// through the library's atomic writer, as the CLI writes them.
 pub(super) fn write(
     path: &Path,
     format: VoxelFormat,
@@ -57,29 +57,7 @@ pub(super) fn write(
     merge: bool,
 ) -> Result<(), FormatError> {
     if let (Some(c), VoxelFormat::Npy) = (colours, format) {
-        let beside = formats::colours_npy_path(path);
-        atomically(&beside, |out| formats::write_colours_npy(grid, c, out))?;
+        write_atomically(&formats::colours_npy_path(path), |out| formats::write_colours_npy(grid, c, out))?;
     }
-    atomically(path, |out| formats::write_coloured(grid, colours, format, merge, out))
-}
-
-fn atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<(), FormatError>,
-) -> Result<(), FormatError> {
-    let name = path.file_name().map_or_else(|| "grid".into(), |n| n.to_string_lossy().into_owned());
-    let temp: PathBuf = path.with_file_name(format!(".{name}.{}.partial", std::process::id()));
-    let result = std::fs::File::create(&temp).map_err(FormatError::from).and_then(|file| {
-        let mut out = std::io::BufWriter::new(file);
-        write(&mut out)?;
-        out.flush()?;
-        Ok(())
-    });
-    match result.and_then(|()| std::fs::rename(&temp, path).map_err(FormatError::from)) {
-        Ok(()) => Ok(()),
-        Err(e) => {
-            let _ = std::fs::remove_file(&temp);
-            Err(e)
-        }
-    }
+    write_atomically(path, |out| formats::write_coloured(grid, colours, format, merge, out)).map(|_| ())
 }

@@ -111,10 +111,12 @@ fn cancel_bounds_and_arrays_through_the_engine() {
 
     let (positions, faces) = meshvox::mesh::to_indexed(&mesh);
     assert!(positions.len() < 3 * faces.len(), "shared vertices are merged");
-    let again = meshvox::mesh::from_indexed("arrays", positions, faces).expect("arrays");
+    let again = meshvox::mesh::from_indexed("arrays", &positions, &faces).expect("arrays");
     let from_arrays =
         engine.voxelize("arrays", &again, &Request::new(Resolution::Count(48), Mode::Surface)).expect("arrays");
     assert_eq!(from_arrays.grid.words, whole.grid.words);
-    let error = meshvox::mesh::from_indexed("arrays", vec![glam::DVec3::ZERO; 2], vec![[0, 1, 2]]).expect_err("index");
+    let error = meshvox::mesh::from_indexed("arrays", &[glam::DVec3::ZERO; 2], &[[0, 1, 2]]).expect_err("index");
     assert!(error.to_string().contains("face 0 uses vertex 2"), "{error}");
+    let error = meshvox::mesh::from_indexed("arrays", &[glam::DVec3::ZERO; 3], &[[0i64, -1, 2]]).expect_err("negative");
+    assert!(error.to_string().contains("face 0 uses vertex -1"), "{error}");
 }

@@ -1,8 +1,10 @@
 //! Voxel file formats, one file each, with a writer and a reader (the readers serve round-trip tests and later
 //! loading grids back into the viewer): NumPy [`npy`], [`binvox`], MagicaVoxel [`vox`], and the voxel model as a
 //! [`mesh`] (`.glb`, `.ply`, `.obj`). This module names them ([`VoxelFormat`], [`MeshFormat`]), holds their one
-//! error type, and writes any of them with [`write_coloured`].
+//! error type, and writes any of them with [`write_coloured`]; [`atomic`] puts a file in place only when whole.
 
+#[cfg(not(target_arch = "wasm32"))]
+pub mod atomic;
 pub mod binvox;
 mod error;
 pub mod mesh;
