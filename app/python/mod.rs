@@ -84,7 +84,9 @@ fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
         return Err(PyValueError::new_err("vertices and faces must be C-contiguous"));
     };
     let (positions, faces): (&[DVec3], &[[i64; 3]]) = (bytemuck::cast_slice(v), bytemuck::cast_slice(f));
-    let mesh = mesh::from_indexed("arrays", positions, faces).map_err(|e| into_py_err(Failure::Mesh(e)))?;
+    // On the process's pool: the mesh is built in parallel, and rayon's global pool does not survive a fork.
+    let mesh = process::pool().install(|| mesh::from_indexed("arrays", positions, faces));
+    let mesh = mesh.map_err(|e| into_py_err(Failure::Mesh(e)))?;
     Ok(Input::Mesh(mesh))
 }
 

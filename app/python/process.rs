@@ -1,7 +1,7 @@
 //! What the binding keeps per process, and how a call runs: the engines (one per backend, opened on first use)
 //! and a rayon pool, both made again in a process forked after they were made (rayon's threads and a GPU device
 //! do not survive `fork()`: a child reusing them hangs or corrupts the parent's device), and [`run`], which
-//! does a call's work on a thread of its own while the calling thread, without the GIL, waits, reports progress
+//! does a call's work on that pool while the calling thread, without the GIL, waits, reports progress
 //! and watches for Ctrl-C.
 
 use crate::engine::{Backend, Engine, EngineError};
@@ -80,10 +80,11 @@ impl Control {
     }
 }
 
-/// Runs `work` on a thread of its own, inside the process's rayon pool, while the calling thread releases the GIL
-/// and every 50 ms calls `progress(done, total)` when it changed (from the calling thread, as Python code
-/// expects) and checks for signals. On Ctrl-C (or an exception in `progress`) the work is told to stop, waited
-/// for, and the exception raised; the engine stays usable. A panic in the work is a `RuntimeError`.
+/// Runs `work` on the process's rayon pool (a job on one of its threads; no thread is started per call) while the
+/// calling thread releases the GIL and every 50 ms calls `progress(done, total)` when it changed (from the calling
+/// thread, as Python code expects) and checks for signals. On Ctrl-C (or an exception in `progress`) the work is
+/// told to stop, waited for, and the exception raised; the engine stays usable. A panic in the work is a
+/// `RuntimeError`.
 pub(super) fn run<R: Send>(
     py: Python<'_>,
     progress: Option<&Bound<'_, PyAny>>,
@@ -91,20 +92,29 @@ pub(super) fn run<R: Send>(
 ) -> PyResult<R> {
     let control = Control::default();
     let pool = pool();
-    let (tx, mut rx) = std::sync::mpsc::channel::<()>();
-    std::thread::scope(|scope| {
-        let worker = scope.spawn(|| {
-            let result = pool.install(|| work(&control));
+    let (tx, mut rx) = std::sync::mpsc::channel::<std::thread::Result<R>>();
+    let mut outcome = None;
+    let mut failure = None;
+    // The scope ends when the job has: after its result arrived (or its sender was dropped by a panic).
+    pool.in_place_scope(|scope| {
+        let control = &control;
+        scope.spawn(move |_| {
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(control)));
             // The receiver may be gone (the caller stopped waiting); nothing to tell then.
-            let _ = tx.send(());
-            result
+            let _ = tx.send(result);
         });
         let mut reported = (usize::MAX, usize::MAX);
-        let mut failure = None;
         loop {
-            let (finished, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
+            let (received, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
             rx = back;
-            let finished = !matches!(finished, Err(std::sync::mpsc::RecvTimeoutError::Timeout));
+            let finished = match received {
+                Ok(result) => {
+                    outcome = Some(result);
+                    true
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => false,
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => true,
+            };
             let now = (control.done.load(Ordering::Relaxed), control.total.load(Ordering::Relaxed));
             if let Some(callback) = progress
                 && now.1 > 0
@@ -128,19 +138,18 @@ pub(super) fn run<R: Send>(
                 control.cancel.store(true, Ordering::Relaxed);
             }
         }
-        // The work has sent its end (or is about to): joining waits for its thread to exit, no more.
-        let result = worker.join();
-        match (failure, result) {
-            (Some(e), _) => Err(e),
-            (None, Ok(r)) => Ok(r),
-            (None, Err(panic)) => {
-                let what = panic
-                    .downcast_ref::<String>()
-                    .map(String::as_str)
-                    .or_else(|| panic.downcast_ref::<&str>().copied())
-                    .unwrap_or("unknown");
-                Err(pyo3::exceptions::PyRuntimeError::new_err(format!("meshvox failed inside: {what}")))
-            }
+    });
+    match (failure, outcome) {
+        (Some(e), _) => Err(e),
+        (None, Some(Ok(r))) => Ok(r),
+        (None, Some(Err(panic))) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("unknown");
+            Err(pyo3::exceptions::PyRuntimeError::new_err(format!("meshvox failed inside: {what}")))
         }
-    })
+        (None, None) => Err(pyo3::exceptions::PyRuntimeError::new_err("meshvox failed inside: no result")),
+    }
 }

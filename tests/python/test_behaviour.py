@@ -99,14 +99,22 @@ def _voxel_count(path):
     return int(meshvox.voxelize(path, 32, backend="cpu").matrix.sum())
 
 
+def _voxel_count_from_arrays(path):
+    # Arrays are made into a mesh in parallel (large meshes) before the engine runs: on the process's own pool.
+    return int(meshvox.voxelize(meshvox.load(path), 32, backend="cpu").matrix.sum())
+
+
 @pytest.mark.skipif(os.name != "posix", reason="fork is POSIX")
 def test_a_forked_pool_voxelizes_after_the_parent_did(meshes):
     paths = [str(meshes / n) for n in ["stanford-bunny.obj", "suzanne.obj", "teapot.obj", "spot.obj", "gltf/Duck.glb"]] * 2
     # The parent has made its thread pool and engine before forking: the children must make their own.
     expected = [_voxel_count(p) for p in paths]
+    assert [_voxel_count_from_arrays(p) for p in paths[:5]] == expected[:5]
     with multiprocessing.get_context("fork").Pool(2) as pool:
         counts = pool.map_async(_voxel_count, paths).get(timeout=120)
+        from_arrays = pool.map_async(_voxel_count_from_arrays, paths).get(timeout=120)
     assert counts == expected
+    assert from_arrays == expected
 
 
 def test_dask_maps_voxelize_over_the_meshes(meshes):
