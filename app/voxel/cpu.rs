@@ -15,6 +15,7 @@
 
 use super::lattice::{Lattice, on_lattice};
 pub use super::overlap::*;
+use super::sparse::{LEAF_DIM, LeafSet, SparseGrid};
 pub use super::thin::{ThinShrink, thin_shrink, voxel_decision_thin, voxel_overlaps_exact_thin};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
@@ -285,17 +286,62 @@ pub fn voxelize_grid_space_cancellable(
 ) -> Result<(VoxelGrid, CpuStats), super::GridError> {
     let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
     let mut grid = VoxelGrid::new(spec)?;
-    let thin = mode == Mode::Surface6;
     let (wpr, dims) = (spec.words_per_row(), spec.dims);
     let layer_words = wpr * dims.y as usize;
+    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1);
+    let mut bands: Vec<(u32, &mut [u32])> =
+        grid.words.chunks_mut(layer_words * band).enumerate().map(|(b, words)| ((b * band) as u32, words)).collect();
+    let stats =
+        walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |(z0, words), x0, x1, y, z| {
+            let row = ((z - *z0) as usize * dims.y as usize + y as usize) * wpr;
+            set_run(&mut words[row..row + wpr], x0, x1);
+        });
+    if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
+        super::solid::fill(&triangles, lattice, &mut grid);
+    }
+    Ok((grid, stats))
+}
+
+/// [`voxelize_grid_space_cancellable`] into a [`SparseGrid`]: the same walk writing runs into leaves, with bands
+/// a whole number of leaves thick, so memory grows with the leaves the surface touches. Surface modes only (the
+/// sparse solid fill is not here yet).
+pub fn voxelize_grid_space_sparse(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    mode: Mode,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<(SparseGrid, CpuStats), super::GridError> {
+    let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+    let dims = spec.dims;
+    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1).next_multiple_of(LEAF_DIM as usize);
+    let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
+    let stats = walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
+        set.set_run(x0, x1, y, z)
+    });
+    Ok((SparseGrid::from_leaf_sets(spec, bands), stats))
+}
+
+/// The walk over the grid cut into bands of `band` z layers (`sinks[b]` receives the runs of band `b`, layers
+/// `b * band ..`), one rayon task each: a task owns its sink, so it writes without atomics, and a 12-triangle
+/// cube keeps every core as busy as a dense mesh. Set-ups once per triangle (as the shader's `setup` pass), in
+/// batches that bound the memory they take; each band walks the work items of its layers.
+#[allow(clippy::too_many_arguments)]
+fn walk_bands<S: Send>(
+    triangles: &[[Vec3; 3]],
+    lattice: Lattice,
+    dims: UVec3,
+    mode: Mode,
+    band: usize,
+    sinks: &mut [S],
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+    fill: impl Fn(&mut S, u32, u32, u32, u32) + Sync,
+) -> CpuStats {
+    let thin = mode == Mode::Surface6;
     let done = AtomicUsize::new(0);
     let exact = AtomicU64::new(0);
-    // Set-ups once per triangle (as the shader's `setup` pass), then the grid is cut into bands of z layers, one
-    // task each, and every band walks the work items of its layers: a task owns its words, so it ORs without
-    // atomics, and a 12-triangle cube keeps every core as busy as a dense mesh. Batches bound the memory the
-    // set-ups take.
     const BATCH: usize = 1 << 14;
-    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1);
     let mut setups = Vec::new();
     for batch in triangles.chunks(BATCH) {
         batch
@@ -306,7 +352,7 @@ pub fn voxelize_grid_space_cancellable(
                 (s, shrink)
             })
             .collect_into_vec(&mut setups);
-        let mut bins = vec![Vec::new(); (dims.z as usize).div_ceil(band)];
+        let mut bins = vec![Vec::new(); sinks.len()];
         for (t, (s, _)) in setups.iter().enumerate() {
             if work_items(s) > 0 {
                 for bin in &mut bins[s.lo.z as usize / band..=s.hi.z as usize / band] {
@@ -314,9 +360,9 @@ pub fn voxelize_grid_space_cancellable(
                 }
             }
         }
-        grid.words.par_chunks_mut(layer_words * band).zip(bins.par_iter()).enumerate().for_each(|(b, (words, bin))| {
+        sinks.par_iter_mut().zip(bins.par_iter()).enumerate().for_each(|(b, (sink, bin))| {
             let z0 = (b * band) as u32;
-            let z1 = z0 + (words.len() / layer_words) as u32 - 1;
+            let z1 = (z0 + band as u32).min(dims.z) - 1;
             let mut exact_tests = 0;
             for &t in bin {
                 if cancel.load(Ordering::Relaxed) {
@@ -326,20 +372,14 @@ pub fn voxelize_grid_space_cancellable(
                 // Work items are z-major, so the band's layers are one contiguous range of them.
                 let cpr = chunks_per_row(s);
                 let items = (s.lo.z.max(z0) - s.lo.z) * cpr..(s.hi.z.min(z1) - s.lo.z + 1) * cpr;
-                exact_tests += voxelize_items(s, shrink.as_ref(), items, |x0, x1, y, z| {
-                    let row = ((z - z0) as usize * dims.y as usize + y as usize) * wpr;
-                    set_run(&mut words[row..row + wpr], x0, x1);
-                });
+                exact_tests += voxelize_items(s, shrink.as_ref(), items, |x0, x1, y, z| fill(sink, x0, x1, y, z));
             }
             exact.fetch_add(exact_tests, Ordering::Relaxed);
         });
         let finished = done.fetch_add(batch.len(), Ordering::Relaxed) + batch.len();
         progress(finished, triangles.len());
     }
-    if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
-        super::solid::fill(&triangles, lattice, &mut grid);
-    }
-    Ok((grid, CpuStats { exact_tests: exact.into_inner() }))
+    CpuStats { exact_tests: exact.into_inner() }
 }
 
 /// Voxelizes a world-space mesh on the CPU.

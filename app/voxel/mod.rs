@@ -26,10 +26,12 @@ mod grid;
 mod lattice;
 pub mod overlap;
 pub mod solid;
+pub mod sparse;
 pub mod thin;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};
+pub use sparse::SparseGrid;
 
 /// What a voxelization produces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Hash)]

@@ -22,6 +22,7 @@ mod optimized_gltf;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;
+mod sparse;
 mod ui_snapshot;
 mod untrusted;
 mod url_state;

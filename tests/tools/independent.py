@@ -2,7 +2,7 @@
 for .binvox, trimesh for mesh triangle counts and bounds, and trimesh with Pillow for voxel colours. Prints one
 JSON object on stdout.
 
-usage: independent.py npy FILE | binvox FILE | mesh FILE | surface FILE | colours MESH GRID.npy OX,OY,OZ H
+usage: independent.py npy FILE | npz FILE | binvox FILE | mesh FILE | surface FILE | colours MESH GRID.npy OX,OY,OZ H
        | convert SRC DST [ascii] [coloured]
 """
 import json
@@ -14,6 +14,27 @@ import numpy as np
 def npy(path):
     a = np.load(path)
     return {"shape": list(a.shape), "dtype": str(a.dtype), "set": np.argwhere(a != 0).tolist()}
+
+
+def npz(path):
+    """An .npz of sparse coordinates as np.load reads it: every array's dtype and shape, the coordinates, and
+    whether they are sorted by x, then y, then z without repeats (np.lexsort, keys last-first)."""
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    coords = arrays["coords"]
+    order = np.lexsort((coords[:, 2], coords[:, 1], coords[:, 0])) if len(coords) else np.arange(0)
+    unique = len(np.unique(coords, axis=0)) == len(coords) if len(coords) else True
+    return {
+        "files": sorted(arrays),
+        "dtypes": {k: str(a.dtype) for k, a in arrays.items()},
+        "shapes": {k: list(a.shape) for k, a in arrays.items()},
+        "set": coords.tolist(),
+        "sorted": bool(np.array_equal(order, np.arange(len(coords))) and unique),
+        "origin": arrays["origin"].tolist(),
+        "voxel_size": float(arrays["voxel_size"]),
+        "dims": arrays["dims"].tolist(),
+        "colors": arrays["colors"].tolist() if "colors" in arrays else None,
+    }
 
 
 def binvox_file(path):
@@ -207,4 +228,4 @@ if __name__ == "__main__":
         origin = [float(v) for v in sys.argv[4].split(",")]
         print(json.dumps(colours(path, sys.argv[3], origin, float(sys.argv[5]))))
     else:
-        print(json.dumps({"npy": npy, "binvox": binvox_file, "mesh": mesh, "surface": surface}[kind](path)))
+        print(json.dumps({"npy": npy, "npz": npz, "binvox": binvox_file, "mesh": mesh, "surface": surface}[kind](path)))

@@ -9,6 +9,7 @@ pub mod binvox;
 mod error;
 pub mod mesh;
 pub mod npy;
+pub mod npz;
 pub mod palette;
 pub mod vox;
 
@@ -16,6 +17,7 @@ pub use binvox::{read_binvox, write_binvox};
 pub use error::FormatError;
 pub use mesh::MeshFormat;
 pub use npy::{read_npy, write_colours_npy, write_npy};
+pub use npz::write_npz;
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
 use super::VoxelGrid;

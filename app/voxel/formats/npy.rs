@@ -12,7 +12,7 @@ use std::io::{Read, Write};
 /// sRGB RGBA, alpha 255 where a voxel is set and all zero where none is.
 pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
-    write_npy_header(&format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
+    write_npy_header("|u1", &format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
     let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
     // The dense array is x-major here and z-fastest in the file: one x-slice (y × z × 4 bytes) at a time.
     let mut slice = vec![0u8; ny * nz * 4];
@@ -31,8 +31,10 @@ pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut imp
     Ok(())
 }
 
-fn write_npy_header(shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
-    let mut header = format!("{{'descr': '|u1', 'fortran_order': False, 'shape': {shape}, }}");
+/// The `.npy` header of a C-order array of dtype `descr` (numpy's `'|u1'`, `'<i4'`, ...) and shape `shape` (a
+/// Python tuple, as `"(3,)"`).
+pub(crate) fn write_npy_header(descr: &str, shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
     let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
     header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));
@@ -49,7 +51,7 @@ const NPY_MAGIC: &[u8] = b"\x93NUMPY";
 /// Writes an `.npy` file. Works through the grid 32 x-slices at a time so memory stays at one slab.
 pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
-    write_npy_header(&format!("({}, {}, {})", d.x, d.y, d.z), out)?;
+    write_npy_header("|u1", &format!("({}, {}, {})", d.x, d.y, d.z), out)?;
 
     let (ny, nz) = (d.y as usize, d.z as usize);
     let wpr = grid.spec.words_per_row();

@@ -1,0 +1,97 @@
+//! `.npz`: sparse coordinates as numpy reads them (`np.load("grid.npz")`), for sparse-convolution networks
+//! (MinkowskiEngine, spconv, torchsparse) and anything else that wants a list rather than a volume. A zip (stored,
+//! as `np.savez` writes it; zip64 when an array passes 4 GiB) of `.npy` arrays:
+//!
+//! | array | dtype, shape | what |
+//! |---|---|---|
+//! | `coords` | int32 (N, 3) | the set voxels `[x, y, z]`, sorted by x, then y, then z |
+//! | `origin` | float64 (3,) | the world minimum corner of voxel (0, 0, 0) |
+//! | `voxel_size` | float64 () | the voxels' edge length |
+//! | `dims` | int64 (3,) | the grid's size in voxels |
+//! | `colors` | uint8 (N, 4) | sRGB RGBA of each voxel in `coords`' order, when coloured |
+//!
+//! Written in a stream from the sparse grid, one x-slab of leaves at a time (the zip crate patches each entry's
+//! sizes and checksum afterwards, hence `Seek`).
+
+use super::error::FormatError;
+use super::npy::write_npy_header;
+use crate::voxel::SparseGrid;
+use glam::UVec3;
+use std::io::{Seek, Write};
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, ZipWriter};
+
+fn zip_error(e: zip::result::ZipError) -> FormatError {
+    FormatError::Io(std::io::Error::other(e.to_string()))
+}
+
+/// Writes `grid` (and `colour(v)` for each set voxel `v`, when given) as an `.npz`.
+pub fn write_npz<W: Write + Seek>(
+    grid: &SparseGrid,
+    colour: Option<&dyn Fn(UVec3) -> [u8; 4]>,
+    out: W,
+) -> Result<(), FormatError> {
+    let n = grid.count();
+    let mut zip = ZipWriter::new(out);
+    let options = |bytes: u64| {
+        SimpleFileOptions::default()
+            .compression_method(CompressionMethod::Stored)
+            .large_file(bytes >= u64::from(u32::MAX) - 1024)
+    };
+    zip.start_file("coords.npy", options(n * 12)).map_err(zip_error)?;
+    write_npy_header("<i4", &format!("({n}, 3)"), &mut zip)?;
+    let mut bytes = Vec::new();
+    let mut failed = None;
+    grid.for_each_sorted(|voxels| {
+        if failed.is_some() {
+            return;
+        }
+        bytes.clear();
+        for v in voxels {
+            for c in v.to_array() {
+                bytes.extend_from_slice(&(c as i32).to_le_bytes());
+            }
+        }
+        if let Err(e) = zip.write_all(&bytes) {
+            failed = Some(e);
+        }
+    });
+    if let Some(e) = failed {
+        return Err(e.into());
+    }
+    if let Some(colour) = colour {
+        zip.start_file("colors.npy", options(n * 4)).map_err(zip_error)?;
+        write_npy_header("|u1", &format!("({n}, 4)"), &mut zip)?;
+        grid.for_each_sorted(|voxels| {
+            if failed.is_some() {
+                return;
+            }
+            bytes.clear();
+            for &v in voxels {
+                bytes.extend_from_slice(&colour(v));
+            }
+            if let Err(e) = zip.write_all(&bytes) {
+                failed = Some(e);
+            }
+        });
+        if let Some(e) = failed {
+            return Err(e.into());
+        }
+    }
+    let spec = &grid.spec;
+    zip.start_file("origin.npy", options(0)).map_err(zip_error)?;
+    write_npy_header("<f8", "(3,)", &mut zip)?;
+    for c in spec.origin.to_array() {
+        zip.write_all(&c.to_le_bytes())?;
+    }
+    zip.start_file("voxel_size.npy", options(0)).map_err(zip_error)?;
+    write_npy_header("<f8", "()", &mut zip)?;
+    zip.write_all(&spec.voxel_size.to_le_bytes())?;
+    zip.start_file("dims.npy", options(0)).map_err(zip_error)?;
+    write_npy_header("<i8", "(3,)", &mut zip)?;
+    for d in spec.dims.to_array() {
+        zip.write_all(&i64::from(d).to_le_bytes())?;
+    }
+    zip.finish().map_err(zip_error)?;
+    Ok(())
+}

@@ -1,0 +1,275 @@
+//! [`SparseGrid`]: the voxels of a [`VoxelGrid`] in memory that grows with the surface, not the volume: 8³ leaves
+//! of 512 bits (only those with a voxel set) and tiles, cubes of 8³, 128³ or 4096³ voxels that are all set (a
+//! solid's interior). The sizes are OpenVDB's 5-4-3 tree (leaves, and the children of its two internal levels), so
+//! the `.vdb` writer writes leaves and tiles as they are.
+//!
+//! # Layout
+//! A leaf is keyed by its origin, x-major like OpenVDB's trees ([`leaf_key`]: x, then y, then z), and its mask is
+//! OpenVDB's: voxel `(x, y, z)` of the leaf (each 0..8) is bit `y * 8 + z` of word `x`. Leaves are kept sorted by
+//! key, tiles by size and then key. No leaf is empty; a tile and a leaf never overlap; nothing lies outside the
+//! grid's dims (a tile is a block that is all set, so it is inside the grid by construction).
+//!
+//! The CPU walk writes runs of voxels along x ([`LeafSet::set_run`]) into one [`LeafSet`] per band of z layers
+//! (a multiple of 8 thick, so a band owns its leaves and needs no locks), and [`SparseGrid::from_leaf_sets`]
+//! joins them.
+
+use super::{GridSpec, VoxelGrid};
+use glam::UVec3;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Voxels along each edge of a leaf.
+pub const LEAF_DIM: u32 = 8;
+
+/// A leaf's 512 voxels: bit `y * 8 + z` of word `x` (OpenVDB's order).
+pub type LeafMask = [u64; 8];
+
+/// A leaf whose voxels are all set.
+pub const FULL_LEAF: LeafMask = [u64::MAX; 8];
+
+/// Edge lengths (log2, in voxels) of the tiles: a leaf, an internal node of 16³ leaves, one of 32³ of those.
+pub const TILE_LOG2: [u32; 3] = [3, 7, 12];
+
+/// The sort key of the leaf holding voxel `(x, y, z)`: its leaf coordinates, x-major (13 bits each covers
+/// [`super::MAX_DIM`]).
+#[inline]
+pub fn leaf_key(x: u32, y: u32, z: u32) -> u64 {
+    u64::from(x >> 3) << 26 | u64::from(y >> 3) << 13 | u64::from(z >> 3)
+}
+
+/// The minimum corner of the leaf with key `key`.
+#[inline]
+pub fn key_origin(key: u64) -> UVec3 {
+    let at = |shift: u32| ((key >> shift) as u32 & 0x1fff) << 3;
+    UVec3::new(at(26), at(13), at(0))
+}
+
+/// The bit of voxel `(x, y, z)` (grid coordinates) in its leaf's mask: `(word, bit)`.
+#[inline]
+pub fn leaf_bit(x: u32, y: u32, z: u32) -> (usize, u32) {
+    ((x & 7) as usize, (y & 7) * 8 + (z & 7))
+}
+
+/// A cube of voxels that are all set: `1 << log2` voxels along each edge, one of [`TILE_LOG2`], at `origin` (a
+/// multiple of its edge).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Tile {
+    pub log2: u32,
+    pub origin: UVec3,
+}
+
+impl Tile {
+    pub fn voxels(&self) -> u64 {
+        1u64 << (3 * self.log2)
+    }
+
+    fn sort_key(&self) -> (u32, u64) {
+        (self.log2, leaf_key(self.origin.x, self.origin.y, self.origin.z))
+    }
+}
+
+/// A sparse voxel grid (see the module documentation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SparseGrid {
+    pub spec: GridSpec,
+    /// Leaves with at least one voxel set, sorted by [`leaf_key`].
+    pub leaves: Vec<(u64, LeafMask)>,
+    /// Blocks that are all set, sorted by size and then origin.
+    pub tiles: Vec<Tile>,
+}
+
+impl SparseGrid {
+    /// An empty grid.
+    pub fn new(spec: GridSpec) -> SparseGrid {
+        SparseGrid { spec, leaves: Vec::new(), tiles: Vec::new() }
+    }
+
+    /// The grid of the leaves the walk's bands set (each band's keys its own).
+    pub fn from_leaf_sets(spec: GridSpec, sets: Vec<LeafSet>) -> SparseGrid {
+        let mut leaves: Vec<(u64, LeafMask)> = sets.into_iter().flat_map(|s| s.leaves).collect();
+        leaves.par_sort_unstable_by_key(|(key, _)| *key);
+        SparseGrid { spec, leaves, tiles: Vec::new() }
+    }
+
+    /// The same voxels as `grid`.
+    pub fn from_dense(grid: &VoxelGrid) -> SparseGrid {
+        let mut set = LeafSet::default();
+        let (wpr, dims) = (grid.spec.words_per_row(), grid.spec.dims);
+        for (r, row) in grid.words.chunks(wpr).enumerate() {
+            let (y, z) = ((r % dims.y as usize) as u32, (r / dims.y as usize) as u32);
+            for (i, &w) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
+                // Each run of set bits in the word.
+                let mut bits = w;
+                while bits != 0 {
+                    let lo = bits.trailing_zeros();
+                    let len = (bits >> lo).trailing_ones();
+                    let x0 = i as u32 * 32 + lo;
+                    set.set_run(x0, x0 + len - 1, y, z);
+                    bits &= if lo + len >= 32 { 0 } else { u32::MAX << (lo + len) };
+                }
+            }
+        }
+        SparseGrid::from_leaf_sets(grid.spec, vec![set])
+    }
+
+    /// The same voxels as a dense grid (which must fit in memory).
+    pub fn to_dense(&self) -> Result<VoxelGrid, super::GridError> {
+        let mut grid = VoxelGrid::new(self.spec)?;
+        self.for_each_leaf_mask(|origin, mask| {
+            for (x, &word) in mask.iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let b = bits.trailing_zeros();
+                    grid.set(origin.x + x as u32, origin.y + b / 8, origin.z + b % 8);
+                    bits &= bits - 1;
+                }
+            }
+        });
+        Ok(grid)
+    }
+
+    /// Calls `f(origin, mask)` for every leaf and every leaf-sized block of every tile (as a full mask), in no
+    /// particular order.
+    pub fn for_each_leaf_mask(&self, mut f: impl FnMut(UVec3, &LeafMask)) {
+        for (key, mask) in &self.leaves {
+            f(key_origin(*key), mask);
+        }
+        for tile in &self.tiles {
+            let n = 1u32 << (tile.log2 - 3);
+            for i in 0..n {
+                for j in 0..n {
+                    for k in 0..n {
+                        f(tile.origin + UVec3::new(i, j, k) * LEAF_DIM, &FULL_LEAF);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether voxel `(x, y, z)` is set.
+    pub fn get(&self, x: u32, y: u32, z: u32) -> bool {
+        let v = UVec3::new(x, y, z);
+        if let Ok(i) = self.leaves.binary_search_by_key(&leaf_key(x, y, z), |(k, _)| *k) {
+            let (w, b) = leaf_bit(x, y, z);
+            return self.leaves[i].1[w] >> b & 1 != 0;
+        }
+        TILE_LOG2.iter().any(|&log2| {
+            let tile = Tile { log2, origin: (v >> log2) << log2 };
+            self.tiles.binary_search_by_key(&tile.sort_key(), Tile::sort_key).is_ok()
+        })
+    }
+
+    /// Number of set voxels.
+    pub fn count(&self) -> u64 {
+        let leaves: u64 =
+            self.leaves.par_iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum();
+        leaves + self.tiles.iter().map(Tile::voxels).sum::<u64>()
+    }
+
+    /// Bytes the leaves and tiles take (what grows with the surface).
+    pub fn byte_size(&self) -> u64 {
+        (self.leaves.len() * std::mem::size_of::<(u64, LeafMask)>() + self.tiles.len() * std::mem::size_of::<Tile>())
+            as u64
+    }
+
+    /// The set voxels sorted by x, then y, then z, handed to `f` in slices (one x-slab of leaves at a time, so
+    /// memory stays at one slab's worth however many voxels there are).
+    pub fn for_each_sorted(&self, mut f: impl FnMut(&[UVec3])) {
+        // Leaves grouped by their x-slab (leaves are sorted x-major); tiles spanning the slab added as full
+        // leaves.
+        let slabs = self.spec.dims.x.div_ceil(LEAF_DIM);
+        let mut next = 0;
+        let mut slab: Vec<(u32, u32, LeafMask)> = Vec::new();
+        let mut out: Vec<UVec3> = Vec::new();
+        for lx in 0..slabs {
+            slab.clear();
+            while next < self.leaves.len() && key_origin(self.leaves[next].0).x == lx * LEAF_DIM {
+                let o = key_origin(self.leaves[next].0);
+                slab.push((o.y, o.z, self.leaves[next].1));
+                next += 1;
+            }
+            for tile in self.tiles.iter().filter(|t| (lx * LEAF_DIM) >> t.log2 == t.origin.x >> t.log2) {
+                let n = 1u32 << (tile.log2 - 3);
+                for j in 0..n {
+                    for k in 0..n {
+                        slab.push((tile.origin.y + j * LEAF_DIM, tile.origin.z + k * LEAF_DIM, FULL_LEAF));
+                    }
+                }
+            }
+            slab.sort_unstable_by_key(|&(y, z, _)| (y, z));
+            for x in 0..LEAF_DIM {
+                out.clear();
+                // Rows of leaves with the same y origin, then each y within them, then each leaf's z.
+                let mut start = 0;
+                while start < slab.len() {
+                    let y0 = slab[start].0;
+                    let end = start + slab[start..].iter().take_while(|l| l.0 == y0).count();
+                    for y in 0..LEAF_DIM {
+                        for &(_, z0, mask) in &slab[start..end] {
+                            let byte = (mask[x as usize] >> (y * 8)) & 0xff;
+                            let mut bits = byte;
+                            while bits != 0 {
+                                let z = bits.trailing_zeros();
+                                out.push(UVec3::new(lx * LEAF_DIM + x, y0 + y, z0 + z));
+                                bits &= bits - 1;
+                            }
+                        }
+                    }
+                    start = end;
+                }
+                if !out.is_empty() {
+                    f(&out);
+                }
+            }
+        }
+    }
+}
+
+/// The leaves one task of the walk sets (see the module documentation).
+#[derive(Default)]
+pub struct LeafSet {
+    index: HashMap<u64, u32>,
+    leaves: Vec<(u64, LeafMask)>,
+    /// The last leaf written: runs come row by row, and the next one is usually in the same leaf.
+    last: Option<(u64, u32)>,
+}
+
+impl LeafSet {
+    /// Sets voxels `x0..=x1` of row `(y, z)` (the walk's `fill`).
+    pub fn set_run(&mut self, x0: u32, x1: u32, y: u32, z: u32) {
+        let bit = 1u64 << ((y & 7) * 8 + (z & 7));
+        let mut x = x0;
+        while x <= x1 {
+            let end = (x | 7).min(x1);
+            let mask = self.leaf(leaf_key(x, y, z));
+            for word in &mut mask[(x & 7) as usize..=(end & 7) as usize] {
+                *word |= bit;
+            }
+            x = end + 1;
+        }
+    }
+
+    fn leaf(&mut self, key: u64) -> &mut LeafMask {
+        let i = match self.last {
+            Some((k, i)) if k == key => i,
+            _ => {
+                let leaves = &mut self.leaves;
+                let i = *self.index.entry(key).or_insert_with(|| {
+                    leaves.push((key, [0; 8]));
+                    (leaves.len() - 1) as u32
+                });
+                self.last = Some((key, i));
+                i
+            }
+        };
+        &mut self.leaves[i as usize].1
+    }
+
+    pub fn len(&self) -> usize {
+        self.leaves.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.leaves.is_empty()
+    }
+}
