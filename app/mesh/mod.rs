@@ -106,11 +106,7 @@ impl Mesh {
     /// rounded to f32 only as offsets from that anchor. The mesh must be empty.
     pub(crate) fn push_pieces(&mut self, pieces: Vec<Piece>) {
         debug_assert!(self.triangles.is_empty());
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for piece in &pieces {
-            used_bounds(&piece.positions, &used(piece.positions.len(), &piece.triangles), &mut lo, &mut hi);
-        }
-        self.anchor = centre(lo, hi);
+        self.anchor = anchor_of(pieces.iter().map(|p| (p.positions.as_slice(), used(p.positions.len(), &p.triangles))));
         for piece in pieces {
             if let Some(shading) = &mut self.shading {
                 let uv = |i: u32| piece.uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
@@ -166,18 +162,18 @@ fn used(count: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
     used
 }
 
-/// Grows `lo..hi` by the finite positions marked used: only positions a triangle uses count, so that a stray
-/// vertex far away does not pull the anchor off the mesh. Marking them first and reading them in order is
-/// cheaper than visiting them through every triangle corner.
-fn used_bounds(positions: &[DVec3], used: &[bool], lo: &mut DVec3, hi: &mut DVec3) {
-    for (v, _) in positions.iter().zip(used).filter(|(v, used)| **used && v.is_finite()) {
-        *lo = lo.min(*v);
-        *hi = hi.max(*v);
+/// The anchor: the centre of the finite positions marked used, over every `(positions, used)` set; the origin
+/// when there are none. Only positions a triangle uses count, so that a stray vertex far away does not pull the
+/// anchor off the mesh; marking them first and reading them in order is cheaper than visiting them through every
+/// triangle corner.
+fn anchor_of<'a>(sets: impl IntoIterator<Item = (&'a [DVec3], Vec<bool>)>) -> DVec3 {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for (positions, used) in sets {
+        for (v, _) in positions.iter().zip(&used).filter(|(v, used)| **used && v.is_finite()) {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
     }
-}
-
-/// The anchor: the centre of `lo..hi`, or the origin when nothing grew it.
-fn centre(lo: DVec3, hi: DVec3) -> DVec3 {
     if lo.cmple(hi).all() { lo + (hi - lo) * 0.5 } else { DVec3::ZERO }
 }
 
@@ -358,9 +354,7 @@ where
         }
         triangles.push(t);
     }
-    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-    used_bounds(positions, &used, &mut lo, &mut hi);
-    let mut mesh = Mesh { name: name.to_string(), anchor: centre(lo, hi), ..Mesh::default() };
+    let mut mesh = Mesh { name: name.to_string(), anchor: anchor_of([(positions, used)]), ..Mesh::default() };
     let part = Part { name: name.to_string(), mesh: 0, primitive: 0, material: None };
     mesh.push_part(part, local_triangles(positions, &triangles, mesh.anchor));
     Ok(mesh)

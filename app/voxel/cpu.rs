@@ -288,7 +288,7 @@ pub fn voxelize_grid_space_cancellable(
     let mut grid = VoxelGrid::new(spec)?;
     let (wpr, dims) = (spec.words_per_row(), spec.dims);
     let layer_words = wpr * dims.y as usize;
-    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1);
+    let band = band_layers(dims.z);
     let mut bands: Vec<(u32, &mut [u32])> =
         grid.words.chunks_mut(layer_words * band).enumerate().map(|(b, words)| ((b * band) as u32, words)).collect();
     let stats =
@@ -314,12 +314,17 @@ pub fn voxelize_grid_space_sparse(
 ) -> Result<(SparseGrid, CpuStats), super::GridError> {
     let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
     let dims = spec.dims;
-    let band = (dims.z as usize).div_ceil(8 * rayon::current_num_threads()).max(1).next_multiple_of(LEAF_DIM as usize);
+    let band = band_layers(dims.z).next_multiple_of(LEAF_DIM as usize);
     let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
     let stats = walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
         set.set_run(x0, x1, y, z)
     });
     Ok((SparseGrid::from_leaf_sets(spec, bands), stats))
+}
+
+/// z layers per band of [`walk_bands`]: about eight bands per thread, so that bands of unequal work even out.
+fn band_layers(dims_z: u32) -> usize {
+    (dims_z as usize).div_ceil(8 * rayon::current_num_threads()).max(1)
 }
 
 /// The walk over the grid cut into bands of `band` z layers (`sinks[b]` receives the runs of band `b`, layers

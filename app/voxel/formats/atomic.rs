@@ -57,11 +57,9 @@ impl AtomicFile {
         mut self,
         write: impl FnOnce(&mut BufWriter<&File>) -> Result<(), E>,
     ) -> Result<u64, E> {
-        let Some(temp) = self.temp.take() else {
-            return Err(io::Error::other("the temporary file is gone").into());
-        };
-        // Put back so that Drop deletes it if writing fails.
-        let temp = &*self.temp.insert(temp);
+        // Left in `self` while writing, so that Drop deletes it if writing fails.
+        let gone = || io::Error::other("the temporary file is gone");
+        let temp = self.temp.as_ref().ok_or_else(gone)?;
         let mut out = BufWriter::new(temp.as_file());
         write(&mut out)?;
         out.flush()?;
@@ -74,9 +72,7 @@ impl AtomicFile {
             let _ = temp.as_file().set_permissions(std::fs::Permissions::from_mode(0o644));
         }
         let mut list = partials();
-        let Some(temp) = self.temp.take() else {
-            return Err(io::Error::other("the temporary file is gone").into());
-        };
+        let temp = self.temp.take().ok_or_else(gone)?;
         let temp_path = temp.path().to_path_buf();
         list.retain(|p| *p != temp_path);
         temp.persist(&self.path).map_err(|e| e.error)?;

@@ -40,43 +40,15 @@ pub fn write_npz<W: Write + Seek>(
     };
     zip.start_file("coords.npy", options(n * 12)).map_err(zip_error)?;
     write_npy_header("<i4", &format!("({n}, 3)"), &mut zip)?;
-    let mut bytes = Vec::new();
-    let mut failed = None;
-    grid.for_each_sorted(|voxels| {
-        if failed.is_some() {
-            return;
+    write_sorted(grid, &mut zip, |v, bytes| {
+        for c in v.to_array() {
+            bytes.extend_from_slice(&(c as i32).to_le_bytes());
         }
-        bytes.clear();
-        for v in voxels {
-            for c in v.to_array() {
-                bytes.extend_from_slice(&(c as i32).to_le_bytes());
-            }
-        }
-        if let Err(e) = zip.write_all(&bytes) {
-            failed = Some(e);
-        }
-    });
-    if let Some(e) = failed {
-        return Err(e.into());
-    }
+    })?;
     if let Some(colour) = colour {
         zip.start_file("colors.npy", options(n * 4)).map_err(zip_error)?;
         write_npy_header("|u1", &format!("({n}, 4)"), &mut zip)?;
-        grid.for_each_sorted(|voxels| {
-            if failed.is_some() {
-                return;
-            }
-            bytes.clear();
-            for &v in voxels {
-                bytes.extend_from_slice(&colour(v));
-            }
-            if let Err(e) = zip.write_all(&bytes) {
-                failed = Some(e);
-            }
-        });
-        if let Some(e) = failed {
-            return Err(e.into());
-        }
+        write_sorted(grid, &mut zip, |v, bytes| bytes.extend_from_slice(&colour(v)))?;
     }
     let spec = &grid.spec;
     zip.start_file("origin.npy", options(0)).map_err(zip_error)?;
@@ -94,4 +66,25 @@ pub fn write_npz<W: Write + Seek>(
     }
     zip.finish().map_err(zip_error)?;
     Ok(())
+}
+
+/// Writes `encode(v)` for every set voxel `v` of `grid` in the sorted order, a slab at a time.
+fn write_sorted(
+    grid: &SparseGrid,
+    out: &mut impl Write,
+    encode: impl Fn(UVec3, &mut Vec<u8>),
+) -> Result<(), FormatError> {
+    let mut bytes = Vec::new();
+    let mut failed = None;
+    grid.for_each_sorted(|voxels| {
+        if failed.is_some() {
+            return;
+        }
+        bytes.clear();
+        for &v in voxels {
+            encode(v, &mut bytes);
+        }
+        failed = out.write_all(&bytes).err();
+    });
+    failed.map_or(Ok(()), |e| Err(e.into()))
 }
