@@ -34,7 +34,7 @@ pub struct BatchArgs {
     #[arg(long, value_enum, default_value_t = super::AxisArg::Longest)]
     axis: super::AxisArg,
     /// Output format (the extension of every output file).
-    #[arg(long, value_name = "FORMAT", default_value = "npy", value_parser = ["npy", "binvox", "vox", "glb", "ply", "obj"])]
+    #[arg(long, value_name = "FORMAT", default_value = "npy", value_parser = ["npy", "binvox", "vox", "vdb", "npz", "glb", "ply", "obj"])]
     format: String,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles.
     #[arg(long)]
@@ -57,6 +57,8 @@ pub struct BatchArgs {
     /// Write one JSON line per input: the `--stats-json` keys plus `status` (done, skipped, failed) and `error`.
     #[arg(long, value_name = "FILE.jsonl")]
     manifest: Option<PathBuf>,
+    #[command(flatten)]
+    grid: super::GridArgs,
     #[command(flatten)]
     colour: ColourArgs,
     #[command(flatten)]
@@ -198,6 +200,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     // clap allows only the formats' names; the same --merge check as `voxelize`, once.
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
+    args.grid.check(format)?;
     let outputs = plan_outputs(args, &items, format)?;
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
@@ -302,6 +305,7 @@ impl Work<'_> {
             mode: args.mode,
             stats_json: false,
             backend: args.backend,
+            grid: args.grid,
             colour: args.colour.clone(),
             limits: args.limits.clone(),
         }

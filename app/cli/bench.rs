@@ -284,7 +284,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         _ => None,
     };
     let out = last.ok_or_else(|| anyhow!("no runs"))?;
-    let d = out.grid.spec.dims;
+    let d = out.grid.spec().dims;
     let row = Row {
         mesh: name.to_string(),
         triangles: m.triangles.len(),

@@ -158,6 +158,46 @@ enum BackendArg {
     Cpu,
 }
 
+/// Which grid holds the voxels, and how sparse outputs are written.
+#[derive(clap::Args, Clone, Copy)]
+pub(super) struct GridArgs {
+    /// The grid: dense bits, sparse 8³ leaves and tiles (memory grows with the surface), or auto: sparse for a
+    /// .vdb or .npz output or where the dense grid would not fit the memory budget.
+    #[arg(long, value_enum, default_value_t = GridArg::Auto)]
+    pub(super) grid: GridArg,
+    /// For .vdb outputs, a float `density` grid (1 where set) instead of the bool `occupancy` grid, for tools
+    /// that read only float grids.
+    #[arg(long)]
+    pub(super) vdb_float: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub(super) enum GridArg {
+    Auto,
+    Dense,
+    Sparse,
+}
+
+impl From<GridArg> for meshvox::voxel::GridKind {
+    fn from(g: GridArg) -> Self {
+        match g {
+            GridArg::Auto => meshvox::voxel::GridKind::Auto,
+            GridArg::Dense => meshvox::voxel::GridKind::Dense,
+            GridArg::Sparse => meshvox::voxel::GridKind::Sparse,
+        }
+    }
+}
+
+impl GridArgs {
+    /// `--vdb-float` only means something for a .vdb output.
+    pub(super) fn check(&self, format: VoxelFormat) -> Result<()> {
+        if self.vdb_float && format != VoxelFormat::Vdb {
+            anyhow::bail!("--vdb-float writes a .vdb: use a .vdb output");
+        }
+        Ok(())
+    }
+}
+
 /// What to voxelize (`voxel::Mode`).
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ModeArg {

@@ -95,14 +95,20 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let showing = Showing { cut: args.cut, ao: !args.no_ao };
     // On the device that draws, so that the GPU's list of visible voxels can be drawn where it may be.
     let engine = Engine::on_device(&gpu, args.backend.into())?;
-    let request = Request { instances: showing.from_gpu_list(args.colour.wanted(&mesh)), ..request };
+    let request = Request {
+        instances: showing.from_gpu_list(args.colour.wanted(&mesh)),
+        // Drawn from the dense grid.
+        grid: meshvox::voxel::GridKind::Dense,
+        ..request
+    };
     let result = engine.voxelize(&args.mesh, &mesh, &request)?;
     result.notices.iter().for_each(|n| eprintln!("{n}"));
-    let (spec, backend, voxelize_ms) = (result.grid.spec, &result.report.backend, result.report.voxelize_ms);
+    let grid = result.grid.dense().ok_or_else(|| anyhow!("render needs a dense grid"))?;
+    let (spec, backend, voxelize_ms) = (grid.spec, &result.report.backend, result.report.voxelize_ms);
     let offscreen = Offscreen::new(&gpu);
     let scene = offscreen.renderer.voxel_scene(
         &gpu.device,
-        &result.grid,
+        grid,
         result.instances,
         result.colours.as_ref(),
         showing,

@@ -1,7 +1,7 @@
 //! `meshvox voxelize`: one mesh to one output file, through the engine; `batch` shares [`voxelize_loaded`].
 
 use super::output::{temp_beside, write_atomically};
-use super::{AxisArg, BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, Request, ms, open_engine};
+use super::{AxisArg, BackendArg, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine};
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh;
@@ -25,8 +25,8 @@ pub(super) struct VoxelizeArgs {
     /// Axis along which -r counts voxels.
     #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
     pub(super) axis: AxisArg,
-    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; or .glb, .ply or .obj for the voxel model's
-    /// outer faces as a mesh in world space.
+    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB) or .npz (sorted
+    /// coordinates); or .glb, .ply or .obj for the voxel model's outer faces as a mesh in world space.
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(super) output: PathBuf,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
@@ -42,6 +42,8 @@ pub(super) struct VoxelizeArgs {
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub(super) backend: BackendArg,
     #[command(flatten)]
+    pub(super) grid: GridArgs,
+    #[command(flatten)]
     pub(super) colour: ColourArgs,
     #[command(flatten)]
     pub(super) limits: LimitArgs,
@@ -49,6 +51,7 @@ pub(super) struct VoxelizeArgs {
 
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
+    args.grid.check(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
@@ -79,7 +82,7 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
 pub(super) fn output_format(output: &Path, merge: bool) -> Result<VoxelFormat> {
     let format = VoxelFormat::from_extension(output).ok_or_else(|| {
         anyhow!(
-            "{}: unknown output format (use a .npy, .binvox or .vox extension, or .glb, .ply or .obj for a mesh)",
+            "{}: unknown output format (use .npy, .binvox or .vox, .vdb or .npz for a sparse grid, or .glb, .ply or .obj for a mesh)",
             output.display()
         )
     })?;
@@ -120,6 +123,7 @@ pub(super) fn voxelize_loaded(
     let progress = |done: usize, _: usize| bar.set_position(done as u64);
     let request = Request {
         progress: Some(&progress),
+        grid: args.grid.grid.into(),
         ..args.limits.request(resolution, args.axis.into(), args.mode.into(), Some(format), &args.colour)
     };
     let voxelized = engine.voxelize(&args.mesh, mesh, &request)?;
@@ -131,16 +135,17 @@ pub(super) fn voxelize_loaded(
     let t_write = Instant::now();
     // The colour array beside an .npy grid is written first (atomically too), so a grid never appears without
     // the colours it was asked for.
-    let colours_file = match (&voxelized.colours, format) {
-        (Some(colours), VoxelFormat::Npy) => {
+    let colours_file = match (&voxelized.colours, voxelized.grid.dense(), format) {
+        (Some(colours), Some(grid), VoxelFormat::Npy) => {
             let path = voxel::formats::colours_npy_path(&args.output);
             let temp = temp_beside(&path)?;
-            write_atomically(temp, &path, |out| Ok(voxel::formats::write_colours_npy(&voxelized.grid, colours, out)?))?;
+            write_atomically(temp, &path, |out| Ok(voxel::formats::write_colours_npy(grid, colours, out)?))?;
             Some(path)
         }
         _ => None,
     };
-    let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, args.merge, out)?))?;
+    let options = voxel::formats::WriteOptions { merge: args.merge, vdb_float: args.grid.vdb_float };
+    let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;
     Ok(meshvox::Report {
         output: args.output.display().to_string(),
         format: format.extension().to_string(),

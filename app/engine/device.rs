@@ -18,7 +18,7 @@ use crate::gpu::colour::GpuColourer;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
-use crate::voxel::{GridSpec, Mode, VoxelGrid};
+use crate::voxel::{Grid, GridSpec, Mode, VoxelGrid};
 use glam::Vec3;
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -123,14 +123,19 @@ impl OnGpu {
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         mode: Mode,
+        sparse: bool,
         instances: bool,
     ) -> Result<Result<Voxels, Notice>, EngineError> {
         // Presized so that a voxelization maps once (the visible voxels of a surface at N voxels along its
         // longest axis are a few N²; more than this compacts again at the exact size).
         let n = u64::from(spec.dims.max_element());
         let list_capacity = instances.then_some(12 * n * n);
+        let instances = instances && !sparse;
         let options = Options {
             read_grid: true,
+            sparse,
+            // A sparse grid holds one slab of the dense grid on the host at a time.
+            max_slab_bytes: sparse.then_some(crate::voxel::budget::SPARSE_SLAB_BYTES),
             compact: instances,
             surface_only: true,
             mode,
@@ -143,7 +148,11 @@ impl OnGpu {
         };
         match voxelized {
             Ok(out) => {
-                let grid = out.grid.ok_or(EngineError::NoGrid)?;
+                let grid = match (out.sparse, out.grid) {
+                    (Some(sparse), _) => Grid::Sparse(*sparse),
+                    (None, Some(dense)) => Grid::Dense(dense),
+                    (None, None) => return Err(EngineError::NoGrid),
+                };
                 let mut backend = format!("gpu: {}", self.gpu.summary);
                 if out.decided_on_cpu {
                     // Exact either way; said so that timings are not taken for the GPU's.

@@ -23,7 +23,7 @@ pub use report::{Notice, Report, Voxelized};
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::formats::VoxelFormat;
-use crate::voxel::{self, Axis, GridError, GridSpec, Mode, Resolution, VoxelGrid};
+use crate::voxel::{self, Axis, Grid, GridError, GridKind, GridSpec, Mode, Resolution, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicBool, Ordering};
 use web_time::Instant;
@@ -50,8 +50,8 @@ pub enum EngineError {
     #[error("this build of meshvox has no GPU backend (the `gpu` feature is off); use --backend cpu")]
     NoGpuBuild,
     /// The grid cannot be laid over the mesh, or does not fit the memory budget.
-    #[error("{mesh}: {error}{hint}", hint = if matches!(error, GridError::OverBudget { .. }) { " (or raise --max-memory)" } else { "" })]
-    Grid { mesh: String, error: GridError },
+    #[error("{mesh}: {error}{hint}", hint = budget_hint(error, *sparse))]
+    Grid { mesh: String, error: GridError, sparse: bool },
     #[error("{mesh}: contains no triangles")]
     Empty { mesh: String },
     #[error("the GPU returned no grid")]
@@ -64,6 +64,17 @@ pub enum EngineError {
     Cancelled,
     #[error("bounds {min:?} to {max:?}: the minimum must be below the maximum on every axis, and both finite")]
     Bounds { min: [f64; 3], max: [f64; 3] },
+}
+
+/// What to add to a grid error: where it is over the budget, what would fit.
+fn budget_hint(error: &GridError, sparse: bool) -> &'static str {
+    match (error, sparse) {
+        (GridError::OverBudget { .. }, false) => {
+            " (or raise --max-memory, or write a sparse grid: -o FILE.vdb or FILE.npz, or --grid sparse)"
+        }
+        (GridError::OverBudget { .. }, true) => " (or raise --max-memory)",
+        _ => "",
+    }
 }
 
 /// What to voxelize, and within which limits.
@@ -79,6 +90,9 @@ pub struct Request<'a> {
     pub max_memory: Option<u64>,
     /// The format the grid will be written in, whose writer's memory the budget counts.
     pub format: Option<VoxelFormat>,
+    /// Dense or sparse grid, or `Auto`: sparse for a sparse format or where the dense grid does not fit the
+    /// budget ([`plan`]).
+    pub grid: GridKind,
     /// Also list the exposed voxels on the GPU, for drawing them as instances on the engine's device
     /// ([`Voxelized::instances`]; nothing where the CPU voxelizes).
     pub instances: bool,
@@ -102,6 +116,7 @@ impl Request<'_> {
             colour: None,
             max_memory: None,
             format: None,
+            grid: GridKind::Auto,
             instances: false,
             progress: None,
             cancel: None,
@@ -128,32 +143,62 @@ pub struct Engine {
     opened: Vec<Notice>,
 }
 
-/// Lays the grid over `mesh` as `request` asks and checks the memory it needs, before anything large is
-/// allocated. `name` is the mesh as the user named it, for messages.
-pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<GridSpec, EngineError> {
-    let grid_error = |error| EngineError::Grid { mesh: name.to_string(), error };
+/// The grid a request will fill, as [`plan`] decided it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plan {
+    pub spec: GridSpec,
+    /// Leaves and tiles instead of the dense bit grid.
+    pub sparse: bool,
+}
+
+/// Lays the grid over `mesh` as `request` asks, picks dense or sparse, and checks the memory it needs, before
+/// anything large is allocated. `name` is the mesh as the user named it, for messages.
+///
+/// `GridKind::Auto` is sparse when the output format is (`.vdb`, `.npz`) or when the dense grid would not fit the
+/// budget and a sparse one would; a dense format past the budget is refused, pointing at the sparse formats.
+pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineError> {
+    let grid_error = |error, sparse| EngineError::Grid { mesh: name.to_string(), error, sparse };
     let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
     let bounds = match request.bounds {
         Some(b) if b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all() => b,
         Some(b) => return Err(EngineError::Bounds { min: b.min.to_array(), max: b.max.to_array() }),
         None => mesh_bounds,
     };
-    let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(grid_error)?;
-    if let Some(budget) = request.max_memory.or_else(crate::memory::default_budget) {
-        let triangles = mesh.triangles.len() as u64;
-        voxel::budget::check(&spec, bounds, request.axis, triangles, request.format, budget).map_err(grid_error)?;
+    let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
+    let format = request.format;
+    let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
+    let budget = request.max_memory.or_else(crate::memory::default_budget);
+    let job =
+        voxel::budget::Job { bounds, axis: request.axis, mode: request.mode, triangles: mesh.triangles.len() as u64 };
+    let mut sparse = match request.grid {
+        GridKind::Dense => false,
+        GridKind::Sparse => true,
+        GridKind::Auto => sparse_format,
+    };
+    let Some(budget) = budget else { return Ok(Plan { spec, sparse }) };
+    // The surface area only where a sparse estimate is needed (a pass over the triangles).
+    let area = |sparse: bool| sparse.then(|| voxel::budget::surface_area(mesh));
+    let dense_fits = || voxel::budget::check(&spec, &job, None, format, budget);
+    if request.grid == GridKind::Auto && !sparse && dense_fits().is_err() && format.is_none_or(VoxelFormat::is_sparse) {
+        // Over the budget dense, with no dense format asked for: sparse, if that fits.
+        sparse = true;
     }
-    Ok(spec)
+    voxel::budget::check(&spec, &job, area(sparse), format, budget).map_err(|e| grid_error(e, sparse))?;
+    Ok(Plan { spec, sparse })
 }
 
 /// `mesh`'s triangles in `spec`'s grid space, as both the voxelizer and the colour pass take them.
 fn grid_space(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, EngineError> {
-    voxel::cpu::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid { mesh: mesh.name.clone(), error })
+    voxel::cpu::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid {
+        mesh: mesh.name.clone(),
+        error,
+        sparse: false,
+    })
 }
 
 /// A grid as [`Engine::voxelize_spec`] made it.
 pub struct Voxels {
-    pub grid: VoxelGrid,
+    pub grid: Grid,
     /// Where, as the report's `backend` says it.
     pub backend: String,
     pub gpu_ms: Option<f64>,
@@ -260,20 +305,27 @@ impl Engine {
         mesh: &Mesh,
         request: &Request<'_>,
     ) -> Result<Voxelized, EngineError> {
-        let spec = plan(name, mesh, request)?;
+        let Plan { spec, sparse } = plan(name, mesh, request)?;
         request.cancelled()?;
         let t = Instant::now();
         // Grid-space triangles once, for the voxels and their colours.
         let tris = grid_space(mesh, &spec)?;
-        let voxels = self.voxels(&tris, spec, request).await?;
+        let voxels = self.voxels(&tris, spec, sparse, request).await?;
         request.cancelled()?;
         let voxelize_ms = ms(t);
         let mut notices = voxels.notices;
         request.cancelled()?;
         let t = Instant::now();
-        let colours = match request.colour != Some(false) && mesh.shading.is_some() {
-            true => Some(self.colours(mesh, &tris, &voxels.grid).await?),
-            false => None,
+        let colours = match (request.colour != Some(false) && mesh.shading.is_some(), &voxels.grid) {
+            (true, Grid::Dense(grid)) => Some(self.colours(mesh, &tris, grid).await?),
+            (true, Grid::Sparse(_)) => {
+                notices.push(Notice {
+                    warning: true,
+                    message: "colours are made on dense grids only for now: the sparse grid is uncoloured".into(),
+                });
+                None
+            }
+            (false, _) => None,
         };
         let colour_ms = colours.as_ref().map(|_| ms(t));
         let d = spec.dims;
@@ -283,6 +335,9 @@ impl Engine {
             dims: [d.x, d.y, d.z],
             origin: spec.origin.to_array(),
             voxel_size: spec.voxel_size,
+            grid: if sparse { "sparse" } else { "dense" }.to_string(),
+            leaves: voxels.grid.sparse().map(|g| g.leaves.len() as u64),
+            tiles: voxels.grid.sparse().map(|g| g.tiles.len() as u64),
             voxels: voxels.grid.count(),
             mode: request.mode.name().to_string(),
             backend: voxels.backend,
@@ -323,17 +378,23 @@ impl Engine {
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
         let request = Request { progress, ..Request::new(Resolution::VoxelSize(spec.voxel_size), mode) };
-        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, &request))
+        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, false, &request))
     }
 
     /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles, with `request`'s mode, instance list,
     /// progress and cancel flag (its resolution is `spec`'s).
-    async fn voxels(&self, tris: &[[Vec3; 3]], spec: GridSpec, request: &Request<'_>) -> Result<Voxels, EngineError> {
+    async fn voxels(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        sparse: bool,
+        request: &Request<'_>,
+    ) -> Result<Voxels, EngineError> {
         let (mode, instances) = (request.mode, request.instances);
         // The GPU's grid, or why the CPU stands in.
         #[cfg(feature = "gpu")]
         let notices = match &self.gpu {
-            Some(on) => match on.voxels(tris, spec, mode, instances).await? {
+            Some(on) => match on.voxels(tris, spec, mode, sparse, instances).await? {
                 Ok(voxels) => return Ok(voxels),
                 Err(why) => vec![why],
             },
@@ -345,11 +406,16 @@ impl Engine {
         let progress = request.progress.unwrap_or(&silent);
         let never = AtomicBool::new(false);
         let cancel = request.cancel.unwrap_or(&never);
-        let (grid, stats) =
-            voxel::cpu::voxelize_grid_space_cancellable(tris, spec, mode, progress, cancel).map_err(|error| {
-                let d = spec.dims;
-                EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error }
-            })?;
+        let d = spec.dims;
+        let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
+        let (grid, stats) = match sparse {
+            true => voxel::cpu::voxelize_grid_space_sparse(tris, spec, mode, progress, cancel)
+                .map(|(g, s)| (Grid::Sparse(g), s))
+                .map_err(grid_error)?,
+            false => voxel::cpu::voxelize_grid_space_cancellable(tris, spec, mode, progress, cancel)
+                .map(|(g, s)| (Grid::Dense(g), s))
+                .map_err(grid_error)?,
+        };
         Ok(Voxels {
             grid,
             backend: self.cpu_label(),

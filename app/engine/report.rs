@@ -1,9 +1,9 @@
 //! What a request gives back: [`Voxelized`] (the grid, colours, the GPU's instance list) with its [`Report`] and
 //! the [`Notice`]s a client shows.
 
-use crate::voxel::VoxelGrid;
+use crate::voxel::Grid;
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::formats::{self, FormatError, VoxelFormat};
+use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
 
 /// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -35,8 +35,12 @@ pub struct Report {
     /// Voxel tests decided by the exact integer path.
     pub exact_tests: Option<u64>,
     pub format: String,
+    /// The grid the voxels were made in: `dense` or `sparse`.
+    pub grid: String,
     /// The compute passes alone, from timestamp queries; `None` on the CPU or without timestamps.
     pub gpu_ms: Option<f64>,
+    /// Leaves of a sparse grid (8³ blocks with a voxel set); `None` for a dense grid.
+    pub leaves: Option<u64>,
     pub load_ms: f64,
     pub mesh: String,
     pub mode: String,
@@ -46,6 +50,8 @@ pub struct Report {
     /// Adapter, device and pipeline creation, once per engine.
     pub setup_ms: f64,
     pub threads: usize,
+    /// Tiles of a sparse grid (blocks of 8³, 128³ or 4096³ voxels all set); `None` for a dense grid.
+    pub tiles: Option<u64>,
     pub triangles: usize,
     pub voxel_size: f64,
     /// Host triangles to host grid: grid-space conversion, upload, all passes and readback.
@@ -58,7 +64,7 @@ pub struct Report {
 
 /// A finished voxelization.
 pub struct Voxelized {
-    pub grid: VoxelGrid,
+    pub grid: Grid,
     pub colours: Option<VoxelColours>,
     /// The exposed voxels as a list on the GPU, ready to draw as instances, when the request asked for it
     /// ([`super::Request::instances`]) and the grid was made there.
@@ -71,8 +77,13 @@ pub struct Voxelized {
 
 impl Voxelized {
     /// Writes the grid (with its colours, where the format holds them) as `format` into `out`: the bytes the CLI
-    /// writes for the same request. `merge` joins coplanar faces of mesh outputs.
-    pub fn write(&self, format: VoxelFormat, merge: bool, out: &mut impl std::io::Write) -> Result<(), FormatError> {
-        formats::write_coloured(&self.grid, self.colours.as_ref(), format, merge, out)
+    /// writes for the same request.
+    pub fn write<W: std::io::Write + std::io::Seek>(
+        &self,
+        format: VoxelFormat,
+        options: &WriteOptions,
+        out: &mut W,
+    ) -> Result<(), FormatError> {
+        formats::write_grid(&self.grid, self.colours.as_ref(), format, options, out)
     }
 }

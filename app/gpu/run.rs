@@ -20,7 +20,8 @@ use super::voxelize::{
     UNSURE_ENTRIES, WG, slab_plan,
 };
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid, on_lattice};
+use crate::voxel::sparse::LeafSet;
+use crate::voxel::{GridSpec, Lattice, Mode, SparseGrid, VoxelGrid, on_lattice};
 use glam::Vec3;
 
 /// A bind group entry for a whole buffer.
@@ -74,6 +75,8 @@ pub(super) struct Run<'a> {
     unsure_entries: u64,
     buffers: Buffers,
     grid: Option<VoxelGrid>,
+    /// The sparse grid's leaves, with `Options::sparse`.
+    leaves: Option<LeafSet>,
     timer: Option<PassTimer>,
     gpu_ms: f64,
     exact_tests: Option<u64>,
@@ -159,7 +162,8 @@ impl<'a> Run<'a> {
             batches,
             unsure_entries,
             buffers,
-            grid: if options.read_grid { Some(VoxelGrid::new(spec)?) } else { None },
+            grid: if options.read_grid && !options.sparse { Some(VoxelGrid::new(spec)?) } else { None },
+            leaves: options.sparse.then(LeafSet::default),
             // Collected after every slab: at most set-up, voxelize, exact, the solid fill and two compaction
             // passes in between.
             timer: gpu.timestamps.then(|| PassTimer::new(device, 6)),
@@ -349,7 +353,7 @@ impl<'a> Run<'a> {
         let timed = self.timer.as_mut().map_or(0, |t| t.resolve(&mut encoder));
         gpu.queue.submit([encoder.finish()]);
         let b = &self.buffers;
-        let reading_grid = self.grid.is_some();
+        let reading_grid = self.grid.is_some() || self.leaves.is_some();
         let mut ranges = Vec::new();
         if reading_grid {
             ranges.push((&b.slab, 0, slab.words * 4));
@@ -386,7 +390,10 @@ impl<'a> Run<'a> {
             }
         }
         let start = self.layer_start(slab.z0);
-        if let Some(host) = self.grid.as_mut() {
+        if let Some(leaves) = self.leaves.as_mut() {
+            *self.exact_tests.get_or_insert(0) += listed as u64;
+            leaves.set_rows(bytemuck::cast_slice::<u8, u32>(&bytes.unwrap_or_default()), self.spec, slab.z0);
+        } else if let Some(host) = self.grid.as_mut() {
             let bytes = bytes.unwrap_or_default();
             *self.exact_tests.get_or_insert(0) += listed as u64;
             let dst = &mut host.words[start..start + slab.words as usize];
@@ -403,7 +410,7 @@ impl<'a> Run<'a> {
     /// The output: the host grid, the voxel list (joined if there were several slabs), the times.
     pub(super) async fn finish(mut self) -> Result<Attempt, GpuError> {
         let gpu = self.gpu;
-        if self.grid.is_none() {
+        if self.grid.is_none() && self.leaves.is_none() {
             // Nothing was read back: wait for the work so timings and errors are complete.
             wait(&gpu.device)?;
         }
@@ -412,8 +419,10 @@ impl<'a> Run<'a> {
             1 => self.points.pop(),
             _ => Some(self.v.compactor(gpu).concat(gpu, self.points).await?),
         };
+        let sparse = self.leaves.map(|set| Box::new(SparseGrid::from_leaf_sets(self.spec, vec![set]).prune()));
         Ok(Attempt::Done(GpuOutput {
             grid: self.grid,
+            sparse,
             points,
             gpu_ms: gpu.timestamps.then_some(self.gpu_ms),
             slabs: self.slabs,

@@ -11,7 +11,7 @@ use super::compact::{CompactVoxels, Compactor, Slab};
 use super::solid::SolidPipelines;
 use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError};
-use crate::voxel::{GridSpec, Mode, VoxelGrid, cpu};
+use crate::voxel::{GridSpec, Mode, SparseGrid, VoxelGrid, cpu};
 use glam::Vec3;
 use std::sync::OnceLock;
 
@@ -59,6 +59,9 @@ pub(super) struct Params {
 pub struct Options {
     /// Read the bit grid back into host memory.
     pub read_grid: bool,
+    /// Read it back as a sparse grid instead: each slab turned into leaves as it arrives, so the host holds one
+    /// slab of the dense grid at a time (bound it with `max_slab_bytes`). Solid interiors become tiles.
+    pub sparse: bool,
     /// Compact the set voxels into a coordinate list on the GPU.
     pub compact: bool,
     /// In that list, leave out voxels whose six neighbours are all set (for drawing: they cannot be seen).
@@ -80,6 +83,8 @@ pub struct Options {
 /// What a GPU voxelization produced.
 pub struct GpuOutput {
     pub grid: Option<VoxelGrid>,
+    /// The grid as leaves and tiles, with `Options::sparse` (boxed: it is large beside the rest).
+    pub sparse: Option<Box<SparseGrid>>,
     pub points: Option<CompactVoxels>,
     /// Summed compute time of all passes from timestamp queries, when the adapter has them.
     pub gpu_ms: Option<f64>,
@@ -215,6 +220,8 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
+        // A sparse request past what the dense grid's memory allows is planned on the CPU from the start, so
+        // the dense grid here fits.
         let (grid, stats) = cpu::voxelize_grid_space_mode(triangles, spec, options.mode, &|_, _| {})?;
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let mut points = Vec::new();
@@ -241,8 +248,10 @@ impl GpuVoxelizer {
             1 => points.pop(),
             _ => Some(self.compactor(gpu).concat(gpu, points).await?),
         };
+        let sparse = options.sparse.then(|| Box::new(SparseGrid::from_dense(&grid).prune()));
         Ok(GpuOutput {
-            grid: options.read_grid.then_some(grid),
+            grid: (options.read_grid && !options.sparse).then_some(grid),
+            sparse,
             points,
             gpu_ms: None,
             slabs,

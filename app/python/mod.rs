@@ -154,6 +154,8 @@ fn voxelize_one(
         bounds: options.bounds,
         progress: Some(progress),
         cancel: Some(cancel),
+        // The package's VoxelGrid holds the dense bits (`.matrix`).
+        grid: crate::voxel::GridKind::Dense,
         ..Request::new(options.resolution, options.mode)
     };
     engine.voxelize(&name, &mesh, &request).map_err(Failure::Engine)

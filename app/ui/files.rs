@@ -71,9 +71,9 @@ impl ViewerApp {
         let grid = self.grid.as_ref().ok_or("nothing is voxelized yet")?;
         let name = format!("{}-{}.{}", self.file_stem(), self.resolution, format.extension());
         let colours = self.colours.as_ref();
-        let mut bytes = Vec::new();
+        let mut bytes = std::io::Cursor::new(Vec::new());
         formats::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
-        let mut files = vec![(name.clone(), bytes)];
+        let mut files = vec![(name.clone(), bytes.into_inner())];
         if let (Some(c), formats::VoxelFormat::Npy) = (colours, format) {
             let mut bytes = Vec::new();
             formats::write_colours_npy(grid, c, &mut bytes).map_err(|e| format!("{name}: {e}"))?;

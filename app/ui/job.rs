@@ -62,6 +62,8 @@ impl ViewerApp {
             let request = Request {
                 axis: self.axis,
                 max_memory: host_budget(),
+                // The viewer draws from the dense grid.
+                grid: crate::voxel::GridKind::Dense,
                 // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list.
                 instances: self.showing().from_gpu_list(mesh.shading.is_some()),
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
@@ -109,7 +111,10 @@ impl ViewerApp {
         for notice in &done.notices {
             log::warn!("{}", notice.message);
         }
-        let grid = done.grid;
+        let grid = match done.grid.into_dense() {
+            Ok(grid) => grid,
+            Err(e) => return self.fail(e.to_string()),
+        };
         self.stats = Some(Stats {
             mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
             triangles: p.mesh.triangles.len(),

@@ -5,16 +5,57 @@
 //! rounded onto the lattice), one GPU readback of at most a slab and the exporter's working buffer. It leaves out
 //! what is small (per-triangle bookkeeping of the CPU walk, the `.vox` writer's list, which grows with the set
 //! voxels rather than the grid) so a request near the limit is judged by what dominates.
+//!
+//! A sparse grid grows with the surface instead: its leaves are estimated from the mesh's area in voxels (a
+//! surface of area `A` voxels² touches about `A / 64` leaves times the spread of its normal over the axes, at
+//! most 1.7; [`LEAVES_PER_AREA`] leaves room above that), each costing what the walk's leaf sets hold at their
+//! peak ([`LEAF_BYTES`]); a solid adds its row crossings and the interior's tiles along the surface. A dense
+//! format written from a sparse grid needs the dense grid too.
 
 use super::formats::VoxelFormat;
-use super::{Axis, GridError, GridSpec, Resolution};
-use crate::mesh::Aabb;
+use super::{Axis, GridError, GridSpec, Mode, Resolution};
+use crate::mesh::{Aabb, Mesh};
+use rayon::prelude::*;
 
 /// Bytes of one grid-space triangle (nine f32).
 const TRIANGLE_BYTES: u64 = 36;
 /// Largest GPU readback held on the host at once: a slab, which no adapter makes larger than its binding limit;
 /// 2 GiB covers every adapter wgpu reports.
 const MAX_READBACK: u64 = 2 << 30;
+
+/// Leaves per 64 voxels² of surface, with room above the measured 1.2–1.7 (see the module documentation).
+pub const LEAVES_PER_AREA: f64 = 2.5;
+/// Host bytes per leaf at the walk's peak: the leaf (72) in a vector that may have doubled, its hash entry, and
+/// the sorted copy the grid is joined into.
+pub const LEAF_BYTES: u64 = 256;
+/// The GPU's slab for a sparse grid: read back and turned into leaves one at a time, so at most this much of the
+/// dense grid is on the host at once.
+pub const SPARSE_SLAB_BYTES: u64 = 256 << 20;
+
+/// The request a grid is planned for, beside its spec.
+#[derive(Clone, Copy, Debug)]
+pub struct Job {
+    /// The world box the grid covers (what `-r` divides).
+    pub bounds: Aabb,
+    pub axis: Axis,
+    pub mode: Mode,
+    pub triangles: u64,
+}
+
+/// The mesh's surface area in world units², for the sparse estimate.
+pub fn surface_area(mesh: &Mesh) -> f64 {
+    mesh.triangles.par_iter().map(|t| 0.5 * f64::from((t[1] - t[0]).cross(t[2] - t[0]).length())).sum()
+}
+
+/// Estimated leaves of the sparse grid of a surface of `area` world units² in `spec` (at most every leaf).
+pub fn sparse_leaves(spec: &GridSpec, area: f64, triangles: u64) -> u64 {
+    let d = spec.dims.as_u64vec3();
+    let all = d.x.div_ceil(8) * d.y.div_ceil(8) * d.z.div_ceil(8);
+    let area_voxels = area / (spec.voxel_size * spec.voxel_size);
+    // Each triangle touches at least one leaf (small triangles share them, so this is a bound from above).
+    let estimate = (LEAVES_PER_AREA * area_voxels / 64.0) as u64 + triangles.min(all);
+    estimate.min(all)
+}
 
 /// What a request needs, by part.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,11 +72,37 @@ impl Estimate {
     }
 }
 
-/// Host bytes voxelizing `triangles` triangles into `spec`'s grid takes, writing it as `format` if given.
-pub fn estimate(spec: &GridSpec, triangles: u64, format: Option<VoxelFormat>) -> Estimate {
+/// Host bytes voxelizing `job` into `spec`'s grid takes, writing it as `format` if given: dense, or sparse for a
+/// surface of `area` world units² when given.
+pub fn estimate(spec: &GridSpec, job: &Job, area: Option<f64>, format: Option<VoxelFormat>) -> Estimate {
+    let dense = spec.byte_size();
+    let triangles = job.triangles.saturating_mul(2 * TRIANGLE_BYTES);
+    let Some(area) = area else {
+        return Estimate { grid: dense, triangles, readback: dense.min(MAX_READBACK), writer: writer(spec, format) };
+    };
+    let leaves = sparse_leaves(spec, area, job.triangles);
+    let mut grid = leaves.saturating_mul(LEAF_BYTES);
+    if job.mode == Mode::Solid {
+        // Row crossings (two per row of leaves' worth of surface, 8 bytes each, sorted with a copy) and the
+        // interior's tiles along the surface (as many again as leaves at most, 16 bytes each).
+        let area_voxels = (area / (spec.voxel_size * spec.voxel_size)) as u64;
+        grid = grid.saturating_add(area_voxels.saturating_mul(32)).saturating_add(leaves.saturating_mul(16));
+    }
+    let writer = match format {
+        // The tree order of every leaf and tile, and a batch of leaf buffers.
+        Some(f) if f.is_sparse() => leaves.saturating_mul(24),
+        // A dense format from the sparse grid: the dense grid, then its writer.
+        Some(f) => dense.saturating_add(writer(spec, Some(f))),
+        None => 0,
+    };
+    Estimate { grid, triangles, readback: dense.min(SPARSE_SLAB_BYTES), writer }
+}
+
+/// The dense formats' working memory beside the grid.
+fn writer(spec: &GridSpec, format: Option<VoxelFormat>) -> u64 {
     let d = spec.dims.as_u64vec3();
     let grid = spec.byte_size();
-    let writer = match format {
+    match format {
         // 32 x-slices of bytes at a time.
         Some(VoxelFormat::Npy) => 32 * d.y * d.z,
         // 32 x-slices of y-bitmaps over the padded cube.
@@ -49,31 +116,33 @@ pub fn estimate(spec: &GridSpec, triangles: u64, format: Option<VoxelFormat>) ->
             let plane = (d.x * d.y).max(d.y * d.z).max(d.x * d.z);
             grid + plane * 16
         }
+        // The sparse grid of the dense one's voxels: bounded by the dense grid (a leaf holds 512 voxels in 72
+        // bytes, at most 9/8 of the dense grid's bits), and the writer's order.
+        Some(VoxelFormat::Npz | VoxelFormat::Vdb) => grid + grid / 2,
         Some(VoxelFormat::Vox) | None => 0,
-    };
-    Estimate { grid, triangles: triangles.saturating_mul(2 * TRIANGLE_BYTES), readback: grid.min(MAX_READBACK), writer }
+    }
 }
 
-/// Checks a request against `budget` bytes. When it does not fit, the error names the largest `-r` along the
-/// request's axis that does (found by bisection over [`GridSpec::fit`], so it is exactly the grid `-r` makes).
+/// Checks a request against `budget` bytes (sparse for a surface of `area` world units² when given). When it
+/// does not fit, the error names the largest `-r` along the request's axis that does (found by bisection over
+/// [`GridSpec::fit`], so it is exactly the grid `-r` makes).
 pub fn check(
     spec: &GridSpec,
-    bounds: Aabb,
-    axis: Axis,
-    triangles: u64,
+    job: &Job,
+    area: Option<f64>,
     format: Option<VoxelFormat>,
     budget: u64,
 ) -> Result<Estimate, GridError> {
-    let needed = estimate(spec, triangles, format);
+    let needed = estimate(spec, job, area, format);
     if needed.total() <= budget {
         return Ok(needed);
     }
     let fits = |n: u32| {
-        GridSpec::fit(bounds, Resolution::Count(n), axis)
-            .is_ok_and(|s| estimate(&s, triangles, format).total() <= budget)
+        GridSpec::fit(job.bounds, Resolution::Count(n), job.axis)
+            .is_ok_and(|s| estimate(&s, job, area, format).total() <= budget)
     };
     // The resolution this request amounts to along its axis bounds the search from above.
-    let (mut lo, mut hi) = (0u32, spec.dims[axis.index(bounds)].max(1));
+    let (mut lo, mut hi) = (0u32, spec.dims[job.axis.index(job.bounds)].max(1));
     while lo < hi {
         let mid = lo + (hi - lo).div_ceil(2);
         if fits(mid) { lo = mid } else { hi = mid - 1 }

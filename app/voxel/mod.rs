@@ -68,3 +68,81 @@ impl std::fmt::Display for Mode {
         f.write_str(self.name())
     }
 }
+
+/// A voxelization's grid: the dense bit grid, or the sparse one of leaves and tiles.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Grid {
+    Dense(VoxelGrid),
+    Sparse(SparseGrid),
+}
+
+impl Grid {
+    pub fn spec(&self) -> &GridSpec {
+        match self {
+            Grid::Dense(g) => &g.spec,
+            Grid::Sparse(g) => &g.spec,
+        }
+    }
+
+    /// Number of set voxels.
+    pub fn count(&self) -> u64 {
+        match self {
+            Grid::Dense(g) => g.count(),
+            Grid::Sparse(g) => g.count(),
+        }
+    }
+
+    /// The dense grid, if this is one.
+    pub fn dense(&self) -> Option<&VoxelGrid> {
+        match self {
+            Grid::Dense(g) => Some(g),
+            Grid::Sparse(_) => None,
+        }
+    }
+
+    /// The sparse grid, if this is one.
+    pub fn sparse(&self) -> Option<&SparseGrid> {
+        match self {
+            Grid::Sparse(g) => Some(g),
+            Grid::Dense(_) => None,
+        }
+    }
+
+    /// The dense grid of the same voxels (made from the sparse one, which must fit in memory).
+    pub fn into_dense(self) -> Result<VoxelGrid, GridError> {
+        match self {
+            Grid::Dense(g) => Ok(g),
+            Grid::Sparse(g) => g.to_dense(),
+        }
+    }
+
+    /// Whether voxel `(x, y, z)` is set.
+    pub fn get(&self, x: u32, y: u32, z: u32) -> bool {
+        match self {
+            Grid::Dense(g) => g.get(x, y, z),
+            Grid::Sparse(g) => g.get(x, y, z),
+        }
+    }
+}
+
+/// Which grid a request fills.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum GridKind {
+    /// Sparse when the output format is sparse or the dense grid would not fit the memory budget, else dense.
+    #[default]
+    Auto,
+    Dense,
+    Sparse,
+}
+
+impl GridKind {
+    pub const ALL: [GridKind; 3] = [GridKind::Auto, GridKind::Dense, GridKind::Sparse];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            GridKind::Auto => "auto",
+            GridKind::Dense => "dense",
+            GridKind::Sparse => "sparse",
+        }
+    }
+}

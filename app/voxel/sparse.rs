@@ -91,24 +91,42 @@ impl SparseGrid {
         SparseGrid { spec, leaves, tiles: Vec::new() }
     }
 
+    /// The same voxels in the one canonical form both backends give: every full leaf a tile of 8³, every 128³
+    /// block of such tiles one tile, every 4096³ block of those one tile. Grids of the same voxels in this form
+    /// are equal field for field.
+    pub fn prune(mut self) -> SparseGrid {
+        let mut tiles = std::mem::take(&mut self.tiles);
+        self.leaves.retain(|(key, mask)| {
+            let full = *mask == FULL_LEAF;
+            if full {
+                tiles.push(Tile { log2: 3, origin: key_origin(*key) });
+            }
+            !full
+        });
+        for (small, large) in [(3u32, 7u32), (7, 12)] {
+            let per_block = 1usize << (3 * (large - small));
+            // The small tiles by the large block holding them; complete blocks become one tile.
+            let mut by_block: HashMap<UVec3, usize> = HashMap::new();
+            for t in tiles.iter().filter(|t| t.log2 == small) {
+                *by_block.entry((t.origin >> large) << large).or_default() += 1;
+            }
+            let complete: std::collections::HashSet<UVec3> =
+                by_block.into_iter().filter(|(_, n)| *n == per_block).map(|(o, _)| o).collect();
+            if complete.is_empty() {
+                continue;
+            }
+            tiles.retain(|t| t.log2 != small || !complete.contains(&((t.origin >> large) << large)));
+            tiles.extend(complete.into_iter().map(|origin| Tile { log2: large, origin }));
+        }
+        tiles.par_sort_unstable_by_key(Tile::sort_key);
+        self.tiles = tiles;
+        self
+    }
+
     /// The same voxels as `grid`.
     pub fn from_dense(grid: &VoxelGrid) -> SparseGrid {
         let mut set = LeafSet::default();
-        let (wpr, dims) = (grid.spec.words_per_row(), grid.spec.dims);
-        for (r, row) in grid.words.chunks(wpr).enumerate() {
-            let (y, z) = ((r % dims.y as usize) as u32, (r / dims.y as usize) as u32);
-            for (i, &w) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
-                // Each run of set bits in the word.
-                let mut bits = w;
-                while bits != 0 {
-                    let lo = bits.trailing_zeros();
-                    let len = (bits >> lo).trailing_ones();
-                    let x0 = i as u32 * 32 + lo;
-                    set.set_run(x0, x0 + len - 1, y, z);
-                    bits &= if lo + len >= 32 { 0 } else { u32::MAX << (lo + len) };
-                }
-            }
-        }
+        set.set_rows(&grid.words, grid.spec, 0);
         SparseGrid::from_leaf_sets(grid.spec, vec![set])
     }
 
@@ -235,6 +253,26 @@ pub struct LeafSet {
 }
 
 impl LeafSet {
+    /// Sets the voxels of whole layers of a dense grid of `spec`'s layout starting at layer `z0`: `words` holds
+    /// rows of `spec.words_per_row()` words, y fastest (a GPU slab, or a whole grid).
+    pub fn set_rows(&mut self, words: &[u32], spec: GridSpec, z0: u32) {
+        let (wpr, dims_y) = (spec.words_per_row(), spec.dims.y as usize);
+        for (r, row) in words.chunks(wpr).enumerate() {
+            let (y, z) = ((r % dims_y) as u32, z0 + (r / dims_y) as u32);
+            for (i, &w) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
+                // Each run of set bits in the word.
+                let mut bits = w;
+                while bits != 0 {
+                    let lo = bits.trailing_zeros();
+                    let len = (bits >> lo).trailing_ones();
+                    let x0 = i as u32 * 32 + lo;
+                    self.set_run(x0, x0 + len - 1, y, z);
+                    bits &= if lo + len >= 32 { 0 } else { u32::MAX << (lo + len) };
+                }
+            }
+        }
+    }
+
     /// Sets voxels `x0..=x1` of row `(y, z)` (the walk's `fill`).
     pub fn set_run(&mut self, x0: u32, x1: u32, y: u32, z: u32) {
         let bit = 1u64 << ((y & 7) * 8 + (z & 7));

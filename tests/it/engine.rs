@@ -39,8 +39,9 @@ fn the_cli_writes_what_the_public_api_writes() {
 
             let request = Request { format: Some(format), ..Request::new(Resolution::Count(n), mode) };
             let result = engine.voxelize(&path, &mesh, &request).expect("voxelize through the API");
-            let mut bytes = Vec::new();
-            result.write(format, false, &mut bytes).expect("write");
+            let mut bytes = std::io::Cursor::new(Vec::new());
+            result.write(format, &Default::default(), &mut bytes).expect("write");
+            let bytes = bytes.into_inner();
             let written = std::fs::read(&target).expect("the CLI's output");
             assert!(
                 written == bytes,
@@ -50,7 +51,8 @@ fn the_cli_writes_what_the_public_api_writes() {
             );
             if let (Some(colours), "npy") = (&result.colours, ext) {
                 let mut api = Vec::new();
-                meshvox::voxel::formats::write_colours_npy(&result.grid, colours, &mut api).expect("colours");
+                meshvox::voxel::formats::write_colours_npy(result.grid.dense().expect("dense"), colours, &mut api)
+                    .expect("colours");
                 let cli = std::fs::read(out.path().join("grid.colors.npy")).expect("the CLI's colours");
                 assert!(cli == api, "{file}: .colors.npy differs");
             }
@@ -92,7 +94,7 @@ fn cancel_bounds_and_arrays_through_the_engine() {
     assert!(matches!(refused, Err(meshvox::engine::EngineError::Cancelled)), "{:?}", refused.err());
 
     let whole = engine.voxelize("knot", &mesh, &Request::new(Resolution::Count(48), Mode::Surface)).expect("whole");
-    let spec = whole.grid.spec;
+    let spec = *whole.grid.spec();
     // The lower half of the same grid: the same voxels in the layers it keeps.
     let half = spec.dims.z / 2;
     let max = spec.origin + spec.dims.as_dvec3() * spec.voxel_size;
@@ -101,10 +103,11 @@ fn cancel_bounds_and_arrays_through_the_engine() {
     let request =
         Request { bounds: Some(bounds), ..Request::new(Resolution::VoxelSize(spec.voxel_size), Mode::Surface) };
     let clipped = engine.voxelize("knot", &mesh, &request).expect("clipped");
-    assert_eq!(clipped.grid.spec.origin, spec.origin);
-    assert_eq!(clipped.grid.spec.dims, glam::UVec3::new(spec.dims.x, spec.dims.y, half));
-    let expected: Vec<_> = whole.grid.iter_set().filter(|v| v.z < half).collect();
-    assert_eq!(clipped.grid.iter_set().collect::<Vec<_>>(), expected);
+    assert_eq!(clipped.grid.spec().origin, spec.origin);
+    assert_eq!(clipped.grid.spec().dims, glam::UVec3::new(spec.dims.x, spec.dims.y, half));
+    let (whole_grid, clipped_grid) = (whole.grid.dense().expect("dense"), clipped.grid.dense().expect("dense"));
+    let expected: Vec<_> = whole_grid.iter_set().filter(|v| v.z < half).collect();
+    assert_eq!(clipped_grid.iter_set().collect::<Vec<_>>(), expected);
     let bad = Aabb { min: bounds.max, max: bounds.min };
     let request = Request { bounds: Some(bad), ..Request::new(Resolution::Count(8), Mode::Surface) };
     assert!(matches!(engine.voxelize("knot", &mesh, &request), Err(meshvox::engine::EngineError::Bounds { .. })));
@@ -114,7 +117,7 @@ fn cancel_bounds_and_arrays_through_the_engine() {
     let again = meshvox::mesh::from_indexed("arrays", &positions, &faces).expect("arrays");
     let from_arrays =
         engine.voxelize("arrays", &again, &Request::new(Resolution::Count(48), Mode::Surface)).expect("arrays");
-    assert_eq!(from_arrays.grid.words, whole.grid.words);
+    assert_eq!(from_arrays.grid, whole.grid);
     let error = meshvox::mesh::from_indexed("arrays", &[glam::DVec3::ZERO; 2], &[[0, 1, 2]]).expect_err("index");
     assert!(error.to_string().contains("face 0 uses vertex 2"), "{error}");
     let error = meshvox::mesh::from_indexed("arrays", &[glam::DVec3::ZERO; 3], &[[0i64, -1, 2]]).expect_err("negative");

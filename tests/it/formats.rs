@@ -30,9 +30,9 @@ fn voxelized(mesh: &str, r: u32) -> VoxelGrid {
 }
 
 fn encode(g: &VoxelGrid, f: VoxelFormat) -> Vec<u8> {
-    let mut out = Vec::new();
+    let mut out = std::io::Cursor::new(Vec::new());
     formats::write(g, f, &mut out).expect("write");
-    out
+    out.into_inner()
 }
 
 fn test_grids() -> Vec<(String, VoxelGrid)> {

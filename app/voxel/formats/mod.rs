@@ -1,7 +1,9 @@
-//! Voxel file formats, one file each, with a writer and a reader (the readers serve round-trip tests and later
-//! loading grids back into the viewer): NumPy [`npy`], [`binvox`], MagicaVoxel [`vox`], and the voxel model as a
-//! [`mesh`] (`.glb`, `.ply`, `.obj`). This module names them ([`VoxelFormat`], [`MeshFormat`]), holds their one
-//! error type, and writes any of them with [`write_coloured`]; [`atomic`] puts a file in place only when whole.
+//! Voxel file formats, one file each: the dense ones with a writer and a reader (the readers serve round-trip
+//! tests and later loading grids back into the viewer): NumPy [`npy`], [`binvox`], MagicaVoxel [`vox`], and the
+//! voxel model as a [`mesh`] (`.glb`, `.ply`, `.obj`); the sparse ones, written from a [`SparseGrid`] and read
+//! back in the tests by numpy and OpenVDB: coordinates [`npz`] and OpenVDB [`vdb`]. This module names them
+//! ([`VoxelFormat`], [`MeshFormat`]), holds their one error type, and writes any of them from either grid with
+//! [`write_grid`]; [`atomic`] puts a file in place only when whole.
 
 #[cfg(not(target_arch = "wasm32"))]
 pub mod atomic;
@@ -11,6 +13,7 @@ pub mod mesh;
 pub mod npy;
 pub mod npz;
 pub mod palette;
+pub mod vdb;
 pub mod vox;
 
 pub use binvox::{read_binvox, write_binvox};
@@ -18,11 +21,13 @@ pub use error::FormatError;
 pub use mesh::MeshFormat;
 pub use npy::{read_npy, write_colours_npy, write_npy};
 pub use npz::write_npz;
+pub use vdb::{VdbOptions, write_vdb};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
-use super::VoxelGrid;
 use super::colour::VoxelColours;
-use std::io::Write;
+use super::{Grid, SparseGrid, VoxelGrid};
+use glam::UVec3;
+use std::io::{Seek, Write};
 
 /// The voxel formats meshvox writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,6 +35,10 @@ pub enum VoxelFormat {
     Npy,
     Binvox,
     Vox,
+    /// Sparse coordinates (see [`npz`]).
+    Npz,
+    /// OpenVDB (see [`vdb`]).
+    Vdb,
     /// The voxel model as a mesh (see [`mesh`]).
     Mesh(MeshFormat),
 }
@@ -46,6 +55,8 @@ impl VoxelFormat {
             "npy" => Some(VoxelFormat::Npy),
             "binvox" => Some(VoxelFormat::Binvox),
             "vox" => Some(VoxelFormat::Vox),
+            "npz" => Some(VoxelFormat::Npz),
+            "vdb" => Some(VoxelFormat::Vdb),
             "glb" => Some(VoxelFormat::Mesh(MeshFormat::Glb)),
             "ply" => Some(VoxelFormat::Mesh(MeshFormat::Ply)),
             "obj" => Some(VoxelFormat::Mesh(MeshFormat::Obj)),
@@ -53,11 +64,19 @@ impl VoxelFormat {
         }
     }
 
+    /// Whether the format is written from a sparse grid, in space that grows with the set voxels (the others
+    /// take the dense grid).
+    pub fn is_sparse(self) -> bool {
+        matches!(self, VoxelFormat::Npz | VoxelFormat::Vdb)
+    }
+
     pub fn extension(self) -> &'static str {
         match self {
             VoxelFormat::Npy => "npy",
             VoxelFormat::Binvox => "binvox",
             VoxelFormat::Vox => "vox",
+            VoxelFormat::Npz => "npz",
+            VoxelFormat::Vdb => "vdb",
             VoxelFormat::Mesh(MeshFormat::Glb) => "glb",
             VoxelFormat::Mesh(MeshFormat::Ply) => "ply",
             VoxelFormat::Mesh(MeshFormat::Obj) => "obj",
@@ -66,25 +85,76 @@ impl VoxelFormat {
 }
 
 /// Writes `grid` in `format`.
-pub fn write(grid: &VoxelGrid, format: VoxelFormat, out: &mut impl Write) -> Result<(), FormatError> {
+pub fn write<W: Write + Seek>(grid: &VoxelGrid, format: VoxelFormat, out: &mut W) -> Result<(), FormatError> {
     write_coloured(grid, None, format, false, out)
 }
 
 /// Writes `grid` in `format` with its voxel colours where the format holds them (`.vox`: a palette of at most
 /// 255 colours; meshes: vertex colours; `.npy` and `.binvox` hold occupancy only: see [`write_colours_npy`]).
 /// `merge` joins coplanar faces of mesh formats into rectangles.
-pub fn write_coloured(
+pub fn write_coloured<W: Write + Seek>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
     format: VoxelFormat,
     merge: bool,
-    out: &mut impl Write,
+    out: &mut W,
 ) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
         VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
         VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, merge, m, out),
+        VoxelFormat::Npz | VoxelFormat::Vdb => {
+            write_grid(&Grid::Dense(grid.clone()), colours, format, &WriteOptions { merge, ..Default::default() }, out)
+        }
+    }
+}
+
+/// How [`write_grid`] writes, beyond the format.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WriteOptions {
+    /// Mesh formats: join coplanar faces into rectangles.
+    pub merge: bool,
+    /// `.vdb`: a float `density` grid instead of the bool `occupancy` one.
+    pub vdb_float: bool,
+}
+
+/// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse
+/// format goes through the sparse grid of the same voxels, a sparse one into a dense format through the dense
+/// grid (which must fit: the engine's budget refuses dense formats that do not before voxelizing).
+pub fn write_grid<W: Write + Seek>(
+    grid: &Grid,
+    colours: Option<&VoxelColours>,
+    format: VoxelFormat,
+    options: &WriteOptions,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    let sparse = match (grid, format.is_sparse()) {
+        (Grid::Dense(dense), false) => return write_coloured(dense, colours, format, options.merge, out),
+        (Grid::Sparse(sparse), false) => {
+            let dense = sparse.to_dense().map_err(|e| std::io::Error::other(e.to_string()))?;
+            return write_coloured(&dense, colours, format, options.merge, out);
+        }
+        (Grid::Sparse(sparse), true) => std::borrow::Cow::Borrowed(sparse),
+        (Grid::Dense(dense), true) => std::borrow::Cow::Owned(SparseGrid::from_dense(dense)),
+    };
+    // Colours are kept in the dense grid's storage order (see `colour`): looked up by each voxel's rank.
+    let ranked = match (grid, colours) {
+        (Grid::Dense(dense), Some(c)) => Some((dense, super::colour::word_ranks(dense), c)),
+        _ => None,
+    };
+    let lookup = ranked.as_ref().map(|(dense, ranks, c)| {
+        move |v: UVec3| match super::colour::voxel_rank(dense, ranks, v) {
+            Some(r) => c.rgba[r as usize],
+            None => [0; 4],
+        }
+    });
+    match format {
+        VoxelFormat::Npz => write_npz(&sparse, lookup.as_ref().map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), out),
+        _ => {
+            let colour = lookup.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
+            write_vdb(&sparse, VdbOptions { float: options.vdb_float }, colour, out)
+        }
     }
 }
 

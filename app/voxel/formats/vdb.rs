@@ -1,0 +1,497 @@
+//! `.vdb`: OpenVDB's file format (version 224, what OpenVDB 10 and 11 write), written by hand because no
+//! maintained crate writes it (`vdb-rs` only reads). The byte layout and where each rule comes from are in
+//! `docs/vdb-format.md`; the tests read the files back with OpenVDB itself (pyopenvdb and `vdb_print`).
+//!
+//! # What is written
+//! One grid of the occupancy: a `BoolGrid` named `occupancy` (background false, the set voxels active and
+//! true), or with [`VdbOptions::float`] a `FloatGrid` named `density` of class fog volume (1.0 where set,
+//! background 0.0) for tools that only read floats. Beside it, when the voxels have colours, a `Vec3SGrid`
+//! named `Cd` with the same active voxels and each voxel's colour as linear RGB in 0..1 (Houdini's and
+//! Blender's convention for `Cd`). The sparse grid's tiles (a solid's interior) stay tiles: active tile values
+//! in the 5-4-3 tree's internal nodes and root.
+//!
+//! The transform is a uniform scale and translation that puts the centre of index voxel `(i, j, k)`, at integer
+//! index coordinates in OpenVDB, at meshvox's centre of voxel `(i, j, k)`: `origin + voxel_size * (i + ½, …)`.
+//!
+//! # How
+//! Uncompressed except for OpenVDB's own active-mask elision (compression flags 2: only active values are
+//! stored, every inactive one is the background), so no codec is needed and readers of any build can open it.
+//! Leaves and tiles are ordered as the tree visits them (root children by origin, then internal slots by
+//! index, x-major at each level); the topology is written first, then the leaf buffers in the same order,
+//! streamed from the sparse grid. The three stream positions of each grid's descriptor are patched in once the
+//! grid is written, hence `Seek`.
+
+use super::error::FormatError;
+use crate::mesh::material::SRGB_TO_LINEAR;
+use crate::voxel::SparseGrid;
+use crate::voxel::sparse::{LeafMask, key_origin};
+use glam::{IVec3, UVec3};
+use rayon::prelude::*;
+use std::hash::{Hash, Hasher};
+use std::io::{Seek, SeekFrom, Write};
+
+/// File format version 224 (OpenVDB 10 and 11), as library 10.0.
+const FILE_VERSION: u32 = 224;
+const LIBRARY: (u32, u32) = (10, 0);
+/// `COMPRESS_ACTIVE_MASK`: inactive values are left out (they are the background).
+const COMPRESS_ACTIVE_MASK: u32 = 0x2;
+/// Per-node metadata byte `NO_MASK_OR_INACTIVE_VALS`: every inactive value is the background.
+const NO_MASK_OR_INACTIVE_VALS: u8 = 0;
+
+/// What to write beside the voxels' positions.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct VdbOptions {
+    /// A `density` FloatGrid instead of the `occupancy` BoolGrid.
+    pub float: bool,
+}
+
+/// The value type of one grid, and how it writes values.
+#[derive(Clone, Copy)]
+enum Values<'a> {
+    Bool,
+    Density,
+    /// Linear RGB per voxel.
+    Colour(&'a (dyn Fn(UVec3) -> [f32; 3] + Sync)),
+}
+
+impl Values<'_> {
+    fn tree_type(&self) -> &'static str {
+        match self {
+            Values::Bool => "Tree_bool_5_4_3",
+            Values::Density => "Tree_float_5_4_3",
+            Values::Colour(_) => "Tree_vec3s_5_4_3",
+        }
+    }
+
+    fn background(&self, out: &mut Vec<u8>) {
+        match self {
+            Values::Bool => out.push(0),
+            Values::Density => out.extend_from_slice(&0f32.to_le_bytes()),
+            Values::Colour(_) => out.extend_from_slice(&[0; 12]),
+        }
+    }
+
+    /// The value of the set voxel `v` (tiles take their first voxel's).
+    fn value(&self, v: UVec3, out: &mut Vec<u8>) {
+        match self {
+            Values::Bool => out.push(1),
+            Values::Density => out.extend_from_slice(&1f32.to_le_bytes()),
+            Values::Colour(colour) => {
+                for c in colour(v) {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+    }
+}
+
+/// One entry of the tree below the root: a leaf (index into the grid's leaves) or a tile of 8³ or 128³ voxels.
+#[derive(Clone, Copy)]
+enum Node {
+    Leaf(u32),
+    Tile { log2: u32, origin: UVec3 },
+}
+
+/// The order the tree visits a node at `origin` in: root child (4096³ block, x-major), then the slot in the
+/// upper internal node (32³ of 128³ blocks), then the slot in the lower one (16³ of 8³ blocks).
+fn tree_order(origin: UVec3) -> u64 {
+    let (u, m, l) = (origin >> 12u32, (origin >> 7u32) & 31u32, (origin >> 3u32) & 15u32);
+    let upper = u64::from(u.x << 8 | u.y << 4 | u.z);
+    let slot5 = u64::from(m.x << 10 | m.y << 5 | m.z);
+    let slot4 = u64::from(l.x << 8 | l.y << 4 | l.z);
+    upper << 27 | slot5 << 12 | slot4
+}
+
+fn upper_of(order: u64) -> u64 {
+    order >> 27
+}
+
+fn slot5_of(order: u64) -> usize {
+    ((order >> 12) & 0x7fff) as usize
+}
+
+fn slot4_of(order: u64) -> usize {
+    (order & 0xfff) as usize
+}
+
+/// A node mask of `N` bits as OpenVDB saves it (u64 words, little-endian).
+struct Mask(Vec<u64>);
+
+impl Mask {
+    fn new(bits: usize) -> Mask {
+        Mask(vec![0; bits / 64])
+    }
+
+    fn set(&mut self, n: usize) {
+        self.0[n / 64] |= 1 << (n % 64);
+    }
+
+    fn get(&self, n: usize) -> bool {
+        self.0[n / 64] >> (n % 64) & 1 != 0
+    }
+
+    fn write(&self, out: &mut Vec<u8>) {
+        for w in &self.0 {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+    }
+}
+
+fn string(out: &mut Vec<u8>, s: &str) {
+    out.extend_from_slice(&(s.len() as u32).to_le_bytes());
+    out.extend_from_slice(s.as_bytes());
+}
+
+fn coord(out: &mut Vec<u8>, v: UVec3) {
+    for c in v.as_ivec3().to_array() {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
+}
+
+/// A metadata value: its type name and bytes.
+enum Meta {
+    Str(String),
+    Vec3i(IVec3),
+    Int64(i64),
+}
+
+fn write_meta(out: &mut Vec<u8>, entries: &[(&str, Meta)]) {
+    // OpenVDB writes a std::map, so keys ascending; the reader does not care, but files then compare equal.
+    let mut entries: Vec<&(&str, Meta)> = entries.iter().collect();
+    entries.sort_by_key(|(k, _)| *k);
+    out.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+    for (key, value) in entries {
+        string(out, key);
+        let mut bytes = Vec::new();
+        let type_name = match value {
+            Meta::Str(s) => {
+                bytes.extend_from_slice(s.as_bytes());
+                "string"
+            }
+            Meta::Vec3i(v) => {
+                for c in v.to_array() {
+                    bytes.extend_from_slice(&c.to_le_bytes());
+                }
+                "vec3i"
+            }
+            Meta::Int64(i) => {
+                bytes.extend_from_slice(&i.to_le_bytes());
+                "int64"
+            }
+        };
+        string(out, type_name);
+        out.extend_from_slice(&(bytes.len() as u32).to_le_bytes());
+        out.extend_from_slice(&bytes);
+    }
+}
+
+/// The grid's set voxels' inclusive index bounding box, or `None` when empty.
+fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
+    let leaf = |(key, mask): &(u64, LeafMask)| {
+        let o = key_origin(*key);
+        let (mut lo, mut hi) = (UVec3::MAX, UVec3::ZERO);
+        for (x, &w) in mask.iter().enumerate().filter(|(_, w)| **w != 0) {
+            let (y_lo, y_hi) = (w.trailing_zeros() / 8, 7 - w.leading_zeros() / 8);
+            // z: the lowest and highest bit within any byte.
+            let bytes = (0..8).map(|y| (w >> (y * 8)) as u8).fold(0u8, |a, b| a | b);
+            let (z_lo, z_hi) = (bytes.trailing_zeros(), 7 - bytes.leading_zeros());
+            lo = lo.min(o + UVec3::new(x as u32, y_lo, z_lo));
+            hi = hi.max(o + UVec3::new(x as u32, y_hi, z_hi));
+        }
+        (lo, hi)
+    };
+    let join = |a: (UVec3, UVec3), b: (UVec3, UVec3)| (a.0.min(b.0), a.1.max(b.1));
+    let leaves = grid.leaves.par_iter().map(leaf).reduce(|| (UVec3::MAX, UVec3::ZERO), join);
+    let all = grid.tiles.iter().fold(leaves, |acc, t| join(acc, (t.origin, t.origin + (1u32 << t.log2) - 1)));
+    (all.0.x <= all.1.x).then_some(all)
+}
+
+/// A UUID in the 8-4-4-4-12 form OpenVDB's readers parse, derived from the grid so the same run writes the same
+/// bytes (random per file is what OpenVDB does; nothing reads it as more than an identifier).
+fn file_uuid(grid: &SparseGrid) -> String {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    grid.spec.dims.to_array().hash(&mut h);
+    grid.spec.origin.to_array().map(f64::to_bits).hash(&mut h);
+    grid.spec.voxel_size.to_bits().hash(&mut h);
+    (grid.leaves.len(), grid.tiles.len(), grid.leaves.first(), grid.leaves.last()).hash(&mut h);
+    let a = h.finish();
+    a.rotate_left(17).hash(&mut h);
+    let b = h.finish();
+    // Version 4, variant 10xx, as a random UUID would have.
+    let a = (a & !0xf000) | 0x4000;
+    let b = (b & !(0xc << 60)) | (0x8 << 60);
+    let hex = format!("{a:016x}{b:016x}");
+    format!("{}-{}-{}-{}-{}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
+}
+
+/// Writes `grid` as a `.vdb` (see the module documentation); `colour(v)` gives the sRGB colour of each set voxel
+/// for a `Cd` grid.
+pub fn write_vdb<W: Write + Seek>(
+    grid: &SparseGrid,
+    options: VdbOptions,
+    colour: Option<&(dyn Fn(UVec3) -> [u8; 4] + Sync)>,
+    mut out: W,
+) -> Result<(), FormatError> {
+    let mut head = Vec::new();
+    head.extend_from_slice(&0x5644_4220i64.to_le_bytes());
+    head.extend_from_slice(&FILE_VERSION.to_le_bytes());
+    head.extend_from_slice(&LIBRARY.0.to_le_bytes());
+    head.extend_from_slice(&LIBRARY.1.to_le_bytes());
+    head.push(1); // the descriptors hold stream positions
+    head.extend_from_slice(file_uuid(grid).as_bytes());
+    write_meta(&mut head, &[]);
+    let to_rgb = colour.map(|colour| {
+        move |v: UVec3| {
+            let [r, g, b, _] = colour(v);
+            [r, g, b].map(|c| SRGB_TO_LINEAR[c as usize])
+        }
+    });
+    let grids: Vec<(&str, Values)> = [
+        Some(match options.float {
+            true => ("density", Values::Density),
+            false => ("occupancy", Values::Bool),
+        }),
+        to_rgb.as_ref().map(|f| ("Cd", Values::Colour(f as &(dyn Fn(UVec3) -> [f32; 3] + Sync)))),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    head.extend_from_slice(&(grids.len() as i32).to_le_bytes());
+    out.write_all(&head)?;
+    let nodes = tree_nodes(grid);
+    let bounds = active_bounds(grid);
+    for (name, values) in grids {
+        write_grid(grid, &nodes, bounds, name, values, &mut out)?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// The leaves and the 8³ and 128³ tiles in the order the tree visits them, with their order keys; and the 4096³
+/// tiles, which the root holds.
+struct TreeNodes {
+    below_root: Vec<(u64, Node)>,
+    root_tiles: Vec<UVec3>,
+}
+
+fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
+    let mut below_root: Vec<(u64, Node)> = grid
+        .leaves
+        .par_iter()
+        .enumerate()
+        .map(|(i, (key, _))| (tree_order(key_origin(*key)), Node::Leaf(i as u32)))
+        .collect();
+    let mut root_tiles = Vec::new();
+    for t in &grid.tiles {
+        match t.log2 {
+            3 | 7 => below_root.push((tree_order(t.origin), Node::Tile { log2: t.log2, origin: t.origin })),
+            _ => root_tiles.push(t.origin),
+        }
+    }
+    below_root.par_sort_unstable_by_key(|(order, _)| *order);
+    root_tiles.sort_unstable_by_key(|o| (o.x, o.y, o.z));
+    TreeNodes { below_root, root_tiles }
+}
+
+/// The origin of the tree node of edge `1 << log2` holding `order`'s first voxel.
+fn node_origin(order: u64, log2: u32) -> UVec3 {
+    let u = upper_of(order) as u32;
+    let m = slot5_of(order) as u32;
+    let l = slot4_of(order) as u32;
+    let x = (u >> 8) << 12 | (m >> 10) << 7 | (l >> 8) << 3;
+    let y = ((u >> 4) & 15) << 12 | ((m >> 5) & 31) << 7 | ((l >> 4) & 15) << 3;
+    let z = (u & 15) << 12 | (m & 31) << 7 | (l & 15) << 3;
+    (UVec3::new(x, y, z) >> log2) << log2
+}
+
+/// One grid: descriptor, then (at the descriptor's grid position) flags, metadata, transform, topology and
+/// buffers; the descriptor's positions are patched at the end.
+fn write_grid<W: Write + Seek>(
+    grid: &SparseGrid,
+    nodes: &TreeNodes,
+    bounds: Option<(UVec3, UVec3)>,
+    name: &str,
+    values: Values,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    let mut b = Vec::new();
+    string(&mut b, name);
+    string(&mut b, values.tree_type());
+    string(&mut b, "");
+    out.write_all(&b)?;
+    let positions_at = out.stream_position()?;
+    out.write_all(&[0; 24])?;
+    let grid_pos = out.stream_position()?;
+
+    b.clear();
+    b.extend_from_slice(&COMPRESS_ACTIVE_MASK.to_le_bytes());
+    let class = match values {
+        Values::Density => "fog volume",
+        Values::Bool | Values::Colour(_) => "unknown",
+    };
+    let mut meta = vec![
+        ("name", Meta::Str(name.to_string())),
+        ("class", Meta::Str(class.to_string())),
+        ("creator", Meta::Str(format!("meshvox {}", env!("CARGO_PKG_VERSION")))),
+        ("file_voxel_count", Meta::Int64(grid.count() as i64)),
+    ];
+    if let Some((lo, hi)) = bounds {
+        meta.push(("file_bbox_min", Meta::Vec3i(lo.as_ivec3())));
+        meta.push(("file_bbox_max", Meta::Vec3i(hi.as_ivec3())));
+    }
+    if let Values::Colour(_) = values {
+        meta.push(("vector_type", Meta::Str("invariant".to_string())));
+    }
+    write_meta(&mut b, &meta);
+    // The transform: index voxel centres (integers) onto meshvox's voxel centres.
+    string(&mut b, "UniformScaleTranslateMap");
+    let h = grid.spec.voxel_size;
+    let t = grid.spec.origin + 0.5 * h;
+    for v in [t.to_array(), [h; 3], [h; 3], [1.0 / h; 3], [1.0 / (h * h); 3], [0.5 / h; 3]] {
+        for c in v {
+            b.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    b.extend_from_slice(&1i32.to_le_bytes()); // buffer count
+    out.write_all(&b)?;
+
+    write_topology(grid, nodes, values, out)?;
+    let block_pos = out.stream_position()?;
+    write_buffers(grid, nodes, values, out)?;
+    let end_pos = out.stream_position()?;
+    out.seek(SeekFrom::Start(positions_at))?;
+    for p in [grid_pos, block_pos, end_pos] {
+        out.write_all(&(p as i64).to_le_bytes())?;
+    }
+    out.seek(SeekFrom::Start(end_pos))?;
+    Ok(())
+}
+
+/// The active values of an internal node's tiles (the node's value mask), after the metadata byte.
+fn tile_values(values: Values, tiles: &[UVec3], b: &mut Vec<u8>) {
+    b.push(NO_MASK_OR_INACTIVE_VALS);
+    for &origin in tiles {
+        values.value(origin, b);
+    }
+}
+
+/// The root (background, its tiles, its children) and every internal node's masks and tile values, with each
+/// leaf's value mask, depth first.
+fn write_topology(
+    grid: &SparseGrid,
+    nodes: &TreeNodes,
+    values: Values,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
+    let below = &nodes.below_root;
+    let uppers: Vec<&[(u64, Node)]> = below.chunk_by(|a, b| upper_of(a.0) == upper_of(b.0)).collect();
+    let mut b = Vec::new();
+    values.background(&mut b);
+    b.extend_from_slice(&(nodes.root_tiles.len() as u32).to_le_bytes());
+    b.extend_from_slice(&(uppers.len() as u32).to_le_bytes());
+    for &origin in &nodes.root_tiles {
+        coord(&mut b, origin);
+        values.value(origin, &mut b);
+        b.push(1); // active
+    }
+    out.write_all(&b)?;
+    for upper in uppers {
+        b.clear();
+        coord(&mut b, node_origin(upper[0].0, 12));
+        let lowers: Vec<&[(u64, Node)]> = upper.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)).collect();
+        let (mut children, mut active, mut tiles) = (Mask::new(32768), Mask::new(32768), Vec::new());
+        for lower in &lowers {
+            match lower[0].1 {
+                Node::Tile { log2: 7, origin } => {
+                    active.set(slot5_of(lower[0].0));
+                    tiles.push(origin);
+                }
+                _ => children.set(slot5_of(lower[0].0)),
+            }
+        }
+        children.write(&mut b);
+        active.write(&mut b);
+        tile_values(values, &tiles, &mut b);
+        for lower in lowers.iter().filter(|l| children.get(slot5_of(l[0].0))) {
+            write_lower_topology(grid, lower, values, &mut b);
+        }
+        out.write_all(&b)?;
+    }
+    Ok(())
+}
+
+/// A lower internal node (16³ slots of 8³): its masks, its 8³ tiles' values and its leaves' value masks.
+fn write_lower_topology(grid: &SparseGrid, lower: &[(u64, Node)], values: Values, b: &mut Vec<u8>) {
+    // No origin: the parent's slot places a lower node (only the root's children carry one).
+    let (mut children, mut active, mut tiles) = (Mask::new(4096), Mask::new(4096), Vec::new());
+    for &(order, node) in lower {
+        match node {
+            Node::Leaf(_) => children.set(slot4_of(order)),
+            Node::Tile { origin, .. } => {
+                active.set(slot4_of(order));
+                tiles.push(origin);
+            }
+        }
+    }
+    children.write(b);
+    active.write(b);
+    tile_values(values, &tiles, b);
+    for &(_, node) in lower {
+        if let Node::Leaf(i) = node {
+            Mask(grid.leaves[i as usize].1.to_vec()).write(b);
+        }
+    }
+}
+
+/// Each leaf's buffer, in the topology's order: a bool leaf is its value mask, origin and value bits (the
+/// same mask: every active voxel is true); a float or vector leaf its value mask, the metadata byte and its
+/// active voxels' values in index order (`x << 6 | y << 3 | z`, the mask's bit order).
+fn write_buffers(
+    grid: &SparseGrid,
+    nodes: &TreeNodes,
+    values: Values,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
+    let leaves: Vec<u32> = nodes
+        .below_root
+        .iter()
+        .filter_map(|(_, n)| match n {
+            Node::Leaf(i) => Some(*i),
+            Node::Tile { .. } => None,
+        })
+        .collect();
+    // Buffers are made in parallel a batch of leaves at a time and written in order.
+    for batch in leaves.chunks(4096) {
+        let bytes: Vec<Vec<u8>> = batch
+            .par_iter()
+            .map(|&i| {
+                let (key, mask) = &grid.leaves[i as usize];
+                let origin = key_origin(*key);
+                let mut b = Vec::with_capacity(140);
+                Mask(mask.to_vec()).write(&mut b);
+                match values {
+                    Values::Bool => {
+                        coord(&mut b, origin);
+                        Mask(mask.to_vec()).write(&mut b);
+                    }
+                    Values::Density | Values::Colour(_) => {
+                        b.push(NO_MASK_OR_INACTIVE_VALS);
+                        for (x, &word) in mask.iter().enumerate() {
+                            let mut bits = word;
+                            while bits != 0 {
+                                let n = bits.trailing_zeros();
+                                values.value(origin + UVec3::new(x as u32, n / 8, n % 8), &mut b);
+                                bits &= bits - 1;
+                            }
+                        }
+                    }
+                }
+                b
+            })
+            .collect();
+        for b in bytes {
+            out.write_all(&b)?;
+        }
+    }
+    Ok(())
+}
