@@ -2,7 +2,8 @@
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
 # GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh, binvox
-# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), Node.js
+# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), OpenVDB
+# (pyopenvdb and vdb_print, to read .vdb files back), Node.js
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
@@ -12,9 +13,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # lavapipe for the GPU tests; Xvfb, ImageMagick and the X libraries winit loads for the desktop test.
-# Chromium (with SwiftShader's WebGPU) and Node.js for the browser test.
+# Chromium (with SwiftShader's WebGPU) and Node.js for the browser test. OpenVDB 10 (pyopenvdb for the system
+# Python, and vdb_print) reads the .vdb files back.
 packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1 chromium
-  clang llvm"
+  clang llvm python3-openvdb libopenvdb-tools"
 command -v node >/dev/null 2>&1 || packages="$packages nodejs npm"
 if [ "$(id -u)" = 0 ]; then
   missing=$(for p in $packages; do dpkg -s "$p" >/dev/null 2>&1 || echo "$p"; done)

@@ -273,7 +273,9 @@ pub(super) fn slab_plan(gpu: &Gpu, spec: GridSpec, options: &Options) -> Result<
             limit,
         });
     }
-    let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit);
+    // The slab is read back in one buffer with a few words beside it (the unsure count, timestamps): leave them
+    // room under the buffer size limit.
+    let slab_limit = options.max_slab_bytes.unwrap_or(limit).min(limit.saturating_sub(4096));
     let slab_layers = ((slab_limit / layer_bytes) as u32).clamp(1, spec.dims.z);
     Ok((slab_layers, spec.dims.z.div_ceil(slab_layers)))
 }

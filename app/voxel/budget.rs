@@ -30,7 +30,7 @@ pub const LEAVES_PER_AREA: f64 = 2.5;
 pub const LEAF_BYTES: u64 = 256;
 /// The GPU's slab for a sparse grid: read back and turned into leaves one at a time, so at most this much of the
 /// dense grid is on the host at once.
-pub const SPARSE_SLAB_BYTES: u64 = 256 << 20;
+pub const SPARSE_SLAB_BYTES: u64 = 64 << 20;
 
 /// The request a grid is planned for, beside its spec.
 #[derive(Clone, Copy, Debug)]

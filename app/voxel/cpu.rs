@@ -303,8 +303,8 @@ pub fn voxelize_grid_space_cancellable(
 }
 
 /// [`voxelize_grid_space_cancellable`] into a [`SparseGrid`]: the same walk writing runs into leaves, with bands
-/// a whole number of leaves thick, so memory grows with the leaves the surface touches. Surface modes only (the
-/// sparse solid fill is not here yet).
+/// a whole number of leaves thick, so memory grows with the leaves the surface touches; a solid's interior is
+/// filled by [`super::solid_sparse`] as tiles. The grid comes in [`SparseGrid::prune`]'s canonical form.
 pub fn voxelize_grid_space_sparse(
     triangles: &[[Vec3; 3]],
     spec: GridSpec,
@@ -319,7 +319,12 @@ pub fn voxelize_grid_space_sparse(
     let stats = walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
         set.set_run(x0, x1, y, z)
     });
-    Ok((SparseGrid::from_leaf_sets(spec, bands), stats))
+    let grid = SparseGrid::from_leaf_sets(spec, bands);
+    let grid = match mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
+        true => super::solid_sparse::fill_sparse(&triangles, lattice, grid),
+        false => grid.prune(),
+    };
+    Ok((grid, stats))
 }
 
 /// z layers per band of [`walk_bands`]: about eight bands per thread, so that bands of unequal work even out.

@@ -26,6 +26,7 @@ mod grid;
 mod lattice;
 pub mod overlap;
 pub mod solid;
+pub mod solid_sparse;
 pub mod sparse;
 pub mod thin;
 

@@ -206,7 +206,14 @@ impl SparseGrid {
                 slab.push((o.y, o.z, self.leaves[next].1));
                 next += 1;
             }
-            for tile in self.tiles.iter().filter(|t| (lx * LEAF_DIM) >> t.log2 == t.origin.x >> t.log2) {
+            // Tiles are sorted by size, then x-major: each size's tiles spanning this slab are one range.
+            let x = lx * LEAF_DIM;
+            let spanning = TILE_LOG2.iter().flat_map(|&log2| {
+                let x0 = (x >> log2) << log2;
+                let start = self.tiles.partition_point(|t| (t.log2, t.origin.x) < (log2, x0));
+                self.tiles[start..].iter().take_while(move |t| t.log2 == log2 && t.origin.x == x0)
+            });
+            for tile in spanning {
                 let n = 1u32 << (tile.log2 - 3);
                 for j in 0..n {
                     for k in 0..n {

@@ -11,7 +11,7 @@ use crate::common::{Rng, all_meshes, assert_same_grid, hard_cases, lattice_mesh}
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::gpu::Gpu;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
-use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
 use std::sync::OnceLock;
 
 /// One device for the whole test binary. Without an adapter the tests are skipped loudly, except under
@@ -336,4 +336,50 @@ fn small_device_limits_refuse_cleanly_or_work_in_slabs() {
     assert!(matches!(e, meshvox::gpu::GpuError::TooLarge { .. }), "{e}");
     assert!(e.to_string().contains("one z-layer") && e.to_string().contains("at most 64.0 KiB"), "{e}");
     assert!(small.check().is_ok(), "nothing failed on the device itself");
+}
+
+/// The sparse grid from the GPU: on a device whose binding limit (2 MiB here, as a stand-in for a grid past a
+/// real adapter's) is below the dense grid, slabs are read back into leaves one at a time, and the result equals
+/// the CPU's sparse grid field for field (leaves and tiles), in every mode; the engine takes the same path.
+#[test]
+fn gpu_sparse_equals_cpu_sparse_past_the_dense_binding_limit() {
+    let Some((shared, _)) = gpu() else { return };
+    let limit = 2u64 << 20;
+    let limits =
+        wgpu::Limits { max_storage_buffer_binding_size: limit, max_buffer_size: limit, ..shared.adapter.limits() };
+    let small = pollster::block_on(Gpu::from_adapter_with_limits(shared.adapter.clone(), limits)).expect("device");
+    let v = GpuVoxelizer::new(&small);
+    for (mesh_name, mode, n) in
+        [("knot", Mode::Surface, 600), ("sphere", Mode::Solid, 300), ("torus", Mode::Surface6, 500)]
+    {
+        let mesh = meshvox::mesh::load(&format!("builtin:{mesh_name}")).expect("mesh");
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("spec");
+        assert!(spec.byte_size() > limit, "{mesh_name}: the dense grid must not fit one binding");
+        let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let options = Options { read_grid: true, sparse: true, mode, ..Default::default() };
+        let out = v.voxelize(&small, &tris, spec, &options).expect("gpu sparse");
+        assert!(out.slabs > 1 && out.grid.is_none(), "{mesh_name}: {} slabs, no dense grid", out.slabs);
+        let never = std::sync::atomic::AtomicBool::new(false);
+        let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, mode, &|_, _| {}, &never).expect("cpu");
+        let gpu_sparse = *out.sparse.expect("sparse grid");
+        assert_eq!(gpu_sparse.count(), cpu_sparse.count(), "{mesh_name} ({mode}) at {n}: count");
+        assert!(gpu_sparse == cpu_sparse, "{mesh_name} ({mode}) at {n}: leaves and tiles differ");
+        if mode == Mode::Solid {
+            assert!(!gpu_sparse.tiles.is_empty(), "a solid's interior as tiles");
+        }
+    }
+    let engine = meshvox::Engine::on_device(&small, meshvox::engine::Backend::Gpu).expect("engine");
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let request = meshvox::engine::Request {
+        grid: meshvox::voxel::GridKind::Sparse,
+        ..meshvox::engine::Request::new(Resolution::Count(600), Mode::Surface)
+    };
+    let out = engine.voxelize("knot", &mesh, &request).expect("engine");
+    assert!(out.report.backend.starts_with("gpu"), "{}", out.report.backend);
+    assert_eq!(out.report.grid, "sparse");
+    let spec = *out.grid.spec();
+    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+    assert!(out.grid.sparse() == Some(&cpu_sparse), "the engine's GPU sparse grid equals the CPU's");
 }

@@ -1,0 +1,145 @@
+//! The solid fill of [`super::solid`] into a [`SparseGrid`]: the same crossings, the same rows and the same
+//! winding-number rule (each row is filled by [`fill_row`], the function the dense grid uses), but the interior
+//! is kept as tiles wherever whole blocks are inside, so a solid at 8192³ costs memory along its surface rather
+//! than through its volume.
+//!
+//! The grid is taken in blocks of 128 × 128 rows (y, z), one rayon task each, which owns the leaves and tiles of
+//! its block: its rows are filled 64 at a time (an 8 × 8 group, one leaf row), and per group the AND of its rows
+//! gives the leaves that are wholly inside (8³ tiles) and the rows themselves give the masks of the leaves that
+//! are partly inside; the AND over the whole block gives its 128³ tiles. The surface's leaves are then joined
+//! with the interior's, leaves under a tile dropped, and [`SparseGrid::prune`] gives the canonical form (full
+//! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
+
+use super::Lattice;
+use super::solid::{boundary_boxes, boundary_edges, column_crossings, fill_row, near_boundary};
+use super::sparse::{LeafMask, SparseGrid, Tile, leaf_key};
+use glam::{UVec3, Vec3};
+use rayon::prelude::*;
+use std::collections::HashSet;
+
+/// Rows along y and z of one task's block: the edge of a 128³ tile.
+const BLOCK: u32 = 128;
+
+/// What one block's task found inside.
+#[derive(Default)]
+struct BlockInterior {
+    tiles: Vec<Tile>,
+    leaves: Vec<(u64, LeafMask)>,
+}
+
+/// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8`.
+#[inline]
+fn row_byte(row: &[u32], lx: usize) -> u8 {
+    (row[lx / 4] >> ((lx % 4) * 8)) as u8
+}
+
+/// Adds the voxels whose centres are inside the lattice triangles' mesh to `surface` (which holds the shell).
+pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
+    let spec = surface.spec;
+    let dims = spec.dims;
+    let rows = column_crossings(triangles, dims, lattice);
+    let edges = boundary_edges(triangles, lattice);
+    let boxes = boundary_boxes(&edges);
+    let wpr = spec.words_per_row();
+    let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
+    let leaves_x = dims.x.div_ceil(8) as usize;
+    let fill_block = |b: u32| -> BlockInterior {
+        let (y0, z0) = ((b % blocks_y) * BLOCK, (b / blocks_y) * BLOCK);
+        let mut out = BlockInterior::default();
+        // The AND over all rows of the block: 128³ tiles where 128 bits in a row are set. A row outside the
+        // grid counts as empty, so a block cut by the grid's end has no tile.
+        let mut all = vec![u32::MAX; wpr];
+        let mut group = vec![0u32; 64 * wpr];
+        let mut groups: Vec<(u32, u32, Vec<u32>)> = Vec::new();
+        for gz in 0..BLOCK / 8 {
+            for gy in 0..BLOCK / 8 {
+                let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
+                group.iter_mut().for_each(|w| *w = 0);
+                let mut any = false;
+                for dz in 0..8 {
+                    for dy in 0..8 {
+                        let (y, z) = (ya + dy, za + dz);
+                        if y >= dims.y || z >= dims.z {
+                            continue;
+                        }
+                        let r = (z * dims.y + y) as usize;
+                        let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                        let near = near_boundary(y, z, &boxes);
+                        if list.is_empty() && !near {
+                            continue;
+                        }
+                        let row = &mut group[(dy * 8 + dz) as usize * wpr..][..wpr];
+                        fill_row(list, y, z, dims.x, near, &edges, row);
+                        any |= row.iter().any(|w| *w != 0);
+                    }
+                }
+                if !any {
+                    all.iter_mut().for_each(|w| *w = 0);
+                    continue;
+                }
+                let mut and = vec![u32::MAX; wpr];
+                for row in group.chunks(wpr) {
+                    and.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
+                }
+                all.iter_mut().zip(&and).for_each(|(a, r)| *a &= r);
+                groups.push((ya, za, group.clone()));
+            }
+        }
+        // 128³ tiles: four whole words of the block's AND.
+        let tiled: Vec<bool> = (0..wpr.div_ceil(4))
+            .map(|t| all.get(t * 4..t * 4 + 4).is_some_and(|w| w.iter().all(|w| *w == u32::MAX)))
+            .collect();
+        for (t, _) in tiled.iter().enumerate().filter(|(_, t)| **t) {
+            out.tiles.push(Tile { log2: 7, origin: UVec3::new(t as u32 * BLOCK, y0, z0) });
+        }
+        for (ya, za, group) in groups {
+            for lx in (0..leaves_x).filter(|lx| !tiled[lx / 16]) {
+                let mut mask: LeafMask = [0; 8];
+                for (i, row) in group.chunks(wpr).enumerate() {
+                    let mut bits = row_byte(row, lx);
+                    while bits != 0 {
+                        let x = bits.trailing_zeros();
+                        mask[x as usize] |= 1u64 << i;
+                        bits &= bits - 1;
+                    }
+                }
+                if mask.iter().any(|w| *w != 0) {
+                    out.leaves.push((leaf_key(lx as u32 * 8, ya, za), mask));
+                }
+            }
+        }
+        out
+    };
+    let parts: Vec<BlockInterior> = (0..blocks_y * blocks_z).into_par_iter().map(fill_block).collect();
+    drop(rows);
+    let mut tiles: Vec<Tile> = Vec::new();
+    let mut inside: Vec<(u64, LeafMask)> = Vec::new();
+    for part in parts {
+        tiles.extend(part.tiles);
+        inside.extend(part.leaves);
+    }
+    inside.par_sort_unstable_by_key(|(k, _)| *k);
+    let blocks: HashSet<UVec3> = tiles.iter().map(|t| t.origin).collect();
+    let under_tile = |key: u64| blocks.contains(&((super::sparse::key_origin(key) >> 7) << 7));
+    // Join the two sorted lists, OR-ing leaves present in both.
+    let mut leaves = Vec::with_capacity(surface.leaves.len() + inside.len());
+    let (mut a, mut b) = (surface.leaves.into_iter().peekable(), inside.into_iter().peekable());
+    loop {
+        let next = match (a.peek(), b.peek()) {
+            (Some(x), Some(y)) if x.0 == y.0 => {
+                let (k, m) = a.next().unwrap_or_default();
+                let (_, n) = b.next().unwrap_or_default();
+                (k, std::array::from_fn(|i| m[i] | n[i]))
+            }
+            (Some(x), Some(y)) if x.0 < y.0 => a.next().unwrap_or_default(),
+            (Some(_), Some(_)) | (None, Some(_)) => b.next().unwrap_or_default(),
+            (Some(_), None) => a.next().unwrap_or_default(),
+            (None, None) => break,
+        };
+        if !under_tile(next.0) {
+            leaves.push(next);
+        }
+    }
+    tiles.extend(surface.tiles);
+    SparseGrid { spec, leaves, tiles }.prune()
+}
