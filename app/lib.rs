@@ -13,8 +13,8 @@
 //! let engine = Engine::open(Backend::Cpu)?; // Backend::Auto takes the GPU where there is one
 //! let result = engine.voxelize("builtin:torus", &mesh, &Request::new(Resolution::Count(32), Mode::Solid))?;
 //! assert_eq!(result.report.dims[0], 32); // 32 voxels along the longest axis, x for this torus
-//! let mut npy = Vec::new();
-//! result.write(VoxelFormat::Npy, false, &mut npy)?;
+//! let mut npy = std::io::Cursor::new(Vec::new()); // any Write + Seek: a file, a buffer
+//! result.write(VoxelFormat::Npy, &Default::default(), &mut npy)?;
 //! # Ok(())
 //! # }
 //! ```

@@ -1,7 +1,7 @@
 //! `meshvox bench`: voxelization times per mesh, resolution, mode and backend. `--suite seed` reproduces the
 //! original program's Table 1 beside its figures, `--suite scale` runs real meshes and a generated dense one up to
-//! 2048 with peak memory; `--out` and `--markdown` write the results, so `bench/RESULTS.md` is written by the
-//! tool, not pasted.
+//! 2048 with peak memory, `--suite sparse` the sparse grid up to 16384 with its leaves and `.vdb` size; `--out`
+//! and `--markdown` write the results, so `bench/RESULTS.md` is written by the tool, not pasted.
 
 use super::{BackendArg, Engine, ModeArg, median, ms, open_engine};
 use anyhow::{Context, Result, anyhow};
@@ -17,6 +17,10 @@ pub enum Suite {
     Seed,
     /// Bunny, Suzanne, teapot, rotated cube and a generated ~1M-triangle knot at 256, 512, 1024 and 2048.
     Scale,
+    /// Sparse grids: bunny, teapot and the ~1M-triangle knot, surface at 2048, 4096, 8192 and 16384 and solid at
+    /// 2048, 4096 and 8192, with peak memory, leaves, tiles and the `.vdb` written; the dense grid at 2048 beside
+    /// them.
+    Sparse,
     /// The viewer's frame time with ambient occlusion off and on: the bundled knot at 532 (just over a million
     /// visible voxels) drawn at 512x512 with 4x MSAA.
     Frame,
@@ -27,6 +31,7 @@ impl Suite {
         match self {
             Suite::Seed => "seed",
             Suite::Scale => "scale",
+            Suite::Sparse => "sparse",
             Suite::Frame => "frame",
         }
     }
@@ -71,6 +76,8 @@ struct Case {
     n: u32,
     axis: Axis,
     mode: Mode,
+    /// The sparse grid (and its `.vdb` written after the runs).
+    sparse: bool,
     paper_ms: Option<f64>,
 }
 
@@ -91,6 +98,14 @@ struct Row {
     exact_tests: Option<u64>,
     /// Peak resident memory above what the process held before the case.
     peak_mib: Option<f64>,
+    /// `dense` or `sparse`.
+    grid: String,
+    /// A sparse grid's leaves and tiles.
+    leaves: Option<u64>,
+    tiles: Option<u64>,
+    /// A sparse grid's `.vdb` (bool occupancy): bytes and milliseconds to write it.
+    vdb_bytes: Option<u64>,
+    vdb_write_ms: Option<f64>,
     paper_ms: Option<f64>,
 }
 
@@ -164,7 +179,7 @@ fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
                 });
                 for (k, n) in [30, 70, 150].into_iter().enumerate() {
                     let paper_ms = paper.map(|p| PAPER[p].1[k]);
-                    cases.push(Case { mesh: i, n, axis: Axis::X, mode: Mode::Surface, paper_ms });
+                    cases.push(Case { mesh: i, n, axis: Axis::X, mode: Mode::Surface, sparse: false, paper_ms });
                 }
             }
             Ok((meshes, cases))
@@ -181,7 +196,14 @@ fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
             let cases = (0..meshes.len())
                 .flat_map(|i| [256, 512, 1024, 2048].map(|n| (i, n)))
                 .flat_map(|(i, n)| {
-                    modes.iter().map(move |&mode| Case { mesh: i, n, axis: Axis::Longest, mode, paper_ms: None })
+                    modes.iter().map(move |&mode| Case {
+                        mesh: i,
+                        n,
+                        axis: Axis::Longest,
+                        mode,
+                        sparse: false,
+                        paper_ms: None,
+                    })
                 })
                 .collect();
             Ok((meshes, cases))
@@ -196,9 +218,32 @@ fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
             let cases = (0..meshes.len())
                 .flat_map(|i| args.resolutions.iter().map(move |&n| (i, n)))
                 .flat_map(|(i, n)| {
-                    modes.iter().map(move |&mode| Case { mesh: i, n, axis: Axis::Longest, mode, paper_ms: None })
+                    modes.iter().map(move |&mode| Case {
+                        mesh: i,
+                        n,
+                        axis: Axis::Longest,
+                        mode,
+                        sparse: false,
+                        paper_ms: None,
+                    })
                 })
                 .collect();
+            Ok((meshes, cases))
+        }
+        Some(Suite::Sparse) => {
+            let names = [shared("stanford-bunny.obj"), shared("teapot.obj"), "generated:knot-1000000".to_string()];
+            let meshes = load_meshes(&names)?;
+            let mut cases = Vec::new();
+            for i in 0..meshes.len() {
+                let case = |n, mode, sparse| Case { mesh: i, n, axis: Axis::Longest, mode, sparse, paper_ms: None };
+                for mode in [Mode::Surface, Mode::Solid] {
+                    // The dense grid at 2048 beside the sparse one, for the ratio.
+                    cases.push(case(2048, mode, false));
+                    let sizes: &[u32] =
+                        if mode == Mode::Solid { &[2048, 4096, 8192] } else { &[2048, 4096, 8192, 16384] };
+                    cases.extend(sizes.iter().map(|&n| case(n, mode, true)));
+                }
+            }
             Ok((meshes, cases))
         }
         Some(Suite::Frame) => Err(anyhow!("the frame suite has no voxelization cases")),
@@ -273,7 +318,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         // The previous run's grid is dropped first, so the peak is one run's.
         drop(last.take());
         let t = Instant::now();
-        let out = engine.voxelize_spec(m, spec, case.mode, None)?;
+        let out = engine.voxelize_spec(m, spec, case.mode, case.sparse, None)?;
         out.notices.iter().for_each(|n| eprintln!("{n}"));
         runs.push(ms(t));
         gpu.extend(out.gpu_ms);
@@ -284,6 +329,21 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         _ => None,
     };
     let out = last.ok_or_else(|| anyhow!("no runs"))?;
+    // The sparse grid's .vdb, written (atomically, as the CLI does) into the temporary folder and removed.
+    let vdb = match out.grid.sparse() {
+        Some(sparse) => {
+            let path = std::env::temp_dir().join(format!("meshvox-bench-{}.vdb", std::process::id()));
+            let t = Instant::now();
+            let options = meshvox::voxel::formats::VdbOptions::default();
+            let bytes = meshvox::voxel::formats::atomic::write_atomically(&path, |out| {
+                meshvox::voxel::formats::write_vdb(sparse, options, None, out)
+            })?;
+            let write_ms = ms(t);
+            let _ = std::fs::remove_file(&path);
+            Some((bytes, write_ms))
+        }
+        None => None,
+    };
     let d = out.grid.spec().dims;
     let row = Row {
         mesh: name.to_string(),
@@ -299,6 +359,11 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
         exact_tests: out.exact_tests,
         peak_mib: peak,
+        grid: if case.sparse { "sparse" } else { "dense" }.to_string(),
+        leaves: out.grid.sparse().map(|g| g.leaves.len() as u64),
+        tiles: out.grid.sparse().map(|g| g.tiles.len() as u64),
+        vdb_bytes: vdb.map(|v| v.0),
+        vdb_write_ms: vdb.map(|v| v.1),
         paper_ms: case.paper_ms,
     };
     Ok(row)
@@ -339,6 +404,8 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
             );
         }
         md += "\nThe original program's bunny had 4,968 triangles; ours has 69,451.\n";
+    } else if args.suite == Some(Suite::Sparse) {
+        md += &sparse_table(rows);
     } else {
         md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | ns per voxel | peak MiB | exact tests |\n";
         md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|\n";
@@ -368,6 +435,54 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
         if !ratios.is_empty() {
             md += &format!("\n{ratios}");
         }
+    }
+    md
+}
+
+/// The sparse suite's table: each case with its grid, leaves, tiles, peak memory and `.vdb`, and the sparse
+/// grid's time over the dense one's where both ran.
+fn sparse_table(rows: &[Row]) -> String {
+    let mut md = String::from(
+        "| mesh | triangles | N | mode | grid | voxels | backend | grid kind | voxelize ms | peak MiB | leaves | tiles | .vdb MB | .vdb write ms | dense would need |\n\
+         |---|---:|---:|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let [x, y, z] = r.dims.map(u64::from);
+        let dense = meshvox::memory::human(x.div_ceil(32) * 4 * y * z);
+        md += &format!(
+            "| {} | {} | {} | {:.0} | {} | {} | {} | {} | {} | {} |\n",
+            r.head(true),
+            r.backend,
+            r.grid,
+            r.voxelize_ms,
+            opt(r.peak_mib, 0),
+            r.leaves.map_or("-".to_string(), |l| l.to_string()),
+            r.tiles.map_or("-".to_string(), |t| t.to_string()),
+            r.vdb_bytes.map_or("-".to_string(), |b| format!("{:.1}", b as f64 / 1e6)),
+            opt(r.vdb_write_ms, 0),
+            dense,
+        );
+    }
+    let mut ratios = String::new();
+    for d in rows.iter().filter(|r| r.grid == "dense") {
+        let same = |s: &&Row| {
+            s.grid == "sparse" && s.mesh == d.mesh && s.n == d.n && s.mode == d.mode && s.backend == d.backend
+        };
+        if let Some(s) = rows.iter().find(same) {
+            ratios += &format!(
+                "- {} at {} ({}) on {}: sparse {:.0} ms / dense {:.0} ms = {:.2}x\n",
+                d.mesh,
+                d.n,
+                d.mode,
+                d.backend,
+                s.voxelize_ms,
+                d.voxelize_ms,
+                s.voxelize_ms / d.voxelize_ms
+            );
+        }
+    }
+    if !ratios.is_empty() {
+        md += &format!("\nSparse over dense at the same grid:\n{ratios}");
     }
     md
 }

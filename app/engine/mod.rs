@@ -156,6 +156,7 @@ pub struct Plan {
 ///
 /// `GridKind::Auto` is sparse when the output format is (`.vdb`, `.npz`) or when the dense grid would not fit the
 /// budget and a sparse one would; a dense format past the budget is refused, pointing at the sparse formats.
+/// Colours are made on dense grids, so `Auto` keeps a coloured request dense wherever that fits.
 pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineError> {
     let grid_error = |error, sparse| EngineError::Grid { mesh: name.to_string(), error, sparse };
     let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
@@ -170,17 +171,18 @@ pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineEr
     let budget = request.max_memory.or_else(crate::memory::default_budget);
     let job =
         voxel::budget::Job { bounds, axis: request.axis, mode: request.mode, triangles: mesh.triangles.len() as u64 };
+    let coloured = request.colour != Some(false) && mesh.shading.is_some();
     let mut sparse = match request.grid {
         GridKind::Dense => false,
         GridKind::Sparse => true,
-        GridKind::Auto => sparse_format,
+        GridKind::Auto => sparse_format && !coloured,
     };
     let Some(budget) = budget else { return Ok(Plan { spec, sparse }) };
     // The surface area only where a sparse estimate is needed (a pass over the triangles).
     let area = |sparse: bool| sparse.then(|| voxel::budget::surface_area(mesh));
-    let dense_fits = || voxel::budget::check(&spec, &job, None, format, budget);
-    if request.grid == GridKind::Auto && !sparse && dense_fits().is_err() && format.is_none_or(VoxelFormat::is_sparse) {
-        // Over the budget dense, with no dense format asked for: sparse, if that fits.
+    let dense_fits = voxel::budget::check(&spec, &job, None, format, budget).is_ok();
+    if request.grid == GridKind::Auto && !sparse && !dense_fits && format.is_none_or(VoxelFormat::is_sparse) {
+        // Over the budget dense (coloured or not), with no dense format asked for: sparse, if that fits.
         sparse = true;
     }
     voxel::budget::check(&spec, &job, area(sparse), format, budget).map_err(|e| grid_error(e, sparse))?;
@@ -367,18 +369,19 @@ impl Engine {
         })
     }
 
-    /// The grid of `spec` on the GPU (with the CPU standing in where allowed) or the CPU, blocking. `progress` as
-    /// in [`Request::progress`].
+    /// The grid of `spec` (dense, or `sparse`) on the GPU (with the CPU standing in where allowed) or the CPU,
+    /// blocking. `progress` as in [`Request::progress`].
     #[cfg(not(target_arch = "wasm32"))]
     pub fn voxelize_spec(
         &self,
         mesh: &Mesh,
         spec: GridSpec,
         mode: Mode,
+        sparse: bool,
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
         let request = Request { progress, ..Request::new(Resolution::VoxelSize(spec.voxel_size), mode) };
-        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, false, &request))
+        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, sparse, &request))
     }
 
     /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles, with `request`'s mode, instance list,

@@ -224,14 +224,16 @@ impl ViewerApp {
         ui.separator();
         ui.horizontal(|ui| {
             ui.label("Export");
-            use formats::VoxelFormat::{Binvox, Mesh, Npy, Vox};
-            for format in [Vox, Binvox, Npy, Mesh(formats::MeshFormat::Glb)] {
+            use formats::VoxelFormat::{Binvox, Mesh, Npy, Npz, Vdb, Vox};
+            for format in [Vox, Binvox, Npy, Vdb, Npz, Mesh(formats::MeshFormat::Glb)] {
                 if ui
                     .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
                     .on_hover_text(match format {
                         Npy => "numpy uint8 grid (and .colors.npy beside it when coloured)",
                         Vox => "MagicaVoxel, with a palette of the voxel colours",
                         Binvox => "binvox, occupancy only",
+                        Vdb => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
+                        Npz => "numpy .npz of sorted int32 coordinates (and their colours)",
                         _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
                     })
                     .clicked()

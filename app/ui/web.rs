@@ -203,7 +203,9 @@ impl ViewerApp {
                 Command::Export(ext) => {
                     match formats::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
                         Some(format) => self.download(format),
-                        None => self.fail(format!("unknown export format '{ext}': use vox, binvox, npy or glb")),
+                        None => {
+                            self.fail(format!("unknown export format '{ext}': use vox, binvox, npy, vdb, npz or glb"))
+                        }
                     }
                 }
                 Command::Failed(e) => self.fail(e),

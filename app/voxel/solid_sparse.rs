@@ -4,15 +4,16 @@
 //! than through its volume.
 //!
 //! The grid is taken in blocks of 128 × 128 rows (y, z), one rayon task each, which owns the leaves and tiles of
-//! its block: its rows are filled 64 at a time (an 8 × 8 group, one leaf row), and per group the AND of its rows
-//! gives the leaves that are wholly inside (8³ tiles) and the rows themselves give the masks of the leaves that
-//! are partly inside; the AND over the whole block gives its 128³ tiles. The surface's leaves are then joined
+//! its block: its rows are filled 64 at a time (an 8 × 8 group, one leaf row), and per group the rows give each
+//! leaf's mask, kept as an 8³ tile where it is full and as a leaf where it is partly inside; the AND over the whole
+//! block gives its 128³ tiles. Full leaves never exist as leaves, so the inside costs 16 bytes per 8³ block along
+//! the surface and one tile per 128³ block within. The surface's leaves are then joined
 //! with the interior's, leaves under a tile dropped, and [`SparseGrid::prune`] gives the canonical form (full
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
 use super::solid::{boundary_boxes, boundary_edges, column_crossings, fill_row, near_boundary};
-use super::sparse::{LeafMask, SparseGrid, Tile, leaf_key};
+use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
 use std::collections::HashSet;
@@ -103,7 +104,9 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         bits &= bits - 1;
                     }
                 }
-                if mask.iter().any(|w| *w != 0) {
+                if mask == FULL_LEAF {
+                    out.tiles.push(Tile { log2: 3, origin: UVec3::new(lx as u32 * 8, ya, za) });
+                } else if mask.iter().any(|w| *w != 0) {
                     out.leaves.push((leaf_key(lx as u32 * 8, ya, za), mask));
                 }
             }
@@ -119,8 +122,13 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         inside.extend(part.leaves);
     }
     inside.par_sort_unstable_by_key(|(k, _)| *k);
-    let blocks: HashSet<UVec3> = tiles.iter().map(|t| t.origin).collect();
-    let under_tile = |key: u64| blocks.contains(&((super::sparse::key_origin(key) >> 7) << 7));
+    // A surface leaf under a tile adds nothing: the tile's voxels are all set.
+    let blocks: HashSet<UVec3> = tiles.iter().filter(|t| t.log2 == 7).map(|t| t.origin).collect();
+    let mut small: Vec<u64> =
+        tiles.iter().filter(|t| t.log2 == 3).map(|t| leaf_key(t.origin.x, t.origin.y, t.origin.z)).collect();
+    small.par_sort_unstable();
+    let under_tile =
+        |key: u64| small.binary_search(&key).is_ok() || blocks.contains(&((key_origin(key) >> 7u32) << 7u32));
     // Join the two sorted lists, OR-ing leaves present in both.
     let mut leaves = Vec::with_capacity(surface.leaves.len() + inside.len());
     let (mut a, mut b) = (surface.leaves.into_iter().peekable(), inside.into_iter().peekable());

@@ -84,7 +84,7 @@ def test_colours_are_the_cli_colours_npy(meshes, cli, tmp_path):
     assert meshvox.voxelize(path, 40, backend="cpu", colour=False).colors is None
 
 
-@pytest.mark.parametrize("ext", ["npy", "binvox", "vox", "glb", "ply", "obj"])
+@pytest.mark.parametrize("ext", ["npy", "binvox", "vox", "vdb", "npz", "glb", "ply", "obj"])
 def test_save_writes_what_the_cli_writes(meshes, cli, tmp_path, ext):
     path = meshes / "gltf" / "Duck.glb"
     grid = meshvox.voxelize(path, 24, backend="cpu")
@@ -94,6 +94,16 @@ def test_save_writes_what_the_cli_writes(meshes, cli, tmp_path, ext):
     if ext == "npy":
         assert (tmp_path / "api.colors.npy").read_bytes() == (tmp_path / "cli.colors.npy").read_bytes()
     assert not list(tmp_path.glob(".*partial")), "no temporary file is left"
+
+
+def test_npz_holds_the_grids_coordinates_and_colours(meshes, tmp_path):
+    grid = meshvox.voxelize(meshes / "gltf" / "Duck.glb", 31, backend="cpu")
+    grid.save(tmp_path / "duck.npz")
+    with np.load(tmp_path / "duck.npz") as z:
+        assert z["coords"].dtype == np.int32 and np.array_equal(z["coords"], grid.coords())
+        assert np.array_equal(z["colors"], grid.colors[tuple(grid.coords().T)])
+        assert np.allclose(z["origin"], grid.origin) and float(z["voxel_size"]) == grid.pitch
+        assert list(z["dims"]) == list(grid.shape)
 
 
 def test_stats_are_the_stats_json_fields(meshes, cli, tmp_path):

@@ -133,8 +133,9 @@ class VoxelGrid:
         return self.origin + (self.coords().astype(np.float64) + 0.5) * self.pitch
 
     def save(self, path: str | os.PathLike[str], *, merge: bool = False) -> None:
-        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.glb``, ``.ply``,
-        ``.obj``) with the CLI's writers, atomically; a coloured ``.npy`` gets ``.colors.npy`` beside it.
+        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
+        ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``) with the CLI's writers, atomically; a coloured
+        ``.npy`` gets ``.colors.npy`` beside it.
         ``merge`` joins coplanar faces of the mesh formats."""
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
