@@ -220,8 +220,21 @@ impl GpuVoxelizer {
         spec: GridSpec,
         options: &Options,
     ) -> Result<GpuOutput, GpuError> {
-        // A sparse request past what the dense grid's memory allows is planned on the CPU from the start, so
-        // the dense grid here fits.
+        if options.sparse {
+            // The CPU's sparse walk, without the dense grid (which may not fit the host).
+            let never = std::sync::atomic::AtomicBool::new(false);
+            let (sparse, stats) = cpu::voxelize_grid_space_sparse(triangles, spec, options.mode, &|_, _| {}, &never)?;
+            return Ok(GpuOutput {
+                grid: None,
+                sparse: Some(Box::new(sparse)),
+                points: None,
+                gpu_ms: None,
+                slabs: slab_plan(gpu, spec, options)?.1,
+                batches: 1,
+                exact_tests: Some(stats.exact_tests),
+                decided_on_cpu: true,
+            });
+        }
         let (grid, stats) = cpu::voxelize_grid_space_mode(triangles, spec, options.mode, &|_, _| {})?;
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let mut points = Vec::new();
@@ -248,10 +261,9 @@ impl GpuVoxelizer {
             1 => points.pop(),
             _ => Some(self.compactor(gpu).concat(gpu, points).await?),
         };
-        let sparse = options.sparse.then(|| Box::new(SparseGrid::from_dense(&grid).prune()));
         Ok(GpuOutput {
-            grid: (options.read_grid && !options.sparse).then_some(grid),
-            sparse,
+            grid: options.read_grid.then_some(grid),
+            sparse: None,
             points,
             gpu_ms: None,
             slabs,

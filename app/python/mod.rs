@@ -166,11 +166,13 @@ fn voxelize_one(
 /// grid's storage order, or None), `origin`, `pitch`, `stats` (the `--stats-json` line) and `notices`. The words
 /// move into numpy without a copy, so the call costs the engine's time and little more.
 fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDict>> {
-    let d = result.grid.spec.dims;
+    // Requested dense (`.matrix` is the package's grid).
+    let grid = result.grid.into_dense().map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let d = grid.spec.dims;
     let dict = PyDict::new(py);
     dict.set_item("shape", [d.x, d.y, d.z])?;
-    dict.set_item("origin", result.grid.spec.origin.to_array())?;
-    dict.set_item("pitch", result.grid.spec.voxel_size)?;
+    dict.set_item("origin", grid.spec.origin.to_array())?;
+    dict.set_item("pitch", grid.spec.voxel_size)?;
     let stats = serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
     dict.set_item("stats", stats)?;
     // Fallbacks taken on the way (the GPU out of memory, the CPU standing in), for `warnings.warn`.
@@ -180,7 +182,7 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
         c.rgba.into_iter().flatten().collect::<Vec<u8>>().into_pyarray(py).reshape([n, 4])
     });
     dict.set_item("rgba", rgba.transpose()?)?;
-    dict.set_item("words", result.grid.words.into_pyarray(py))?;
+    dict.set_item("words", grid.words.into_pyarray(py))?;
     Ok(dict)
 }
 

@@ -50,13 +50,20 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         // The AND over all rows of the block: 128³ tiles where 128 bits in a row are set. A row outside the
         // grid counts as empty, so a block cut by the grid's end has no tile.
         let mut all = vec![u32::MAX; wpr];
+        let mut all_empty = false;
         let mut group = vec![0u32; 64 * wpr];
-        let mut groups: Vec<(u32, u32, Vec<u32>)> = Vec::new();
+        // Rows of `group` written by the last group (the only ones to clear), as bits `dy * 8 + dz`.
+        let mut written = 0u64;
+        let mut or = vec![0u32; wpr];
+        // Each group's leaves that are partly or wholly inside, before the block's 128³ tiles are known.
+        let mut found: Vec<(u32, UVec3, LeafMask)> = Vec::new();
         for gz in 0..BLOCK / 8 {
             for gy in 0..BLOCK / 8 {
                 let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
-                group.iter_mut().for_each(|w| *w = 0);
-                let mut any = false;
+                for i in (0..64).filter(|i| written >> i & 1 != 0) {
+                    group[i * wpr..(i + 1) * wpr].iter_mut().for_each(|w| *w = 0);
+                }
+                written = 0;
                 for dz in 0..8 {
                     for dy in 0..8 {
                         let (y, z) = (ya + dy, za + dz);
@@ -69,46 +76,53 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         if list.is_empty() && !near {
                             continue;
                         }
-                        let row = &mut group[(dy * 8 + dz) as usize * wpr..][..wpr];
-                        fill_row(list, y, z, dims.x, near, &edges, row);
-                        any |= row.iter().any(|w| *w != 0);
+                        let i = (dy * 8 + dz) as usize;
+                        fill_row(list, y, z, dims.x, near, &edges, &mut group[i * wpr..(i + 1) * wpr]);
+                        written |= 1 << i;
                     }
                 }
-                if !any {
-                    all.iter_mut().for_each(|w| *w = 0);
+                // The block's AND: zero unless every row of every group was filled.
+                if written != u64::MAX {
+                    all_empty = true;
+                }
+                if written == 0 {
                     continue;
                 }
-                let mut and = vec![u32::MAX; wpr];
-                for row in group.chunks(wpr) {
-                    and.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
+                if !all_empty {
+                    for row in group.chunks(wpr) {
+                        all.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
+                    }
                 }
-                all.iter_mut().zip(&and).for_each(|(a, r)| *a &= r);
-                groups.push((ya, za, group.clone()));
+                or.iter_mut().for_each(|w| *w = 0);
+                for i in (0..64).filter(|i| written >> i & 1 != 0) {
+                    or.iter_mut().zip(&group[i * wpr..(i + 1) * wpr]).for_each(|(o, r)| *o |= r);
+                }
+                // Only the leaves some row reaches, and only the rows that were filled.
+                for lx in (0..leaves_x).filter(|&lx| row_byte(&or, lx) != 0) {
+                    let mut mask: LeafMask = [0; 8];
+                    for i in (0..64).filter(|i| written >> i & 1 != 0) {
+                        let mut bits = row_byte(&group[i * wpr..(i + 1) * wpr], lx);
+                        while bits != 0 {
+                            let x = bits.trailing_zeros();
+                            mask[x as usize] |= 1u64 << i;
+                            bits &= bits - 1;
+                        }
+                    }
+                    found.push((lx as u32 / 16, UVec3::new(lx as u32 * 8, ya, za), mask));
+                }
             }
         }
         // 128³ tiles: four whole words of the block's AND.
         let tiled: Vec<bool> = (0..wpr.div_ceil(4))
-            .map(|t| all.get(t * 4..t * 4 + 4).is_some_and(|w| w.iter().all(|w| *w == u32::MAX)))
+            .map(|t| !all_empty && all.get(t * 4..t * 4 + 4).is_some_and(|w| w.iter().all(|w| *w == u32::MAX)))
             .collect();
         for (t, _) in tiled.iter().enumerate().filter(|(_, t)| **t) {
             out.tiles.push(Tile { log2: 7, origin: UVec3::new(t as u32 * BLOCK, y0, z0) });
         }
-        for (ya, za, group) in groups {
-            for lx in (0..leaves_x).filter(|lx| !tiled[lx / 16]) {
-                let mut mask: LeafMask = [0; 8];
-                for (i, row) in group.chunks(wpr).enumerate() {
-                    let mut bits = row_byte(row, lx);
-                    while bits != 0 {
-                        let x = bits.trailing_zeros();
-                        mask[x as usize] |= 1u64 << i;
-                        bits &= bits - 1;
-                    }
-                }
-                if mask == FULL_LEAF {
-                    out.tiles.push(Tile { log2: 3, origin: UVec3::new(lx as u32 * 8, ya, za) });
-                } else if mask.iter().any(|w| *w != 0) {
-                    out.leaves.push((leaf_key(lx as u32 * 8, ya, za), mask));
-                }
+        for (_, origin, mask) in found.into_iter().filter(|(b, _, _)| !tiled[*b as usize]) {
+            match mask == FULL_LEAF {
+                true => out.tiles.push(Tile { log2: 3, origin }),
+                false => out.leaves.push((leaf_key(origin.x, origin.y, origin.z), mask)),
             }
         }
         out

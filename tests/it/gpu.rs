@@ -97,6 +97,28 @@ fn every_mesh_at_several_resolutions_matches_the_cpu_reference() {
 }
 
 #[test]
+fn every_mesh_in_every_mode_gives_the_cpus_sparse_grid_on_the_gpu() {
+    let Some((gpu, v)) = gpu() else { return };
+    let never = std::sync::atomic::AtomicBool::new(false);
+    for m in all_meshes() {
+        let mesh = meshvox::mesh::load(&m).unwrap_or_else(|e| panic!("{e}"));
+        for n in [45, 110] {
+            let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("grid");
+            let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+            for mode in Mode::ALL {
+                let options = Options { read_grid: true, sparse: true, mode, ..Default::default() };
+                let out = v.voxelize(gpu, &tris, s, &options).unwrap_or_else(|e| panic!("{m}: {e}"));
+                let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, s, mode, &|_, _| {}, &never).expect("cpu");
+                assert!(out.sparse.as_deref() == Some(&cpu_sparse), "{m} at {n} ({mode}): GPU sparse differs");
+                // And the dense grid of the same voxels.
+                let (dense, _) = cpu::voxelize_grid_space_mode(&tris, s, mode, &|_, _| {}).expect("dense");
+                assert_eq!(cpu_sparse.count(), dense.count(), "{m} at {n} ({mode})");
+            }
+        }
+    }
+}
+
+#[test]
 fn decimal_boundary_scenes_are_bit_identical_including_the_overflow_fallback() {
     if gpu().is_none() {
         return;
@@ -368,6 +390,16 @@ fn gpu_sparse_equals_cpu_sparse_past_the_dense_binding_limit() {
             assert!(!gpu_sparse.tiles.is_empty(), "a solid's interior as tiles");
         }
     }
+    // The unsure list's overflow (forced: room for one test) hands the sparse grid to the CPU's sparse walk.
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(300), Axis::Longest).expect("spec");
+    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let options = Options { read_grid: true, sparse: true, max_unsure: Some(1), ..Default::default() };
+    let out = v.voxelize(&small, &tris, spec, &options).expect("gpu sparse");
+    assert!(out.decided_on_cpu && out.grid.is_none(), "the overflow was forced");
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+    assert!(out.sparse.as_deref() == Some(&cpu_sparse), "the overflow's sparse grid equals the CPU's");
     let engine = meshvox::Engine::on_device(&small, meshvox::engine::Backend::Gpu).expect("engine");
     let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
     let request = meshvox::engine::Request {

@@ -345,3 +345,69 @@ fn the_budget_picks_sparse_refuses_dense_formats_and_says_what_fits() {
         crate::cli::meshvox(&["voxelize", "builtin:knot", "-r", "20", "-o", "g.npz", "--vdb-float"], dir.path());
     assert!(!wrong.status.success() && String::from_utf8_lossy(&wrong.stderr).contains("--vdb-float"));
 }
+
+#[test]
+fn batch_writes_vdb_and_npz_with_the_voxelize_writers() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("in");
+    std::fs::create_dir(&input).expect("mkdir");
+    // Two tetrahedra with decimal coordinates, one far from the origin.
+    for (name, at) in [("a", [0.0, 0.0, 0.0]), ("b", [1000.25, -3.5, 7.125])] {
+        let v = |x: f64, y: f64, z: f64| format!("v {} {} {}\n", at[0] + x, at[1] + y, at[2] + z);
+        let obj = [v(0.0, 0.0, 0.0), v(1.3, 0.1, 0.0), v(0.2, 1.1, 0.05), v(0.4, 0.3, 0.9)].concat()
+            + "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n";
+        std::fs::write(input.join(format!("{name}.obj")), obj).expect("write obj");
+    }
+    for format in ["vdb", "npz"] {
+        let out = dir.path().join(format!("out-{format}"));
+        let args = [
+            "batch",
+            "in",
+            "-o",
+            &out.to_string_lossy(),
+            "-r",
+            "23",
+            "--mode",
+            "solid",
+            "--format",
+            format,
+            "--backend",
+            "cpu",
+        ];
+        let run = crate::cli::meshvox(&args, dir.path());
+        assert!(run.status.success(), "batch --format {format}: {}", String::from_utf8_lossy(&run.stderr));
+        for name in ["a", "b"] {
+            let file = out.join(format!("{name}.{format}"));
+            let single = dir.path().join(format!("single-{name}.{format}"));
+            run_ok(
+                &[
+                    "voxelize",
+                    &format!("in/{name}.obj"),
+                    "-r",
+                    "23",
+                    "--mode",
+                    "solid",
+                    "-o",
+                    &single.to_string_lossy(),
+                    "--backend",
+                    "cpu",
+                    "--stats-json",
+                ],
+                dir.path(),
+            );
+            assert!(
+                std::fs::read(&file).expect("batch output") == std::fs::read(&single).expect("voxelize output"),
+                "{name}.{format}: batch and voxelize differ"
+            );
+        }
+    }
+    let Some(j) = crate::formats::independent_args("npz", &[&dir.path().join("out-npz/b.npz").to_string_lossy()])
+    else {
+        return;
+    };
+    assert_eq!(j["sorted"], true);
+    let origin: [f64; 3] = serde_json::from_value(j["origin"].clone()).expect("origin");
+    assert!((origin[0] - 1000.25).abs() < 1e-4, "the world origin of the far tetrahedron: {origin:?}");
+    let Some(v) = openvdb_read(&dir.path().join("out-vdb/b.vdb")) else { return };
+    assert_eq!(v["grids"][0]["active"].as_u64(), Some(j["set"].as_array().expect("set").len() as u64));
+}
