@@ -54,7 +54,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         let mut group = vec![0u32; 64 * wpr];
         // Rows of `group` written by the last group (the only ones to clear), as bits `dy * 8 + dz`.
         let mut written = 0u64;
-        let mut or = vec![0u32; wpr];
+        let (mut or, mut and) = (vec![0u32; wpr], vec![0u32; wpr]);
         // Each group's leaves that are partly or wholly inside, before the block's 128³ tiles are known.
         let mut found: Vec<(u32, UVec3, LeafMask)> = Vec::new();
         for gz in 0..BLOCK / 8 {
@@ -88,10 +88,15 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                 if written == 0 {
                     continue;
                 }
-                if !all_empty {
+                // The group's AND: the leaves wholly inside, found without reading their voxels.
+                and.iter_mut().for_each(|w| *w = if written == u64::MAX { u32::MAX } else { 0 });
+                if written == u64::MAX {
                     for row in group.chunks(wpr) {
-                        all.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
+                        and.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
                     }
+                }
+                if !all_empty {
+                    all.iter_mut().zip(&and).for_each(|(a, r)| *a &= r);
                 }
                 or.iter_mut().for_each(|w| *w = 0);
                 for i in (0..64).filter(|i| written >> i & 1 != 0) {
@@ -99,6 +104,10 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                 }
                 // Only the leaves some row reaches, and only the rows that were filled.
                 for lx in (0..leaves_x).filter(|&lx| row_byte(&or, lx) != 0) {
+                    if row_byte(&and, lx) == 0xff {
+                        found.push((lx as u32 / 16, UVec3::new(lx as u32 * 8, ya, za), FULL_LEAF));
+                        continue;
+                    }
                     let mut mask: LeafMask = [0; 8];
                     for i in (0..64).filter(|i| written >> i & 1 != 0) {
                         let mut bits = row_byte(&group[i * wpr..(i + 1) * wpr], lx);
