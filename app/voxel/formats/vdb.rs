@@ -213,7 +213,8 @@ fn file_uuid(grid: &SparseGrid) -> String {
     grid.spec.dims.to_array().hash(&mut h);
     grid.spec.origin.to_array().map(f64::to_bits).hash(&mut h);
     grid.spec.voxel_size.to_bits().hash(&mut h);
-    (grid.leaves.len(), grid.tiles.len(), grid.leaves.first(), grid.leaves.last()).hash(&mut h);
+    // Counts as u64: `usize` hashes by its width, and the page (wasm32) must write the CLI's bytes.
+    (grid.leaves.len() as u64, grid.tiles.len() as u64, grid.leaves.first(), grid.leaves.last()).hash(&mut h);
     let a = h.finish();
     a.rotate_left(17).hash(&mut h);
     let b = h.finish();
