@@ -27,7 +27,6 @@ use crate::voxel::SparseGrid;
 use crate::voxel::sparse::{LeafMask, key_origin};
 use glam::{IVec3, UVec3};
 use rayon::prelude::*;
-use std::hash::{Hash, Hasher};
 use std::io::{Seek, SeekFrom, Write};
 
 /// File format version 224 (OpenVDB 10 and 11), as library 10.0.
@@ -209,15 +208,20 @@ fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
 /// A UUID in the 8-4-4-4-12 form OpenVDB's readers parse, derived from the grid so the same run writes the same
 /// bytes (random per file is what OpenVDB does; nothing reads it as more than an identifier).
 fn file_uuid(grid: &SparseGrid) -> String {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    grid.spec.dims.to_array().hash(&mut h);
-    grid.spec.origin.to_array().map(f64::to_bits).hash(&mut h);
-    grid.spec.voxel_size.to_bits().hash(&mut h);
-    // Counts as u64: `usize` hashes by its width, and the page (wasm32) must write the CLI's bytes.
-    (grid.leaves.len() as u64, grid.tiles.len() as u64, grid.leaves.first(), grid.leaves.last()).hash(&mut h);
-    let a = h.finish();
-    a.rotate_left(17).hash(&mut h);
-    let b = h.finish();
+    // FNV-1a over explicit little-endian words rather than `Hash`, which writes `usize` lengths (of arrays too) at
+    // the platform's width: the page (wasm32) must write the CLI's bytes.
+    let mut words: Vec<u64> = grid.spec.dims.to_array().map(u64::from).to_vec();
+    words.extend(grid.spec.origin.to_array().map(f64::to_bits));
+    words.push(grid.spec.voxel_size.to_bits());
+    words.extend([grid.leaves.len() as u64, grid.tiles.len() as u64]);
+    for (key, mask) in grid.leaves.first().into_iter().chain(grid.leaves.last()) {
+        words.push(*key);
+        words.extend(mask);
+    }
+    let fnv = |seed: u64| {
+        words.iter().flat_map(|w| w.to_le_bytes()).fold(seed, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+    };
+    let (a, b) = (fnv(0xcbf2_9ce4_8422_2325), fnv(0x6c62_272e_07bb_0142));
     // Version 4, variant 10xx, as a random UUID would have.
     let a = (a & !0xf000) | 0x4000;
     let b = (b & !(0xc << 60)) | (0x8 << 60);
