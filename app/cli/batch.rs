@@ -39,9 +39,11 @@ pub struct BatchArgs {
     /// For mesh outputs, join coplanar faces of the same colour into rectangles.
     #[arg(long)]
     merge: bool,
-    /// What to voxelize.
+    /// What to voxelize (sdf/udf: a distance field, --format npy, vdb or npz).
     #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
     mode: ModeArg,
+    #[command(flatten)]
+    band: super::BandArgs,
     /// Where to voxelize (one engine for the whole run).
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     backend: BackendArg,
@@ -201,6 +203,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
+    args.band.band(args.mode.into())?;
     let outputs = plan_outputs(args, &items, format)?;
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
@@ -303,6 +306,7 @@ impl Work<'_> {
             output: output.to_path_buf(),
             merge: args.merge,
             mode: args.mode,
+            band: args.band,
             stats_json: false,
             backend: args.backend,
             grid: args.grid,

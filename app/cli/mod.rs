@@ -207,6 +207,29 @@ enum ModeArg {
     Solid,
     /// The thin surface (6-separating): no face-connected leak from inside a closed mesh.
     Surface6,
+    /// Signed distances near the surface (--band), negative inside (winding number >= 1/2): .npy, .vdb, .npz.
+    Sdf,
+    /// Unsigned distances near the surface (--band), for open surfaces: .npy, .vdb, .npz.
+    Udf,
+}
+
+/// How far from the surface `--mode sdf|udf` computes distances.
+#[derive(clap::Args, Clone, Copy)]
+pub(super) struct BandArgs {
+    /// sdf/udf: voxel centres within K voxels of the surface get their distance, the rest ±K voxels (the
+    /// background, as in OpenVDB level sets); `full` computes every voxel (dense outputs only).
+    #[arg(long, value_name = "K|full", value_parser = meshvox::voxel::distance::Band::parse)]
+    pub(super) band: Option<meshvox::voxel::distance::Band>,
+}
+
+impl BandArgs {
+    /// The band for `mode`: `--band` only means something for the distance modes.
+    pub(super) fn band(&self, mode: Mode) -> Result<meshvox::voxel::distance::Band> {
+        match (self.band, mode.is_field()) {
+            (Some(_), false) => anyhow::bail!("--band sets the distance field's width: use it with --mode sdf or udf"),
+            (band, _) => Ok(band.unwrap_or_default()),
+        }
+    }
 }
 
 impl From<BackendArg> for Backend {
@@ -225,6 +248,8 @@ impl From<ModeArg> for Mode {
             ModeArg::Surface => Mode::Surface,
             ModeArg::Solid => Mode::Solid,
             ModeArg::Surface6 => Mode::Surface6,
+            ModeArg::Sdf => Mode::Sdf,
+            ModeArg::Udf => Mode::Udf,
         }
     }
 }

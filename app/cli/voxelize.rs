@@ -1,7 +1,9 @@
 //! `meshvox voxelize`: one mesh to one output file, through the engine; `batch` shares [`voxelize_loaded`].
 
 use super::output::{temp_beside, write_atomically};
-use super::{AxisArg, BackendArg, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine};
+use super::{
+    AxisArg, BackendArg, BandArgs, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine,
+};
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::mesh;
@@ -32,9 +34,12 @@ pub(super) struct VoxelizeArgs {
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
     #[arg(long)]
     pub(super) merge: bool,
-    /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
+    /// What to voxelize: the surface, the solid (surface plus inside), the thin 6-separating surface, or a
+    /// signed or unsigned distance field.
     #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
     pub(super) mode: ModeArg,
+    #[command(flatten)]
+    pub(super) band: BandArgs,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     pub(super) stats_json: bool,
@@ -52,6 +57,7 @@ pub(super) struct VoxelizeArgs {
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
+    args.band.band(args.mode.into())?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
@@ -124,6 +130,7 @@ pub(super) fn voxelize_loaded(
     let request = Request {
         progress: Some(&progress),
         grid: args.grid.grid.into(),
+        band: args.band.band(args.mode.into())?,
         ..args.limits.request(resolution, args.axis.into(), args.mode.into(), Some(format), &args.colour)
     };
     let voxelized = engine.voxelize(&args.mesh, mesh, &request)?;

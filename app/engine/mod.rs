@@ -22,6 +22,7 @@ pub use report::{Notice, Report, Voxelized};
 
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{self, Axis, Grid, GridError, GridKind, GridSpec, Mode, Resolution, VoxelGrid};
 use glam::Vec3;
@@ -64,6 +65,12 @@ pub enum EngineError {
     Cancelled,
     #[error("bounds {min:?} to {max:?}: the minimum must be below the maximum on every axis, and both finite")]
     Bounds { min: [f64; 3], max: [f64; 3] },
+    /// A distance field asked for in a format that holds occupancy only.
+    #[error("--mode {mode} writes a distance field: use a .npy, .npz or .vdb output, not .{extension}")]
+    FieldFormat { mode: &'static str, extension: &'static str },
+    /// `--band full` with a sparse grid or output.
+    #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
+    FullBandSparse,
 }
 
 /// What to add to a grid error: where it is over the budget, what would fit.
@@ -104,6 +111,8 @@ pub struct Request<'a> {
     /// The world box the grid covers instead of the mesh's bounds, so that a dataset shares one frame; triangles
     /// outside it are clipped.
     pub bounds: Option<Aabb>,
+    /// `Mode::Sdf`/`Mode::Udf`: how far from the surface distances are computed.
+    pub band: Band,
 }
 
 impl Request<'_> {
@@ -121,6 +130,7 @@ impl Request<'_> {
             progress: None,
             cancel: None,
             bounds: None,
+            band: Band::default(),
         }
     }
 
@@ -168,9 +178,23 @@ pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineEr
     let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
     let format = request.format;
     let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
+    if request.mode.is_field() {
+        match format {
+            Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb) | None => {}
+            Some(f) => return Err(EngineError::FieldFormat { mode: request.mode.name(), extension: f.extension() }),
+        }
+        if request.band == Band::Full && (sparse_format || request.grid == GridKind::Sparse) {
+            return Err(EngineError::FullBandSparse);
+        }
+    }
     let budget = request.max_memory.or_else(crate::memory::default_budget);
-    let job =
-        voxel::budget::Job { bounds, axis: request.axis, mode: request.mode, triangles: mesh.triangles.len() as u64 };
+    let job = voxel::budget::Job {
+        bounds,
+        axis: request.axis,
+        mode: request.mode,
+        triangles: mesh.triangles.len() as u64,
+        band: request.band,
+    };
     let coloured = request.colour != Some(false) && mesh.shading.is_some();
     let mut sparse = match request.grid {
         GridKind::Dense => false,
@@ -179,7 +203,7 @@ pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineEr
     };
     let Some(budget) = budget else { return Ok(Plan { spec, sparse }) };
     // The surface area only where a sparse estimate is needed (a pass over the triangles).
-    let area = |sparse: bool| sparse.then(|| voxel::budget::surface_area(mesh));
+    let area = |sparse: bool| (sparse || request.mode.is_field()).then(|| voxel::budget::surface_area(mesh));
     let dense_fits = voxel::budget::check(&spec, &job, None, format, budget).is_ok();
     if request.grid == GridKind::Auto && !sparse && !dense_fits && format.is_none_or(VoxelFormat::is_sparse) {
         // Over the budget dense (coloured or not), with no dense format asked for: sparse, if that fits.
@@ -312,9 +336,15 @@ impl Engine {
         let t = Instant::now();
         // Grid-space triangles once, for the voxels and their colours.
         let tris = grid_space(mesh, &spec)?;
-        let voxels = self.voxels(&tris, spec, sparse, request).await?;
+        let voxels = self.voxels(&tris, spec, sparse, &Request { mode: request.mode.grid_mode(), ..*request }).await?;
         request.cancelled()?;
         let voxelize_ms = ms(t);
+        let t = Instant::now();
+        let field = match request.mode.is_field() {
+            true => Some(self.field(&tris, spec, sparse, request).await?),
+            false => None,
+        };
+        let field_ms = field.as_ref().map(|_| ms(t));
         let mut notices = voxels.notices;
         request.cancelled()?;
         let t = Instant::now();
@@ -351,6 +381,9 @@ impl Engine {
             colour_ms,
             warnings: mesh.warnings.clone(),
             voxelize_ms,
+            band: request.mode.is_field().then(|| request.band.name()),
+            band_voxels: field.as_ref().map(|f| f.band_voxels()),
+            field_ms,
             ..Report::default()
         };
         let colours = colours.map(|c| {
@@ -361,6 +394,7 @@ impl Engine {
         let instances = voxels.instances;
         Ok(Voxelized {
             grid: voxels.grid,
+            field,
             colours,
             #[cfg(feature = "gpu")]
             instances,
@@ -428,6 +462,26 @@ impl Engine {
             instances: None,
             notices,
         })
+    }
+
+    /// The distance field of `request.mode` (`Sdf` or `Udf`) and `request.band` over `spec`, from the mesh's
+    /// grid-space triangles; the inside (for the sign) dense or `sparse` as the grid is.
+    async fn field(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        sparse: bool,
+        request: &Request<'_>,
+    ) -> Result<DistanceField, EngineError> {
+        let d = spec.dims;
+        let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
+        let (tris, lattice) = voxel::on_lattice(tris, d).map_err(grid_error)?;
+        let inside = match request.mode {
+            Mode::Sdf => Some(voxel::distance::inside_grid(&tris, lattice, spec, sparse).map_err(grid_error)?),
+            _ => None,
+        };
+        request.cancelled()?;
+        Ok(DistanceField::compute(&tris, spec, request.band, inside))
     }
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU.

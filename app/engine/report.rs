@@ -3,6 +3,7 @@
 
 use crate::voxel::Grid;
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::distance::DistanceField;
 use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
 
 /// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).
@@ -26,6 +27,10 @@ impl std::fmt::Display for Notice {
 pub struct Report {
     /// Where the grid was voxelized: `gpu: ADAPTER (API, driver)` or `cpu (N threads[; why])`.
     pub backend: String,
+    /// `sdf`/`udf`: the band's half-width in voxels (`--band`), or `full`.
+    pub band: Option<String>,
+    /// `sdf`/`udf`: voxels whose centres are within the band (those a `.vdb` or `.npz` holds values for).
+    pub band_voxels: Option<u64>,
     pub bytes: u64,
     /// Where the colours were computed, like `backend`; `None` without colour.
     pub colour: Option<String>,
@@ -34,6 +39,8 @@ pub struct Report {
     pub dims: [u32; 3],
     /// Voxel tests decided by the exact integer path.
     pub exact_tests: Option<u64>,
+    /// `sdf`/`udf`: the distance field's passes (the inside for the sign included), after the surface.
+    pub field_ms: Option<f64>,
     pub format: String,
     /// The grid the voxels were made in: `dense` or `sparse`.
     pub grid: String,
@@ -64,7 +71,10 @@ pub struct Report {
 
 /// A finished voxelization.
 pub struct Voxelized {
+    /// The voxels: for `sdf`/`udf`, the surface (the voxels of the zero crossing).
     pub grid: Grid,
+    /// `sdf`/`udf`: the distance field.
+    pub field: Option<DistanceField>,
     pub colours: Option<VoxelColours>,
     /// The exposed voxels as a list on the GPU, ready to draw as instances, when the request asked for it
     /// ([`super::Request::instances`]) and the grid was made there.
@@ -76,14 +86,17 @@ pub struct Voxelized {
 }
 
 impl Voxelized {
-    /// Writes the grid (with its colours, where the format holds them) as `format` into `out`: the bytes the CLI
-    /// writes for the same request.
+    /// Writes the grid (with its colours, where the format holds them), or the distance field, as `format` into
+    /// `out`: the bytes the CLI writes for the same request.
     pub fn write<W: std::io::Write + std::io::Seek>(
         &self,
         format: VoxelFormat,
         options: &WriteOptions,
         out: &mut W,
     ) -> Result<(), FormatError> {
-        formats::write_grid(&self.grid, self.colours.as_ref(), format, options, out)
+        match &self.field {
+            Some(field) => formats::write_field(field, format, out),
+            None => formats::write_grid(&self.grid, self.colours.as_ref(), format, options, out),
+        }
     }
 }

@@ -96,6 +96,8 @@ impl ViewerApp {
                     Mode::Surface => "every voxel a triangle touches (26-separating)",
                     Mode::Solid => "the surface plus every voxel whose centre is inside (winding number ≥ ½)",
                     Mode::Surface6 => "the thin surface: no face-connected leak from inside a closed mesh",
+                    Mode::Sdf => "signed distances near the surface, negative inside, shown as a slice",
+                    Mode::Udf => "unsigned distances near the surface, shown as a slice",
                 };
                 if ui.radio(self.mode == mode, mode.name()).on_hover_text(hint).clicked() {
                     self.set_mode(mode);

@@ -40,6 +40,8 @@ pub struct Job {
     pub axis: Axis,
     pub mode: Mode,
     pub triangles: u64,
+    /// `Sdf`/`Udf`: the band distances are computed in.
+    pub band: super::distance::Band,
 }
 
 /// The mesh's surface area in world units², for the sparse estimate.
@@ -77,12 +79,17 @@ impl Estimate {
 pub fn estimate(spec: &GridSpec, job: &Job, area: Option<f64>, format: Option<VoxelFormat>) -> Estimate {
     let dense = spec.byte_size();
     let triangles = job.triangles.saturating_mul(2 * TRIANGLE_BYTES);
-    let Some(area) = area else {
-        return Estimate { grid: dense, triangles, readback: dense.min(MAX_READBACK), writer: writer(spec, format) };
+    let field = match (job.mode.is_field(), area) {
+        (true, Some(area)) => field_bytes(spec, job, area),
+        _ => 0,
+    };
+    let Some(area) = area.filter(|_| !job.mode.is_field() || format.is_some_and(VoxelFormat::is_sparse)) else {
+        let grid = dense.saturating_add(field);
+        return Estimate { grid, triangles, readback: dense.min(MAX_READBACK), writer: writer(spec, format) };
     };
     let leaves = sparse_leaves(spec, area, job.triangles);
-    let mut grid = leaves.saturating_mul(LEAF_BYTES);
-    if job.mode == Mode::Solid {
+    let mut grid = leaves.saturating_mul(LEAF_BYTES).saturating_add(field);
+    if matches!(job.mode, Mode::Solid | Mode::Sdf) {
         // Row crossings (two per row of leaves' worth of surface, 8 bytes each, sorted with a copy) and the
         // interior's tiles along the surface (as many again as leaves at most, 16 bytes each).
         let area_voxels = (area / (spec.voxel_size * spec.voxel_size)) as u64;
@@ -96,6 +103,22 @@ pub fn estimate(spec: &GridSpec, job: &Job, area: Option<f64>, format: Option<Vo
         None => 0,
     };
     Estimate { grid, triangles, readback: dense.min(SPARSE_SLAB_BYTES), writer }
+}
+
+/// A distance field's leaves (values, and their atomics while computed: 4 KiB each) and slots: the surface's
+/// leaves widened by the band on both sides, or every leaf for `Band::Full`. A dense `.npy` of it is written
+/// a slice at a time ([`writer`]).
+fn field_bytes(spec: &GridSpec, job: &Job, area: f64) -> u64 {
+    let d = spec.dims.as_u64vec3();
+    let all = d.x.div_ceil(8) * d.y.div_ceil(8) * d.z.div_ceil(8);
+    let leaves = match job.band {
+        super::distance::Band::Full => all,
+        super::distance::Band::Voxels(k) => {
+            let widen = 1.0 + (2.0 * f64::from(k) + 8.0) / 8.0;
+            ((sparse_leaves(spec, area, job.triangles) as f64 * widen * widen) as u64).min(all)
+        }
+    };
+    leaves.saturating_mul(4096).saturating_add(all.saturating_mul(4))
 }
 
 /// The dense formats' working memory beside the grid.

@@ -20,6 +20,7 @@
 pub mod budget;
 pub mod colour;
 pub mod cpu;
+pub mod distance;
 pub mod exact;
 pub mod formats;
 mod grid;
@@ -45,10 +46,18 @@ pub enum Mode {
     /// The thin, 6-separating surface of Schwarz & Seidel 2010 §3.2: a subset of `Surface` that still leaves no
     /// face-connected path of empty voxels from the inside of a closed mesh to the outside.
     Surface6,
+    /// A signed distance field ([`distance`]): the distance from each voxel centre near the surface to the nearest
+    /// triangle, negative inside (where `Solid` puts a voxel's centre inside). The grid holds the surface.
+    Sdf,
+    /// The unsigned distance field: `Sdf` without the sign, for open surfaces.
+    Udf,
 }
 
 impl Mode {
+    /// The occupancy modes: a grid of voxels and nothing else.
     pub const ALL: [Mode; 3] = [Mode::Surface, Mode::Solid, Mode::Surface6];
+    /// The distance-field modes.
+    pub const FIELDS: [Mode; 2] = [Mode::Sdf, Mode::Udf];
 
     /// The name used on the command line, in JSON and in the page's status.
     pub fn name(self) -> &'static str {
@@ -56,11 +65,23 @@ impl Mode {
             Mode::Surface => "surface",
             Mode::Solid => "solid",
             Mode::Surface6 => "surface6",
+            Mode::Sdf => "sdf",
+            Mode::Udf => "udf",
         }
     }
 
     pub fn from_name(name: &str) -> Option<Mode> {
-        Mode::ALL.into_iter().find(|m| m.name() == name)
+        Mode::ALL.into_iter().chain(Mode::FIELDS).find(|m| m.name() == name)
+    }
+
+    /// Whether the mode makes a distance field (beside the surface grid).
+    pub fn is_field(self) -> bool {
+        matches!(self, Mode::Sdf | Mode::Udf)
+    }
+
+    /// The occupancy mode whose grid comes with the result: the surface (the zero crossing) for the fields.
+    pub fn grid_mode(self) -> Mode {
+        if self.is_field() { Mode::Surface } else { self }
     }
 }
 

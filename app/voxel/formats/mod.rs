@@ -25,6 +25,7 @@ pub use vdb::{VdbOptions, write_vdb};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
 use super::colour::VoxelColours;
+use super::distance::DistanceField;
 use super::{Grid, SparseGrid, VoxelGrid};
 use glam::UVec3;
 use std::io::{Seek, Write};
@@ -150,11 +151,33 @@ pub fn write_grid<W: Write + Seek>(
         }
     });
     match format {
-        VoxelFormat::Npz => write_npz(&sparse, lookup.as_ref().map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), out),
+        VoxelFormat::Npz => write_npz(&sparse, lookup.as_ref().map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), None, out),
         _ => {
             let colour = lookup.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
             write_vdb(&sparse, VdbOptions { float: options.vdb_float }, colour, out)
         }
+    }
+}
+
+/// Writes a distance field in `format`: `.npy` float32 over the whole grid, `.npz` the band's coordinates and
+/// `values`, `.vdb` a level set. Other formats hold occupancy only (the engine refuses them before voxelizing).
+pub fn write_field<W: Write + Seek>(
+    field: &DistanceField,
+    format: VoxelFormat,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    match format {
+        VoxelFormat::Npy => npy::write_field_npy(field, out),
+        VoxelFormat::Npz => {
+            let value = |v: UVec3| field.value(v);
+            write_npz(&field.band_grid(), None, Some(&value), out)
+        }
+        VoxelFormat::Vdb => vdb::write_level_set(field, out),
+        other => Err(std::io::Error::other(format!(
+            "a distance field is written as .npy, .npz or .vdb, not .{}",
+            other.extension()
+        ))
+        .into()),
     }
 }
 

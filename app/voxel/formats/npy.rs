@@ -4,6 +4,7 @@
 
 use super::error::{FormatError, invalid};
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::distance::DistanceField;
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::{Read, Write};
@@ -71,6 +72,25 @@ pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
         }
         let slices = (d.x as usize - xw * 32).min(32);
         out.write_all(&slab[..slices * ny * nz])?;
+    }
+    Ok(())
+}
+
+/// Writes a distance field as `.npy` float32 of shape `(dims_x, dims_y, dims_z)` (`a[x, y, z]` is voxel
+/// `(x, y, z)`'s value), one x-slice at a time.
+pub fn write_field_npy(field: &DistanceField, out: &mut impl Write) -> Result<(), FormatError> {
+    use rayon::prelude::*;
+    let d = field.spec.dims;
+    write_npy_header("<f4", &format!("({}, {}, {})", d.x, d.y, d.z), out)?;
+    let (ny, nz) = (d.y as usize, d.z as usize);
+    let mut slice = vec![0u8; ny * nz * 4];
+    for x in 0..d.x {
+        slice.par_chunks_mut(nz * 4).enumerate().for_each(|(y, row)| {
+            for (z, bytes) in row.chunks_mut(4).enumerate() {
+                bytes.copy_from_slice(&field.value(UVec3::new(x, y as u32, z as u32)).to_le_bytes());
+            }
+        });
+        out.write_all(&slice)?;
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 //! | `voxel_size` | float64 () | the voxels' edge length |
 //! | `dims` | int64 (3,) | the grid's size in voxels |
 //! | `colors` | uint8 (N, 4) | sRGB RGBA of each voxel in `coords`' order, when coloured |
+//! | `values` | float32 (N,) | a distance field's value at each voxel in `coords`' order (`sdf`, `udf`) |
 //!
 //! Written in a stream from the sparse grid, one x-slab of leaves at a time (the zip crate patches each entry's
 //! sizes and checksum afterwards, hence `Seek`).
@@ -25,10 +26,11 @@ fn zip_error(e: zip::result::ZipError) -> FormatError {
     FormatError::Io(std::io::Error::other(e.to_string()))
 }
 
-/// Writes `grid` (and `colour(v)` for each set voxel `v`, when given) as an `.npz`.
+/// Writes `grid` (and `colour(v)`, `value(v)` for each set voxel `v`, when given) as an `.npz`.
 pub fn write_npz<W: Write + Seek>(
     grid: &SparseGrid,
     colour: Option<&dyn Fn(UVec3) -> [u8; 4]>,
+    value: Option<&dyn Fn(UVec3) -> f32>,
     out: W,
 ) -> Result<(), FormatError> {
     let n = grid.count();
@@ -49,6 +51,11 @@ pub fn write_npz<W: Write + Seek>(
         zip.start_file("colors.npy", options(n * 4)).map_err(zip_error)?;
         write_npy_header("|u1", &format!("({n}, 4)"), &mut zip)?;
         write_sorted(grid, &mut zip, |v, bytes| bytes.extend_from_slice(&colour(v)))?;
+    }
+    if let Some(value) = value {
+        zip.start_file("values.npy", options(n * 4)).map_err(zip_error)?;
+        write_npy_header("<f4", &format!("({n},)"), &mut zip)?;
+        write_sorted(grid, &mut zip, |v, bytes| bytes.extend_from_slice(&value(v).to_le_bytes()))?;
     }
     let spec = &grid.spec;
     zip.start_file("origin.npy", options(0)).map_err(zip_error)?;

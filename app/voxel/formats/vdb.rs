@@ -24,6 +24,7 @@
 use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::SparseGrid;
+use crate::voxel::distance::DistanceField;
 use crate::voxel::sparse::{LeafMask, key_origin};
 use glam::{IVec3, UVec3};
 use rayon::prelude::*;
@@ -36,6 +37,9 @@ const LIBRARY: (u32, u32) = (10, 0);
 const COMPRESS_ACTIVE_MASK: u32 = 0x2;
 /// Per-node metadata byte `NO_MASK_OR_INACTIVE_VALS`: every inactive value is the background.
 const NO_MASK_OR_INACTIVE_VALS: u8 = 0;
+/// Per-node metadata byte `MASK_AND_NO_INACTIVE_VALS`: each inactive value is `+background` where a selection
+/// mask (written next) has its bit, else `-background`: a level set's outside and inside.
+const MASK_AND_NO_INACTIVE_VALS: u8 = 3;
 
 /// What to write beside the voxels' positions.
 #[derive(Clone, Copy, Debug, Default)]
@@ -51,13 +55,18 @@ enum Values<'a> {
     Density,
     /// Linear RGB per voxel.
     Colour(&'a (dyn Fn(UVec3) -> [f32; 3] + Sync)),
+    /// A level set: each voxel's signed distance, `±background` beyond the band.
+    LevelSet {
+        value: &'a (dyn Fn(UVec3) -> f32 + Sync),
+        background: f32,
+    },
 }
 
 impl Values<'_> {
     fn tree_type(&self) -> &'static str {
         match self {
             Values::Bool => "Tree_bool_5_4_3",
-            Values::Density => "Tree_float_5_4_3",
+            Values::Density | Values::LevelSet { .. } => "Tree_float_5_4_3",
             Values::Colour(_) => "Tree_vec3s_5_4_3",
         }
     }
@@ -67,6 +76,7 @@ impl Values<'_> {
             Values::Bool => out.push(0),
             Values::Density => out.extend_from_slice(&0f32.to_le_bytes()),
             Values::Colour(_) => out.extend_from_slice(&[0; 12]),
+            Values::LevelSet { background, .. } => out.extend_from_slice(&background.to_le_bytes()),
         }
     }
 
@@ -80,6 +90,31 @@ impl Values<'_> {
                     out.extend_from_slice(&c.to_le_bytes());
                 }
             }
+            Values::LevelSet { value, .. } => out.extend_from_slice(&value(v).to_le_bytes()),
+        }
+    }
+
+    /// Whether an inactive value at `v` is `+background` (outside), for a level set's selection masks.
+    fn outside(&self, v: UVec3) -> bool {
+        match self {
+            Values::LevelSet { value, .. } => value(v) > 0.0,
+            _ => true,
+        }
+    }
+
+    /// The metadata byte of a node's values, and for a level set the selection mask of its inactive values: bit
+    /// `n` set where slot `n`'s value is `+background`.
+    fn inactive(&self, slots: usize, origin_of: impl Fn(usize) -> UVec3, b: &mut Vec<u8>) {
+        match self {
+            Values::LevelSet { .. } => {
+                b.push(MASK_AND_NO_INACTIVE_VALS);
+                let mut selection = Mask::new(slots);
+                for n in (0..slots).filter(|&n| self.outside(origin_of(n))) {
+                    selection.set(n);
+                }
+                selection.write(b);
+            }
+            _ => b.push(NO_MASK_OR_INACTIVE_VALS),
         }
     }
 }
@@ -272,6 +307,29 @@ pub fn write_vdb<W: Write + Seek>(
     Ok(())
 }
 
+/// Writes a distance field as an OpenVDB level set: one `FloatGrid` named `surface` of class level set, its
+/// background the band's half-width in world units, the band's voxels active with their signed distances, and
+/// every inactive value (in leaves and in the internal nodes' empty slots) `±background` as the voxel is outside
+/// or inside: what OpenVDB's `meshToVolume` writes, and what Houdini and Blender read as an SDF.
+pub fn write_level_set<W: Write + Seek>(field: &DistanceField, mut out: W) -> Result<(), FormatError> {
+    let band = field.band_grid();
+    let mut head = Vec::new();
+    head.extend_from_slice(&0x5644_4220i64.to_le_bytes());
+    head.extend_from_slice(&FILE_VERSION.to_le_bytes());
+    head.extend_from_slice(&LIBRARY.0.to_le_bytes());
+    head.extend_from_slice(&LIBRARY.1.to_le_bytes());
+    head.push(1);
+    head.extend_from_slice(file_uuid(&band).as_bytes());
+    write_meta(&mut head, &[]);
+    head.extend_from_slice(&1i32.to_le_bytes());
+    out.write_all(&head)?;
+    let value = |v: UVec3| field.value(v);
+    let values = Values::LevelSet { value: &value, background: field.background() };
+    write_grid(&band, &tree_nodes(&band), active_bounds(&band), "surface", values, &mut out)?;
+    out.flush()?;
+    Ok(())
+}
+
 /// The leaves and the 8³ and 128³ tiles in the order the tree visits them, with their order keys; and the 4096³
 /// tiles, which the root holds.
 struct TreeNodes {
@@ -332,6 +390,7 @@ fn write_grid<W: Write + Seek>(
     b.extend_from_slice(&COMPRESS_ACTIVE_MASK.to_le_bytes());
     let class = match values {
         Values::Density => "fog volume",
+        Values::LevelSet { .. } => "level set",
         Values::Bool | Values::Colour(_) => "unknown",
     };
     let mut meta = vec![
@@ -372,9 +431,16 @@ fn write_grid<W: Write + Seek>(
     Ok(())
 }
 
-/// The active values of an internal node's tiles (the node's value mask), after the metadata byte.
-fn tile_values(values: Values, tiles: &[UVec3], b: &mut Vec<u8>) {
-    b.push(NO_MASK_OR_INACTIVE_VALS);
+/// An internal node's values: the metadata byte (and a level set's selection mask over its `1 << 3·log2` slots of
+/// edge `1 << slot_log2` from `origin`), then its tiles' active values (the node's value mask).
+fn tile_values(values: Values, tiles: &[UVec3], node: (UVec3, u32, u32), b: &mut Vec<u8>) {
+    let (origin, log2, slot_log2) = node;
+    let mask = (1usize << log2) - 1;
+    let slot_origin = |n: usize| {
+        let at = UVec3::new((n >> (2 * log2)) as u32, ((n >> log2) & mask) as u32, (n & mask) as u32);
+        origin + (at << slot_log2)
+    };
+    values.inactive(1 << (3 * log2), slot_origin, b);
     for &origin in tiles {
         values.value(origin, b);
     }
@@ -402,7 +468,8 @@ fn write_topology(
     out.write_all(&b)?;
     for upper in uppers {
         b.clear();
-        coord(&mut b, node_origin(upper[0].0, 12));
+        let origin = node_origin(upper[0].0, 12);
+        coord(&mut b, origin);
         let lowers: Vec<&[(u64, Node)]> = upper.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)).collect();
         let (mut children, mut active, mut tiles) = (Mask::new(32768), Mask::new(32768), Vec::new());
         for lower in &lowers {
@@ -416,7 +483,7 @@ fn write_topology(
         }
         children.write(&mut b);
         active.write(&mut b);
-        tile_values(values, &tiles, &mut b);
+        tile_values(values, &tiles, (origin, 5, 7), &mut b);
         for lower in lowers.iter().filter(|l| children.get(slot5_of(l[0].0))) {
             write_lower_topology(grid, lower, values, &mut b);
         }
@@ -440,7 +507,7 @@ fn write_lower_topology(grid: &SparseGrid, lower: &[(u64, Node)], values: Values
     }
     children.write(b);
     active.write(b);
-    tile_values(values, &tiles, b);
+    tile_values(values, &tiles, (node_origin(lower[0].0, 7), 4, 3), b);
     for &(_, node) in lower {
         if let Node::Leaf(i) = node {
             Mask(grid.leaves[i as usize].1.to_vec()).write(b);
@@ -479,8 +546,9 @@ fn write_buffers(
                         coord(&mut b, origin);
                         Mask(mask.to_vec()).write(&mut b);
                     }
-                    Values::Density | Values::Colour(_) => {
-                        b.push(NO_MASK_OR_INACTIVE_VALS);
+                    Values::Density | Values::Colour(_) | Values::LevelSet { .. } => {
+                        let at = |n: usize| origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
+                        values.inactive(512, at, &mut b);
                         for (x, &word) in mask.iter().enumerate() {
                             let mut bits = word;
                             while bits != 0 {

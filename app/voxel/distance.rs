@@ -1,0 +1,341 @@
+//! Distance fields (`--mode sdf|udf`): the CPU reference of `shaders/distance.wgsl`, function by function with
+//! the same names, and the field both backends give ([`DistanceField`]).
+//!
+//! # The rule
+//! Every voxel centre within `K` voxels of the surface (the band, `--band K`) holds the Euclidean distance from
+//! its centre to the nearest triangle, in world units. `sdf` makes it negative where the centre is inside:
+//! generalized winding number ≥ ½, decided exactly as `solid` decides it (the same crossings and fill, on a grid
+//! without the surface shell). Beyond the band a voxel holds the background, `±K·voxel size` (OpenVDB's level-set
+//! convention), signed the same way. `--band full` ([`Band::Full`]) puts the whole grid in the band.
+//!
+//! # Passes
+//! Distances are computed in grid space from the lattice triangles the other modes voxelize, in f32:
+//! 1. `mark_leaves`: each triangle marks the 8³ leaves its dilated box ([`band_range`]) touches: the voxels a
+//!    triangle can be within `K` of. Their union is the conservative surface dilated by the band, so candidates
+//!    for a voxel come from the triangles near it, not from all of them. The leaves get slots in x-major order.
+//! 2. `band_distance`: one work item per triangle lowers the squared distance of every voxel centre in its
+//!    dilated box (an atomic minimum of the f32 bits, which order like the numbers for non-negative values),
+//!    starting from `K²`. A voxel's value is then the minimum over every triangle within `K` of it: exact up to
+//!    f32 rounding, because the vector from the centre to the closest point is formed from exact differences of
+//!    lattice points ([`point_distance2`]), so its error is a few ulps of the distance and the triangle's size,
+//!    not of the grid coordinates.
+//! 3. `finish_values`: squared distance in voxels → signed world distance (`√d² · h`, negative inside).
+//!
+//! `Band::Full` takes the same passes with a band as wide as the grid's diagonal, which costs triangles × voxels:
+//! meant for the small grids (32–128) of learned-shape datasets.
+
+use super::colour::closest_barycentric;
+use super::exact::{ceil, dot3, floor};
+use super::sparse::{LeafMask, leaf_key};
+use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
+use glam::{IVec3, UVec3, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// The widest band in voxels (`--band full` covers the whole grid).
+pub const MAX_BAND: f32 = 64.0;
+/// A leaf slot with no leaf.
+pub const NO_LEAF: u32 = u32::MAX;
+
+/// How far from the surface distances are computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Band {
+    /// Voxel centres within this many voxels of the surface (OpenVDB's half-width).
+    Voxels(f32),
+    /// Every voxel of the grid.
+    Full,
+}
+
+impl Default for Band {
+    fn default() -> Band {
+        Band::Voxels(3.0)
+    }
+}
+
+impl Band {
+    /// `K` (a number of voxels, `0 < K ≤ 64`) or `full`.
+    pub fn parse(s: &str) -> Result<Band, String> {
+        if s == "full" {
+            return Ok(Band::Full);
+        }
+        match s.parse::<f32>() {
+            Ok(k) if k > 0.0 && k <= MAX_BAND => Ok(Band::Voxels(k)),
+            Ok(k) if k.is_finite() && k > MAX_BAND => {
+                Err(format!("--band {s}: at most {MAX_BAND} voxels; use --band full for the whole grid"))
+            }
+            _ => Err(format!("--band {s}: use a number of voxels above 0 (3 is OpenVDB's default) or full")),
+        }
+    }
+
+    /// As the command line and `--stats-json` write it.
+    pub fn name(self) -> String {
+        match self {
+            Band::Voxels(k) => format!("{k}"),
+            Band::Full => "full".into(),
+        }
+    }
+
+    /// The band's half-width in voxels for a grid of `dims`: `K`, or for `full` the grid's diagonal (no voxel is
+    /// farther from the surface than that).
+    pub fn reach(self, dims: UVec3) -> f32 {
+        match self {
+            Band::Voxels(k) => k,
+            Band::Full => dims.as_vec3().length().ceil() + 1.0,
+        }
+    }
+}
+
+/// A distance field over a grid: distances in the leaves the band touches, the background beyond (see the module
+/// documentation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DistanceField {
+    pub spec: GridSpec,
+    /// Negative inside (`sdf`), or unsigned (`udf`).
+    pub signed: bool,
+    pub band: Band,
+    /// The band's half-width in voxels ([`Band::reach`]).
+    pub reach: f32,
+    /// Leaves per axis (`ceil(dims / 8)`).
+    pub leaf_dims: UVec3,
+    /// Per leaf position (x fastest), its index in `leaves`, or [`NO_LEAF`].
+    pub slots: Vec<u32>,
+    /// The leaves' origins, in slot order.
+    pub leaves: Vec<UVec3>,
+    /// 512 values per leaf, voxel `(x, y, z)` of the leaf at `(z * 8 + y) * 8 + x`: world distance, or the
+    /// background beyond the band.
+    pub values: Vec<f32>,
+    /// Voxels whose centres are inside (`sdf` only), for the sign beyond the band.
+    pub inside: Option<Grid>,
+}
+
+/// The voxels whose centres can be within `reach` voxels of triangle `t`: those within `reach` of its bounding
+/// box, `lo..=hi` per axis, clamped to the grid (empty where `lo > hi`).
+pub fn band_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
+    let lo = t[0].min(t[1]).min(t[2]) - (reach + 0.5);
+    let hi = t[0].max(t[1]).max(t[2]) + (reach - 0.5);
+    let max = dims.as_ivec3() - 1;
+    let lo = IVec3::new(ceil(lo.x) as i32, ceil(lo.y) as i32, ceil(lo.z) as i32).clamp(IVec3::ZERO, max + 1);
+    let hi = IVec3::new(floor(hi.x) as i32, floor(hi.y) as i32, floor(hi.z) as i32).clamp(IVec3::splat(-1), max);
+    (lo, hi)
+}
+
+/// Squared distance from `p` to triangle `t`, in voxels². The offset to the closest point is `(a - p) + v ab + w
+/// ac`: with `p` and the vertices on the lattice, `a - p`, `ab` and `ac` are exact, so rounding is relative to
+/// the distance and the edges rather than to the coordinates.
+pub fn point_distance2(p: Vec3, t: [Vec3; 3]) -> f32 {
+    let w = closest_barycentric(p, t[0], t[1], t[2]);
+    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
+    dot3(d, d)
+}
+
+/// The leaf slot of leaf coordinates `l`.
+#[inline]
+pub fn leaf_slot(l: UVec3, leaf_dims: UVec3) -> usize {
+    (l.z as usize * leaf_dims.y as usize + l.y as usize) * leaf_dims.x as usize + l.x as usize
+}
+
+/// The value index of voxel `v` within its leaf.
+#[inline]
+pub fn leaf_offset(v: UVec3) -> usize {
+    (((v.z & 7) * 8 + (v.y & 7)) * 8 + (v.x & 7)) as usize
+}
+
+/// Pass 1: the slots of the leaves any triangle's [`band_range`] touches, numbered in slot order, and their
+/// origins.
+pub fn mark_leaves(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> (Vec<u32>, Vec<UVec3>) {
+    let leaf_dims = (dims + 7) / 8;
+    let marks: Vec<AtomicU32> = (0..leaf_dims.as_u64vec3().element_product()).map(|_| AtomicU32::new(0)).collect();
+    triangles.par_iter().for_each(|&t| {
+        let (lo, hi) = band_range(t, dims, reach);
+        if lo.cmpgt(hi).any() {
+            return;
+        }
+        let (lo, hi) = (lo.as_uvec3() / 8, hi.as_uvec3() / 8);
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    marks[leaf_slot(UVec3::new(x, y, z), leaf_dims)].store(1, Ordering::Relaxed);
+                }
+            }
+        }
+    });
+    let mut leaves = Vec::new();
+    let slots = marks
+        .iter()
+        .enumerate()
+        .map(|(i, m)| match m.load(Ordering::Relaxed) {
+            0 => NO_LEAF,
+            _ => {
+                let i = i as u32;
+                let (x, y) = (i % leaf_dims.x, i / leaf_dims.x % leaf_dims.y);
+                leaves.push(UVec3::new(x, y, i / (leaf_dims.x * leaf_dims.y)) * 8);
+                leaves.len() as u32 - 1
+            }
+        })
+        .collect();
+    (slots, leaves)
+}
+
+/// Pass 2: lowers `best` (squared voxel distances as f32 bits, 512 per leaf) over every voxel in triangle `t`'s
+/// [`band_range`]. A voxel whose squared distance to the triangle's plane is already no lower than its best is
+/// skipped: that bound is cheap and the triangle cannot win there.
+pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
+    let (lo, hi) = band_range(t, dims, reach);
+    let leaf_dims = (dims + 7) / 8;
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let n2 = dot3(n, n);
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let v = IVec3::new(x, y, z).as_uvec3();
+                let slot = slots[leaf_slot(v / 8, leaf_dims)];
+                let at = &best[slot as usize * 512 + leaf_offset(v)];
+                let p = v.as_vec3() + 0.5;
+                let current = f32::from_bits(at.load(Ordering::Relaxed));
+                let plane = dot3(n, t[0] - p);
+                // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
+                if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+                    continue;
+                }
+                let d2 = point_distance2(p, t);
+                if d2 < current {
+                    at.fetch_min(d2.to_bits(), Ordering::Relaxed);
+                }
+            }
+        }
+    }
+}
+
+/// Pass 3: the world value of a voxel from its squared voxel distance: `√d² · h`, negative where `inside`.
+#[inline]
+pub fn finish_value(d2: f32, inside: bool, voxel_size: f32) -> f32 {
+    let d = d2.sqrt() * voxel_size;
+    if inside && d > 0.0 { -d } else { d }
+}
+
+/// The voxels whose centres are inside the lattice triangles' mesh (winding number ≥ ½), dense or sparse.
+pub fn inside_grid(
+    triangles: &[[Vec3; 3]],
+    lattice: super::Lattice,
+    spec: GridSpec,
+    sparse: bool,
+) -> Result<Grid, GridError> {
+    Ok(match sparse {
+        false => {
+            let mut grid = VoxelGrid::new(spec)?;
+            super::solid::fill(triangles, lattice, &mut grid);
+            Grid::Dense(grid)
+        }
+        true => Grid::Sparse(super::solid_sparse::fill_sparse(triangles, lattice, SparseGrid::new(spec))),
+    })
+}
+
+impl DistanceField {
+    /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
+    /// given (passes 1–3 on rayon's threads).
+    pub fn compute(triangles: &[[Vec3; 3]], spec: GridSpec, band: Band, inside: Option<Grid>) -> DistanceField {
+        let dims = spec.dims;
+        let reach = band.reach(dims);
+        let (slots, leaves) = mark_leaves(triangles, dims, reach);
+        let start = (reach * reach).to_bits();
+        let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
+        triangles.par_iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
+        let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
+        DistanceField::from_squared(spec, band, slots, leaves, &best, inside)
+    }
+
+    /// The field from each leaf voxel's squared voxel distance (pass 3; shared by both backends).
+    pub fn from_squared(
+        spec: GridSpec,
+        band: Band,
+        slots: Vec<u32>,
+        leaves: Vec<UVec3>,
+        best: &[f32],
+        inside: Option<Grid>,
+    ) -> DistanceField {
+        let h = spec.voxel_size as f32;
+        let values = leaves
+            .par_iter()
+            .zip(best.par_chunks(512))
+            .flat_map_iter(|(&origin, leaf)| {
+                let inside = inside.as_ref();
+                leaf.iter().enumerate().map(move |(i, &d2)| {
+                    let v = origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+                    finish_value(d2, inside.is_some_and(|g| in_grid(g, v)), h)
+                })
+            })
+            .collect();
+        let dims = spec.dims;
+        DistanceField {
+            spec,
+            signed: inside.is_some(),
+            band,
+            reach: band.reach(dims),
+            leaf_dims: (dims + 7) / 8,
+            slots,
+            leaves,
+            values,
+            inside,
+        }
+    }
+
+    /// The background: the band's half-width in world units (positive; `-background` inside).
+    pub fn background(&self) -> f32 {
+        self.reach * self.spec.voxel_size as f32
+    }
+
+    /// Whether voxel `v`'s centre is inside (always false for `udf`).
+    pub fn is_inside(&self, v: UVec3) -> bool {
+        self.inside.as_ref().is_some_and(|g| in_grid(g, v))
+    }
+
+    /// Voxel `v`'s value: its distance in the band, the signed background beyond.
+    pub fn value(&self, v: UVec3) -> f32 {
+        if !v.cmplt(self.spec.dims).all() {
+            // Beyond the grid, which holds the mesh: outside.
+            return self.background();
+        }
+        match self.slots[leaf_slot(v / 8, self.leaf_dims)] {
+            NO_LEAF if self.is_inside(v) => -self.background(),
+            NO_LEAF => self.background(),
+            i => self.values[i as usize * 512 + leaf_offset(v)],
+        }
+    }
+
+    /// Whether voxel `v` is in the band: nearer the surface than the background.
+    pub fn in_band(&self, v: UVec3) -> bool {
+        self.value(v).abs() < self.background()
+    }
+
+    /// The voxels in the band (every voxel for `Band::Full`), as a sparse grid: what `.vdb` and `.npz` outputs
+    /// hold values for.
+    pub fn band_grid(&self) -> SparseGrid {
+        let (bg, dims, full) = (self.background(), self.spec.dims, self.band == Band::Full);
+        let mut leaves: Vec<(u64, LeafMask)> = self
+            .leaves
+            .par_iter()
+            .zip(self.values.par_chunks(512))
+            .filter_map(|(&origin, leaf)| {
+                let mut mask = [0u64; 8];
+                for (i, &value) in leaf.iter().enumerate() {
+                    let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+                    if (value.abs() < bg || full) && (origin + l).cmplt(dims).all() {
+                        mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
+                    }
+                }
+                (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
+            })
+            .collect();
+        leaves.par_sort_unstable_by_key(|(key, _)| *key);
+        SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
+    }
+
+    /// Voxels in the band.
+    pub fn band_voxels(&self) -> u64 {
+        self.band_grid().count()
+    }
+}
+
+fn in_grid(g: &Grid, v: UVec3) -> bool {
+    v.cmplt(g.spec().dims).all() && g.get(v.x, v.y, v.z)
+}
