@@ -306,7 +306,7 @@ impl Work<'_> {
             output: output.to_path_buf(),
             merge: args.merge,
             mode: args.mode,
-            band: args.band,
+            band: args.band.clone(),
             stats_json: false,
             backend: args.backend,
             grid: args.grid,

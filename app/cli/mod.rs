@@ -214,20 +214,22 @@ enum ModeArg {
 }
 
 /// How far from the surface `--mode sdf|udf` computes distances.
-#[derive(clap::Args, Clone, Copy)]
+#[derive(clap::Args, Clone)]
 pub(super) struct BandArgs {
     /// sdf/udf: voxel centres within K voxels of the surface get their distance, the rest ±K voxels (the
     /// background, as in OpenVDB level sets); `full` computes every voxel (dense outputs only).
-    #[arg(long, value_name = "K|full", value_parser = meshvox::voxel::distance::Band::parse)]
-    pub(super) band: Option<meshvox::voxel::distance::Band>,
+    #[arg(long, value_name = "K|full", allow_negative_numbers = true)]
+    pub(super) band: Option<String>,
 }
 
 impl BandArgs {
     /// The band for `mode`: `--band` only means something for the distance modes.
     pub(super) fn band(&self, mode: Mode) -> Result<meshvox::voxel::distance::Band> {
-        match (self.band, mode.is_field()) {
+        // Parsed here rather than by clap, so a bad value is one line like every other error.
+        match (&self.band, mode.is_field()) {
             (Some(_), false) => anyhow::bail!("--band sets the distance field's width: use it with --mode sdf or udf"),
-            (band, _) => Ok(band.unwrap_or_default()),
+            (Some(band), true) => meshvox::voxel::distance::Band::parse(band).map_err(anyhow::Error::msg),
+            (None, _) => Ok(Default::default()),
         }
     }
 }

@@ -238,7 +238,8 @@ pub struct BoundaryEdge {
     pub _pad: f32,
 }
 
-/// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles, with
+/// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles of
+/// non-zero area, with
 /// vertices identified by their exact lattice position (so unwelded files and duplicated vertices count as
 /// shared). Edges where the uses cancel are interior; a closed mesh has none left. Sorted, so both backends sum
 /// the boundary term in the same order.
@@ -247,7 +248,12 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
         .par_iter()
         .flat_map_iter(|t| {
             let u = t.map(|p| lattice.units(p).to_array());
-            (0..3).filter_map(move |i| {
+            // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
+            // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
+            let (e0, e1) =
+                (IVec3::from_array(u[1]) - IVec3::from_array(u[0]), IVec3::from_array(u[2]) - IVec3::from_array(u[0]));
+            let flat = (0..3).all(|k| super::exact::exact_normal_component(e0, e1, k) == 0);
+            (0..3).filter(move |_| !flat).filter_map(move |i| {
                 let (a, b) = (u[i], u[(i + 1) % 3]);
                 match a.cmp(&b) {
                     std::cmp::Ordering::Less => Some((a, b, 1)),

@@ -7,6 +7,7 @@ mod colour;
 mod common;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;
+mod distance;
 mod engine;
 mod exactness;
 mod far;

@@ -1,7 +1,7 @@
 """Checks a meshvox distance field against independent computations, for meshvox's tests; prints one JSON object.
 
 usage: /usr/bin/python3 distance_check.py reference MESH.obj FIELD.npz SAMPLES
-       /usr/bin/python3 distance_check.py openvdb MESH.obj FIELD.vdb
+       /usr/bin/python3 distance_check.py openvdb MESH.obj FIELD.vdb [FIELD.npy]
 
 reference: reads the band (`coords`, `values`) of an .npz written by `meshvox voxelize --mode sdf|udf`, and for
 SAMPLES band voxels (seeded, all of them when fewer) computes in float64 over every triangle of the OBJ: the
@@ -12,7 +12,8 @@ are at least the band's width from the mesh. Reports errors in voxels.
 
 openvdb: reads the level set with OpenVDB (Debian's python3-openvdb) and builds OpenVDB's own level set of the
 same OBJ on the same transform and half-width (`FloatGrid.createLevelSetFromPolygons`, timed), then compares
-the two where both are in their bands, and counts band voxels OpenVDB signs differently from meshvox.
+the two where both are in their bands, and counts band voxels OpenVDB signs differently from meshvox; with
+FIELD.npy, also the largest difference between OpenVDB's reading of the whole grid and the .npy.
 """
 import json
 import sys
@@ -157,7 +158,7 @@ def reference(mesh_path, npz_path, samples):
     return result
 
 
-def openvdb(mesh_path, vdb_path):
+def openvdb(mesh_path, vdb_path, npy_path=None):
     import pyopenvdb as vdb
 
     vertices, faces = load_obj(mesh_path)
@@ -189,7 +190,14 @@ def openvdb(mesh_path, vdb_path):
     origin = np.array(grid.transform.indexToWorld((0, 0, 0)))
     true = distances(origin + h * (worst + np.array(lo)), vertices[faces], 4 * bg) / h if len(worst) else np.zeros(0)
     at = tuple(worst.T)
+    npy_difference = None
+    if npy_path:
+        dense = np.load(npy_path)
+        whole = np.zeros(dense.shape, dtype=np.float32)
+        grid.copyToArray(whole, ijk=(0, 0, 0))
+        npy_difference = float(np.abs(whole - dense).max())
     return {
+        "npy_max_difference": npy_difference,
         "name": grid.name,
         "class": grid.gridClass,
         "type": grid.valueTypeName,
@@ -216,7 +224,7 @@ def main():
     if command == "reference":
         result = reference(sys.argv[2], sys.argv[3], int(sys.argv[4]))
     elif command == "openvdb":
-        result = openvdb(sys.argv[2], sys.argv[3])
+        result = openvdb(sys.argv[2], sys.argv[3], sys.argv[4] if len(sys.argv) > 4 else None)
     else:
         raise SystemExit(__doc__)
     print(json.dumps(result))
