@@ -7,6 +7,7 @@
 //   shade_voxels      one thread per grid word: each set voxel's winning triangle is shaded at the nearest point
 //                     and the sRGB bytes replace the distance in best[2 * rank] (0 where no triangle reached it).
 // A voxel's rank is its index among the set voxels in storage order: ranks[word] plus the set bits below it.
+// Joined after nearest.wgsl (dot3, triangle, closest_barycentric).
 
 struct Params {
     dims: vec3<u32>,
@@ -49,19 +50,6 @@ const TEXTURE_WORDS: u32 = 4u;
 @group(0) @binding(6) var<storage, read> ranks: array<u32>;
 @group(0) @binding(7) var<storage, read_write> best: array<atomic<u32>>;
 
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
-fn triangle(t: u32) -> array<vec3<f32>, 3> {
-    let b = 9u * t;
-    return array<vec3<f32>, 3>(
-        vec3<f32>(triangles[b], triangles[b + 1u], triangles[b + 2u]),
-        vec3<f32>(triangles[b + 3u], triangles[b + 4u], triangles[b + 5u]),
-        vec3<f32>(triangles[b + 6u], triangles[b + 7u], triangles[b + 8u]),
-    );
-}
-
 fn candidate_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
     let lo = min(min(t[0], t[1]), t[2]) - (REACH + 0.5);
     return clamp(vec3<i32>(ceil(lo)), vec3<i32>(0), vec3<i32>(params.dims));
@@ -70,64 +58,6 @@ fn candidate_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
 fn candidate_hi(t: array<vec3<f32>, 3>) -> vec3<i32> {
     let hi = max(max(t[0], t[1]), t[2]) + (REACH - 0.5);
     return clamp(vec3<i32>(floor(hi)), vec3<i32>(-1), vec3<i32>(params.dims) - 1);
-}
-
-fn nearest_vertex(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
-    let da = dot3(a - p, a - p);
-    let db = dot3(b - p, b - p);
-    let dc = dot3(c - p, c - p);
-    if da <= db && da <= dc {
-        return vec3<f32>(1.0, 0.0, 0.0);
-    }
-    if db <= dc {
-        return vec3<f32>(0.0, 1.0, 0.0);
-    }
-    return vec3<f32>(0.0, 0.0, 1.0);
-}
-
-fn closest_barycentric(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = dot3(ab, ap);
-    let d2 = dot3(ac, ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return vec3<f32>(1.0, 0.0, 0.0);
-    }
-    let bp = p - b;
-    let d3 = dot3(ab, bp);
-    let d4 = dot3(ac, bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return vec3<f32>(1.0 - v, v, 0.0);
-    }
-    let cp = p - c;
-    let d5 = dot3(ab, cp);
-    let d6 = dot3(ac, cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return vec3<f32>(0.0, 0.0, 1.0);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return vec3<f32>(1.0 - w, 0.0, w);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return vec3<f32>(0.0, 1.0 - w, w);
-    }
-    let sum = va + vb + vc;
-    if !(sum > 0.0) {
-        return nearest_vertex(p, a, b, c);
-    }
-    let v = vb / sum;
-    let w = vc / sum;
-    return vec3<f32>(1.0 - v - w, v, w);
 }
 
 fn squared_distance(p: vec3<f32>, t: array<vec3<f32>, 3>, w: vec3<f32>) -> f32 {

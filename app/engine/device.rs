@@ -15,9 +15,11 @@
 
 use super::{Backend, Colours, Engine, EngineError, Notice, Voxels, software_gpu_preferred};
 use crate::gpu::colour::GpuColourer;
+use crate::gpu::distance::GpuDistance;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
+use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::{Grid, GridSpec, Mode, VoxelGrid};
 use glam::Vec3;
 use std::sync::OnceLock;
@@ -30,6 +32,7 @@ pub(super) struct OnGpu {
     voxelizer: GpuVoxelizer,
     /// Compiled the first time a coloured mesh is voxelized.
     colourer: OnceLock<GpuColourer>,
+    distance: OnceLock<GpuDistance>,
     /// Whether the CPU may stand in when the GPU cannot take a request.
     fallback: bool,
     /// The client draws on this device too (see the module's documentation).
@@ -97,8 +100,9 @@ impl Engine {
 
     fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant) -> Engine {
         let voxelizer = GpuVoxelizer::new(&gpu);
-        let (colourer, turn, busy_ns) = (OnceLock::new(), async_lock::Mutex::new(()), AtomicU64::new(0));
-        let on_gpu = OnGpu { gpu, voxelizer, colourer, fallback, shared, turn, busy_ns };
+        let (colourer, distance) = (OnceLock::new(), OnceLock::new());
+        let (turn, busy_ns) = (async_lock::Mutex::new(()), AtomicU64::new(0));
+        let on_gpu = OnGpu { gpu, voxelizer, colourer, distance, fallback, shared, turn, busy_ns };
         Engine { gpu: Some(on_gpu), setup_ms: super::ms(since), ..Engine::cpu(None) }
     }
 
@@ -201,6 +205,32 @@ impl OnGpu {
 
     /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that
     /// does not also draw or is still alive.
+    /// The distance field on the GPU (compiled on first use), or why the CPU stands in.
+    pub(super) async fn field(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        band: Band,
+        inside: Option<Grid>,
+    ) -> Result<Result<(DistanceField, String), (Notice, Option<Grid>)>, EngineError> {
+        let inside_copy = self.fallback.then(|| inside.clone()).flatten();
+        let field = {
+            let _turn = self.turn().await;
+            let pass = self.distance.get_or_init(|| GpuDistance::new(&self.gpu));
+            pass.field(&self.gpu, tris, spec, band, inside).await
+        };
+        match field {
+            Ok(field) => Ok(Ok((field, format!("gpu: {}", self.gpu.summary)))),
+            Err(e @ GpuError::TooLarge { .. }) if self.fallback => {
+                Ok(Err((Notice { warning: false, message: format!("{e}; distances on the CPU") }, inside_copy)))
+            }
+            Err(e) if self.may_stand_in(&e) => {
+                Ok(Err((Notice { warning: true, message: format!("{e}; distances on the CPU instead") }, inside_copy)))
+            }
+            Err(e) => Err(e.into()),
+        }
+    }
+
     fn may_stand_in(&self, e: &GpuError) -> bool {
         self.fallback && e.is_device_failure() && !(self.shared && self.gpu.is_lost())
     }

@@ -340,12 +340,16 @@ impl Engine {
         request.cancelled()?;
         let voxelize_ms = ms(t);
         let t = Instant::now();
-        let field = match request.mode.is_field() {
-            true => Some(self.field(&tris, spec, sparse, request).await?),
-            false => None,
+        let mut notices = voxels.notices;
+        let (field, field_backend) = match request.mode.is_field() {
+            true => {
+                let (field, backend, more) = self.field(&tris, spec, sparse, request).await?;
+                notices.extend(more);
+                (Some(field), Some(backend))
+            }
+            false => (None, None),
         };
         let field_ms = field.as_ref().map(|_| ms(t));
-        let mut notices = voxels.notices;
         request.cancelled()?;
         let t = Instant::now();
         let colours = match (request.colour != Some(false) && mesh.shading.is_some(), &voxels.grid) {
@@ -384,6 +388,7 @@ impl Engine {
             band: request.mode.is_field().then(|| request.band.name()),
             band_voxels: field.as_ref().map(|f| f.band_voxels()),
             field_ms,
+            field_backend,
             ..Report::default()
         };
         let colours = colours.map(|c| {
@@ -465,14 +470,16 @@ impl Engine {
     }
 
     /// The distance field of `request.mode` (`Sdf` or `Udf`) and `request.band` over `spec`, from the mesh's
-    /// grid-space triangles; the inside (for the sign) dense or `sparse` as the grid is.
+    /// grid-space triangles, with where it was computed (as `backend` says it) and what happened on the way. The
+    /// distances come from the GPU where there is one, with the CPU standing in as for the grid; the inside (for
+    /// the sign) is the CPU's solid fill, dense or `sparse` as the grid is.
     async fn field(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         sparse: bool,
         request: &Request<'_>,
-    ) -> Result<DistanceField, EngineError> {
+    ) -> Result<(DistanceField, String, Vec<Notice>), EngineError> {
         let d = spec.dims;
         let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
         let (tris, lattice) = voxel::on_lattice(tris, d).map_err(grid_error)?;
@@ -481,7 +488,17 @@ impl Engine {
             _ => None,
         };
         request.cancelled()?;
-        Ok(DistanceField::compute(&tris, spec, request.band, inside))
+        #[cfg(feature = "gpu")]
+        let (inside, notices) = match &self.gpu {
+            Some(on) => match on.field(&tris, spec, request.band, inside).await? {
+                Ok((field, backend)) => return Ok((field, backend, Vec::new())),
+                Err((why, inside)) => (inside, vec![why]),
+            },
+            None => (inside, Vec::new()),
+        };
+        #[cfg(not(feature = "gpu"))]
+        let notices = Vec::new();
+        Ok((DistanceField::compute(&tris, spec, request.band, inside), self.cpu_label(), notices))
     }
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU.

@@ -39,6 +39,8 @@ pub struct Report {
     pub dims: [u32; 3],
     /// Voxel tests decided by the exact integer path.
     pub exact_tests: Option<u64>,
+    /// `sdf`/`udf`: where the distances were computed, like `backend`.
+    pub field_backend: Option<String>,
     /// `sdf`/`udf`: the distance field's passes (the inside for the sign included), after the surface.
     pub field_ms: Option<f64>,
     pub format: String,

@@ -15,7 +15,10 @@ use crate::voxel::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, VoxelColours, fill_inter
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
-pub const COLOUR_WGSL: &str = include_str!("../../shaders/colour.wgsl");
+pub const COLOUR_WGSL: &str =
+    concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/colour.wgsl"));
+/// The files joined into [`COLOUR_WGSL`], in order.
+pub const COLOUR_PARTS: [&str; 2] = ["nearest.wgsl", "colour.wgsl"];
 const WG: u32 = 64;
 /// Words of one material record and one texture record in the tables (`MATERIAL_WORDS`, `TEXTURE_WORDS`).
 const MATERIAL_WORDS: usize = 12;

@@ -3,6 +3,7 @@
 
 pub mod colour;
 pub mod compact;
+pub mod distance;
 mod readback;
 mod run;
 mod solid;

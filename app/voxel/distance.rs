@@ -13,8 +13,8 @@
 //! 1. `mark_leaves`: each triangle marks the 8³ leaves its dilated box ([`band_range`]) touches: the voxels a
 //!    triangle can be within `K` of. Their union is the conservative surface dilated by the band, so candidates
 //!    for a voxel come from the triangles near it, not from all of them. The leaves get slots in x-major order.
-//! 2. `band_distance`: one work item per triangle lowers the squared distance of every voxel centre in its
-//!    dilated box (an atomic minimum of the f32 bits, which order like the numbers for non-negative values),
+//! 2. `band_distance`: one work item per triangle and voxel layer of its dilated box (`triangle_layer`) lowers
+//!    the squared distance of every voxel centre in that layer of the box (an atomic minimum of the f32 bits, which order like the numbers for non-negative values),
 //!    starting from `K²`. A voxel's value is then the minimum over every triangle within `K` of it: exact up to
 //!    f32 rounding, because the vector from the centre to the closest point is formed from exact differences of
 //!    lattice points ([`point_distance2`]), so its error is a few ulps of the distance and the triangle's size,
@@ -176,31 +176,50 @@ pub fn mark_leaves(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> (Vec<u32
     (slots, leaves)
 }
 
-/// Pass 2: lowers `best` (squared voxel distances as f32 bits, 512 per leaf) over every voxel in triangle `t`'s
-/// [`band_range`]. A voxel whose squared distance to the triangle's plane is already no lower than its best is
-/// skipped: that bound is cheap and the triangle cannot win there.
+/// The voxel layers `z_lo..z_hi` of triangle `t`'s [`band_range`] that lie in `z_lo..z_hi`: the work items
+/// of one triangle on the GPU (one per layer), as `first..=last` (empty where `first > last`).
+pub fn triangle_layers(t: [Vec3; 3], dims: UVec3, reach: f32, z: (u32, u32)) -> (i32, i32) {
+    let (lo, hi) = band_range(t, dims, reach);
+    (first_layer(lo.z, z.0), hi.z.min(z.1 as i32 - 1))
+}
+
+/// The first voxel layer of a band box starting at `lo_z`, in a dispatch from layer `z_lo`.
+pub fn first_layer(lo_z: i32, z_lo: u32) -> i32 {
+    lo_z.max(z_lo as i32)
+}
+
+/// Pass 2: lowers `best` (squared voxel distances as f32 bits, 512 per leaf) over every voxel of triangle `t`'s
+/// [`band_range`], one layer at a time as the GPU's work items do ([`triangle_layer`]).
 pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
+    let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
+    for z in first..=last {
+        triangle_layer(t, z, dims, reach, slots, best);
+    }
+}
+
+/// Lowers `best` over layer `z` of triangle `t`'s [`band_range`]. A voxel whose squared distance to the
+/// triangle's plane is already no lower than its best is skipped: that bound is cheap and the triangle cannot win
+/// there.
+pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
     let (lo, hi) = band_range(t, dims, reach);
     let leaf_dims = (dims + 7) / 8;
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let n2 = dot3(n, n);
-    for z in lo.z..=hi.z {
-        for y in lo.y..=hi.y {
-            for x in lo.x..=hi.x {
-                let v = IVec3::new(x, y, z).as_uvec3();
-                let slot = slots[leaf_slot(v / 8, leaf_dims)];
-                let at = &best[slot as usize * 512 + leaf_offset(v)];
-                let p = v.as_vec3() + 0.5;
-                let current = f32::from_bits(at.load(Ordering::Relaxed));
-                let plane = dot3(n, t[0] - p);
-                // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
-                if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
-                    continue;
-                }
-                let d2 = point_distance2(p, t);
-                if d2 < current {
-                    at.fetch_min(d2.to_bits(), Ordering::Relaxed);
-                }
+    for y in lo.y..=hi.y {
+        for x in lo.x..=hi.x {
+            let v = IVec3::new(x, y, z).as_uvec3();
+            let slot = slots[leaf_slot(v / 8, leaf_dims)];
+            let at = &best[slot as usize * 512 + leaf_offset(v)];
+            let p = v.as_vec3() + 0.5;
+            let current = f32::from_bits(at.load(Ordering::Relaxed));
+            let plane = dot3(n, t[0] - p);
+            // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
+            if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+                continue;
+            }
+            let d2 = point_distance2(p, t);
+            if d2 < current {
+                at.fetch_min(d2.to_bits(), Ordering::Relaxed);
             }
         }
     }

@@ -245,3 +245,72 @@ fn bad_bands_and_formats_are_one_line_errors() {
         assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 0, "{args:?} left a file");
     }
 }
+
+/// The largest difference between two fields in voxels, and whether they agree on every voxel's sign and on
+/// which voxels are in the band.
+fn field_difference(a: &DistanceField, b: &DistanceField) -> f64 {
+    assert_eq!((a.leaves.len(), a.slots.len()), (b.leaves.len(), b.slots.len()), "the same leaves");
+    assert_eq!(a.leaves, b.leaves);
+    let h = a.spec.voxel_size as f32;
+    let mut worst = 0f32;
+    for (i, (x, y)) in a.values.iter().zip(&b.values).enumerate() {
+        assert_eq!(x.is_sign_negative(), y.is_sign_negative(), "value {i}: {x} and {y}");
+        if (x - y).abs() / h > 0.5 {
+            let o = a.leaves[i / 512];
+            eprintln!("leaf {o} offset {}: {} vs {} (voxels)", i % 512, x / h, y / h);
+        }
+        worst = worst.max((x - y).abs() / h);
+    }
+    f64::from(worst)
+}
+
+/// How close the GPU's distances are to the CPU's: both evaluate the same f32 expressions on the same lattice
+/// triangles, but a GPU compiler may fuse or reorder them, so the squared distance can differ in its last bits.
+const GPU_BOUND_VOXELS: f64 = 1e-5;
+
+#[test]
+fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    let pass = meshvox::gpu::distance::GpuDistance::new(gpu);
+    let mut worst = 0f64;
+    for name in crate::common::all_meshes() {
+        let mesh = meshvox::mesh::load(&name).expect("mesh");
+        for (n, band) in [(45, Band::Voxels(3.0)), (70, Band::Voxels(1.0))] {
+            let spec =
+                GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
+                    .expect("spec");
+            let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+            let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+            let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
+            let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
+            let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, Some(inside))).expect("gpu field");
+            let d = field_difference(&cpu, &on_gpu);
+            assert!(d <= GPU_BOUND_VOXELS, "{name} at {n}: GPU and CPU differ by {d} voxels");
+            worst = worst.max(d);
+        }
+    }
+    eprintln!("GPU against CPU distances: at most {worst:.2e} voxels apart on every mesh");
+}
+
+#[test]
+fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
+    let Some((shared, _)) = crate::gpu::gpu() else { return };
+    let limit = 1u64 << 20;
+    let limits =
+        wgpu::Limits { max_storage_buffer_binding_size: limit, max_buffer_size: limit, ..shared.adapter.limits() };
+    let small = pollster::block_on(meshvox::gpu::Gpu::from_adapter_with_limits(shared.adapter.clone(), limits))
+        .expect("device");
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let engine = Engine::on_device(&small, Backend::Gpu).expect("engine");
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    for mode in Mode::FIELDS {
+        let request = Request { band: Band::Voxels(2.0), ..Request::new(Resolution::Count(160), mode) };
+        let on_gpu = engine.voxelize("knot", &mesh, &request).expect("gpu");
+        let on_cpu = cpu.voxelize("knot", &mesh, &request).expect("cpu");
+        let field = on_gpu.field.as_ref().expect("field");
+        assert!(field.leaves.len() as u64 * 2048 > limit, "the band must not fit one binding");
+        assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
+        let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
+        assert!(d <= GPU_BOUND_VOXELS, "knot {mode} in chunks: {d} voxels");
+    }
+}

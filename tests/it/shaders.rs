@@ -12,14 +12,24 @@ fn read(name: &str) -> String {
     std::fs::read_to_string(shader_dir().join(name)).unwrap_or_else(|e| panic!("shaders/{name}: {e}"))
 }
 
-/// The modules the program compiles, each with its name: one per file, except voxelize, which is joined from
-/// several files at build time.
+/// The modules the program compiles, each with its name: one per file, except voxelize, colour and distance,
+/// which are joined from several files at build time.
 fn modules() -> Vec<(&'static str, &'static str)> {
     vec![
         ("voxelize", meshvox::gpu::voxelize::VOXELIZE_WGSL),
-        ("colour.wgsl", meshvox::gpu::colour::COLOUR_WGSL),
+        ("colour", meshvox::gpu::colour::COLOUR_WGSL),
+        ("distance", meshvox::gpu::distance::DISTANCE_WGSL),
         ("compact.wgsl", meshvox::gpu::compact::COMPACT_WGSL),
         ("cubes.wgsl", meshvox::render::CUBES_WGSL),
+    ]
+}
+
+/// The joined modules with the files they are joined from, in order.
+fn joined_modules() -> Vec<(&'static str, &'static [&'static str])> {
+    vec![
+        (meshvox::gpu::voxelize::VOXELIZE_WGSL, &meshvox::gpu::voxelize::VOXELIZE_PARTS[..]),
+        (meshvox::gpu::colour::COLOUR_WGSL, &meshvox::gpu::colour::COLOUR_PARTS[..]),
+        (meshvox::gpu::distance::DISTANCE_WGSL, &meshvox::gpu::distance::DISTANCE_PARTS[..]),
     ]
 }
 
@@ -41,24 +51,28 @@ fn every_wgsl_file_validates() {
 
 #[test]
 fn the_modules_are_the_files_on_disk() {
-    // Every .wgsl file is compiled into the program: a whole module, or one part of voxelize.
-    let parts = meshvox::gpu::voxelize::VOXELIZE_PARTS;
+    // Every .wgsl file is compiled into the program: a whole module, or one part of a joined one.
     let mut files: Vec<String> = std::fs::read_dir(shader_dir())
         .expect("shaders/")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
         .filter(|n| n.ends_with(".wgsl"))
         .collect();
     files.sort();
-    let mut used: Vec<String> = parts.iter().map(|p| p.to_string()).collect();
-    for (name, source) in modules().into_iter().skip(1) {
+    let mut used: Vec<String> =
+        joined_modules().iter().flat_map(|(_, parts)| parts.iter().map(|p| p.to_string())).collect();
+    used.sort();
+    used.dedup();
+    for (name, source) in modules().into_iter().filter(|(name, _)| name.ends_with(".wgsl")) {
         assert_eq!(source, read(name), "{name} as compiled differs from shaders/{name}");
         used.push(name.to_string());
     }
     used.sort();
     assert_eq!(files, used, "a .wgsl file in shaders/ that no module includes, or a module without its file");
-    // The joined module is its parts in order, each a whole file.
-    let joined: String = parts.iter().map(|p| read(p)).collect();
-    assert_eq!(meshvox::gpu::voxelize::VOXELIZE_WGSL, joined);
+    // Each joined module is its parts in order, each a whole file.
+    for (source, parts) in joined_modules() {
+        let joined: String = parts.iter().map(|p| read(p)).collect();
+        assert_eq!(source, joined, "{parts:?}");
+    }
     // The shared arithmetic stands alone: the surface and solid parts use it, it uses neither.
     parse(&read("exact.wgsl")).expect("exact.wgsl is a module of its own");
 }

@@ -1,0 +1,206 @@
+//! The distance-field pass of `shaders/distance.wgsl` on a [`Gpu`]: the host marks the band's leaves
+//! (`mark_leaves`, shared with the CPU), the GPU lowers each leaf voxel's squared distance (`band_distance`), and
+//! the host turns them into signed world distances (`finish_value`). A work item is one voxel layer of one
+//! triangle's band box, found from a prefix sum over the triangles' layers, so a grid-sized triangle is spread
+//! over as many threads as it has layers instead of holding one thread for its whole box. The rule and the CPU reference are in
+//! [`crate::voxel::distance`].
+//!
+//! The leaves are numbered z-layer by z-layer, so the leaves of a range of layers are a range of indices: when
+//! the band's values do not fit one storage binding, the pass runs once per such range (a chunk), each dispatch
+//! walking only its layers of every triangle's box.
+
+use super::readback::read_buffer;
+use super::util::{pipeline, scoped, storage_entry, uniform_entry};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::distance::{Band, mark_leaves, triangle_layers};
+use crate::voxel::{Grid, GridSpec};
+use glam::{UVec3, Vec3};
+use rayon::prelude::*;
+use wgpu::util::DeviceExt;
+
+pub const DISTANCE_WGSL: &str =
+    concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/distance.wgsl"));
+/// The files joined into [`DISTANCE_WGSL`], in order.
+pub const DISTANCE_PARTS: [&str; 2] = ["nearest.wgsl", "distance.wgsl"];
+const WG: u32 = 64;
+/// Bytes of one leaf's squared distances.
+const LEAF_BYTES: u64 = 512 * 4;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    dims: [u32; 3],
+    tri_count: u32,
+    leaf_dims: [u32; 3],
+    row_threads: u32,
+    reach: f32,
+    leaf_base: u32,
+    z_lo: u32,
+    z_hi: u32,
+}
+
+/// The compiled pass, reusable on one device.
+pub struct GpuDistance {
+    layout: wgpu::BindGroupLayout,
+    band: wgpu::ComputePipeline,
+}
+
+impl GpuDistance {
+    pub fn new(gpu: &Gpu) -> GpuDistance {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("distance.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(DISTANCE_WGSL.into()),
+        });
+        let entries = [
+            uniform_entry(0),
+            storage_entry(1, true),
+            storage_entry(2, true),
+            storage_entry(3, false),
+            storage_entry(4, true),
+        ];
+        let layout = device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("distance"), entries: &entries });
+        GpuDistance { band: pipeline(device, &module, &[Some(&layout)], "band_distance"), layout }
+    }
+
+    /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
+    /// given: what [`crate::voxel::distance::DistanceField::compute`] gives, with the distances from the GPU.
+    pub async fn field(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        band: Band,
+        inside: Option<Grid>,
+    ) -> Result<crate::voxel::distance::DistanceField, GpuError> {
+        gpu.check()?;
+        let dims = spec.dims;
+        let reach = band.reach(dims);
+        let (slots, leaves) = mark_leaves(triangles, dims, reach);
+        let max = gpu.max_binding_bytes();
+        let needed = [triangles.len() as u64 * 36, slots.len() as u64 * 4];
+        if let Some(&big) = needed.iter().find(|&&b| b > max) {
+            return Err(GpuError::TooLarge {
+                what: "the distance field's triangles or leaf slots".into(),
+                needed: big,
+                limit: max,
+            });
+        }
+        let mut best = Vec::with_capacity(leaves.len() * 512);
+        for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
+            let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z).await?;
+            best.extend(range);
+        }
+        gpu.check()?;
+        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, &best, inside))
+    }
+
+    /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared
+    /// distances back.
+    #[allow(clippy::too_many_arguments)]
+    async fn chunk(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        slots: &[u32],
+        spec: GridSpec,
+        reach: f32,
+        (first, count): (usize, usize),
+        z: (u32, u32),
+    ) -> Result<Vec<f32>, GpuError> {
+        let device = &gpu.device;
+        let bytes = count as u64 * LEAF_BYTES;
+        // Each triangle's first work item: a prefix sum over its layers in this chunk.
+        let layers: Vec<u64> = triangles
+            .par_iter()
+            .map(|&t| {
+                let (first, last) = triangle_layers(t, spec.dims, reach, z);
+                (last - first + 1).max(0) as u64
+            })
+            .collect();
+        let mut items = Vec::with_capacity(triangles.len() + 1);
+        let mut total = 0u64;
+        for n in layers {
+            items.push(total as u32);
+            total += n;
+        }
+        if total > u64::from(u32::MAX) {
+            return Err(GpuError::TooLarge {
+                what: "the distance pass's work items".into(),
+                needed: total,
+                limit: u32::MAX.into(),
+            });
+        }
+        items.push(total as u32);
+        let buffer = scoped(device, || {
+            let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+                let contents = if contents.is_empty() { &[0u8; 4][..] } else { contents };
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+            };
+            let (x, y) = dispatch_2d((total as u32).div_ceil(WG));
+            let leaf_dims = (spec.dims + 7) / 8;
+            let params = Params {
+                dims: spec.dims.to_array(),
+                tri_count: triangles.len() as u32,
+                leaf_dims: leaf_dims.to_array(),
+                row_threads: x * WG,
+                reach,
+                leaf_base: first as u32,
+                z_lo: z.0,
+                z_hi: z.1,
+            };
+            let start = vec![(reach * reach).to_bits(); count * 512];
+            let storage = wgpu::BufferUsages::STORAGE;
+            let buffers = [
+                init("distance params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
+                init("distance triangles", bytemuck::cast_slice(triangles), storage),
+                init("distance slots", bytemuck::cast_slice(slots), storage),
+                init("distance best", bytemuck::cast_slice(&start), storage | wgpu::BufferUsages::COPY_SRC),
+                init("distance items", bytemuck::cast_slice(&items), storage),
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+                .collect();
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("distance"),
+                layout: &self.layout,
+                entries: &entries,
+            });
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                pass.set_pipeline(&self.band);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            let [_, _, _, best, _] = buffers;
+            Ok(best)
+        })
+        .await?;
+        let data = read_buffer(device, &gpu.queue, &buffer, 0, bytes).await?;
+        Ok(bytemuck::cast_slice::<u8, u32>(&data).iter().map(|&b| f32::from_bits(b)).collect())
+    }
+}
+
+/// The leaves in runs of whole leaf layers of at most `per_chunk` leaves (a layer larger than that alone):
+/// `(first leaf, leaves, voxel layers)` per run.
+fn chunks(leaves: &[UVec3], per_chunk: usize) -> Vec<(usize, usize, (u32, u32))> {
+    let mut out: Vec<(usize, usize, (u32, u32))> = Vec::new();
+    let mut first = 0;
+    for layer in leaves.chunk_by(|a, b| a.z == b.z) {
+        let z = (layer[0].z, layer[0].z + 8);
+        match out.last_mut() {
+            Some(last) if last.1 + layer.len() <= per_chunk && last.2.1 == z.0 => {
+                last.1 += layer.len();
+                last.2.1 = z.1;
+            }
+            _ => out.push((first, layer.len(), z)),
+        }
+        first += layer.len();
+    }
+    out
+}

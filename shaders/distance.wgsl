@@ -1,0 +1,116 @@
+// Distance fields (`--mode sdf|udf`): the squared distance from each voxel centre in the band to the nearest
+// triangle (see app/voxel/distance.rs, the CPU reference, whose functions carry the same names). Joined after
+// nearest.wgsl (dot3, triangle, closest_barycentric).
+//   band_distance  one thread per (triangle, voxel layer of its band box in this dispatch's z-range of leaves):
+//                  for every voxel centre of the layer within the band of the triangle's bounding box, atomicMin
+//                  of the squared distance (f32 bits, which order like the values for non-negative numbers) into
+//                  best[512 * (leaf - leaf_base) + offset in the leaf]. `items[t]` is the first item of triangle t
+//                  (a prefix sum over its layers, made on the host), so big and small triangles spread evenly.
+// The host marks the leaves (`mark_leaves`), starts `best` at reach², and turns the result into signed world
+// distances (`finish_value`).
+
+struct Params {
+    dims: vec3<u32>,
+    tri_count: u32,
+    // Work items of this dispatch: items[tri_count].
+    leaf_dims: vec3<u32>,
+    // Threads per row of the 2D dispatch (workgroups in x times the workgroup size).
+    row_threads: u32,
+    // The band's half-width in voxels.
+    reach: f32,
+    // The first leaf of this dispatch's `best`, and its voxel layers [z_lo, z_hi).
+    leaf_base: u32,
+    z_lo: u32,
+    z_hi: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> triangles: array<f32>;
+@group(0) @binding(2) var<storage, read> slots: array<u32>;
+@group(0) @binding(3) var<storage, read_write> best: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read> items: array<u32>;
+
+fn band_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
+    let lo = min(min(t[0], t[1]), t[2]) - (params.reach + 0.5);
+    return clamp(vec3<i32>(ceil(lo)), vec3<i32>(0), vec3<i32>(params.dims));
+}
+
+fn band_hi(t: array<vec3<f32>, 3>) -> vec3<i32> {
+    let hi = max(max(t[0], t[1]), t[2]) + (params.reach - 0.5);
+    return clamp(vec3<i32>(floor(hi)), vec3<i32>(-1), vec3<i32>(params.dims) - 1);
+}
+
+// The offset to the closest point is (a - p) + v ab + w ac: exact differences of lattice points, so rounding is
+// relative to the distance and the edges, not to the coordinates.
+fn point_distance2(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
+    let w = closest_barycentric(p, t[0], t[1], t[2]);
+    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
+    return dot3(d, d);
+}
+
+fn leaf_slot(l: vec3<u32>) -> u32 {
+    return (l.z * params.leaf_dims.y + l.y) * params.leaf_dims.x + l.x;
+}
+
+fn leaf_offset(v: vec3<u32>) -> u32 {
+    return ((v.z & 7u) * 8u + (v.y & 7u)) * 8u + (v.x & 7u);
+}
+
+fn thread_index(gid: vec3<u32>) -> u32 {
+    return gid.x + gid.y * params.row_threads;
+}
+
+// The triangle whose items hold item i: the last t with items[t] <= i (binary search).
+fn item_triangle(i: u32) -> u32 {
+    var lo = 0u;
+    var hi = params.tri_count;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if items[mid] <= i {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// The first voxel layer of triangle t's band box in this dispatch.
+fn first_layer(lo: vec3<i32>) -> i32 {
+    return max(lo.z, i32(params.z_lo));
+}
+
+fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
+    let lo = band_lo(tri);
+    let hi = band_hi(tri);
+    let n = cross(tri[1] - tri[0], tri[2] - tri[0]);
+    let n2 = dot3(n, n);
+    for (var y = lo.y; y <= hi.y; y++) {
+        for (var x = lo.x; x <= hi.x; x++) {
+            let v = vec3<u32>(vec3<i32>(x, y, z));
+            let at = (slots[leaf_slot(v / 8u)] - params.leaf_base) * 512u + leaf_offset(v);
+            let p = vec3<f32>(v) + 0.5;
+            let current = bitcast<f32>(atomicLoad(&best[at]));
+            // The plane's squared distance already no lower than the best: this triangle cannot win here.
+            let plane = dot3(n, tri[0] - p);
+            if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+                continue;
+            }
+            let d2 = point_distance2(p, tri);
+            if d2 < current {
+                atomicMin(&best[at], bitcast<u32>(d2));
+            }
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn band_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = thread_index(gid);
+    if i >= items[params.tri_count] {
+        return;
+    }
+    let t = item_triangle(i);
+    let tri = triangle(t);
+    triangle_layer(tri, first_layer(band_lo(tri)) + i32(i - items[t]));
+}
