@@ -386,7 +386,7 @@ impl Engine {
             warnings: mesh.warnings.clone(),
             voxelize_ms,
             band: request.mode.is_field().then(|| request.band.name()),
-            band_voxels: field.as_ref().map(|f| f.band_voxels()),
+            band_voxels: field.as_ref().map(|f| f.band_voxels),
             field_ms,
             field_backend,
             ..Report::default()

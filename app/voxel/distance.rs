@@ -106,6 +106,8 @@ pub struct DistanceField {
     pub values: Vec<f32>,
     /// Voxels whose centres are inside (`sdf` only), for the sign beyond the band.
     pub inside: Option<Grid>,
+    /// Voxels in the band ([`DistanceField::band_grid`]'s count).
+    pub band_voxels: u64,
 }
 
 /// The voxels whose centres can be within `reach` voxels of triangle `t`: those within `reach` of its bounding
@@ -273,17 +275,35 @@ impl DistanceField {
         inside: Option<Grid>,
     ) -> DistanceField {
         let h = spec.voxel_size as f32;
-        let values = leaves
+        let background = band.reach(spec.dims) * h;
+        let (values, in_band): (Vec<Vec<f32>>, Vec<u64>) = leaves
             .par_iter()
             .zip(best.par_chunks(512))
-            .flat_map_iter(|(&origin, leaf)| {
-                let inside = inside.as_ref();
-                leaf.iter().enumerate().map(move |(i, &d2)| {
-                    let v = origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
-                    finish_value(d2, inside.is_some_and(|g| in_grid(g, v)), h)
-                })
+            .map(|(&origin, leaf)| {
+                // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
+                let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
+                let values: Vec<f32> = leaf
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &d2)| {
+                        let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
+                        finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
+                    })
+                    .collect();
+                let dims = spec.dims;
+                let count = values
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, value)| {
+                        let v = origin + UVec3::new(*i as u32 & 7, (*i as u32 >> 3) & 7, *i as u32 >> 6);
+                        (value.abs() < background || band == Band::Full) && v.cmplt(dims).all()
+                    })
+                    .count() as u64;
+                (values, count)
             })
-            .collect();
+            .unzip();
+        let values = values.concat();
+        let band_voxels = in_band.iter().sum();
         let dims = spec.dims;
         DistanceField {
             spec,
@@ -295,6 +315,7 @@ impl DistanceField {
             leaves,
             values,
             inside,
+            band_voxels,
         }
     }
 
@@ -348,10 +369,22 @@ impl DistanceField {
         leaves.par_sort_unstable_by_key(|(key, _)| *key);
         SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
     }
+}
 
-    /// Voxels in the band.
-    pub fn band_voxels(&self) -> u64 {
-        self.band_grid().count()
+/// The inside bits of the 8³ leaf at `origin` in OpenVDB's mask order (bit `y * 8 + z` of word `x`).
+fn inside_mask(g: &Grid, origin: UVec3) -> LeafMask {
+    match g {
+        Grid::Sparse(s) => s.leaf_mask(origin),
+        Grid::Dense(d) => {
+            let mut mask = [0u64; 8];
+            for i in 0..512u32 {
+                let v = origin + UVec3::new(i >> 6, (i >> 3) & 7, i & 7);
+                if v.cmplt(d.spec.dims).all() && d.get(v.x, v.y, v.z) {
+                    mask[(i >> 6) as usize] |= 1 << (i & 63);
+                }
+            }
+            mask
+        }
     }
 }
 

@@ -166,15 +166,20 @@ impl SparseGrid {
 
     /// Whether voxel `(x, y, z)` is set.
     pub fn get(&self, x: u32, y: u32, z: u32) -> bool {
-        let v = UVec3::new(x, y, z);
-        if let Ok(i) = self.leaves.binary_search_by_key(&leaf_key(x, y, z), |(k, _)| *k) {
-            let (w, b) = leaf_bit(x, y, z);
-            return self.leaves[i].1[w] >> b & 1 != 0;
+        let (w, b) = leaf_bit(x, y, z);
+        self.leaf_mask(UVec3::new(x, y, z))[w] >> b & 1 != 0
+    }
+
+    /// The mask of the leaf holding voxel `v`: its own, all set inside a tile, or empty.
+    pub fn leaf_mask(&self, v: UVec3) -> LeafMask {
+        if let Ok(i) = self.leaves.binary_search_by_key(&leaf_key(v.x, v.y, v.z), |(k, _)| *k) {
+            return self.leaves[i].1;
         }
-        TILE_LOG2.iter().any(|&log2| {
+        let in_tile = TILE_LOG2.iter().any(|&log2| {
             let tile = Tile { log2, origin: (v >> log2) << log2 };
             self.tiles.binary_search_by_key(&tile.sort_key(), Tile::sort_key).is_ok()
-        })
+        });
+        if in_tile { FULL_LEAF } else { [0; 8] }
     }
 
     /// Number of set voxels.

@@ -10,6 +10,14 @@ struct Kill(Child);
 
 impl Drop for Kill {
     fn drop(&mut self) {
+        // SIGTERM first, so Xvfb removes its lock file; SIGKILL only if it does not go.
+        let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+        for _ in 0..20 {
+            if self.0.try_wait().is_ok_and(|s| s.is_some()) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
@@ -31,15 +39,21 @@ fn desktop_app_shows_panel_and_voxels() {
         eprintln!("\n*** SKIPPED desktop test: Xvfb and ImageMagick's import are needed ***\n");
         return;
     }
-    let display = format!(":{}", 90 + std::process::id() % 100);
-    let _xvfb = Kill(
+    // Xvfb picks a free display and writes its number to stdout (-displayfd) once it accepts connections: a
+    // fixed number can collide with another server or with the lock file a killed one left behind.
+    let mut xvfb = Kill(
         Command::new("Xvfb")
-            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .args(["-displayfd", "1", "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
             .expect("start Xvfb"),
     );
-    std::thread::sleep(Duration::from_millis(800));
+    let mut number = String::new();
+    let stdout = xvfb.0.stdout.take().expect("Xvfb's stdout");
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut number).expect("Xvfb's display number");
+    let display = format!(":{}", number.trim());
+    assert!(display.len() > 1, "Xvfb gave no display number");
     let app = Kill(
         Command::new(env!("CARGO_BIN_EXE_meshvox"))
             .env("DISPLAY", &display)
