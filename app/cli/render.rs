@@ -37,9 +37,16 @@ pub(super) struct RenderArgs {
     /// Camera angle above the horizon, degrees.
     #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
     pitch: f32,
-    /// What to voxelize: the surface, the solid (surface plus inside), or the thin 6-separating surface.
+    /// What to voxelize: the surface, the solid (surface plus inside), the thin 6-separating surface, or a
+    /// distance field (sdf, udf), drawn as a slice (--slice) beside the surface's voxels.
     #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
     mode: ModeArg,
+    #[command(flatten)]
+    band: super::BandArgs,
+    /// sdf/udf: the slice through the field to draw, AXIS:FRACTION (default z:0.5): blue inside, orange
+    /// outside, a stripe per voxel of distance, white at the zero crossing.
+    #[arg(long, value_name = "AXIS:FRACTION", value_parser = parse_cut)]
+    slice: Option<meshvox::render::Cut>,
     /// Cut the model away beyond a plane across an axis, to show the inside: AXIS:FRACTION, e.g. x:0.5 keeps
     /// the voxels in the lower half of the grid along x.
     #[arg(long, value_name = "AXIS:FRACTION", value_parser = parse_cut)]
@@ -95,25 +102,32 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let showing = Showing { cut: args.cut, ao: !args.no_ao };
     // On the device that draws, so that the GPU's list of visible voxels can be drawn where it may be.
     let engine = Engine::on_device(&gpu, args.backend.into())?;
+    let band = args.band.band(mode)?;
+    if args.slice.is_some() && !mode.is_field() {
+        bail!("--slice draws a distance field: use it with --mode sdf or udf (--cut cuts the others)");
+    }
     let request = Request {
-        instances: showing.from_gpu_list(args.colour.wanted(&mesh)),
+        instances: showing.from_gpu_list(args.colour.wanted(&mesh)) && !mode.is_field(),
         // Drawn from the dense grid.
         grid: meshvox::voxel::GridKind::Dense,
+        band,
         ..request
     };
     let result = engine.voxelize(&args.mesh, &mesh, &request)?;
     result.notices.iter().for_each(|n| eprintln!("{n}"));
     let grid = result.grid.dense().ok_or_else(|| anyhow!("render needs a dense grid"))?;
+    // A field is drawn as its slice beside the surface's voxels, coloured by value.
+    let sliced = result.field.as_ref().map(|field| {
+        let slice = args.slice.unwrap_or(meshvox::render::Cut { axis: 2, fraction: 0.5 });
+        meshvox::render::slice::field_slice(field, grid, slice)
+    });
+    let (grid, colours) = match &sliced {
+        Some((grid, colours)) => (grid, Some(colours)),
+        None => (grid, result.colours.as_ref()),
+    };
     let (spec, backend, voxelize_ms) = (grid.spec, &result.report.backend, result.report.voxelize_ms);
     let offscreen = Offscreen::new(&gpu);
-    let scene = offscreen.renderer.voxel_scene(
-        &gpu.device,
-        grid,
-        result.instances,
-        result.colours.as_ref(),
-        showing,
-        Some(&mesh),
-    );
+    let scene = offscreen.renderer.voxel_scene(&gpu.device, grid, result.instances, colours, showing, Some(&mesh));
     let count = scene.voxels.count;
     let (lo, hi) = scene.bounds();
     let up = args.up.unwrap_or_else(|| mesh.guess_up());

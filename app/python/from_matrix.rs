@@ -31,6 +31,28 @@ pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: f64) ->
     Ok(grid)
 }
 
+/// A distance field from a `[x, y, z]` float32 array of values in world units (see
+/// [`crate::voxel::distance::DistanceField::from_dense`]).
+pub(super) fn field(
+    distances: &ArrayView3<'_, f32>,
+    origin: [f64; 3],
+    pitch: f64,
+    background: f32,
+    signed: bool,
+) -> PyResult<crate::voxel::distance::DistanceField> {
+    let (nx, ny, nz) = distances.dim();
+    let dims = [nx, ny, nz].map(|n| u32::try_from(n).unwrap_or(u32::MAX));
+    if dims.contains(&0) || dims.contains(&u32::MAX) || !(pitch.is_finite() && pitch > 0.0) || !(background > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "a field of shape {:?}, pitch {pitch} and background {background} cannot be written",
+            distances.dim()
+        )));
+    }
+    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: pitch, dims: UVec3::from(dims) };
+    let values: Vec<f32> = distances.iter().copied().collect();
+    Ok(crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed))
+}
+
 /// The colours of `grid`'s set voxels (in its storage order) from an `[x, y, z, rgba]` array.
 pub(super) fn colours(grid: &VoxelGrid, colors: &ArrayView4<'_, u8>) -> PyResult<VoxelColours> {
     let d = grid.spec.dims;

@@ -16,6 +16,7 @@ use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -39,6 +40,7 @@ struct Options {
     backend: Backend,
     colour: Option<bool>,
     bounds: Option<Aabb>,
+    band: crate::voxel::distance::Band,
 }
 
 /// Why a call failed, turned into the Python exception users expect ([`into_py_err`]).
@@ -55,9 +57,13 @@ fn into_py_err(failure: Failure) -> PyErr {
         Failure::Engine(e @ EngineError::Grid { error: GridError::OverBudget { .. }, .. }) => {
             PyMemoryError::new_err(e.to_string())
         }
-        Failure::Engine(e @ (EngineError::Grid { .. } | EngineError::Empty { .. } | EngineError::Bounds { .. })) => {
-            PyValueError::new_err(e.to_string())
-        }
+        Failure::Engine(
+            e @ (EngineError::Grid { .. }
+            | EngineError::Empty { .. }
+            | EngineError::Bounds { .. }
+            | EngineError::FieldFormat { .. }
+            | EngineError::FullBandSparse),
+        ) => PyValueError::new_err(e.to_string()),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
         Failure::Engine(e) => PyRuntimeError::new_err(e.to_string()),
     }
@@ -112,6 +118,7 @@ fn options(
     backend: &str,
     colour: Option<bool>,
     bounds: Option<([f64; 3], [f64; 3])>,
+    band: &str,
 ) -> PyResult<Options> {
     let resolution = match (resolution, pitch) {
         (Some(n), None) => Resolution::Count(n),
@@ -127,7 +134,8 @@ fn options(
         _ => return Err(PyValueError::new_err(format!("axis '{axis}': use longest, x, y or z"))),
     };
     let mode = Mode::from_name(mode)
-        .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use surface, solid or surface6")))?;
+        .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use surface, solid, surface6, sdf or udf")))?;
+    let band = crate::voxel::distance::Band::parse(band).map_err(PyValueError::new_err)?;
     let backend = match backend {
         "auto" => Backend::Auto,
         "gpu" => Backend::Gpu,
@@ -135,7 +143,7 @@ fn options(
         _ => return Err(PyValueError::new_err(format!("backend '{backend}': use auto, gpu or cpu"))),
     };
     let bounds = bounds.map(|(min, max)| Aabb { min: DVec3::from(min), max: DVec3::from(max) });
-    Ok(Options { resolution, axis, mode, backend, colour, bounds })
+    Ok(Options { resolution, axis, mode, backend, colour, bounds, band })
 }
 
 /// One voxelization on this process's engine, inside [`process::run`]'s working thread: `progress` as the
@@ -156,6 +164,7 @@ fn voxelize_one(
         cancel: Some(cancel),
         // The package's VoxelGrid holds the dense bits (`.matrix`).
         grid: crate::voxel::GridKind::Dense,
+        band: options.band,
         ..Request::new(options.resolution, options.mode)
     };
     engine.voxelize(&name, &mesh, &request).map_err(Failure::Engine)
@@ -183,12 +192,26 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     });
     dict.set_item("rgba", rgba.transpose()?)?;
     dict.set_item("words", grid.words.into_pyarray(py))?;
+    // A distance field as float32 [x, y, z] over the whole grid, and its background.
+    let distances = result.field.as_ref().map(|field| {
+        let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
+        let mut values = vec![0f32; nx * ny * nz];
+        values.par_chunks_mut(ny * nz).enumerate().for_each(|(x, slab)| {
+            for (i, value) in slab.iter_mut().enumerate() {
+                *value = field.value(glam::UVec3::new(x as u32, (i / nz) as u32, (i % nz) as u32));
+            }
+        });
+        values.into_pyarray(py).reshape([nx, ny, nz])
+    });
+    dict.set_item("distances", distances.transpose()?)?;
+    dict.set_item("background", result.field.as_ref().map(|f| f.background()))?;
+    dict.set_item("signed", result.field.as_ref().map(|f| f.signed))?;
     Ok(dict)
 }
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
@@ -201,8 +224,9 @@ fn voxelize<'py>(
     colour: Option<bool>,
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
+    band: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band)?;
     let input = input(source)?;
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
@@ -213,7 +237,7 @@ fn voxelize<'py>(
 /// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
 /// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
-#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers))]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize_many<'py>(
     py: Python<'py>,
@@ -227,8 +251,9 @@ fn voxelize_many<'py>(
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
     workers: Option<usize>,
+    band: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();
@@ -317,6 +342,33 @@ fn save(
     written.map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
 }
 
+/// `VoxelGrid.save` of a distance field: its float32 `[x, y, z]` values (background `background` world units)
+/// written as `.npy`, `.npz` (the band) or `.vdb` (a level set) with the CLI's writers, atomically.
+#[pyfunction]
+#[pyo3(signature = (path, distances, origin, pitch, background, signed))]
+fn save_field(
+    py: Python<'_>,
+    path: PathBuf,
+    distances: numpy::PyReadonlyArray3<'_, f32>,
+    origin: [f64; 3],
+    pitch: f64,
+    background: f32,
+    signed: bool,
+) -> PyResult<()> {
+    let format = VoxelFormat::from_extension(&path)
+        .filter(|f| matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb))
+        .ok_or_else(|| {
+            PyValueError::new_err(format!("{}: a distance field is saved as .npy, .npz or .vdb", path.display()))
+        })?;
+    let field = from_matrix::field(&distances.as_array(), origin, pitch, background, signed)?;
+    let written = process::run(py, None, |_| {
+        crate::voxel::formats::atomic::write_atomically(&path, |out| {
+            crate::voxel::formats::write_field(&field, format, out)
+        })
+    })?;
+    written.map(|_| ()).map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+}
+
 mod from_matrix;
 
 #[pymodule]
@@ -327,6 +379,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(save_field, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

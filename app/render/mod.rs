@@ -3,7 +3,8 @@
 //! window: the `render` command and the tests use it headless, the app inside egui's render pass.
 //!
 //! One file per thing it owns: [`cubes`] (pipelines, style, scene), [`instances`] (voxels and their occlusion as
-//! instances), [`scene`] (whether a scene draws the GPU's list or the grid), [`floor`], [`target`] (offscreen targets, images), [`cut`] and [`camera`].
+//! instances), [`scene`] (whether a scene draws the GPU's list or the grid), [`floor`], [`target`] (offscreen targets, images), [`cut`], [`slice`]
+//! (a distance field's slice) and [`camera`].
 
 pub mod camera;
 pub mod cubes;
@@ -11,6 +12,7 @@ pub mod cut;
 pub mod floor;
 pub mod instances;
 pub mod scene;
+pub mod slice;
 pub mod target;
 
 pub use camera::OrbitCamera;

@@ -319,6 +319,45 @@ impl DistanceField {
         }
     }
 
+    /// A field from every voxel's value (world units, `values[(x * dims_y + y) * dims_z + z]`, as numpy's C order
+    /// `[x, y, z]` holds it) with `background` its band's half-width in world units: what the Python binding
+    /// saves. Every leaf is kept; the band is the voxels nearer than the background.
+    pub fn from_dense(spec: GridSpec, values: &[f32], background: f32, signed: bool) -> DistanceField {
+        let dims = spec.dims;
+        let leaf_dims = (dims + 7) / 8;
+        let reach = background / spec.voxel_size as f32;
+        let leaves: Vec<UVec3> = (0..leaf_dims.z)
+            .flat_map(|z| (0..leaf_dims.y).flat_map(move |y| (0..leaf_dims.x).map(move |x| UVec3::new(x, y, z) * 8)))
+            .collect();
+        let (ny, nz) = (dims.y as usize, dims.z as usize);
+        let leaf_values: Vec<f32> = leaves
+            .par_iter()
+            .flat_map_iter(|&origin| {
+                (0..512u32).map(move |i| {
+                    let v = origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6);
+                    match v.cmplt(dims).all() {
+                        true => values[(v.x as usize * ny + v.y as usize) * nz + v.z as usize],
+                        false => background,
+                    }
+                })
+            })
+            .collect();
+        let bg = reach * spec.voxel_size as f32;
+        let band_voxels = values.iter().filter(|v| v.abs() < bg).count() as u64;
+        DistanceField {
+            spec,
+            signed,
+            band: Band::Voxels(reach),
+            reach,
+            leaf_dims,
+            slots: (0..leaves.len() as u32).collect(),
+            leaves,
+            values: leaf_values,
+            inside: None,
+            band_voxels,
+        }
+    }
+
     /// The background: the band's half-width in world units (positive; `-background` inside).
     pub fn background(&self) -> f32 {
         self.reach * self.spec.voxel_size as f32

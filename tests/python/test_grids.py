@@ -168,3 +168,30 @@ def test_voxelize_many_keeps_input_order_and_equals_one_by_one(meshes):
 def test_backends_say_what_auto_picks():
     info = meshvox.backends()
     assert info["auto"] in ("gpu", "cpu") and info["backend"].startswith(info["auto"]) and info["threads"] >= 1
+
+
+@pytest.mark.parametrize("mode", ["sdf", "udf"])
+def test_distance_fields_equal_the_clis_and_save_as_the_cli_writes(meshes, cli, tmp_path, mode):
+    bunny = str(meshes / "stanford-bunny.obj")
+    grid = meshvox.voxelize(bunny, 48, mode=mode, band=2.5, backend="cpu")
+    expected = cli_npy(cli, tmp_path, bunny, "-r", "48", "--mode", mode, "--band", "2.5")
+    assert grid.distances.dtype == np.float32 and grid.distances.shape == grid.shape
+    np.testing.assert_array_equal(grid.distances, expected)
+    assert grid.background == pytest.approx(2.5 * grid.pitch)
+    assert grid.signed == (mode == "sdf") and ((grid.distances < 0).any() == (mode == "sdf"))
+    # The surface's voxels come with the field; every one is within half a voxel diagonal of the surface.
+    assert grid.stats["mode"] == mode and grid.matrix.sum() == grid.stats["voxels"]
+    assert np.abs(grid.distances[grid.matrix]).max() <= np.sqrt(0.75) * grid.pitch * (1 + 1e-5)
+    for ext in ["vdb", "npz", "npy"]:
+        grid.save(tmp_path / f"py.{ext}")
+        run_cli(cli, "voxelize", bunny, "-r", "48", "--mode", mode, "--band", "2.5", "--backend", "cpu",
+                "-o", str(tmp_path / f"cli.{ext}"))
+        assert (tmp_path / f"py.{ext}").read_bytes() == (tmp_path / f"cli.{ext}").read_bytes(), ext
+    again = pickle.loads(pickle.dumps(grid))
+    assert again == grid and again.signed == grid.signed
+
+
+def test_a_bad_band_is_a_value_error():
+    for band, message in [(0, "above 0"), (-1, "above 0"), (1000, "at most 64"), ("wide", "above 0")]:
+        with pytest.raises(ValueError, match=message):
+            meshvox.voxelize("builtin:torus", 16, mode="sdf", band=band)

@@ -5,6 +5,9 @@
     >>> grid.matrix.shape, grid.matrix.dtype                    # (X, Y, Z) bool, indexed [x, y, z]
     >>> grid.coords()                                         # int32 (N, 3), sorted
     >>> grid.save("bunny.binvox")
+    >>> sdf = meshvox.voxelize("bunny.obj", 128, mode="sdf", band=3)
+    >>> sdf.distances.shape, sdf.distances.dtype               # (X, Y, Z) float32, negative inside
+    >>> sdf.save("bunny.vdb")                                  # an OpenVDB level set
 
 The grid is the one ``meshvox voxelize`` writes for the same arguments (the `.npy` of the CLI is ``.matrix``
 byte for byte). See docs/python.md.
@@ -52,6 +55,9 @@ class VoxelGrid:
         self.pitch: float = float(pitch)
         self.origin: np.ndarray = np.asarray(origin, dtype=np.float64).reshape(3)
         self.stats: dict[str, Any] = dict(stats or {})
+        self.distances: np.ndarray | None = None
+        self.background: float | None = None
+        self.signed: bool | None = None
 
     @classmethod
     def _packed(cls, words, shape, pitch, origin, rgba, stats) -> "VoxelGrid":
@@ -63,6 +69,7 @@ class VoxelGrid:
         grid._words, grid._rgba = words, rgba
         grid.pitch, grid.origin = float(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
         grid.stats = dict(stats or {})
+        grid.distances, grid.background, grid.signed = None, None, None
         return grid
 
     def _bits_zyx(self) -> np.ndarray:
@@ -90,11 +97,12 @@ class VoxelGrid:
 
     def __getstate__(self) -> dict[str, Any]:
         # Once unpacked, the matrix is the truth (it may have been edited); before, the bits travel.
+        field = {"distances": self.distances, "background": self.background, "signed": self.signed}
         if self._matrix is None and self._words is not None:
             return {"words": self._words, "rgba": self._rgba, "shape": self._shape, "pitch": self.pitch,
-                    "origin": self.origin, "stats": self.stats}
+                    "origin": self.origin, "stats": self.stats, **field}
         return {"matrix": self.matrix, "colors": self._colors, "pitch": self.pitch, "origin": self.origin,
-                "stats": self.stats}
+                "stats": self.stats, **field}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         if "words" in state:
@@ -102,6 +110,8 @@ class VoxelGrid:
                                       state["rgba"], state["stats"])
         else:
             other = VoxelGrid(state["matrix"], state["pitch"], state["origin"], state["colors"], state["stats"])
+        other.distances = state.get("distances")
+        other.background, other.signed = state.get("background"), state.get("signed")
         self.__dict__.update(other.__dict__)
 
     @property
@@ -136,7 +146,14 @@ class VoxelGrid:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
         ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``) with the CLI's writers, atomically; a coloured
         ``.npy`` gets ``.colors.npy`` beside it.
-        ``merge`` joins coplanar faces of the mesh formats."""
+        ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
+        as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) or ``.vdb`` (a level set),
+        as the CLI writes it."""
+        if self.distances is not None:
+            distances = np.ascontiguousarray(self.distances, dtype=np.float32)
+            background = float(self.background if self.background is not None else np.abs(distances).max())
+            _native.save_field(os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed))
+            return
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
         _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge)
@@ -157,6 +174,9 @@ class VoxelGrid:
         else:
             same_voxels = np.array_equal(self.matrix, other.matrix)
         a, b = self.colors, other.colors
+        da, db = self.distances, other.distances
+        if (da is None) != (db is None) or (da is not None and not np.array_equal(da, db)):
+            return False
         return same_voxels and ((a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b)))
 
     __hash__ = None  # type: ignore[assignment]
@@ -213,7 +233,9 @@ def _grid(out: dict[str, Any]) -> VoxelGrid:
     for notice in out["notices"]:
         warnings.warn(f"meshvox: {notice}", RuntimeWarning, stacklevel=3)
     stats = json.loads(out["stats"])
-    return VoxelGrid._packed(out["words"], out["shape"], out["pitch"], out["origin"], out["rgba"], stats)
+    grid = VoxelGrid._packed(out["words"], out["shape"], out["pitch"], out["origin"], out["rgba"], stats)
+    grid.distances, grid.background, grid.signed = out["distances"], out["background"], out["signed"]
+    return grid
 
 
 def voxelize(
@@ -227,19 +249,23 @@ def voxelize(
     colour: bool | None = None,
     bounds: Any = None,
     progress: Progress | None = None,
+    band: float | str = 3,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
 
     ``mode``: ``"surface"`` (every voxel a triangle touches), ``"solid"`` (plus the inside, by the generalized
-    winding number: right on open meshes) or ``"surface6"`` (the thin surface). ``backend``: ``"auto"`` (the GPU
+    winding number: right on open meshes), ``"surface6"`` (the thin surface), or a distance field: ``"sdf"``
+    (signed, negative inside) or ``"udf"`` (unsigned), exact within ``band`` voxels of the surface (``"full"``:
+    every voxel) and ``±band`` voxels beyond, in ``.distances`` (float32 (X, Y, Z), world units) beside the
+    surface's voxels in ``.matrix``. ``backend``: ``"auto"`` (the GPU
     where it pays, else the CPU), ``"gpu"`` or ``"cpu"``. ``colour``: ``None`` colours the voxels when the mesh
     has colours, ``False`` never. ``bounds=(min, max)`` fixes the grid's world box, so that a dataset shares one
     frame. ``progress(done, total)`` is called from this thread now and then. The GIL is released meanwhile, and
     Ctrl-C stops the work.
     """
     out = _native.voxelize(
-        _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress
+        _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band)
     )
     return _grid(out)
 
@@ -256,12 +282,13 @@ def voxelize_many(
     colour: bool | None = None,
     bounds: Any = None,
     progress: Progress | None = None,
+    band: float | str = 3,
 ) -> list[VoxelGrid]:
     """Voxelizes many meshes with one engine on ``workers`` threads (default: one per core), as ``meshvox batch``
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
-        sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers
+        sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band)
     )
     return [_grid(o) for o in outs]
 

@@ -20,6 +20,7 @@ def voxelize(
     colour: bool | None,
     bounds: _Bounds,
     progress: Callable[[int, int], Any] | None,
+    band: str,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
@@ -32,6 +33,7 @@ def voxelize_many(
     bounds: _Bounds,
     progress: Callable[[int, int], Any] | None,
     workers: int | None,
+    band: str,
 ) -> list[dict[str, Any]]: ...
 def load(path: str) -> tuple[np.ndarray, np.ndarray]: ...
 def backends() -> dict[str, Any]: ...
@@ -42,4 +44,12 @@ def save(
     pitch: float,
     colors: np.ndarray | None,
     merge: bool,
+) -> None: ...
+def save_field(
+    path: str,
+    distances: np.ndarray,
+    origin: tuple[float, float, float],
+    pitch: float,
+    background: float,
+    signed: bool,
 ) -> None: ...
