@@ -110,6 +110,7 @@ impl Input {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn options(
     resolution: Option<u32>,
     pitch: Option<f64>,
