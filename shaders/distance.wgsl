@@ -80,13 +80,31 @@ fn first_layer(lo: vec3<i32>) -> i32 {
     return max(lo.z, i32(params.z_lo));
 }
 
+// The voxels of row (y, z) whose centres are within the band of the box bmin..bmax, as x0..x1 (empty when
+// x0 > x1): the box's rounded dilation, widened by 1e-3 voxel against rounding.
+fn row_span(bmin: vec3<f32>, bmax: vec3<f32>, y: i32, z: i32) -> vec2<i32> {
+    let py = f32(y) + 0.5;
+    let pz = f32(z) + 0.5;
+    let dy = max(max(bmin.y - py, py - bmax.y), 0.0);
+    let dz = max(max(bmin.z - pz, pz - bmax.z), 0.0);
+    let rest = params.reach * params.reach - dy * dy - dz * dz;
+    if rest < 0.0 {
+        return vec2<i32>(1, 0);
+    }
+    let w = sqrt(rest) + 1e-3;
+    return vec2<i32>(i32(ceil(bmin.x - w - 0.5)), i32(floor(bmax.x + w - 0.5)));
+}
+
 fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
     let lo = band_lo(tri);
     let hi = band_hi(tri);
     let n = cross(tri[1] - tri[0], tri[2] - tri[0]);
     let n2 = dot3(n, n);
+    let bmin = min(min(tri[0], tri[1]), tri[2]);
+    let bmax = max(max(tri[0], tri[1]), tri[2]);
     for (var y = lo.y; y <= hi.y; y++) {
-        for (var x = lo.x; x <= hi.x; x++) {
+        let span = row_span(bmin, bmax, y, z);
+        for (var x = max(span.x, lo.x); x <= min(span.y, hi.x); x++) {
             let v = vec3<u32>(vec3<i32>(x, y, z));
             let at = (slots[leaf_slot(v / 8u)] - params.leaf_base) * 512u + leaf_offset(v);
             let p = vec3<f32>(v) + 0.5;

@@ -1,7 +1,10 @@
 //! `meshvox bench`: voxelization times per mesh, resolution, mode and backend. `--suite seed` reproduces the
 //! original program's Table 1 beside its figures, `--suite scale` runs real meshes and a generated dense one up to
-//! 2048 with peak memory, `--suite sparse` the sparse grid up to 16384 with its leaves and `.vdb` size; `--out`
+//! 2048 with peak memory, `--suite sparse` the sparse grid up to 16384 with its leaves and `.vdb` size, `--suite sdf` distance fields
+//! beside OpenVDB's level sets; `--out`
 //! and `--markdown` write the results, so `bench/RESULTS.md` is written by the tool, not pasted.
+
+mod sdf;
 
 use super::{BackendArg, Engine, ModeArg, median, ms, open_engine};
 use anyhow::{Context, Result, anyhow};
@@ -21,6 +24,9 @@ pub enum Suite {
     /// 2048, 4096 and 8192, with peak memory, leaves, tiles and the `.vdb` written; the dense grid at 2048 beside
     /// them.
     Sparse,
+    /// Distance fields: bunny, teapot, Spot and the ~1M-triangle knot in sdf mode (band 3) at 128, 512 and 1024,
+    /// beside the surface of the same grid and OpenVDB's level set of the same mesh in the same run.
+    Sdf,
     /// The viewer's frame time with ambient occlusion off and on: the bundled knot at 532 (just over a million
     /// visible voxels) drawn at 512x512 with 4x MSAA.
     Frame,
@@ -32,6 +38,7 @@ impl Suite {
             Suite::Seed => "seed",
             Suite::Scale => "scale",
             Suite::Sparse => "sparse",
+            Suite::Sdf => "sdf",
             Suite::Frame => "frame",
         }
     }
@@ -246,6 +253,15 @@ fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
             }
             Ok((meshes, cases))
         }
+        Some(Suite::Sdf) => {
+            let names = [
+                shared("stanford-bunny.obj"),
+                shared("teapot.obj"),
+                shared("spot.obj"),
+                "generated:knot-1000000".to_string(),
+            ];
+            Ok((load_meshes(&names)?, Vec::new()))
+        }
         Some(Suite::Frame) => Err(anyhow!("the frame suite has no voxelization cases")),
     }
 }
@@ -256,6 +272,9 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         return frame_times(args);
     }
     let (meshes, cases) = cases(args)?;
+    if args.suite == Some(Suite::Sdf) {
+        return sdf_bench(args, &meshes);
+    }
     let mut rows = Vec::new();
     let mut engines = Vec::new();
     for &backend in &args.backends {
@@ -298,6 +317,28 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             "engines": engines,
             "rows": rows,
         });
+        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    Ok(())
+}
+
+/// `--suite sdf` ([`sdf`]): its table on stdout and in `--markdown`, its rows in `--out`.
+fn sdf_bench(args: &BenchArgs, meshes: &Meshes) -> Result<()> {
+    let rows = sdf::run(args, meshes)?;
+    let command = std::env::args().skip(1).collect::<Vec<_>>().join(" ");
+    let mut md = format!("Written by `meshvox {command}` on {}.\n\n", machine());
+    md += "Band 3 (OpenVDB's default half-width). `surface ms`, `sdf ms`: median wall time of one `Engine::voxelize` \
+           (grid-space conversion, the surface, for sdf also the inside and the distances); `OpenVDB ms`: \
+           `FloatGrid.createLevelSetFromPolygons` (python3-openvdb, all cores) on the same transform, median over \
+           the same runs (one at 1024).\n\n";
+    md += &sdf::table(&rows);
+    println!("{md}");
+    if let Some(path) = &args.markdown {
+        write_section(path, "bench sdf", &md)?;
+    }
+    if let Some(path) = &args.out {
+        let json = serde_json::json!({ "suite": "sdf", "machine": machine(), "runs": args.runs, "rows": rows });
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n")
             .with_context(|| format!("{}: cannot write", path.display()))?;
     }

@@ -42,7 +42,11 @@ pub(super) fn field(
 ) -> PyResult<crate::voxel::distance::DistanceField> {
     let (nx, ny, nz) = distances.dim();
     let dims = [nx, ny, nz].map(|n| u32::try_from(n).unwrap_or(u32::MAX));
-    if dims.contains(&0) || dims.contains(&u32::MAX) || !(pitch.is_finite() && pitch > 0.0) || !(background.is_finite() && background > 0.0) {
+    if dims.contains(&0)
+        || dims.contains(&u32::MAX)
+        || !(pitch.is_finite() && pitch > 0.0)
+        || !(background.is_finite() && background > 0.0)
+    {
         return Err(PyValueError::new_err(format!(
             "a field of shape {:?}, pitch {pitch} and background {background} cannot be written",
             distances.dim()

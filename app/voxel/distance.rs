@@ -207,8 +207,10 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u3
     let leaf_dims = (dims + 7) / 8;
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let n2 = dot3(n, n);
+    let (bmin, bmax) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
     for y in lo.y..=hi.y {
-        for x in lo.x..=hi.x {
+        let (x0, x1) = row_span(bmin, bmax, y, z, reach);
+        for x in x0.max(lo.x)..=x1.min(hi.x) {
             let v = IVec3::new(x, y, z).as_uvec3();
             let slot = slots[leaf_slot(v / 8, leaf_dims)];
             let at = &best[slot as usize * 512 + leaf_offset(v)];
@@ -225,6 +227,21 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u3
             }
         }
     }
+}
+
+/// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
+/// box), as `x0..=x1`: the box's rounded dilation, not its square one, so rows and runs that cannot come within the
+/// band are never visited. Widened by 1e-3 voxel so rounding never leaves out a voxel inside the band.
+pub fn row_span(bmin: Vec3, bmax: Vec3, y: i32, z: i32, reach: f32) -> (i32, i32) {
+    let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
+    let dy = (bmin.y - py).max(py - bmax.y).max(0.0);
+    let dz = (bmin.z - pz).max(pz - bmax.z).max(0.0);
+    let rest = reach * reach - dy * dy - dz * dz;
+    if rest < 0.0 {
+        return (1, 0);
+    }
+    let w = rest.sqrt() + 1e-3;
+    (ceil(bmin.x - w - 0.5) as i32, floor(bmax.x + w - 0.5) as i32)
 }
 
 /// Pass 3: the world value of a voxel from its squared voxel distance: `√d² · h`, negative where `inside`.

@@ -34,7 +34,7 @@ pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut imp
 
 /// The `.npy` header of a C-order array of dtype `descr` (numpy's `'|u1'`, `'<i4'`, ...) and shape `shape` (a
 /// Python tuple, as `"(3,)"`).
-pub(crate) fn write_npy_header(descr: &str, shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
+pub fn write_npy_header(descr: &str, shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
     let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
     let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
