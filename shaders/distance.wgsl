@@ -114,6 +114,11 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
             if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
                 continue;
             }
+            // The bounding box no nearer than the best either.
+            let gap = max(max(bmin - p, p - bmax), vec3<f32>(0.0));
+            if dot3(gap, gap) >= current * 1.0001 {
+                continue;
+            }
             let d2 = point_distance2(p, tri);
             if d2 < current {
                 atomicMin(&best[at], bitcast<u32>(d2));

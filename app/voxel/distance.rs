@@ -201,7 +201,7 @@ pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, slots: &[u32], best:
 
 /// Lowers `best` over layer `z` of triangle `t`'s [`band_range`]. A voxel whose squared distance to the
 /// triangle's plane is already no lower than its best is skipped: that bound is cheap and the triangle cannot win
-/// there.
+/// there, and so is one whose squared distance to the triangle's bounding box is.
 pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
     let (lo, hi) = band_range(t, dims, reach);
     let leaf_dims = (dims + 7) / 8;
@@ -219,6 +219,11 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u3
             let plane = dot3(n, t[0] - p);
             // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
             if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+                continue;
+            }
+            // The bounding box no nearer than the best either.
+            let gap = (bmin - p).max(p - bmax).max(Vec3::ZERO);
+            if dot3(gap, gap) >= current * 1.0001 {
                 continue;
             }
             let d2 = point_distance2(p, t);
