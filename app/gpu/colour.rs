@@ -6,14 +6,13 @@
 //! whether they do, and callers colour larger grids with the CPU reference.
 
 use super::readback::read_buffer;
-use super::util::{pipeline, scoped, storage_entry, uniform_entry};
+use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::VoxelGrid;
 use crate::voxel::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, VoxelColours, fill_interior, word_ranks};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 pub const COLOUR_WGSL: &str =
     concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/colour.wgsl"));
@@ -161,11 +160,7 @@ impl GpuColourer {
         let spec = grid.spec;
         let tables = Tables::new(shading);
         let ranks = word_ranks(grid);
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // Zero-sized bindings are invalid; four bytes stand in for an empty array.
-            let contents = if contents.is_empty() { &[0u8; 4][..] } else { contents };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-        };
+        let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
         let storage = wgpu::BufferUsages::STORAGE;
         let best_init: Vec<[u32; 2]> = vec![[f32::INFINITY.to_bits(), NO_TRIANGLE]; grid.count() as usize];
         let word_count = spec.word_count() as u32;

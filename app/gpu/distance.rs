@@ -10,13 +10,12 @@
 //! walking only its layers of every triangle's box.
 
 use super::readback::read_buffer;
-use super::util::{pipeline, scoped, storage_entry, uniform_entry};
+use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::distance::{Band, mark_leaves, triangle_layers};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
-use wgpu::util::DeviceExt;
 
 pub const DISTANCE_WGSL: &str =
     concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/distance.wgsl"));
@@ -134,10 +133,7 @@ impl GpuDistance {
         }
         items.push(total as u32);
         let buffer = scoped(device, || {
-            let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-                let contents = if contents.is_empty() { &[0u8; 4][..] } else { contents };
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-            };
+            let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
             let (x, y) = dispatch_2d((total as u32).div_ceil(WG));
             let leaf_dims = (spec.dims + 7) / 8;
             let params = Params {

@@ -112,6 +112,19 @@ pub(crate) async fn scoped<T>(device: &wgpu::Device, f: impl FnOnce() -> Result<
     result
 }
 
+/// A buffer holding `contents`; four zero bytes stand in for an empty array, because zero-sized bindings are
+/// invalid.
+pub(crate) fn buffer_init(
+    device: &wgpu::Device,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    let contents = if contents.is_empty() { &[0u8; 4][..] } else { contents };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+}
+
 /// Splits `groups` workgroups into a 2D dispatch within the 65,535-per-dimension limit.
 pub(crate) fn dispatch_2d(groups: u32) -> (u32, u32) {
     let x = groups.clamp(1, 65_535);

@@ -31,15 +31,14 @@ pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: f64) ->
     Ok(grid)
 }
 
-/// A distance field from a `[x, y, z]` float32 array of values in world units (see
-/// [`crate::voxel::distance::DistanceField::from_dense`]).
-pub(super) fn field(
+/// The grid and values (C order, `[x, y, z]`) of a distance field's float32 array, checked; the field is made
+/// from them with [`crate::voxel::distance::DistanceField::from_dense`] (on the process's pool).
+pub(super) fn field_values(
     distances: &ArrayView3<'_, f32>,
     origin: [f64; 3],
     pitch: f64,
     background: f32,
-    signed: bool,
-) -> PyResult<crate::voxel::distance::DistanceField> {
+) -> PyResult<(GridSpec, Vec<f32>)> {
     let (nx, ny, nz) = distances.dim();
     let dims = [nx, ny, nz].map(|n| u32::try_from(n).unwrap_or(u32::MAX));
     if dims.contains(&0)
@@ -53,8 +52,7 @@ pub(super) fn field(
         )));
     }
     let spec = GridSpec { origin: DVec3::from(origin), voxel_size: pitch, dims: UVec3::from(dims) };
-    let values: Vec<f32> = distances.iter().copied().collect();
-    Ok(crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed))
+    Ok((spec, distances.iter().copied().collect()))
 }
 
 /// The colours of `grid`'s set voxels (in its storage order) from an `[x, y, z, rgba]` array.

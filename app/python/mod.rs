@@ -16,7 +16,6 @@ use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -197,9 +196,10 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     let distances = result.field.as_ref().map(|field| {
         let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
         let mut values = vec![0f32; nx * ny * nz];
-        values.par_chunks_mut(ny * nz).enumerate().for_each(|(x, slab)| {
-            for (i, value) in slab.iter_mut().enumerate() {
-                *value = field.value(glam::UVec3::new(x as u32, (i / nz) as u32, (i % nz) as u32));
+        // On the process's pool, as every parallel step of the binding (rayon's global pool does not survive a fork).
+        process::pool().install(|| {
+            for (x, slab) in values.chunks_mut(ny * nz).enumerate() {
+                field.x_slice(x as u32, slab);
             }
         });
         values.into_pyarray(py).reshape([nx, ny, nz])
@@ -361,8 +361,9 @@ fn save_field(
         .ok_or_else(|| {
             PyValueError::new_err(format!("{}: a distance field is saved as .npy, .npz or .vdb", path.display()))
         })?;
-    let field = from_matrix::field(&distances.as_array(), origin, pitch, background, signed)?;
+    let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let written = process::run(py, None, |_| {
+        let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::voxel::formats::atomic::write_atomically(&path, |out| {
             crate::voxel::formats::write_field(&field, format, out)
         })

@@ -78,8 +78,14 @@ pub fn voxel_rank(grid: &VoxelGrid, ranks: &[u32], p: UVec3) -> Option<u32> {
 /// The voxels whose centres lie within `√REACH2` of the triangle's bounding box: `lo..=hi` per axis, clamped to
 /// the grid (empty where `lo > hi`).
 pub fn candidate_range(t: [Vec3; 3], dims: UVec3) -> (IVec3, IVec3) {
-    let lo = t[0].min(t[1]).min(t[2]) - (REACH + 0.5);
-    let hi = t[0].max(t[1]).max(t[2]) + (REACH - 0.5);
+    reach_range(t, dims, REACH)
+}
+
+/// The voxels whose centres lie within `reach` voxels of the triangle's bounding box, as [`candidate_range`] (and
+/// the distance field's band) need them.
+pub fn reach_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
+    let lo = t[0].min(t[1]).min(t[2]) - (reach + 0.5);
+    let hi = t[0].max(t[1]).max(t[2]) + (reach - 0.5);
     let max = dims.as_ivec3() - 1;
     let lo = IVec3::new(ceil(lo.x) as i32, ceil(lo.y) as i32, ceil(lo.z) as i32).clamp(IVec3::ZERO, max + 1);
     let hi = IVec3::new(floor(hi.x) as i32, floor(hi.y) as i32, floor(hi.z) as i32).clamp(IVec3::splat(-1), max);

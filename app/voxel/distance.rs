@@ -24,7 +24,7 @@
 //! `Band::Full` takes the same passes with a band as wide as the grid's diagonal, which costs triangles × voxels:
 //! meant for the small grids (32–128) of learned-shape datasets.
 
-use super::colour::closest_barycentric;
+use super::colour::{closest_barycentric, reach_range};
 use super::exact::{ceil, dot3, floor};
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
@@ -113,12 +113,7 @@ pub struct DistanceField {
 /// The voxels whose centres can be within `reach` voxels of triangle `t`: those within `reach` of its bounding
 /// box, `lo..=hi` per axis, clamped to the grid (empty where `lo > hi`).
 pub fn band_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
-    let lo = t[0].min(t[1]).min(t[2]) - (reach + 0.5);
-    let hi = t[0].max(t[1]).max(t[2]) + (reach - 0.5);
-    let max = dims.as_ivec3() - 1;
-    let lo = IVec3::new(ceil(lo.x) as i32, ceil(lo.y) as i32, ceil(lo.z) as i32).clamp(IVec3::ZERO, max + 1);
-    let hi = IVec3::new(floor(hi.x) as i32, floor(hi.y) as i32, floor(hi.z) as i32).clamp(IVec3::splat(-1), max);
-    (lo, hi)
+    reach_range(t, dims, reach)
 }
 
 /// Squared distance from `p` to triangle `t`, in voxels². The offset to the closest point is `(a - p) + v ab + w
@@ -297,35 +292,18 @@ impl DistanceField {
         inside: Option<Grid>,
     ) -> DistanceField {
         let h = spec.voxel_size as f32;
-        let background = band.reach(spec.dims) * h;
-        let (values, in_band): (Vec<Vec<f32>>, Vec<u64>) = leaves
+        let values = leaves
             .par_iter()
             .zip(best.par_chunks(512))
-            .map(|(&origin, leaf)| {
+            .flat_map_iter(|(&origin, leaf)| {
                 // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
                 let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
-                let values: Vec<f32> = leaf
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &d2)| {
-                        let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-                        finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
-                    })
-                    .collect();
-                let dims = spec.dims;
-                let count = values
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, value)| {
-                        let v = origin + UVec3::new(*i as u32 & 7, (*i as u32 >> 3) & 7, *i as u32 >> 6);
-                        (value.abs() < background || band == Band::Full) && v.cmplt(dims).all()
-                    })
-                    .count() as u64;
-                (values, count)
+                leaf.iter().enumerate().map(move |(i, &d2)| {
+                    let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
+                    finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
+                })
             })
-            .unzip();
-        let values = values.concat();
-        let band_voxels = in_band.iter().sum();
+            .collect();
         let dims = spec.dims;
         DistanceField {
             spec,
@@ -337,8 +315,9 @@ impl DistanceField {
             leaves,
             values,
             inside,
-            band_voxels,
+            band_voxels: 0,
         }
+        .with_band_count()
     }
 
     /// A field from every voxel's value (world units, `values[(x * dims_y + y) * dims_z + z]`, as numpy's C order
@@ -364,8 +343,6 @@ impl DistanceField {
                 })
             })
             .collect();
-        let bg = reach * spec.voxel_size as f32;
-        let band_voxels = values.iter().filter(|v| v.abs() < bg).count() as u64;
         DistanceField {
             spec,
             signed,
@@ -376,8 +353,34 @@ impl DistanceField {
             leaves,
             values: leaf_values,
             inside: None,
-            band_voxels,
+            band_voxels: 0,
         }
+        .with_band_count()
+    }
+
+    /// The field with [`DistanceField::band_voxels`] counted from its values.
+    fn with_band_count(mut self) -> DistanceField {
+        self.band_voxels = self
+            .leaves
+            .par_iter()
+            .zip(self.values.par_chunks(512))
+            .map(|(&origin, leaf)| self.band_mask(origin, leaf).iter().map(|w| u64::from(w.count_ones())).sum::<u64>())
+            .sum();
+        self
+    }
+
+    /// The voxels of the leaf at `origin` with values `leaf` that are in the band (nearer than the background, or
+    /// all for `Band::Full`) and inside the grid, as a leaf mask.
+    fn band_mask(&self, origin: UVec3, leaf: &[f32]) -> LeafMask {
+        let (bg, dims, full) = (self.background(), self.spec.dims, self.band == Band::Full);
+        let mut mask = [0u64; 8];
+        for (i, &value) in leaf.iter().enumerate() {
+            let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+            if (value.abs() < bg || full) && (origin + l).cmplt(dims).all() {
+                mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
+            }
+        }
+        mask
     }
 
     /// The background: the band's half-width in world units (positive; `-background` inside).
@@ -403,27 +406,26 @@ impl DistanceField {
         }
     }
 
-    /// Whether voxel `v` is in the band: nearer the surface than the background.
-    pub fn in_band(&self, v: UVec3) -> bool {
-        self.value(v).abs() < self.background()
+    /// Voxel values of the x-slice `x`, `[y, z]` in C order (`slice[y * dims_z + z]`): what the dense `.npy` and
+    /// Python's `.distances` hold.
+    pub fn x_slice(&self, x: u32, slice: &mut [f32]) {
+        let nz = self.spec.dims.z as usize;
+        slice.par_chunks_mut(nz).enumerate().for_each(|(y, row)| {
+            for (z, value) in row.iter_mut().enumerate() {
+                *value = self.value(UVec3::new(x, y as u32, z as u32));
+            }
+        });
     }
 
     /// The voxels in the band (every voxel for `Band::Full`), as a sparse grid: what `.vdb` and `.npz` outputs
     /// hold values for.
     pub fn band_grid(&self) -> SparseGrid {
-        let (bg, dims, full) = (self.background(), self.spec.dims, self.band == Band::Full);
         let mut leaves: Vec<(u64, LeafMask)> = self
             .leaves
             .par_iter()
             .zip(self.values.par_chunks(512))
             .filter_map(|(&origin, leaf)| {
-                let mut mask = [0u64; 8];
-                for (i, &value) in leaf.iter().enumerate() {
-                    let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
-                    if (value.abs() < bg || full) && (origin + l).cmplt(dims).all() {
-                        mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
-                    }
-                }
+                let mask = self.band_mask(origin, leaf);
                 (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
             })
             .collect();

@@ -79,18 +79,15 @@ pub fn write_npy(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), FormatErr
 /// Writes a distance field as `.npy` float32 of shape `(dims_x, dims_y, dims_z)` (`a[x, y, z]` is voxel
 /// `(x, y, z)`'s value), one x-slice at a time.
 pub fn write_field_npy(field: &DistanceField, out: &mut impl Write) -> Result<(), FormatError> {
-    use rayon::prelude::*;
     let d = field.spec.dims;
     write_npy_header("<f4", &format!("({}, {}, {})", d.x, d.y, d.z), out)?;
-    let (ny, nz) = (d.y as usize, d.z as usize);
-    let mut slice = vec![0u8; ny * nz * 4];
+    let mut slice = vec![0f32; d.y as usize * d.z as usize];
+    let mut bytes = Vec::with_capacity(slice.len() * 4);
     for x in 0..d.x {
-        slice.par_chunks_mut(nz * 4).enumerate().for_each(|(y, row)| {
-            for (z, bytes) in row.chunks_mut(4).enumerate() {
-                bytes.copy_from_slice(&field.value(UVec3::new(x, y as u32, z as u32)).to_le_bytes());
-            }
-        });
-        out.write_all(&slice)?;
+        field.x_slice(x, &mut slice);
+        bytes.clear();
+        bytes.extend(slice.iter().flat_map(|v| v.to_le_bytes()));
+        out.write_all(&bytes)?;
     }
     Ok(())
 }

@@ -264,14 +264,8 @@ fn file_uuid(grid: &SparseGrid) -> String {
     format!("{}-{}-{}-{}-{}", &hex[0..8], &hex[8..12], &hex[12..16], &hex[16..20], &hex[20..32])
 }
 
-/// Writes `grid` as a `.vdb` (see the module documentation); `colour(v)` gives the sRGB colour of each set voxel
-/// for a `Cd` grid.
-pub fn write_vdb<W: Write + Seek>(
-    grid: &SparseGrid,
-    options: VdbOptions,
-    colour: Option<&(dyn Fn(UVec3) -> [u8; 4] + Sync)>,
-    mut out: W,
-) -> Result<(), FormatError> {
+/// The file's header: magic, versions, the UUID of `grid`, empty file metadata and the number of grids.
+fn file_head(grid: &SparseGrid, grids: usize) -> Vec<u8> {
     let mut head = Vec::new();
     head.extend_from_slice(&0x5644_4220i64.to_le_bytes());
     head.extend_from_slice(&FILE_VERSION.to_le_bytes());
@@ -280,6 +274,18 @@ pub fn write_vdb<W: Write + Seek>(
     head.push(1); // the descriptors hold stream positions
     head.extend_from_slice(file_uuid(grid).as_bytes());
     write_meta(&mut head, &[]);
+    head.extend_from_slice(&(grids as i32).to_le_bytes());
+    head
+}
+
+/// Writes `grid` as a `.vdb` (see the module documentation); `colour(v)` gives the sRGB colour of each set voxel
+/// for a `Cd` grid.
+pub fn write_vdb<W: Write + Seek>(
+    grid: &SparseGrid,
+    options: VdbOptions,
+    colour: Option<&(dyn Fn(UVec3) -> [u8; 4] + Sync)>,
+    mut out: W,
+) -> Result<(), FormatError> {
     let to_rgb = colour.map(|colour| {
         move |v: UVec3| {
             let [r, g, b, _] = colour(v);
@@ -296,8 +302,7 @@ pub fn write_vdb<W: Write + Seek>(
     .into_iter()
     .flatten()
     .collect();
-    head.extend_from_slice(&(grids.len() as i32).to_le_bytes());
-    out.write_all(&head)?;
+    out.write_all(&file_head(grid, grids.len()))?;
     let nodes = tree_nodes(grid);
     let bounds = active_bounds(grid);
     for (name, values) in grids {
@@ -313,16 +318,7 @@ pub fn write_vdb<W: Write + Seek>(
 /// or inside: what OpenVDB's `meshToVolume` writes, and what Houdini and Blender read as an SDF.
 pub fn write_level_set<W: Write + Seek>(field: &DistanceField, mut out: W) -> Result<(), FormatError> {
     let band = field.band_grid();
-    let mut head = Vec::new();
-    head.extend_from_slice(&0x5644_4220i64.to_le_bytes());
-    head.extend_from_slice(&FILE_VERSION.to_le_bytes());
-    head.extend_from_slice(&LIBRARY.0.to_le_bytes());
-    head.extend_from_slice(&LIBRARY.1.to_le_bytes());
-    head.push(1);
-    head.extend_from_slice(file_uuid(&band).as_bytes());
-    write_meta(&mut head, &[]);
-    head.extend_from_slice(&1i32.to_le_bytes());
-    out.write_all(&head)?;
+    out.write_all(&file_head(&band, 1))?;
     let value = |v: UVec3| field.value(v);
     let values = Values::LevelSet { value: &value, background: field.background() };
     write_grid(&band, &tree_nodes(&band), active_bounds(&band), "surface", values, &mut out)?;
