@@ -56,7 +56,7 @@ mod web_entry {
         web::send(Command::SetResolution(resolution));
     }
 
-    /// Voxelizes in another mode: `surface`, `solid` or `surface6` (the panel's mode picker).
+    /// Voxelizes in another mode: `surface`, `solid`, `surface6`, `sdf` or `udf` (the panel's mode picker).
     #[wasm_bindgen(js_name = setMode)]
     pub fn set_mode(mode: String) {
         web::send(Command::SetMode(mode));
@@ -66,6 +66,12 @@ mod web_entry {
     #[wasm_bindgen(js_name = setCut)]
     pub fn set_cut(cut: String) {
         web::send(Command::SetCut(cut));
+    }
+
+    /// Slices the distance field of `sdf`/`udf` at `z:0.5` and the like (the panel's slice slider).
+    #[wasm_bindgen(js_name = setSlice)]
+    pub fn set_slice(slice: String) {
+        web::send(Command::SetSlice(slice));
     }
 
     /// Downloads the viewport as a PNG (the panel's Screenshot button).

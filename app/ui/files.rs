@@ -66,12 +66,17 @@ impl ViewerApp {
     }
 
     /// The files an export of the current grid makes, named after the mesh and resolution: the grid in `format`
-    /// with its colours where the format holds them, and for `.npy` of a coloured grid the colour array beside it.
+    /// with its colours where the format holds them, and for `.npy` of a coloured grid the colour array beside it;
+    /// a distance field's values where one is shown.
     pub(super) fn export_files(&self, format: formats::VoxelFormat) -> Result<Vec<(String, Vec<u8>)>, String> {
         let grid = self.grid.as_ref().ok_or("nothing is voxelized yet")?;
         let name = format!("{}-{}.{}", self.file_stem(), self.resolution, format.extension());
         let colours = self.colours.as_ref();
         let mut bytes = std::io::Cursor::new(Vec::new());
+        if let Some(field) = &self.field {
+            formats::write_field(field, format, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+            return Ok(vec![(name, bytes.into_inner())]);
+        }
         formats::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
         let mut files = vec![(name.clone(), bytes.into_inner())];
         if let (Some(c), formats::VoxelFormat::Npy) = (colours, format) {

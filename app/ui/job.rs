@@ -64,8 +64,9 @@ impl ViewerApp {
                 max_memory: host_budget(),
                 // The viewer draws from the dense grid.
                 grid: crate::voxel::GridKind::Dense,
-                // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list.
-                instances: self.showing().from_gpu_list(mesh.shading.is_some()),
+                // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list
+                // (a field is drawn from its slice, made on the host).
+                instances: self.showing().from_gpu_list(mesh.shading.is_some()) && !self.mode.is_field(),
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
             };
             let mesh = mesh.clone();
@@ -128,15 +129,9 @@ impl ViewerApp {
             coloured: done.colours.is_some(),
         });
         self.colours = done.colours;
-        let device = &self.gpu.device;
-        let scene = self.renderer.voxel_scene(
-            device,
-            &grid,
-            done.instances,
-            self.colours.as_ref(),
-            self.showing(),
-            Some(&p.mesh),
-        );
+        self.field = done.field;
+        self.grid = Some(grid);
+        let Some(scene) = self.build_scene(done.instances, Some(&p.mesh)) else { return };
         if p.frame {
             let (lo, hi) = scene.bounds();
             let framed = OrbitCamera::framing(lo, hi, 35.0, 25.0).with_up(self.up);
@@ -144,7 +139,6 @@ impl ViewerApp {
         }
         self.scene = Some(scene);
         self.scene_version += 1;
-        self.grid = Some(grid);
         self.error = None;
         self.publish();
     }

@@ -23,6 +23,7 @@ use crate::mesh::{self, Mesh};
 use crate::render::camera::{UpAxis, ViewPreset};
 use crate::render::{self, CubeRenderer, OrbitCamera, Scene, Showing, Style, TARGET_SAMPLES};
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::distance::DistanceField;
 use crate::voxel::{Axis, Mode, VoxelGrid};
 use job::Pending;
 #[cfg(not(target_arch = "wasm32"))]
@@ -77,6 +78,10 @@ pub struct ViewerApp {
     grid: Option<VoxelGrid>,
     /// The shown grid's voxel colours, when its mesh has colour.
     colours: Option<VoxelColours>,
+    /// The distance field of an sdf/udf voxelization (then `grid` is its zero crossing), drawn as `slice`.
+    field: Option<DistanceField>,
+    /// Where the field is sliced: axis and fraction, like the cut-away.
+    slice: render::Cut,
     stats: Option<Stats>,
     error: Option<String>,
     needs_voxelize: bool,
@@ -129,6 +134,8 @@ impl ViewerApp {
             up_chosen: false,
             grid: None,
             colours: None,
+            field: None,
+            slice: render::Cut { axis: 2, fraction: 0.5 },
             stats: None,
             error: None,
             needs_voxelize: false,
@@ -246,18 +253,38 @@ impl ViewerApp {
         self.rebuild_scene();
     }
 
-    /// Rebuilds the drawn voxels from the host grid, after a change of colours, occlusion or cut.
-    fn rebuild_scene(&mut self) {
-        let (Some(grid), Some(mesh)) = (&self.grid, &self.mesh) else { return };
-        let device = &self.gpu.device;
-        let scene = self.renderer.voxel_scene(device, grid, None, self.colours.as_ref(), self.showing(), Some(mesh));
-        self.scene = Some(scene);
-        self.scene_version += 1;
+    /// Slices the distance field at `slice` (`z:0.5` and the like), without voxelizing again.
+    pub fn set_slice(&mut self, slice: render::Cut) {
+        self.slice = slice;
+        self.rebuild_scene();
     }
 
-    /// The cut-away and occlusion as the panel sets them.
+    /// Rebuilds the drawn voxels from the host grid, after a change of colours, occlusion, cut or slice.
+    fn rebuild_scene(&mut self) {
+        if let Some(scene) = self.build_scene(None, None) {
+            self.scene = Some(scene);
+            self.scene_version += 1;
+        }
+    }
+
+    /// The scene of the current grid: its voxels (from the GPU's list where there is one) with their colours,
+    /// or for a distance field its slice beside the zero crossing's voxels.
+    fn build_scene(&self, instances: Option<crate::gpu::compact::CompactVoxels>, mesh: Option<&Mesh>) -> Option<Scene> {
+        let grid = self.grid.as_ref()?;
+        let mesh = mesh.or(self.mesh.as_deref());
+        let device = &self.gpu.device;
+        Some(match &self.field {
+            Some(field) => {
+                let (sliced, colours) = render::slice::field_slice(field, grid, self.slice);
+                self.renderer.voxel_scene(device, &sliced, None, Some(&colours), self.showing(), mesh)
+            }
+            None => self.renderer.voxel_scene(device, grid, instances, self.colours.as_ref(), self.showing(), mesh),
+        })
+    }
+
+    /// The cut-away and occlusion as the panel sets them (a field's slice takes the cut's place).
     fn showing(&self) -> Showing {
-        Showing { cut: self.cut_on.then_some(self.cut), ao: self.style.ao }
+        Showing { cut: (self.cut_on && self.field.is_none()).then_some(self.cut), ao: self.style.ao }
     }
 
     pub fn set_resolution(&mut self, resolution: u32) {

@@ -89,9 +89,10 @@ impl ViewerApp {
                 }
             }
         });
-        ui.horizontal(|ui| {
+        // Two rows' worth of modes: the occupancy modes and the distance fields wrap instead of widening the panel.
+        ui.horizontal_wrapped(|ui| {
             ui.label("Mode");
-            for mode in Mode::ALL {
+            for mode in Mode::ALL.into_iter().chain(Mode::FIELDS) {
                 let hint = match mode {
                     Mode::Surface => "every voxel a triangle touches (26-separating)",
                     Mode::Solid => "the surface plus every voxel whose centre is inside (winding number ≥ ½)",
@@ -106,24 +107,14 @@ impl ViewerApp {
         });
     }
 
-    /// Cut-away, colours, up axis, preset views, overlays, reset and screenshot: how to show it.
+    /// Cut-away or slice, colours, up axis, preset views, overlays, reset and screenshot: how to show it.
     fn view_section(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
-            let mut changed = ui
-                .checkbox(&mut self.cut_on, "Cut away")
-                .on_hover_text("hide the voxels beyond a plane to see inside")
-                .changed();
-            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
-                changed |= ui.radio_value(&mut self.cut.axis, axis, *label).changed();
-            }
-            if changed {
-                self.rebuild_scene();
-            }
-        });
-        if self.cut_on && ui.add(egui::Slider::new(&mut self.cut.fraction, 0.0..=1.0).text("cut")).changed() {
-            self.rebuild_scene();
+        if self.field.is_some() {
+            self.slice_controls(ui);
+        } else {
+            self.cut_controls(ui);
         }
-        if self.colours.is_some() {
+        if self.colours.is_some() && self.field.is_none() {
             ui.checkbox(&mut self.style.voxel_colours, "Voxel colours")
                 .on_hover_text("the mesh's colour at the surface point nearest each voxel; off: one flat colour");
         }
@@ -165,6 +156,53 @@ impl ViewerApp {
             }
         });
         ui.separator();
+    }
+
+    /// The cut-away: the voxels beyond a plane hidden, to see inside.
+    fn cut_controls(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let mut changed = ui
+                .checkbox(&mut self.cut_on, "Cut away")
+                .on_hover_text("hide the voxels beyond a plane to see inside")
+                .changed();
+            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
+                changed |= ui.radio_value(&mut self.cut.axis, axis, *label).changed();
+            }
+            if changed {
+                self.rebuild_scene();
+            }
+        });
+        if self.cut_on && ui.add(egui::Slider::new(&mut self.cut.fraction, 0.0..=1.0).text("cut")).changed() {
+            self.rebuild_scene();
+        }
+    }
+
+    /// The distance field's slice (its axis and where along it) and the colour map's key.
+    fn slice_controls(&mut self, ui: &mut egui::Ui) {
+        let mut slice = self.slice;
+        ui.horizontal(|ui| {
+            ui.label("Slice").on_hover_text("the field's values on one layer of voxels, beside the zero crossing");
+            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
+                ui.radio_value(&mut slice.axis, axis, *label);
+            }
+        });
+        ui.add(egui::Slider::new(&mut slice.fraction, 0.0..=1.0).text("slice"));
+        if slice != self.slice {
+            self.set_slice(slice);
+        }
+        // The key: the colour map at a field of band 3 and unit voxels.
+        let swatch = |ui: &mut egui::Ui, d: f32, text: &str| {
+            let [r, g, b, _] = render::slice::field_colour(d, 3.0, 1.0);
+            let (rect, _) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+            ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(r, g, b));
+            ui.label(egui::RichText::new(text).small());
+        };
+        ui.horizontal_wrapped(|ui| {
+            swatch(ui, -1.5, "inside");
+            swatch(ui, 0.0, "zero");
+            swatch(ui, 1.5, "outside");
+            swatch(ui, 3.0, "band edge");
+        });
     }
 
     /// The stats of the last voxelization, the adapter, and how this device voxelizes.
@@ -221,25 +259,29 @@ impl ViewerApp {
         }
     }
 
-    /// The export buttons.
+    /// The export buttons, in rows as wide as the panel: a distance field exports as .npy, .vdb or .npz.
     fn export_section(&mut self, ui: &mut egui::Ui) {
         ui.separator();
-        ui.horizontal(|ui| {
+        let field = self.field.is_some();
+        ui.horizontal_wrapped(|ui| {
             ui.label("Export");
             use formats::VoxelFormat::{Binvox, Mesh, Npy, Npz, Vdb, Vox};
             for format in [Vox, Binvox, Npy, Vdb, Npz, Mesh(formats::MeshFormat::Glb)] {
-                if ui
-                    .add_enabled(self.grid.is_some(), egui::Button::new(format!(".{}", format.extension())))
-                    .on_hover_text(match format {
-                        Npy => "numpy uint8 grid (and .colors.npy beside it when coloured)",
-                        Vox => "MagicaVoxel, with a palette of the voxel colours",
-                        Binvox => "binvox, occupancy only",
-                        Vdb => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
-                        Npz => "numpy .npz of sorted int32 coordinates (and their colours)",
-                        _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
-                    })
-                    .clicked()
-                {
+                let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Npz));
+                let hint = match (format, field) {
+                    (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
+                    (Vdb, true) => "OpenVDB level set: a FloatGrid 'surface' over the band",
+                    (Npz, true) => "numpy .npz of the band's coordinates and values",
+                    (_, true) => "a distance field exports as .npy, .vdb or .npz",
+                    (Npy, false) => "numpy uint8 grid (and .colors.npy beside it when coloured)",
+                    (Vox, false) => "MagicaVoxel, with a palette of the voxel colours",
+                    (Binvox, false) => "binvox, occupancy only",
+                    (Vdb, false) => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
+                    (Npz, false) => "numpy .npz of sorted int32 coordinates (and their colours)",
+                    _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
+                };
+                let button = egui::Button::new(format!(".{}", format.extension()));
+                if ui.add_enabled(usable, button).on_hover_text(hint).on_disabled_hover_text(hint).clicked() {
                     #[cfg(not(target_arch = "wasm32"))]
                     self.export(format);
                     #[cfg(target_arch = "wasm32")]

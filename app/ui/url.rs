@@ -1,6 +1,6 @@
 //! The viewer's state as a URL query, so a view in the web page can be shared by copying the address bar:
 //! `?mesh=NAME` (a bundled mesh) or `?file=NAME` (a file opened from the visitor's computer: its name is kept, its
-//! contents are not), `r=N`, `axis=longest|x|y|z`, `mode=surface|solid|surface6` and
+//! contents are not), `r=N`, `axis=longest|x|y|z`, `mode=surface|solid|surface6|sdf|udf` and
 //! `up=y|z` (the axis the camera orbits around) and `cam=yaw,pitch,distance,x,y,z` (the orbit camera, its target in
 //! the drawing frame of the grid). Plain Rust, so
 //! it is tested natively; the page reads it at start and the app rewrites it as the user changes the view.

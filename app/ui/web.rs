@@ -16,10 +16,12 @@ use wasm_bindgen::{JsCast, JsValue};
 /// What the page asks the app to do.
 pub enum Command {
     SetResolution(u32),
-    /// `surface`, `solid` or `surface6`.
+    /// `surface`, `solid`, `surface6`, `sdf` or `udf`.
     SetMode(String),
     /// `x:0.5` and the like, or anything else for no cut.
     SetCut(String),
+    /// Where a distance field is sliced: `z:0.5` and the like.
+    SetSlice(String),
     LoadBuiltin(String),
     /// Download the viewport as a PNG (the Screenshot button).
     Screenshot,
@@ -181,9 +183,13 @@ impl ViewerApp {
                 Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
                 Command::SetMode(name) => match Mode::from_name(&name) {
                     Some(mode) => self.set_mode(mode),
-                    None => self.fail(format!("unknown mode '{name}': use surface, solid or surface6")),
+                    None => self.fail(format!("unknown mode '{name}': use surface, solid, surface6, sdf or udf")),
                 },
                 Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
+                Command::SetSlice(slice) => match render::Cut::parse(&slice) {
+                    Some(slice) => self.set_slice(slice),
+                    None => self.fail(format!("bad slice '{slice}': use AXIS:FRACTION, as z:0.5")),
+                },
                 Command::LoadBuiltin(name) => self.open(format!("builtin:{name}")),
                 Command::Screenshot => self.screenshot_requested = true,
                 Command::SetView(name) => match ViewPreset::from_name(&name) {

@@ -72,6 +72,41 @@ fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
 }
 
 #[test]
+fn the_sdf_mode_shows_a_slice_of_the_field_that_moves_with_its_slider() {
+    let mut harness = Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 40).expect("the app starts"));
+    harness.run();
+    harness.get_by_label("sdf").click();
+    harness.run();
+    assert_eq!(harness.state().error(), None);
+    let stats = harness.state().stats().expect("voxelized").clone();
+    assert_eq!(stats.mode, meshvox::voxel::Mode::Sdf);
+    // The voxels counted are the zero crossing's: the surface of the same grid.
+    let mesh = meshvox::mesh::load("builtin:torus").expect("mesh");
+    let spec = meshvox::voxel::GridSpec::fit(
+        mesh.bounds().expect("b"),
+        meshvox::voxel::Resolution::Count(40),
+        meshvox::voxel::Axis::Longest,
+    )
+    .expect("grid");
+    let surface = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
+    assert_eq!(stats.voxels, surface.count());
+    // The slice's controls replace the cut-away's, and moving the slice draws again without voxelizing.
+    harness.get_by_label("Slice");
+    assert!(harness.query_by_label("Cut away").is_none());
+    harness.state_mut().set_slice(meshvox::render::Cut { axis: 0, fraction: 0.45 });
+    harness.run();
+    assert_eq!(harness.state().stats(), Some(&stats));
+    assert_eq!(harness.state().error(), None);
+    let slug = harness.state().adapter().slug();
+    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
+    harness.snapshot_options(format!("ui-sdf-slice.{slug}"), &options);
+}
+
+#[test]
 fn a_bad_file_shows_its_error_and_the_app_keeps_going() {
     let dir = tempfile::tempdir().expect("tempdir");
     let bad = dir.path().join("broken.glb");

@@ -107,6 +107,41 @@ async function openPage(browser, what) {
   return page;
 }
 
+/** The sdf mode on the page: the slice moves without an error or a new voxelization, and the exported .npy
+ * holds the CLI's distances (the CPU reference) within 1e-5 of the band, with the same signs. */
+async function checkField(page, m, cliVoxelCount) {
+  await page.evaluate(() => window.meshvoxSetSlice("x:0.3"));
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+  const sliced = await page.evaluate(() => window.meshvoxStatus);
+  check(!sliced.error && sliced.voxels === cliVoxelCount, `sdf: the slice at x:0.3 keeps the ${cliVoxelCount} voxels, no error`);
+  const downloads = [];
+  const onDownload = (d) => downloads.push(d);
+  page.on("download", onDownload);
+  await page.evaluate(() => window.meshvoxExport("npy"));
+  const deadline = Date.now() + 60_000;
+  while (downloads.length < 1 && Date.now() < deadline) await page.waitForTimeout(100);
+  page.off("download", onDownload);
+  if (downloads.length !== 1) return check(false, "sdf: export npy downloads one file");
+  const saved = path.join(scratch, "page-sdf.npy");
+  const reference = path.join(scratch, "cli-sdf.npy");
+  await downloads[0].saveAs(saved);
+  execFileSync(bin, ["voxelize", `builtin:${m.mesh}`, "-r", String(m.resolution), "--mode", "sdf", "-o", reference,
+    "--backend", "cpu"], { stdio: "ignore" });
+  const [a, b] = [await readFile(saved), await readFile(reference)];
+  const header = 10 + a.readUInt16LE(8);
+  const values = (buf) => new Float32Array(buf.buffer.slice(buf.byteOffset + header, buf.byteOffset + buf.length));
+  const [pa, pb] = [values(a), values(b)];
+  let worst = 0, signs = 0, background = 0;
+  for (let i = 0; i < pb.length; i++) background = Math.max(background, Math.abs(pb[i]));
+  for (let i = 0; i < Math.min(pa.length, pb.length); i++) {
+    worst = Math.max(worst, Math.abs(pa[i] - pb[i]));
+    if (Math.sign(pa[i]) !== Math.sign(pb[i])) signs++;
+  }
+  check(a.length === b.length && a.subarray(0, header).equals(b.subarray(0, header)) && worst <= 1e-5 * background &&
+    signs === 0, `sdf: ${downloads[0].suggestedFilename()} from the page has the CLI's ${pb.length} distances ` +
+    `(largest difference ${(worst / background).toExponential(2)} of the band, ${signs} signs differ)`);
+}
+
 /** A function that waits until meshvoxStatus on `page` satisfies `want` (a JSON-able partial status) and
  * returns the status. */
 function statusOf(page) {
@@ -198,11 +233,12 @@ async function webgpuPath(browser) {
   // The modes: solid (the surface plus the inside) and the thin surface, each the CLI's count; the cut-away
   // only changes the view. Then back to the surface for the rest.
   check(typed.mode === "surface", `the page starts in surface mode (${typed.mode})`);
-  for (const mode of ["solid", "surface6", "surface"]) {
+  for (const mode of ["solid", "surface6", "sdf", "surface"]) {
     await page.evaluate((m) => window.meshvoxSetMode(m), mode);
     const m = await status({ ready: true, mode }, `mode ${mode}`);
     const cli = cliVoxels(`builtin:${m.mesh}`, m.resolution, mode);
     check(m.voxels === cli, `mode ${mode} @${m.resolution}: page ${m.voxels} == CLI ${cli}`);
+    if (mode === "sdf") await checkField(page, m, cli);
     if (mode === "solid") {
       await page.evaluate(() => window.meshvoxSetCut("x:0.5"));
       await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));

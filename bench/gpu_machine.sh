@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# The real-GPU figures and checks of bench/RESULTS.md ("On a real GPU"), on a machine with a GPU and no Rust.
+#
+#   bash bench/gpu_machine.sh DIR OUT STEP...
+#
+# DIR holds what was built elsewhere: `meshvox` (the release binary), `it` (the integration tests' binary, stripped)
+# and `meshes/` (a copy of ../shared/meshes). OUT receives the logs, JSON and markdown. Steps:
+#   smoke     the adapter meshvox finds, and `auto`'s choice on a small and a large job
+#   identity  every shared mesh in every mode at three resolutions: GPU and CPU outputs compared byte for byte
+#   tests     the integration tests that run the GPU passes against the CPU reference, on this adapter
+#   seed | scale | sparse | sdf   `meshvox bench --suite STEP` on both backends
+# The test binary has the paths of the machine it was built on compiled in (/work/main, /work/shared), so the
+# tests step links those names to DIR's copies.
+set -u
+dir=$(realpath "$1")
+out=$2
+shift 2
+mkdir -p "$out"
+bin="$dir/meshvox"
+here=$(dirname "$(realpath "$0")")
+mkdir -p ../shared
+[ -e ../shared/meshes ] || ln -s "$dir/meshes" ../shared/meshes
+export XDG_RUNTIME_DIR=/tmp/xdg-run
+mkdir -p -m 700 "$XDG_RUNTIME_DIR"
+
+meshes=(../shared/meshes/stanford-bunny.obj ../shared/meshes/suzanne.obj ../shared/meshes/teapot.obj
+    ../shared/meshes/spot.obj ../shared/meshes/gltf/Duck.glb builtin:rotated-cube)
+
+for step in "$@"; do
+    echo "=== $step $(date +%T)"
+    case $step in
+    smoke)
+        nvidia-smi -L || true
+        "$bin" voxelize builtin:rotated-cube -r 64 --backend gpu -o /tmp/smoke.npy --stats-json | tee "$out/smoke.json"
+        for job in "../shared/meshes/suzanne.obj -r 32" "../shared/meshes/stanford-bunny.obj -r 1024"; do
+            # shellcheck disable=SC2086
+            "$bin" voxelize $job -o /tmp/smoke.npy --stats-json | grep -o '"backend":"[^"]*"'
+        done
+        ;;
+    identity)
+        tmp=$(mktemp -d)
+        fails=0 checked=0
+        for m in "${meshes[@]}"; do
+            for mode in surface solid surface6 sdf udf; do
+                for r in 64 257 1024; do
+                    ext=npy
+                    args=(--mode "$mode")
+                    # The solid fill at 1024 is a dense 1 GiB grid per backend; 257 covers it.
+                    [ "$r" = 1024 ] && [ "$mode" = solid ] && continue
+                    for b in cpu gpu; do
+                        "$bin" voxelize "$m" -r "$r" "${args[@]}" --backend "$b" -o "$tmp/$b.$ext" \
+                            --stats-json > "$tmp/$b.json" 2> "$tmp/$b.err" || { echo "FAILED $b $m $mode $r"; cat "$tmp/$b.err"; }
+                    done
+                    checked=$((checked + 1))
+                    if cmp -s "$tmp/cpu.$ext" "$tmp/gpu.$ext"; then
+                        echo "same  $(basename "$m") $mode $r $(grep -o '"backend":"[^"]*"' "$tmp/gpu.json")"
+                    else
+                        fails=$((fails + 1))
+                        echo "DIFFERENT $(basename "$m") $mode $r: $(python3 "$here/compare_npy.py" "$tmp/cpu.$ext" "$tmp/gpu.$ext")"
+                        if [ "$mode" = solid ]; then
+                            "$bin" voxelize "$m" -r "$r" "${args[@]}" --backend gpu -o "$tmp/gpu2.$ext" 2> /dev/null
+                            cmp -s "$tmp/gpu.$ext" "$tmp/gpu2.$ext" && echo "  a second GPU run gives the same grid" ||
+                                echo "  a second GPU run differs from the first"
+                        fi
+                    fi
+                done
+            done
+        done
+        echo "identity: $checked cases, $fails different"
+        rm -rf "$tmp"
+        ;;
+    tests)
+        mkdir -p /work
+        [ -e /work/main ] || ln -s "$PWD" /work/main
+        [ -e /work/shared ] || { mkdir -p /work/shared && ln -s "$dir/meshes" /work/shared/meshes; }
+        (cd /work/main && "$dir/it" --test-threads 4 gpu:: modes::gpu distance::gpu colour::gpu far::far_meshes_on_the_gpu \
+            exactness sparse 2>&1 | tee "$out/tests.log" | grep -E "GPU tests on|^test result|FAILED|panicked" )
+        ;;
+    seed | scale | sparse | sdf)
+        "$bin" bench --suite "$step" --out "$out/$step.json" --markdown "$out/RESULTS.md" \
+            > "$out/$step.log" 2>&1
+        tail -n 40 "$out/$step.log"
+        ;;
+    *) echo "unknown step $step" ;;
+    esac
+done
