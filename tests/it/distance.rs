@@ -264,9 +264,13 @@ fn field_difference(a: &DistanceField, b: &DistanceField) -> f64 {
     f64::from(worst)
 }
 
-/// How close the GPU's distances are to the CPU's: both evaluate the same f32 expressions on the same lattice
-/// triangles, but a GPU compiler may fuse or reorder them, so the squared distance can differ in its last bits.
-const GPU_BOUND_VOXELS: f64 = 1e-5;
+/// How close the GPU's distances are to the CPU's, in voxels, on a grid whose longest dimension is `n`: both
+/// evaluate the same f32 expressions on the same lattice triangles, but a GPU compiler may fuse or reorder them,
+/// and each rounding is relative to terms as large as a triangle is long (at most the grid): 4 units in the last
+/// place of `n` (docs/distance.md; NVIDIA's largest, measured at 1024, was 0.56 of one).
+fn gpu_bound_voxels(n: u32) -> f64 {
+    4.0 * f64::from(n) * f64::from(f32::EPSILON)
+}
 
 #[test]
 fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
@@ -285,7 +289,8 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
             let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
             let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, Some(inside))).expect("gpu field");
             let d = field_difference(&cpu, &on_gpu);
-            assert!(d <= GPU_BOUND_VOXELS, "{name} at {n}: GPU and CPU differ by {d} voxels");
+            let bound = gpu_bound_voxels(spec.dims.max_element());
+            assert!(d <= bound, "{name} at {n}: GPU and CPU differ by {d} voxels (bound {bound:.2e})");
             worst = worst.max(d);
         }
     }
@@ -311,6 +316,6 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
         assert!(field.leaves.len() as u64 * 2048 > limit, "the band must not fit one binding");
         assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
         let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
-        assert!(d <= GPU_BOUND_VOXELS, "knot {mode} in chunks: {d} voxels");
+        assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot {mode} in chunks: {d} voxels");
     }
 }
