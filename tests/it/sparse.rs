@@ -347,7 +347,7 @@ fn the_budget_picks_sparse_refuses_dense_formats_and_says_what_fits() {
 }
 
 #[test]
-fn batch_writes_vdb_and_npz_with_the_voxelize_writers() {
+fn batch_writes_vdb_npz_and_distance_fields_with_the_voxelize_writers() {
     let dir = tempfile::tempdir().expect("tempdir");
     let input = dir.path().join("in");
     std::fs::create_dir(&input).expect("mkdir");
@@ -358,56 +358,38 @@ fn batch_writes_vdb_and_npz_with_the_voxelize_writers() {
             + "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n";
         std::fs::write(input.join(format!("{name}.obj")), obj).expect("write obj");
     }
-    for format in ["vdb", "npz"] {
-        let out = dir.path().join(format!("out-{format}"));
-        let args = [
-            "batch",
-            "in",
-            "-o",
-            &out.to_string_lossy(),
-            "-r",
-            "23",
-            "--mode",
-            "solid",
-            "--format",
-            format,
-            "--backend",
-            "cpu",
-        ];
-        let run = crate::cli::meshvox(&args, dir.path());
-        assert!(run.status.success(), "batch --format {format}: {}", String::from_utf8_lossy(&run.stderr));
+    // The occupancy formats of the sparse grid, and a distance field's (the band 2 voxels wide) in each of its.
+    let cases = [("solid", "vdb"), ("solid", "npz"), ("sdf", "npy"), ("sdf", "vdb"), ("udf", "npz")];
+    for (mode, format) in cases {
+        let out = dir.path().join(format!("out-{mode}-{format}"));
+        let band: &[&str] = if mode == "solid" { &[] } else { &["--band", "2"] };
+        let out_arg = out.to_string_lossy();
+        let args = [&["batch", "in", "-o", &out_arg, "-r", "23", "--mode", mode, "--format", format], band].concat();
+        let run = crate::cli::meshvox(&[args, vec!["--backend", "cpu"]].concat(), dir.path());
+        assert!(
+            run.status.success(),
+            "batch --mode {mode} --format {format}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
         for name in ["a", "b"] {
             let file = out.join(format!("{name}.{format}"));
-            let single = dir.path().join(format!("single-{name}.{format}"));
-            run_ok(
-                &[
-                    "voxelize",
-                    &format!("in/{name}.obj"),
-                    "-r",
-                    "23",
-                    "--mode",
-                    "solid",
-                    "-o",
-                    &single.to_string_lossy(),
-                    "--backend",
-                    "cpu",
-                    "--stats-json",
-                ],
-                dir.path(),
-            );
+            let single = dir.path().join(format!("single-{name}-{mode}.{format}"));
+            let (input, single_arg) = (format!("in/{name}.obj"), single.to_string_lossy());
+            let args = [&["voxelize", &input, "-r", "23", "--mode", mode, "-o", &single_arg], band].concat();
+            run_ok(&[args, vec!["--backend", "cpu", "--stats-json"]].concat(), dir.path());
             assert!(
                 std::fs::read(&file).expect("batch output") == std::fs::read(&single).expect("voxelize output"),
-                "{name}.{format}: batch and voxelize differ"
+                "{name}.{format} ({mode}): batch and voxelize differ"
             );
         }
     }
-    let Some(j) = crate::formats::independent_args("npz", &[&dir.path().join("out-npz/b.npz").to_string_lossy()])
+    let Some(j) = crate::formats::independent_args("npz", &[&dir.path().join("out-solid-npz/b.npz").to_string_lossy()])
     else {
         return;
     };
     assert_eq!(j["sorted"], true);
     let origin: [f64; 3] = serde_json::from_value(j["origin"].clone()).expect("origin");
     assert!((origin[0] - 1000.25).abs() < 1e-4, "the world origin of the far tetrahedron: {origin:?}");
-    let Some(v) = openvdb_read(&dir.path().join("out-vdb/b.vdb")) else { return };
+    let Some(v) = openvdb_read(&dir.path().join("out-solid-vdb/b.vdb")) else { return };
     assert_eq!(v["grids"][0]["active"].as_u64(), Some(j["set"].as_array().expect("set").len() as u64));
 }
