@@ -32,9 +32,21 @@ for step in "$@"; do
     smoke)
         nvidia-smi -L || true
         "$bin" voxelize builtin:rotated-cube -r 64 --backend gpu -o /tmp/smoke.npy --stats-json | tee "$out/smoke.json"
-        for job in "../shared/meshes/suzanne.obj -r 32" "../shared/meshes/stanford-bunny.obj -r 1024"; do
-            # shellcheck disable=SC2086
-            "$bin" voxelize $job -o /tmp/smoke.npy --stats-json | grep -o '"backend":"[^"]*"'
+        # `auto`'s choice, and each backend's whole-process wall time (median of 5), on a small and a large job.
+        for job in "../shared/meshes/suzanne.obj -r 32" "../shared/meshes/suzanne.obj -r 64" \
+            "../shared/meshes/stanford-bunny.obj -r 1024"; do
+            for b in auto cpu gpu; do
+                times=()
+                for _ in 1 2 3 4 5; do
+                    t0=$(date +%s%N)
+                    # shellcheck disable=SC2086
+                    "$bin" voxelize $job -o /tmp/smoke.npy --backend $b --stats-json > /tmp/smoke.json 2> /dev/null
+                    times+=($((($(date +%s%N) - t0) / 1000)))
+                done
+                median=$(printf '%s\n' "${times[@]}" | sort -n | sed -n 3p)
+                echo "$job --backend $b: median $((median / 1000)).$(printf %03d $((median % 1000))) ms whole process;" \
+                    "$(grep -o '"backend":"[^"]*"' /tmp/smoke.json)"
+            done
         done
         ;;
     identity)

@@ -151,6 +151,16 @@ fn open_engine(backend: BackendArg) -> Result<Engine> {
     Ok(engine)
 }
 
+/// Opens the engine for one job (`voxelize`): under `auto` the job's cost decides first whether a GPU is worth
+/// opening.
+fn open_engine_for(backend: BackendArg, mesh: &mesh::Mesh, job: &Request) -> Result<Engine> {
+    let engine = Engine::open_for(backend.into(), mesh, job)?;
+    for notice in engine.notices() {
+        eprintln!("{notice}");
+    }
+    Ok(engine)
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum BackendArg {
     Auto,

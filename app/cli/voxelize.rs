@@ -2,7 +2,7 @@
 
 use super::output::{temp_beside, write_atomically};
 use super::{
-    AxisArg, BackendArg, BandArgs, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine,
+    AxisArg, BackendArg, BandArgs, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine_for,
 };
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -54,6 +54,17 @@ pub(super) struct VoxelizeArgs {
     pub(super) limits: LimitArgs,
 }
 
+impl VoxelizeArgs {
+    /// `-r N` or `--voxel-size H`.
+    pub(super) fn resolution(&self) -> Result<Resolution> {
+        Ok(match (self.resolution, self.voxel_size) {
+            (Some(n), _) => Resolution::Count(n),
+            (None, Some(h)) => Resolution::VoxelSize(h),
+            (None, None) => bail!("give -r N or --voxel-size H"),
+        })
+    }
+}
+
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
@@ -63,7 +74,9 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
-    let engine = open_engine(args.backend)?;
+    // One job: under `auto` its cost decides whether a GPU is worth opening (see meshvox::engine::cost).
+    let job = Request { axis: args.axis.into(), ..Request::new(args.resolution()?, args.mode.into()) };
+    let engine = open_engine_for(args.backend, &mesh, &job)?;
     let report = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
     let [x, y, z] = report.dims;
     eprintln!(
@@ -116,11 +129,7 @@ pub(super) fn voxelize_loaded(
 ) -> Result<meshvox::Report> {
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
-    let resolution = match (args.resolution, args.voxel_size) {
-        (Some(n), _) => Resolution::Count(n),
-        (None, Some(h)) => Resolution::VoxelSize(h),
-        (None, None) => bail!("give -r N or --voxel-size H"),
-    };
+    let resolution = args.resolution()?;
     args.colour.note_if_colourless(&args.mesh, mesh);
     let bar = match bars {
         true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),

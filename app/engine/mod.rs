@@ -10,6 +10,7 @@
 //! several threads share the engine (`batch`). What happened along the way comes back as [`Notice`]s for the
 //! client to show; the library prints nothing.
 
+pub mod cost;
 #[cfg(feature = "gpu")]
 pub mod device;
 #[cfg(not(target_arch = "wasm32"))]
@@ -249,6 +250,12 @@ pub fn software_gpu_preferred() -> bool {
     std::env::var("MESHVOX_SOFTWARE_GPU").is_ok_and(|v| v == "1")
 }
 
+/// `MESHVOX_AUTO_PROBE=1`: `auto` skips the cost model and probes the adapter for every job, as it did before
+/// [`cost`] (to exercise the probe's paths, or to prefer a GPU whatever the job).
+pub fn auto_probes_always() -> bool {
+    std::env::var("MESHVOX_AUTO_PROBE").is_ok_and(|v| v == "1")
+}
+
 fn ms(since: Instant) -> f64 {
     (since.elapsed().as_secs_f64() * 1e3 * 1000.0).round() / 1000.0
 }
@@ -263,6 +270,28 @@ impl Engine {
             cpu_reason: reason,
             opened: Vec::new(),
         }
+    }
+
+    /// Opens `backend` for one job, `request` on `mesh`: under `auto` the job's estimated cost decides first
+    /// whether a GPU is worth opening at all ([`cost`]); if not, no adapter is probed and `backend` says why.
+    #[cfg(any(not(feature = "gpu"), not(target_arch = "wasm32")))]
+    pub fn open_for(backend: Backend, mesh: &Mesh, request: &Request) -> Result<Engine, EngineError> {
+        if backend == Backend::Auto
+            && !auto_probes_always()
+            && let Some(bounds) = request.bounds.or_else(|| mesh.bounds())
+            && let Ok(spec) = GridSpec::fit(bounds, request.resolution, request.axis)
+        {
+            let job = cost::Job {
+                spec,
+                mode: request.mode,
+                triangles: mesh.triangles.len() as u64,
+                area: voxel::budget::surface_area(mesh),
+            };
+            if let Some(reason) = job.costs(rayon::current_num_threads()).cpu_reason() {
+                return Ok(Engine::cpu(Some(reason)));
+            }
+        }
+        Engine::open(backend)
     }
 
     /// Opens `backend` in a build without the GPU (the `gpu` feature off): the CPU, or an error for `Gpu`.

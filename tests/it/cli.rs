@@ -192,7 +192,8 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
     }
     let g = stats(&gpu);
     let software = g["backend"].as_str().is_some_and(|b| b.contains("llvmpipe") || b.contains("SwiftShader"));
-    let auto = stats(&meshvox(&args("auto"), dir.path()));
+    // The probe's path: a job the cost model would send to the CPU anyway is probed with MESHVOX_AUTO_PROBE=1.
+    let auto = stats(&meshvox_env(&args("auto"), dir.path(), &[("MESHVOX_AUTO_PROBE", "1")]));
     let backend = auto["backend"].as_str().unwrap_or_default();
     if software {
         assert!(backend.starts_with("cpu (") && backend.contains("is software"), "{backend}");
@@ -202,6 +203,34 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
         assert!(backend.starts_with("gpu: "), "{backend}");
     }
     assert_eq!(auto["voxels"], g["voxels"]);
+}
+
+/// `auto` prices a job before it opens anything: a small one goes to the CPU without probing an adapter (no
+/// set-up, no device), with the reason in `backend`, and the CPU's voxels; a job whose estimate on the CPU is
+/// larger than opening a GPU probes one (here lavapipe, which `auto` then declines as software).
+#[test]
+fn auto_prices_the_job_before_it_probes_an_adapter() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (mesh, r) in [("builtin:torus", "16"), ("builtin:knot", "64")] {
+        let args = |b| ["voxelize", mesh, "-r", r, "-o", "k.npy", "--stats-json", "--backend", b];
+        let auto = stats(&meshvox(&args("auto"), dir.path()));
+        let cpu = stats(&meshvox(&args("cpu"), dir.path()));
+        let backend = auto["backend"].as_str().unwrap_or_default();
+        assert!(
+            backend.starts_with("cpu (") && backend.contains("auto: ~") && backend.contains("GPU takes"),
+            "{backend}"
+        );
+        assert_eq!(auto["setup_ms"].as_f64(), Some(0.0), "{auto}");
+        assert_eq!(auto["voxels"], cpu["voxels"]);
+    }
+    // A distance field of many voxels costs more on the CPU than opening a GPU would: the adapter is probed.
+    let big = ["voxelize", "builtin:knot", "-r", "700", "--mode", "sdf", "-o", "k.npy", "--stats-json"];
+    let auto = stats(&meshvox(&big, dir.path()));
+    let backend = auto["backend"].as_str().unwrap_or_default();
+    assert!(!backend.contains("auto: ~"), "{backend}");
+    if backend.starts_with("cpu (") {
+        assert!(backend.contains("is software") || backend.contains("no GPU adapter"), "{backend}");
+    }
 }
 
 #[test]
@@ -216,7 +245,7 @@ fn without_an_adapter_gpu_fails_clearly_and_auto_falls_back() {
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.starts_with("error: no GPU adapter found"), "{stderr}");
     assert!(!dir.path().join("t.npy").exists());
-    let out = meshvox_env(&args("auto"), dir.path(), &env);
+    let out = meshvox_env(&args("auto"), dir.path(), &[env[0], ("MESHVOX_AUTO_PROBE", "1")]);
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("using the CPU voxelizer"));
     assert!(stats(&out)["backend"].as_str().is_some_and(|b| b.starts_with("cpu")));
@@ -256,7 +285,8 @@ fn the_gpu_watchdog_gives_up_and_auto_falls_back_to_the_cpu() {
     assert!(!dir.path().join("k.npy").exists());
 
     // On a software adapter `auto` would not use the GPU at all; MESHVOX_SOFTWARE_GPU=1 makes it.
-    let out = meshvox_env(&args("auto"), dir.path(), &[hung[0], ("MESHVOX_SOFTWARE_GPU", "1")]);
+    let probe = ("MESHVOX_AUTO_PROBE", "1");
+    let out = meshvox_env(&args("auto"), dir.path(), &[hung[0], ("MESHVOX_SOFTWARE_GPU", "1"), probe]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("warning: the GPU did not finish") && stderr.contains("on the CPU instead"), "{stderr}");

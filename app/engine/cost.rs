@@ -1,0 +1,82 @@
+//! `auto`'s choice of backend for one job, made from what the job will cost before anything is paid for it: an
+//! adapter probe, a device and its pipelines take 0.1–0.4 s (measured: 96–172 ms on an H100 with the driver's
+//! shader cache warm, 2.1 s cold; 300–400 ms on lavapipe), which a small job on the CPU never recovers.
+//!
+//! The model is two sums of measured rates (bench/RESULTS.md, "auto"), both on the host clock:
+//! - the CPU: per triangle set up and walked, per surface voxel written, per grid byte cleared and filled,
+//!   divided among the threads; distance fields and solids as multiples of the surface;
+//! - the GPU: opening it, then reading the grid back to the host (what bounds a whole GPU run today: on an H100
+//!   the bunny's compute passes take 0.3 ms at 1024, its readback and host assembly 0.3 s).
+//!
+//! `auto` takes the CPU when its estimate is the smaller, without probing, and says so in `backend`.
+
+use crate::voxel::{GridSpec, Mode};
+
+/// One thread's time per triangle of the walk (set-up, narrowing, first touches): ~1.1 µs for small triangles.
+const CPU_NS_PER_TRIANGLE: f64 = 1100.0;
+/// One thread's time per surface voxel set: ~26 ns (Suzanne at 1024: 2.6 M voxels in 33.5 ms on 2 threads).
+const CPU_NS_PER_VOXEL: f64 = 26.0;
+/// Clearing and filling the dense grid, per byte, on one thread.
+const CPU_NS_PER_GRID_BYTE: f64 = 0.2;
+/// Surface voxels per voxel² of surface area (the conservative surface is about 1.5 voxels thick).
+const VOXELS_PER_AREA: f64 = 1.5;
+/// Opening a GPU: adapter, device and pipelines, with the driver's shader cache warm.
+const GPU_OPEN_MS: f64 = 150.0;
+/// Reading the grid back and assembling it on the host, per byte (H100 and lavapipe alike: ~0.3 s for 103 MB).
+const GPU_NS_PER_GRID_BYTE: f64 = 2.9;
+
+/// What `auto` needs to know of a job.
+#[derive(Clone, Copy, Debug)]
+pub struct Job {
+    pub spec: GridSpec,
+    pub mode: Mode,
+    pub triangles: u64,
+    /// The mesh's surface area in world units².
+    pub area: f64,
+}
+
+/// The two estimates, in milliseconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Costs {
+    pub cpu_ms: f64,
+    pub gpu_ms: f64,
+    pub threads: usize,
+}
+
+impl Job {
+    /// The estimated wall time of `self` on `threads` CPU threads and on a GPU opened for it.
+    pub fn costs(&self, threads: usize) -> Costs {
+        let h = self.spec.voxel_size;
+        let voxels = VOXELS_PER_AREA * self.area / (h * h);
+        let bytes = self.spec.byte_size() as f64;
+        let surface = self.triangles as f64 * CPU_NS_PER_TRIANGLE + voxels * CPU_NS_PER_VOXEL;
+        let work = match self.mode {
+            Mode::Surface | Mode::Surface6 => surface,
+            // The fill visits every row of the grid: a few times the surface's work on the meshes measured.
+            Mode::Solid => 3.0 * surface + bytes * 8.0 * 0.5,
+            // Distance fields: 5–40x the surface (bench sdf).
+            Mode::Sdf | Mode::Udf => 10.0 * surface,
+        };
+        let cpu_ms = (work / threads.max(1) as f64 + bytes * CPU_NS_PER_GRID_BYTE) / 1e6;
+        let gpu_ms = GPU_OPEN_MS + bytes * GPU_NS_PER_GRID_BYTE / 1e6;
+        Costs { cpu_ms, gpu_ms, threads }
+    }
+}
+
+impl Costs {
+    /// Why `auto` takes the CPU, or `None` where a GPU may pay for itself.
+    pub fn cpu_reason(&self) -> Option<String> {
+        (self.cpu_ms <= self.gpu_ms).then(|| {
+            format!(
+                "auto: ~{} ms on {} CPU threads, under the ~{} ms a GPU takes to open and read back",
+                round(self.cpu_ms),
+                self.threads,
+                round(self.gpu_ms)
+            )
+        })
+    }
+}
+
+fn round(ms: f64) -> String {
+    if ms < 10.0 { format!("{ms:.1}") } else { format!("{}", ms.round() as u64) }
+}
