@@ -144,21 +144,21 @@ impl LimitArgs {
 
 /// Opens the engine, telling what opening noticed (no adapter under `auto`).
 fn open_engine(backend: BackendArg) -> Result<Engine> {
-    let engine = Engine::open(backend.into())?;
-    for notice in engine.notices() {
-        eprintln!("{notice}");
-    }
-    Ok(engine)
+    Ok(told(Engine::open(backend.into())?))
 }
 
 /// Opens the engine for one job (`voxelize`): under `auto` the job's cost decides first whether a GPU is worth
 /// opening.
 fn open_engine_for(backend: BackendArg, mesh: &mesh::Mesh, job: &Request) -> Result<Engine> {
-    let engine = Engine::open_for(backend.into(), mesh, job)?;
+    Ok(told(Engine::open_for(backend.into(), mesh, job)?))
+}
+
+/// `engine`, once what opening it noticed is on stderr.
+fn told(engine: Engine) -> Engine {
     for notice in engine.notices() {
         eprintln!("{notice}");
     }
-    Ok(engine)
+    engine
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

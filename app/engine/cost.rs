@@ -18,6 +18,8 @@ const CPU_NS_PER_TRIANGLE: f64 = 1100.0;
 const CPU_NS_PER_VOXEL: f64 = 26.0;
 /// Clearing and filling the dense grid, per byte, on one thread.
 const CPU_NS_PER_GRID_BYTE: f64 = 0.2;
+/// The solid fill's time per voxel of the grid (it visits every row), on one thread.
+const CPU_NS_PER_SOLID_VOXEL: f64 = 0.5;
 /// Surface voxels per voxel² of surface area (the conservative surface is about 1.5 voxels thick).
 const VOXELS_PER_AREA: f64 = 1.5;
 /// Opening a GPU: adapter, device and pipelines, with the driver's shader cache warm.
@@ -53,7 +55,7 @@ impl Job {
         let work = match self.mode {
             Mode::Surface | Mode::Surface6 => surface,
             // The fill visits every row of the grid: a few times the surface's work on the meshes measured.
-            Mode::Solid => 3.0 * surface + bytes * 8.0 * 0.5,
+            Mode::Solid => 3.0 * surface + bytes * 8.0 * CPU_NS_PER_SOLID_VOXEL,
             // Distance fields: 5–40x the surface (bench sdf).
             Mode::Sdf | Mode::Udf => 10.0 * surface,
         };

@@ -165,9 +165,7 @@ impl ViewerApp {
                 .checkbox(&mut self.cut_on, "Cut away")
                 .on_hover_text("hide the voxels beyond a plane to see inside")
                 .changed();
-            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
-                changed |= ui.radio_value(&mut self.cut.axis, axis, *label).changed();
-            }
+            changed |= axis_radios(ui, &mut self.cut.axis);
             if changed {
                 self.rebuild_scene();
             }
@@ -182,9 +180,7 @@ impl ViewerApp {
         let mut slice = self.slice;
         ui.horizontal(|ui| {
             ui.label("Slice").on_hover_text("the field's values on one layer of voxels, beside the zero crossing");
-            for (axis, label) in ["x", "y", "z"].iter().enumerate() {
-                ui.radio_value(&mut slice.axis, axis, *label);
-            }
+            axis_radios(ui, &mut slice.axis);
         });
         ui.add(egui::Slider::new(&mut slice.fraction, 0.0..=1.0).text("slice"));
         if slice != self.slice {
@@ -290,4 +286,13 @@ impl ViewerApp {
             }
         });
     }
+}
+
+/// Radio buttons x, y, z for a cut's or slice's axis (0, 1, 2); whether one was picked.
+fn axis_radios(ui: &mut egui::Ui, axis: &mut usize) -> bool {
+    let mut changed = false;
+    for (a, label) in ["x", "y", "z"].iter().enumerate() {
+        changed |= ui.radio_value(axis, a, *label).changed();
+    }
+    changed
 }

@@ -131,20 +131,13 @@ fn a_mesh_far_from_the_origin_through_the_engine_matches_float64() {
 /// `tests/tools/distance_check.py` with the system Python (numpy, pyopenvdb), or `None`, said loudly (a failure
 /// under `CI=true`, where tests/run.sh installs them).
 fn distance_check(args: &[&str]) -> Option<serde_json::Value> {
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/distance_check.py");
-    let out = std::process::Command::new("/usr/bin/python3").arg(script).args(args).output();
-    match out {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from distance_check.py")),
-        other => {
-            let why = match other {
-                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-                Err(e) => e.to_string(),
-            };
-            assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "distance_check.py failed under CI: {why}");
-            eprintln!("\n*** SKIPPED distance check: numpy/pyopenvdb unavailable: {why} ***\n");
-            None
-        }
-    }
+    crate::common::python_tool(
+        "/usr/bin/python3",
+        "distance_check.py",
+        args,
+        "distance check",
+        "numpy/pyopenvdb unavailable",
+    )
 }
 
 fn run_ok(args: &[&str], dir: &Path) -> serde_json::Value {

@@ -5,7 +5,6 @@ use crate::common::Rng;
 use glam::{DVec3, UVec3};
 use meshvox::voxel::formats::{self, VoxelFormat};
 use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
-use std::process::Command;
 
 fn random_grid(dims: UVec3, density: f64, seed: u64) -> VoxelGrid {
     let spec = GridSpec { origin: DVec3::new(-1.5, 0.25, 3.0), voxel_size: 0.125, dims };
@@ -117,33 +116,14 @@ fn vox_is_upright_in_magicavoxel() {
 /// Runs the independent Python reader, or returns None (loudly) when python3 with numpy, binvox, trimesh and
 /// Pillow is not available. Under CI=true that is a failure: `.ci/run` installs them.
 pub(crate) fn independent_args(kind: &str, args: &[&str]) -> Option<serde_json::Value> {
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/independent.py");
     let python = std::env::var("MESHVOX_PYTHON").unwrap_or_else(|_| "python3".into());
-    let out = Command::new(python).arg(script).arg(kind).args(args).output();
-    independent_result(kind, out)
+    let args = [&[kind], args].concat();
+    let what = format!("independent {kind} check");
+    crate::common::python_tool(&python, "independent.py", &args, &what, "python3 with numpy/binvox/trimesh unavailable")
 }
 
 fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
     independent_args(kind, &[&path.to_string_lossy()])
-}
-
-fn independent_result(kind: &str, out: std::io::Result<std::process::Output>) -> Option<serde_json::Value> {
-    match out {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from independent.py")),
-        other => {
-            let why = match other {
-                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-                Err(e) => e.to_string(),
-            };
-            if std::env::var("CI").is_ok_and(|v| v == "true") {
-                panic!("independent reader failed under CI: {why}");
-            }
-            eprintln!(
-                "\n*** SKIPPED independent {kind} check: python3 with numpy/binvox/trimesh unavailable: {why} ***\n"
-            );
-            None
-        }
-    }
 }
 
 fn set_coords(g: &VoxelGrid) -> Vec<[u32; 3]> {

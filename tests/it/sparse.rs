@@ -175,22 +175,14 @@ fn a_solid_interior_is_tiles_and_the_same_voxels_as_the_dense_fill() {
 /// OpenVDB's reading of a `.vdb` (tests/tools/openvdb_read.py with the system Python's pyopenvdb), or `None`
 /// (said loudly; a failure under `CI=true`, where tests/run.sh installs python3-openvdb).
 fn openvdb_read(path: &std::path::Path) -> Option<serde_json::Value> {
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/tools/openvdb_read.py");
-    let out = std::process::Command::new("/usr/bin/python3").arg(script).arg(path).output();
-    match out {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from openvdb_read.py")),
-        other => {
-            let why = match other {
-                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-                Err(e) => e.to_string(),
-            };
-            assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "pyopenvdb failed under CI: {why}");
-            eprintln!(
-                "\n*** SKIPPED OpenVDB check: pyopenvdb unavailable (apt-get install python3-openvdb): {why} ***\n"
-            );
-            None
-        }
-    }
+    let missing = "pyopenvdb unavailable (apt-get install python3-openvdb)";
+    crate::common::python_tool(
+        "/usr/bin/python3",
+        "openvdb_read.py",
+        &[&path.to_string_lossy()],
+        "OpenVDB check",
+        missing,
+    )
 }
 
 /// The mesh the file tests voxelize: the bunny (open, with holes) when the shared meshes are there, else the knot.
