@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests: where the shared test meshes are, a small seeded PRNG, and an
 //! independent brute-force voxelizer (13-axis separating-axis test in exact integer arithmetic on the lattice
-//! coordinates) to check the fast one against.
+//! coordinates) to check the fast one against. The fuzz targets include this file too (tests/fuzz), so it uses no
+//! dev-dependency they lack.
 #![allow(dead_code)]
 
 use glam::{DVec3, UVec3, Vec3};
@@ -24,25 +25,6 @@ pub fn required(path: PathBuf, what: &str, how: &str) -> Option<PathBuf> {
     }
     eprintln!("\n*** SKIPPED: {} not found; {what} did not run{how} ***\n", path.display());
     None
-}
-
-/// `tests/tools/SCRIPT ARGS` run with `python`, its stdout parsed as JSON; or `None` where it fails because the
-/// Python modules it needs (`missing`) are not installed, said loudly as a skipped `what`. Under `CI=true`, where
-/// tests/run.sh installs them, a failure.
-pub fn python_tool(python: &str, script: &str, args: &[&str], what: &str, missing: &str) -> Option<serde_json::Value> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/tools").join(script);
-    match std::process::Command::new(python).arg(path).args(args).output() {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from the tool")),
-        other => {
-            let why = match other {
-                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-                Err(e) => e.to_string(),
-            };
-            assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "{script} failed under CI: {why}");
-            eprintln!("\n*** SKIPPED {what}: {missing}: {why} ***\n");
-            None
-        }
-    }
 }
 
 /// SplitMix64: a tiny deterministic generator, so the random meshes are the same on every run.

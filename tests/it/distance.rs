@@ -131,7 +131,7 @@ fn a_mesh_far_from_the_origin_through_the_engine_matches_float64() {
 /// `tests/tools/distance_check.py` with the system Python (numpy, pyopenvdb), or `None`, said loudly (a failure
 /// under `CI=true`, where tests/run.sh installs them).
 fn distance_check(args: &[&str]) -> Option<serde_json::Value> {
-    crate::common::python_tool(
+    crate::formats::python_tool(
         "/usr/bin/python3",
         "distance_check.py",
         args,

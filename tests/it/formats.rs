@@ -119,11 +119,36 @@ pub(crate) fn independent_args(kind: &str, args: &[&str]) -> Option<serde_json::
     let python = std::env::var("MESHVOX_PYTHON").unwrap_or_else(|_| "python3".into());
     let args = [&[kind], args].concat();
     let what = format!("independent {kind} check");
-    crate::common::python_tool(&python, "independent.py", &args, &what, "python3 with numpy/binvox/trimesh unavailable")
+    python_tool(&python, "independent.py", &args, &what, "python3 with numpy/binvox/trimesh unavailable")
 }
 
 fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
     independent_args(kind, &[&path.to_string_lossy()])
+}
+
+/// `tests/tools/SCRIPT ARGS` run with `python`, its stdout parsed as JSON; or `None` where it fails because the
+/// Python modules it needs (`missing`) are not installed, said loudly as a skipped `what`. Under `CI=true`, where
+/// tests/run.sh installs them, a failure.
+pub(crate) fn python_tool(
+    python: &str,
+    script: &str,
+    args: &[&str],
+    what: &str,
+    missing: &str,
+) -> Option<serde_json::Value> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools").join(script);
+    match std::process::Command::new(python).arg(path).args(args).output() {
+        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from the tool")),
+        other => {
+            let why = match other {
+                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
+                Err(e) => e.to_string(),
+            };
+            assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "{script} failed under CI: {why}");
+            eprintln!("\n*** SKIPPED {what}: {missing}: {why} ***\n");
+            None
+        }
+    }
 }
 
 fn set_coords(g: &VoxelGrid) -> Vec<[u32; 3]> {

@@ -176,7 +176,7 @@ fn a_solid_interior_is_tiles_and_the_same_voxels_as_the_dense_fill() {
 /// (said loudly; a failure under `CI=true`, where tests/run.sh installs python3-openvdb).
 fn openvdb_read(path: &std::path::Path) -> Option<serde_json::Value> {
     let missing = "pyopenvdb unavailable (apt-get install python3-openvdb)";
-    crate::common::python_tool(
+    crate::formats::python_tool(
         "/usr/bin/python3",
         "openvdb_read.py",
         &[&path.to_string_lossy()],
