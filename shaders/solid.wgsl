@@ -20,7 +20,13 @@ struct SolidParams {
     box_count: u32,
     lattice_scale: f32,
     item_count: u32,
-    pad: u32,
+    // Capacity of `solid_unsure`'s row list.
+    unsure_capacity: u32,
+    // How many error bounds from 1/2 a winding number must be for the GPU to decide its voxel (2; tests raise it).
+    margin: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(8) var<uniform> solid: SolidParams;
@@ -35,6 +41,9 @@ struct SolidParams {
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
 // Per triangle, its first work item (exclusive prefix sum of its items, from the host).
 @group(0) @binding(16) var<storage, read> item_offsets: array<u32>;
+// Word 0: how many rows this slab could not decide as the CPU does (see `inside_open_certain`); then those rows
+// (z * dims.y + y), up to `unsure_capacity`. The host fills them with the CPU reference.
+@group(0) @binding(17) var<storage, read_write> solid_unsure: array<atomic<u32>>;
 
 const RUN_STACK: u32 = 40u;
 // Rows per work item of the crossing passes: a triangle gets ceil(rows / ROWS_PER_ITEM) items (the host counts
@@ -301,23 +310,66 @@ fn cone_solid_angle(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return 2.0 * atan2(num, den);
 }
 
-fn winding_number(count: i32, p: vec3<f32>) -> f32 {
+const U: f32 = 5.9604645e-8;
+
+// The winding number and a bound on how far any conforming evaluation of it can be from the exact one
+// (derivation at the CPU reference's `winding_number_bounded`): (w, e).
+fn winding_number_bounded(count: i32, p: vec3<f32>) -> vec2<f32> {
     var sum = 0.0;
+    var magnitude = 0.0;
+    var error = 0.0;
     for (var e = 0u; e < solid.edge_count; e++) {
-        let a = boundary[2u * e];
-        let b = boundary[2u * e + 1u];
-        sum += a.w * cone_solid_angle(a.xyz - p, b.xyz - p);
+        let ea = boundary[2u * e];
+        let eb = boundary[2u * e + 1u];
+        let a = ea.xyz - p;
+        let b = eb.xyz - p;
+        let la = length(a);
+        let lb = length(b);
+        let num = a.y * b.z - a.z * b.y;
+        let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
+        let angle = 2.0 * atan2(num, den);
+        sum += ea.w * angle;
+        let d_num = 3.0 * U * (abs(a.y * b.z) + abs(a.z * b.y));
+        let ab = abs(a * b);
+        let d_den = 40.0 * U * (la * lb + (ab.x + ab.y + ab.z) + abs(a.x) * lb + abs(b.x) * la);
+        let r2 = num * num + den * den;
+        var moved = 3.4e38;
+        if r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || abs(num) > d_num) {
+            moved = 2.0 * (abs(den) * d_num + abs(num) * d_den) / r2;
+        }
+        magnitude += abs(ea.w * angle);
+        error += abs(ea.w) * 2.0 * (moved + abs(angle) * (1.0 / 2048.0) + 1e-30);
     }
-    return f32(count) + sum * (1.0 / (4.0 * 3.14159265358979));
+    let scale = 1.0 / (4.0 * 3.14159265358979);
+    let w = f32(count) + sum * scale;
+    let n = f32(solid.edge_count);
+    let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * abs(w);
+    return vec2<f32>(w, bound);
 }
 
-fn inside_open(count: i32, k: u32, y: u32, z: u32) -> bool {
-    return winding_number(count, vec3<f32>(f32(k) + 0.5, f32(y) + 0.5, f32(z) + 0.5)) >= 0.5;
+// 1 where the winding number at the centre is certainly at least 1/2, 0 where certainly below, 2 where this
+// adapter's atan2 and sqrt could decide otherwise than the CPU's (the row then goes to the host).
+fn inside_open_certain(count: i32, k: u32, y: u32, z: u32) -> u32 {
+    let we = winding_number_bounded(count, vec3<f32>(f32(k) + 0.5, f32(y) + 0.5, f32(z) + 0.5));
+    if we.x - 0.5 > solid.margin * we.y {
+        return 1u;
+    }
+    if 0.5 - we.x > solid.margin * we.y {
+        return 0u;
+    }
+    return 2u;
 }
 
-fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
+// As the CPU's, but stops at the first voxel it cannot decide and returns false (what it set so far is what
+// the CPU sets too: every decision before was certain).
+fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) -> bool {
     var stack: array<vec4<u32>, RUN_STACK>;
-    stack[0] = vec4<u32>(first, last, u32(inside_open(count, first, y, z)), u32(inside_open(count, last, y, z)));
+    let i_first = inside_open_certain(count, first, y, z);
+    let i_last = inside_open_certain(count, last, y, z);
+    if i_first == 2u || i_last == 2u {
+        return false;
+    }
+    stack[0] = vec4<u32>(first, last, i_first, i_last);
     var len = 1u;
     while len > 0u {
         len -= 1u;
@@ -336,7 +388,11 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
             continue;
         }
         let m = a + (b - a) / 2u;
-        let im = inside_open(count, m, y, z);
+        let cm = inside_open_certain(count, m, y, z);
+        if cm == 2u {
+            return false;
+        }
+        let im = cm == 1u;
         if ia == ib && ia == im {
             if ia {
                 set_range(base, a, b + 1u);
@@ -352,6 +408,15 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) {
         stack[len] = vec4<u32>(m, b, u32(im), u32(ib));
         stack[len + 1u] = vec4<u32>(a, m, u32(ia), u32(im));
         len += 2u;
+    }
+    return true;
+}
+
+// Lists row (y, z) for the host.
+fn defer_row(y: u32, z: u32) {
+    let i = atomicAdd(&solid_unsure[0], 1u);
+    if i < solid.unsure_capacity {
+        atomicStore(&solid_unsure[1u + i], z * solid.dims.y + y);
     }
 }
 
@@ -402,8 +467,9 @@ fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
             if count >= 1 {
                 set_range(base, k0, k1);
             }
-        } else {
-            fill_open_run(count, k0, k1 - 1u, y, z, base);
+        } else if !fill_open_run(count, k0, k1 - 1u, y, z, base) {
+            defer_row(y, z);
+            return;
         }
         k0 = k1;
     }

@@ -84,6 +84,8 @@ pub(super) struct Run<'a> {
     /// The presized list and its counters (see `Options::list_capacity`) until its length comes back.
     presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)>,
     solid: Option<SolidRun>,
+    /// Rows the solid fill left to the host (see `solid_unsure` in `shaders/solid.wgsl`).
+    deferred_rows: Vec<u32>,
 }
 
 impl<'a> Run<'a> {
@@ -172,6 +174,7 @@ impl<'a> Run<'a> {
             points: Vec::new(),
             presized: None,
             solid: None,
+            deferred_rows: Vec::new(),
         })
     }
 
@@ -252,8 +255,11 @@ impl<'a> Run<'a> {
     pub(super) async fn prepare_solid(&mut self, triangles: &[[Vec3; 3]], lattice: Lattice) -> Result<(), GpuError> {
         let v = self.v;
         let solid = v.solid.get_or_init(|| super::solid::SolidPipelines::new(&self.gpu.device, &v.module));
+        let margin = self.options.solid_margin.unwrap_or(2.0);
         let b = &self.buffers;
-        self.solid = Some(solid.prepare(self.gpu, triangles, &b.triangles, self.spec, lattice, &b.slab).await?);
+        self.solid = Some(
+            solid.prepare(self.gpu, triangles, &b.triangles, self.spec, lattice, &b.slab).await?.with_margin(margin),
+        );
         Ok(())
     }
 
@@ -368,6 +374,10 @@ impl<'a> Run<'a> {
         if let Some(t) = self.timer.as_ref().filter(|_| timed > 0) {
             ranges.push((t.resolved(), 0, timed));
         }
+        if let Some(solid) = &self.solid {
+            // The count of rows left to the host; the rows themselves only when there are some.
+            ranges.push((&solid.unsure, 0, 4));
+        }
         let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
         let mut parts = parts.into_iter();
         let bytes = if reading_grid { parts.next() } else { None };
@@ -401,10 +411,44 @@ impl<'a> Run<'a> {
                 *d |= *s;
             }
         }
-        if let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next()) {
+        if timed > 0
+            && let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next())
+        {
             self.gpu_ms += t.finish(&gpu.queue, &bytes);
         }
+        if let Some(solid) = &self.solid {
+            let deferred = first_word(&parts.next().unwrap_or_default()).unwrap_or(0) as u64;
+            // A voxel list compacted on the GPU cannot take the host's rows: such a run, and one with more rows
+            // than the list holds, becomes the CPU's, like an overflowing unsure list.
+            if deferred > 0 && (self.options.compact || deferred > super::solid::UNSURE_ROWS as u64) {
+                return Ok(true);
+            }
+            if deferred > 0 {
+                let rows = read_buffer(device, &gpu.queue, &solid.unsure, 4, deferred * 4).await?;
+                self.deferred_rows.extend_from_slice(bytemuck::cast_slice::<u8, u32>(&rows));
+            }
+        }
         Ok(false)
+    }
+
+    /// Fills the rows the solid fill left to the host with the CPU reference and ORs them into the host grid
+    /// (or the sparse leaves): the rows' other voxels, set on the GPU before it stopped, are a subset of these.
+    pub(super) fn settle_deferred_rows(&mut self, triangles: &[[Vec3; 3]], lattice: Lattice) {
+        if self.deferred_rows.is_empty() {
+            return;
+        }
+        let dims = self.spec.dims;
+        let rows = crate::voxel::solid::fill_listed_rows(triangles, lattice, dims, &self.deferred_rows);
+        let wpr = self.wpr as usize;
+        for (r, words) in rows {
+            let (y, z) = (r % dims.y, r / dims.y);
+            if let Some(host) = self.grid.as_mut() {
+                let start = r as usize * wpr;
+                host.words[start..start + wpr].iter_mut().zip(&words).for_each(|(d, s)| *d |= s);
+            } else if let Some(leaves) = self.leaves.as_mut() {
+                for_each_run(&words, |x0, x1| leaves.set_run(x0, x1, y, z));
+            }
+        }
     }
 
     /// The output: the host grid, the voxel list (joined if there were several slabs), the times.
@@ -429,6 +473,7 @@ impl<'a> Run<'a> {
             batches: self.batches as u32,
             exact_tests: self.exact_tests,
             decided_on_cpu: false,
+            rows_on_host: self.deferred_rows.len() as u32,
         }))
     }
 }
@@ -468,6 +513,28 @@ impl GpuVoxelizer {
                 }
             }
         }
+        run.settle_deferred_rows(&triangles, lattice);
         run.finish().await
+    }
+}
+
+/// Calls `f(x0, x1)` for each run of set bits `x0..=x1` in a row's words.
+fn for_each_run(words: &[u32], mut f: impl FnMut(u32, u32)) {
+    let mut start = None;
+    for (w, &word) in words.iter().enumerate() {
+        for b in 0..32 {
+            let x = (w * 32 + b) as u32;
+            match (word >> b & 1 != 0, start) {
+                (true, None) => start = Some(x),
+                (false, Some(s)) => {
+                    f(s, x - 1);
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+    }
+    if let Some(s) = start {
+        f(s, (words.len() * 32) as u32 - 1);
     }
 }

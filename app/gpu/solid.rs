@@ -28,7 +28,9 @@ struct SolidParams {
     box_count: u32,
     lattice_scale: f32,
     item_count: u32,
-    _pad: u32,
+    unsure_capacity: u32,
+    margin: f32,
+    _pad: [u32; 3],
 }
 
 /// The compiled solid pipelines.
@@ -40,13 +42,30 @@ pub(crate) struct SolidPipelines {
     fill: wgpu::ComputePipeline,
 }
 
+/// Rows per slab that the fill may hand to the host (`solid_unsure`): those where this adapter's `atan2` and
+/// `sqrt` could decide a voxel otherwise than the CPU's. Only rows through or beside an open mesh's holes can
+/// have one, and only voxels whose winding number is within about 1e-3 of 1/2; more than this many in a slab
+/// makes the whole voxelization the CPU's, as an overflowing unsure list does.
+pub(crate) const UNSURE_ROWS: u32 = 4096;
+
 /// One solid voxelization's buffers, with the crossing lists written: ready to fill slab after slab.
 pub(crate) struct SolidRun {
     params: wgpu::Buffer,
     bind: wgpu::BindGroup,
     base: SolidParams,
+    /// The rows the fill left to the host: a count, then the rows (`z * dims.y + y`).
+    pub(crate) unsure: wgpu::Buffer,
     // Kept alive for the bind group.
     _buffers: Vec<wgpu::Buffer>,
+}
+
+impl SolidRun {
+    /// Sets how many error bounds from 1/2 a winding number must be for the fill to decide it on the GPU (see
+    /// `Options::solid_margin`).
+    pub(crate) fn with_margin(mut self, margin: f32) -> SolidRun {
+        self.base.margin = margin;
+        self
+    }
 }
 
 impl SolidPipelines {
@@ -63,6 +82,7 @@ impl SolidPipelines {
                 storage_entry(14, false),
                 storage_entry(15, false),
                 storage_entry(16, true),
+                storage_entry(17, false),
             ],
         });
         let one = [Some(&layout)];
@@ -75,7 +95,7 @@ impl SolidPipelines {
         }
     }
 
-    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 9]) -> wgpu::BindGroup {
+    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 10]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -121,17 +141,21 @@ impl SolidPipelines {
             box_count: boxes.len() as u32,
             lattice_scale: lattice.scale(),
             item_count: items as u32,
-            _pad: 0,
+            unsure_capacity: UNSURE_ROWS,
+            margin: 2.0,
+            _pad: [0; 3],
         };
         // The edges (two vec4 each), then the loops' boxes (one vec4 each).
         let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
         edge_bytes.extend_from_slice(bytemuck::cast_slice(&boxes));
         let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;
-        let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets } = buffers;
+        let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets, unsure } = buffers;
         let item_groups = dispatch_2d((items as u32).div_ceil(WG));
         let row_groups = dispatch_2d((rows as u32).div_ceil(WG));
-        let first = self
-            .bind(device, [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets]);
+        let first = self.bind(
+            device,
+            [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets, &unsure],
+        );
         run_passes(gpu, &first, &[(&self.count, item_groups), (&self.allocate, row_groups)]).await?;
         let listed = first_word(&read_buffer(device, &gpu.queue, &total, 0, 4).await?).unwrap_or(0) as u64;
         if listed * 4 > limit {
@@ -143,13 +167,16 @@ impl SolidPipelines {
         }
         let crossings =
             scoped(device, || Ok(storage_buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
-        let bind =
-            self.bind(device, [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total, &item_offsets]);
+        let bind = self.bind(
+            device,
+            [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total, &item_offsets, &unsure],
+        );
         run_passes(gpu, &bind, &[(&self.write, item_groups)]).await?;
         Ok(SolidRun {
             params,
             bind,
             base,
+            unsure,
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }
@@ -167,6 +194,7 @@ impl SolidPipelines {
     ) {
         let p = SolidParams { slab_z0: z0, slab_z1: z1, ..run.base };
         gpu.queue.write_buffer(&run.params, 0, bytemuck::bytes_of(&p));
+        encoder.clear_buffer(&run.unsure, 0, Some(4));
         let rows = run.base.dims[1] * (z1 - z0);
         let (x, y) = dispatch_2d(rows.div_ceil(WG));
         let mut pass =
@@ -225,6 +253,7 @@ struct SolidBuffers {
     boundary: wgpu::Buffer,
     total: wgpu::Buffer,
     item_offsets: wgpu::Buffer,
+    unsure: wgpu::Buffer,
 }
 
 impl SolidBuffers {
@@ -260,6 +289,12 @@ impl SolidBuffers {
                 boundary,
                 total: storage_buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC),
                 item_offsets,
+                unsure: storage_buffer(
+                    device,
+                    "undecided rows",
+                    (1 + UNSURE_ROWS as u64) * 4,
+                    wgpu::BufferUsages::COPY_SRC,
+                ),
             })
         })
         .await

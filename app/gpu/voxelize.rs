@@ -78,6 +78,10 @@ pub struct Options {
     /// and read its length back with the grid and the timings, so a voxelization maps once. If more voxels
     /// are listed, it is compacted again at its exact size (a second readback).
     pub list_capacity: Option<u64>,
+    /// The solid fill decides a voxel on the GPU only where its winding number is farther from 1/2 than this
+    /// many times its error bound (default 2: the GPU's error and the CPU's); other rows are filled on the host.
+    /// Tests raise it to send rows to the host on purpose.
+    pub solid_margin: Option<f32>,
 }
 
 /// What a GPU voxelization produced.
@@ -95,6 +99,8 @@ pub struct GpuOutput {
     /// The unsure list overflowed and the CPU reference decided the grid (the points, if any, are still
     /// compacted on the GPU).
     pub decided_on_cpu: bool,
+    /// Rows of the solid fill that the GPU could not decide as the CPU does and the host filled.
+    pub rows_on_host: u32,
 }
 
 /// How one attempt on the GPU ended.
@@ -233,6 +239,7 @@ impl GpuVoxelizer {
                 batches: 1,
                 exact_tests: Some(stats.exact_tests),
                 decided_on_cpu: true,
+                rows_on_host: 0,
             });
         }
         let (grid, stats) = cpu::voxelize_grid_space_mode(triangles, spec, options.mode, &|_, _| {})?;
@@ -270,6 +277,7 @@ impl GpuVoxelizer {
             batches: 1,
             exact_tests: Some(stats.exact_tests),
             decided_on_cpu: true,
+            rows_on_host: 0,
         })
     }
 }

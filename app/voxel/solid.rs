@@ -34,6 +34,12 @@
 //! winding-number evaluation at all. Rows that pass near a hole without going through it keep the integer count;
 //! the true winding number differs from it by the solid angle the hole subtends, which reaches 1/2 only close to
 //! the hole, so such voxels are all near the mesh's open boundary.
+//!
+//! # The same decisions on every adapter
+//! The crossings are exact; the winding number is f32 `atan2` and `sqrt`, which a GPU need not compute as the
+//! CPU's libm does. The shader therefore evaluates [`winding_number_bounded`] and decides a voxel only where it is
+//! more than twice its error bound from 1/2 ([`inside_open_certain`]); a row with a voxel it cannot decide is
+//! listed, and the host fills it with this reference ([`fill_listed_rows`]). So the GPU's grid is this one.
 
 use super::{Lattice, VoxelGrid};
 use glam::{I64Vec2, IVec3, UVec3, Vec3};
@@ -306,6 +312,108 @@ pub fn winding_number(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> f32 {
         sum += e.weight * cone_solid_angle(Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
     }
     count as f32 + sum * (1.0 / (4.0 * std::f32::consts::PI))
+}
+
+/// f32's unit roundoff, `2^-24`.
+const U: f32 = 1.0 / 16_777_216.0;
+
+/// [`winding_number`] with a bound on how far any conforming evaluation of it (the CPU's libm, or a GPU's
+/// `atan2`, `sqrt` and fused multiply-adds) can be from the exact winding number of the same inputs: `(w, e)`.
+/// `w` is [`winding_number`]'s value, computed in the same order. The GPU decides a voxel only where
+/// `|w - 1/2| > 2e` (its error and the CPU's each below `e`), and hands the row to the host otherwise, so that
+/// both backends make the same decision (see `shaders/solid.wgsl`).
+///
+/// Per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the lengths are
+/// within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
+/// `3u (|a_y b_z| + |a_z b_y|)`; `den`, a sum of six terms whose magnitudes add up to `S`, within `40u S`; then
+/// `atan2(num, den)` moves by at most `(|den| Δnum + |num| Δden) / (num² + den²)` (doubled for the first-order
+/// approximation) plus its own error, which WGSL allows to be 4096 ulps (`2^-11 |θ|`). Where `num² + den²` is
+/// too small for the first-order bound to mean anything (the point on the edge's line), or `num`'s sign is
+/// uncertain where `atan2` jumps (`den < 0`), the bound is infinite.
+/// The sum adds `n` roundings of at most `u Σ|terms|` each.
+pub fn winding_number_bounded(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> (f32, f32) {
+    let (mut sum, mut magnitude, mut error) = (0.0f32, 0.0f32, 0.0f32);
+    for e in edges {
+        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+        let (la, lb) = (a.length(), b.length());
+        let num = a.y * b.z - a.z * b.y;
+        let den = la * lb + super::exact::dot3(a, b) + a.x * lb + b.x * la;
+        let angle = 2.0 * num.atan2(den);
+        sum += e.weight * angle;
+        let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
+        let d_den = 40.0 * U * (la * lb + (a * b).abs().element_sum() + a.x.abs() * lb + b.x.abs() * la);
+        let r2 = num * num + den * den;
+        // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
+        // is on the strip swept from the edge, where the crossing count jumps the other way).
+        let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
+            true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
+            false => f32::INFINITY,
+        };
+        magnitude += (e.weight * angle).abs();
+        error += e.weight.abs() * 2.0 * (moved + angle.abs() * (1.0 / 2048.0) + 1e-30);
+    }
+    let scale = 1.0 / (4.0 * std::f32::consts::PI);
+    let w = count as f32 + sum * scale;
+    let n = edges.len() as f32;
+    let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
+    (w, bound)
+}
+
+/// Whether the winding number at the centre of voxel `k` of row `(y, z)` is certainly at least 1/2 (`1`),
+/// certainly below (`0`), or too close for a GPU's arithmetic to decide as the CPU's does (`2`): see
+/// [`winding_number_bounded`]. The shader's `inside_open` returns this; the CPU reference decides with
+/// [`inside_open`], and a GPU row with a `2` is filled on the host by [`fill_listed_rows`].
+pub fn inside_open_certain(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> u32 {
+    let p = Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+    let (w, e) = winding_number_bounded(count, p, edges);
+    if w - 0.5 > 2.0 * e {
+        1
+    } else if 0.5 - w > 2.0 * e {
+        0
+    } else {
+        2
+    }
+}
+
+/// The inside voxels of the listed rows (`z * dims.y + y`, as the GPU lists the rows it could not decide), each
+/// as its row's words from [`fill_row`]: the crossings of just these rows, then the CPU reference's fill.
+pub fn fill_listed_rows(triangles: &[[Vec3; 3]], lattice: Lattice, dims: UVec3, rows: &[u32]) -> Vec<(u32, Vec<u32>)> {
+    let mut rows = rows.to_vec();
+    rows.sort_unstable();
+    rows.dedup();
+    let mut lists: Vec<Vec<u32>> = triangles
+        .par_iter()
+        .fold(
+            || vec![Vec::new(); rows.len()],
+            |mut lists, &t| {
+                triangle_crossings(t, dims, lattice, |row, c| {
+                    if let Ok(i) = rows.binary_search(&row) {
+                        lists[i].push(c);
+                    }
+                });
+                lists
+            },
+        )
+        .reduce(
+            || vec![Vec::new(); rows.len()],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(a, b)| a.extend(b));
+                a
+            },
+        );
+    let edges = boundary_edges(triangles, lattice);
+    let boxes = boundary_boxes(&edges);
+    let wpr = dims.x.div_ceil(32) as usize;
+    rows.iter()
+        .zip(lists.iter_mut())
+        .map(|(&r, list)| {
+            list.sort_unstable();
+            let (y, z) = (r % dims.y, r / dims.y);
+            let mut words = vec![0u32; wpr];
+            fill_row(list, y, z, dims.x, near_boundary(y, z, &boxes), &edges, &mut words);
+            (r, words)
+        })
+        .collect()
 }
 
 /// Sets bits `k0..k1` of a row.

@@ -296,6 +296,111 @@ fn surface6_is_a_thinner_subset_that_still_separates_inside_from_outside() {
     }
 }
 
+/// Open meshes for the winding-number tests: the bowl and holed sphere of
+/// `solid_matches_the_winding_number_of_an_open_bowl_and_a_holed_sphere` in a 26³ grid, and the bunny (open at
+/// its base) at 97 when the shared meshes are there.
+fn open_meshes() -> Vec<(String, Vec<[Vec3; 3]>, GridSpec)> {
+    let sphere = meshvox::mesh::builtin::load("sphere").expect("builtin");
+    let tris: Vec<[Vec3; 3]> = sphere.triangles.iter().map(|t| t.map(|p| (p + 1.0) * 12.5 + 0.3)).collect();
+    let bowl: Vec<_> = tris.iter().copied().filter(|t| t.iter().all(|p| p.y <= 12.81)).collect();
+    let holed: Vec<_> =
+        tris.iter().copied().filter(|t| !t.iter().all(|p| p.x > 22.0) && !t.iter().all(|p| p.z < 3.5)).collect();
+    let mut cases =
+        vec![("bowl".into(), bowl, spec(UVec3::splat(26))), ("holed sphere".into(), holed, spec(UVec3::splat(26)))];
+    if let Some(dir) = shared_meshes() {
+        let mesh = meshvox::mesh::load(dir.join("stanford-bunny.obj").to_str().expect("utf-8")).expect("loads");
+        let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(97), Axis::Longest).expect("fits");
+        cases.push(("bunny at 97".into(), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+    }
+    cases
+}
+
+#[test]
+fn the_winding_numbers_error_bound_holds_against_float64() {
+    // The GPU decides a solid voxel through a hole only where the winding number is farther from 1/2 than twice
+    // this bound, so the bound must hold: here against the same boundary term in f64, at every voxel centre of
+    // the rows through each mesh's holes (where the fill evaluates it).
+    use meshvox::voxel::solid::{boundary_boxes, boundary_edges, near_boundary, winding_number_bounded};
+    for (name, tris, s) in open_meshes() {
+        let lattice = meshvox::voxel::Lattice::fit(&tris, s.dims).expect("lattice");
+        let edges = boundary_edges(&tris, lattice);
+        let boxes = boundary_boxes(&edges);
+        assert!(!edges.is_empty(), "{name} is open");
+        let points: Vec<Vec3> = (0..s.dims.z)
+            .flat_map(|z| (0..s.dims.y).map(move |y| (y, z)))
+            .filter(|&(y, z)| near_boundary(y, z, &boxes))
+            .flat_map(|(y, z)| (0..s.dims.x).map(move |x| UVec3::new(x, y, z).as_vec3() + 0.5))
+            .collect();
+        let results: Vec<(f32, f32, f64)> = points
+            .par_iter()
+            .map(|&p| {
+                let (w, e) = winding_number_bounded(0, p, &edges);
+                let mut sum = 0.0f64;
+                for edge in &edges {
+                    let a = (Vec3::from_array(edge.a) - p).as_dvec3();
+                    let b = (Vec3::from_array(edge.b) - p).as_dvec3();
+                    let (la, lb) = (a.length(), b.length());
+                    let num = a.y * b.z - a.z * b.y;
+                    let den = la * lb + a.dot(b) + a.x * lb + b.x * la;
+                    sum += edge.weight as f64 * 2.0 * num.atan2(den);
+                }
+                (w, e, sum / (4.0 * std::f64::consts::PI))
+            })
+            .collect();
+        let mut bounds: Vec<f32> = results.iter().map(|r| r.1).collect();
+        bounds.sort_by(f32::total_cmp);
+        let (mut worst, mut deferred) = (0.0f64, 0);
+        for &(w, e, exact) in &results {
+            assert!((w as f64 - exact).abs() <= e as f64, "{name}: w = {w} against {exact} in f64, bound {e}");
+            worst = worst.max((w as f64 - exact).abs() / e as f64);
+            deferred += usize::from((w - 0.5).abs() <= 2.0 * e);
+        }
+        let median = bounds[bounds.len() / 2];
+        eprintln!(
+            "{name}: {} centres, bound median {median:.2e}, largest error {worst:.3} of its bound, {deferred} within \
+             twice it of 1/2",
+            results.len()
+        );
+        // Not vacuous: WGSL allows `atan2` 4096 ulps, so the bound is ~1e-3 beside a hole, and still almost
+        // every voxel is decided on the GPU.
+        assert!(median < 1e-2, "{name}: median bound {median}");
+        assert!(deferred * 10 < results.len(), "{name}: {deferred} of {} would go to the host", results.len());
+    }
+}
+
+#[test]
+fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
+    // A margin of 1e12 error bounds sends every row through a hole to the host, which fills it with the CPU
+    // reference: the grid must be the CPU's, dense and sparse, with the rows counted.
+    use meshvox::gpu::voxelize::Options;
+    let Some((gpu, v)) = crate::gpu::gpu() else { return };
+    for (name, tris, s) in open_meshes() {
+        let reference = voxelize(&tris, s, Mode::Solid);
+        for margin in [None, Some(1e12)] {
+            let options = Options { read_grid: true, mode: Mode::Solid, solid_margin: margin, ..Default::default() };
+            let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
+            assert!(!out.decided_on_cpu, "{name}: decided on the CPU");
+            eprintln!("{name}, margin {margin:?}: {} rows filled on the host", out.rows_on_host);
+            if margin.is_some() {
+                assert!(out.rows_on_host > 0, "{name}: rows went to the host");
+            }
+            assert_same_grid(&out.grid.expect("grid"), &reference, &format!("{name} margin {margin:?}"));
+        }
+        let never = std::sync::atomic::AtomicBool::new(false);
+        let (sparse, _) = cpu::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+        let options = Options { sparse: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
+        let out = v.voxelize(gpu, &tris, s, &options).expect("gpu sparse");
+        assert!(out.rows_on_host > 0, "{name}: sparse rows went to the host");
+        let (gpu_dense, cpu_dense) =
+            (out.sparse.expect("sparse").to_dense().expect("dense"), sparse.to_dense().expect("dense"));
+        assert_same_grid(&gpu_dense, &cpu_dense, &format!("{name} sparse"));
+        // A voxel list compacted on the GPU cannot take host rows: the CPU decides instead, to the same voxels.
+        let options = Options { compact: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
+        let out = v.voxelize(gpu, &tris, s, &options).expect("gpu compact");
+        assert!(out.decided_on_cpu, "{name}: compaction with host rows falls back");
+    }
+}
+
 #[test]
 fn modes_differ_where_they_should() {
     let mesh = meshvox::mesh::builtin::load("sphere").expect("builtin");
