@@ -46,7 +46,7 @@ pub(crate) struct SolidPipelines {
 /// `sqrt` could decide a voxel otherwise than the CPU's. Only rows through or beside an open mesh's holes can
 /// have one, and only voxels whose winding number is within about 1e-3 of 1/2; more than this many in a slab
 /// makes the whole voxelization the CPU's, as an overflowing unsure list does.
-pub(crate) const UNSURE_ROWS: u32 = 4096;
+pub(crate) const UNSURE_ROWS: u32 = 1 << 16;
 
 /// One solid voxelization's buffers, with the crossing lists written: ready to fill slab after slab.
 pub(crate) struct SolidRun {
