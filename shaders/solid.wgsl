@@ -302,12 +302,13 @@ fn set_range(base: u32, k0: u32, k1: u32) {
     }
 }
 
-fn cone_solid_angle(a: vec3<f32>, b: vec3<f32>) -> f32 {
+// (|a|, |b|, num, den): the strip's solid angle is 2 atan2(num, den) (the CPU's `cone_parts`).
+fn cone_parts(a: vec3<f32>, b: vec3<f32>) -> vec4<f32> {
     let la = length(a);
     let lb = length(b);
     let num = a.y * b.z - a.z * b.y;
     let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
-    return 2.0 * atan2(num, den);
+    return vec4<f32>(la, lb, num, den);
 }
 
 const U: f32 = 5.9604645e-8;
@@ -323,10 +324,11 @@ fn winding_number_bounded(count: i32, p: vec3<f32>) -> vec2<f32> {
         let eb = boundary[2u * e + 1u];
         let a = ea.xyz - p;
         let b = eb.xyz - p;
-        let la = length(a);
-        let lb = length(b);
-        let num = a.y * b.z - a.z * b.y;
-        let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
+        let parts = cone_parts(a, b);
+        let la = parts.x;
+        let lb = parts.y;
+        let num = parts.z;
+        let den = parts.w;
         let angle = 2.0 * atan2(num, den);
         sum += ea.w * angle;
         let d_num = 3.0 * U * (abs(a.y * b.z) + abs(a.z * b.y));

@@ -437,8 +437,9 @@ impl<'a> Run<'a> {
         if self.deferred_rows.is_empty() {
             return;
         }
-        let dims = self.spec.dims;
-        let rows = crate::voxel::solid::fill_listed_rows(triangles, lattice, dims, &self.deferred_rows);
+        let (dims, Some(solid)) = (self.spec.dims, &self.solid) else { return };
+        let rows =
+            crate::voxel::solid::fill_listed_rows(triangles, lattice, dims, &self.deferred_rows, &solid.boundary);
         let wpr = self.wpr as usize;
         for (r, words) in rows {
             let (y, z) = (r % dims.y, r / dims.y);
@@ -446,7 +447,7 @@ impl<'a> Run<'a> {
                 let start = r as usize * wpr;
                 host.words[start..start + wpr].iter_mut().zip(&words).for_each(|(d, s)| *d |= s);
             } else if let Some(leaves) = self.leaves.as_mut() {
-                for_each_run(&words, |x0, x1| leaves.set_run(x0, x1, y, z));
+                leaves.set_row(&words, y, z);
             }
         }
     }
@@ -515,26 +516,5 @@ impl GpuVoxelizer {
         }
         run.settle_deferred_rows(&triangles, lattice);
         run.finish().await
-    }
-}
-
-/// Calls `f(x0, x1)` for each run of set bits `x0..=x1` in a row's words.
-fn for_each_run(words: &[u32], mut f: impl FnMut(u32, u32)) {
-    let mut start = None;
-    for (w, &word) in words.iter().enumerate() {
-        for b in 0..32 {
-            let x = (w * 32 + b) as u32;
-            match (word >> b & 1 != 0, start) {
-                (true, None) => start = Some(x),
-                (false, Some(s)) => {
-                    f(s, x - 1);
-                    start = None;
-                }
-                _ => {}
-            }
-        }
-    }
-    if let Some(s) = start {
-        f(s, (words.len() * 32) as u32 - 1);
     }
 }

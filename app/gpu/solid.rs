@@ -8,7 +8,7 @@
 use super::readback::{first_word, read_buffer};
 use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
+use crate::voxel::solid::{Boundary, BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
 
@@ -55,6 +55,8 @@ pub(crate) struct SolidRun {
     base: SolidParams,
     /// The rows the fill left to the host: a count, then the rows (`z * dims.y + y`).
     pub(crate) unsure: wgpu::Buffer,
+    /// The boundary edges and their loops' boxes, for the host's fill of those rows.
+    pub(crate) boundary: Boundary,
     // Kept alive for the bind group.
     _buffers: Vec<wgpu::Buffer>,
 }
@@ -177,6 +179,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
+            boundary: Boundary { edges, boxes },
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

@@ -37,16 +37,15 @@ impl Lattice {
     /// which lets every backend snap its input without first asking whether the caller already did.
     pub fn fit(triangles: &[[Vec3; 3]], dims: UVec3) -> Result<Lattice, GridError> {
         // In parallel: this pass and `snap_triangles`' check run on every voxelization, and sequentially they
-        // were a tenth of the bunny's at 128 on two cores. A NaN's `max_element` would hide it, so finiteness
-        // is its own reduction.
-        let finite = triangles.par_iter().all(|t| t.iter().all(|v| v.is_finite()));
-        if !finite {
-            return Err(GridError::NonFinite);
-        }
+        // were a tenth of the bunny's at 128 on two cores. A triangle with a non-finite coordinate is `None`
+        // (a NaN's `max_element` would hide it), which ends the reduction.
         let reach = triangles
             .par_iter()
-            .map(|t| t.iter().fold(0.0f32, |r, v| r.max(v.abs().max_element())))
-            .reduce(|| dims.max_element() as f32, f32::max);
+            .map(|t| {
+                t.iter().all(|v| v.is_finite()).then(|| t.iter().fold(0.0f32, |r, v| r.max(v.abs().max_element())))
+            })
+            .try_reduce(|| dims.max_element() as f32, |a, b| Some(a.max(b)))
+            .ok_or(GridError::NonFinite)?;
         let need = reach as f64 + 2.0;
         let mut shift = 22i32;
         while shift >= 0 && need * 2f64.powi(shift) > LIMIT {

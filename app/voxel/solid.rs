@@ -244,6 +244,12 @@ pub struct BoundaryEdge {
     pub _pad: f32,
 }
 
+/// A mesh's open boundary: its edges ([`boundary_edges`]) and their loops' boxes ([`boundary_boxes`]).
+pub struct Boundary {
+    pub edges: Vec<BoundaryEdge>,
+    pub boxes: Vec<[f32; 4]>,
+}
+
 /// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles of
 /// non-zero area, with
 /// vertices identified by their exact lattice position (so unwelded files and duplicated vertices count as
@@ -297,11 +303,19 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
 /// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector).
 #[inline]
 pub fn cone_solid_angle(a: Vec3, b: Vec3) -> f32 {
+    let (_, _, num, den) = cone_parts(a, b);
+    2.0 * num.atan2(den)
+}
+
+/// What [`cone_solid_angle`] takes the angle of, and the lengths it is made from: `(|a|, |b|, num, den)`, the
+/// solid angle being `2 atan2(num, den)`.
+#[inline]
+pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32, f32) {
     let la = a.length();
     let lb = b.length();
     let num = a.y * b.z - a.z * b.y;
     let den = la * lb + super::exact::dot3(a, b) + a.x * lb + b.x * la;
-    2.0 * num.atan2(den)
+    (la, lb, num, den)
 }
 
 /// The generalized winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the
@@ -335,9 +349,7 @@ pub fn winding_number_bounded(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> (f
     let (mut sum, mut magnitude, mut error) = (0.0f32, 0.0f32, 0.0f32);
     for e in edges {
         let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-        let (la, lb) = (a.length(), b.length());
-        let num = a.y * b.z - a.z * b.y;
-        let den = la * lb + super::exact::dot3(a, b) + a.x * lb + b.x * la;
+        let (la, lb, num, den) = cone_parts(a, b);
         let angle = 2.0 * num.atan2(den);
         sum += e.weight * angle;
         let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
@@ -361,7 +373,7 @@ pub fn winding_number_bounded(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> (f
 
 /// Whether the winding number at the centre of voxel `k` of row `(y, z)` is certainly at least 1/2 (`1`),
 /// certainly below (`0`), or too close for a GPU's arithmetic to decide as the CPU's does (`2`): see
-/// [`winding_number_bounded`]. The shader's `inside_open` returns this; the CPU reference decides with
+/// [`winding_number_bounded`]. The shader's function of this name decides with it; the CPU reference decides with
 /// [`inside_open`], and a GPU row with a `2` is filled on the host by [`fill_listed_rows`].
 pub fn inside_open_certain(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> u32 {
     let p = Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
@@ -377,7 +389,14 @@ pub fn inside_open_certain(count: i32, k: u32, y: u32, z: u32, edges: &[Boundary
 
 /// The inside voxels of the listed rows (`z * dims.y + y`, as the GPU lists the rows it could not decide), each
 /// as its row's words from [`fill_row`]: the crossings of just these rows, then the CPU reference's fill.
-pub fn fill_listed_rows(triangles: &[[Vec3; 3]], lattice: Lattice, dims: UVec3, rows: &[u32]) -> Vec<(u32, Vec<u32>)> {
+/// `boundary` is the mesh's, as the GPU run found it ([`boundary_edges`], [`boundary_boxes`]).
+pub fn fill_listed_rows(
+    triangles: &[[Vec3; 3]],
+    lattice: Lattice,
+    dims: UVec3,
+    rows: &[u32],
+    boundary: &Boundary,
+) -> Vec<(u32, Vec<u32>)> {
     let mut rows = rows.to_vec();
     rows.sort_unstable();
     rows.dedup();
@@ -401,8 +420,7 @@ pub fn fill_listed_rows(triangles: &[[Vec3; 3]], lattice: Lattice, dims: UVec3, 
                 a
             },
         );
-    let edges = boundary_edges(triangles, lattice);
-    let boxes = boundary_boxes(&edges);
+    let Boundary { edges, boxes } = boundary;
     let wpr = dims.x.div_ceil(32) as usize;
     rows.iter()
         .zip(lists.iter_mut())
@@ -410,7 +428,7 @@ pub fn fill_listed_rows(triangles: &[[Vec3; 3]], lattice: Lattice, dims: UVec3, 
             list.sort_unstable();
             let (y, z) = (r % dims.y, r / dims.y);
             let mut words = vec![0u32; wpr];
-            fill_row(list, y, z, dims.x, near_boundary(y, z, &boxes), &edges, &mut words);
+            fill_row(list, y, z, dims.x, near_boundary(y, z, boxes), edges, &mut words);
             (r, words)
         })
         .collect()

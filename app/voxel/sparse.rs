@@ -270,17 +270,21 @@ impl LeafSet {
     pub fn set_rows(&mut self, words: &[u32], spec: GridSpec, z0: u32) {
         let (wpr, dims_y) = (spec.words_per_row(), spec.dims.y as usize);
         for (r, row) in words.chunks(wpr).enumerate() {
-            let (y, z) = ((r % dims_y) as u32, z0 + (r / dims_y) as u32);
-            for (i, &w) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
-                // Each run of set bits in the word.
-                let mut bits = w;
-                while bits != 0 {
-                    let lo = bits.trailing_zeros();
-                    let len = (bits >> lo).trailing_ones();
-                    let x0 = i as u32 * 32 + lo;
-                    self.set_run(x0, x0 + len - 1, y, z);
-                    bits &= if lo + len >= 32 { 0 } else { u32::MAX << (lo + len) };
-                }
+            self.set_row(row, (r % dims_y) as u32, z0 + (r / dims_y) as u32);
+        }
+    }
+
+    /// Sets the voxels of row `(y, z)` given as its words (bit `x % 32` of word `x / 32`).
+    pub fn set_row(&mut self, row: &[u32], y: u32, z: u32) {
+        for (i, &w) in row.iter().enumerate().filter(|(_, w)| **w != 0) {
+            // Each run of set bits in the word.
+            let mut bits = w;
+            while bits != 0 {
+                let lo = bits.trailing_zeros();
+                let len = (bits >> lo).trailing_ones();
+                let x0 = i as u32 * 32 + lo;
+                self.set_run(x0, x0 + len - 1, y, z);
+                bits &= if lo + len >= 32 { 0 } else { u32::MAX << (lo + len) };
             }
         }
     }

@@ -7,55 +7,61 @@ use meshvox::ui::ViewerApp;
 
 #[test]
 fn viewer_ui_with_the_default_mesh() {
-    // 512 x 512 points at half a pixel per point: a 256 x 256 golden, small enough to keep in git.
-    let mut harness = Harness::builder()
-        .with_size([512.0, 512.0])
-        .with_pixels_per_point(0.5)
-        .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, "builtin:rotated-cube", 32).expect("the app starts"));
+    let mut harness = small_viewer("builtin:rotated-cube", 32);
     harness.run();
     let app = harness.state();
     assert_eq!(app.error(), None);
     let stats = app.stats().expect("the default mesh was voxelized").clone();
     // The same voxels as the CPU reference for the same mesh and resolution.
-    let mesh = meshvox::mesh::load("builtin:rotated-cube").expect("mesh");
-    let spec = meshvox::voxel::GridSpec::fit(
-        mesh.bounds().expect("b"),
-        meshvox::voxel::Resolution::Count(32),
-        meshvox::voxel::Axis::Longest,
-    )
-    .expect("grid");
+    let (mesh, spec) = fitted("builtin:rotated-cube", 32);
     let cpu = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
     assert_eq!(stats.voxels, cpu.count());
     assert_eq!(stats.mesh, "rotated-cube");
     // The panel shows the stats and controls.
     harness.get_by_label("Open…");
     harness.get_by_label(&format!("{} (surface)", stats.voxels));
+    snapshot(&mut harness, "ui-default");
+}
+
+/// The viewer on `mesh` at `n` voxels in 512 x 512 points at half a pixel per point: a 256 x 256 golden, small
+/// enough to keep in git.
+fn small_viewer(mesh: &str, n: u32) -> Harness<'static, ViewerApp> {
+    Harness::builder()
+        .with_size([512.0, 512.0])
+        .with_pixels_per_point(0.5)
+        .wgpu()
+        .build_eframe(|cc| ViewerApp::new(cc, mesh, n).expect("the app starts"))
+}
+
+/// `mesh` and the grid the viewer lays over it at `n` voxels.
+fn fitted(mesh: &str, n: u32) -> (meshvox::mesh::Mesh, meshvox::voxel::GridSpec) {
+    let mesh = meshvox::mesh::load(mesh).expect("mesh");
+    let spec = meshvox::voxel::GridSpec::fit(
+        mesh.bounds().expect("b"),
+        meshvox::voxel::Resolution::Count(n),
+        meshvox::voxel::Axis::Longest,
+    )
+    .expect("grid");
+    (mesh, spec)
+}
+
+/// The golden `name.ADAPTER.png`. The "total ms" figure changes from run to run: a few dozen pixels of it may
+/// differ.
+fn snapshot(harness: &mut Harness<'_, ViewerApp>, name: &str) {
     let slug = harness.state().adapter().slug();
-    // The "total ms" figure changes from run to run: a few dozen pixels of it may differ.
     let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
-    harness.snapshot_options(format!("ui-default.{slug}"), &options);
+    harness.snapshot_options(format!("{name}.{slug}"), &options);
 }
 
 #[test]
 fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
-    let mut harness = Harness::builder()
-        .with_size([512.0, 512.0])
-        .with_pixels_per_point(0.5)
-        .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, "builtin:sphere", 40).expect("the app starts"));
+    let mut harness = small_viewer("builtin:sphere", 40);
     harness.run();
     harness.get_by_label("solid").click();
     harness.run();
     let stats = harness.state().stats().expect("voxelized").clone();
     assert_eq!(stats.mode, meshvox::voxel::Mode::Solid);
-    let mesh = meshvox::mesh::load("builtin:sphere").expect("mesh");
-    let spec = meshvox::voxel::GridSpec::fit(
-        mesh.bounds().expect("b"),
-        meshvox::voxel::Resolution::Count(40),
-        meshvox::voxel::Axis::Longest,
-    )
-    .expect("grid");
+    let (mesh, spec) = fitted("builtin:sphere", 40);
     let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
     let (cpu, _) = meshvox::voxel::cpu::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Solid, &|_, _| {})
         .expect("cpu");
@@ -66,18 +72,12 @@ fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
     harness.run();
     assert_eq!(harness.state().stats(), Some(&stats));
     assert_eq!(harness.state().error(), None);
-    let slug = harness.state().adapter().slug();
-    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
-    harness.snapshot_options(format!("ui-solid-cut.{slug}"), &options);
+    snapshot(&mut harness, "ui-solid-cut");
 }
 
 #[test]
 fn the_sdf_mode_shows_a_slice_of_the_field_that_moves_with_its_slider() {
-    let mut harness = Harness::builder()
-        .with_size([512.0, 512.0])
-        .with_pixels_per_point(0.5)
-        .wgpu()
-        .build_eframe(|cc| ViewerApp::new(cc, "builtin:torus", 40).expect("the app starts"));
+    let mut harness = small_viewer("builtin:torus", 40);
     harness.run();
     harness.get_by_label("sdf").click();
     harness.run();
@@ -85,13 +85,7 @@ fn the_sdf_mode_shows_a_slice_of_the_field_that_moves_with_its_slider() {
     let stats = harness.state().stats().expect("voxelized").clone();
     assert_eq!(stats.mode, meshvox::voxel::Mode::Sdf);
     // The voxels counted are the zero crossing's: the surface of the same grid.
-    let mesh = meshvox::mesh::load("builtin:torus").expect("mesh");
-    let spec = meshvox::voxel::GridSpec::fit(
-        mesh.bounds().expect("b"),
-        meshvox::voxel::Resolution::Count(40),
-        meshvox::voxel::Axis::Longest,
-    )
-    .expect("grid");
+    let (mesh, spec) = fitted("builtin:torus", 40);
     let surface = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
     assert_eq!(stats.voxels, surface.count());
     // The slice's controls replace the cut-away's, and moving the slice draws again without voxelizing.
@@ -101,9 +95,7 @@ fn the_sdf_mode_shows_a_slice_of_the_field_that_moves_with_its_slider() {
     harness.run();
     assert_eq!(harness.state().stats(), Some(&stats));
     assert_eq!(harness.state().error(), None);
-    let slug = harness.state().adapter().slug();
-    let options = egui_kittest::SnapshotOptions::new().max_failed_pixels(80);
-    harness.snapshot_options(format!("ui-sdf-slice.{slug}"), &options);
+    snapshot(&mut harness, "ui-sdf-slice");
 }
 
 #[test]
