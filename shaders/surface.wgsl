@@ -30,6 +30,8 @@
 // many invocations busy as a dense mesh. Grids too large for one binding run `voxelize` once per z-slab.
 
 const CHUNK: u32 = 16u;
+// Ranges of fewer voxels are tested whole rather than narrowed (DIRECT_ROW in app/voxel/cpu.rs).
+const DIRECT_ROW: f32 = 8.0;
 const WG: u32 = 64u;
 const SCAN_WG: u32 = 256u;
 
@@ -285,40 +287,72 @@ fn voxel_overlaps_exact(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
         && edge_test(s, s.zx, 2u, t, p, pl.zx);
 }
 
-// The common end of voxel_decision and voxel_decision_thin (see decide in cpu.rs).
-fn decide(s: TriangleSetup, plane: f32, xy: vec3<f32>, yz: vec3<f32>, zx: vec3<f32>) -> u32 {
-    let low3 = min(min(xy + s.xy.eps, yz + s.yz.eps), zx + s.zx.eps);
-    let low = min(min(plane + s.plane_eps, low3.x), min(low3.y, low3.z));
+// The f32 test values of one row of voxels with x factored out (see RowTerms in app/voxel/overlap.rs): the
+// eight values that vary along the row are slope * x + k (a: plane lower and upper, XY edges 0 and 1; b: XY edge
+// 2, ZX edges 0 to 2), the YZ edges' are fixed, so only the ends of their bounds are kept. Each value is the same
+// sum as before in another order, and every bound holds for any order.
+struct RowTerms {
+    slope_a: vec4<f32>,
+    slope_b: vec4<f32>,
+    k_a: vec4<f32>,
+    k_b: vec4<f32>,
+    eps_a: vec4<f32>,
+    eps_b: vec4<f32>,
+    yz_low: f32,
+    yz_high: f32,
+}
+
+// The RowTerms of local row (y, z), each value moved inward by sh (zero for the thick test).
+fn row_terms(s: TriangleSetup, sh: ThinShrink, y: f32, z: f32) -> RowTerms {
+    let rest = s.n.y * y + s.n.z * z;
+    let k1 = (rest + s.d1) - sh.plane;
+    let k2 = -((rest + s.d2) + sh.plane);
+    let kxy = vec3<f32>(s.xy.ne[0].y * y + s.xy.de[0], s.xy.ne[1].y * y + s.xy.de[1], s.xy.ne[2].y * y + s.xy.de[2])
+        - sh.xy;
+    let kzx = vec3<f32>(s.zx.ne[0].x * z + s.zx.de[0], s.zx.ne[1].x * z + s.zx.de[1], s.zx.ne[2].x * z + s.zx.de[2])
+        - sh.zx;
+    let q = vec2<f32>(y, z);
+    let yz = vec3<f32>(edge_function(s.yz.ne[0], q, s.yz.de[0]), edge_function(s.yz.ne[1], q, s.yz.de[1]),
+        edge_function(s.yz.ne[2], q, s.yz.de[2])) - sh.yz;
+    let low = yz + s.yz.eps;
+    let high = yz - s.yz.eps;
+    return RowTerms(
+        vec4<f32>(s.n.x, -s.n.x, s.xy.ne[0].x, s.xy.ne[1].x),
+        vec4<f32>(s.xy.ne[2].x, s.zx.ne[0].y, s.zx.ne[1].y, s.zx.ne[2].y),
+        vec4<f32>(k1, k2, kxy.x, kxy.y),
+        vec4<f32>(kxy.z, kzx.x, kzx.y, kzx.z),
+        vec4<f32>(s.plane_eps, s.plane_eps, s.xy.eps.x, s.xy.eps.y),
+        vec4<f32>(s.xy.eps.z, s.zx.eps.x, s.zx.eps.y, s.zx.eps.z),
+        min(low.x, min(low.y, low.z)),
+        min(high.x, min(high.y, high.z)),
+    );
+}
+
+fn min4(v: vec4<f32>) -> f32 {
+    return min(min(v.x, v.y), min(v.z, v.w));
+}
+
+// The overlap test in f32 only, for the voxel at local x of the row of r: 1 certainly overlaps, 0 certainly not,
+// 2 unsure (voxel_overlaps_exact decides). Each test value v with error bound e is certainly non-negative when
+// v - e >= 0 and certainly negative when v + e < 0 (the rounded sum or difference of two floats has the exact
+// one's sign), so two minima decide.
+fn decision_at(r: RowTerms, x: f32) -> u32 {
+    let va = r.slope_a * x + r.k_a;
+    let vb = r.slope_b * x + r.k_b;
+    let low = min(min4(min(va + r.eps_a, vb + r.eps_b)), r.yz_low);
     if low < 0.0 {
         return 0u;
     }
-    let high3 = min(min(xy - s.xy.eps, yz - s.yz.eps), zx - s.zx.eps);
-    let high = min(min(plane - s.plane_eps, high3.x), min(high3.y, high3.z));
+    let high = min(min4(min(va - r.eps_a, vb - r.eps_b)), r.yz_high);
     return select(2u, 1u, high >= 0.0);
-}
-
-// The overlap test in f32 only: 1 certainly overlaps, 0 certainly not, 2 unsure (voxel_overlaps_exact decides).
-// Each test value v with error bound e is certainly non-negative when v - e >= 0 and certainly negative when
-// v + e < 0 (the rounded sum or difference of two floats has the exact one's sign), so two minima decide.
-fn voxel_decision(s: TriangleSetup, pl: vec3<f32>) -> u32 {
-    let np = dot3(s.n, pl);
-    let v1 = np + s.d1;
-    let v2 = -(np + s.d2);
-    let xy = vec3<f32>(edge_function(s.xy.ne[0], pl.xy, s.xy.de[0]), edge_function(s.xy.ne[1], pl.xy, s.xy.de[1]),
-        edge_function(s.xy.ne[2], pl.xy, s.xy.de[2]));
-    let yz = vec3<f32>(edge_function(s.yz.ne[0], pl.yz, s.yz.de[0]), edge_function(s.yz.ne[1], pl.yz, s.yz.de[1]),
-        edge_function(s.yz.ne[2], pl.yz, s.yz.de[2]));
-    let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
-        edge_function(s.zx.ne[2], pl.zx, s.zx.de[2]));
-    return decide(s, min(v1, v2), xy, yz, zx);
 }
 
 // Narrows [lo, hi] to the integer t where slope * t + offset may be non-negative given its error bound eps,
 // widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu.rs for why
 // this is conservative); ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
 fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> vec2<f32> {
-    // Short ranges are tested whole (cheaper than a division), as in cpu.rs.
-    if range.y - range.x < 2.0 || slope == 0.0 || abs(slope) * 16.0 < scale {
+    // Ranges under DIRECT_ROW are tested whole (cheaper than divisions), as in cpu.rs.
+    if range.y - range.x < DIRECT_ROW || slope == 0.0 || abs(slope) * 16.0 < scale {
         return range;
     }
     let bound = -offset / slope;
@@ -332,7 +366,7 @@ fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> ve
 fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {
     var r = vec2<f32>(lo, hi);
     for (var i = 0u; i < 3u; i++) {
-        if r.y - r.x < 2.0 {
+        if r.y - r.x < DIRECT_ROW {
             break;
         }
         let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
@@ -345,7 +379,7 @@ fn row_span(e: Edges, b: f32, lo: f32, hi: f32) -> vec2<f32> {
 fn column_span(e: Edges, a: f32, lo: f32, hi: f32) -> vec2<f32> {
     var r = vec2<f32>(lo, hi);
     for (var i = 0u; i < 3u; i++) {
-        if r.y - r.x < 2.0 {
+        if r.y - r.x < DIRECT_ROW {
             break;
         }
         let scale = abs(e.ne[i].x) + abs(e.ne[i].y);
@@ -366,7 +400,11 @@ fn column_depth_range(s: TriangleSetup, w: u32, pl: vec3<f32>, lo: f32, hi: f32,
 }
 
 // The candidate local x range of the row at local (pl.y, pl.z), from the ZX edges' span x_span of its z layer.
+// Rows shorter than DIRECT_ROW voxels are tested whole, not narrowed (as in cpu.rs).
 fn row_x_range(s: TriangleSetup, pl: vec3<f32>, x_span: vec2<f32>, depth_err: f32) -> vec2<f32> {
+    if x_span.y - x_span.x < DIRECT_ROW {
+        return x_span;
+    }
     let r = column_depth_range(s, 0u, pl, x_span.x, x_span.y, depth_err);
     return row_span(s.xy, pl.y, r.x, r.y);
 }
@@ -413,13 +451,6 @@ fn set_run(x0: u32, x1: u32, y: u32, z: u32) {
     }
 }
 
-fn decision(s: TriangleSetup, shrink: ThinShrink, pl: vec3<f32>) -> u32 {
-    if THIN {
-        return voxel_decision_thin(s, shrink, pl);
-    }
-    return voxel_decision(s, pl);
-}
-
 fn list_unsure(t: u32, p: vec3<u32>) {
     let i = atomicAdd(&unsure_count[0], 1u);
     if i < arrayLength(&unsure) {
@@ -459,19 +490,24 @@ fn walk(item: u32) {
         return;
     }
     let depth_err = s.plane_eps / abs(s.n.x);
-    let shrink = thin_shrink(s);
+    var shrink = ThinShrink(0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    if THIN {
+        shrink = thin_shrink(s);
+    }
     for (var yi = u32(ys.x); yi <= u32(ys.y); yi++) {
-        var pl = vec3<f32>(0.0, f32(yi), z);
-        let r = row_x_range(s, pl, x_span, depth_err);
+        let r = row_x_range(s, vec3<f32>(0.0, f32(yi), z), x_span, depth_err);
         if r.x > r.y {
             continue;
         }
         let x_lo = u32(r.x);
         let x_hi = u32(r.y);
+        let terms = row_terms(s, shrink, f32(yi), z);
+        if terms.yz_low < 0.0 {
+            continue;
+        }
         var first = x_hi + 1u;
         for (var xi = x_lo; xi <= x_hi; xi++) {
-            pl.x = f32(xi);
-            let d = decision(s, shrink, pl);
+            let d = decision_at(terms, f32(xi));
             if d == 1u {
                 first = xi;
                 break;
@@ -485,8 +521,7 @@ fn walk(item: u32) {
         }
         var last = first;
         for (var xi = x_hi; xi > first; xi--) {
-            pl.x = f32(xi);
-            let d = decision(s, shrink, pl);
+            let d = decision_at(terms, f32(xi));
             if d == 1u {
                 last = xi;
                 break;

@@ -97,16 +97,3 @@ fn voxel_overlaps_exact_thin(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
     return plane && edge_test_thin(s, s.xy, sh.xy, 0u, t, p, pl.xy) && edge_test_thin(s, s.yz, sh.yz, 1u, t, p, pl.yz)
         && edge_test_thin(s, s.zx, sh.zx, 2u, t, p, pl.zx);
 }
-
-fn voxel_decision_thin(s: TriangleSetup, sh: ThinShrink, pl: vec3<f32>) -> u32 {
-    let np = dot3(s.n, pl);
-    let v1 = np + s.d1 - sh.plane;
-    let v2 = -(np + s.d2 + sh.plane);
-    let xy = vec3<f32>(edge_function(s.xy.ne[0], pl.xy, s.xy.de[0]), edge_function(s.xy.ne[1], pl.xy, s.xy.de[1]),
-        edge_function(s.xy.ne[2], pl.xy, s.xy.de[2])) - sh.xy;
-    let yz = vec3<f32>(edge_function(s.yz.ne[0], pl.yz, s.yz.de[0]), edge_function(s.yz.ne[1], pl.yz, s.yz.de[1]),
-        edge_function(s.yz.ne[2], pl.yz, s.yz.de[2])) - sh.yz;
-    let zx = vec3<f32>(edge_function(s.zx.ne[0], pl.zx, s.zx.de[0]), edge_function(s.zx.ne[1], pl.zx, s.zx.de[1]),
-        edge_function(s.zx.ne[2], pl.zx, s.zx.de[2])) - sh.zx;
-    return decide(s, min(v1, v2), xy, yz, zx);
-}

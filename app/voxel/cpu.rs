@@ -16,12 +16,17 @@
 use super::lattice::{Lattice, on_lattice};
 pub use super::overlap::*;
 use super::sparse::{LEAF_DIM, LeafSet, SparseGrid};
-pub use super::thin::{ThinShrink, thin_shrink, voxel_decision_thin, voxel_overlaps_exact_thin};
+pub use super::thin::{ThinShrink, thin_shrink, voxel_overlaps_exact_thin};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+
+/// Ranges (of rows, of voxels in a row) shorter than this many voxels are tested whole rather than narrowed
+/// first: a narrowing costs two divisions per constraint, more than the tests of two blocks of four voxels (see
+/// [`row_block`]), and most ranges of a dense mesh's small triangles are this short.
+pub const DIRECT_ROW: f32 = 8.0;
 
 /// Narrows the local range `[lo, hi]` to the integer `t` where `slope * t + offset` may be non-negative, the
 /// value's error bound being `eps = err_over_slope * |slope|`. Why it is conservative: the exact line crosses
@@ -32,9 +37,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 /// with a slope small against `scale` are ill-conditioned and left to the full test instead, which also keeps
 /// every quantity here finite.
 fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f32, scale: f32) {
-    // A range of one or two voxels costs less to test than to narrow (a division), as for most triangles of a
-    // dense mesh.
-    if *hi - *lo < 2.0 || slope == 0.0 || slope.abs() * 16.0 < scale {
+    // A short range costs less to test than to narrow (a division), as for most triangles of a dense mesh.
+    if *hi - *lo < DIRECT_ROW || slope == 0.0 || slope.abs() * 16.0 < scale {
         return;
     }
     let bound = -offset / slope;
@@ -50,10 +54,10 @@ fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f
 /// functions `ne.a * a + ne.b * b + de >= 0` bound `a` on one side each.
 pub fn row_span(e: &Edges, b: f32, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
-    // A range under two voxels is left as it is (see `narrow`); checked here too so that its error term is not
-    // computed for nothing.
+    // A short range is left as it is (see `narrow`); checked here too so that its error term is not computed
+    // for nothing.
     for i in 0..3 {
-        if hi - lo < 2.0 {
+        if hi - lo < DIRECT_ROW {
             break;
         }
         let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
@@ -97,7 +101,7 @@ pub fn work_items(s: &TriangleSetup) -> u32 {
 pub fn column_span(e: &Edges, a: f32, lo: f32, hi: f32) -> (f32, f32) {
     let (mut lo, mut hi) = (lo, hi);
     for i in 0..3 {
-        if hi - lo < 2.0 {
+        if hi - lo < DIRECT_ROW {
             break;
         }
         let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
@@ -109,17 +113,32 @@ pub fn column_span(e: &Edges, a: f32, lo: f32, hi: f32) -> (f32, f32) {
 /// Candidate local `x` range of the row at local `(pl.y, pl.z)`, starting from `x_span`, the span the ZX edges
 /// allow in the row's `z` layer: the plane test bounds `x` on both sides, the XY edges on one side each.
 pub fn row_x_range(s: &TriangleSetup, pl: Vec3, x_span: (f32, f32), depth_err: f32) -> (f32, f32) {
+    if x_span.1 - x_span.0 < DIRECT_ROW {
+        return x_span;
+    }
     let (lo, hi) = column_depth_range(s, 0, pl, x_span.0, x_span.1, depth_err);
     row_span(&s.xy, pl.y, lo, hi)
 }
 
-/// The f32 decision of the thick or thin test (`thin` carries the thin test's shrinks).
-#[inline]
-fn decision(s: &TriangleSetup, thin: Option<&ThinShrink>, pl: Vec3) -> u32 {
-    match thin {
-        None => voxel_decision(s, pl),
-        Some(sh) => voxel_decision_thin(s, sh, pl),
+/// [`decision_at`] for the four voxels at local `x0 .. x0 + 4` of a row at once, lanes along `x` (glam's `Vec4`
+/// is one SSE register): each lane does the same multiplies, adds and minima as `decision_at`, so the decisions
+/// are the same bit for bit. Returns the lanes that certainly overlap and the lanes the exact test must decide,
+/// as 4-bit masks.
+#[inline(always)]
+pub fn row_block(r: &RowTerms, x0: f32) -> (u32, u32) {
+    let x = Vec4::splat(x0) + Vec4::new(0.0, 1.0, 2.0, 3.0);
+    let mut low = Vec4::splat(r.yz_low);
+    let mut high = Vec4::splat(r.yz_high);
+    for g in 0..2 {
+        for j in 0..4 {
+            let v = Vec4::splat(r.slope[g][j]) * x + Vec4::splat(r.k[g][j]);
+            low = low.min(v + Vec4::splat(r.eps[g][j]));
+            high = high.min(v - Vec4::splat(r.eps[g][j]));
+        }
     }
+    let maybe = low.cmpge(Vec4::ZERO).bitmask();
+    let certain = high.cmpge(Vec4::ZERO).bitmask() & maybe;
+    (certain, maybe & !certain)
 }
 
 /// The walk of one work item: for each row along `x` (the grid's word axis) in the item's `z` layer and chunk of
@@ -131,7 +150,8 @@ fn decision(s: &TriangleSetup, thin: Option<&ThinShrink>, pl: Vec3) -> u32 {
 /// decision is certain of an overlap, and `fill`s everything between the first and the last certain voxel
 /// without testing it; a big triangle's rows thus cost a few tests and whole 32-voxel words. Voxels the f32
 /// decision is unsure of on the way go to `unsure` (the shader lists them for its `exact` pass); voxels beyond
-/// the ends are certain misses.
+/// the ends are certain misses. The shader tests one voxel at a time; here [`row_block`] tests four, and only
+/// the lanes the shader would have reached count.
 pub fn walk(
     s: &TriangleSetup,
     item: u32,
@@ -154,39 +174,82 @@ pub fn walk(
         return;
     }
     let depth_err = s.plane_eps / s.n.x.abs();
+    let shrink = thin.unwrap_or(&ThinShrink::NONE);
     for yi in y_lo as u32..=y_hi as u32 {
-        let mut pl = Vec3::new(0.0, yi as f32, z);
-        let (x_lo, x_hi) = row_x_range(s, pl, x_span, depth_err);
+        let (x_lo, x_hi) = row_x_range(s, Vec3::new(0.0, yi as f32, z), x_span, depth_err);
         if x_lo > x_hi {
             continue;
         }
         let (x_lo, x_hi) = (x_lo as u32, x_hi as u32);
-        let mut first = None;
-        for xi in x_lo..=x_hi {
-            pl.x = xi as f32;
-            match decision(s, thin, pl) {
-                1 => {
-                    first = Some(xi);
-                    break;
-                }
-                2 => unsure(s.lo + UVec3::new(xi, yi, zi)),
-                _ => {}
+        let r = row_terms(s, shrink, yi as f32, z);
+        if r.yz_low < 0.0 {
+            // The YZ edges exclude the whole row (a row the narrowing would have skipped).
+            continue;
+        }
+        let mut list = |lanes: u32, x0: u32| {
+            for lane in BitIter(lanes) {
+                unsure(s.lo + UVec3::new(x0 + lane, yi, zi));
             }
+        };
+        // Inward from the low end, four voxels at a time; lanes past the first certain one are not counted.
+        let mut first = None;
+        let mut x0 = x_lo;
+        while x0 <= x_hi {
+            let (certain, maybe) = row_block(&r, x0 as f32);
+            let inside = lanes_up_to(x_hi - x0);
+            let (certain, maybe) = (certain & inside, maybe & inside);
+            if certain != 0 {
+                let lane = certain.trailing_zeros();
+                list(maybe & ((1 << lane) - 1), x0);
+                first = Some(x0 + lane);
+                break;
+            }
+            list(maybe, x0);
+            x0 += 4;
         }
         let Some(first) = first else { continue };
+        // Inward from the high end, down to the voxel after the first.
         let mut last = first;
-        for xi in (first + 1..=x_hi).rev() {
-            pl.x = xi as f32;
-            match decision(s, thin, pl) {
-                1 => {
-                    last = xi;
-                    break;
-                }
-                2 => unsure(s.lo + UVec3::new(xi, yi, zi)),
-                _ => {}
+        let mut x1 = x_hi;
+        while x1 > first {
+            let x0 = x1.saturating_sub(3);
+            let (certain, maybe) = row_block(&r, x0 as f32);
+            // Lanes of voxels first + 1 ..= x1.
+            let inside = lanes_up_to(x1 - x0) & !lanes_up_to((first + 1).saturating_sub(x0).wrapping_sub(1));
+            let (certain, maybe) = (certain & inside, maybe & inside);
+            if certain != 0 {
+                let lane = 31 - certain.leading_zeros();
+                list(maybe & !lanes_up_to(lane), x0);
+                last = x0 + lane;
+                break;
+            }
+            list(maybe, x0);
+            x1 = x0.saturating_sub(1);
+            if x0 == 0 {
+                break;
             }
         }
         fill(s.lo.x + first, s.lo.x + last, s.lo.y + yi, s.lo.z + zi);
+    }
+}
+
+/// The mask of lanes `0..=n` of a four-lane block (all four for `n >= 3`; none for `n == u32::MAX`, i.e. -1).
+#[inline]
+fn lanes_up_to(n: u32) -> u32 {
+    if n == u32::MAX { 0 } else { (2u32 << n.min(3)) - 1 }
+}
+
+/// The set bits of a mask, lowest first.
+struct BitIter(u32);
+
+impl Iterator for BitIter {
+    type Item = u32;
+    fn next(&mut self) -> Option<u32> {
+        (self.0 != 0).then(|| {
+            let bit = self.0.trailing_zeros();
+            self.0 &= self.0 - 1;
+            bit
+        })
     }
 }
 

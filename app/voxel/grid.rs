@@ -215,23 +215,14 @@ impl GridSpec {
     }
 }
 
-/// The integer nearest to `x` (either one at a tie, which no tolerance below 1/2 cares about). A truncating
-/// conversion instead of `f64::round`, which is a libm call on the x86-64 baseline and ran once per coordinate.
+/// The integer nearest to `x` (ties to even; which one at a tie no tolerance below 1/2 cares about). Adding and
+/// subtracting `1.5 * 2^52` rounds to an integer in the FPU without a branch on the fraction: `f64::round` is a
+/// libm call on the x86-64 baseline, and comparing the fraction against 1/2 mispredicted on every other
+/// coordinate (together a sixth of the bunny's voxelization at 128).
 #[inline]
 fn nearest_integer(x: f64) -> f64 {
-    if x.abs() < 4.0e15 {
-        let t = x as i64 as f64;
-        let f = x - t;
-        if f >= 0.5 {
-            t + 1.0
-        } else if f <= -0.5 {
-            t - 1.0
-        } else {
-            t
-        }
-    } else {
-        x
-    }
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    if x.abs() < 2_251_799_813_685_248.0 { (x + MAGIC) - MAGIC } else { x }
 }
 
 /// `ceil(extent / h)`, at least 1. A quotient within `tolerance` of an integer counts as that integer, matching

@@ -1,6 +1,6 @@
 //! The overlap test of the CPU reference: the Schwarz–Seidel 2010 triangle/box test, set up once per triangle
-//! ([`setup_triangle`]) and decided per voxel ([`voxel_decision`] in f32, [`voxel_overlaps_exact`] where f32 cannot
-//! be sure). It mirrors the functions of the same names in `shaders/surface.wgsl`; [`super::thin`] moves its values
+//! ([`setup_triangle`]), its f32 values laid out per row of voxels ([`row_terms`]) and decided per voxel
+//! ([`decision_at`] in f32, [`voxel_overlaps_exact`] where f32 cannot be sure). It mirrors the functions of the same names in `shaders/surface.wgsl`; [`super::thin`] moves its values
 //! inward for `surface6`, and [`super::cpu`] walks the voxels with it.
 //!
 //! Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on coordinates rounded
@@ -27,7 +27,7 @@
 
 pub use super::exact::{ERROR_FACTOR, ceil, dot3, exact_normal_component, floor};
 use super::lattice::Lattice;
-use glam::{IVec3, UVec3, Vec2, Vec3};
+use glam::{IVec3, UVec3, Vec2, Vec3, Vec4};
 
 /// `a · q + d`: an edge function.
 #[inline]
@@ -294,41 +294,87 @@ pub fn voxel_overlaps_exact(s: &TriangleSetup, p: UVec3) -> bool {
         && edge_test(s, &s.zx, 2, p, Vec2::new(pl.z, pl.x))
 }
 
-/// The overlap test in f32 only: `1` when the voxel certainly overlaps, `0` when it certainly does not, `2` when
-/// some sign test is within its error bound and [`voxel_overlaps_exact`] must decide. A value `v` with bound `e`
-/// is certainly non-negative when `v - e >= 0` and certainly negative when `v + e < 0` (a rounded sum or
-/// difference of two floats has the sign of the exact one), so two minima over the eleven values decide. The
-/// common case costs little more than the plain f32 test; the shader defers the rare `2` to a separate pass.
-#[inline(always)]
-pub fn voxel_decision(s: &TriangleSetup, pl: Vec3) -> u32 {
-    let np = dot3(s.n, pl);
-    let v1 = np + s.d1;
-    let v2 = -(np + s.d2);
-    let values = |e: &Edges, q: Vec2| {
-        Vec3::new(
-            edge_function(e.ne[0], q, e.de[0]),
-            edge_function(e.ne[1], q, e.de[1]),
-            edge_function(e.ne[2], q, e.de[2]),
-        )
-    };
-    let xy = values(&s.xy, Vec2::new(pl.x, pl.y));
-    let yz = values(&s.yz, Vec2::new(pl.y, pl.z));
-    let zx = values(&s.zx, Vec2::new(pl.z, pl.x));
-    decide(s, v1.min(v2), xy, yz, zx)
+/// How far the thin (6-separating) test moves a triangle's plane and edge values inward, per triangle (computed
+/// in `thin.rs`, which owns that test): the thick test accepts a voxel when its box meets the plane
+/// (`|<n, centre> + d| <= (|n_x| + |n_y| + |n_z|) / 2`), the thin one when the plane passes within half a voxel of the centre along the normal's dominant axis
+/// (`<= max |n_k| / 2`, Schwarz & Seidel 2010 §3.2), so each plane value shrinks by half the two smaller normal
+/// components. Likewise each 2D edge test moves from the projected square to its inscribed diamond, which lowers
+/// the edge value by `min(|ne.x|, |ne.y|) / 2`. Both shrinks are exact halvings of at most one rounded sum, well
+/// inside the error bounds (which allow 32 roundings where the thick test needs 14), so the thin values keep them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinShrink {
+    pub plane: f32,
+    pub xy: Vec3,
+    pub yz: Vec3,
+    pub zx: Vec3,
 }
 
-/// The common end of [`voxel_decision`] and [`voxel_decision_thin`]: `plane` is the smaller of the two plane
-/// values, `xy`, `yz`, `zx` the edge values; each value `v` with bound `e` is certainly non-negative when
-/// `v - e >= 0` and certainly negative when `v + e < 0`, so two minima decide.
+impl ThinShrink {
+    /// No shrink: the thick test's values through the same [`row_terms`](super::overlap::row_terms).
+    pub const NONE: ThinShrink = ThinShrink { plane: 0.0, xy: Vec3::ZERO, yz: Vec3::ZERO, zx: Vec3::ZERO };
+}
+
+/// The f32 test values of one row of voxels (fixed local `y`, `z`; varying `x`) with the `x` factored out, as
+/// [`row_terms`] computes them once per row and [`decision_at`] evaluates them per voxel. The eight values that
+/// vary along the row are each `slope * x + k`, in two groups of four: the plane's lower and upper values
+/// (`v1 = <n,p> + d1`, `v2 = -(<n,p> + d2)`) and XY edges 0 and 1; XY edge 2 and ZX edges 0 to 2. The three YZ
+/// edge values are the same for the whole row, so only the two ends of their bounds are kept.
+///
+/// Why factored: each value is the same sum of products as before, added in another order (the row's part
+/// first), and every error bound here holds for any order of the sum (see [`setup_triangle`]), so the decisions
+/// stay exact; a row then costs a multiply and an add per value and voxel, which the CPU walk does for four
+/// voxels at once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowTerms {
+    pub slope: [Vec4; 2],
+    pub k: [Vec4; 2],
+    /// The error bound of each value.
+    pub eps: [Vec4; 2],
+    /// The smallest of the YZ edge values plus their bounds, and of the values minus their bounds.
+    pub yz_low: f32,
+    pub yz_high: f32,
+}
+
+/// The [`RowTerms`] of local row `(y, z)`, every value moved inward by `sh` (the thin test's shrinks;
+/// [`ThinShrink::NONE`] for the thick test, where subtracting zero leaves each value as it is).
+#[inline]
+pub fn row_terms(s: &TriangleSetup, sh: &ThinShrink, y: f32, z: f32) -> RowTerms {
+    let rest = s.n.y * y + s.n.z * z;
+    let k1 = (rest + s.d1) - sh.plane;
+    let k2 = -((rest + s.d2) + sh.plane);
+    let kxy = |i: usize| (s.xy.ne[i].y * y + s.xy.de[i]) - sh.xy[i];
+    let kzx = |i: usize| (s.zx.ne[i].x * z + s.zx.de[i]) - sh.zx[i];
+    let yz = |i: usize| edge_function(s.yz.ne[i], Vec2::new(y, z), s.yz.de[i]) - sh.yz[i];
+    let yz = Vec3::new(yz(0), yz(1), yz(2));
+    let yz_eps = Vec3::from_array(s.yz.eps);
+    RowTerms {
+        slope: [
+            Vec4::new(s.n.x, -s.n.x, s.xy.ne[0].x, s.xy.ne[1].x),
+            Vec4::new(s.xy.ne[2].x, s.zx.ne[0].y, s.zx.ne[1].y, s.zx.ne[2].y),
+        ],
+        k: [Vec4::new(k1, k2, kxy(0), kxy(1)), Vec4::new(kxy(2), kzx(0), kzx(1), kzx(2))],
+        eps: [
+            Vec4::new(s.plane_eps, s.plane_eps, s.xy.eps[0], s.xy.eps[1]),
+            Vec4::new(s.xy.eps[2], s.zx.eps[0], s.zx.eps[1], s.zx.eps[2]),
+        ],
+        yz_low: (yz + yz_eps).min_element(),
+        yz_high: (yz - yz_eps).min_element(),
+    }
+}
+
+/// The overlap test in f32 only, for the voxel at local `x` of the row of `r`: `1` when it certainly overlaps,
+/// `0` when it certainly does not, `2` when some sign test is within its error bound and
+/// [`voxel_overlaps_exact`] (or its thin counterpart) must decide. A value `v` with bound `e` is certainly
+/// non-negative when `v - e >= 0` and certainly negative when `v + e < 0` (a rounded sum or difference of two
+/// floats has the sign of the exact one), so two minima over the eleven values decide. The shader defers the
+/// rare `2` to a separate pass.
 #[inline(always)]
-pub(super) fn decide(s: &TriangleSetup, plane: f32, xy: Vec3, yz: Vec3, zx: Vec3) -> u32 {
-    let eps = |e: &Edges| Vec3::from_array(e.eps);
-    let low3 = (xy + eps(&s.xy)).min(yz + eps(&s.yz)).min(zx + eps(&s.zx));
-    let low = (plane + s.plane_eps).min(low3.x).min(low3.y.min(low3.z));
+pub fn decision_at(r: &RowTerms, x: f32) -> u32 {
+    let v = [r.slope[0] * x + r.k[0], r.slope[1] * x + r.k[1]];
+    let low = (v[0] + r.eps[0]).min(v[1] + r.eps[1]).min_element().min(r.yz_low);
     if low < 0.0 {
         return 0;
     }
-    let high3 = (xy - eps(&s.xy)).min(yz - eps(&s.yz)).min(zx - eps(&s.zx));
-    let high = (plane - s.plane_eps).min(high3.x).min(high3.y.min(high3.z));
+    let high = (v[0] - r.eps[0]).min(v[1] - r.eps[1]).min_element().min(r.yz_high);
     if high >= 0.0 { 1 } else { 2 }
 }

@@ -3,23 +3,9 @@
 //! and the exact decisions on the same moved boundaries.
 
 use super::exact::{dot3, exact_normal_component};
-use super::overlap::{Edges, TriangleSetup, certain_sign, decide, edge_function, normal_sign};
+pub use super::overlap::ThinShrink;
+use super::overlap::{Edges, TriangleSetup, certain_sign, edge_function, normal_sign};
 use glam::{UVec3, Vec2, Vec3};
-
-/// How far the thin (6-separating) test moves a triangle's plane and edge values inward, per triangle: the
-/// thick test accepts a voxel when its box meets the plane (`|<n, centre> + d| <= (|n_x| + |n_y| + |n_z|) / 2`), the
-/// thin one when the plane passes within half a voxel of the centre along the normal's dominant axis
-/// (`<= max |n_k| / 2`, Schwarz & Seidel 2010 §3.2), so each plane value shrinks by half the two smaller normal
-/// components. Likewise each 2D edge test moves from the projected square to its inscribed diamond, which lowers
-/// the edge value by `min(|ne.x|, |ne.y|) / 2`. Both shrinks are exact halvings of at most one rounded sum, well
-/// inside the error bounds (which allow 32 roundings where the thick test needs 14), so the thin values keep them.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ThinShrink {
-    pub plane: f32,
-    pub xy: Vec3,
-    pub yz: Vec3,
-    pub zx: Vec3,
-}
 
 /// The half sum of the two smaller of `|n_x|, |n_y|, |n_z|` (see [`ThinShrink`]).
 #[inline]
@@ -110,23 +96,4 @@ pub fn voxel_overlaps_exact_thin(s: &TriangleSetup, p: UVec3) -> bool {
         && edge_test_thin(s, &s.xy, sh.xy, 0, p, Vec2::new(pl.x, pl.y))
         && edge_test_thin(s, &s.yz, sh.yz, 1, p, Vec2::new(pl.y, pl.z))
         && edge_test_thin(s, &s.zx, sh.zx, 2, p, Vec2::new(pl.z, pl.x))
-}
-
-/// [`voxel_decision`](super::overlap::voxel_decision) for the thin test: the same eleven values, each moved inward by its shrink.
-#[inline(always)]
-pub fn voxel_decision_thin(s: &TriangleSetup, sh: &ThinShrink, pl: Vec3) -> u32 {
-    let np = dot3(s.n, pl);
-    let v1 = np + s.d1 - sh.plane;
-    let v2 = -(np + s.d2 + sh.plane);
-    let values = |e: &Edges, q: Vec2, shrink: Vec3| {
-        Vec3::new(
-            edge_function(e.ne[0], q, e.de[0]) - shrink.x,
-            edge_function(e.ne[1], q, e.de[1]) - shrink.y,
-            edge_function(e.ne[2], q, e.de[2]) - shrink.z,
-        )
-    };
-    let xy = values(&s.xy, Vec2::new(pl.x, pl.y), sh.xy);
-    let yz = values(&s.yz, Vec2::new(pl.y, pl.z), sh.yz);
-    let zx = values(&s.zx, Vec2::new(pl.z, pl.x), sh.zx);
-    decide(s, v1.min(v2), xy, yz, zx)
 }

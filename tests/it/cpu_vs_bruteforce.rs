@@ -132,3 +132,49 @@ fn flat_meshes_and_single_cells() {
     let one = [[Vec3::ZERO, Vec3::X, Vec3::Y]];
     assert_eq!(check_exact(&one, UVec3::ONE, "single voxel").count(), 1);
 }
+
+#[test]
+fn four_voxel_blocks_decide_as_the_shaders_one_voxel_test_and_never_against_the_exact_test() {
+    // The CPU walk tests rows four voxels at a time (`row_block`), the shader one at a time (`decision_at`): the
+    // lanes must give the same decision bit for bit, and a certain decision must be the exact one, thick and
+    // thin, on lattice triangles (many ties) and decimal ones.
+    let mut rng = Rng::new(0x5eed_0003);
+    let dims = UVec3::new(21, 18, 19);
+    let mut mesh = lattice_mesh(&mut rng, 30, 16.0);
+    mesh.extend((0..30).map(|_| {
+        let mut p = || Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 17.3;
+        [p(), p(), p()]
+    }));
+    let (tris, lattice) = meshvox::voxel::on_lattice(&mesh, dims).expect("lattice");
+    let mut counts = [0u32; 3];
+    for &t in tris.iter() {
+        let s = cpu::setup_triangle(t, dims, lattice);
+        for thin in [None, Some(cpu::thin_shrink(&s))] {
+            let shrink = thin.unwrap_or(cpu::ThinShrink::NONE);
+            let top = s.hi - s.lo;
+            for (z, y) in (0..=top.z).flat_map(|z| (0..=top.y).map(move |y| (z, y))) {
+                let r = cpu::row_terms(&s, &shrink, y as f32, z as f32);
+                for x0 in (0..=top.x).step_by(4) {
+                    let (certain, unsure) = cpu::row_block(&r, x0 as f32);
+                    for lane in 0..4u32 {
+                        let d = cpu::decision_at(&r, (x0 + lane) as f32);
+                        let block = (certain >> lane & 1) + 2 * (unsure >> lane & 1);
+                        assert_eq!(block, d, "triangle {t:?}, row ({y}, {z}), voxel {}", x0 + lane);
+                        if x0 + lane > top.x {
+                            continue;
+                        }
+                        counts[d as usize] += 1;
+                        let p = s.lo + UVec3::new(x0 + lane, y, z);
+                        let exact = match thin {
+                            None => cpu::voxel_overlaps_exact(&s, p),
+                            Some(_) => cpu::voxel_overlaps_exact_thin(&s, p),
+                        };
+                        assert!(d == 2 || (d == 1) == exact, "triangle {t:?}, voxel {p}: f32 says {d}, exact {exact}");
+                    }
+                }
+            }
+        }
+    }
+    eprintln!("decisions: {} misses, {} overlaps, {} unsure", counts[0], counts[1], counts[2]);
+    assert!(counts[0] > 1000 && counts[1] > 1000 && counts[2] > 20, "every kind of decision must occur: {counts:?}");
+}
