@@ -192,7 +192,7 @@ pub fn walk(
             }
         };
         // Inward from the low end, four voxels at a time; lanes past the first certain one are not counted.
-        let mut first = None;
+        let mut found = None;
         let mut x0 = x_lo;
         while x0 <= x_hi {
             let (certain, maybe) = row_block(&r, x0 as f32);
@@ -201,36 +201,50 @@ pub fn walk(
             if certain != 0 {
                 let lane = certain.trailing_zeros();
                 list(maybe & ((1 << lane) - 1), x0);
-                first = Some(x0 + lane);
+                found = Some((x0, certain, maybe));
                 break;
             }
             list(maybe, x0);
             x0 += 4;
         }
-        let Some(first) = first else { continue };
-        // Inward from the high end, down to the voxel after the first.
-        let mut last = first;
-        let mut x1 = x_hi;
-        while x1 > first {
-            let x0 = x1.saturating_sub(3);
-            let (certain, maybe) = row_block(&r, x0 as f32);
-            // Lanes of voxels first + 1 ..= x1.
-            let inside = lanes_up_to(x1 - x0) & !lanes_up_to((first + 1).saturating_sub(x0).wrapping_sub(1));
-            let (certain, maybe) = (certain & inside, maybe & inside);
-            if certain != 0 {
-                let lane = 31 - certain.leading_zeros();
-                list(maybe & !lanes_up_to(lane), x0);
-                last = x0 + lane;
-                break;
-            }
-            list(maybe, x0);
-            x1 = x0.saturating_sub(1);
-            if x0 == 0 {
-                break;
-            }
-        }
+        let Some((x0, certain, maybe)) = found else { continue };
+        let first = x0 + certain.trailing_zeros();
+        let last = if x_hi < x0 + 4 {
+            // The block that found the first reaches the row's end (a short row): the high end's test would be
+            // this block again.
+            let lane = 31 - certain.leading_zeros();
+            list(maybe & !lanes_up_to(lane), x0);
+            x0 + lane
+        } else {
+            last_certain(&r, first, x_hi, &mut list)
+        };
         fill(s.lo.x + first, s.lo.x + last, s.lo.y + yi, s.lo.z + zi);
     }
+}
+
+/// Inward from the high end `x_hi` of a row, four voxels at a time, down to the voxel after `first`: the last
+/// voxel the row certainly overlaps (`first` when there is none after it); `list(lanes, x0)` receives the lanes
+/// of block `x0` the exact test must decide on the way.
+fn last_certain(r: &RowTerms, first: u32, x_hi: u32, mut list: impl FnMut(u32, u32)) -> u32 {
+    let mut x1 = x_hi;
+    while x1 > first {
+        let x0 = x1.saturating_sub(3);
+        let (certain, maybe) = row_block(r, x0 as f32);
+        // Lanes of voxels first + 1 ..= x1.
+        let inside = lanes_up_to(x1 - x0) & !lanes_up_to((first + 1).saturating_sub(x0).wrapping_sub(1));
+        let (certain, maybe) = (certain & inside, maybe & inside);
+        if certain != 0 {
+            let lane = 31 - certain.leading_zeros();
+            list(maybe & !lanes_up_to(lane), x0);
+            return x0 + lane;
+        }
+        list(maybe, x0);
+        if x0 == 0 {
+            break;
+        }
+        x1 = x0 - 1;
+    }
+    first
 }
 
 /// The mask of lanes `0..=n` of a four-lane block (all four for `n >= 3`; none for `n == u32::MAX`, i.e. -1).
