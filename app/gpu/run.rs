@@ -12,7 +12,7 @@
 //! Each step that allocates or submits runs inside error scopes ([`scoped`]), so a failure names its step.
 
 use super::compact::{CompactVoxels, Slab};
-use super::readback::{PassTimer, first_word, read_buffer, read_buffers, wait};
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers, stream_buffer, wait};
 use super::solid::SolidRun;
 use super::util::{pipeline_with, scoped, storage_buffer};
 use super::voxelize::{
@@ -361,7 +361,9 @@ impl<'a> Run<'a> {
         let b = &self.buffers;
         let reading_grid = self.grid.is_some() || self.leaves.is_some();
         let mut ranges = Vec::new();
-        if reading_grid {
+        // A sparse run takes the slab whole (its leaves are cut from whole layers); a dense grid is streamed into
+        // the host grid below, once the counters say the slab is complete.
+        if self.leaves.is_some() {
             ranges.push((&b.slab, 0, slab.words * 4));
         }
         if reading_grid || self.presized.is_some() {
@@ -380,7 +382,7 @@ impl<'a> Run<'a> {
         }
         let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
         let mut parts = parts.into_iter();
-        let bytes = if reading_grid { parts.next() } else { None };
+        let bytes = if self.leaves.is_some() { parts.next() } else { None };
         let listed = match reading_grid || self.presized.is_some() {
             true => first_word(&parts.next().unwrap_or_default()).unwrap_or(0),
             false => 0,
@@ -404,12 +406,15 @@ impl<'a> Run<'a> {
             *self.exact_tests.get_or_insert(0) += listed as u64;
             leaves.set_rows(bytemuck::cast_slice::<u8, u32>(&bytes.unwrap_or_default()), self.spec, slab.z0);
         } else if let Some(host) = self.grid.as_mut() {
-            let bytes = bytes.unwrap_or_default();
             *self.exact_tests.get_or_insert(0) += listed as u64;
             let dst = &mut host.words[start..start + slab.words as usize];
-            for (d, s) in dst.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(&bytes)) {
-                *d |= *s;
-            }
+            stream_buffer(device, &gpu.queue, &self.v.streams, &b.slab, slab.words * 4, |at, bytes| {
+                let words = &mut dst[at as usize / 4..];
+                for (d, s) in words.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(bytes)) {
+                    *d |= *s;
+                }
+            })
+            .await?;
         }
         if timed > 0
             && let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next())

@@ -128,6 +128,8 @@ pub struct GpuVoxelizer {
     /// and runs that never ask for them do not pay for their compilation (seconds on SwiftShader).
     pub(super) thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
     pub(super) solid: OnceLock<SolidPipelines>,
+    /// The staging buffers dense grids are read back through, kept between runs.
+    pub(super) streams: super::readback::StreamPool,
 }
 
 impl GpuVoxelizer {
@@ -167,6 +169,7 @@ impl GpuVoxelizer {
             compactor: OnceLock::new(),
             thin: OnceLock::new(),
             solid: OnceLock::new(),
+            streams: Default::default(),
             module,
             layout,
             dispatch_layout,
