@@ -24,9 +24,9 @@ bash web/install.sh
 
 rm -rf web/dist
 mkdir -p web/dist
-# The features the Rust wasm32 target enables by default, which wasm-opt must accept.
+# The features the Rust wasm32 target enables by default, and SIMD (.cargo/config.toml), which wasm-opt must accept.
 features="--enable-bulk-memory --enable-nontrapping-float-to-int --enable-sign-ext --enable-mutable-globals
-  --enable-reference-types --enable-multivalue"
+  --enable-reference-types --enable-multivalue --enable-simd"
 for build in webgpu webgl; do
   if [ $build = webgpu ]; then name=meshvox; flags=(); else name=meshvox_gl; flags=(--features webgl); fi
   # The `web` profile (Cargo.toml): size-optimised, whole-program LTO.

@@ -29,7 +29,8 @@ use web_time::Instant;
 /// A device and its compiled pipelines.
 pub(super) struct OnGpu {
     pub(super) gpu: Gpu,
-    voxelizer: GpuVoxelizer,
+    /// Made when the engine is opened, or for the browser's viewer after its first frame ([`Engine::warm_up`]).
+    voxelizer: OnceLock<GpuVoxelizer>,
     /// Compiled the first time a coloured mesh is voxelized.
     colourer: OnceLock<GpuColourer>,
     distance: OnceLock<GpuDistance>,
@@ -63,7 +64,7 @@ impl Engine {
             pollster::block_on(Gpu::from_adapter(adapter)).map(Ok)
         });
         match opened {
-            Ok(Ok(gpu)) => Ok(Engine::gpu(gpu, auto, false, t)),
+            Ok(Ok(gpu)) => Ok(Engine::gpu(gpu, auto, false, t, true)),
             Ok(Err(software)) => Ok(Engine::cpu(Some(software_reason(&software)))),
             Err(e) if auto => {
                 let mut engine = Engine::cpu(None);
@@ -80,30 +81,55 @@ impl Engine {
         match backend {
             Backend::Cpu => Ok(Engine::cpu(None)),
             Backend::Gpu if !gpu.has_compute() => Err(GpuError::NoCompute.into()),
-            Backend::Gpu => Ok(Engine::gpu(gpu.clone(), false, true, t)),
+            Backend::Gpu => Ok(Engine::gpu(gpu.clone(), false, true, t, true)),
             Backend::Auto if !gpu.has_compute() => Ok(Engine::cpu(Some(no_compute_reason()))),
             Backend::Auto if gpu.summary.is_software() && !software_gpu_preferred() => {
                 Ok(Engine::cpu(Some(software_reason(&gpu.summary))))
             }
-            Backend::Auto => Ok(Engine::gpu(gpu.clone(), true, true, t)),
+            Backend::Auto => Ok(Engine::gpu(gpu.clone(), true, true, t, true)),
         }
     }
 
     /// The viewer's engine: compute on its drawing device whatever the adapter (see the module's documentation),
     /// the CPU standing in where that device has no compute or fails.
+    ///
+    /// In the browser the compute pipelines are made later, by [`Engine::warm_up`] or the first GPU job: while
+    /// the GPU process compiles them (1.3–1.6 s on SwiftShader) it compiles nothing else, so the first frame's
+    /// drawing pipelines would wait behind them.
     pub fn interactive(gpu: &Gpu) -> Engine {
         match gpu.has_compute() {
-            true => Engine::gpu(gpu.clone(), true, true, Instant::now()),
+            true => Engine::gpu(gpu.clone(), true, true, Instant::now(), !cfg!(target_arch = "wasm32")),
             false => Engine::cpu(Some(no_compute_reason())),
         }
     }
 
-    fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant) -> Engine {
-        let voxelizer = GpuVoxelizer::new(&gpu);
+    /// Makes the GPU's voxelization pipelines now, if this engine has a GPU and has not made them yet (in the
+    /// browser the call returns at once and the GPU process compiles them in the background).
+    pub fn warm_up(&self) {
+        if let Some(on) = &self.gpu {
+            on.voxelizer();
+        }
+    }
+
+    /// The engine for a web page's first voxels: the CPU, while the browser's GPU process compiles the
+    /// pipelines [`Engine::interactive`] has just created on `gpu` (1.3–1.6 s of SwiftShader's time, during which
+    /// the first GPU dispatch would wait). `None` where `gpu` has no compute: then the CPU does every job anyway.
+    pub fn first_frame(gpu: &Gpu) -> Option<Engine> {
+        gpu.has_compute().then(|| Engine::cpu(Some("the first frame, while the GPU compiles its pipelines".into())))
+    }
+
+    /// `eager`: make the voxelization pipelines now, as part of opening (else at the first GPU job or
+    /// [`Engine::warm_up`]).
+    fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant, eager: bool) -> Engine {
+        let voxelizer = OnceLock::new();
         let (colourer, distance) = (OnceLock::new(), OnceLock::new());
         let (turn, busy_ns) = (async_lock::Mutex::new(()), AtomicU64::new(0));
         let on_gpu = OnGpu { gpu, voxelizer, colourer, distance, fallback, shared, turn, busy_ns };
-        Engine { gpu: Some(on_gpu), setup_ms: super::ms(since), ..Engine::cpu(None) }
+        let engine = Engine { gpu: Some(on_gpu), ..Engine::cpu(None) };
+        if eager {
+            engine.warm_up();
+        }
+        Engine { setup_ms: super::ms(since), ..engine }
     }
 
     /// The adapter voxelizations run on, if any.
@@ -121,6 +147,10 @@ fn no_compute_reason() -> String {
 }
 
 impl OnGpu {
+    fn voxelizer(&self) -> &GpuVoxelizer {
+        self.voxelizer.get_or_init(|| GpuVoxelizer::new(&self.gpu))
+    }
+
     /// The grid on the GPU, or (`Ok(Err(..))`) why the CPU is to make it instead.
     pub(super) async fn voxels(
         &self,
@@ -148,7 +178,7 @@ impl OnGpu {
         };
         let voxelized = {
             let _turn = self.turn().await;
-            self.voxelizer.voxelize_async(&self.gpu, tris, spec, &options).await
+            self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await
         };
         match voxelized {
             Ok(out) => {

@@ -31,6 +31,9 @@ pub(super) struct Pending {
     pub(super) outcome: Rc<RefCell<Option<Outcome>>>,
 }
 
+/// The largest resolution the page's first voxelization runs on the CPU at ([`Engine::first_frame`](crate::engine::Engine::first_frame)).
+const FIRST_FRAME_ON_CPU: u32 = 128;
+
 /// What to do after the GPU device is lost: eframe's device (which also draws) does not come back by itself.
 #[cfg(not(target_arch = "wasm32"))]
 pub(super) const RESTART: &str = "restart the viewer to get a new one";
@@ -56,9 +59,14 @@ impl ViewerApp {
         self.needs_voxelize = false;
         let Some(mesh) = self.mesh.clone() else { return };
         let outcome = Rc::new(RefCell::new(None));
+        // The page's first voxels come from the CPU while the GPU compiles its pipelines, where the job is small
+        // enough for the CPU to be the quicker (the default view is 64; a shared link may ask for more).
+        let engine = match self.first_engine.take() {
+            Some(first) if self.resolution <= FIRST_FRAME_ON_CPU => first,
+            _ => self.engine.clone(),
+        };
         let task = {
-            let (engine, outcome, ctx, name) =
-                (self.engine.clone(), outcome.clone(), ctx.clone(), self.mesh_label.clone());
+            let (outcome, ctx, name) = (outcome.clone(), ctx.clone(), self.mesh_label.clone());
             let request = Request {
                 axis: self.axis,
                 max_memory: host_budget(),
@@ -125,6 +133,7 @@ impl ViewerApp {
             mode: p.mode,
             gpu_ms: done.report.gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
+            on_gpu: !done.report.backend.starts_with("cpu"),
             voxel_size: grid.spec.voxel_size,
             coloured: done.colours.is_some(),
         });
@@ -154,7 +163,7 @@ impl ViewerApp {
         web::publish_status(
             self.stats.as_ref(),
             &self.gpu.summary,
-            self.engine.uses_gpu(),
+            self.stats.as_ref().map_or(self.engine.uses_gpu(), |s| s.on_gpu),
             self.hover,
             self.error.as_deref(),
         );

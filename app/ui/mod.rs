@@ -46,6 +46,8 @@ pub struct Stats {
     pub mode: Mode,
     pub gpu_ms: Option<f64>,
     pub voxelize_ms: f64,
+    /// Whether the GPU made these voxels (the page's first ones come from the CPU: [`Engine::first_frame`]).
+    pub on_gpu: bool,
     /// Edge length of a voxel, in the mesh's units.
     pub voxel_size: f64,
     /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
@@ -56,6 +58,8 @@ pub struct ViewerApp {
     gpu: Gpu,
     /// Voxelizes on `gpu` (see [`Engine::interactive`]), or on the CPU where it has no compute (WebGL2).
     engine: Rc<Engine>,
+    /// In the browser, the engine of the first voxelization ([`Engine::first_frame`]), taken by it.
+    first_engine: Option<Rc<Engine>>,
     renderer: CubeRenderer,
     scene: Option<Scene>,
     /// Bumped for every new scene, so the view knows to redraw.
@@ -113,10 +117,14 @@ impl ViewerApp {
         // viewer can report them and keep running.
         let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
         let engine = Rc::new(Engine::interactive(&gpu));
+        // Natively the pipelines are compiled by the time `interactive` returns; in the browser the GPU process
+        // compiles them while the first frame's voxels come from the CPU.
+        let first_engine = cfg!(target_arch = "wasm32").then(|| Engine::first_frame(&gpu)).flatten().map(Rc::new);
         let renderer = CubeRenderer::new(&rs.device, render::target_format(&rs.device), TARGET_SAMPLES);
         let mut app = ViewerApp {
             gpu,
             engine,
+            first_engine,
             renderer,
             scene: None,
             scene_version: 0,
@@ -328,6 +336,11 @@ impl eframe::App for ViewerApp {
         self.preset_keys(ui.ctx());
         #[cfg(target_arch = "wasm32")]
         self.take_web_commands();
+        // Once a frame with the first voxels has gone to the GPU, the browser may compile the GPU's compute
+        // pipelines while they are looked at (see `Engine::interactive`); a no-op once made, and natively.
+        if self.stats.is_some() {
+            self.engine.warm_up();
+        }
         self.finish_voxelize();
         if self.needs_voxelize && self.pending.is_none() {
             self.start_voxelize(ui.ctx());
