@@ -495,16 +495,17 @@ fn walk(item: u32) {
         shrink = thin_shrink(s);
     }
     for (var yi = u32(ys.x); yi <= u32(ys.y); yi++) {
+        // A row the YZ edges exclude has no voxel to test, nor an x range to narrow.
+        let terms = row_terms(s, shrink, f32(yi), z);
+        if terms.yz_low < 0.0 {
+            continue;
+        }
         let r = row_x_range(s, vec3<f32>(0.0, f32(yi), z), x_span, depth_err);
         if r.x > r.y {
             continue;
         }
         let x_lo = u32(r.x);
         let x_hi = u32(r.y);
-        let terms = row_terms(s, shrink, f32(yi), z);
-        if terms.yz_low < 0.0 {
-            continue;
-        }
         var first = x_hi + 1u;
         for (var xi = x_lo; xi <= x_hi; xi++) {
             let d = decision_at(terms, f32(xi));

@@ -111,11 +111,11 @@ impl Engine {
         }
     }
 
-    /// The engine for a web page's first voxels: the CPU, while the browser's GPU process compiles the
-    /// pipelines [`Engine::interactive`] has just created on `gpu` (1.3–1.6 s of SwiftShader's time, during which
-    /// the first GPU dispatch would wait). `None` where `gpu` has no compute: then the CPU does every job anyway.
+    /// The engine for a web page's first voxels: the CPU, because in the browser [`Engine::interactive`] makes
+    /// its compute pipelines only after that frame (their compilation took SwiftShader 1.3–1.6 s, and the first
+    /// GPU dispatch would wait for it). `None` where `gpu` has no compute: then the CPU does every job anyway.
     pub fn first_frame(gpu: &Gpu) -> Option<Engine> {
-        gpu.has_compute().then(|| Engine::cpu(Some("the first frame, while the GPU compiles its pipelines".into())))
+        gpu.has_compute().then(|| Engine::cpu(Some("the first frame, before the GPU's pipelines are compiled".into())))
     }
 
     /// `eager`: make the voxelization pipelines now, as part of opening (else at the first GPU job or

@@ -121,8 +121,8 @@ impl StreamPool {
 }
 
 /// Reads the first `size` bytes of `source` (a multiple of four) through a pair of reused staging buffers, a
-/// chunk ([`STREAM_CHUNK`]) at a time, handing each chunk straight from the mapped memory to `sink(offset, bytes)`: while
-/// the host takes one chunk, the other is being copied.
+/// chunk ([`STREAM_CHUNK`]) at a time, handing each chunk straight from the mapped memory to
+/// `sink(offset, bytes)`: while the host takes one chunk, the other is being copied.
 ///
 /// Why not one staging buffer the size of the grid, mapped and copied into a `Vec`, as [`read_buffers`] does:
 /// that touches three fresh regions of the grid's size (staging, `Vec`, host grid), and first touches are what

@@ -31,7 +31,8 @@ pub(super) struct Pending {
     pub(super) outcome: Rc<RefCell<Option<Outcome>>>,
 }
 
-/// The largest resolution the page's first voxelization runs on the CPU at ([`Engine::first_frame`](crate::engine::Engine::first_frame)).
+/// The largest resolution the page's first voxelization runs on the CPU at
+/// ([`Engine::first_frame`](crate::engine::Engine::first_frame)).
 const FIRST_FRAME_ON_CPU: u32 = 128;
 
 /// What to do after the GPU device is lost: eframe's device (which also draws) does not come back by itself.
@@ -59,7 +60,7 @@ impl ViewerApp {
         self.needs_voxelize = false;
         let Some(mesh) = self.mesh.clone() else { return };
         let outcome = Rc::new(RefCell::new(None));
-        // The page's first voxels come from the CPU while the GPU compiles its pipelines, where the job is small
+        // The page's first voxels come from the CPU, before the GPU's pipelines are made, where the job is small
         // enough for the CPU to be the quicker (the default view is 64; a shared link may ask for more).
         let engine = match self.first_engine.take() {
             Some(first) if self.resolution <= FIRST_FRAME_ON_CPU => first,

@@ -117,8 +117,8 @@ impl ViewerApp {
         // viewer can report them and keep running.
         let gpu = Gpu::from_parts(rs.adapter.clone(), rs.device.clone(), rs.queue.clone());
         let engine = Rc::new(Engine::interactive(&gpu));
-        // Natively the pipelines are compiled by the time `interactive` returns; in the browser the GPU process
-        // compiles them while the first frame's voxels come from the CPU.
+        // Natively the pipelines are compiled by the time `interactive` returns; in the browser they are made
+        // once the first frame, voxelized on the CPU, has gone out (`Engine::warm_up` in `ui`).
         let first_engine = cfg!(target_arch = "wasm32").then(|| Engine::first_frame(&gpu)).flatten().map(Rc::new);
         let renderer = CubeRenderer::new(&rs.device, render::target_format(&rs.device), TARGET_SAMPLES);
         let mut app = ViewerApp {

@@ -176,16 +176,17 @@ pub fn walk(
     let depth_err = s.plane_eps / s.n.x.abs();
     let shrink = thin.unwrap_or(&ThinShrink::NONE);
     for yi in y_lo as u32..=y_hi as u32 {
+        let r = row_terms(s, shrink, yi as f32, z);
+        if r.yz_low < 0.0 {
+            // The YZ edges exclude the whole row (a row the y narrowing would have skipped): no lane of it can
+            // be certain or unsure, so it needs no x range either.
+            continue;
+        }
         let (x_lo, x_hi) = row_x_range(s, Vec3::new(0.0, yi as f32, z), x_span, depth_err);
         if x_lo > x_hi {
             continue;
         }
         let (x_lo, x_hi) = (x_lo as u32, x_hi as u32);
-        let r = row_terms(s, shrink, yi as f32, z);
-        if r.yz_low < 0.0 {
-            // The YZ edges exclude the whole row (a row the narrowing would have skipped).
-            continue;
-        }
         let mut list = |lanes: u32, x0: u32| {
             for lane in BitIter(lanes) {
                 unsure(s.lo + UVec3::new(x0 + lane, yi, zi));

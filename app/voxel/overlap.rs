@@ -1,7 +1,8 @@
 //! The overlap test of the CPU reference: the Schwarz–Seidel 2010 triangle/box test, set up once per triangle
 //! ([`setup_triangle`]), its f32 values laid out per row of voxels ([`row_terms`]) and decided per voxel
-//! ([`decision_at`] in f32, [`voxel_overlaps_exact`] where f32 cannot be sure). It mirrors the functions of the same names in `shaders/surface.wgsl`; [`super::thin`] moves its values
-//! inward for `surface6`, and [`super::cpu`] walks the voxels with it.
+//! ([`decision_at`] in f32, [`voxel_overlaps_exact`] where f32 cannot be sure). It mirrors the functions of the
+//! same names in `shaders/surface.wgsl`; [`super::thin`] moves its values inward for `surface6`, and
+//! [`super::cpu`] walks the voxels with it.
 //!
 //! Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on coordinates rounded
 //! onto the fixed-point [`Lattice`]: voxel `(i, j, k)` is the box with minimum corner `p = (i, j, k)` and size
@@ -296,9 +297,9 @@ pub fn voxel_overlaps_exact(s: &TriangleSetup, p: UVec3) -> bool {
 
 /// How far the thin (6-separating) test moves a triangle's plane and edge values inward, per triangle (computed
 /// in `thin.rs`, which owns that test): the thick test accepts a voxel when its box meets the plane
-/// (`|<n, centre> + d| <= (|n_x| + |n_y| + |n_z|) / 2`), the thin one when the plane passes within half a voxel of the centre along the normal's dominant axis
-/// (`<= max |n_k| / 2`, Schwarz & Seidel 2010 §3.2), so each plane value shrinks by half the two smaller normal
-/// components. Likewise each 2D edge test moves from the projected square to its inscribed diamond, which lowers
+/// (`|<n, centre> + d| <= (|n_x| + |n_y| + |n_z|) / 2`), the thin one when the plane passes within half a voxel
+/// of the centre along the normal's dominant axis (`<= max |n_k| / 2`, Schwarz & Seidel 2010 §3.2), so each
+/// plane value shrinks by half the two smaller normal components. Likewise each 2D edge test moves from the projected square to its inscribed diamond, which lowers
 /// the edge value by `min(|ne.x|, |ne.y|) / 2`. Both shrinks are exact halvings of at most one rounded sum, well
 /// inside the error bounds (which allow 32 roundings where the thick test needs 14), so the thin values keep them.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -310,7 +311,7 @@ pub struct ThinShrink {
 }
 
 impl ThinShrink {
-    /// No shrink: the thick test's values through the same [`row_terms`](super::overlap::row_terms).
+    /// No shrink: the thick test's values through the same [`row_terms`].
     pub const NONE: ThinShrink = ThinShrink { plane: 0.0, xy: Vec3::ZERO, yz: Vec3::ZERO, zx: Vec3::ZERO };
 }
 

@@ -216,10 +216,10 @@ async function startAndCheckBasics(browser, label) {
 /** The page on the browser's WebGPU: everything the page does. */
 async function webgpuPath(browser) {
   const { page, status, first, firstMs, changed } = await startAndCheckBasics(browser, "WebGPU");
-  // The first voxels come from the CPU while the browser compiles the compute pipelines; every later job runs
-  // on the GPU.
+  // The first voxels come from the CPU, before the page makes the compute pipelines; every later job runs on
+  // the GPU.
   const where = first.voxelizer === "gpu" ? `compute passes ${first.gpu_ms.toFixed(1)} ms`
-    : "on the CPU while the GPU compiles its pipelines";
+    : "on the CPU, before the GPU's pipelines are made";
   console.log(`WebGPU build: meshvox_bg.wasm ${await sizeOf("meshvox_bg.wasm")}; ` +
     `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
     `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms (${where})`);
