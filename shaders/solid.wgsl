@@ -16,8 +16,8 @@ struct SolidParams {
     slab_z0: u32,
     slab_z1: u32,
     edge_count: u32,
-    // The boundary loops' YZ boxes (lo.y, lo.z, hi.y, hi.z) follow the edges in `boundary`.
-    box_count: u32,
+    // The boundary's pieces follow the edges in `boundary`: (lo.y, lo.z, hi.y, hi.z), (span, 0, 0, 0).
+    piece_count: u32,
     lattice_scale: f32,
     item_count: u32,
     // Capacity of `solid_unsure`'s row list.
@@ -35,17 +35,19 @@ struct SolidParams {
 // Per row: the segment's first index and length.
 @group(0) @binding(11) var<storage, read_write> row_segments: array<vec2<u32>>;
 @group(0) @binding(12) var<storage, read_write> crossings: array<u32>;
-// Two vec4 per edge: (a, weight), (b, 0); then one per boundary loop's box.
+// Two vec4 per edge: (a, weight), (b, span); then two per boundary piece.
 @group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
 @group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
 // Per triangle, its first work item (exclusive prefix sum of its items, from the host).
 @group(0) @binding(16) var<storage, read> item_offsets: array<u32>;
-// Word 0: how many rows this slab could not decide as the CPU does (see `inside_open_certain`); then those rows
+// Word 0: how many rows this slab could not decide as the CPU does (see `certain_side`); then those rows
 // (z * dims.y + y), up to `unsure_capacity`. The host fills them with the CPU reference.
 @group(0) @binding(17) var<storage, read_write> solid_unsure: array<atomic<u32>>;
 
 const RUN_STACK: u32 = 40u;
+// The CPU's `NEAR`: pi less a margin.
+const NEAR: f32 = 3.14159265358979 * 0.99;
 // Rows per work item of the crossing passes: a triangle gets ceil(rows / ROWS_PER_ITEM) items (the host counts
 // them), so a dense mesh's small triangles take one invocation each and a coarse mesh's big ones spread over
 // many. (One workgroup per triangle, striding over its rows, idled most lanes on dense meshes, and lost writes on
@@ -313,12 +315,14 @@ fn cone_parts(a: vec3<f32>, b: vec3<f32>) -> vec4<f32> {
 
 const U: f32 = 5.9604645e-8;
 
-// The winding number and a bound on how far any conforming evaluation of it can be from the exact one
-// (derivation at the CPU reference's `winding_number_bounded`): (w, e).
-fn winding_number_bounded(count: i32, p: vec3<f32>) -> vec2<f32> {
+// The winding number, a bound on how far any conforming evaluation of it can be from the exact one, and a bound
+// on how far the exact one can move within `reach` voxels along the row (derivations at the CPU reference's
+// `winding_number_bounded`): (w, e, drift).
+fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32) -> vec3<f32> {
     var sum = 0.0;
     var magnitude = 0.0;
     var error = 0.0;
+    var rate = 0.0;
     for (var e = 0u; e < solid.edge_count; e++) {
         let ea = boundary[2u * e];
         let eb = boundary[2u * e + 1u];
@@ -341,75 +345,77 @@ fn winding_number_bounded(count: i32, p: vec3<f32>) -> vec2<f32> {
         }
         magnitude += abs(ea.w * angle);
         error += abs(ea.w) * 2.0 * (moved + abs(angle) * (1.0 / 2048.0) + 1e-30);
+        if reach > 0.0 {
+            let gap = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+            if gap > 0.0 {
+                rate += abs(ea.w) * eb.w / (gap * gap);
+            } else {
+                rate = 3.4e38;
+            }
+        }
     }
     let scale = 1.0 / (4.0 * 3.14159265358979);
     let w = f32(count) + sum * scale;
     let n = f32(solid.edge_count);
     let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * abs(w);
-    return vec2<f32>(w, bound);
+    return vec3<f32>(w, bound, min(reach * rate * scale * 1.01, 3.4e38));
 }
 
-// 1 where the winding number at the centre is certainly at least 1/2, 0 where certainly below, 2 where this
-// adapter's atan2 and sqrt could decide otherwise than the CPU's (the row then goes to the host).
-fn inside_open_certain(count: i32, k: u32, y: u32, z: u32) -> u32 {
-    let we = winding_number_bounded(count, vec3<f32>(f32(k) + 0.5, f32(y) + 0.5, f32(z) + 0.5));
-    if we.x - 0.5 > solid.margin * we.y {
+// The distance from the origin to the segment a b.
+fn segment_distance(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let ab = b - a;
+    let t = clamp(-dot3(a, ab) / dot3(ab, ab), 0.0, 1.0);
+    return length(a + ab * t);
+}
+
+// 1 where every point the bounds cover is at least 1/2, 0 where every one is below, 2 where they do not tell.
+fn certain_side(w: f32, e: f32, drift: f32, margin: f32) -> u32 {
+    if w - 0.5 > margin * e + drift {
         return 1u;
     }
-    if 0.5 - we.x > solid.margin * we.y {
+    if 0.5 - w > margin * e + drift {
         return 0u;
     }
     return 2u;
 }
 
-// As the CPU's, but stops at the first voxel it cannot decide and returns false (what it set so far is what
-// the CPU sets too: every decision before was certain).
+// As the CPU's: each stretch certified whole from its middle's winding number and bounds, or its middle decided
+// alone and both halves beside it examined. Stops at the first voxel it cannot decide and returns false (what it
+// set so far is what the CPU sets too: every decision before was certain); the CPU decides such a voxel in f64.
 fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) -> bool {
-    var stack: array<vec4<u32>, RUN_STACK>;
-    let i_first = inside_open_certain(count, first, y, z);
-    let i_last = inside_open_certain(count, last, y, z);
-    if i_first == 2u || i_last == 2u {
-        return false;
-    }
-    stack[0] = vec4<u32>(first, last, i_first, i_last);
+    var stack: array<vec2<u32>, RUN_STACK>;
+    stack[0] = vec2<u32>(first, last);
     var len = 1u;
     while len > 0u {
         len -= 1u;
-        let e = stack[len];
-        let a = e.x;
-        let b = e.y;
-        let ia = e.z != 0u;
-        let ib = e.w != 0u;
-        if b - a <= 1u {
-            if ia {
-                set_range(base, a, a + 1u);
-            }
-            if ib {
-                set_range(base, b, b + 1u);
-            }
+        let a = stack[len].x;
+        let b = stack[len].y;
+        let m = a + (b - a) / 2u;
+        let p = vec3<f32>(f32(m) + 0.5, f32(y) + 0.5, f32(z) + 0.5);
+        let wed = winding_number_bounded(count, p, f32(b - m));
+        let whole = certain_side(wed.x, wed.y, wed.z, solid.margin);
+        if whole == 1u {
+            set_range(base, a, b + 1u);
             continue;
         }
-        let m = a + (b - a) / 2u;
-        let cm = inside_open_certain(count, m, y, z);
-        if cm == 2u {
+        if whole == 0u {
+            continue;
+        }
+        let at_m = certain_side(wed.x, wed.y, 0.0, solid.margin);
+        if at_m == 2u || len + 2u > RUN_STACK {
             return false;
         }
-        let im = cm == 1u;
-        if ia == ib && ia == im {
-            if ia {
-                set_range(base, a, b + 1u);
-            }
-            continue;
+        if at_m == 1u {
+            set_range(base, m, m + 1u);
         }
-        if len + 2u > RUN_STACK {
-            if im {
-                set_range(base, a, b + 1u);
-            }
-            continue;
+        if m < b {
+            stack[len] = vec2<u32>(m + 1u, b);
+            len += 1u;
         }
-        stack[len] = vec4<u32>(m, b, u32(im), u32(ib));
-        stack[len + 1u] = vec4<u32>(a, m, u32(ia), u32(im));
-        len += 2u;
+        if m > a {
+            stack[len] = vec2<u32>(a, m - 1u);
+            len += 1u;
+        }
     }
     return true;
 }
@@ -422,12 +428,25 @@ fn defer_row(y: u32, z: u32) {
     }
 }
 
+// Whether the boundary term may reach 1/2 somewhere along row (y, z): the CPU's `near_boundary` (why the sum of
+// each piece's YZ span over its YZ distance bounds it there).
 fn near_boundary(y: u32, z: u32) -> bool {
     let cy = f32(y) + 0.5;
     let cz = f32(z) + 0.5;
-    for (var i = 0u; i < solid.box_count; i++) {
-        let b = boundary[2u * solid.edge_count + i];
-        if cy >= b.x && cy <= b.z && cz >= b.y && cz <= b.w {
+    var sum = 0.0;
+    for (var i = 0u; i < solid.piece_count; i++) {
+        let box = boundary[2u * solid.edge_count + 2u * i];
+        let span = boundary[2u * solid.edge_count + 2u * i + 1u].x;
+        let dy = max(max(box.x - cy, cy - box.z), 0.0);
+        let dz = max(max(box.y - cz, cz - box.w), 0.0);
+        let d = sqrt(dy * dy + dz * dz);
+        if span > 0.0 {
+            if d == 0.0 {
+                return true;
+            }
+            sum += span / d;
+        }
+        if sum >= NEAR {
             return true;
         }
     }

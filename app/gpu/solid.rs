@@ -8,7 +8,7 @@
 use super::readback::{first_word, read_buffer};
 use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{Boundary, BoundaryEdge, boundary_boxes, boundary_edges, crossing_setup};
+use crate::voxel::solid::{Boundary, BoundaryEdge, boundary_edges, boundary_pieces, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
 
@@ -25,7 +25,7 @@ struct SolidParams {
     slab_z0: u32,
     slab_z1: u32,
     edge_count: u32,
-    box_count: u32,
+    piece_count: u32,
     lattice_scale: f32,
     item_count: u32,
     unsure_capacity: u32,
@@ -128,7 +128,7 @@ impl SolidPipelines {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
         let edges = boundary_edges(triangles, lattice);
-        let boxes = boundary_boxes(&edges);
+        let pieces = boundary_pieces(&edges);
         let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
@@ -140,16 +140,16 @@ impl SolidPipelines {
             slab_z0: 0,
             slab_z1: spec.dims.z,
             edge_count: edges.len() as u32,
-            box_count: boxes.len() as u32,
+            piece_count: pieces.len() as u32,
             lattice_scale: lattice.scale(),
             item_count: items as u32,
             unsure_capacity: UNSURE_ROWS,
-            margin: 2.0,
+            margin: crate::voxel::solid::MARGIN,
             _pad: [0; 3],
         };
-        // The edges (two vec4 each), then the loops' boxes (one vec4 each).
+        // The edges (two vec4 each), then the boundary's pieces (two vec4 each).
         let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
-        edge_bytes.extend_from_slice(bytemuck::cast_slice(&boxes));
+        edge_bytes.extend_from_slice(bytemuck::cast_slice(&pieces));
         let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;
         let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets, unsure } = buffers;
         let item_groups = dispatch_2d((items as u32).div_ceil(WG));
@@ -179,7 +179,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
-            boundary: Boundary { edges, boxes },
+            boundary: Boundary { edges, pieces },
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

@@ -23,26 +23,30 @@
 //!    fixed symbolic perturbation of the centre line, so a line through a shared edge or vertex is counted
 //!    exactly once (the flaw that makes other voxelizers fill or empty whole columns), and the crossing voxel is
 //!    found by an exact plane-side test.
-//! 2. `fill_row`: in each row the signed crossings sum to zero when the line does not pass through a hole (every
-//!    row of a closed mesh). Then the winding number at a centre is the running count, an integer, and nothing
-//!    else is needed. In a row whose crossings do not cancel, the line passes through a hole, and the winding
-//!    number varies smoothly between crossings: it is evaluated with the boundary term above at the first, middle
-//!    and last voxel of each run between crossings, and at every voxel of a run where those disagree.
+//! 2. `fill_row`: in each row the winding number at a centre is the running count plus the boundary term,
+//!    which is continuous along the row. Where the crossings cancel and the boundary term provably stays below
+//!    1/2 along the whole row ([`near_boundary`]: a bound from the YZ distance to each piece of the boundary,
+//!    which holds for any number of holes), the count is the answer: every row of a closed mesh and every row
+//!    far from the holes. Elsewhere every run between crossings is certified ([`fill_open_run`]): the winding
+//!    number at a stretch's middle, its error bound and a bound on how far it can drift over the stretch (from
+//!    the distances to the boundary edges) put the whole stretch on one side of 1/2, or the stretch is split
+//!    until they do, down to single voxels, which are decided in f64 where f32's bound cannot ([`inside_exact`]).
 //!
-//! Cost: one exact test per (triangle, covered row), one pass over the rows, and boundary-edge sums only in rows
-//! that pass through holes: it grows with rows and surface, not rows × triangles. A closed mesh costs no
-//! winding-number evaluation at all. Rows that pass near a hole without going through it keep the integer count;
-//! the true winding number differs from it by the solid angle the hole subtends, which reaches 1/2 only close to
-//! the hole, so such voxels are all near the mesh's open boundary.
+//! Cost: one exact test per (triangle, covered row), one pass over the rows, and boundary sums only in rows whose
+//! boundary term may reach 1/2: it grows with rows and surface, and with the holes, not rows × triangles. A
+//! closed mesh costs no winding-number evaluation at all; a stretch far from every boundary edge costs one.
 //!
-//! # The same decisions on every adapter
+//! # Exact, and the same decisions on every adapter
 //! The crossings are exact; the winding number is f32 `atan2` and `sqrt`, which a GPU need not compute as the
-//! CPU's libm does. The shader therefore evaluates [`winding_number_bounded`] and decides a voxel only where it is
-//! more than twice its error bound from 1/2 ([`inside_open_certain`]); a row with a voxel it cannot decide is
-//! listed, and the host fills it with this reference ([`fill_listed_rows`]). So the GPU's grid is this one.
+//! CPU's libm does. Both backends therefore evaluate [`winding_number_bounded`] and take a side only where the
+//! bounds put the true winding number on it ([`certain_side`]). What neither bound decides is a voxel within
+//! about 1e-3 of 1/2 (or on the strip swept from a boundary edge): the CPU decides it in f64, exactly up to f64's
+//! rounding, and the shader lists its row for the host, which fills it with this reference
+//! ([`fill_listed_rows`]). So every decision is the exact winding number's wherever it is more than 1e-6 from
+//! 1/2, and the GPU's grid is this one.
 
 use super::{Lattice, VoxelGrid};
-use glam::{I64Vec2, IVec3, UVec3, Vec3};
+use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
 use rayon::prelude::*;
 
 /// A crossing as stored on both backends: the first voxel at or beyond it along the row (at most `dims.x`),
@@ -234,20 +238,32 @@ pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) 
 }
 
 /// An edge of the mesh's open boundary, in grid space, with its multiplicity (negative when the boundary runs
-/// the other way). The 4-float layout is the shader's: `a.xyz, weight` then `b.xyz, 0`.
+/// the other way) and the length of its projection onto the YZ plane (what bounds how fast its strip's solid
+/// angle changes along a row). The 4-float layout is the shader's: `a.xyz, weight` then `b.xyz, span`.
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct BoundaryEdge {
     pub a: [f32; 3],
     pub weight: f32,
     pub b: [f32; 3],
-    pub _pad: f32,
+    pub span: f32,
 }
 
-/// A mesh's open boundary: its edges ([`boundary_edges`]) and their loops' boxes ([`boundary_boxes`]).
+/// A connected piece of the boundary (a hole's loop, on a mesh with holes): the YZ box of its edges and the sum
+/// of their YZ spans times their multiplicities. The shader's layout: `lo.yz, hi.yz` then `span, 0, 0, 0`.
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct BoundaryPiece {
+    pub lo: [f32; 2],
+    pub hi: [f32; 2],
+    pub span: f32,
+    pub _pad: [f32; 3],
+}
+
+/// A mesh's open boundary: its edges ([`boundary_edges`]) and their pieces ([`boundary_pieces`]).
 pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
-    pub boxes: Vec<[f32; 4]>,
+    pub pieces: Vec<BoundaryPiece>,
 }
 
 /// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles of
@@ -288,12 +304,10 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
             i += 1;
         }
         if weight != 0 {
-            edges.push(BoundaryEdge {
-                a: point(a).to_array(),
-                weight: weight as f32,
-                b: point(b).to_array(),
-                _pad: 0.0,
-            });
+            let (a, b) = (point(a), point(b));
+            // Rounded up a little: it only ever enlarges a bound.
+            let span = (b.y - a.y).hypot(b.z - a.z) * (1.0 + 1e-6);
+            edges.push(BoundaryEdge { a: a.to_array(), weight: weight as f32, b: b.to_array(), span });
         }
     }
     edges
@@ -318,35 +332,36 @@ pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32, f32) {
     (la, lb, num, den)
 }
 
-/// The generalized winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the
-/// ray from `p` towards -x meets) count `count`: +1 for each the ray leaves through, -1 for each it enters.
-pub fn winding_number(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> f32 {
-    let mut sum = 0.0f32;
-    for e in edges {
-        sum += e.weight * cone_solid_angle(Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-    }
-    count as f32 + sum * (1.0 / (4.0 * std::f32::consts::PI))
-}
-
 /// f32's unit roundoff, `2^-24`.
 const U: f32 = 1.0 / 16_777_216.0;
 
-/// [`winding_number`] with a bound on how far any conforming evaluation of it (the CPU's libm, or a GPU's
-/// `atan2`, `sqrt` and fused multiply-adds) can be from the exact winding number of the same inputs: `(w, e)`.
-/// `w` is [`winding_number`]'s value, computed in the same order. The GPU decides a voxel only where
-/// `|w - 1/2| > 2e` (its error and the CPU's each below `e`), and hands the row to the host otherwise, so that
-/// both backends make the same decision (see `shaders/solid.wgsl`).
+/// How many error bounds from 1/2 an f32 winding number must be for the reference (and by default the GPU) to
+/// take its side: each backend's error and the other's are below one bound.
+pub const MARGIN: f32 = 2.0;
+
+/// The winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the ray from `p`
+/// towards -x meets) count `count` (+1 for each the ray leaves through, -1 for each it enters), with two bounds:
+/// `(w, e, drift)`. `e` bounds how far any conforming evaluation of `w` (the CPU's libm, or a GPU's `atan2`,
+/// `sqrt` and fused multiply-adds) can be from the exact winding number of the same inputs; `drift` bounds how
+/// far the exact winding number can move between `p` and any point of the row within `reach` voxels of it that
+/// no crossing separates from `p` (0 when `reach` is 0).
 ///
-/// Per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the lengths are
-/// within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
+/// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
+/// lengths are within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
 /// `3u (|a_y b_z| + |a_z b_y|)`; `den`, a sum of six terms whose magnitudes add up to `S`, within `40u S`; then
 /// `atan2(num, den)` moves by at most `(|den| Δnum + |num| Δden) / (num² + den²)` (doubled for the first-order
 /// approximation) plus its own error, which WGSL allows to be 4096 ulps (`2^-11 |θ|`). Where `num² + den²` is
 /// too small for the first-order bound to mean anything (the point on the edge's line), or `num`'s sign is
-/// uncertain where `atan2` jumps (`den < 0`), the bound is infinite.
-/// The sum adds `n` roundings of at most `u Σ|terms|` each.
-pub fn winding_number_bounded(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> (f32, f32) {
-    let (mut sum, mut magnitude, mut error) = (0.0f32, 0.0f32, 0.0f32);
+/// uncertain where `atan2` jumps (`den < 0`), the bound is infinite. The sum adds `n` roundings of at most
+/// `u Σ|terms|` each.
+///
+/// The drift: along a run the crossing count is constant, and the derivative of an edge's strip angle along x is
+/// the x-component of its Biot–Savart integral, `∫ ((t × x̂) · r) / |r|³ ds` over the edge (`r` from the point to
+/// the edge), at most `span / D²` where `span` is the edge's YZ length and `D` the least distance from the
+/// stretch to the edge: the distance from `p` less `reach` (and less its own rounding: `2^-10` relatively and
+/// `16u (|a| + |b|)` absolutely, far more than an f32 point-to-segment distance is off by).
+pub fn winding_number_bounded(count: i32, p: Vec3, reach: f32, edges: &[BoundaryEdge]) -> (f32, f32, f32) {
+    let (mut sum, mut magnitude, mut error, mut rate) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
     for e in edges {
         let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
         let (la, lb, num, den) = cone_parts(a, b);
@@ -363,33 +378,69 @@ pub fn winding_number_bounded(count: i32, p: Vec3, edges: &[BoundaryEdge]) -> (f
         };
         magnitude += (e.weight * angle).abs();
         error += e.weight.abs() * 2.0 * (moved + angle.abs() * (1.0 / 2048.0) + 1e-30);
+        if reach > 0.0 {
+            let gap = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+            rate += if gap > 0.0 { e.weight.abs() * e.span / (gap * gap) } else { f32::INFINITY };
+        }
     }
     let scale = 1.0 / (4.0 * std::f32::consts::PI);
     let w = count as f32 + sum * scale;
     let n = edges.len() as f32;
     let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
-    (w, bound)
+    (w, bound, reach * rate * scale * 1.01)
 }
 
-/// Whether the winding number at the centre of voxel `k` of row `(y, z)` is certainly at least 1/2 (`1`),
-/// certainly below (`0`), or too close for a GPU's arithmetic to decide as the CPU's does (`2`): see
-/// [`winding_number_bounded`]. The shader's function of this name decides with it; the CPU reference decides with
-/// [`inside_open`], and a GPU row with a `2` is filled on the host by [`fill_listed_rows`].
-pub fn inside_open_certain(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> u32 {
-    let p = Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
-    let (w, e) = winding_number_bounded(count, p, edges);
-    if w - 0.5 > 2.0 * e {
+/// The distance from the origin to the segment `a b`.
+#[inline]
+pub fn segment_distance(a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let t = (-super::exact::dot3(a, ab) / super::exact::dot3(ab, ab)).clamp(0.0, 1.0);
+    (a + ab * t).length()
+}
+
+/// The side of 1/2 that every point the bounds of [`winding_number_bounded`] cover is certainly on: `1` (at
+/// least 1/2), `0` (below), or `2` when the bounds do not tell.
+#[inline]
+pub fn certain_side(w: f32, e: f32, drift: f32, margin: f32) -> u32 {
+    if w - 0.5 > margin * e + drift {
         1
-    } else if 0.5 - w > 2.0 * e {
+    } else if 0.5 - w > margin * e + drift {
         0
     } else {
         2
     }
 }
 
+/// Whether the winding number at the centre of voxel `k` of row `(y, z)` is at least 1/2, in f64, for a voxel
+/// the f32 bounds leave open: within about `1e-3` of 1/2, or on the strip swept from a boundary edge. From the
+/// same inputs, the strip's `num` is exact in f64 (lattice coordinates less a voxel centre are integers below
+/// `2^25` in half lattice steps, so the products and their difference are below `2^53` of them), so a point on a
+/// strip is recognised exactly and decided as the crossing count's tie rule moves the row, by `(-ε, ε²)` in
+/// (y, z): `num` then has the sign of `Δz`, or of `Δy` where `Δz = 0`. What is left is f64's rounding of the
+/// lengths, `atan2` and the sum, some `1e-13` per edge: the decision is exact wherever the winding number is more
+/// than `1e-6` from 1/2, the tolerance docs/modes.md states.
+pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> bool {
+    let p = DVec3::new(k as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5);
+    let mut sum = 0.0f64;
+    for e in edges {
+        let (ea, eb) = (Vec3::from_array(e.a).as_dvec3(), Vec3::from_array(e.b).as_dvec3());
+        let (a, b) = (ea - p, eb - p);
+        let (la, lb) = (a.length(), b.length());
+        let mut num = a.y * b.z - a.z * b.y;
+        let den = la * lb + a.dot(b) + a.x * lb + b.x * la;
+        let d = eb - ea;
+        if num == 0.0 && (d.y != 0.0 || d.z != 0.0) {
+            // (An edge along x has no strip: its angle is 0 whatever the perturbation.)
+            num = if d.z != 0.0 { d.z.signum() } else { d.y.signum() } * f64::MIN_POSITIVE;
+        }
+        sum += e.weight as f64 * 2.0 * num.atan2(den);
+    }
+    count as f64 + sum / (4.0 * std::f64::consts::PI) >= 0.5
+}
+
 /// The inside voxels of the listed rows (`z * dims.y + y`, as the GPU lists the rows it could not decide), each
 /// as its row's words from [`fill_row`]: the crossings of just these rows, then the CPU reference's fill.
-/// `boundary` is the mesh's, as the GPU run found it ([`boundary_edges`], [`boundary_boxes`]).
+/// `boundary` is the mesh's, as the GPU run found it ([`boundary_edges`], [`boundary_pieces`]).
 pub fn fill_listed_rows(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
@@ -420,7 +471,7 @@ pub fn fill_listed_rows(
                 a
             },
         );
-    let Boundary { edges, boxes } = boundary;
+    let Boundary { edges, pieces } = boundary;
     let wpr = dims.x.div_ceil(32) as usize;
     rows.iter()
         .zip(lists.iter_mut())
@@ -428,7 +479,7 @@ pub fn fill_listed_rows(
             list.sort_unstable();
             let (y, z) = (r % dims.y, r / dims.y);
             let mut words = vec![0u32; wpr];
-            fill_row(list, y, z, dims.x, near_boundary(y, z, boxes), edges, &mut words);
+            fill_row(list, y, z, dims.x, near_boundary(y, z, pieces), edges, &mut words);
             (r, words)
         })
         .collect()
@@ -447,17 +498,9 @@ fn set_range(row: &mut [u32], k0: u32, k1: u32) {
     }
 }
 
-/// Whether the centre of voxel `k` of row `(y, z)` is inside (winding number >= 1/2) in a row whose crossings do
-/// not cancel.
-#[inline]
-fn inside_open(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> bool {
-    winding_number(count, Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5), edges) >= 0.5
-}
-
-/// The YZ extents of the boundary's connected pieces (its loops, on a mesh with holes), each widened by a voxel,
-/// as `[lo_y, lo_z, hi_y, hi_z]`: rows whose centre line misses all of them keep the integer count where their
-/// crossings cancel (see [`fill_row`]). Pieces are found by joining edges that share an end point.
-pub fn boundary_boxes(edges: &[BoundaryEdge]) -> Vec<[f32; 4]> {
+/// The boundary's connected pieces (its loops, on a mesh with holes): each one's YZ box and the sum of its
+/// edges' YZ spans (see [`near_boundary`]). Pieces are found by joining edges that share an end point.
+pub fn boundary_pieces(edges: &[BoundaryEdge]) -> Vec<BoundaryPiece> {
     let mut ids = std::collections::HashMap::new();
     let mut parent: Vec<usize> = Vec::new();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -480,90 +523,110 @@ pub fn boundary_boxes(edges: &[BoundaryEdge]) -> Vec<[f32; 4]> {
             parent[ra.max(rb)] = ra.min(rb);
         }
     }
-    let mut boxes: Vec<(usize, [f32; 4])> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let mut pieces: Vec<BoundaryPiece> = Vec::new();
     for (e, &(a, _)) in edges.iter().zip(&ends) {
         let r = root(&mut parent, a);
-        let i = match boxes.iter().position(|(k, _)| *k == r) {
-            Some(i) => i,
-            None => {
-                boxes.push((r, [f32::MAX, f32::MAX, f32::MIN, f32::MIN]));
-                boxes.len() - 1
-            }
-        };
-        let b = &mut boxes[i].1;
+        let i = *index.entry(r).or_insert_with(|| {
+            let empty = BoundaryPiece { lo: [f32::MAX; 2], hi: [f32::MIN; 2], span: 0.0, _pad: [0.0; 3] };
+            pieces.push(empty);
+            pieces.len() - 1
+        });
+        let piece = &mut pieces[i];
         for p in [e.a, e.b] {
-            b[0] = b[0].min(p[1] - 1.0);
-            b[1] = b[1].min(p[2] - 1.0);
-            b[2] = b[2].max(p[1] + 1.0);
-            b[3] = b[3].max(p[2] + 1.0);
+            piece.lo = [piece.lo[0].min(p[1]), piece.lo[1].min(p[2])];
+            piece.hi = [piece.hi[0].max(p[1]), piece.hi[1].max(p[2])];
+        }
+        piece.span += e.weight.abs() * e.span;
+    }
+    pieces
+}
+
+/// `Σ span / distance` over the pieces at which the boundary term of a row may reach 1/2 (see [`near_boundary`]):
+/// π, less a margin far above f32's rounding of the sum.
+const NEAR: f32 = std::f32::consts::PI * 0.99;
+
+/// Whether the boundary term of row `(y, z)` may reach 1/2 somewhere along it, so that the integer crossing count
+/// alone cannot decide its voxels. An edge's strip, seen from a point, is a spherical triangle with a corner at
+/// x̂, which lies in the lune between the half-planes through x̂ and each end: its solid angle is at most twice
+/// the angle `φ` the edge's YZ projection subtends from the row's (y, z), whatever x. So the boundary term is at
+/// most `Σ |weight| φ / 2π`, and `φ ≤ span / d` with `d` the YZ distance from the row to the edge, at least the
+/// distance to its piece's box: where `Σ span / d < π` over the pieces, the term stays below 1/2 on the whole
+/// row, the winding number is the integer count plus less than 1/2, and the count decides. This holds for any
+/// number of holes, however close together.
+#[inline]
+pub fn near_boundary(y: u32, z: u32, pieces: &[BoundaryPiece]) -> bool {
+    let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
+    let mut sum = 0.0f32;
+    for piece in pieces {
+        let dy = (piece.lo[0] - cy).max(cy - piece.hi[0]).max(0.0);
+        let dz = (piece.lo[1] - cz).max(cz - piece.hi[1]).max(0.0);
+        if piece.span > 0.0 {
+            sum += piece.span / (dy * dy + dz * dz).sqrt();
+        }
+        if sum >= NEAR {
+            return true;
         }
     }
-    boxes.into_iter().map(|(_, b)| b).collect()
+    false
 }
 
-/// Whether the centre line of row `(y, z)` passes through one of the boundary's boxes.
-#[inline]
-pub fn near_boundary(y: u32, z: u32, boxes: &[[f32; 4]]) -> bool {
-    let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
-    boxes.iter().any(|b| cy >= b[0] && cy <= b[2] && cz >= b[1] && cz <= b[3])
-}
-
-/// Most runs deeper than the stack holds would need a grid far beyond `MAX_DIM` voxels: bisection halves a run
-/// each level.
+/// Most runs deeper than the stack holds would need a grid far beyond `MAX_DIM` voxels: each level halves a run.
 pub const RUN_STACK: usize = 40;
 
-/// Sets the inside voxels of the run `first..=last` of row `(y, z)` in a row that passes through or near a hole,
-/// where `count` is the crossing count of the whole run. The winding number is evaluated at both ends and the
-/// middle; where all three agree the run takes their side, otherwise both halves are examined the same way.
-/// That bisects each place where the winding number crosses 1/2 in a logarithmic number of evaluations. (A
-/// winding number that dips across 1/2 and back between three agreeing samples, as only right beside a hole's
-/// rim can happen, is missed.) An explicit stack, as in the shader, which cannot recurse.
+/// Sets the inside voxels of the run `first..=last` of row `(y, z)` in a row whose boundary term may reach 1/2,
+/// where `count` is the crossing count of the whole run. Each stretch is certified, not sampled: the winding
+/// number at its middle, its error bound and its drift over the stretch ([`winding_number_bounded`]) either put
+/// the whole stretch on one side of 1/2 ([`certain_side`]), or the middle voxel is decided alone and the two
+/// halves beside it are examined the same way. A stretch far from every boundary edge takes one evaluation;
+/// close to a rim the stretches shrink to single voxels. A middle voxel the f32 bounds leave open is decided in
+/// f64 ([`inside_exact`]); the shader hands its row to the host there instead. An explicit stack, as in the
+/// shader, which cannot recurse.
 pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &[BoundaryEdge], row: &mut [u32]) {
-    let inside = |k: u32| inside_open(count, k, y, z, edges);
-    let mut stack = [(0u32, 0u32, false, false); RUN_STACK];
-    stack[0] = (first, last, inside(first), inside(last));
+    let mut stack = [(0u32, 0u32); RUN_STACK];
+    stack[0] = (first, last);
     let mut len = 1;
     while len > 0 {
         len -= 1;
-        let (a, b, ia, ib) = stack[len];
-        if b - a <= 1 {
-            if ia {
-                set_range(row, a, a + 1);
-            }
-            if ib {
-                set_range(row, b, b + 1);
-            }
-            continue;
-        }
+        let (a, b) = stack[len];
         let m = a + (b - a) / 2;
-        let im = inside(m);
-        if ia == ib && ia == im {
-            if ia {
-                set_range(row, a, b + 1);
+        let p = Vec3::new(m as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+        let (w, e, drift) = winding_number_bounded(count, p, (b - m) as f32, edges);
+        match certain_side(w, e, drift, MARGIN) {
+            1 => set_range(row, a, b + 1),
+            0 => {}
+            _ => {
+                let inside = match certain_side(w, e, 0.0, MARGIN) {
+                    2 => inside_exact(count, m, y, z, edges),
+                    side => side == 1,
+                };
+                if inside {
+                    set_range(row, m, m + 1);
+                }
+                if len + 2 > RUN_STACK {
+                    // Unreachable for grids within MAX_DIM; keeps the result exact if it were not.
+                    for k in (a..=b).filter(|&k| k != m && inside_exact(count, k, y, z, edges)) {
+                        set_range(row, k, k + 1);
+                    }
+                    continue;
+                }
+                if m < b {
+                    stack[len] = (m + 1, b);
+                    len += 1;
+                }
+                if m > a {
+                    stack[len] = (a, m - 1);
+                    len += 1;
+                }
             }
-            continue;
         }
-        if len + 2 > RUN_STACK {
-            // Unreachable for grids within MAX_DIM; keeps the result defined (the middle's side) if it were not.
-            if im {
-                set_range(row, a, b + 1);
-            }
-            continue;
-        }
-        stack[len] = (m, b, im, ib);
-        stack[len + 1] = (a, m, ia, im);
-        len += 2;
     }
 }
 
-/// Sets the inside voxels of row `(y, z)` given its crossings, sorted (see the module documentation).
-///
-/// Where the crossings cancel and the line stays clear of every boundary loop's box, the integer count is the
-/// winding number up to the boundary term, which is then below 1/2 for each loop: seen from a point outside the
-/// convex hull of a loop, any surface spanning it covers less than a hemisphere. (Several loops' terms add up;
-/// only where more than one large hole is close by could they pass 1/2 together.) Near a loop (`near`) the term
-/// can reach 1/2 even where the crossings cancel (beside a large hole), so such rows are evaluated like those
-/// through a hole.
+/// Sets the inside voxels of row `(y, z)` given its crossings, sorted (see the module documentation). Where the
+/// crossings cancel and the boundary term stays below 1/2 along the whole row (`near` false, see
+/// [`near_boundary`]: every row of a closed mesh, and every row far enough from the holes), the integer count
+/// decides; elsewhere every run between crossings is certified by [`fill_open_run`].
 pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, edges: &[BoundaryEdge], row: &mut [u32]) {
     let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
     let open = total != 0 || near;
@@ -594,12 +657,12 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
     let spec = grid.spec;
     let rows = column_crossings(triangles, spec.dims, lattice);
     let edges = boundary_edges(triangles, lattice);
-    let boxes = boundary_boxes(&edges);
+    let pieces = boundary_pieces(&edges);
     let wpr = spec.words_per_row();
     grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
         let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
         let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
-        let near = near_boundary(y, z, &boxes);
+        let near = near_boundary(y, z, &pieces);
         if list.is_empty() && !near {
             return;
         }

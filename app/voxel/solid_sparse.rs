@@ -12,7 +12,7 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::solid::{boundary_boxes, boundary_edges, column_crossings, fill_row, near_boundary};
+use super::solid::{boundary_edges, boundary_pieces, column_crossings, fill_row, near_boundary};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -40,7 +40,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
     let dims = spec.dims;
     let rows = column_crossings(triangles, dims, lattice);
     let edges = boundary_edges(triangles, lattice);
-    let boxes = boundary_boxes(&edges);
+    let pieces = boundary_pieces(&edges);
     let wpr = spec.words_per_row();
     let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
     let leaves_x = dims.x.div_ceil(8) as usize;
@@ -72,7 +72,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         }
                         let r = (z * dims.y + y) as usize;
                         let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-                        let near = near_boundary(y, z, &boxes);
+                        let near = near_boundary(y, z, &pieces);
                         if list.is_empty() && !near {
                             continue;
                         }

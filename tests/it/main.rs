@@ -15,6 +15,7 @@ mod formats;
 mod gpu;
 mod grid_convention;
 mod hostile;
+mod inside;
 mod layers;
 mod mesh_export;
 mod mesh_loading;
