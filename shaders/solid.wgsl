@@ -16,7 +16,7 @@ struct SolidParams {
     slab_z0: u32,
     slab_z1: u32,
     edge_count: u32,
-    // The boundary's pieces follow the edges in `boundary`: (lo.y, lo.z, hi.y, hi.z), (span, 0, 0, 0).
+    // The boundary's pieces follow the edges in `boundary`: (lo, span), (hi, area), (first, count, 0, 0).
     piece_count: u32,
     lattice_scale: f32,
     item_count: u32,
@@ -35,7 +35,7 @@ struct SolidParams {
 // Per row: the segment's first index and length.
 @group(0) @binding(11) var<storage, read_write> row_segments: array<vec2<u32>>;
 @group(0) @binding(12) var<storage, read_write> crossings: array<u32>;
-// Two vec4 per edge: (a, weight), (b, span); then two per boundary piece.
+// Two vec4 per edge: (a, weight), (b, span), grouped by piece; then three per boundary piece.
 @group(0) @binding(13) var<storage, read> boundary: array<vec4<f32>>;
 @group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
@@ -46,8 +46,8 @@ struct SolidParams {
 @group(0) @binding(17) var<storage, read_write> solid_unsure: array<atomic<u32>>;
 
 const RUN_STACK: u32 = 40u;
-// The CPU's `NEAR`: pi less a margin.
-const NEAR: f32 = 3.14159265358979 * 0.99;
+// The CPU's `NEAR`: 2 pi less a margin.
+const NEAR: f32 = 6.28318530717959 * 0.99;
 // Rows per work item of the crossing passes: a triangle gets ceil(rows / ROWS_PER_ITEM) items (the host counts
 // them), so a dense mesh's small triangles take one invocation each and a coarse mesh's big ones spread over
 // many. (One workgroup per triangle, striding over its rows, idled most lanes on dense meshes, and lost writes on
@@ -315,56 +315,94 @@ fn cone_parts(a: vec3<f32>, b: vec3<f32>) -> vec4<f32> {
 
 const U: f32 = 5.9604645e-8;
 
-// The winding number, a bound on how far any conforming evaluation of it can be from the exact one, and a bound
-// on how far the exact one can move within `reach` voxels along the row (derivations at the CPU reference's
-// `winding_number_bounded`): (w, e, drift).
-fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32) -> vec3<f32> {
+// The CPU's `FAR_BUDGET`: how much uncertainty bounded (not summed) pieces of the boundary may add.
+const FAR_BUDGET: f32 = 0.03125;
+
+// Piece i of the boundary: (lo, span), (hi, area), (first edge, edge count, 0, 0).
+fn piece(i: u32, k: u32) -> vec4<f32> {
+    return boundary[2u * solid.edge_count + 3u * i + k];
+}
+
+// The winding number and its bounds (derivations at the CPU reference's `winding_number_bounded`): the error of
+// this evaluation, the drift within `reach` voxels along the row, and what the pieces left out may add (those
+// the stretch passes outside of in YZ, while their area bounds add up to at most `budget`): (w, e, drift, far).
+fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32, budget: f32) -> vec4<f32> {
     var sum = 0.0;
     var magnitude = 0.0;
     var error = 0.0;
-    var rate = 0.0;
-    for (var e = 0u; e < solid.edge_count; e++) {
-        let ea = boundary[2u * e];
-        let eb = boundary[2u * e + 1u];
-        let a = ea.xyz - p;
-        let b = eb.xyz - p;
-        let parts = cone_parts(a, b);
-        let la = parts.x;
-        let lb = parts.y;
-        let num = parts.z;
-        let den = parts.w;
-        let angle = 2.0 * atan2(num, den);
-        sum += ea.w * angle;
-        let d_num = 3.0 * U * (abs(a.y * b.z) + abs(a.z * b.y));
-        let ab = abs(a * b);
-        let d_den = 40.0 * U * (la * lb + (ab.x + ab.y + ab.z) + abs(a.x) * lb + abs(b.x) * la);
-        let r2 = num * num + den * den;
-        var moved = 3.4e38;
-        if r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || abs(num) > d_num) {
-            moved = 2.0 * (abs(den) * d_num + abs(num) * d_den) / r2;
+    var drift = 0.0;
+    var far = 0.0;
+    var summed = 0u;
+    let scale = 1.0 / (4.0 * 3.14159265358979);
+    for (var i = 0u; i < solid.piece_count; i++) {
+        let lo = piece(i, 0u);
+        let hi = piece(i, 1u);
+        let range = bitcast<vec4<u32>>(piece(i, 2u));
+        let dy = max(max(lo.y - p.y, p.y - hi.y), 0.0);
+        let dz = max(max(lo.z - p.z, p.z - hi.z), 0.0);
+        if dy > 0.0 || dz > 0.0 {
+            let dx = max(max(lo.x - (p.x + reach), p.x - reach - hi.x), 0.0);
+            let bound = hi.w / (dx * dx + dy * dy + dz * dz) * scale * 1.01;
+            if far + bound <= budget {
+                far += bound;
+                continue;
+            }
         }
-        magnitude += abs(ea.w * angle);
-        error += abs(ea.w) * 2.0 * (moved + abs(angle) * (1.0 / 2048.0) + 1e-30);
-        if reach > 0.0 {
-            let gap = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
-            if gap > 0.0 {
-                rate += abs(ea.w) * eb.w / (gap * gap);
-            } else {
-                rate = 3.4e38;
+        summed += range.y;
+        for (var e = range.x; e < range.x + range.y; e++) {
+            let ea = boundary[2u * e];
+            let eb = boundary[2u * e + 1u];
+            let a = ea.xyz - p;
+            let b = eb.xyz - p;
+            let parts = cone_parts(a, b);
+            let la = parts.x;
+            let lb = parts.y;
+            let num = parts.z;
+            let den = parts.w;
+            let angle = 2.0 * atan2(num, den);
+            sum += ea.w * angle;
+            let d_num = 3.0 * U * (abs(a.y * b.z) + abs(a.z * b.y));
+            let ab = abs(a * b);
+            let d_den = 40.0 * U * (la * lb + (ab.x + ab.y + ab.z) + abs(a.x) * lb + abs(b.x) * la);
+            let r2 = num * num + den * den;
+            var moved = 3.4e38;
+            if r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || abs(num) > d_num) {
+                moved = 2.0 * (abs(den) * d_num + abs(num) * d_den) / r2;
+            }
+            magnitude += abs(ea.w * angle);
+            // WGSL allows atan2 4096 ulps (the CPU's ATAN2_WGSL).
+            error += abs(ea.w) * 2.0 * (moved + abs(angle) * (1.0 / 2048.0) + 1e-30);
+            if reach > 0.0 {
+                let ya = vec3<f32>(0.0, a.y, a.z);
+                let yb = vec3<f32>(0.0, b.y, b.z);
+                let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (length(ya) + length(yb));
+                let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+                let gap = max(across, along);
+                var steep = 3.4e38;
+                if gap > 0.0 {
+                    steep = reach * eb.w / (gap * gap);
+                }
+                var whole = 3.4e38;
+                if across > 0.0 {
+                    whole = 2.0 * eb.w / across;
+                }
+                drift = min(drift + abs(ea.w) * min(steep, whole), 3.4e38);
             }
         }
     }
-    let scale = 1.0 / (4.0 * 3.14159265358979);
     let w = f32(count) + sum * scale;
-    let n = f32(solid.edge_count);
-    let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * abs(w);
-    return vec3<f32>(w, bound, min(reach * rate * scale * 1.01, 3.4e38));
+    let bound = (error + (f32(summed) + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * abs(w);
+    return vec4<f32>(w, bound, drift * scale * 1.01, far);
 }
 
 // The distance from the origin to the segment a b.
 fn segment_distance(a: vec3<f32>, b: vec3<f32>) -> f32 {
     let ab = b - a;
-    let t = clamp(-dot3(a, ab) / dot3(ab, ab), 0.0, 1.0);
+    let length2 = dot3(ab, ab);
+    var t = 0.0;
+    if length2 > 0.0 {
+        t = clamp(-dot3(a, ab) / length2, 0.0, 1.0);
+    }
     return length(a + ab * t);
 }
 
@@ -392,8 +430,8 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) -
         let b = stack[len].y;
         let m = a + (b - a) / 2u;
         let p = vec3<f32>(f32(m) + 0.5, f32(y) + 0.5, f32(z) + 0.5);
-        let wed = winding_number_bounded(count, p, f32(b - m));
-        let whole = certain_side(wed.x, wed.y, wed.z, solid.margin);
+        let wed = winding_number_bounded(count, p, f32(b - m), FAR_BUDGET);
+        let whole = certain_side(wed.x, wed.y, wed.z + wed.w, solid.margin);
         if whole == 1u {
             set_range(base, a, b + 1u);
             continue;
@@ -401,7 +439,12 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) -
         if whole == 0u {
             continue;
         }
-        let at_m = certain_side(wed.x, wed.y, 0.0, solid.margin);
+        // The middle alone, with every edge summed where some were bounded.
+        var alone = wed;
+        if wed.w > 0.0 {
+            alone = winding_number_bounded(count, p, 0.0, 0.0);
+        }
+        let at_m = certain_side(alone.x, alone.y, 0.0, solid.margin);
         if at_m == 2u || len + 2u > RUN_STACK {
             return false;
         }
@@ -428,24 +471,22 @@ fn defer_row(y: u32, z: u32) {
     }
 }
 
-// Whether the boundary term may reach 1/2 somewhere along row (y, z): the CPU's `near_boundary` (why the sum of
-// each piece's YZ span over its YZ distance bounds it there).
+// Whether the boundary term may reach 1/2 somewhere along row (y, z): the CPU's `near_boundary` (why each
+// piece's lune and spanning-area bounds, summed, bound it there).
 fn near_boundary(y: u32, z: u32) -> bool {
     let cy = f32(y) + 0.5;
     let cz = f32(z) + 0.5;
     var sum = 0.0;
     for (var i = 0u; i < solid.piece_count; i++) {
-        let box = boundary[2u * solid.edge_count + 2u * i];
-        let span = boundary[2u * solid.edge_count + 2u * i + 1u].x;
-        let dy = max(max(box.x - cy, cy - box.z), 0.0);
-        let dz = max(max(box.y - cz, cz - box.w), 0.0);
+        let lo = piece(i, 0u);
+        let hi = piece(i, 1u);
+        let dy = max(max(lo.y - cy, cy - hi.y), 0.0);
+        let dz = max(max(lo.z - cz, cz - hi.z), 0.0);
         let d = sqrt(dy * dy + dz * dz);
-        if span > 0.0 {
-            if d == 0.0 {
-                return true;
-            }
-            sum += span / d;
+        if d == 0.0 {
+            return true;
         }
+        sum += min(2.0 * lo.w / d, hi.w / (d * d));
         if sum >= NEAR {
             return true;
         }

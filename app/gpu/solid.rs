@@ -8,7 +8,7 @@
 use super::readback::{first_word, read_buffer};
 use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{Boundary, BoundaryEdge, boundary_edges, boundary_pieces, crossing_setup};
+use crate::voxel::solid::{Boundary, BoundaryEdge, boundary, crossing_setup};
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
 
@@ -127,8 +127,7 @@ impl SolidPipelines {
         if rows * 8 > limit {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
-        let edges = boundary_edges(triangles, lattice);
-        let pieces = boundary_pieces(&edges);
+        let Boundary { edges, pieces } = boundary(triangles, lattice);
         let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
@@ -147,7 +146,7 @@ impl SolidPipelines {
             margin: crate::voxel::solid::MARGIN,
             _pad: [0; 3],
         };
-        // The edges (two vec4 each), then the boundary's pieces (two vec4 each).
+        // The edges (two vec4 each), then the boundary's pieces (three vec4 each).
         let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
         edge_bytes.extend_from_slice(bytemuck::cast_slice(&pieces));
         let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;

@@ -249,18 +249,23 @@ pub struct BoundaryEdge {
     pub span: f32,
 }
 
-/// A connected piece of the boundary (a hole's loop, on a mesh with holes): the YZ box of its edges and the sum
-/// of their YZ spans times their multiplicities. The shader's layout: `lo.yz, hi.yz` then `span, 0, 0, 0`.
+/// A connected piece of the boundary (a hole's loop, on a mesh with holes): its box, the sum of its edges' YZ
+/// spans and the area of a fan spanning it (from its first edge's start, each edge times its multiplicity: a
+/// surface whose boundary is the piece, inside the box), all rounded up, and its edges' range in
+/// [`Boundary::edges`]. The shader's layout: `lo, span`, `hi, area`, `first, count, 0, 0`.
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct BoundaryPiece {
-    pub lo: [f32; 2],
-    pub hi: [f32; 2],
+    pub lo: [f32; 3],
     pub span: f32,
-    pub _pad: [f32; 3],
+    pub hi: [f32; 3],
+    pub area: f32,
+    pub first: u32,
+    pub count: u32,
+    pub _pad: [u32; 2],
 }
 
-/// A mesh's open boundary: its edges ([`boundary_edges`]) and their pieces ([`boundary_pieces`]).
+/// A mesh's open boundary: its edges ([`boundary_edges`]) grouped by piece, and the pieces.
 pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
@@ -339,18 +344,34 @@ const U: f32 = 1.0 / 16_777_216.0;
 /// take its side: each backend's error and the other's are below one bound.
 pub const MARGIN: f32 = 2.0;
 
+/// How much of a winding number's uncertainty may come from pieces of the boundary that are bounded, not summed
+/// ([`winding_number_bounded`]).
+pub const FAR_BUDGET: f32 = 1.0 / 32.0;
+
+/// The relative error [`winding_number_bounded`] allows `atan2` on the GPU: WGSL's 4096 ulps.
+pub const ATAN2_WGSL: f32 = 1.0 / 2048.0;
+
+/// The relative error it allows `atan2` in the CPU reference: Rust's `f32::atan2` is the platform's `atan2f`
+/// (glibc's and the wasm32 build's musl-derived libm are within 2 ulps), given 8 ulps here. The tighter bound
+/// lets the CPU place most voxels a GPU would hand back, without the f64 evaluation; both are exact, so the grids
+/// are the same.
+pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
+
 /// The winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the ray from `p`
-/// towards -x meets) count `count` (+1 for each the ray leaves through, -1 for each it enters), with two bounds:
-/// `(w, e, drift)`. `e` bounds how far any conforming evaluation of `w` (the CPU's libm, or a GPU's `atan2`,
-/// `sqrt` and fused multiply-adds) can be from the exact winding number of the same inputs; `drift` bounds how
-/// far the exact winding number can move between `p` and any point of the row within `reach` voxels of it that
-/// no crossing separates from `p` (0 when `reach` is 0).
+/// towards -x meets) count `count` (+1 for each the ray leaves through, -1 for each it enters), with three
+/// bounds: `(w, e, drift, far)`. `e` bounds how far any conforming evaluation of `w` (the CPU's libm, or a GPU's
+/// `atan2`, `sqrt` and fused multiply-adds) can be from the exact sum it evaluates; `drift` how far that sum can
+/// move between `p` and any point of the row within `reach` voxels of it that no crossing separates from `p` (0
+/// when `reach` is 0); `far` how far the winding number anywhere on that stretch can be from the sum, for the
+/// pieces of the boundary left out of it: a piece whose box the stretch passes outside of in YZ contributes at
+/// most its spanning area over the squared distance from the stretch to its box (see [`piece_reach`]), and such
+/// pieces are left out while those bounds add up to at most `budget` (0: every edge is summed).
 ///
 /// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
 /// lengths are within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
 /// `3u (|a_y b_z| + |a_z b_y|)`; `den`, a sum of six terms whose magnitudes add up to `S`, within `40u S`; then
 /// `atan2(num, den)` moves by at most `(|den| Δnum + |num| Δden) / (num² + den²)` (doubled for the first-order
-/// approximation) plus its own error, which WGSL allows to be 4096 ulps (`2^-11 |θ|`). Where `num² + den²` is
+/// approximation) plus its own error, `atan2_error |θ|` ([`ATAN2_WGSL`], [`ATAN2_CPU`]). Where `num² + den²` is
 /// too small for the first-order bound to mean anything (the point on the edge's line), or `num`'s sign is
 /// uncertain where `atan2` jumps (`den < 0`), the bound is infinite. The sum adds `n` roundings of at most
 /// `u Σ|terms|` each.
@@ -358,43 +379,74 @@ pub const MARGIN: f32 = 2.0;
 /// The drift: along a run the crossing count is constant, and the derivative of an edge's strip angle along x is
 /// the x-component of its Biot–Savart integral, `∫ ((t × x̂) · r) / |r|³ ds` over the edge (`r` from the point to
 /// the edge), at most `span / D²` where `span` is the edge's YZ length and `D` the least distance from the
-/// stretch to the edge: the distance from `p` less `reach` (and less its own rounding: `2^-10` relatively and
-/// `16u (|a| + |b|)` absolutely, far more than an f32 point-to-segment distance is off by).
-pub fn winding_number_bounded(count: i32, p: Vec3, reach: f32, edges: &[BoundaryEdge]) -> (f32, f32, f32) {
-    let (mut sum, mut magnitude, mut error, mut rate) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    for e in edges {
-        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-        let (la, lb, num, den) = cone_parts(a, b);
-        let angle = 2.0 * num.atan2(den);
-        sum += e.weight * angle;
-        let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
-        let d_den = 40.0 * U * (la * lb + (a * b).abs().element_sum() + a.x.abs() * lb + b.x.abs() * la);
-        let r2 = num * num + den * den;
-        // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
-        // is on the strip swept from the edge, where the crossing count jumps the other way).
-        let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
-            true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
-            false => f32::INFINITY,
-        };
-        magnitude += (e.weight * angle).abs();
-        error += e.weight.abs() * 2.0 * (moved + angle.abs() * (1.0 / 2048.0) + 1e-30);
-        if reach > 0.0 {
-            let gap = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
-            rate += if gap > 0.0 { e.weight.abs() * e.span / (gap * gap) } else { f32::INFINITY };
+/// stretch to the edge: at least the YZ distance `ρ` from the row to the edge, and at least the distance from `p`
+/// less `reach` (each less its own rounding: `2^-10` relatively and `16u (|a| + |b|)` absolutely, far more than
+/// an f32 point-to-segment distance is off by). Since `|(t × x̂) · r| ≤ |t_yz| ρ`, the integral of that bound
+/// along the whole row is at most `2 span / ρ`, which caps an edge's drift over a long stretch.
+pub fn winding_number_bounded(
+    count: i32,
+    p: Vec3,
+    reach: f32,
+    boundary: &Boundary,
+    budget: f32,
+    atan2_error: f32,
+) -> (f32, f32, f32, f32) {
+    let (mut sum, mut magnitude, mut error, mut drift, mut far) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let mut summed = 0u32;
+    let scale = 1.0 / (4.0 * std::f32::consts::PI);
+    for piece in &boundary.pieces {
+        let (lo, hi) = (Vec3::from_array(piece.lo), Vec3::from_array(piece.hi));
+        let dy = (lo.y - p.y).max(p.y - hi.y).max(0.0);
+        let dz = (lo.z - p.z).max(p.z - hi.z).max(0.0);
+        if dy > 0.0 || dz > 0.0 {
+            let dx = (lo.x - (p.x + reach)).max(p.x - reach - hi.x).max(0.0);
+            let bound = piece.area / (dx * dx + dy * dy + dz * dz) * scale * 1.01;
+            if far + bound <= budget {
+                far += bound;
+                continue;
+            }
+        }
+        summed += piece.count;
+        let edges = &boundary.edges[piece.first as usize..(piece.first + piece.count) as usize];
+        for e in edges {
+            let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+            let (la, lb, num, den) = cone_parts(a, b);
+            let angle = 2.0 * num.atan2(den);
+            sum += e.weight * angle;
+            let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
+            let d_den = 40.0 * U * (la * lb + (a * b).abs().element_sum() + a.x.abs() * lb + b.x.abs() * la);
+            let r2 = num * num + den * den;
+            // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
+            // is on the strip swept from the edge, where the crossing count jumps the other way).
+            let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
+                true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
+                false => f32::INFINITY,
+            };
+            magnitude += (e.weight * angle).abs();
+            error += e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
+            if reach > 0.0 {
+                let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
+                let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
+                let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+                let gap = across.max(along);
+                let steep = if gap > 0.0 { reach * e.span / (gap * gap) } else { f32::INFINITY };
+                let whole = if across > 0.0 { 2.0 * e.span / across } else { f32::INFINITY };
+                drift += e.weight.abs() * steep.min(whole);
+            }
         }
     }
-    let scale = 1.0 / (4.0 * std::f32::consts::PI);
     let w = count as f32 + sum * scale;
-    let n = edges.len() as f32;
-    let bound = (error + (n + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
-    (w, bound, reach * rate * scale * 1.01)
+    let bound = (error + (summed as f32 + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
+    (w, bound, drift * scale * 1.01, far)
 }
 
 /// The distance from the origin to the segment `a b`.
 #[inline]
 pub fn segment_distance(a: Vec3, b: Vec3) -> f32 {
     let ab = b - a;
-    let t = (-super::exact::dot3(a, ab) / super::exact::dot3(ab, ab)).clamp(0.0, 1.0);
+    let length2 = super::exact::dot3(ab, ab);
+    // (A segment of length zero: the YZ projection of an edge along x.)
+    let t = if length2 > 0.0 { (-super::exact::dot3(a, ab) / length2).clamp(0.0, 1.0) } else { 0.0 };
     (a + ab * t).length()
 }
 
@@ -440,7 +492,7 @@ pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) 
 
 /// The inside voxels of the listed rows (`z * dims.y + y`, as the GPU lists the rows it could not decide), each
 /// as its row's words from [`fill_row`]: the crossings of just these rows, then the CPU reference's fill.
-/// `boundary` is the mesh's, as the GPU run found it ([`boundary_edges`], [`boundary_pieces`]).
+/// `boundary` is the mesh's, as the GPU run found it ([`boundary`]).
 pub fn fill_listed_rows(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
@@ -471,7 +523,6 @@ pub fn fill_listed_rows(
                 a
             },
         );
-    let Boundary { edges, pieces } = boundary;
     let wpr = dims.x.div_ceil(32) as usize;
     rows.iter()
         .zip(lists.iter_mut())
@@ -479,7 +530,7 @@ pub fn fill_listed_rows(
             list.sort_unstable();
             let (y, z) = (r % dims.y, r / dims.y);
             let mut words = vec![0u32; wpr];
-            fill_row(list, y, z, dims.x, near_boundary(y, z, pieces), edges, &mut words);
+            fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &mut words);
             (r, words)
         })
         .collect()
@@ -498,9 +549,13 @@ fn set_range(row: &mut [u32], k0: u32, k1: u32) {
     }
 }
 
-/// The boundary's connected pieces (its loops, on a mesh with holes): each one's YZ box and the sum of its
-/// edges' YZ spans (see [`near_boundary`]). Pieces are found by joining edges that share an end point.
-pub fn boundary_pieces(edges: &[BoundaryEdge]) -> Vec<BoundaryPiece> {
+/// The mesh's boundary ([`boundary_edges`]) grouped into its connected pieces (its loops, on a mesh with holes;
+/// edges sharing an end point are joined), in order of each piece's first edge, with each piece's box, span and
+/// spanning area ([`BoundaryPiece`]). Every piece is a closed chain (every vertex has as many edges in as out, and
+/// a vertex is in one piece), which is what lets a far piece's term be bounded by its spanning area
+/// ([`winding_number_bounded`]).
+pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
+    let edges = boundary_edges(triangles, lattice);
     let mut ids = std::collections::HashMap::new();
     let mut parent: Vec<usize> = Vec::new();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -523,47 +578,80 @@ pub fn boundary_pieces(edges: &[BoundaryEdge]) -> Vec<BoundaryPiece> {
             parent[ra.max(rb)] = ra.min(rb);
         }
     }
-    let mut index = std::collections::HashMap::new();
+    // Pieces numbered by their first edge; edges grouped by piece, in their order within it.
+    let mut number = std::collections::HashMap::new();
+    let piece_of: Vec<usize> = ends
+        .iter()
+        .map(|&(a, _)| {
+            let r = root(&mut parent, a);
+            let next = number.len();
+            *number.entry(r).or_insert(next)
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..edges.len()).collect();
+    order.sort_by_key(|&i| piece_of[i]);
+    let edges: Vec<BoundaryEdge> = order.iter().map(|&i| edges[i]).collect();
     let mut pieces: Vec<BoundaryPiece> = Vec::new();
-    for (e, &(a, _)) in edges.iter().zip(&ends) {
-        let r = root(&mut parent, a);
-        let i = *index.entry(r).or_insert_with(|| {
-            let empty = BoundaryPiece { lo: [f32::MAX; 2], hi: [f32::MIN; 2], span: 0.0, _pad: [0.0; 3] };
-            pieces.push(empty);
-            pieces.len() - 1
-        });
-        let piece = &mut pieces[i];
-        for p in [e.a, e.b] {
-            piece.lo = [piece.lo[0].min(p[1]), piece.lo[1].min(p[2])];
-            piece.hi = [piece.hi[0].max(p[1]), piece.hi[1].max(p[2])];
+    let mut i = 0;
+    while i < edges.len() {
+        let n = order[i..].iter().take_while(|&&k| piece_of[k] == piece_of[order[i]]).count();
+        let group = &edges[i..i + n];
+        let centre = Vec3::from_array(group[0].a).as_dvec3();
+        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+        let (mut span, mut area) = (0.0f64, 0.0f64);
+        for e in group {
+            let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
+            (lo, hi) = (lo.min(a).min(b), hi.max(a).max(b));
+            span += f64::from(e.weight.abs() * e.span);
+            area += f64::from(e.weight.abs()) * 0.5 * (a.as_dvec3() - centre).cross(b.as_dvec3() - centre).length();
         }
-        piece.span += e.weight.abs() * e.span;
+        pieces.push(BoundaryPiece {
+            lo: lo.to_array(),
+            span: (span * (1.0 + 1e-6)) as f32,
+            hi: hi.to_array(),
+            area: (area * (1.0 + 1e-6)) as f32,
+            first: i as u32,
+            count: n as u32,
+            _pad: [0; 2],
+        });
+        i += n;
     }
-    pieces
+    Boundary { edges, pieces }
 }
 
-/// `Σ span / distance` over the pieces at which the boundary term of a row may reach 1/2 (see [`near_boundary`]):
-/// π, less a margin far above f32's rounding of the sum.
-const NEAR: f32 = std::f32::consts::PI * 0.99;
+/// The bound on one piece's boundary term, seen from anywhere on a row `d` away from its box in YZ (`d > 0`):
+/// the lune bound `2 span / d` ([`near_boundary`]) or, smaller far away, `area / d²`: outside the box in YZ, the
+/// ray towards -x misses both the piece's strips and a fan spanning it, so the strips' solid angle is minus the
+/// fan's, at most its area over the squared distance.
+#[inline]
+fn piece_reach(span: f32, area: f32, d: f32) -> f32 {
+    (2.0 * span / d).min(area / (d * d))
+}
+
+/// The bound on the boundary term below which a row's integer count decides it: 2π (a winding number within ½ of
+/// the count), less a margin far above f32's rounding of the sum.
+const NEAR: f32 = std::f32::consts::TAU * 0.99;
 
 /// Whether the boundary term of row `(y, z)` may reach 1/2 somewhere along it, so that the integer crossing count
 /// alone cannot decide its voxels. An edge's strip, seen from a point, is a spherical triangle with a corner at
 /// x̂, which lies in the lune between the half-planes through x̂ and each end: its solid angle is at most twice
-/// the angle `φ` the edge's YZ projection subtends from the row's (y, z), whatever x. So the boundary term is at
-/// most `Σ |weight| φ / 2π`, and `φ ≤ span / d` with `d` the YZ distance from the row to the edge, at least the
-/// distance to its piece's box: where `Σ span / d < π` over the pieces, the term stays below 1/2 on the whole
-/// row, the winding number is the integer count plus less than 1/2, and the count decides. This holds for any
-/// number of holes, however close together.
+/// the angle `φ` the edge's YZ projection subtends from the row's (y, z), whatever x, and `φ ≤ span / d` with
+/// `d` the YZ distance to the edge's piece's box. Far from a piece its whole term is smaller still, its spanning
+/// fan's area over `d²` ([`piece_reach`]). Where these add up to less than 2π over all pieces, the term stays
+/// below 1/2 on the whole row, the winding number is the integer count plus less than 1/2, and the count decides.
+/// This holds for any number of holes, however close together.
 #[inline]
 pub fn near_boundary(y: u32, z: u32, pieces: &[BoundaryPiece]) -> bool {
     let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
     let mut sum = 0.0f32;
     for piece in pieces {
-        let dy = (piece.lo[0] - cy).max(cy - piece.hi[0]).max(0.0);
-        let dz = (piece.lo[1] - cz).max(cz - piece.hi[1]).max(0.0);
-        if piece.span > 0.0 {
-            sum += piece.span / (dy * dy + dz * dz).sqrt();
+        let dy = (piece.lo[1] - cy).max(cy - piece.hi[1]).max(0.0);
+        let dz = (piece.lo[2] - cz).max(cz - piece.hi[2]).max(0.0);
+        let d = (dy * dy + dz * dz).sqrt();
+        if d == 0.0 {
+            return true;
         }
+        sum += piece_reach(piece.span, piece.area, d);
         if sum >= NEAR {
             return true;
         }
@@ -576,13 +664,13 @@ pub const RUN_STACK: usize = 40;
 
 /// Sets the inside voxels of the run `first..=last` of row `(y, z)` in a row whose boundary term may reach 1/2,
 /// where `count` is the crossing count of the whole run. Each stretch is certified, not sampled: the winding
-/// number at its middle, its error bound and its drift over the stretch ([`winding_number_bounded`]) either put
-/// the whole stretch on one side of 1/2 ([`certain_side`]), or the middle voxel is decided alone and the two
-/// halves beside it are examined the same way. A stretch far from every boundary edge takes one evaluation;
-/// close to a rim the stretches shrink to single voxels. A middle voxel the f32 bounds leave open is decided in
-/// f64 ([`inside_exact`]); the shader hands its row to the host there instead. An explicit stack, as in the
-/// shader, which cannot recurse.
-pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &[BoundaryEdge], row: &mut [u32]) {
+/// number at its middle and its bounds ([`winding_number_bounded`], far pieces of the boundary bounded instead of
+/// summed) either put the whole stretch on one side of 1/2 ([`certain_side`]), or the middle voxel is decided
+/// alone (every edge summed) and the two halves beside it are examined the same way. A stretch far from every
+/// boundary edge takes one evaluation; close to a rim the stretches shrink to single voxels. A middle voxel the
+/// f32 bounds leave open is decided in f64 ([`inside_exact`]); the shader hands its row to the host there
+/// instead. An explicit stack, as in the shader, which cannot recurse.
+pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary: &Boundary, row: &mut [u32]) {
     let mut stack = [(0u32, 0u32); RUN_STACK];
     stack[0] = (first, last);
     let mut len = 1;
@@ -591,13 +679,21 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &
         let (a, b) = stack[len];
         let m = a + (b - a) / 2;
         let p = Vec3::new(m as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
-        let (w, e, drift) = winding_number_bounded(count, p, (b - m) as f32, edges);
-        match certain_side(w, e, drift, MARGIN) {
+        let (w, e, drift, far) = winding_number_bounded(count, p, (b - m) as f32, boundary, FAR_BUDGET, ATAN2_CPU);
+        match certain_side(w, e, drift + far, MARGIN) {
             1 => set_range(row, a, b + 1),
             0 => {}
             _ => {
+                // The middle alone, with every edge summed where some were bounded.
+                let (w, e) = match far > 0.0 {
+                    true => {
+                        let (w, e, _, _) = winding_number_bounded(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
+                        (w, e)
+                    }
+                    false => (w, e),
+                };
                 let inside = match certain_side(w, e, 0.0, MARGIN) {
-                    2 => inside_exact(count, m, y, z, edges),
+                    2 => inside_exact(count, m, y, z, &boundary.edges),
                     side => side == 1,
                 };
                 if inside {
@@ -605,7 +701,7 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &
                 }
                 if len + 2 > RUN_STACK {
                     // Unreachable for grids within MAX_DIM; keeps the result exact if it were not.
-                    for k in (a..=b).filter(|&k| k != m && inside_exact(count, k, y, z, edges)) {
+                    for k in (a..=b).filter(|&k| k != m && inside_exact(count, k, y, z, &boundary.edges)) {
                         set_range(row, k, k + 1);
                     }
                     continue;
@@ -627,7 +723,7 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, edges: &
 /// crossings cancel and the boundary term stays below 1/2 along the whole row (`near` false, see
 /// [`near_boundary`]: every row of a closed mesh, and every row far enough from the holes), the integer count
 /// decides; elsewhere every run between crossings is certified by [`fill_open_run`].
-pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, edges: &[BoundaryEdge], row: &mut [u32]) {
+pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, boundary: &Boundary, row: &mut [u32]) {
     let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
     let open = total != 0 || near;
     let mut i = 0;
@@ -646,7 +742,7 @@ pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, edge
                 set_range(row, k0, k1);
             }
         } else {
-            fill_open_run(count, k0, k1 - 1, y, z, edges, row);
+            fill_open_run(count, k0, k1 - 1, y, z, boundary, row);
         }
         k0 = k1;
     }
@@ -656,16 +752,15 @@ pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, edge
 pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
     let spec = grid.spec;
     let rows = column_crossings(triangles, spec.dims, lattice);
-    let edges = boundary_edges(triangles, lattice);
-    let pieces = boundary_pieces(&edges);
+    let boundary = boundary(triangles, lattice);
     let wpr = spec.words_per_row();
     grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
         let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
         let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
-        let near = near_boundary(y, z, &pieces);
+        let near = near_boundary(y, z, &boundary.pieces);
         if list.is_empty() && !near {
             return;
         }
-        fill_row(list, y, z, spec.dims.x, near, &edges, row);
+        fill_row(list, y, z, spec.dims.x, near, &boundary, row);
     });
 }

@@ -12,7 +12,7 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::solid::{boundary_edges, boundary_pieces, column_crossings, fill_row, near_boundary};
+use super::solid::{boundary, column_crossings, fill_row, near_boundary};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -39,8 +39,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
     let spec = surface.spec;
     let dims = spec.dims;
     let rows = column_crossings(triangles, dims, lattice);
-    let edges = boundary_edges(triangles, lattice);
-    let pieces = boundary_pieces(&edges);
+    let boundary = boundary(triangles, lattice);
     let wpr = spec.words_per_row();
     let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
     let leaves_x = dims.x.div_ceil(8) as usize;
@@ -72,12 +71,12 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         }
                         let r = (z * dims.y + y) as usize;
                         let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-                        let near = near_boundary(y, z, &pieces);
+                        let near = near_boundary(y, z, &boundary.pieces);
                         if list.is_empty() && !near {
                             continue;
                         }
                         let i = (dy * 8 + dz) as usize;
-                        fill_row(list, y, z, dims.x, near, &edges, &mut group[i * wpr..(i + 1) * wpr]);
+                        fill_row(list, y, z, dims.x, near, &boundary, &mut group[i * wpr..(i + 1) * wpr]);
                         written |= 1 << i;
                     }
                 }

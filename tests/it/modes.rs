@@ -295,26 +295,27 @@ fn the_winding_numbers_error_bound_holds_against_float64() {
     // this bound, so the bound must hold: here against the same boundary term in f64, at every voxel centre of
     // the rows through each mesh's holes (where the fill evaluates it).
     use meshvox::voxel::solid::{
-        MARGIN, boundary_edges, boundary_pieces, certain_side, near_boundary, winding_number_bounded,
+        ATAN2_CPU, ATAN2_WGSL, MARGIN, boundary, certain_side, near_boundary, winding_number_bounded,
     };
     for (name, tris, s) in open_meshes() {
         let lattice = meshvox::voxel::Lattice::fit(&tris, s.dims).expect("lattice");
-        let edges = boundary_edges(&tris, lattice);
-        let pieces = boundary_pieces(&edges);
+        let boundary = boundary(&tris, lattice);
+        let (edges, pieces) = (&boundary.edges, &boundary.pieces);
         assert!(!edges.is_empty(), "{name} is open");
         let voxels: Vec<UVec3> = (0..s.dims.z)
             .flat_map(|z| (0..s.dims.y).map(move |y| (y, z)))
-            .filter(|&(y, z)| near_boundary(y, z, &pieces))
+            .filter(|&(y, z)| near_boundary(y, z, pieces))
             .flat_map(|(y, z)| (0..s.dims.x).map(move |x| UVec3::new(x, y, z)))
             .collect();
-        let results: Vec<(f32, f32, f64, bool)> = voxels
+        let results: Vec<(f32, f32, f64, bool, f32, f32)> = voxels
             .par_iter()
             .map(|&v| {
                 let p = v.as_vec3() + 0.5;
-                let (w, e, _) = winding_number_bounded(0, p, 0.0, &edges);
+                let (w, e, _, _) = winding_number_bounded(0, p, 0.0, &boundary, 0.0, ATAN2_WGSL);
+                let (w_cpu, e_cpu, _, _) = winding_number_bounded(0, p, 0.0, &boundary, 0.0, ATAN2_CPU);
                 let deferred = certain_side(w, e, 0.0, MARGIN) == 2;
                 let mut sum = 0.0f64;
-                for edge in &edges {
+                for edge in edges {
                     let a = (Vec3::from_array(edge.a) - p).as_dvec3();
                     let b = (Vec3::from_array(edge.b) - p).as_dvec3();
                     let (la, lb) = (a.length(), b.length());
@@ -322,14 +323,17 @@ fn the_winding_numbers_error_bound_holds_against_float64() {
                     let den = la * lb + a.dot(b) + a.x * lb + b.x * la;
                     sum += edge.weight as f64 * 2.0 * num.atan2(den);
                 }
-                (w, e, sum / (4.0 * std::f64::consts::PI), deferred)
+                (w, e, sum / (4.0 * std::f64::consts::PI), deferred, w_cpu, e_cpu)
             })
             .collect();
         let mut bounds: Vec<f32> = results.iter().map(|r| r.1).collect();
         bounds.sort_by(f32::total_cmp);
         let (mut worst, mut deferred) = (0.0f64, 0);
-        for &(w, e, exact, to_host) in &results {
+        for &(w, e, exact, to_host, w_cpu, e_cpu) in &results {
             assert!((w as f64 - exact).abs() <= e as f64, "{name}: w = {w} against {exact} in f64, bound {e}");
+            // The CPU's own, tighter bound (its atan2 within 8 ulps) holds too.
+            let off = (w_cpu as f64 - exact).abs();
+            assert!(off <= e_cpu as f64, "{name}: CPU w = {w_cpu} against {exact} in f64, bound {e_cpu}");
             worst = worst.max((w as f64 - exact).abs() / e as f64);
             deferred += usize::from(to_host);
         }
