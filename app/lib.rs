@@ -26,6 +26,7 @@ pub mod engine;
 pub mod gpu;
 pub mod memory;
 pub mod mesh;
+pub mod parallel;
 // PyO3's macros expand to `unsafe` FFI glue (the module's own code has none).
 #[cfg(feature = "python")]
 #[allow(unsafe_code)]

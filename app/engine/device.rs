@@ -22,24 +22,30 @@ use crate::mesh::Shading;
 use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::{Grid, GridSpec, Mode, VoxelGrid};
 use glam::Vec3;
-use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use web_time::Instant;
 
-/// A device and its compiled pipelines.
+/// An engine's GPU: the device with what it shares with the other engines on it ([`Engine::with_backend`]),
+/// and this engine's rules for it.
 pub(super) struct OnGpu {
+    device: Arc<OnDevice>,
+    /// Whether the CPU may stand in when the GPU cannot take a request.
+    fallback: bool,
+    /// The client draws on this device too (see the module's documentation).
+    shared: bool,
+}
+
+/// A device, its compiled pipelines and its turn: one per device, however many engines use it.
+pub(super) struct OnDevice {
     pub(super) gpu: Gpu,
     /// Made when the engine is opened, or for the browser's viewer after its first frame ([`Engine::warm_up`]).
     voxelizer: OnceLock<GpuVoxelizer>,
     /// Compiled the first time a coloured mesh is voxelized.
     colourer: OnceLock<GpuColourer>,
     distance: OnceLock<GpuDistance>,
-    /// Whether the CPU may stand in when the GPU cannot take a request.
-    fallback: bool,
-    /// The client draws on this device too (see the module's documentation).
-    shared: bool,
-    /// Taken around each voxelization and colouring, so that threads sharing the engine (`batch`) take turns on
-    /// the device. An async lock, since it is held across the awaits of the device's work.
+    /// Taken around each voxelization and colouring, so that threads sharing the device (`batch`, the engines
+    /// of one device) take turns on it. An async lock, since it is held across the awaits of the device's work.
     turn: async_lock::Mutex<()>,
     /// Nanoseconds spent in those turns, for `batch`'s account of what bounds a run.
     busy_ns: AtomicU64,
@@ -124,7 +130,8 @@ impl Engine {
         let voxelizer = OnceLock::new();
         let (colourer, distance) = (OnceLock::new(), OnceLock::new());
         let (turn, busy_ns) = (async_lock::Mutex::new(()), AtomicU64::new(0));
-        let on_gpu = OnGpu { gpu, voxelizer, colourer, distance, fallback, shared, turn, busy_ns };
+        let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, turn, busy_ns });
+        let on_gpu = OnGpu { device, fallback, shared };
         let engine = Engine { gpu: Some(on_gpu), ..Engine::cpu(None) };
         if eager {
             engine.warm_up();
@@ -135,6 +142,34 @@ impl Engine {
     /// The adapter voxelizations run on, if any.
     pub fn adapter(&self) -> Option<&AdapterSummary> {
         self.gpu.as_ref().map(|g| &g.gpu.summary)
+    }
+
+    /// An engine for `backend` on this engine's device, sharing its pipelines and its turn, so that a process
+    /// offering several backends opens one device: `Gpu` without the CPU standing in, `Auto` by
+    /// [`Engine::open`]'s rule for the adapter (a software one: the CPU), `Cpu` the CPU. `None` where this
+    /// engine has no device.
+    pub fn with_backend(&self, backend: Backend) -> Option<Engine> {
+        let on = self.gpu.as_ref()?;
+        let summary = &on.gpu.summary;
+        let fallback = match backend {
+            Backend::Cpu => return Some(Engine::cpu(None)),
+            Backend::Auto if summary.is_software() && !software_gpu_preferred() => {
+                return Some(Engine::cpu(Some(software_reason(summary))));
+            }
+            Backend::Auto => true,
+            Backend::Gpu => false,
+        };
+        let on_gpu = OnGpu { device: on.device.clone(), fallback, shared: on.shared };
+        Some(Engine { gpu: Some(on_gpu), setup_ms: self.setup_ms, ..Engine::cpu(None) })
+    }
+}
+
+/// The device's fields, read through the engine's [`OnGpu`].
+impl std::ops::Deref for OnGpu {
+    type Target = OnDevice;
+
+    fn deref(&self) -> &OnDevice {
+        &self.device
     }
 }
 

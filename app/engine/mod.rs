@@ -22,6 +22,7 @@ pub use queue::work_queue;
 pub use report::{Notice, Report, Voxelized};
 
 use crate::mesh::{Aabb, Mesh};
+use crate::parallel;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::formats::VoxelFormat;
@@ -287,7 +288,7 @@ impl Engine {
                 triangles: mesh.triangles.len() as u64,
                 area: voxel::budget::surface_area(mesh),
             };
-            if let Some(reason) = job.costs(rayon::current_num_threads()).cpu_reason() {
+            if let Some(reason) = job.costs(parallel::threads()).cpu_reason() {
                 return Ok(Engine::cpu(Some(reason)));
             }
         }
@@ -332,12 +333,13 @@ impl Engine {
 
     fn cpu_label(&self) -> String {
         match &self.cpu_reason {
-            Some(reason) => format!("cpu ({} threads; {reason})", rayon::current_num_threads()),
-            None => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Some(reason) => format!("cpu ({} threads; {reason})", parallel::threads()),
+            None => format!("cpu ({} threads)", parallel::threads()),
         }
     }
 
-    /// Milliseconds the device was in use by this engine, or `None` on the CPU.
+    /// Milliseconds the device was in use by this engine (and the others on its device, [`Engine::with_backend`]),
+    /// or `None` on the CPU.
     pub fn gpu_busy_ms(&self) -> Option<f64> {
         #[cfg(feature = "gpu")]
         return self.gpu.as_ref().map(|on| on.busy_ms());
@@ -349,7 +351,19 @@ impl Engine {
     /// Blocks until done; see [`Engine::voxelize_async`].
     #[cfg(not(target_arch = "wasm32"))]
     pub fn voxelize(&self, name: &str, mesh: &Mesh, request: &Request) -> Result<Voxelized, EngineError> {
-        pollster::block_on(self.voxelize_async(name, mesh, request))
+        self.blocking(|| pollster::block_on(self.voxelize_async(name, mesh, request)))
+    }
+
+    /// Runs one of the blocking calls. With a GPU a call waits for the device's turn and the device itself, so
+    /// called on a rayon worker it runs on a thread of its own ([`parallel::off_workers`]): that worker may be
+    /// holding a turn further down its stack, under a `join` it stole this call in. On the CPU a call waits for
+    /// nothing but its own loops, which then stay in the caller's pool.
+    #[cfg(not(target_arch = "wasm32"))]
+    fn blocking<R: Send>(&self, call: impl FnOnce() -> R + Send) -> R {
+        match self.uses_gpu() {
+            true => parallel::off_workers(call),
+            false => call(),
+        }
     }
 
     /// [`Engine::voxelize`] as a future, for the browser (where nothing may block) and async clients. The CPU's
@@ -406,7 +420,7 @@ impl Engine {
             voxels: voxels.grid.count(),
             mode: request.mode.name().to_string(),
             backend: voxels.backend,
-            threads: rayon::current_num_threads(),
+            threads: parallel::threads(),
             gpu_ms: voxels.gpu_ms,
             exact_tests: voxels.exact_tests,
             setup_ms: self.setup_ms,
@@ -449,7 +463,8 @@ impl Engine {
         progress: Option<&(dyn Fn(usize, usize) + Sync)>,
     ) -> Result<Voxels, EngineError> {
         let request = Request { progress, ..Request::new(Resolution::VoxelSize(spec.voxel_size), mode) };
-        pollster::block_on(self.voxels(&grid_space(mesh, &spec)?, spec, sparse, &request))
+        let tris = grid_space(mesh, &spec)?;
+        self.blocking(|| pollster::block_on(self.voxels(&tris, spec, sparse, &request)))
     }
 
     /// [`Engine::voxelize_spec`] from the mesh's grid-space triangles, with `request`'s mode, instance list,
@@ -533,7 +548,8 @@ impl Engine {
     /// Colours a voxelized mesh's grid (see `voxel::colour`) on the GPU when it fits there, else on the CPU.
     #[cfg(not(target_arch = "wasm32"))]
     pub fn colour(&self, mesh: &Mesh, grid: &VoxelGrid) -> Result<Colours, EngineError> {
-        pollster::block_on(self.colours(mesh, &grid_space(mesh, &grid.spec)?, grid))
+        let tris = grid_space(mesh, &grid.spec)?;
+        self.blocking(|| pollster::block_on(self.colours(mesh, &tris, grid)))
     }
 
     /// [`Engine::colour`] from the mesh's grid-space triangles.
@@ -550,6 +566,6 @@ impl Engine {
         #[cfg(not(feature = "gpu"))]
         let notices = Vec::new();
         let colours = voxel::colour::colour_voxels(grid, tris, shading);
-        Ok(Colours { colours, backend: format!("cpu ({} threads)", rayon::current_num_threads()), notices })
+        Ok(Colours { colours, backend: format!("cpu ({} threads)", parallel::threads()), notices })
     }
 }

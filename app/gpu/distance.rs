@@ -111,13 +111,15 @@ impl GpuDistance {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
         // Each triangle's first work item: a prefix sum over its layers in this chunk.
-        let layers: Vec<u64> = triangles
-            .par_iter()
-            .map(|&t| {
-                let (first, last) = triangle_layers(t, spec.dims, reach, z);
-                (last - first + 1).max(0) as u64
-            })
-            .collect();
+        let layers: Vec<u64> = crate::parallel::install(|| {
+            triangles
+                .par_iter()
+                .map(|&t| {
+                    let (first, last) = triangle_layers(t, spec.dims, reach, z);
+                    (last - first + 1).max(0) as u64
+                })
+                .collect()
+        });
         let mut items = Vec::with_capacity(triangles.len() + 1);
         let mut total = 0u64;
         for n in layers {

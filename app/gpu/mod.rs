@@ -11,7 +11,18 @@ mod util;
 pub mod voxelize;
 
 pub use readback::watchdog;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+
+/// Devices [`Gpu::from_adapter_with_limits`] has opened in this process.
+static DEVICES_OPENED: AtomicUsize = AtomicUsize::new(0);
+
+/// How many GPU devices meshvox has opened in this process (devices a client opened and handed over with
+/// [`Gpu::from_parts`], such as the viewer's, are not counted). A device costs memory and, on a software
+/// adapter, seconds of pipeline compilation: clients that should open one per process check it with this.
+pub fn devices_opened() -> usize {
+    DEVICES_OPENED.load(Ordering::Relaxed)
+}
 
 /// What the adapter is, for stats and messages.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -182,6 +193,7 @@ impl Gpu {
             })
             .await
             .map_err(|e| GpuError::RequestDevice(e.to_string()))?;
+        DEVICES_OPENED.fetch_add(1, Ordering::Relaxed);
         Ok(Gpu::from_parts(adapter, device, queue))
     }
 

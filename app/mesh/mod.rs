@@ -87,12 +87,16 @@ impl Mesh {
         use rayon::prelude::*;
         let first = self.triangles.first()?[0];
         // In parallel over large meshes: the engine asks for this before every grid (see `local_triangles`).
-        let (min, max) = self
-            .triangles
-            .par_iter()
-            .with_min_len(1 << 14)
-            .fold(|| (first, first), |(lo, hi), t| (lo.min(t[0].min(t[1]).min(t[2])), hi.max(t[0].max(t[1]).max(t[2]))))
-            .reduce(|| (first, first), |(a, b), (c, d)| (a.min(c), b.max(d)));
+        let (min, max) = crate::parallel::install(|| {
+            self.triangles
+                .par_iter()
+                .with_min_len(1 << 14)
+                .fold(
+                    || (first, first),
+                    |(lo, hi), t| (lo.min(t[0].min(t[1]).min(t[2])), hi.max(t[0].max(t[1]).max(t[2]))),
+                )
+                .reduce(|| (first, first), |(a, b), (c, d)| (a.min(c), b.max(d)))
+        });
         Some(Aabb { min: self.anchor + min.as_dvec3(), max: self.anchor + max.as_dvec3() })
     }
 
@@ -178,16 +182,18 @@ fn anchor_of<'a>(sets: impl IntoIterator<Item = (&'a [DVec3], Vec<bool>)>) -> DV
 }
 
 /// The triangles as f32 offsets from `anchor`, each corner converted where it is gathered, in parallel (on the
-/// current rayon pool): this copy is most of what building a mesh from arrays costs (the Python binding's
+/// process's pool, [`crate::parallel`]): this copy is most of what building a mesh from arrays costs (the Python binding's
 /// overhead), and a plain mapping `extend` took twice as long.
 fn local_triangles(positions: &[DVec3], triangles: &[[u32; 3]], anchor: DVec3) -> Vec<[Vec3; 3]> {
     use rayon::prelude::*;
     let mut out = Vec::new();
-    triangles
-        .par_iter()
-        .with_min_len(1 << 14)
-        .map(|t| t.map(|i| (positions[i as usize] - anchor).as_vec3()))
-        .collect_into_vec(&mut out);
+    crate::parallel::install(|| {
+        triangles
+            .par_iter()
+            .with_min_len(1 << 14)
+            .map(|t| t.map(|i| (positions[i as usize] - anchor).as_vec3()))
+            .collect_into_vec(&mut out)
+    });
     out
 }
 

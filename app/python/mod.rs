@@ -89,8 +89,8 @@ fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
         return Err(PyValueError::new_err("vertices and faces must be C-contiguous"));
     };
     let (positions, faces): (&[DVec3], &[[i64; 3]]) = (bytemuck::cast_slice(v), bytemuck::cast_slice(f));
-    // On the process's pool: the mesh is built in parallel, and rayon's global pool does not survive a fork.
-    let mesh = process::pool().install(|| mesh::from_indexed("arrays", positions, faces));
+    // Its parallel copy runs on the library's pool, made per process (rayon's global pool does not survive a fork).
+    let mesh = mesh::from_indexed("arrays", positions, faces);
     let mesh = mesh.map_err(|e| into_py_err(Failure::Mesh(e)))?;
     Ok(Input::Mesh(mesh))
 }
@@ -146,8 +146,8 @@ fn options(
     Ok(Options { resolution, axis, mode, backend, colour, bounds, band })
 }
 
-/// One voxelization on this process's engine, inside [`process::run`]'s working thread: `progress` as the
-/// engine calls it, `cancel` the flag Ctrl-C sets.
+/// One voxelization on this process's engine, inside [`process::run`]'s working thread (or one of
+/// `voxelize_many`'s): `progress` as the engine calls it, `cancel` the flag Ctrl-C sets.
 fn voxelize_one(
     input: Input,
     options: &Options,
@@ -196,8 +196,8 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     let distances = result.field.as_ref().map(|field| {
         let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
         let mut values = vec![0f32; nx * ny * nz];
-        // On the process's pool, as every parallel step of the binding (rayon's global pool does not survive a fork).
-        process::pool().install(|| {
+        // One trip to the library's pool for every slice (rayon's global pool does not survive a fork).
+        crate::parallel::install(|| {
             for (x, slab) in values.chunks_mut(ny * nz).enumerate() {
                 field.x_slice(x as u32, slab);
             }
@@ -261,14 +261,14 @@ fn voxelize_many<'py>(
     let workers =
         workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).clamp(1, total.max(1));
     let results = process::run(py, progress, |control| {
-        let pool = process::pool();
         let mut slots: Vec<Option<Result<Voxelized, Failure>>> = (0..total).map(|_| None).collect();
         // Each mesh's own progress is not reported: the count of finished meshes is.
         let quiet = |_: usize, _: usize| {};
+        // On the queue's own threads, not rayon workers: a voxelization waits for the GPU's turn.
         let job = |i: usize| {
             let taken = inputs[i].lock().unwrap_or_else(|e| e.into_inner()).take();
             let input = taken.filter(|_| !control.cancel.load(Ordering::Relaxed))?;
-            Some(pool.install(|| voxelize_one(input, &options, &quiet, &control.cancel)))
+            Some(voxelize_one(input, &options, &quiet, &control.cancel))
         };
         let mut done = 0;
         let finished = crate::engine::work_queue(total, workers, job, |i, result| {
@@ -313,8 +313,16 @@ fn backends(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     dict.set_item("auto", if engine.uses_gpu() { "gpu" } else { "cpu" })?;
     dict.set_item("backend", &label)?;
     dict.set_item("notes", notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
-    dict.set_item("threads", process::pool().current_num_threads())?;
+    dict.set_item("threads", crate::parallel::threads())?;
     Ok(dict)
+}
+
+/// `meshvox._native.devices_opened`: how many GPU devices this process has opened so far (meshvox's own, not a
+/// client's such as the viewer's). The binding opens at most one, however many threads call at once and whichever
+/// of `gpu` and `auto` they ask for: the tests count devices with this, not log lines.
+#[pyfunction]
+fn devices_opened() -> usize {
+    crate::gpu::devices_opened()
 }
 
 /// `VoxelGrid.save`: writes a grid (from its `.matrix`, origin, pitch and colours) in the format its extension
@@ -380,6 +388,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(voxelize_many, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
+    m.add_function(wrap_pyfunction!(devices_opened, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

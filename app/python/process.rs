@@ -1,66 +1,67 @@
-//! What the binding keeps per process, and how a call runs: the engines (one per backend, opened on first use)
-//! and a rayon pool, both made again in a process forked after they were made (rayon's threads and a GPU device
-//! do not survive `fork()`: a child reusing them hangs or corrupts the parent's device), and [`run`], which
-//! does a call's work on that pool while the calling thread, without the GIL, waits, reports progress
-//! and watches for Ctrl-C.
+//! What the binding keeps per process, and how a call runs.
+//!
+//! The engines (one per backend) are opened on first use, each exactly once however many threads ask at the same
+//! moment (the others wait for the one opening it), `auto` and `gpu` on one device, and opened again in a process
+//! forked after that: a GPU device does not survive `fork()`, and a child reusing the parent's would hang or
+//! corrupt it. The data-parallel loops run on the library's pool ([`crate::parallel`]), per process in the same way.
+//!
+//! [`run`] does a call's work on a thread started for it (not a rayon worker: the work waits for the GPU's turn,
+//! which a worker must never do, see [`crate::parallel`]) while the calling thread, without the GIL, waits,
+//! reports progress and watches for Ctrl-C. Concurrent calls from Python threads each have their own such
+//! thread; they take turns on the GPU and share the pool for their loops.
 
 use crate::engine::{Backend, Engine, EngineError};
 use pyo3::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-/// The process's pool and engines, and the process they belong to.
+/// Engines opened so far, behind the lock their opening holds.
+type Slot = Arc<Mutex<Vec<(Backend, Arc<Engine>)>>>;
+
+/// The process's engines, and the process they belong to: the CPU's apart, so that a CPU call never waits for a
+/// device being opened; `auto` and `gpu` together, so that the second of them opened shares the first one's
+/// device ([`Engine::with_backend`]).
 struct State {
     pid: u32,
-    pool: Arc<rayon::ThreadPool>,
-    engines: Vec<(Backend, Arc<Engine>)>,
+    cpu: Slot,
+    gpu: Slot,
 }
 
 static STATE: Mutex<Option<State>> = Mutex::new(None);
 
-/// This process's state, made on first use and again after a fork. A forked child's copy of the parent's state
-/// is forgotten, not dropped: dropping it would join threads the child does not have and release the parent's
-/// device.
-fn with_state<T>(f: impl FnOnce(&mut State) -> T) -> T {
-    let mut guard = STATE.lock().unwrap_or_else(|e| e.into_inner());
+/// The slot of `backend`'s engine in this process, made on first use. A forked child's copy of the parent's state
+/// is forgotten, not dropped: dropping it would release the parent's device (and a slot the parent was opening
+/// stays locked in the child).
+fn slot(backend: Backend) -> Slot {
+    let mut guard = STATE.lock().unwrap_or_else(PoisonError::into_inner);
     let pid = std::process::id();
     if guard.as_ref().is_some_and(|s| s.pid != pid) {
         std::mem::forget(guard.take());
     }
-    let state = guard.get_or_insert_with(|| State { pid, pool: Arc::new(new_pool()), engines: Vec::new() });
-    f(state)
-}
-
-fn new_pool() -> rayon::ThreadPool {
-    // Building a pool only fails when the OS refuses threads; one thread (the caller's) still works then.
-    rayon::ThreadPoolBuilder::new()
-        .thread_name(|i| format!("meshvox-{i}"))
-        .build()
-        .or_else(|_| rayon::ThreadPoolBuilder::new().num_threads(1).build())
-        .unwrap_or_else(|e| panic!("no thread for meshvox: {e}"))
-}
-
-/// The process's rayon pool.
-pub(super) fn pool() -> Arc<rayon::ThreadPool> {
-    with_state(|s| s.pool.clone())
-}
-
-/// The process's engine for `backend`, opened on first use (for the GPU: adapter, device, pipelines).
-pub(super) fn engine(backend: Backend) -> Result<Arc<Engine>, EngineError> {
-    if let Some(engine) = with_state(|s| s.engines.iter().find(|(b, _)| *b == backend).map(|(_, e)| e.clone())) {
-        return Ok(engine);
+    let state = guard.get_or_insert_with(|| State { pid, cpu: Slot::default(), gpu: Slot::default() });
+    match backend {
+        Backend::Cpu => state.cpu.clone(),
+        Backend::Auto | Backend::Gpu => state.gpu.clone(),
     }
-    // Opened outside the lock: it can take a while, and other threads may want the pool meanwhile. Two threads
-    // opening at once both open; the first one stored is kept.
-    let opened = Arc::new(Engine::open(backend)?);
-    Ok(with_state(|s| match s.engines.iter().find(|(b, _)| *b == backend) {
-        Some((_, e)) => e.clone(),
-        None => {
-            s.engines.push((backend, opened.clone()));
-            opened
-        }
-    }))
+}
+
+/// The process's engine for `backend`, opened on first use (for the GPU: adapter, device, pipelines) while its
+/// slot is held, so that threads asking meanwhile wait for that engine rather than open their own: one device per
+/// process. A failed opening stores nothing, and the next call tries again.
+pub(super) fn engine(backend: Backend) -> Result<Arc<Engine>, EngineError> {
+    let slot = slot(backend);
+    let mut engines = slot.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, engine)) = engines.iter().find(|(b, _)| *b == backend) {
+        return Ok(engine.clone());
+    }
+    let sibling = engines.iter().find_map(|(_, engine)| engine.with_backend(backend));
+    let engine = Arc::new(match sibling {
+        Some(engine) => engine,
+        None => Engine::open(backend)?,
+    });
+    engines.push((backend, engine.clone()));
+    Ok(engine)
 }
 
 /// What the calling thread and the working thread share during [`run`].
@@ -80,29 +81,29 @@ impl Control {
     }
 }
 
-/// Runs `work` on the process's rayon pool (a job on one of its threads; no thread is started per call) while the
-/// calling thread releases the GIL and every 50 ms calls `progress(done, total)` when it changed (from the calling
-/// thread, as Python code expects) and checks for signals. On Ctrl-C (or an exception in `progress`) the work is
-/// told to stop, waited for, and the exception raised; the engine stays usable. A panic in the work is a
-/// `RuntimeError`.
+/// Runs `work` on a thread of its own while the calling thread releases the GIL and every 50 ms calls
+/// `progress(done, total)` when it changed (from the calling thread, as Python code expects) and checks for
+/// signals. On Ctrl-C (or an exception in `progress`) the work is told to stop, waited for, and the exception
+/// raised; the engine stays usable. A panic in the work is a `RuntimeError`.
 pub(super) fn run<R: Send>(
     py: Python<'_>,
     progress: Option<&Bound<'_, PyAny>>,
     work: impl FnOnce(&Control) -> R + Send,
 ) -> PyResult<R> {
     let control = Control::default();
-    let pool = pool();
     let (tx, mut rx) = std::sync::mpsc::channel::<std::thread::Result<R>>();
     let mut outcome = None;
     let mut failure = None;
-    // The scope ends when the job has: after its result arrived (or its sender was dropped by a panic).
-    pool.in_place_scope(|scope| {
+    // The scope ends when the work has: after its result arrived (or its sender was dropped by a panic).
+    let started: std::io::Result<()> = std::thread::scope(|scope| {
         let control = &control;
-        scope.spawn(move |_| {
+        let spawned = std::thread::Builder::new().name("meshvox-call".into()).spawn_scoped(scope, move || {
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(control)));
             // The receiver may be gone (the caller stopped waiting); nothing to tell then.
             let _ = tx.send(result);
         });
+        // The work's thread is joined when the scope ends.
+        spawned?;
         let mut reported = (usize::MAX, usize::MAX);
         loop {
             let (received, back) = py.detach(move || (rx.recv_timeout(Duration::from_millis(50)), rx));
@@ -138,7 +139,11 @@ pub(super) fn run<R: Send>(
                 control.cancel.store(true, Ordering::Relaxed);
             }
         }
+        Ok(())
     });
+    if let Err(e) = started {
+        return Err(pyo3::exceptions::PyRuntimeError::new_err(format!("meshvox could not start a thread: {e}")));
+    }
     match (failure, outcome) {
         (Some(e), _) => Err(e),
         (None, Some(Ok(r))) => Ok(r),

@@ -73,29 +73,31 @@ pub fn ambient_occlusion(occupied: &VoxelGrid, shown: &VoxelGrid) -> Vec<[u32; 2
         p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(dims).all() && occupied.get(p.x as u32, p.y as u32, p.z as u32)
     };
     let voxels: Vec<glam::UVec3> = shown.iter_set().collect();
-    voxels
-        .par_iter()
-        .map(|v| {
-            let mut bits = 0u64;
-            for f in 0..6 {
-                let axis = f / 2;
-                let mut front = v.as_ivec3();
-                front[axis] += if f % 2 == 1 { 1 } else { -1 };
-                for c in 0..4 {
-                    let mut side1 = front;
-                    side1[(axis + 1) % 3] += if c & 1 == 1 { 1 } else { -1 };
-                    let mut side2 = front;
-                    side2[(axis + 2) % 3] += if c & 2 == 2 { 1 } else { -1 };
-                    let mut corner = side1;
-                    corner[(axis + 2) % 3] = side2[(axis + 2) % 3];
-                    let (a, b) = (set(side1), set(side2));
-                    let open = if a && b { 0 } else { 3 - a as u64 - b as u64 - set(corner) as u64 };
-                    bits |= open << ((4 * f + c) * 2);
+    crate::parallel::install(|| {
+        voxels
+            .par_iter()
+            .map(|v| {
+                let mut bits = 0u64;
+                for f in 0..6 {
+                    let axis = f / 2;
+                    let mut front = v.as_ivec3();
+                    front[axis] += if f % 2 == 1 { 1 } else { -1 };
+                    for c in 0..4 {
+                        let mut side1 = front;
+                        side1[(axis + 1) % 3] += if c & 1 == 1 { 1 } else { -1 };
+                        let mut side2 = front;
+                        side2[(axis + 2) % 3] += if c & 2 == 2 { 1 } else { -1 };
+                        let mut corner = side1;
+                        corner[(axis + 2) % 3] = side2[(axis + 2) % 3];
+                        let (a, b) = (set(side1), set(side2));
+                        let open = if a && b { 0 } else { 3 - a as u64 - b as u64 - set(corner) as u64 };
+                        bits |= open << ((4 * f + c) * 2);
+                    }
                 }
-            }
-            [bits as u32, (bits >> 32) as u32]
-        })
-        .collect()
+                [bits as u32, (bits >> 32) as u32]
+            })
+            .collect()
+    })
 }
 
 /// Uploads [`ambient_occlusion`] for the instances of `shown`.

@@ -46,7 +46,9 @@ pub struct Job {
 
 /// The mesh's surface area in world units², for the sparse estimate.
 pub fn surface_area(mesh: &Mesh) -> f64 {
-    mesh.triangles.par_iter().map(|t| 0.5 * f64::from((t[1] - t[0]).cross(t[2] - t[0]).length())).sum()
+    crate::parallel::install(|| {
+        mesh.triangles.par_iter().map(|t| 0.5 * f64::from((t[1] - t[0]).cross(t[2] - t[0]).length())).sum()
+    })
 }
 
 /// Estimated leaves of the sparse grid of a surface of `area` world units² in `spec` (at most every leaf).

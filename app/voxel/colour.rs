@@ -24,6 +24,7 @@ use super::VoxelGrid;
 use super::exact::{ceil, dot3, floor};
 use crate::mesh::Shading;
 use crate::mesh::material::{SRGB_TO_LINEAR, Texture, TriangleShading, Wrap};
+use crate::parallel;
 use glam::{IVec3, UVec3, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -264,58 +265,60 @@ pub fn pack_colour(c: Vec4) -> [u8; 4] {
 /// Colours every set voxel of `grid` from grid-space `triangles` (those the grid was voxelized from) and their
 /// `shading`, with rayon across triangles.
 pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shading) -> VoxelColours {
-    let ranks = word_ranks(grid);
-    let count = grid.count() as usize;
-    let dims = grid.spec.dims;
-    let best: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(f32::INFINITY.to_bits())).collect();
-    let winner: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(NO_TRIANGLE)).collect();
-    // Pass 1 (`nearest_distance`) and pass 2 (`nearest_triangle`) visit the same candidates.
-    let visit = |t: usize, f: &dyn Fn(u32, f32)| {
-        let tri = triangles[t];
-        let (lo, hi) = candidate_range(tri, dims);
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let v = IVec3::new(x, y, z).as_uvec3();
-                    let Some(rank) = voxel_rank(grid, &ranks, v) else { continue };
-                    let p = voxel_centre(v);
-                    let d = squared_distance(p, tri, closest_barycentric(p, tri[0], tri[1], tri[2]));
-                    if d <= REACH2 {
-                        f(rank, d);
+    parallel::install(|| {
+        let ranks = word_ranks(grid);
+        let count = grid.count() as usize;
+        let dims = grid.spec.dims;
+        let best: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(f32::INFINITY.to_bits())).collect();
+        let winner: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(NO_TRIANGLE)).collect();
+        // Pass 1 (`nearest_distance`) and pass 2 (`nearest_triangle`) visit the same candidates.
+        let visit = |t: usize, f: &dyn Fn(u32, f32)| {
+            let tri = triangles[t];
+            let (lo, hi) = candidate_range(tri, dims);
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        let v = IVec3::new(x, y, z).as_uvec3();
+                        let Some(rank) = voxel_rank(grid, &ranks, v) else { continue };
+                        let p = voxel_centre(v);
+                        let d = squared_distance(p, tri, closest_barycentric(p, tri[0], tri[1], tri[2]));
+                        if d <= REACH2 {
+                            f(rank, d);
+                        }
                     }
                 }
             }
-        }
-    };
-    (0..triangles.len()).into_par_iter().for_each(|t| {
-        visit(t, &|rank, d| {
-            best[rank as usize].fetch_min(d.to_bits(), Ordering::Relaxed);
-        })
-    });
-    (0..triangles.len()).into_par_iter().for_each(|t| {
-        visit(t, &|rank, d| {
-            if d.to_bits() == best[rank as usize].load(Ordering::Relaxed) {
-                winner[rank as usize].fetch_min(t as u32, Ordering::Relaxed);
-            }
-        })
-    });
-    let voxels: Vec<UVec3> = grid.iter_set().collect();
-    let rgba = voxels
-        .par_iter()
-        .zip(winner.par_iter())
-        .map(|(&v, w)| match w.load(Ordering::Relaxed) {
-            NO_TRIANGLE => [0; 4],
-            t => {
-                let tri = triangles[t as usize];
-                let p = voxel_centre(v);
-                let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
-                pack_colour(shade(shading, &shading.triangles[t as usize], w))
-            }
-        })
-        .collect();
-    let mut colours = VoxelColours { rgba };
-    fill_interior(grid, &mut colours);
-    colours
+        };
+        (0..triangles.len()).into_par_iter().for_each(|t| {
+            visit(t, &|rank, d| {
+                best[rank as usize].fetch_min(d.to_bits(), Ordering::Relaxed);
+            })
+        });
+        (0..triangles.len()).into_par_iter().for_each(|t| {
+            visit(t, &|rank, d| {
+                if d.to_bits() == best[rank as usize].load(Ordering::Relaxed) {
+                    winner[rank as usize].fetch_min(t as u32, Ordering::Relaxed);
+                }
+            })
+        });
+        let voxels: Vec<UVec3> = grid.iter_set().collect();
+        let rgba = voxels
+            .par_iter()
+            .zip(winner.par_iter())
+            .map(|(&v, w)| match w.load(Ordering::Relaxed) {
+                NO_TRIANGLE => [0; 4],
+                t => {
+                    let tri = triangles[t as usize];
+                    let p = voxel_centre(v);
+                    let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
+                    pack_colour(shade(shading, &shading.triangles[t as usize], w))
+                }
+            })
+            .collect();
+        let mut colours = VoxelColours { rgba };
+        fill_interior(grid, &mut colours);
+        colours
+    })
 }
 
 /// Gives every voxel left uncoloured (alpha 0: no triangle within reach) the colour of the nearest coloured voxel

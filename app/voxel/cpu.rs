@@ -19,6 +19,7 @@ use super::sparse::{LEAF_DIM, LeafSet, SparseGrid};
 pub use super::thin::{ThinShrink, thin_shrink, voxel_overlaps_exact_thin};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
+use crate::parallel;
 use glam::{UVec3, Vec3, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -304,16 +305,18 @@ pub fn voxelize_items(
 /// Maps every triangle of `mesh` into the grid space of `spec` and onto its lattice. Both backends voxelize
 /// exactly these values.
 pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, super::GridError> {
-    let tolerance = spec.snap_tolerance();
-    // The anchor's offset from the grid origin is taken in f64 once; each vertex is then a small f32 offset from
-    // the anchor, so no world coordinate far from the origin is ever rounded to f32.
-    let shift = mesh.anchor - spec.origin;
-    let mut tris: Vec<[Vec3; 3]> =
-        mesh.triangles.par_iter().map(|t| t.map(|v| spec.snap_to_grid(shift + v.as_dvec3(), tolerance))).collect();
-    let lattice = Lattice::fit(&tris, spec.dims)?;
-    // In place: a second array would be fresh pages, and a page fault costs microseconds on a virtual machine.
-    tris.par_iter_mut().for_each(|t| *t = t.map(|v| lattice.snap(v)));
-    Ok(tris)
+    parallel::install(|| {
+        let tolerance = spec.snap_tolerance();
+        // The anchor's offset from the grid origin is taken in f64 once; each vertex is then a small f32 offset from
+        // the anchor, so no world coordinate far from the origin is ever rounded to f32.
+        let shift = mesh.anchor - spec.origin;
+        let mut tris: Vec<[Vec3; 3]> =
+            mesh.triangles.par_iter().map(|t| t.map(|v| spec.snap_to_grid(shift + v.as_dvec3(), tolerance))).collect();
+        let lattice = Lattice::fit(&tris, spec.dims)?;
+        // In place: a second array would be fresh pages, and a page fault costs microseconds on a virtual machine.
+        tris.par_iter_mut().for_each(|t| *t = t.map(|v| lattice.snap(v)));
+        Ok(tris)
+    })
 }
 
 /// What a CPU voxelization produced besides the grid.
@@ -364,22 +367,37 @@ pub fn voxelize_grid_space_cancellable(
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(VoxelGrid, CpuStats), super::GridError> {
-    let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
-    let mut grid = VoxelGrid::new(spec)?;
-    let (wpr, dims) = (spec.words_per_row(), spec.dims);
-    let layer_words = wpr * dims.y as usize;
-    let band = band_layers(dims.z);
-    let mut bands: Vec<(u32, &mut [u32])> =
-        grid.words.chunks_mut(layer_words * band).enumerate().map(|(b, words)| ((b * band) as u32, words)).collect();
-    let stats =
-        walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |(z0, words), x0, x1, y, z| {
-            let row = ((z - *z0) as usize * dims.y as usize + y as usize) * wpr;
-            set_run(&mut words[row..row + wpr], x0, x1);
-        });
-    if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
-        super::solid::fill(&triangles, lattice, &mut grid);
-    }
-    Ok((grid, stats))
+    parallel::install(|| {
+        let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        let mut grid = VoxelGrid::new(spec)?;
+        let (wpr, dims) = (spec.words_per_row(), spec.dims);
+        let layer_words = wpr * dims.y as usize;
+        let band = band_layers(dims.z);
+        let mut bands: Vec<(u32, &mut [u32])> = grid
+            .words
+            .chunks_mut(layer_words * band)
+            .enumerate()
+            .map(|(b, words)| ((b * band) as u32, words))
+            .collect();
+        let stats = walk_bands(
+            &triangles,
+            lattice,
+            dims,
+            mode,
+            band,
+            &mut bands,
+            progress,
+            cancel,
+            |(z0, words), x0, x1, y, z| {
+                let row = ((z - *z0) as usize * dims.y as usize + y as usize) * wpr;
+                set_run(&mut words[row..row + wpr], x0, x1);
+            },
+        );
+        if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
+            super::solid::fill(&triangles, lattice, &mut grid);
+        }
+        Ok((grid, stats))
+    })
 }
 
 /// [`voxelize_grid_space_cancellable`] into a [`SparseGrid`]: the same walk writing runs into leaves, with bands
@@ -392,19 +410,22 @@ pub fn voxelize_grid_space_sparse(
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(SparseGrid, CpuStats), super::GridError> {
-    let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
-    let dims = spec.dims;
-    let band = band_layers(dims.z).next_multiple_of(LEAF_DIM as usize);
-    let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
-    let stats = walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
-        set.set_run(x0, x1, y, z)
-    });
-    let grid = SparseGrid::from_leaf_sets(spec, bands);
-    let grid = match mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
-        true => super::solid_sparse::fill_sparse(&triangles, lattice, grid),
-        false => grid.prune(),
-    };
-    Ok((grid, stats))
+    parallel::install(|| {
+        let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        let dims = spec.dims;
+        let band = band_layers(dims.z).next_multiple_of(LEAF_DIM as usize);
+        let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
+        let stats =
+            walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
+                set.set_run(x0, x1, y, z)
+            });
+        let grid = SparseGrid::from_leaf_sets(spec, bands);
+        let grid = match mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
+            true => super::solid_sparse::fill_sparse(&triangles, lattice, grid),
+            false => grid.prune(),
+        };
+        Ok((grid, stats))
+    })
 }
 
 /// z layers per band of [`walk_bands`]: about eight bands per thread, so that bands of unequal work even out.

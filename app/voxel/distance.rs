@@ -28,6 +28,7 @@ use super::colour::{closest_barycentric, reach_range};
 use super::exact::{ceil, dot3, floor};
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
+use crate::parallel;
 use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -140,37 +141,39 @@ pub fn leaf_offset(v: UVec3) -> usize {
 /// Pass 1: the slots of the leaves any triangle's [`band_range`] touches, numbered in slot order, and their
 /// origins.
 pub fn mark_leaves(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> (Vec<u32>, Vec<UVec3>) {
-    let leaf_dims = (dims + 7) / 8;
-    let marks: Vec<AtomicU32> = (0..leaf_dims.as_u64vec3().element_product()).map(|_| AtomicU32::new(0)).collect();
-    triangles.par_iter().for_each(|&t| {
-        let (lo, hi) = band_range(t, dims, reach);
-        if lo.cmpgt(hi).any() {
-            return;
-        }
-        let (lo, hi) = (lo.as_uvec3() / 8, hi.as_uvec3() / 8);
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    marks[leaf_slot(UVec3::new(x, y, z), leaf_dims)].store(1, Ordering::Relaxed);
+    parallel::install(|| {
+        let leaf_dims = (dims + 7) / 8;
+        let marks: Vec<AtomicU32> = (0..leaf_dims.as_u64vec3().element_product()).map(|_| AtomicU32::new(0)).collect();
+        triangles.par_iter().for_each(|&t| {
+            let (lo, hi) = band_range(t, dims, reach);
+            if lo.cmpgt(hi).any() {
+                return;
+            }
+            let (lo, hi) = (lo.as_uvec3() / 8, hi.as_uvec3() / 8);
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        marks[leaf_slot(UVec3::new(x, y, z), leaf_dims)].store(1, Ordering::Relaxed);
+                    }
                 }
             }
-        }
-    });
-    let mut leaves = Vec::new();
-    let slots = marks
-        .iter()
-        .enumerate()
-        .map(|(i, m)| match m.load(Ordering::Relaxed) {
-            0 => NO_LEAF,
-            _ => {
-                let i = i as u32;
-                let (x, y) = (i % leaf_dims.x, i / leaf_dims.x % leaf_dims.y);
-                leaves.push(UVec3::new(x, y, i / (leaf_dims.x * leaf_dims.y)) * 8);
-                leaves.len() as u32 - 1
-            }
-        })
-        .collect();
-    (slots, leaves)
+        });
+        let mut leaves = Vec::new();
+        let slots = marks
+            .iter()
+            .enumerate()
+            .map(|(i, m)| match m.load(Ordering::Relaxed) {
+                0 => NO_LEAF,
+                _ => {
+                    let i = i as u32;
+                    let (x, y) = (i % leaf_dims.x, i / leaf_dims.x % leaf_dims.y);
+                    leaves.push(UVec3::new(x, y, i / (leaf_dims.x * leaf_dims.y)) * 8);
+                    leaves.len() as u32 - 1
+                }
+            })
+            .collect();
+        (slots, leaves)
+    })
 }
 
 /// The voxel layers `z_lo..z_hi` of triangle `t`'s [`band_range`] that lie in `z_lo..z_hi`: the work items
@@ -258,13 +261,15 @@ pub fn inside_grid(
     spec: GridSpec,
     sparse: bool,
 ) -> Result<Grid, GridError> {
-    Ok(match sparse {
-        false => {
-            let mut grid = VoxelGrid::new(spec)?;
-            super::solid::fill(triangles, lattice, &mut grid);
-            Grid::Dense(grid)
-        }
-        true => Grid::Sparse(super::solid_sparse::fill_sparse(triangles, lattice, SparseGrid::new(spec))),
+    parallel::install(|| {
+        Ok(match sparse {
+            false => {
+                let mut grid = VoxelGrid::new(spec)?;
+                super::solid::fill(triangles, lattice, &mut grid);
+                Grid::Dense(grid)
+            }
+            true => Grid::Sparse(super::solid_sparse::fill_sparse(triangles, lattice, SparseGrid::new(spec))),
+        })
     })
 }
 
@@ -272,14 +277,16 @@ impl DistanceField {
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
     /// given (passes 1–3 on rayon's threads).
     pub fn compute(triangles: &[[Vec3; 3]], spec: GridSpec, band: Band, inside: Option<Grid>) -> DistanceField {
-        let dims = spec.dims;
-        let reach = band.reach(dims);
-        let (slots, leaves) = mark_leaves(triangles, dims, reach);
-        let start = (reach * reach).to_bits();
-        let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
-        triangles.par_iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
-        let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
-        DistanceField::from_squared(spec, band, slots, leaves, &best, inside)
+        parallel::install(|| {
+            let dims = spec.dims;
+            let reach = band.reach(dims);
+            let (slots, leaves) = mark_leaves(triangles, dims, reach);
+            let start = (reach * reach).to_bits();
+            let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
+            triangles.par_iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
+            let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
+            DistanceField::from_squared(spec, band, slots, leaves, &best, inside)
+        })
     }
 
     /// The field from each leaf voxel's squared voxel distance (pass 3; shared by both backends).
@@ -291,71 +298,77 @@ impl DistanceField {
         best: &[f32],
         inside: Option<Grid>,
     ) -> DistanceField {
-        let h = spec.voxel_size as f32;
-        let values = leaves
-            .par_iter()
-            .zip(best.par_chunks(512))
-            .flat_map_iter(|(&origin, leaf)| {
-                // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
-                let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
-                leaf.iter().enumerate().map(move |(i, &d2)| {
-                    let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-                    finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
+        parallel::install(|| {
+            let h = spec.voxel_size as f32;
+            let values = leaves
+                .par_iter()
+                .zip(best.par_chunks(512))
+                .flat_map_iter(|(&origin, leaf)| {
+                    // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
+                    let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
+                    leaf.iter().enumerate().map(move |(i, &d2)| {
+                        let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
+                        finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
+                    })
                 })
-            })
-            .collect();
-        let dims = spec.dims;
-        DistanceField {
-            spec,
-            signed: inside.is_some(),
-            band,
-            reach: band.reach(dims),
-            leaf_dims: (dims + 7) / 8,
-            slots,
-            leaves,
-            values,
-            inside,
-            band_voxels: 0,
-        }
-        .with_band_count()
+                .collect();
+            let dims = spec.dims;
+            DistanceField {
+                spec,
+                signed: inside.is_some(),
+                band,
+                reach: band.reach(dims),
+                leaf_dims: (dims + 7) / 8,
+                slots,
+                leaves,
+                values,
+                inside,
+                band_voxels: 0,
+            }
+            .with_band_count()
+        })
     }
 
     /// A field from every voxel's value (world units, `values[(x * dims_y + y) * dims_z + z]`, as numpy's C order
     /// `[x, y, z]` holds it) with `background` its band's half-width in world units: what the Python binding
     /// saves. Every leaf is kept; the band is the voxels nearer than the background.
     pub fn from_dense(spec: GridSpec, values: &[f32], background: f32, signed: bool) -> DistanceField {
-        let dims = spec.dims;
-        let leaf_dims = (dims + 7) / 8;
-        let reach = background / spec.voxel_size as f32;
-        let leaves: Vec<UVec3> = (0..leaf_dims.z)
-            .flat_map(|z| (0..leaf_dims.y).flat_map(move |y| (0..leaf_dims.x).map(move |x| UVec3::new(x, y, z) * 8)))
-            .collect();
-        let (ny, nz) = (dims.y as usize, dims.z as usize);
-        let leaf_values: Vec<f32> = leaves
-            .par_iter()
-            .flat_map_iter(|&origin| {
-                (0..512u32).map(move |i| {
-                    let v = origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6);
-                    match v.cmplt(dims).all() {
-                        true => values[(v.x as usize * ny + v.y as usize) * nz + v.z as usize],
-                        false => background,
-                    }
+        parallel::install(|| {
+            let dims = spec.dims;
+            let leaf_dims = (dims + 7) / 8;
+            let reach = background / spec.voxel_size as f32;
+            let leaves: Vec<UVec3> = (0..leaf_dims.z)
+                .flat_map(|z| {
+                    (0..leaf_dims.y).flat_map(move |y| (0..leaf_dims.x).map(move |x| UVec3::new(x, y, z) * 8))
                 })
-            })
-            .collect();
-        DistanceField {
-            spec,
-            signed,
-            band: Band::Voxels(reach),
-            reach,
-            leaf_dims,
-            slots: (0..leaves.len() as u32).collect(),
-            leaves,
-            values: leaf_values,
-            inside: None,
-            band_voxels: 0,
-        }
-        .with_band_count()
+                .collect();
+            let (ny, nz) = (dims.y as usize, dims.z as usize);
+            let leaf_values: Vec<f32> = leaves
+                .par_iter()
+                .flat_map_iter(|&origin| {
+                    (0..512u32).map(move |i| {
+                        let v = origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6);
+                        match v.cmplt(dims).all() {
+                            true => values[(v.x as usize * ny + v.y as usize) * nz + v.z as usize],
+                            false => background,
+                        }
+                    })
+                })
+                .collect();
+            DistanceField {
+                spec,
+                signed,
+                band: Band::Voxels(reach),
+                reach,
+                leaf_dims,
+                slots: (0..leaves.len() as u32).collect(),
+                leaves,
+                values: leaf_values,
+                inside: None,
+                band_voxels: 0,
+            }
+            .with_band_count()
+        })
     }
 
     /// The field with [`DistanceField::band_voxels`] counted from its values.
@@ -409,28 +422,32 @@ impl DistanceField {
     /// Voxel values of the x-slice `x`, `[y, z]` in C order (`slice[y * dims_z + z]`): what the dense `.npy` and
     /// Python's `.distances` hold.
     pub fn x_slice(&self, x: u32, slice: &mut [f32]) {
-        let nz = self.spec.dims.z as usize;
-        slice.par_chunks_mut(nz).enumerate().for_each(|(y, row)| {
-            for (z, value) in row.iter_mut().enumerate() {
-                *value = self.value(UVec3::new(x, y as u32, z as u32));
-            }
-        });
+        parallel::install(|| {
+            let nz = self.spec.dims.z as usize;
+            slice.par_chunks_mut(nz).enumerate().for_each(|(y, row)| {
+                for (z, value) in row.iter_mut().enumerate() {
+                    *value = self.value(UVec3::new(x, y as u32, z as u32));
+                }
+            });
+        })
     }
 
     /// The voxels in the band (every voxel for `Band::Full`), as a sparse grid: what `.vdb` and `.npz` outputs
     /// hold values for.
     pub fn band_grid(&self) -> SparseGrid {
-        let mut leaves: Vec<(u64, LeafMask)> = self
-            .leaves
-            .par_iter()
-            .zip(self.values.par_chunks(512))
-            .filter_map(|(&origin, leaf)| {
-                let mask = self.band_mask(origin, leaf);
-                (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
-            })
-            .collect();
-        leaves.par_sort_unstable_by_key(|(key, _)| *key);
-        SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
+        parallel::install(|| {
+            let mut leaves: Vec<(u64, LeafMask)> = self
+                .leaves
+                .par_iter()
+                .zip(self.values.par_chunks(512))
+                .filter_map(|(&origin, leaf)| {
+                    let mask = self.band_mask(origin, leaf);
+                    (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
+                })
+                .collect();
+            leaves.par_sort_unstable_by_key(|(key, _)| *key);
+            SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
+        })
     }
 }
 

@@ -290,7 +290,7 @@ impl VoxelGrid {
             let rest: u64 = pairs.remainder().iter().map(|w| u64::from(w.count_ones())).sum();
             rest + pairs.map(|p| u64::from((u64::from(p[0]) | u64::from(p[1]) << 32).count_ones())).sum::<u64>()
         };
-        self.words.par_chunks(1 << 16).map(count).sum()
+        crate::parallel::install(|| self.words.par_chunks(1 << 16).map(count).sum())
     }
 
     /// Coordinates of the set voxels, in storage order (x fastest, then y, then z).

@@ -39,13 +39,15 @@ impl Lattice {
         // In parallel: this pass and `snap_triangles`' check run on every voxelization, and sequentially they
         // were a tenth of the bunny's at 128 on two cores. A triangle with a non-finite coordinate is `None`
         // (a NaN's `max_element` would hide it), which ends the reduction.
-        let reach = triangles
-            .par_iter()
-            .map(|t| {
-                t.iter().all(|v| v.is_finite()).then(|| t.iter().fold(0.0f32, |r, v| r.max(v.abs().max_element())))
-            })
-            .try_reduce(|| dims.max_element() as f32, |a, b| Some(a.max(b)))
-            .ok_or(GridError::NonFinite)?;
+        let reach = crate::parallel::install(|| {
+            triangles
+                .par_iter()
+                .map(|t| {
+                    t.iter().all(|v| v.is_finite()).then(|| t.iter().fold(0.0f32, |r, v| r.max(v.abs().max_element())))
+                })
+                .try_reduce(|| dims.max_element() as f32, |a, b| Some(a.max(b)))
+        })
+        .ok_or(GridError::NonFinite)?;
         let need = reach as f64 + 2.0;
         let mut shift = 22i32;
         while shift >= 0 && need * 2f64.powi(shift) > LIMIT {
@@ -71,11 +73,13 @@ impl Lattice {
     /// `triangles` rounded onto the lattice; borrowed when they already lie on it (as the output of
     /// [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) does).
     pub fn snap_triangles<'a>(&self, triangles: &'a [[Vec3; 3]]) -> GridTriangles<'a> {
-        if triangles.par_iter().all(|t| t.iter().all(|&v| self.snap(v) == v)) {
-            Cow::Borrowed(triangles)
-        } else {
-            Cow::Owned(triangles.par_iter().map(|t| t.map(|v| self.snap(v))).collect())
-        }
+        crate::parallel::install(|| {
+            if triangles.par_iter().all(|t| t.iter().all(|&v| self.snap(v) == v)) {
+                Cow::Borrowed(triangles)
+            } else {
+                Cow::Owned(triangles.par_iter().map(|t| t.map(|v| self.snap(v))).collect())
+            }
+        })
     }
 
     /// A lattice point in lattice units (exact: the product is an integer below `2^23`).

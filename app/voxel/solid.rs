@@ -217,24 +217,27 @@ pub struct RowCrossings {
 
 /// Lists the crossings of all lattice triangles.
 pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) -> RowCrossings {
-    let mut pairs: Vec<(u32, u32)> = triangles
-        .par_iter()
-        .flat_map_iter(|&t| {
-            let mut v = Vec::new();
-            triangle_crossings(t, dims, lattice, |row, c| v.push((row, c)));
-            v
-        })
-        .collect();
-    pairs.par_sort_unstable();
-    let rows = dims.y as usize * dims.z as usize;
-    let mut offsets = vec![0u32; rows + 1];
-    for &(row, _) in &pairs {
-        offsets[row as usize + 1] += 1;
-    }
-    for r in 0..rows {
-        offsets[r + 1] += offsets[r];
-    }
-    RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
+    // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
+    crate::parallel::install(|| {
+        let mut pairs: Vec<(u32, u32)> = triangles
+            .par_iter()
+            .flat_map_iter(|&t| {
+                let mut v = Vec::new();
+                triangle_crossings(t, dims, lattice, |row, c| v.push((row, c)));
+                v
+            })
+            .collect();
+        pairs.par_sort_unstable();
+        let rows = dims.y as usize * dims.z as usize;
+        let mut offsets = vec![0u32; rows + 1];
+        for &(row, _) in &pairs {
+            offsets[row as usize + 1] += 1;
+        }
+        for r in 0..rows {
+            offsets[r + 1] += offsets[r];
+        }
+        RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
+    })
 }
 
 /// An edge of the mesh's open boundary, in grid space, with its multiplicity (negative when the boundary runs
@@ -277,45 +280,50 @@ pub struct Boundary {
 /// shared). Edges where the uses cancel are interior; a closed mesh has none left. Sorted, so both backends sum
 /// the boundary term in the same order.
 pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<BoundaryEdge> {
-    let mut uses: Vec<([i32; 3], [i32; 3], i32)> = triangles
-        .par_iter()
-        .flat_map_iter(|t| {
-            let u = t.map(|p| lattice.units(p).to_array());
-            // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
-            // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
-            let (e0, e1) =
-                (IVec3::from_array(u[1]) - IVec3::from_array(u[0]), IVec3::from_array(u[2]) - IVec3::from_array(u[0]));
-            let flat = (0..3).all(|k| super::exact::exact_normal_component(e0, e1, k) == 0);
-            (0..3).filter(move |_| !flat).filter_map(move |i| {
-                let (a, b) = (u[i], u[(i + 1) % 3]);
-                match a.cmp(&b) {
-                    std::cmp::Ordering::Less => Some((a, b, 1)),
-                    std::cmp::Ordering::Greater => Some((b, a, -1)),
-                    std::cmp::Ordering::Equal => None,
-                }
+    // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
+    crate::parallel::install(|| {
+        let mut uses: Vec<([i32; 3], [i32; 3], i32)> = triangles
+            .par_iter()
+            .flat_map_iter(|t| {
+                let u = t.map(|p| lattice.units(p).to_array());
+                // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
+                // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
+                let (e0, e1) = (
+                    IVec3::from_array(u[1]) - IVec3::from_array(u[0]),
+                    IVec3::from_array(u[2]) - IVec3::from_array(u[0]),
+                );
+                let flat = (0..3).all(|k| super::exact::exact_normal_component(e0, e1, k) == 0);
+                (0..3).filter(move |_| !flat).filter_map(move |i| {
+                    let (a, b) = (u[i], u[(i + 1) % 3]);
+                    match a.cmp(&b) {
+                        std::cmp::Ordering::Less => Some((a, b, 1)),
+                        std::cmp::Ordering::Greater => Some((b, a, -1)),
+                        std::cmp::Ordering::Equal => None,
+                    }
+                })
             })
-        })
-        .collect();
-    uses.par_sort_unstable();
-    let scale = 1.0 / lattice.scale();
-    let point = |u: [i32; 3]| IVec3::from_array(u).as_vec3() * scale;
-    let mut edges = Vec::new();
-    let mut i = 0;
-    while i < uses.len() {
-        let (a, b, _) = uses[i];
-        let mut weight = 0;
-        while i < uses.len() && uses[i].0 == a && uses[i].1 == b {
-            weight += uses[i].2;
-            i += 1;
+            .collect();
+        uses.par_sort_unstable();
+        let scale = 1.0 / lattice.scale();
+        let point = |u: [i32; 3]| IVec3::from_array(u).as_vec3() * scale;
+        let mut edges = Vec::new();
+        let mut i = 0;
+        while i < uses.len() {
+            let (a, b, _) = uses[i];
+            let mut weight = 0;
+            while i < uses.len() && uses[i].0 == a && uses[i].1 == b {
+                weight += uses[i].2;
+                i += 1;
+            }
+            if weight != 0 {
+                let (a, b) = (point(a), point(b));
+                // Rounded up a little: it only ever enlarges a bound.
+                let span = (b.y - a.y).hypot(b.z - a.z) * (1.0 + 1e-6);
+                edges.push(BoundaryEdge { a: a.to_array(), weight: weight as f32, b: b.to_array(), span });
+            }
         }
-        if weight != 0 {
-            let (a, b) = (point(a), point(b));
-            // Rounded up a little: it only ever enlarges a bound.
-            let span = (b.y - a.y).hypot(b.z - a.z) * (1.0 + 1e-6);
-            edges.push(BoundaryEdge { a: a.to_array(), weight: weight as f32, b: b.to_array(), span });
-        }
-    }
-    edges
+        edges
+    })
 }
 
 /// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x: the spherical
@@ -500,40 +508,43 @@ pub fn fill_listed_rows(
     rows: &[u32],
     boundary: &Boundary,
 ) -> Vec<(u32, Vec<u32>)> {
-    let mut rows = rows.to_vec();
-    rows.sort_unstable();
-    rows.dedup();
-    let mut lists: Vec<Vec<u32>> = triangles
-        .par_iter()
-        .fold(
-            || vec![Vec::new(); rows.len()],
-            |mut lists, &t| {
-                triangle_crossings(t, dims, lattice, |row, c| {
-                    if let Ok(i) = rows.binary_search(&row) {
-                        lists[i].push(c);
-                    }
-                });
-                lists
-            },
-        )
-        .reduce(
-            || vec![Vec::new(); rows.len()],
-            |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(a, b)| a.extend(b));
-                a
-            },
-        );
-    let wpr = dims.x.div_ceil(32) as usize;
-    rows.iter()
-        .zip(lists.iter_mut())
-        .map(|(&r, list)| {
-            list.sort_unstable();
-            let (y, z) = (r % dims.y, r / dims.y);
-            let mut words = vec![0u32; wpr];
-            fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &mut words);
-            (r, words)
-        })
-        .collect()
+    // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
+    crate::parallel::install(|| {
+        let mut rows = rows.to_vec();
+        rows.sort_unstable();
+        rows.dedup();
+        let mut lists: Vec<Vec<u32>> = triangles
+            .par_iter()
+            .fold(
+                || vec![Vec::new(); rows.len()],
+                |mut lists, &t| {
+                    triangle_crossings(t, dims, lattice, |row, c| {
+                        if let Ok(i) = rows.binary_search(&row) {
+                            lists[i].push(c);
+                        }
+                    });
+                    lists
+                },
+            )
+            .reduce(
+                || vec![Vec::new(); rows.len()],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(a, b)| a.extend(b));
+                    a
+                },
+            );
+        let wpr = dims.x.div_ceil(32) as usize;
+        rows.iter()
+            .zip(lists.iter_mut())
+            .map(|(&r, list)| {
+                list.sort_unstable();
+                let (y, z) = (r % dims.y, r / dims.y);
+                let mut words = vec![0u32; wpr];
+                fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &mut words);
+                (r, words)
+            })
+            .collect()
+    })
 }
 
 /// Sets bits `k0..k1` of a row.
@@ -750,17 +761,20 @@ pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, boun
 
 /// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell).
 pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
-    let spec = grid.spec;
-    let rows = column_crossings(triangles, spec.dims, lattice);
-    let boundary = boundary(triangles, lattice);
-    let wpr = spec.words_per_row();
-    grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
-        let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-        let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
-        let near = near_boundary(y, z, &boundary.pieces);
-        if list.is_empty() && !near {
-            return;
-        }
-        fill_row(list, y, z, spec.dims.x, near, &boundary, row);
-    });
+    // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
+    crate::parallel::install(|| {
+        let spec = grid.spec;
+        let rows = column_crossings(triangles, spec.dims, lattice);
+        let boundary = boundary(triangles, lattice);
+        let wpr = spec.words_per_row();
+        grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
+            let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+            let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
+            let near = near_boundary(y, z, &boundary.pieces);
+            if list.is_empty() && !near {
+                return;
+            }
+            fill_row(list, y, z, spec.dims.x, near, &boundary, row);
+        });
+    })
 }

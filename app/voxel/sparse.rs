@@ -87,7 +87,7 @@ impl SparseGrid {
     /// The grid of the leaves the walk's bands set (each band's keys its own).
     pub fn from_leaf_sets(spec: GridSpec, sets: Vec<LeafSet>) -> SparseGrid {
         let mut leaves: Vec<(u64, LeafMask)> = sets.into_iter().flat_map(|s| s.leaves).collect();
-        leaves.par_sort_unstable_by_key(|(key, _)| *key);
+        crate::parallel::install(|| leaves.par_sort_unstable_by_key(|(key, _)| *key));
         SparseGrid { spec, leaves, tiles: Vec::new() }
     }
 
@@ -118,7 +118,7 @@ impl SparseGrid {
             tiles.retain(|t| t.log2 != small || !complete.contains(&((t.origin >> large) << large)));
             tiles.extend(complete.into_iter().map(|origin| Tile { log2: large, origin }));
         }
-        tiles.par_sort_unstable_by_key(Tile::sort_key);
+        crate::parallel::install(|| tiles.par_sort_unstable_by_key(Tile::sort_key));
         self.tiles = tiles;
         self
     }
@@ -184,8 +184,9 @@ impl SparseGrid {
 
     /// Number of set voxels.
     pub fn count(&self) -> u64 {
-        let leaves: u64 =
-            self.leaves.par_iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum();
+        let leaves: u64 = crate::parallel::install(|| {
+            self.leaves.par_iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum()
+        });
         leaves + self.tiles.iter().map(Tile::voxels).sum::<u64>()
     }
 

@@ -1,12 +1,14 @@
 //! The library's engine is what the CLI runs (issue 28): for every output format, on shared meshes with and
 //! without colour, the bytes `meshvox voxelize` writes are the bytes `Engine::voxelize` and `Voxelized::write`
 //! give through the public API, and the `--stats-json` line is the engine's `Report` with the CLI's output fields
-//! filled in.
+//! filled in. One GPU engine shared by threads and by rayon jobs at once gives the CPU's grids and never deadlocks
+//! (issue 50).
 
 use super::common::shared_meshes;
 use meshvox::voxel::formats::VoxelFormat;
 use meshvox::voxel::{Mode, Resolution};
 use meshvox::{Backend, Engine, Request};
+use rayon::prelude::*;
 
 #[test]
 fn the_cli_writes_what_the_public_api_writes() {
@@ -123,4 +125,198 @@ fn cancel_bounds_and_arrays_through_the_engine() {
     assert!(error.to_string().contains("face 0 uses vertex 2"), "{error}");
     let error = meshvox::mesh::from_indexed("arrays", &[glam::DVec3::ZERO; 3], &[[0i64, -1, 2]]).expect_err("negative");
     assert!(error.to_string().contains("face 0 uses vertex -1"), "{error}");
+}
+
+/// Issue 50: one GPU engine shared by several std threads, by the jobs of a rayon pool (a parallel iterator whose
+/// every item calls the blocking `Engine::voxelize`) and by both at once, with a second engine on the same device
+/// (`Engine::with_backend`), gives the CPU's grid for every call in every mode and never deadlocks. Before the
+/// fix a worker holding the GPU's turn stole another call while joined in a loop and waited on that same turn.
+#[test]
+fn threads_and_rayon_jobs_share_one_gpu_engine_without_deadlock() {
+    use std::sync::Arc;
+    if super::gpu::gpu().is_none() {
+        return;
+    }
+    let gpu = Arc::new(Engine::open(Backend::Gpu).expect("the GPU engine"));
+    let sibling = Arc::new(gpu.with_backend(Backend::Gpu).expect("an engine on the same device"));
+    let cpu = Engine::open(Backend::Cpu).expect("the CPU engine");
+    let modes = [Mode::Surface, Mode::Solid, Mode::Surface6, Mode::Sdf, Mode::Udf];
+    let mut jobs = Vec::new();
+    for (name, n) in [("builtin:torus", 20), ("builtin:sphere", 16), ("builtin:knot", 24)] {
+        let mesh = Arc::new(meshvox::mesh::load(name).expect("builtin"));
+        for mode in modes {
+            let expected = Arc::new(Outcome::of(&cpu, name, &mesh, n, mode));
+            jobs.push(Job { name, mesh: mesh.clone(), n, mode, expected });
+        }
+    }
+    let jobs = Arc::new(jobs);
+    let pool = Arc::new(rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool"));
+    let started = std::time::Instant::now();
+    for round in 0..3 {
+        within(120, &format!("round {round}"), {
+            let (jobs, gpu, sibling, pool) = (jobs.clone(), gpu.clone(), sibling.clone(), pool.clone());
+            move || {
+                std::thread::scope(|s| {
+                    // Plain threads, each over every job, two on the second engine of the device.
+                    for t in 0..4 {
+                        let (jobs, engine) = (&jobs, if t % 2 == 0 { &gpu } else { &sibling });
+                        s.spawn(move || jobs.iter().cycle().skip(t).take(jobs.len()).for_each(|j| j.check(engine)));
+                    }
+                    // Rayon jobs calling the blocking engine, in a pool of the test's own and in the global one: a
+                    // parallel iterator's items, and calls sent to the pool one by one from plain threads (as the
+                    // Python binding did when it hung).
+                    s.spawn(|| pool.install(|| jobs.par_iter().for_each(|j| j.check(&gpu))));
+                    s.spawn(|| jobs.par_iter().for_each(|j| j.check(&gpu)));
+                    for t in 0..2 {
+                        let (jobs, gpu, pool) = (&jobs, &gpu, &pool);
+                        s.spawn(move || jobs.iter().skip(t).step_by(2).for_each(|j| pool.install(|| j.check(gpu))));
+                    }
+                });
+            }
+        });
+    }
+    eprintln!("{} GPU calls in {:.1} s", 3 * 7 * jobs.len(), started.elapsed().as_secs_f64());
+}
+
+/// One voxelization to make and the CPU's result for it.
+struct Job {
+    name: &'static str,
+    mesh: std::sync::Arc<meshvox::mesh::Mesh>,
+    n: u32,
+    mode: Mode,
+    expected: std::sync::Arc<Outcome>,
+}
+
+impl Job {
+    fn check(&self, engine: &Engine) {
+        let got = Outcome::of(engine, self.name, &self.mesh, self.n, self.mode);
+        assert!(got.backend.starts_with("gpu"), "{} {:?}: ran on {}", self.name, self.mode, got.backend);
+        assert!(
+            got.words == self.expected.words,
+            "{} {:?}: the GPU's grid differs from the CPU's",
+            self.name,
+            self.mode
+        );
+        assert_eq!(got.field.len(), self.expected.field.len());
+        // Distances within docs/distance.md's bound (4 units in the last place of the grid's longest dimension,
+        // in voxels); lavapipe's are identical.
+        let bound = 4.0 * f32::EPSILON * self.expected.largest * self.expected.pitch;
+        for (i, (a, b)) in got.field.iter().zip(&self.expected.field).enumerate() {
+            assert!(
+                (a - b).abs() <= bound,
+                "{} {:?}: distance {i} is {a} on the GPU, {b} on the CPU",
+                self.name,
+                self.mode
+            );
+        }
+    }
+}
+
+/// What the comparison looks at: the grid's words, every voxel's distance for a field, where it ran.
+struct Outcome {
+    words: Vec<u32>,
+    field: Vec<f32>,
+    backend: String,
+    largest: f32,
+    pitch: f32,
+}
+
+impl Outcome {
+    fn of(engine: &Engine, name: &str, mesh: &meshvox::mesh::Mesh, n: u32, mode: Mode) -> Outcome {
+        let request = Request { colour: Some(false), ..Request::new(Resolution::Count(n), mode) };
+        let result = engine.voxelize(name, mesh, &request).expect("voxelize");
+        let grid = result.grid.dense().expect("dense");
+        let d = grid.spec.dims;
+        let mut field = vec![0f32; (d.x * d.y * d.z) as usize];
+        if let Some(f) = &result.field {
+            for (x, slab) in field.chunks_mut((d.y * d.z) as usize).enumerate() {
+                f.x_slice(x as u32, slab);
+            }
+        }
+        let (largest, pitch) = (d.max_element() as f32, grid.spec.voxel_size as f32);
+        Outcome { words: grid.words.clone(), field, backend: result.report.backend, largest, pitch }
+    }
+}
+
+/// Runs `f` on a thread of its own and fails the test if it has not finished within `seconds` (a deadlock
+/// would otherwise hang the test binary, and CI, for ever); a panic in `f` fails it too.
+fn within(seconds: u64, what: &str, f: impl FnOnce() + Send + 'static) {
+    if let Err(e) = finished_within(seconds, f) {
+        panic!("{what}: {e}");
+    }
+}
+
+/// Runs `f` on a thread of its own: `Err` if it has not finished within `seconds` (the thread is left to finish
+/// when it can); a panic in `f` resumes here.
+fn finished_within(seconds: u64, f: impl FnOnce() + Send + 'static) -> Result<(), String> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        f();
+        let _ = tx.send(());
+    });
+    match rx.recv_timeout(std::time::Duration::from_secs(seconds)) {
+        Ok(()) => worker.join().map_err(|_| "panicked".to_string()),
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => match worker.join() {
+            Ok(()) => Ok(()),
+            Err(panic) => std::panic::resume_unwind(panic),
+        },
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+            Err(format!("not finished after {seconds} s: the engine's threads deadlocked"))
+        }
+    }
+}
+
+/// ARCHITECTURE.md's rule for parallel work (issue 50): every loop the engine runs goes through
+/// `meshvox::parallel::install`, so no call waits for rayon's global pool, whose workers may all be waiting on
+/// engine calls of their own (a parallel iterator over meshes) while a call holding the GPU's turn waits for them.
+/// Every worker of the global pool is held here while the engine loads, voxelizes every mode dense and sparse,
+/// on the GPU and the CPU, and writes: a loop sent to the global pool would wait until they are let go.
+#[test]
+fn the_engine_never_waits_for_rayons_global_pool() {
+    use std::sync::{Arc, Barrier, Condvar, Mutex};
+    let gpu = super::gpu::gpu().map(|_| Engine::open(Backend::Gpu).expect("the GPU engine"));
+    let cpu = Engine::open(Backend::Cpu).expect("the CPU engine");
+    let held = Arc::new(Barrier::new(rayon::current_num_threads() + 1));
+    let gate = Arc::new((Mutex::new(false), Condvar::new()));
+    let holder = std::thread::spawn({
+        let (held, gate) = (held.clone(), gate.clone());
+        move || {
+            rayon::broadcast(|_| {
+                held.wait();
+                let (open, opened) = &*gate;
+                let mut open = open.lock().expect("gate");
+                while !*open {
+                    open = opened.wait(open).expect("gate");
+                }
+            })
+        }
+    });
+    held.wait();
+    let calls = finished_within(60, move || {
+        let mesh = meshvox::mesh::load("builtin:knot").expect("builtin");
+        let engines = [Some(&cpu), gpu.as_ref()];
+        for mode in [Mode::Surface, Mode::Solid, Mode::Surface6, Mode::Sdf, Mode::Udf] {
+            for (engine, grid) in engines
+                .iter()
+                .flatten()
+                .flat_map(|e| [(*e, meshvox::voxel::GridKind::Dense), (*e, meshvox::voxel::GridKind::Sparse)])
+            {
+                let request = Request { grid, ..Request::new(Resolution::Count(24), mode) };
+                let result = engine.voxelize("knot", &mesh, &request).expect("voxelize");
+                let format = if mode.is_field() || grid == meshvox::voxel::GridKind::Sparse {
+                    VoxelFormat::Vdb
+                } else {
+                    VoxelFormat::Npy
+                };
+                let mut out = std::io::Cursor::new(Vec::new());
+                result.write(format, &Default::default(), &mut out).expect("write");
+            }
+        }
+    });
+    *gate.0.lock().expect("gate") = true;
+    gate.1.notify_all();
+    holder.join().expect("the global pool's workers let go");
+    if let Err(e) = calls {
+        panic!("an engine call waited for rayon's global pool (a loop not in meshvox::parallel::install?): {e}");
+    }
 }

@@ -1,7 +1,7 @@
 //! The layer rules of ARCHITECTURE.md, read from the source: every module's references to other modules
 //! (`use` items and inline paths through `crate::`, `super::` and, in the binary, `meshvox::`) form a graph in which
-//! no layer imports a higher one (memory, mesh, voxel, gpu, engine, render, then the clients: ui, python and the
-//! binary) and no circle of
+//! no layer imports a higher one (memory, parallel, mesh, voxel, gpu, engine, render, then the clients: ui, python
+//! and the binary) and no circle of
 //! modules exists. A child's references to its own ancestors are left out: a parent module owns its children (the
 //! viewer's `impl ViewerApp` blocks live in `ui/job.rs`, `ui/viewport.rs`…), which is not a circle between peers.
 //! A reference to an item a parent re-exports from a child (`pub use job::Stats`) counts as one to that child.
@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// The top-level modules from the bottom layer up; `cli` stands for the binary (`main.rs` and `cli/`). The Python
 /// binding is a client like the viewer, and uses no drawing.
-const LAYERS: [&str; 9] = ["memory", "mesh", "voxel", "gpu", "engine", "render", "ui", "python", "cli"];
+const LAYERS: [&str; 10] = ["memory", "parallel", "mesh", "voxel", "gpu", "engine", "render", "ui", "python", "cli"];
 
 type Module = Vec<String>;
 

@@ -23,6 +23,7 @@
 
 use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
+use crate::parallel;
 use crate::voxel::SparseGrid;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::sparse::{LeafMask, key_origin};
@@ -235,7 +236,7 @@ fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
         (lo, hi)
     };
     let join = |a: (UVec3, UVec3), b: (UVec3, UVec3)| (a.0.min(b.0), a.1.max(b.1));
-    let leaves = grid.leaves.par_iter().map(leaf).reduce(|| (UVec3::MAX, UVec3::ZERO), join);
+    let leaves = parallel::install(|| grid.leaves.par_iter().map(leaf).reduce(|| (UVec3::MAX, UVec3::ZERO), join));
     let all = grid.tiles.iter().fold(leaves, |acc, t| join(acc, (t.origin, t.origin + (1u32 << t.log2) - 1)));
     (all.0.x <= all.1.x).then_some(all)
 }
@@ -334,22 +335,24 @@ struct TreeNodes {
 }
 
 fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
-    let mut below_root: Vec<(u64, Node)> = grid
-        .leaves
-        .par_iter()
-        .enumerate()
-        .map(|(i, (key, _))| (tree_order(key_origin(*key)), Node::Leaf(i as u32)))
-        .collect();
-    let mut root_tiles = Vec::new();
-    for t in &grid.tiles {
-        match t.log2 {
-            3 | 7 => below_root.push((tree_order(t.origin), Node::Tile { log2: t.log2, origin: t.origin })),
-            _ => root_tiles.push(t.origin),
+    parallel::install(|| {
+        let mut below_root: Vec<(u64, Node)> = grid
+            .leaves
+            .par_iter()
+            .enumerate()
+            .map(|(i, (key, _))| (tree_order(key_origin(*key)), Node::Leaf(i as u32)))
+            .collect();
+        let mut root_tiles = Vec::new();
+        for t in &grid.tiles {
+            match t.log2 {
+                3 | 7 => below_root.push((tree_order(t.origin), Node::Tile { log2: t.log2, origin: t.origin })),
+                _ => root_tiles.push(t.origin),
+            }
         }
-    }
-    below_root.par_sort_unstable_by_key(|(order, _)| *order);
-    root_tiles.sort_unstable_by_key(|o| (o.x, o.y, o.z));
-    TreeNodes { below_root, root_tiles }
+        below_root.par_sort_unstable_by_key(|(order, _)| *order);
+        root_tiles.sort_unstable_by_key(|o| (o.x, o.y, o.z));
+        TreeNodes { below_root, root_tiles }
+    })
 }
 
 /// The origin of the tree node of edge `1 << log2` holding `order`'s first voxel.
@@ -530,34 +533,36 @@ fn write_buffers(
         .collect();
     // Buffers are made in parallel a batch of leaves at a time and written in order.
     for batch in leaves.chunks(4096) {
-        let bytes: Vec<Vec<u8>> = batch
-            .par_iter()
-            .map(|&i| {
-                let (key, mask) = &grid.leaves[i as usize];
-                let origin = key_origin(*key);
-                let mut b = Vec::with_capacity(140);
-                Mask(mask.to_vec()).write(&mut b);
-                match values {
-                    Values::Bool => {
-                        coord(&mut b, origin);
-                        Mask(mask.to_vec()).write(&mut b);
-                    }
-                    Values::Density | Values::Colour(_) | Values::LevelSet { .. } => {
-                        let at = |n: usize| origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
-                        values.inactive(512, at, &mut b);
-                        for (x, &word) in mask.iter().enumerate() {
-                            let mut bits = word;
-                            while bits != 0 {
-                                let n = bits.trailing_zeros();
-                                values.value(origin + UVec3::new(x as u32, n / 8, n % 8), &mut b);
-                                bits &= bits - 1;
+        let bytes: Vec<Vec<u8>> = parallel::install(|| {
+            batch
+                .par_iter()
+                .map(|&i| {
+                    let (key, mask) = &grid.leaves[i as usize];
+                    let origin = key_origin(*key);
+                    let mut b = Vec::with_capacity(140);
+                    Mask(mask.to_vec()).write(&mut b);
+                    match values {
+                        Values::Bool => {
+                            coord(&mut b, origin);
+                            Mask(mask.to_vec()).write(&mut b);
+                        }
+                        Values::Density | Values::Colour(_) | Values::LevelSet { .. } => {
+                            let at = |n: usize| origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
+                            values.inactive(512, at, &mut b);
+                            for (x, &word) in mask.iter().enumerate() {
+                                let mut bits = word;
+                                while bits != 0 {
+                                    let n = bits.trailing_zeros();
+                                    values.value(origin + UVec3::new(x as u32, n / 8, n % 8), &mut b);
+                                    bits &= bits - 1;
+                                }
                             }
                         }
                     }
-                }
-                b
-            })
-            .collect();
+                    b
+                })
+                .collect()
+        });
         for b in bytes {
             out.write_all(&b)?;
         }
