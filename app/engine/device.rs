@@ -130,6 +130,9 @@ impl Engine {
         let voxelizer = OnceLock::new();
         let (colourer, distance) = (OnceLock::new(), OnceLock::new());
         let (turn, busy_ns) = (async_lock::Mutex::new(()), AtomicU64::new(0));
+        // Shared by the engines `with_backend` makes. In the browser wgpu's handles are neither `Send` nor `Sync`
+        // (the page has one thread), so there the `Arc` is only a shared owner.
+        #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
         let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, turn, busy_ns });
         let on_gpu = OnGpu { device, fallback, shared };
         let engine = Engine { gpu: Some(on_gpu), ..Engine::cpu(None) };
