@@ -323,6 +323,13 @@ fn piece(i: u32, k: u32) -> vec4<f32> {
     return boundary[2u * solid.edge_count + 3u * i + k];
 }
 
+// How far the row through (y, z) passes outside piece i's box along y and along z (the CPU's `yz_gap`).
+fn piece_yz_gap(i: u32, y: f32, z: f32) -> vec2<f32> {
+    let lo = piece(i, 0u);
+    let hi = piece(i, 1u);
+    return vec2<f32>(max(max(lo.y - y, y - hi.y), 0.0), max(max(lo.z - z, z - hi.z), 0.0));
+}
+
 // The winding number and its bounds (derivations at the CPU reference's `winding_number_bounded`): the error of
 // this evaluation, the drift within `reach` voxels along the row, and what the pieces left out may add (those
 // the stretch passes outside of in YZ, while their area bounds add up to at most `budget`): (w, e, drift, far).
@@ -338,8 +345,9 @@ fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32, budget: f32) -> 
         let lo = piece(i, 0u);
         let hi = piece(i, 1u);
         let range = bitcast<vec4<u32>>(piece(i, 2u));
-        let dy = max(max(lo.y - p.y, p.y - hi.y), 0.0);
-        let dz = max(max(lo.z - p.z, p.z - hi.z), 0.0);
+        let gap = piece_yz_gap(i, p.y, p.z);
+        let dy = gap.x;
+        let dz = gap.y;
         if dy > 0.0 || dz > 0.0 {
             let dx = max(max(lo.x - (p.x + reach), p.x - reach - hi.x), 0.0);
             let bound = hi.w / (dx * dx + dy * dy + dz * dz) * scale * 1.01;
@@ -478,15 +486,12 @@ fn near_boundary(y: u32, z: u32) -> bool {
     let cz = f32(z) + 0.5;
     var sum = 0.0;
     for (var i = 0u; i < solid.piece_count; i++) {
-        let lo = piece(i, 0u);
-        let hi = piece(i, 1u);
-        let dy = max(max(lo.y - cy, cy - hi.y), 0.0);
-        let dz = max(max(lo.z - cz, cz - hi.z), 0.0);
-        let d = sqrt(dy * dy + dz * dz);
+        let gap = piece_yz_gap(i, cy, cz);
+        let d = length(gap);
         if d == 0.0 {
             return true;
         }
-        sum += min(2.0 * lo.w / d, hi.w / (d * d));
+        sum += min(2.0 * piece(i, 0u).w / d, piece(i, 1u).w / (d * d));
         if sum >= NEAR {
             return true;
         }

@@ -268,6 +268,17 @@ pub struct BoundaryPiece {
     pub _pad: [u32; 2],
 }
 
+impl BoundaryPiece {
+    /// How far the row through `(y, z)` (grid space) passes outside the piece's box along y and along z (0 where
+    /// it is within the box's extent): the shader's `piece_yz_gap`.
+    #[inline]
+    pub fn yz_gap(&self, y: f32, z: f32) -> (f32, f32) {
+        let dy = (self.lo[1] - y).max(y - self.hi[1]).max(0.0);
+        let dz = (self.lo[2] - z).max(z - self.hi[2]).max(0.0);
+        (dy, dz)
+    }
+}
+
 /// A mesh's open boundary: its edges ([`boundary_edges`]) grouped by piece, and the pieces.
 pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
@@ -326,16 +337,9 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
     })
 }
 
-/// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x: the spherical
-/// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector).
-#[inline]
-pub fn cone_solid_angle(a: Vec3, b: Vec3) -> f32 {
-    let (_, _, num, den) = cone_parts(a, b);
-    2.0 * num.atan2(den)
-}
-
-/// What [`cone_solid_angle`] takes the angle of, and the lengths it is made from: `(|a|, |b|, num, den)`, the
-/// solid angle being `2 atan2(num, den)`.
+/// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x, the spherical
+/// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector), as what it is
+/// made from: `(|a|, |b|, num, den)`, the solid angle being `2 atan2(num, den)`.
 #[inline]
 pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32, f32) {
     let la = a.length();
@@ -372,7 +376,7 @@ pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
 /// move between `p` and any point of the row within `reach` voxels of it that no crossing separates from `p` (0
 /// when `reach` is 0); `far` how far the winding number anywhere on that stretch can be from the sum, for the
 /// pieces of the boundary left out of it: a piece whose box the stretch passes outside of in YZ contributes at
-/// most its spanning area over the squared distance from the stretch to its box (see [`piece_reach`]), and such
+/// most its spanning area over the squared distance from the stretch to its box (why: [`piece_reach`]), and such
 /// pieces are left out while those bounds add up to at most `budget` (0: every edge is summed).
 ///
 /// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
@@ -403,11 +407,9 @@ pub fn winding_number_bounded(
     let mut summed = 0u32;
     let scale = 1.0 / (4.0 * std::f32::consts::PI);
     for piece in &boundary.pieces {
-        let (lo, hi) = (Vec3::from_array(piece.lo), Vec3::from_array(piece.hi));
-        let dy = (lo.y - p.y).max(p.y - hi.y).max(0.0);
-        let dz = (lo.z - p.z).max(p.z - hi.z).max(0.0);
+        let (dy, dz) = piece.yz_gap(p.y, p.z);
         if dy > 0.0 || dz > 0.0 {
-            let dx = (lo.x - (p.x + reach)).max(p.x - reach - hi.x).max(0.0);
+            let dx = (piece.lo[0] - (p.x + reach)).max(p.x - reach - piece.hi[0]).max(0.0);
             let bound = piece.area / (dx * dx + dy * dy + dz * dz) * scale * 1.01;
             if far + bound <= budget {
                 far += bound;
@@ -656,8 +658,7 @@ pub fn near_boundary(y: u32, z: u32, pieces: &[BoundaryPiece]) -> bool {
     let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
     let mut sum = 0.0f32;
     for piece in pieces {
-        let dy = (piece.lo[1] - cy).max(cy - piece.hi[1]).max(0.0);
-        let dz = (piece.lo[2] - cz).max(cz - piece.hi[2]).max(0.0);
+        let (dy, dz) = piece.yz_gap(cy, cz);
         let d = (dy * dy + dz * dz).sqrt();
         if d == 0.0 {
             return true;
