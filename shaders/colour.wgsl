@@ -1,4 +1,4 @@
-// Voxel colours: the colour of the surface point nearest each set voxel's centre (see app/voxel/colour.rs, the
+// Voxel colours: the colour of the surface point nearest each set voxel's centre (see app/voxel/cpu/colour.rs, the
 // CPU reference, whose functions carry the same names). Three passes over the same bindings:
 //   nearest_distance  one thread per triangle: for each set voxel within reach, atomicMin of the squared distance
 //                     (f32 bits, which order like the values for non-negative numbers) into best[2 * rank];
@@ -7,7 +7,7 @@
 //   shade_voxels      one thread per grid word: each set voxel's winning triangle is shaded at the nearest point
 //                     and the sRGB bytes replace the distance in best[2 * rank] (0 where no triangle reached it).
 // A voxel's rank is its index among the set voxels in storage order: ranks[word] plus the set bits below it.
-// Joined after nearest.wgsl (dot3, triangle, closest_barycentric).
+// Joined after shared/common.wgsl (dot3, thread_index) and nearest.wgsl (triangle, closest_barycentric).
 
 struct Params {
     dims: vec3<u32>,
@@ -80,10 +80,6 @@ fn voxel_rank(v: vec3<u32>) -> u32 {
     return ranks[word] + countOneBits(w & ((1u << bit) - 1u));
 }
 
-fn thread_index(gid: vec3<u32>) -> u32 {
-    return gid.x + gid.y * params.row_threads;
-}
-
 // Both triangle passes visit the same candidates; `step` 0 lowers distances, 1 lowers triangle indices.
 fn visit(t: u32, step: u32) {
     let tri = triangle(t);
@@ -114,7 +110,7 @@ fn visit(t: u32, step: u32) {
 
 @compute @workgroup_size(64)
 fn nearest_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = thread_index(gid);
+    let t = thread_index(gid, params.row_threads);
     if t < params.tri_count {
         visit(t, 0u);
     }
@@ -122,7 +118,7 @@ fn nearest_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 @compute @workgroup_size(64)
 fn nearest_triangle(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = thread_index(gid);
+    let t = thread_index(gid, params.row_threads);
     if t < params.tri_count {
         visit(t, 1u);
     }
@@ -251,7 +247,7 @@ fn pack_colour(c: vec4<f32>) -> u32 {
 
 @compute @workgroup_size(64)
 fn shade_voxels(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let word = thread_index(gid);
+    let word = thread_index(gid, params.row_threads);
     if word >= params.word_count {
         return;
     }

@@ -3,7 +3,8 @@
 // output sized by the host, `write_voxels` reserves a run per word with an atomic cursor and writes each set
 // voxel as two u32: x | (y << 16) and z. The order of the list is unspecified. With `surface_only`, voxels whose
 // six neighbours are all set are left out (nobody can see them); neighbours outside the grid or the slab count as
-// empty, so slab borders keep their voxels.
+// empty, so slab borders keep their voxels. Joined after shared/common.wgsl (linear_id) at build time
+// (`COMPACT_WGSL` in app/gpu/compact.rs).
 
 struct CompactParams {
     dims: vec3<u32>,
@@ -63,14 +64,10 @@ fn listed_bits(i: u32) -> u32 {
     return keep;
 }
 
-fn word_index(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>) -> u32 {
-    return (wid.y * groups.x + wid.x) * 256u + lid.x;
-}
-
 @compute @workgroup_size(256)
 fn count_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                 @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = word_index(wid, lid, groups);
+    let i = linear_id(wid, lid, groups, 256u);
     if lid.x == 0u {
         atomicStore(&group_count, 0u);
     }
@@ -94,7 +91,7 @@ fn count_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation
 @compute @workgroup_size(256)
 fn write_voxels(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                 @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = word_index(wid, lid, groups);
+    let i = linear_id(wid, lid, groups, 256u);
     if i >= params.word_count {
         return;
     }

@@ -1,18 +1,20 @@
 // Distance fields (`--mode sdf|udf`): the squared distance from each voxel centre in the band to the nearest
-// triangle (see app/voxel/distance.rs, the CPU reference, whose functions carry the same names). Joined after
-// nearest.wgsl (dot3, triangle, closest_barycentric).
+// triangle (see app/voxel/cpu/distance.rs, the CPU mirror, whose functions carry the same names). Joined after
+// shared/common.wgsl (dot3, thread_index), shared/items.wgsl (item_triangle) and nearest.wgsl (triangle,
+// closest_barycentric).
 //   band_distance  one thread per (triangle, voxel layer of its band box in this dispatch's z-range of leaves):
 //                  for every voxel centre of the layer within the band of the triangle's bounding box, atomicMin
 //                  of the squared distance (f32 bits, which order like the values for non-negative numbers) into
-//                  best[512 * (leaf - leaf_base) + offset in the leaf]. `items[t]` is the first item of triangle t
-//                  (a prefix sum over its layers, made on the host), so big and small triangles spread evenly.
+//                  best[512 * (leaf - leaf_base) + offset in the leaf]. `first_items[t]` is the first item of
+//                  triangle t (a prefix sum over its layers, made on the host), so big and small triangles spread
+//                  evenly.
 // The host marks the leaves (`mark_leaves`), starts `best` at reach², and turns the result into signed world
 // distances (`finish_value`).
 
 struct Params {
     dims: vec3<u32>,
     tri_count: u32,
-    // Work items of this dispatch: items[tri_count].
+    // Work items of this dispatch: first_items[tri_count].
     leaf_dims: vec3<u32>,
     // Threads per row of the 2D dispatch (workgroups in x times the workgroup size).
     row_threads: u32,
@@ -28,7 +30,7 @@ struct Params {
 @group(0) @binding(1) var<storage, read> triangles: array<f32>;
 @group(0) @binding(2) var<storage, read> slots: array<u32>;
 @group(0) @binding(3) var<storage, read_write> best: array<atomic<u32>>;
-@group(0) @binding(4) var<storage, read> items: array<u32>;
+@group(0) @binding(4) var<storage, read> first_items: array<u32>;
 
 fn band_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
     let lo = min(min(t[0], t[1]), t[2]) - (params.reach + 0.5);
@@ -56,25 +58,6 @@ fn leaf_offset(v: vec3<u32>) -> u32 {
     return ((v.z & 7u) * 8u + (v.y & 7u)) * 8u + (v.x & 7u);
 }
 
-fn thread_index(gid: vec3<u32>) -> u32 {
-    return gid.x + gid.y * params.row_threads;
-}
-
-// The triangle whose items hold item i: the last t with items[t] <= i (binary search).
-fn item_triangle(i: u32) -> u32 {
-    var lo = 0u;
-    var hi = params.tri_count;
-    while hi - lo > 1u {
-        let mid = (lo + hi) / 2u;
-        if items[mid] <= i {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    return lo;
-}
-
 // The first voxel layer of triangle t's band box in this dispatch.
 fn first_layer(lo: vec3<i32>) -> i32 {
     return max(lo.z, i32(params.z_lo));
@@ -82,7 +65,7 @@ fn first_layer(lo: vec3<i32>) -> i32 {
 
 // The voxels of row (y, z) whose centres are within the band of the box bmin..bmax, as x0..x1 (empty when
 // x0 > x1): the box's rounded dilation, widened by 1e-3 voxel against rounding.
-fn row_span(bmin: vec3<f32>, bmax: vec3<f32>, y: i32, z: i32) -> vec2<i32> {
+fn band_span(bmin: vec3<f32>, bmax: vec3<f32>, y: i32, z: i32) -> vec2<i32> {
     let py = f32(y) + 0.5;
     let pz = f32(z) + 0.5;
     let dy = max(max(bmin.y - py, py - bmax.y), 0.0);
@@ -103,7 +86,7 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
     let bmin = min(min(tri[0], tri[1]), tri[2]);
     let bmax = max(max(tri[0], tri[1]), tri[2]);
     for (var y = lo.y; y <= hi.y; y++) {
-        let span = row_span(bmin, bmax, y, z);
+        let span = band_span(bmin, bmax, y, z);
         for (var x = max(span.x, lo.x); x <= min(span.y, hi.x); x++) {
             let v = vec3<u32>(vec3<i32>(x, y, z));
             let at = (slots[leaf_slot(v / 8u)] - params.leaf_base) * 512u + leaf_offset(v);
@@ -129,11 +112,11 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
 
 @compute @workgroup_size(64)
 fn band_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = thread_index(gid);
-    if i >= items[params.tri_count] {
+    let i = thread_index(gid, params.row_threads);
+    if i >= first_items[params.tri_count] {
         return;
     }
-    let t = item_triangle(i);
+    let t = item_triangle(i, params.tri_count);
     let tri = triangle(t);
-    triangle_layer(tri, first_layer(band_lo(tri)) + i32(i - items[t]));
+    triangle_layer(tri, first_layer(band_lo(tri)) + i32(i - first_items[t]));
 }

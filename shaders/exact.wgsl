@@ -1,14 +1,10 @@
 // The exact arithmetic the surface passes (surface.wgsl) and the solid passes (solid.wgsl) share, mirroring
-// app/voxel/exact.rs: the relative factor of every forward error bound, the dot product in one order of
-// operations, 128-bit integers, and the exact normal of lattice edge vectors. The three files are joined into one
-// module at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs), so each may use what the others declare.
+// app/voxel/cpu/exact.rs: the relative factor of every forward error bound, 128-bit integers (the CPU's i128), and
+// the exact normal of lattice edge vectors. Joined into the voxelize and the solid modules at build time
+// (`VOXELIZE_WGSL` in app/gpu/voxelize.rs, `SOLID_WGSL` in app/gpu/solid.rs); it uses nothing they declare.
 
-// Relative factor of the forward error bounds: 2^-19 (see ERROR_FACTOR in app/voxel/exact.rs).
+// Relative factor of the forward error bounds: 2^-19 (see ERROR_FACTOR in app/voxel/cpu/exact.rs).
 const ERROR_FACTOR: f32 = 1.0 / 524288.0;
-
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
 
 // ---- 128-bit integers for the exact path: two's complement in a vec4<u32>, least significant word first ----
 
@@ -58,6 +54,16 @@ fn wide_mul(a: vec4<u32>, m: i32) -> vec4<u32> {
         r[i] = lo;
     }
     if m < 0 {
+        return wide_neg(r);
+    }
+    return r;
+}
+
+// The exact product of two i32 as a 128-bit integer.
+fn wide_product(a: i32, b: i32) -> vec4<u32> {
+    let p = mul_u32(bitcast<u32>(abs(a)), bitcast<u32>(abs(b)));
+    let r = vec4<u32>(p.x, p.y, 0u, 0u);
+    if (a < 0) != (b < 0) {
         return wide_neg(r);
     }
     return r;

@@ -1,11 +1,7 @@
 // The nearest point of a triangle, shared by the passes that search for it: colour.wgsl (the colour of the
 // nearest surface point) and distance.wgsl (distance fields). Joined before each of them; it declares no bindings
 // and reads `triangles` (nine f32 per triangle, grid space), which both declare. The CPU reference is
-// app/voxel/colour.rs (`closest_barycentric`).
-
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
+// app/voxel/cpu/nearest.rs (`closest_barycentric`).
 
 fn triangle(t: u32) -> array<vec3<f32>, 3> {
     let b = 9u * t;

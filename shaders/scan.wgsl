@@ -1,7 +1,7 @@
 // The work-item scan of the surface passes: each triangle's first work item as a prefix sum of the work counts
-// its set-up gave (scan_blocks, scan_block_sums, add_block_offsets), and the triangle of a work item
-// (find_triangle). Its CPU counterpart is no pass at all: the CPU walks each triangle's work items in turn. Joined
-// with the other voxelize shaders at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs).
+// its set-up gave (scan_blocks, scan_block_sums, add_block_offsets); the walk finds a work item's triangle with
+// `item_triangle` (shared/items.wgsl). Its CPU counterpart is no pass at all: the CPU walks each triangle's work
+// items in turn. Joined with the other voxelize shaders at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs).
 
 var<workgroup> scratch: array<u32, SCAN_WG>;
 
@@ -26,11 +26,11 @@ fn scan_blocks(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     let t = wid.x * SCAN_WG + lid.x;
     var count = 0u;
     if t < params.tri_count {
-        count = offsets[t];
+        count = first_items[t];
     }
     let inclusive = workgroup_inclusive_scan(lid.x, count);
     if t < params.tri_count {
-        offsets[t] = inclusive - count;
+        first_items[t] = inclusive - count;
     }
     if lid.x == SCAN_WG - 1u {
         block_sums[wid.x] = inclusive;
@@ -69,21 +69,6 @@ fn scan_block_sums(@builtin(local_invocation_id) lid: vec3<u32>) {
 fn add_block_offsets(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let t = wid.x * SCAN_WG + lid.x;
     if t < params.tri_count {
-        offsets[t] += block_sums[wid.x];
+        first_items[t] += block_sums[wid.x];
     }
-}
-
-// The last triangle whose first work item is <= item.
-fn find_triangle(item: u32) -> u32 {
-    var lo = 0u;
-    var hi = params.tri_count;
-    while hi - lo > 1u {
-        let mid = (lo + hi) / 2u;
-        if offsets[mid] <= item {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    return lo;
 }

@@ -1,4 +1,4 @@
-// ---- solid: the inside voxels, mirroring app/voxel/solid.rs (see there for the algorithm and why) ----
+// ---- solid: the inside voxels, mirroring app/voxel/cpu/solid.rs (see there for the algorithm and why) ----
 //
 //   count_crossings   one invocation per work item (up to ROWS_PER_ITEM rows (y, z) under one triangle's YZ
 //                     bounding box): count, per row, the exact crossings of the row's centre line
@@ -7,7 +7,8 @@
 //   write_crossings   as count_crossings, writing each crossing's exact first voxel and sign into the segment
 //   fill_rows         per row of the current z-slab: sort the segment, then set the inside voxels (integer
 //                     counts where the crossings cancel, winding numbers with the boundary term elsewhere)
-// These passes have their own bindings (8 and up), never the surface passes' ones.
+// A module of its own (`SOLID_WGSL` in app/gpu/solid.rs: shared/common.wgsl, shared/items.wgsl, exact.wgsl and
+// this file, joined at build time); its bindings start at 8, apart from the surface passes' 0 to 7.
 
 struct SolidParams {
     dims: vec3<u32>,
@@ -40,7 +41,7 @@ struct SolidParams {
 @group(0) @binding(14) var<storage, read_write> solid_grid: array<atomic<u32>>;
 @group(0) @binding(15) var<storage, read_write> crossing_total: array<atomic<u32>>;
 // Per triangle, its first work item (exclusive prefix sum of its items, from the host).
-@group(0) @binding(16) var<storage, read> item_offsets: array<u32>;
+@group(0) @binding(16) var<storage, read> first_items: array<u32>;
 // Word 0: how many rows this slab could not decide as the CPU does (see `certain_side`); then those rows
 // (z * dims.y + y), up to `unsure_capacity`. The host fills them with the CPU reference.
 @group(0) @binding(17) var<storage, read_write> solid_unsure: array<atomic<u32>>;
@@ -57,16 +58,6 @@ const ROWS_PER_ITEM: u32 = 32u;
 fn solid_vertex(t: u32, i: u32) -> vec3<f32> {
     let b = 9u * t + 3u * i;
     return vec3<f32>(solid_triangles[b], solid_triangles[b + 1u], solid_triangles[b + 2u]);
-}
-
-// The exact product of two i32 as a 128-bit integer.
-fn wide_product(a: i32, b: i32) -> vec4<u32> {
-    let p = mul_u32(bitcast<u32>(abs(a)), bitcast<u32>(abs(b)));
-    let r = vec4<u32>(p.x, p.y, 0u, 0u);
-    if (a < 0) != (b < 0) {
-        return wide_neg(r);
-    }
-    return r;
 }
 
 // (b - a) x (q - a) in the YZ plane, doubled lattice units: its sign.
@@ -205,32 +196,17 @@ fn row_crossing(t: u32, s: CrossingSetup, y: u32, z: u32) -> u32 {
     return (k << 1u) | select(0u, 1u, s.sign > 0);
 }
 
-// The triangle of work item `item`: the last whose first item is at most `item`.
-fn item_triangle(item: u32) -> u32 {
-    var lo = 0u;
-    var hi = solid.tri_count;
-    while hi - lo > 1u {
-        let mid = (lo + hi) / 2u;
-        if item_offsets[mid] <= item {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    return lo;
-}
-
 // Calls the pass's row action for each row of work item `item` its triangle covers: rows k * ROWS_PER_ITEM ..
 // (k + 1) * ROWS_PER_ITEM of the triangle's YZ bounding box, row-major in y.
 fn crossing_rows(item: u32, write: bool) {
-    let t = item_triangle(item);
+    let t = item_triangle(item, solid.tri_count);
     let s = crossing_setup(t);
     if s.sign == 0 {
         return;
     }
     let width = s.hi.x - s.lo.x + 1u;
     let total = width * (s.hi.y - s.lo.y + 1u);
-    let first = (item - item_offsets[t]) * ROWS_PER_ITEM;
+    let first = (item - first_items[t]) * ROWS_PER_ITEM;
     let end = min(total, first + ROWS_PER_ITEM);
     for (var i = first; i < end; i++) {
         let y = s.lo.x + i % width;

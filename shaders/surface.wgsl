@@ -1,11 +1,12 @@
 // GPU surface voxelization: the Schwarz–Seidel 2010 triangle/box overlap test with atomicOr into a bit grid.
 //
-// One of five files joined into one module at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs), each mirroring
-// one part of the CPU reference: exact.wgsl (the shared exact arithmetic), surface.wgsl (this: set-up, the walk,
-// the exact decisions), scan.wgsl (the work-item scan), thin.wgsl (the thin test of surface6) and solid.wgsl.
+// One of six files joined into one module at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs): shared/common.wgsl
+// and shared/items.wgsl (helpers other modules join too), exact.wgsl (the shared exact arithmetic), surface.wgsl
+// (this: set-up, the walk, the exact decisions), scan.wgsl (the work-item scan) and thin.wgsl (the thin test of
+// surface6). The solid passes are a module of their own (solid.wgsl).
 //
-// This file mirrors app/voxel/cpu.rs function by function (same names, same arithmetic in the same order), so
-// the two produce bit-identical grids. Everything is in grid space: voxel (i, j, k) is the unit box with
+// This file mirrors app/voxel/cpu/surface.rs function by function (same names, same arithmetic in the same
+// order), so the two produce bit-identical grids. Everything is in grid space: voxel (i, j, k) is the unit box with
 // minimum corner (i, j, k). Core WebGPU only: no extensions, workgroups of at most 256 invocations.
 //
 // Decisions are exact: each sign test is evaluated in f32 with a forward error bound that holds under any
@@ -21,7 +22,7 @@
 //                      and the indirect dispatch size (group 1, kept apart because the indirect buffer must not
 //                      be bound for writing while `voxelize` is dispatched from it)
 //   add_block_offsets  per triangle: block offset + local offset = first work item of the triangle
-//   voxelize           one invocation per work item (found by binary search over the offsets): up to CHUNK
+//   voxelize           one invocation per work item (found by binary search over first_items): up to CHUNK
 //                      columns of one row, each tested over the depth range its plane crosses; voxels the f32
 //                      decision is unsure of go to the unsure list
 //   prepare_exact      one invocation: the `exact` pass's indirect dispatch size from the list's length
@@ -30,7 +31,7 @@
 // many invocations busy as a dense mesh. Grids too large for one binding run `voxelize` once per z-slab.
 
 const CHUNK: u32 = 16u;
-// Ranges of fewer voxels are tested whole rather than narrowed (DIRECT_ROW in app/voxel/cpu.rs).
+// Ranges of fewer voxels are tested whole rather than narrowed (DIRECT_ROW in app/voxel/cpu/surface.rs).
 const DIRECT_ROW: f32 = 8.0;
 const WG: u32 = 64u;
 const SCAN_WG: u32 = 256u;
@@ -76,7 +77,7 @@ struct TriangleSetup {
 @group(0) @binding(1) var<storage, read> triangles: array<f32>;
 @group(0) @binding(2) var<storage, read_write> setups: array<TriangleSetup>;
 // Work items per triangle, turned in place into each triangle's first work item.
-@group(0) @binding(3) var<storage, read_write> offsets: array<u32>;
+@group(0) @binding(3) var<storage, read_write> first_items: array<u32>;
 @group(0) @binding(4) var<storage, read_write> block_sums: array<u32>;
 @group(0) @binding(5) var<storage, read_write> grid: array<atomic<u32>>;
 // Voxel tests the f32 decision left unsure, as (triangle, x, y, z), decided by the `exact` pass; and their count.
@@ -144,14 +145,14 @@ fn orientation(sign: i32) -> f32 {
     return select(-1.0, 1.0, sign >= 0);
 }
 
-// Edge normals, offsets and error bounds of one projection (see setup_edges in app/voxel/cpu.rs for the bound).
+// Edge normals, offsets and error bounds of one projection (see setup_edges in app/voxel/cpu/surface.rs for the bound).
 fn setup_edges(a: vec3<f32>, b: vec3<f32>, o: f32, wa: f32, wb: f32) -> Edges {
     var out: Edges;
     for (var i = 0u; i < 3u; i++) {
         let j = (i + 1u) % 3u;
         let e = vec2<f32>(a[j] - a[i], b[j] - b[i]);
         var normal = vec2<f32>(-e.y, e.x) * o;
-        // Axis-aligned: unit length, exact values, zero bound (see setup_edges in app/voxel/cpu.rs).
+        // Axis-aligned: unit length, exact values, zero bound (see setup_edges in app/voxel/cpu/surface.rs).
         let aligned = (normal.x == 0.0) != (normal.y == 0.0);
         if aligned {
             normal = sign(normal);
@@ -179,7 +180,7 @@ fn voxel_range(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, dims: vec3<u32>, s: 
     }
 }
 
-// The set-up of triangle t (see setup_triangle in app/voxel/cpu.rs for the plane error bound).
+// The set-up of triangle t (see setup_triangle in app/voxel/cpu/surface.rs for the plane error bound).
 fn setup_triangle(t: u32, dims: vec3<u32>) -> TriangleSetup {
     var s: TriangleSetup;
     let b = 9u * t;
@@ -287,7 +288,7 @@ fn voxel_overlaps_exact(s: TriangleSetup, t: u32, p: vec3<u32>) -> bool {
         && edge_test(s, s.zx, 2u, t, p, pl.zx);
 }
 
-// The f32 test values of one row of voxels with x factored out (see RowTerms in app/voxel/overlap.rs): the
+// The f32 test values of one row of voxels with x factored out (see RowTerms in app/voxel/cpu/surface.rs): the
 // eight values that vary along the row are slope * x + k (a: plane lower and upper, XY edges 0 and 1; b: XY edge
 // 2, ZX edges 0 to 2), the YZ edges' are fixed, so only the ends of their bounds are kept. Each value is the same
 // sum as before in another order, and every bound holds for any order.
@@ -348,7 +349,7 @@ fn decision_at(r: RowTerms, x: f32) -> u32 {
 }
 
 // Narrows [lo, hi] to the integer t where slope * t + offset may be non-negative given its error bound eps,
-// widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu.rs for why
+// widened by the roundings of the division and of the widening itself (see narrow in app/voxel/cpu/surface.rs for why
 // this is conservative); ill-conditioned constraints are left to the full test. Returns the new (lo, hi).
 fn narrow(range: vec2<f32>, slope: f32, offset: f32, eps: f32, scale: f32) -> vec2<f32> {
     // Ranges under DIRECT_ROW are tested whole (cheaper than divisions), as in cpu.rs.
@@ -420,10 +421,6 @@ fn work_items(s: TriangleSetup) -> u32 {
     return (s.hi.z - s.lo.z + 1u) * chunks_per_row(s);
 }
 
-fn linear_id(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>, size: u32) -> u32 {
-    return (wid.y * groups.x + wid.x) * size + lid.x;
-}
-
 @compute @workgroup_size(64)
 fn setup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
          @builtin(num_workgroups) groups: vec3<u32>) {
@@ -433,7 +430,7 @@ fn setup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
     }
     let s = setup_triangle(t, params.dims);
     setups[t] = s;
-    offsets[t] = work_items(s);
+    first_items[t] = work_items(s);
 }
 
 fn set_voxel(v: vec3<u32>) {
@@ -458,7 +455,7 @@ fn list_unsure(t: u32, p: vec3<u32>) {
     }
 }
 
-// The walk of one work item (see walk in app/voxel/cpu.rs for why the voxels between the first and the last
+// The walk of one work item (see walk in app/voxel/cpu/surface.rs for why the voxels between the first and the last
 // certain overlap of a row are filled untested). Voxels the f32 decision is unsure of are appended to `unsure`
 // for the `exact` pass.
 // Why a separate pass: CPU implementations of WebGPU (lavapipe, SwiftShader) run invocations as SIMD lanes and
@@ -467,9 +464,9 @@ fn list_unsure(t: u32, p: vec3<u32>) {
 // to compile. The count goes on past the list's capacity, so the host sees an overflow and decides the grid
 // another way (see `app/gpu/voxelize.rs`); no voxel is lost to the capacity.
 fn walk(item: u32) {
-    let t = find_triangle(item);
+    let t = item_triangle(item, params.tri_count);
     let s = setups[t];
-    let k = item - offsets[t];
+    let k = item - first_items[t];
     let cpr = chunks_per_row(s);
     let zi = k / cpr;
     // Only rows in the current z-slab.

@@ -1,6 +1,6 @@
 // The thin (6-separating) test: the thick test of surface.wgsl with its values moved inward, mirroring the
-// functions of the same names in app/voxel/cpu.rs (see ThinShrink there). Joined with exact.wgsl, surface.wgsl,
-// scan.wgsl and solid.wgsl into one module at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs).
+// functions of the same names in app/voxel/cpu/thin.rs (ThinShrink is in app/voxel/cpu/surface.rs). Joined with the
+// other voxelize files into one module at build time (`VOXELIZE_WGSL` in app/gpu/voxelize.rs).
 
 struct ThinShrink {
     plane: f32,

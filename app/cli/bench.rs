@@ -535,7 +535,7 @@ fn frame_times(args: &BenchArgs) -> Result<()> {
     let mesh = meshvox::mesh::load("builtin:knot")?;
     let bounds = mesh.bounds().ok_or_else(|| anyhow!("the knot is empty"))?;
     let spec = GridSpec::fit(bounds, Resolution::Count(532), meshvox::voxel::Axis::Longest)?;
-    let grid = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {})?;
+    let grid = meshvox::voxel::voxelize::voxelize(&mesh, spec, &|_, _| {})?;
     let shown = grid.exposed();
     let t = Instant::now();
     let occlusion = occlusion_buffer(&gpu.device, &grid, &shown);

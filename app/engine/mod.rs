@@ -217,7 +217,7 @@ pub fn plan(name: &str, mesh: &Mesh, request: &Request) -> Result<Plan, EngineEr
 
 /// `mesh`'s triangles in `spec`'s grid space, as both the voxelizer and the colour pass take them.
 fn grid_space(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3]>, EngineError> {
-    voxel::cpu::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid {
+    voxel::voxelize::grid_space_triangles(mesh, spec).map_err(|error| EngineError::Grid {
         mesh: mesh.name.clone(),
         error,
         sparse: false,
@@ -495,10 +495,10 @@ impl Engine {
         let d = spec.dims;
         let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
         let (grid, stats) = match sparse {
-            true => voxel::cpu::voxelize_grid_space_sparse(tris, spec, mode, progress, cancel)
+            true => voxel::voxelize::voxelize_grid_space_sparse(tris, spec, mode, progress, cancel)
                 .map(|(g, s)| (Grid::Sparse(g), s))
                 .map_err(grid_error)?,
-            false => voxel::cpu::voxelize_grid_space_cancellable(tris, spec, mode, progress, cancel)
+            false => voxel::voxelize::voxelize_grid_space_mode(tris, spec, mode, progress, cancel)
                 .map(|(g, s)| (Grid::Dense(g), s))
                 .map_err(grid_error)?,
         };

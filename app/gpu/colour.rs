@@ -11,13 +11,17 @@ use super::{Gpu, GpuError, dispatch_2d};
 use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::VoxelGrid;
-use crate::voxel::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, VoxelColours, fill_interior, word_ranks};
+use crate::voxel::colour::{VoxelColours, fill_interior, word_ranks};
+use crate::voxel::cpu::colour::{NO_TRIANGLE, SRGB_MIDPOINTS};
 use glam::Vec3;
 
-pub const COLOUR_WGSL: &str =
-    concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/colour.wgsl"));
-/// The files joined into [`COLOUR_WGSL`], in order.
-pub const COLOUR_PARTS: [&str; 2] = ["nearest.wgsl", "colour.wgsl"];
+pub const COLOUR_WGSL: &str = concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/nearest.wgsl"),
+    include_str!("../../shaders/colour.wgsl"),
+);
+/// The files joined into [`COLOUR_WGSL`], in order, relative to `shaders/`.
+pub const COLOUR_PARTS: [&str; 3] = ["shared/common.wgsl", "nearest.wgsl", "colour.wgsl"];
 const WG: u32 = 64;
 /// Words of one material record and one texture record in the tables (`MATERIAL_WORDS`, `TEXTURE_WORDS`).
 const MATERIAL_WORDS: usize = 12;

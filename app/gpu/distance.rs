@@ -12,15 +12,20 @@
 use super::readback::read_buffer;
 use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::distance::{Band, mark_leaves, triangle_layers};
+use crate::voxel::cpu::distance::triangle_layers;
+use crate::voxel::distance::{Band, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
 
-pub const DISTANCE_WGSL: &str =
-    concat!(include_str!("../../shaders/nearest.wgsl"), include_str!("../../shaders/distance.wgsl"));
-/// The files joined into [`DISTANCE_WGSL`], in order.
-pub const DISTANCE_PARTS: [&str; 2] = ["nearest.wgsl", "distance.wgsl"];
+pub const DISTANCE_WGSL: &str = concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/shared/items.wgsl"),
+    include_str!("../../shaders/nearest.wgsl"),
+    include_str!("../../shaders/distance.wgsl"),
+);
+/// The files joined into [`DISTANCE_WGSL`], in order, relative to `shaders/`.
+pub const DISTANCE_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "nearest.wgsl", "distance.wgsl"];
 const WG: u32 = 64;
 /// Bytes of one leaf's squared distances.
 const LEAF_BYTES: u64 = 512 * 4;

@@ -6,7 +6,7 @@ pub mod compact;
 pub mod distance;
 mod readback;
 mod run;
-mod solid;
+pub mod solid;
 mod util;
 pub mod voxelize;
 

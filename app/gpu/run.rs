@@ -254,7 +254,7 @@ impl<'a> Run<'a> {
     /// Lists the crossings of every row for the solid fill (once; all triangles are in the one batch).
     pub(super) async fn prepare_solid(&mut self, triangles: &[[Vec3; 3]], lattice: Lattice) -> Result<(), GpuError> {
         let v = self.v;
-        let solid = v.solid.get_or_init(|| super::solid::SolidPipelines::new(&self.gpu.device, &v.module));
+        let solid = v.solid.get_or_init(|| super::solid::SolidPipelines::new(&self.gpu.device));
         let margin = self.options.solid_margin.unwrap_or(2.0);
         let b = &self.buffers;
         self.solid = Some(

@@ -1,6 +1,6 @@
 //! The solid passes of `shaders/solid.wgsl` (`count_crossings`, `allocate_rows`, `write_crossings`,
-//! `fill_rows`) on a [`Gpu`]: the inside voxels added to the surface pass's grid slabs. The algorithm and its
-//! CPU reference are in [`crate::voxel::solid`].
+//! `fill_rows`; the module [`SOLID_WGSL`]) on a [`Gpu`]: the inside voxels added to the surface pass's grid
+//! slabs. The algorithm and its CPU mirror are in [`crate::voxel::cpu::solid`].
 //!
 //! The crossing list is sized by one readback of its length between counting and writing; the boundary edges
 //! (which only open meshes have) are found on the host, where welding vertices by position is a sort.
@@ -8,9 +8,22 @@
 use super::readback::{first_word, read_buffer};
 use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
-use crate::voxel::solid::{Boundary, BoundaryEdge, boundary, crossing_setup};
+use crate::voxel::cpu::solid::{Boundary, BoundaryEdge, crossing_setup};
+use crate::voxel::solid::boundary;
 use crate::voxel::{GridSpec, Lattice};
 use glam::Vec3;
+
+/// The solid module's WGSL source, shared with the shader validation test. A module of its own, not part of the
+/// voxelize one: its passes read their triangles' first work items from a binding of their own, which the shared
+/// `item_triangle` reads by the one name `first_items`.
+pub const SOLID_WGSL: &str = concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/shared/items.wgsl"),
+    include_str!("../../shaders/exact.wgsl"),
+    include_str!("../../shaders/solid.wgsl"),
+);
+/// The files joined into [`SOLID_WGSL`], in order, relative to `shaders/`.
+pub const SOLID_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "solid.wgsl"];
 
 const WG: u32 = 64;
 /// The shader's `ROWS_PER_ITEM`.
@@ -71,7 +84,11 @@ impl SolidRun {
 }
 
 impl SolidPipelines {
-    pub fn new(device: &wgpu::Device, module: &wgpu::ShaderModule) -> SolidPipelines {
+    pub fn new(device: &wgpu::Device) -> SolidPipelines {
+        let module = &device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("solid (common, items, exact, solid .wgsl)"),
+            source: wgpu::ShaderSource::Wgsl(SOLID_WGSL.into()),
+        });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("solid"),
             entries: &[
@@ -143,7 +160,7 @@ impl SolidPipelines {
             lattice_scale: lattice.scale(),
             item_count: items as u32,
             unsure_capacity: UNSURE_ROWS,
-            margin: crate::voxel::solid::MARGIN,
+            margin: crate::voxel::cpu::solid::MARGIN,
             _pad: [0; 3],
         };
         // The edges (two vec4 each), then the boundary's pieces (three vec4 each).

@@ -1,5 +1,5 @@
-//! The voxelization pipeline of the voxelize shaders (`VOXELIZE_WGSL`: `shaders/exact.wgsl`, `surface.wgsl`,
-//! `scan.wgsl`, `thin.wgsl`, `solid.wgsl` joined at build time) on a [`Gpu`]: upload grid-space triangles, run the
+//! The voxelization pipeline of the voxelize shaders (`VOXELIZE_WGSL`: `shaders/shared/common.wgsl`,
+//! `shared/items.wgsl`, `exact.wgsl`, `surface.wgsl`, `scan.wgsl`, `thin.wgsl` joined at build time) on a [`Gpu`]: upload grid-space triangles, run the
 //! set-up, prefix-sum and voxelize passes, and read the bit grid back (or keep it for compaction).
 //!
 //! Grids larger than one storage binding are processed in z-slabs (each slab a whole number of word rows, so
@@ -11,22 +11,24 @@ use super::compact::{CompactVoxels, Compactor, Slab};
 use super::solid::SolidPipelines;
 use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError};
-use crate::voxel::{GridSpec, Mode, SparseGrid, VoxelGrid, cpu};
+use crate::voxel::{GridSpec, Mode, SparseGrid, VoxelGrid};
 use glam::Vec3;
 use std::sync::OnceLock;
 
 /// The WGSL source, shared with the shader validation test.
 pub const VOXELIZE_WGSL: &str = concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/exact.wgsl"),
     include_str!("../../shaders/surface.wgsl"),
     include_str!("../../shaders/scan.wgsl"),
     include_str!("../../shaders/thin.wgsl"),
-    include_str!("../../shaders/solid.wgsl"),
 );
 
-/// The files [`VOXELIZE_WGSL`] is joined from, in order (module-scope declarations in WGSL may come in any order,
-/// so each file uses what the others declare).
-pub const VOXELIZE_PARTS: [&str; 5] = ["exact.wgsl", "surface.wgsl", "scan.wgsl", "thin.wgsl", "solid.wgsl"];
+/// The files [`VOXELIZE_WGSL`] is joined from, in order, relative to `shaders/` (module-scope declarations in WGSL
+/// may come in any order, so each file uses what the others declare).
+pub const VOXELIZE_PARTS: [&str; 6] =
+    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "surface.wgsl", "scan.wgsl", "thin.wgsl"];
 
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
 pub const SETUP_BYTES: u64 = 256;
@@ -136,7 +138,7 @@ impl GpuVoxelizer {
     pub fn new(gpu: &Gpu) -> GpuVoxelizer {
         let device = &gpu.device;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("voxelize (exact, surface, scan, thin, solid .wgsl)"),
+            label: Some("voxelize (common, items, exact, surface, scan, thin .wgsl)"),
             source: wgpu::ShaderSource::Wgsl(VOXELIZE_WGSL.into()),
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -180,7 +182,7 @@ impl GpuVoxelizer {
         self.compactor.get_or_init(|| Compactor::new(gpu))
     }
 
-    /// Voxelizes grid-space triangles (see [`crate::voxel::cpu::grid_space_triangles`]) into `spec`'s grid,
+    /// Voxelizes grid-space triangles (see [`crate::voxel::voxelize::grid_space_triangles`]) into `spec`'s grid,
     /// blocking until the GPU is done.
     #[cfg(not(target_arch = "wasm32"))]
     pub fn voxelize(
@@ -232,7 +234,8 @@ impl GpuVoxelizer {
         if options.sparse {
             // The CPU's sparse walk, without the dense grid (which may not fit the host).
             let never = std::sync::atomic::AtomicBool::new(false);
-            let (sparse, stats) = cpu::voxelize_grid_space_sparse(triangles, spec, options.mode, &|_, _| {}, &never)?;
+            let (sparse, stats) =
+                crate::voxel::voxelize::voxelize_grid_space_sparse(triangles, spec, options.mode, &|_, _| {}, &never)?;
             return Ok(GpuOutput {
                 grid: None,
                 sparse: Some(Box::new(sparse)),
@@ -245,7 +248,13 @@ impl GpuVoxelizer {
                 rows_on_host: 0,
             });
         }
-        let (grid, stats) = cpu::voxelize_grid_space_mode(triangles, spec, options.mode, &|_, _| {})?;
+        let (grid, stats) = crate::voxel::voxelize::voxelize_grid_space_mode(
+            triangles,
+            spec,
+            options.mode,
+            &|_, _| {},
+            &Default::default(),
+        )?;
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let mut points = Vec::new();
         if options.compact {

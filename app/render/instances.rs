@@ -47,7 +47,7 @@ pub fn coloured_instances(
     let rgba: Vec<u32> = shown
         .iter_set()
         .map(|v| {
-            let rank = crate::voxel::colour::voxel_rank(grid, &ranks, v);
+            let rank = crate::voxel::cpu::colour::voxel_rank(grid, &ranks, v);
             rank.and_then(|r| colours.rgba.get(r as usize)).map_or(0, |c| u32::from_le_bytes(*c))
         })
         .collect();

@@ -173,7 +173,7 @@ impl GridSpec {
 
     /// Maps a world-space point into grid space, where voxel `(i, j, k)` spans `[i, i+1] × [j, j+1] × [k, k+1]`.
     /// Both backends voxelize grid-space triangles made by `GridSpec::snap_to_grid`, so they see the same f32
-    /// inputs; [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) maps a mesh's anchor-relative
+    /// inputs; [`voxelize::grid_space_triangles`](super::voxelize::grid_space_triangles) maps a mesh's anchor-relative
     /// triangles without forming world coordinates.
     ///
     /// Coordinates within [`GridSpec::snap_tolerance`] of a voxel boundary are snapped onto it. A face meant to
@@ -182,7 +182,7 @@ impl GridSpec {
     /// sides" hold for it, and keeps whole faces from flipping between layers on rounding noise.
     ///
     /// The backends then round the result onto the fixed-point [`Lattice`](super::Lattice) (a step of about one
-    /// f32 ulp of the grid's largest coordinate); [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles)
+    /// f32 ulp of the grid's largest coordinate); [`voxelize::grid_space_triangles`](super::voxelize::grid_space_triangles)
     /// does both.
     #[inline]
     pub fn to_grid(&self, p: DVec3) -> Vec3 {

@@ -71,7 +71,7 @@ impl Lattice {
     }
 
     /// `triangles` rounded onto the lattice; borrowed when they already lie on it (as the output of
-    /// [`cpu::grid_space_triangles`](super::cpu::grid_space_triangles) does).
+    /// [`voxelize::grid_space_triangles`](super::voxelize::grid_space_triangles) does).
     pub fn snap_triangles<'a>(&self, triangles: &'a [[Vec3; 3]]) -> GridTriangles<'a> {
         crate::parallel::install(|| {
             if triangles.par_iter().all(|t| t.iter().all(|&v| self.snap(v) == v)) {

@@ -1,5 +1,5 @@
 //! Voxel grids: the grid convention ([`GridSpec`]), the packed bit grid ([`VoxelGrid`]) shared with the GPU pass,
-//! the CPU reference voxelizer ([`cpu`]) and the file formats ([`formats`]).
+//! the CPU backend ([`voxelize`]) with its mirror of the shaders ([`cpu`]) and the file formats ([`formats`]).
 //!
 //! # Grid convention
 //! * The grid covers the axis-aligned bounding box of all triangles; its origin is the box minimum.
@@ -21,15 +21,13 @@ pub mod budget;
 pub mod colour;
 pub mod cpu;
 pub mod distance;
-pub mod exact;
 pub mod formats;
 mod grid;
 mod lattice;
-pub mod overlap;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
-pub mod thin;
+pub mod voxelize;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};

@@ -12,7 +12,8 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::solid::{boundary, column_crossings, fill_row, near_boundary};
+use super::cpu::solid::{fill_row, near_boundary};
+use super::solid::{boundary, column_crossings};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;

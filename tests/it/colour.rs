@@ -9,7 +9,7 @@ use glam::UVec3;
 use meshvox::gpu::colour::GpuColourer;
 use meshvox::mesh::material::Wrap;
 use meshvox::voxel::colour::colour_voxels;
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use std::path::Path;
 
 /// Mean absolute difference per channel (sRGB bytes) between two colour lists of the same voxels.
@@ -20,8 +20,9 @@ fn mean_error(a: &[[u8; 4]], b: &[[u8; 4]]) -> f64 {
 
 fn voxelize_cpu(mesh: &meshvox::mesh::Mesh, r: u32, mode: Mode) -> (VoxelGrid, Vec<[glam::Vec3; 3]>) {
     let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("grid");
-    let tris = cpu::grid_space_triangles(mesh, &spec).expect("grid space");
-    let (grid, _) = cpu::voxelize_grid_space_mode(&tris, spec, mode, &|_, _| {}).expect("voxelize");
+    let tris = voxelize::grid_space_triangles(mesh, &spec).expect("grid space");
+    let (grid, _) =
+        voxelize::voxelize_grid_space_mode(&tris, spec, mode, &|_, _| {}, &Default::default()).expect("voxelize");
     (grid, tris)
 }
 

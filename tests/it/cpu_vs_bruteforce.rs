@@ -6,14 +6,14 @@
 
 use crate::common::{Rng, assert_exact, assert_same_grid, boundary_cube, brute_force_all, lattice_mesh};
 use glam::{DVec3, UVec3, Vec3};
-use meshvox::voxel::{GridSpec, VoxelGrid, cpu};
+use meshvox::voxel::{GridSpec, VoxelGrid, cpu, voxelize};
 
 fn spec(dims: UVec3) -> GridSpec {
     GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
 }
 
 fn fast(triangles: &[[Vec3; 3]], dims: UVec3) -> VoxelGrid {
-    cpu::voxelize_grid_space(triangles, spec(dims), &|_, _| {}).expect("grid fits")
+    voxelize::voxelize_grid_space(triangles, spec(dims), &|_, _| {}).expect("grid fits")
 }
 
 fn check_exact(triangles: &[[Vec3; 3]], dims: UVec3, what: &str) -> VoxelGrid {
@@ -148,16 +148,16 @@ fn four_voxel_blocks_decide_as_the_shaders_one_voxel_test_and_never_against_the_
     let (tris, lattice) = meshvox::voxel::on_lattice(&mesh, dims).expect("lattice");
     let mut counts = [0u32; 3];
     for &t in tris.iter() {
-        let s = cpu::setup_triangle(t, dims, lattice);
-        for thin in [None, Some(cpu::thin_shrink(&s))] {
-            let shrink = thin.unwrap_or(cpu::ThinShrink::NONE);
+        let s = cpu::surface::setup_triangle(t, dims, lattice);
+        for thin in [None, Some(cpu::thin::thin_shrink(&s))] {
+            let shrink = thin.unwrap_or(cpu::surface::ThinShrink::NONE);
             let top = s.hi - s.lo;
             for (z, y) in (0..=top.z).flat_map(|z| (0..=top.y).map(move |y| (z, y))) {
-                let r = cpu::row_terms(&s, &shrink, y as f32, z as f32);
+                let r = cpu::surface::row_terms(&s, &shrink, y as f32, z as f32);
                 for x0 in (0..=top.x).step_by(4) {
-                    let (certain, unsure) = cpu::row_block(&r, x0 as f32);
+                    let (certain, unsure) = cpu::surface::row_block(&r, x0 as f32);
                     for lane in 0..4u32 {
-                        let d = cpu::decision_at(&r, (x0 + lane) as f32);
+                        let d = cpu::surface::decision_at(&r, (x0 + lane) as f32);
                         let block = (certain >> lane & 1) + 2 * (unsure >> lane & 1);
                         assert_eq!(block, d, "triangle {t:?}, row ({y}, {z}), voxel {}", x0 + lane);
                         if x0 + lane > top.x {
@@ -166,8 +166,8 @@ fn four_voxel_blocks_decide_as_the_shaders_one_voxel_test_and_never_against_the_
                         counts[d as usize] += 1;
                         let p = s.lo + UVec3::new(x0 + lane, y, z);
                         let exact = match thin {
-                            None => cpu::voxel_overlaps_exact(&s, p),
-                            Some(_) => cpu::voxel_overlaps_exact_thin(&s, p),
+                            None => cpu::surface::voxel_overlaps_exact(&s, p),
+                            Some(_) => cpu::thin::voxel_overlaps_exact_thin(&s, p),
                         };
                         assert!(d == 2 || (d == 1) == exact, "triangle {t:?}, voxel {p}: f32 says {d}, exact {exact}");
                     }

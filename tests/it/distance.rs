@@ -276,7 +276,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
             let spec =
                 GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
                     .expect("spec");
-            let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+            let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
             let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
             let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
             let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));

@@ -6,7 +6,7 @@
 
 use crate::common::{Rng, assert_exact};
 use glam::{DVec3, UVec3};
-use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, voxelize};
 
 /// A mesh written as OBJ text with decimal coordinates, as exporters write them.
 #[derive(Default)]
@@ -118,8 +118,8 @@ enum Style {
 fn voxelize(mesh: &meshvox::mesh::Mesh, resolution: u32) -> (VoxelGrid, Vec<[glam::Vec3; 3]>) {
     let spec =
         GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(resolution), Axis::X).expect("grid fits");
-    let tris = cpu::grid_space_triangles(mesh, &spec).expect("grid space");
-    (cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("voxelize"), tris)
+    let tris = voxelize::grid_space_triangles(mesh, &spec).expect("grid space");
+    (voxelize::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("voxelize"), tris)
 }
 
 /// A scene whose outer box fills an `n x m x k` grid exactly (faces on the grid's first and last layers), with an

@@ -8,7 +8,7 @@ use crate::gpu::gpu;
 use glam::DVec3;
 use meshvox::gpu::voxelize::Options;
 use meshvox::mesh::{self, Mesh};
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use std::path::Path;
 
 /// Offsets that are not exactly representable in f32 (nor, mostly, in binary at all).
@@ -69,8 +69,8 @@ fn spec_of(m: &Mesh, r: u32) -> GridSpec {
 }
 
 fn cpu_grid(m: &Mesh, spec: GridSpec) -> VoxelGrid {
-    let tris = cpu::grid_space_triangles(m, &spec).expect("grid space");
-    cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu")
+    let tris = voxelize::grid_space_triangles(m, &spec).expect("grid space");
+    voxelize::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu")
 }
 
 /// Checks that `far` (the grid of the mesh moved by `offset`) is `near`'s grid moved by `offset`: same dims,
@@ -149,7 +149,7 @@ fn far_meshes_on_the_gpu_match_the_original() {
     for offset in [DVec3::new(4_500_000.37, 5_400_000.81, 312.25), DVec3::splat(1.234_567_890_1e7)] {
         let far = mesh::load_bytes("far.obj", &translated_obj(&path, offset)).expect("far bunny");
         let spec = spec_of(&far, 160);
-        let tris = cpu::grid_space_triangles(&far, &spec).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&far, &spec).expect("grid space");
         for mode in [Mode::Surface, Mode::Solid] {
             let options = Options { read_grid: true, mode, ..Default::default() };
             let out = v.voxelize(gpu, &tris, spec, &options).unwrap_or_else(|e| panic!("{e}"));
@@ -157,8 +157,10 @@ fn far_meshes_on_the_gpu_match_the_original() {
             let reference = if mode == Mode::Surface {
                 near_grid.clone()
             } else {
-                let t = cpu::grid_space_triangles(&near, &near_grid.spec).expect("grid space");
-                cpu::voxelize_grid_space_mode(&t, near_grid.spec, mode, &|_, _| {}).expect("cpu").0
+                let t = voxelize::grid_space_triangles(&near, &near_grid.spec).expect("grid space");
+                voxelize::voxelize_grid_space_mode(&t, near_grid.spec, mode, &|_, _| {}, &Default::default())
+                    .expect("cpu")
+                    .0
             };
             assert_same_up_to_ties(&grid, &reference, &near, offset, &format!("bunny + {offset} (gpu, {mode})"));
         }

@@ -4,7 +4,7 @@
 use crate::common::Rng;
 use glam::{DVec3, UVec3};
 use meshvox::voxel::formats::{self, VoxelFormat};
-use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, voxelize};
 
 fn random_grid(dims: UVec3, density: f64, seed: u64) -> VoxelGrid {
     let spec = GridSpec { origin: DVec3::new(-1.5, 0.25, 3.0), voxel_size: 0.125, dims };
@@ -25,7 +25,7 @@ fn random_grid(dims: UVec3, density: f64, seed: u64) -> VoxelGrid {
 fn voxelized(mesh: &str, r: u32) -> VoxelGrid {
     let m = meshvox::mesh::load(mesh).expect("mesh");
     let spec = GridSpec::fit(m.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("spec");
-    cpu::voxelize(&m, spec, &|_, _| {}).expect("voxelize")
+    voxelize::voxelize(&m, spec, &|_, _| {}).expect("voxelize")
 }
 
 fn encode(g: &VoxelGrid, f: VoxelFormat) -> Vec<u8> {

@@ -11,7 +11,7 @@ use crate::common::{Rng, all_meshes, assert_same_grid, hard_cases, lattice_mesh}
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::gpu::Gpu;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use std::sync::OnceLock;
 
 /// One device for the whole test binary. Without an adapter the tests are skipped loudly, except under
@@ -44,7 +44,7 @@ fn gpu_grid(tris: &[[Vec3; 3]], spec: GridSpec, options: Options) -> VoxelGrid {
 }
 
 fn cpu_grid(tris: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
-    cpu::voxelize_grid_space(tris, spec, &|_, _| {}).expect("cpu")
+    voxelize::voxelize_grid_space(tris, spec, &|_, _| {}).expect("cpu")
 }
 
 #[test]
@@ -75,7 +75,7 @@ fn random_lattice_meshes_match_the_cpu_reference() {
 fn compare_mesh(mesh_spec: &str, resolution: u32, axis: Axis) {
     let mesh = meshvox::mesh::load(mesh_spec).unwrap_or_else(|e| panic!("{e}"));
     let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(resolution), axis).expect("grid");
-    let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
     let g = gpu_grid(&tris, s, Options::default());
     let what = format!("{mesh_spec} at {resolution} along {axis:?}");
     assert_same_grid(&g, &cpu_grid(&tris, s), &what);
@@ -104,14 +104,16 @@ fn every_mesh_in_every_mode_gives_the_cpus_sparse_grid_on_the_gpu() {
         let mesh = meshvox::mesh::load(&m).unwrap_or_else(|e| panic!("{e}"));
         for n in [45, 110] {
             let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("grid");
-            let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+            let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
             for mode in Mode::ALL {
                 let options = Options { read_grid: true, sparse: true, mode, ..Default::default() };
                 let out = v.voxelize(gpu, &tris, s, &options).unwrap_or_else(|e| panic!("{m}: {e}"));
-                let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, s, mode, &|_, _| {}, &never).expect("cpu");
+                let (cpu_sparse, _) =
+                    voxelize::voxelize_grid_space_sparse(&tris, s, mode, &|_, _| {}, &never).expect("cpu");
                 assert!(out.sparse.as_deref() == Some(&cpu_sparse), "{m} at {n} ({mode}): GPU sparse differs");
                 // And the dense grid of the same voxels.
-                let (dense, _) = cpu::voxelize_grid_space_mode(&tris, s, mode, &|_, _| {}).expect("dense");
+                let (dense, _) =
+                    voxelize::voxelize_grid_space_mode(&tris, s, mode, &|_, _| {}, &Default::default()).expect("dense");
                 assert_eq!(cpu_sparse.count(), dense.count(), "{m} at {n} ({mode})");
             }
         }
@@ -132,8 +134,15 @@ fn decimal_boundary_scenes_are_bit_identical_including_the_overflow_fallback() {
         let (obj, _) = crate::exactness::boundary_scene(&mut rng, n, origin, 1.37);
         let mesh = obj.load("scene.obj");
         let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(n), Axis::X).expect("grid");
-        let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
-        let (reference, stats) = cpu::voxelize_grid_space_with_stats(&tris, s, &|_, _| {}).expect("cpu");
+        let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
+        let (reference, stats) = voxelize::voxelize_grid_space_mode(
+            &tris,
+            s,
+            meshvox::voxel::Mode::Surface,
+            &|_, _| {},
+            &Default::default(),
+        )
+        .expect("cpu");
         let (gpu, v) = gpu().expect("gpu");
         let mut expected: Vec<[u32; 3]> = reference.iter_set().map(|p| p.to_array()).collect();
         expected.sort();
@@ -217,7 +226,7 @@ fn forced_slabs_and_batches_give_the_same_grid() {
     let knot = meshvox::mesh::load("builtin:knot").expect("knot");
     for (mesh, axis, r) in [(ribbon(), Axis::Z, 2048), (knot, Axis::X, 300)] {
         let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), axis).expect("grid");
-        let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
         let reference = cpu_grid(&tris, s);
         let layer = s.words_per_row() as u64 * 4 * s.dims.y as u64;
         let options =
@@ -242,7 +251,7 @@ fn compaction_lists_exactly_the_set_voxels() {
     for (name, r) in [("builtin:torus", 64), ("builtin:rotated-cube", 150), ("builtin:sphere", 1)] {
         let mesh = meshvox::mesh::load(name).expect("mesh");
         let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("grid");
-        let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
         // Sized by a count readback (None); presized with room to spare, read back with the grid in one map; and
         // presized too short (10 entries), which must compact again at the exact size.
         for capacity in [None, Some(1 << 22), Some(10)] {
@@ -312,7 +321,7 @@ fn a_lost_device_is_an_error_not_a_panic() {
     let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
     let bounds = mesh.bounds().expect("bounds");
     let spec = GridSpec::fit(bounds, Resolution::Count(48), Axis::Longest).expect("spec");
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let options = Options { read_grid: true, ..Default::default() };
     let before = v.voxelize(&gpu, &tris, spec, &options).expect("works before");
     assert!(before.grid.expect("grid").count() > 0);
@@ -347,13 +356,13 @@ fn small_device_limits_refuse_cleanly_or_work_in_slabs() {
     let options = Options { read_grid: true, ..Default::default() };
 
     let fits = GridSpec::fit(bounds, Resolution::Count(200), Axis::Longest).expect("spec");
-    let tris = cpu::grid_space_triangles(&mesh, &fits).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &fits).expect("grid space");
     let out = v.voxelize(&small, &tris, fits, &options).expect("fits in slabs");
     assert!(out.slabs > 1, "{} slabs", out.slabs);
     assert_same_grid(&out.grid.expect("grid"), &cpu_grid(&tris, fits), "knot@200 on 64 KiB buffers");
 
     let too_big = GridSpec::fit(bounds, Resolution::Count(1200), Axis::Longest).expect("spec");
-    let tris = cpu::grid_space_triangles(&mesh, &too_big).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &too_big).expect("grid space");
     let e = v.voxelize(&small, &tris, too_big, &options).err().expect("one layer cannot fit");
     assert!(matches!(e, meshvox::gpu::GpuError::TooLarge { .. }), "{e}");
     assert!(e.to_string().contains("one z-layer") && e.to_string().contains("at most 64.0 KiB"), "{e}");
@@ -377,12 +386,12 @@ fn gpu_sparse_equals_cpu_sparse_past_the_dense_binding_limit() {
         let mesh = meshvox::mesh::load(&format!("builtin:{mesh_name}")).expect("mesh");
         let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("spec");
         assert!(spec.byte_size() > limit, "{mesh_name}: the dense grid must not fit one binding");
-        let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
         let options = Options { read_grid: true, sparse: true, mode, ..Default::default() };
         let out = v.voxelize(&small, &tris, spec, &options).expect("gpu sparse");
         assert!(out.slabs > 1 && out.grid.is_none(), "{mesh_name}: {} slabs, no dense grid", out.slabs);
         let never = std::sync::atomic::AtomicBool::new(false);
-        let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, mode, &|_, _| {}, &never).expect("cpu");
+        let (cpu_sparse, _) = voxelize::voxelize_grid_space_sparse(&tris, spec, mode, &|_, _| {}, &never).expect("cpu");
         let gpu_sparse = *out.sparse.expect("sparse grid");
         assert_eq!(gpu_sparse.count(), cpu_sparse.count(), "{mesh_name} ({mode}) at {n}: count");
         assert!(gpu_sparse == cpu_sparse, "{mesh_name} ({mode}) at {n}: leaves and tiles differ");
@@ -393,12 +402,13 @@ fn gpu_sparse_equals_cpu_sparse_past_the_dense_binding_limit() {
     // The unsure list's overflow (forced: room for one test) hands the sparse grid to the CPU's sparse walk.
     let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
     let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(300), Axis::Longest).expect("spec");
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let options = Options { read_grid: true, sparse: true, max_unsure: Some(1), ..Default::default() };
     let out = v.voxelize(&small, &tris, spec, &options).expect("gpu sparse");
     assert!(out.decided_on_cpu && out.grid.is_none(), "the overflow was forced");
     let never = std::sync::atomic::AtomicBool::new(false);
-    let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+    let (cpu_sparse, _) =
+        voxelize::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
     assert!(out.sparse.as_deref() == Some(&cpu_sparse), "the overflow's sparse grid equals the CPU's");
     let engine = meshvox::Engine::on_device(&small, meshvox::engine::Backend::Gpu).expect("engine");
     let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
@@ -410,8 +420,9 @@ fn gpu_sparse_equals_cpu_sparse_past_the_dense_binding_limit() {
     assert!(out.report.backend.starts_with("gpu"), "{}", out.report.backend);
     assert_eq!(out.report.grid, "sparse");
     let spec = *out.grid.spec();
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let never = std::sync::atomic::AtomicBool::new(false);
-    let (cpu_sparse, _) = cpu::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+    let (cpu_sparse, _) =
+        voxelize::voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("cpu");
     assert!(out.grid.sparse() == Some(&cpu_sparse), "the engine's GPU sparse grid equals the CPU's");
 }

@@ -11,7 +11,7 @@
 
 use crate::common::shared_meshes;
 use glam::{DVec3, UVec3, Vec3};
-use meshvox::voxel::{Axis, GridKind, GridSpec, Mode, Resolution, VoxelGrid, cpu, on_lattice};
+use meshvox::voxel::{Axis, GridKind, GridSpec, Mode, Resolution, VoxelGrid, on_lattice, voxelize};
 use meshvox::{Backend, Engine, Request};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -342,7 +342,7 @@ fn the_reference_equals_the_brute_force_winding_number_at_every_voxel() {
     for (name, path, _) in open_meshes(dir.path()).into_iter().filter(|m| m.0 != "bunny") {
         let mesh = meshvox::mesh::load(&path).expect("loads");
         let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(23), Axis::Longest).expect("fits");
-        let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
         let (tris, _) = on_lattice(&tris, spec.dims).expect("lattice");
         let reference = Reference::new(&tris, spec.dims, |_| true);
         assert!(reference.caps > 0, "{name} is open");
@@ -375,19 +375,24 @@ fn solid_and_sdf_signs_equal_the_winding_number_beside_holes_on_the_cpu_and_the_
         for r in resolutions {
             let what = format!("{name} at {r}");
             let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("fits");
-            let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
-            let surface = cpu::voxelize_grid_space_mode(&tris, spec, Mode::Surface, &|_, _| {}).expect("surface").0;
+            let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+            let surface =
+                voxelize::voxelize_grid_space_mode(&tris, spec, Mode::Surface, &|_, _| {}, &Default::default())
+                    .expect("surface")
+                    .0;
             let started = std::time::Instant::now();
             let reference = {
                 let (snapped, _) = on_lattice(&tris, spec.dims).expect("lattice");
                 Reference::new(&snapped, spec.dims, |v| !surface.get(v.x, v.y, v.z))
             };
             let reference_ms = started.elapsed().as_millis();
-            let solid = cpu::voxelize_grid_space_mode(&tris, spec, Mode::Solid, &|_, _| {}).expect("solid").0;
+            let solid = voxelize::voxelize_grid_space_mode(&tris, spec, Mode::Solid, &|_, _| {}, &Default::default())
+                .expect("solid")
+                .0;
             let (judged, closest) =
                 judge(&format!("{what}: solid"), &reference, &surface, |v| solid.get(v.x, v.y, v.z));
             let sparse =
-                cpu::voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &never).expect("sparse").0;
+                voxelize::voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &never).expect("sparse").0;
             let sparse = sparse.to_dense().expect("dense");
             judge(&format!("{what}: sparse solid"), &reference, &surface, |v| sparse.get(v.x, v.y, v.z));
             let mut engines = vec![("cpu", &cpu_engine)];

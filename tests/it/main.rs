@@ -17,6 +17,7 @@ mod grid_convention;
 mod hostile;
 mod inside;
 mod layers;
+mod mirror;
 mod mesh_export;
 mod mesh_loading;
 mod modes;

@@ -6,7 +6,7 @@ use crate::cli::{meshvox, stats};
 use crate::formats::independent_args;
 use glam::{DVec3, IVec3};
 use meshvox::voxel::VoxelGrid;
-use meshvox::voxel::colour::encode_srgb;
+use meshvox::voxel::cpu::colour::encode_srgb;
 use serde_json::Value;
 use std::path::Path;
 

@@ -372,12 +372,12 @@ fn raw_gltf(position_view: &str, index_view: &str, index_accessor: &str) -> Stri
 /// the same triangles, so the same grid as the OBJ's (the binary files hold f32, which the snap tolerance absorbs).
 #[test]
 fn stl_and_ply_from_an_independent_writer_give_the_obj_grid() {
-    use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+    use meshvox::voxel::{Axis, GridSpec, Resolution, voxelize};
     let Some(dir) = shared_meshes() else { return };
     let obj = dir.join("stanford-bunny.obj");
     let grid_of = |m: &mesh::Mesh| {
         let spec = GridSpec::fit(m.bounds().expect("bounds"), Resolution::Count(100), Axis::Longest).expect("grid");
-        cpu::voxelize(m, spec, &|_, _| {}).expect("voxelize")
+        voxelize::voxelize(m, spec, &|_, _| {}).expect("voxelize")
     };
     let reference = grid_of(&mesh::load_path(&obj).expect("obj"));
     let out = tempfile::tempdir().expect("tempdir");
@@ -402,7 +402,7 @@ fn stl_and_ply_from_an_independent_writer_give_the_obj_grid() {
             // trimesh coloured the vertices red along x: the voxels on the +x side are redder.
             let colours = meshvox::voxel::colour::colour_voxels(
                 &grid,
-                &cpu::grid_space_triangles(&m, &grid.spec).expect("t"),
+                &voxelize::grid_space_triangles(&m, &grid.spec).expect("t"),
                 shading,
             );
             let half = grid.spec.dims.x / 2;

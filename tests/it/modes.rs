@@ -5,7 +5,7 @@
 
 use crate::common::{Rng, all_meshes, assert_same_grid, differing_voxels, shared_meshes};
 use glam::{DVec3, UVec3, Vec3};
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use rayon::prelude::*;
 
 fn spec(dims: UVec3) -> GridSpec {
@@ -13,7 +13,7 @@ fn spec(dims: UVec3) -> GridSpec {
 }
 
 fn voxelize(tris: &[[Vec3; 3]], spec: GridSpec, mode: Mode) -> VoxelGrid {
-    cpu::voxelize_grid_space_mode(tris, spec, mode, &|_, _| {}).expect("cpu").0
+    voxelize::voxelize_grid_space_mode(tris, spec, mode, &|_, _| {}, &Default::default()).expect("cpu").0
 }
 
 /// The generalized winding number at `p`, summed over all triangles in f64 (Van Oosterom & Strackee).
@@ -161,7 +161,7 @@ fn solid_matches_winding_numbers_on_the_shared_meshes() {
         let bounds = mesh.bounds().expect("bounds");
         // A non-power-of-two resolution.
         let s = GridSpec::fit(bounds, Resolution::Count(41), Axis::Longest).expect("fits");
-        let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid space");
+        let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
         let solid = voxelize(&tris, s, Mode::Solid);
         let surface = voxelize(&tris, s, Mode::Surface);
         // The winding number of the triangles as voxelized: rounded onto the lattice (by about 1e-5 voxel).
@@ -231,14 +231,14 @@ fn surface6_is_a_thinner_subset_that_still_separates_inside_from_outside() {
         let mesh = meshvox::mesh::load(name).expect("builtin");
         for r in [23, 64] {
             let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("fits");
-            meshes.push((format!("{name} at {r}"), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+            meshes.push((format!("{name} at {r}"), voxelize::grid_space_triangles(&mesh, &s).expect("grid"), s));
         }
     }
     if let Some(dir) = shared_meshes() {
         // Spot is closed; the others have holes, so only the subset property applies to them.
         let mesh = meshvox::mesh::load(&dir.join("spot.obj").to_string_lossy()).expect("spot");
         let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(57), Axis::Longest).expect("fits");
-        meshes.push(("spot at 57".into(), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+        meshes.push(("spot at 57".into(), voxelize::grid_space_triangles(&mesh, &s).expect("grid"), s));
     }
     meshes.push(("octahedron".into(), octahedron(Vec3::new(6.25, 5.75, 6.0), 5.25), spec(UVec3::new(13, 12, 12))));
     for (name, tris, s) in meshes {
@@ -284,7 +284,7 @@ fn open_meshes() -> Vec<(String, Vec<[Vec3; 3]>, GridSpec)> {
     if let Some(dir) = shared_meshes() {
         let mesh = meshvox::mesh::load(dir.join("stanford-bunny.obj").to_str().expect("utf-8")).expect("loads");
         let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(97), Axis::Longest).expect("fits");
-        cases.push(("bunny at 97".into(), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+        cases.push(("bunny at 97".into(), voxelize::grid_space_triangles(&mesh, &s).expect("grid"), s));
     }
     cases
 }
@@ -294,9 +294,10 @@ fn the_winding_numbers_error_bound_holds_against_float64() {
     // The GPU decides a solid voxel through a hole only where the winding number is farther from 1/2 than twice
     // this bound, so the bound must hold: here against the same boundary term in f64, at every voxel centre of
     // the rows through each mesh's holes (where the fill evaluates it).
-    use meshvox::voxel::solid::{
-        ATAN2_CPU, ATAN2_WGSL, MARGIN, boundary, certain_side, near_boundary, winding_number_bounded,
+    use meshvox::voxel::cpu::solid::{
+        ATAN2_CPU, ATAN2_WGSL, MARGIN, certain_side, near_boundary, winding_number_bounded,
     };
+    use meshvox::voxel::solid::boundary;
     for (name, tris, s) in open_meshes() {
         let lattice = meshvox::voxel::Lattice::fit(&tris, s.dims).expect("lattice");
         let boundary = boundary(&tris, lattice);
@@ -369,7 +370,7 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
             assert_same_grid(&out.grid.expect("grid"), &reference, &format!("{name} margin {margin:?}"));
         }
         let never = std::sync::atomic::AtomicBool::new(false);
-        let (sparse, _) = cpu::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+        let (sparse, _) = voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
         let options = Options { sparse: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
         let out = v.voxelize(gpu, &tris, s, &options).expect("gpu sparse");
         assert!(out.rows_on_host > 0, "{name}: sparse rows went to the host");
@@ -387,7 +388,7 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
 fn modes_differ_where_they_should() {
     let mesh = meshvox::mesh::builtin::load("sphere").expect("builtin");
     let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(30), Axis::Longest).expect("fits");
-    let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid");
+    let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid");
     let surface = voxelize(&tris, s, Mode::Surface);
     let solid = voxelize(&tris, s, Mode::Solid);
     assert!(differing_voxels(&surface, &solid).len() > surface.count() as usize, "the solid adds the inside");
@@ -405,7 +406,7 @@ fn gpu_matches_the_cpu_reference_in_every_mode() {
         let mesh = meshvox::mesh::load(&name).expect("loads");
         for r in [29, 96] {
             let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(r), Axis::Longest).expect("fits");
-            cases.push((format!("{name} at {r}"), cpu::grid_space_triangles(&mesh, &s).expect("grid"), s));
+            cases.push((format!("{name} at {r}"), voxelize::grid_space_triangles(&mesh, &s).expect("grid"), s));
         }
     }
     let v3 = Vec3::new;
@@ -426,7 +427,7 @@ fn gpu_matches_the_cpu_reference_in_every_mode() {
     // Big triangles at a high resolution: each covers ~170,000 rows (a workgroup per triangle once lost rows here).
     let cube = meshvox::mesh::load("builtin:rotated-cube").expect("builtin");
     let s = GridSpec::fit(cube.bounds().expect("b"), Resolution::Count(640), Axis::Longest).expect("fits");
-    let tris = cpu::grid_space_triangles(&cube, &s).expect("grid");
+    let tris = voxelize::grid_space_triangles(&cube, &s).expect("grid");
     let options = Options { read_grid: true, mode: Mode::Solid, ..Default::default() };
     let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
     assert_same_grid(&out.grid.expect("grid"), &voxelize(&tris, s, Mode::Solid), "rotated cube at 640, solid");
@@ -449,7 +450,7 @@ fn a_solid_bunny_at_256_is_a_filled_vox_model() {
     let Some(dir) = shared_meshes() else { return };
     let mesh = meshvox::mesh::load(&dir.join("stanford-bunny.obj").to_string_lossy()).expect("bunny");
     let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(256), Axis::Longest).expect("fits");
-    let tris = cpu::grid_space_triangles(&mesh, &s).expect("grid");
+    let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid");
     let solid = voxelize(&tris, s, Mode::Solid);
     let mut bytes = std::io::Cursor::new(Vec::new());
     meshvox::voxel::formats::write(&solid, meshvox::voxel::formats::VoxelFormat::Vox, &mut bytes).expect("write");

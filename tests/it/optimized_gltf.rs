@@ -7,7 +7,7 @@
 use crate::cli::meshvox;
 use meshvox::mesh::Mesh;
 use meshvox::voxel::colour::colour_voxels;
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use std::path::{Path, PathBuf};
 
 /// The npm tool `name` from web/node_modules, or `None` (with a loud message) where it is not installed. Under
@@ -33,8 +33,9 @@ fn make(tool: &Path, args: &[&str], output: &Path) -> PathBuf {
 /// The mesh's surface at `r` voxels along its longest axis on the CPU, with its grid-space triangles.
 fn voxelize(mesh: &Mesh, r: u32) -> (VoxelGrid, Vec<[glam::Vec3; 3]>) {
     let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(r), Axis::Longest).expect("grid");
-    let tris = cpu::grid_space_triangles(mesh, &spec).expect("grid space");
-    let (grid, _) = cpu::voxelize_grid_space_mode(&tris, spec, Mode::Surface, &|_, _| {}).expect("voxelize");
+    let tris = voxelize::grid_space_triangles(mesh, &spec).expect("grid space");
+    let (grid, _) = voxelize::voxelize_grid_space_mode(&tris, spec, Mode::Surface, &|_, _| {}, &Default::default())
+        .expect("voxelize");
     (grid, tris)
 }
 

@@ -7,7 +7,7 @@ use meshvox::gpu::Gpu;
 use meshvox::gpu::colour::GpuColourer;
 use meshvox::gpu::voxelize::{GpuVoxelizer, Options};
 use meshvox::render::{Cut, Offscreen, OrbitCamera, Style, coloured_instances, instances_from_grid};
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, voxelize};
 use std::path::PathBuf;
 
 const SIZE: u32 = 256;
@@ -34,7 +34,7 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
     let mesh = meshvox::mesh::load(&case.mesh).unwrap_or_else(|e| panic!("{e}"));
     let spec =
         GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(case.resolution), Axis::Longest).expect("grid");
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let v = GpuVoxelizer::new(gpu);
     let options = Options { compact: true, surface_only: true, read_grid: true, mode: case.mode, ..Default::default() };
     let out = v.voxelize(gpu, &tris, spec, &options).expect("voxelize");
@@ -51,7 +51,7 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
             // The cut face of a solid is filled: its last layer before the cut holds more voxels than the same
             // layer of the surface, which is a ring.
             if case.mode == Mode::Solid {
-                let surface = cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu");
+                let surface = voxelize::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu");
                 let layer = |g: &meshvox::voxel::VoxelGrid| {
                     let keep = cut.keep(&spec);
                     g.iter_set().filter(|v| v[cut.axis] + 1 == keep).count()
@@ -222,8 +222,8 @@ fn renderer_goldens() {
 fn render_cpu_voxelized(gpu: &Gpu, mesh: &str, resolution: u32) -> image::RgbaImage {
     let mesh = meshvox::mesh::load(mesh).unwrap_or_else(|e| panic!("{e}"));
     let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(resolution), Axis::Longest).expect("grid");
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
-    let grid = cpu::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let grid = voxelize::voxelize_grid_space(&tris, spec, &|_, _| {}).expect("cpu");
     let (points, colours) = match mesh.shading.as_ref() {
         Some(shading) => {
             let colours = meshvox::voxel::colour::colour_voxels(&grid, &tris, shading);

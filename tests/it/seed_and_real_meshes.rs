@@ -5,13 +5,15 @@
 
 use crate::common::{assert_exact, shared_meshes};
 use meshvox::mesh;
-use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+use meshvox::voxel::{Axis, GridSpec, Resolution, voxelize};
 
 fn check(spec_str: &str, resolution: u32, axis: Axis) -> u64 {
     let mesh = mesh::load(spec_str).unwrap_or_else(|e| panic!("{e}"));
     let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(resolution), axis).expect("grid");
-    let tris = cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
-    let (grid, stats) = cpu::voxelize_grid_space_with_stats(&tris, spec, &|_, _| {}).expect("voxelize");
+    let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let (grid, stats) =
+        voxelize::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Surface, &|_, _| {}, &Default::default())
+            .expect("voxelize");
     assert_exact(&grid, &tris, &format!("{spec_str} at {resolution} along {axis:?}"));
     let count = grid.count();
     assert!(count > 0);

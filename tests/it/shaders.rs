@@ -1,6 +1,7 @@
 //! Every shader module the program compiles parsed and validated by naga (through `wgpu::naga`), with all failures
-//! reported together, and every `.wgsl` file in `shaders/` part of one; plus the facts the Rust side relies on: core-WebGPU workgroup sizes and the size of the
-//! `TriangleSetup` struct that the host allocates per triangle.
+//! reported together, and every `.wgsl` file under `shaders/` (the shared helpers in `shaders/shared/` included)
+//! part of one; each WGSL function defined in one file only; plus the facts the Rust side relies on: core-WebGPU
+//! workgroup sizes and the size of the `TriangleSetup` struct that the host allocates per triangle.
 
 use wgpu::naga;
 
@@ -12,14 +13,15 @@ fn read(name: &str) -> String {
     std::fs::read_to_string(shader_dir().join(name)).unwrap_or_else(|e| panic!("shaders/{name}: {e}"))
 }
 
-/// The modules the program compiles, each with its name: one per file, except voxelize, colour and distance,
-/// which are joined from several files at build time.
+/// The modules the program compiles, each with its name: one per file (named by it), except the compute modules,
+/// which are joined from several files at build time (the shared helpers first).
 fn modules() -> Vec<(&'static str, &'static str)> {
     vec![
         ("voxelize", meshvox::gpu::voxelize::VOXELIZE_WGSL),
+        ("solid", meshvox::gpu::solid::SOLID_WGSL),
         ("colour", meshvox::gpu::colour::COLOUR_WGSL),
         ("distance", meshvox::gpu::distance::DISTANCE_WGSL),
-        ("compact.wgsl", meshvox::gpu::compact::COMPACT_WGSL),
+        ("compact", meshvox::gpu::compact::COMPACT_WGSL),
         ("cubes.wgsl", meshvox::render::CUBES_WGSL),
     ]
 }
@@ -28,9 +30,39 @@ fn modules() -> Vec<(&'static str, &'static str)> {
 fn joined_modules() -> Vec<(&'static str, &'static [&'static str])> {
     vec![
         (meshvox::gpu::voxelize::VOXELIZE_WGSL, &meshvox::gpu::voxelize::VOXELIZE_PARTS[..]),
+        (meshvox::gpu::solid::SOLID_WGSL, &meshvox::gpu::solid::SOLID_PARTS[..]),
         (meshvox::gpu::colour::COLOUR_WGSL, &meshvox::gpu::colour::COLOUR_PARTS[..]),
         (meshvox::gpu::distance::DISTANCE_WGSL, &meshvox::gpu::distance::DISTANCE_PARTS[..]),
+        (meshvox::gpu::compact::COMPACT_WGSL, &meshvox::gpu::compact::COMPACT_PARTS[..]),
     ]
+}
+
+/// Every `.wgsl` file under `shaders/`, as paths relative to it (`shared/common.wgsl`), sorted.
+fn wgsl_files() -> Vec<String> {
+    fn walk(dir: &std::path::Path, prefix: &str, files: &mut Vec<String>) {
+        for entry in std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+            let entry = entry.expect("entry");
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if entry.file_type().expect("file type").is_dir() {
+                walk(&entry.path(), &format!("{prefix}{name}/"), files);
+            } else if name.ends_with(".wgsl") {
+                files.push(format!("{prefix}{name}"));
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(&shader_dir(), "", &mut files);
+    files.sort();
+    files
+}
+
+/// The names of the functions a WGSL source defines (`fn name(` at the start of a line, entry points included).
+pub(crate) fn wgsl_functions(source: &str) -> Vec<String> {
+    source
+        .lines()
+        .filter_map(|line| line.strip_prefix("fn "))
+        .filter_map(|rest| rest.split_once('(').map(|(name, _)| name.trim().to_string()))
+        .collect()
 }
 
 fn parse(source: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
@@ -52,12 +84,7 @@ fn every_wgsl_file_validates() {
 #[test]
 fn the_modules_are_the_files_on_disk() {
     // Every .wgsl file is compiled into the program: a whole module, or one part of a joined one.
-    let mut files: Vec<String> = std::fs::read_dir(shader_dir())
-        .expect("shaders/")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".wgsl"))
-        .collect();
-    files.sort();
+    let files = wgsl_files();
     let mut used: Vec<String> =
         joined_modules().iter().flat_map(|(_, parts)| parts.iter().map(|p| p.to_string())).collect();
     used.sort();
@@ -75,6 +102,22 @@ fn the_modules_are_the_files_on_disk() {
     }
     // The shared arithmetic stands alone: the surface and solid parts use it, it uses neither.
     parse(&read("exact.wgsl")).expect("exact.wgsl is a module of its own");
+}
+
+#[test]
+fn no_function_is_defined_in_two_shader_files() {
+    // A helper two modules need lives once in shaders/shared/ (or in a file both join), never copied.
+    let mut seen: std::collections::BTreeMap<String, String> = Default::default();
+    let mut twice = Vec::new();
+    for file in wgsl_files() {
+        for name in wgsl_functions(&read(&file)) {
+            if let Some(first) = seen.insert(name.clone(), file.clone()) {
+                twice.push(format!("`{name}` in {first} and {file}"));
+            }
+        }
+    }
+    assert!(seen.len() > 100, "the scan found only {} functions", seen.len());
+    assert!(twice.is_empty(), "functions defined in more than one shader file:\n{}", twice.join("\n"));
 }
 
 #[test]

@@ -6,14 +6,14 @@
 
 use crate::common::{all_meshes, hard_cases};
 use glam::UVec3;
-use meshvox::voxel::cpu::{grid_space_triangles, voxelize_grid_space_cancellable, voxelize_grid_space_sparse};
 use meshvox::voxel::sparse::{FULL_LEAF, Tile, leaf_key};
+use meshvox::voxel::voxelize::{grid_space_triangles, voxelize_grid_space_mode, voxelize_grid_space_sparse};
 use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, SparseGrid, VoxelGrid};
 use std::sync::atomic::AtomicBool;
 
 fn dense_and_sparse(tris: &[[glam::Vec3; 3]], spec: GridSpec, mode: Mode) -> (VoxelGrid, SparseGrid) {
     let cancel = AtomicBool::new(false);
-    let (dense, _) = voxelize_grid_space_cancellable(tris, spec, mode, &|_, _| {}, &cancel).expect("dense");
+    let (dense, _) = voxelize_grid_space_mode(tris, spec, mode, &|_, _| {}, &cancel).expect("dense");
     let (sparse, _) = voxelize_grid_space_sparse(tris, spec, mode, &|_, _| {}, &cancel).expect("sparse");
     (dense, sparse)
 }

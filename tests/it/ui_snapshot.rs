@@ -14,7 +14,7 @@ fn viewer_ui_with_the_default_mesh() {
     let stats = app.stats().expect("the default mesh was voxelized").clone();
     // The same voxels as the CPU reference for the same mesh and resolution.
     let (mesh, spec) = fitted("builtin:rotated-cube", 32);
-    let cpu = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
+    let cpu = meshvox::voxel::voxelize::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
     assert_eq!(stats.voxels, cpu.count());
     assert_eq!(stats.mesh, "rotated-cube");
     // The panel shows the stats and controls.
@@ -62,9 +62,15 @@ fn the_mode_picker_and_the_cut_away_work_as_a_user_clicks_them() {
     let stats = harness.state().stats().expect("voxelized").clone();
     assert_eq!(stats.mode, meshvox::voxel::Mode::Solid);
     let (mesh, spec) = fitted("builtin:sphere", 40);
-    let tris = meshvox::voxel::cpu::grid_space_triangles(&mesh, &spec).expect("grid space");
-    let (cpu, _) = meshvox::voxel::cpu::voxelize_grid_space_mode(&tris, spec, meshvox::voxel::Mode::Solid, &|_, _| {})
-        .expect("cpu");
+    let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let (cpu, _) = meshvox::voxel::voxelize::voxelize_grid_space_mode(
+        &tris,
+        spec,
+        meshvox::voxel::Mode::Solid,
+        &|_, _| {},
+        &Default::default(),
+    )
+    .expect("cpu");
     assert_eq!(stats.voxels, cpu.count());
     harness.get_by_label(&format!("{} (solid)", cpu.count()));
     // The cut-away shows the filled inside without voxelizing again.
@@ -86,7 +92,7 @@ fn the_sdf_mode_shows_a_slice_of_the_field_that_moves_with_its_slider() {
     assert_eq!(stats.mode, meshvox::voxel::Mode::Sdf);
     // The voxels counted are the zero crossing's: the surface of the same grid.
     let (mesh, spec) = fitted("builtin:torus", 40);
-    let surface = meshvox::voxel::cpu::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
+    let surface = meshvox::voxel::voxelize::voxelize(&mesh, spec, &|_, _| {}).expect("cpu");
     assert_eq!(stats.voxels, surface.count());
     // The slice's controls replace the cut-away's, and moving the slice draws again without voxelizing.
     harness.get_by_label("Slice");

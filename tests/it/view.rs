@@ -7,7 +7,7 @@ use meshvox::gpu::Gpu;
 use meshvox::render::camera::{UpAxis, ViewPreset};
 use meshvox::render::{Offscreen, OrbitCamera, Style, instances_from_grid};
 use meshvox::ui::ViewerApp;
-use meshvox::voxel::{Axis, GridSpec, Resolution, cpu};
+use meshvox::voxel::{Axis, GridSpec, Resolution, voxelize};
 
 fn guess(name: &str, text: &str) -> UpAxis {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -103,7 +103,7 @@ fn preset_keys_and_buttons_turn_the_camera_and_up_z_orbits_around_z() {
 /// Draws a mesh voxelized on the CPU from the front, orbiting `up`.
 fn front_view(gpu: &Gpu, mesh: &meshvox::mesh::Mesh, up: UpAxis) -> image::RgbaImage {
     let spec = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(64), Axis::Longest).expect("grid");
-    let grid = cpu::voxelize(mesh, spec, &|_, _| {}).expect("cpu");
+    let grid = voxelize::voxelize(mesh, spec, &|_, _| {}).expect("cpu");
     let offscreen = Offscreen::new(gpu);
     let scene = offscreen.renderer.scene(&gpu.device, instances_from_grid(&gpu.device, &grid.exposed()), spec, None);
     let (lo, hi) = scene.bounds();

@@ -21,7 +21,8 @@
 
 use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
-use crate::voxel::colour::{VoxelColours, voxel_rank, word_ranks};
+use crate::voxel::colour::{VoxelColours, word_ranks};
+use crate::voxel::cpu::colour::voxel_rank;
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, IVec3, UVec3};
 use std::io::Write;

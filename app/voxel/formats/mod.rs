@@ -145,7 +145,7 @@ pub fn write_grid<W: Write + Seek>(
         _ => None,
     };
     let lookup = ranked.as_ref().map(|(dense, ranks, c)| {
-        move |v: UVec3| match super::colour::voxel_rank(dense, ranks, v) {
+        move |v: UVec3| match super::cpu::colour::voxel_rank(dense, ranks, v) {
             Some(r) => c.rgba[r as usize],
             None => [0; 4],
         }

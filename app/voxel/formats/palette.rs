@@ -19,7 +19,7 @@ fn linear(c: [u8; 4]) -> [f32; 3] {
 }
 
 fn encode(l: [f32; 3]) -> [u8; 4] {
-    let e = crate::voxel::colour::encode_srgb;
+    let e = crate::voxel::cpu::colour::encode_srgb;
     [e(l[0]) as u8, e(l[1]) as u8, e(l[2]) as u8, 255]
 }
 

@@ -9,7 +9,7 @@ use arbitrary::Arbitrary;
 use glam::Vec3;
 use libfuzzer_sys::fuzz_target;
 use meshvox::mesh::Mesh;
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, cpu};
+use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, voxelize};
 
 #[path = "../../it/common.rs"]
 mod common;
@@ -39,10 +39,11 @@ fuzz_target!(|case: Case| {
     if spec.voxel_count() > 48 * 48 * 48 {
         return;
     }
-    let Ok(grid_space) = cpu::grid_space_triangles(&mesh, &spec) else { return };
-    let Ok(grid) = cpu::voxelize_grid_space(&grid_space, spec, &|_, _| {}) else { return };
+    let Ok(grid_space) = voxelize::grid_space_triangles(&mesh, &spec) else { return };
+    let Ok(grid) = voxelize::voxelize_grid_space(&grid_space, spec, &|_, _| {}) else { return };
     common::assert_exact(&grid, &grid_space, "fuzzed triangles");
-    let mode = |m| cpu::voxelize_grid_space_mode(&grid_space, spec, m, &|_, _| {}).map(|(g, _)| g);
+    let mode =
+        |m| voxelize::voxelize_grid_space_mode(&grid_space, spec, m, &|_, _| {}, &Default::default()).map(|(g, _)| g);
     let (Ok(thin), Ok(solid)) = (mode(Mode::Surface6), mode(Mode::Solid)) else {
         panic!("the surface voxelized but another mode failed")
     };

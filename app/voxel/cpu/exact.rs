@@ -1,20 +1,14 @@
-//! The arithmetic the surface walk ([`super::cpu`]), the solid fill ([`super::solid`]) and the colour pass share,
-//! mirroring the functions of the same names in `shaders/exact.wgsl`: WGSL's `floor` and `ceil` without a libm
-//! call, the dot product in the shader's order of operations, the exact normal of lattice edges, and the relative
-//! factor of every forward error bound. One home for them keeps the CPU references from importing each other.
+//! The mirror of `shaders/exact.wgsl`, the arithmetic the surface walk ([`super::surface`]), the solid fill
+//! ([`super::solid`]) and the colour and distance passes share: the relative factor of every forward error bound
+//! and the exact normal of lattice edges (`i128` here, 128-bit words there), plus WGSL's `floor` and `ceil`
+//! without a libm call. One home for them keeps the mirror's files from importing each other.
 
-use glam::{IVec3, Vec3};
+use glam::IVec3;
 
 /// Relative factor of the forward error bounds: `2^-19`, i.e. 32 units of f32 roundoff. The derivations at
-/// [`setup_triangle`](super::overlap::setup_triangle) and `setup_edges` need at most 14 (a sum of at most six products in any order, plus the
+/// [`setup_triangle`](super::surface::setup_triangle) and `setup_edges` need at most 14 (a sum of at most six products in any order, plus the
 /// set-up's own roundings); the rest covers the roundings in computing the bounds themselves.
 pub const ERROR_FACTOR: f32 = 1.0 / 524_288.0;
-
-/// `a · b`.
-#[inline]
-pub fn dot3(a: Vec3, b: Vec3) -> f32 {
-    a.x * b.x + a.y * b.y + a.z * b.z
-}
 
 /// WGSL's `floor`. Without SSE4.1 (not in the x86-64 baseline) `f32::floor` is a libm call, which took a tenth
 /// of the CPU voxelizer's time; a value of magnitude `2^23` or more is already an integer.

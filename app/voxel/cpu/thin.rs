@@ -1,10 +1,11 @@
-//! The thin (6-separating) test of `surface6`, the CPU reference of `shaders/thin.wgsl` (same names, same
-//! arithmetic): the thick test of [`super::overlap`] with its plane and edge values moved inward by [`ThinShrink`],
+//! The thin (6-separating) test of `surface6`, the mirror of `shaders/thin.wgsl` (same names, same
+//! arithmetic): the thick test of [`super::surface`] with its plane and edge values moved inward by [`ThinShrink`],
 //! and the exact decisions on the same moved boundaries.
 
-use super::exact::{dot3, exact_normal_component};
-pub use super::overlap::ThinShrink;
-use super::overlap::{Edges, TriangleSetup, certain_sign, edge_function, normal_sign};
+use super::common::dot3;
+use super::exact::exact_normal_component;
+pub use super::surface::ThinShrink;
+use super::surface::{Edges, TriangleSetup, certain_sign, edge_function, normal_sign};
 use glam::{UVec3, Vec2, Vec3};
 
 /// The half sum of the two smaller of `|n_x|, |n_y|, |n_z|` (see [`ThinShrink`]).

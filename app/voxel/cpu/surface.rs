@@ -1,10 +1,10 @@
-//! The overlap test of the CPU reference: the Schwarz–Seidel 2010 triangle/box test, set up once per triangle
-//! ([`setup_triangle`]), its f32 values laid out per row of voxels ([`row_terms`]) and decided per voxel
-//! ([`decision_at`] in f32, [`voxel_overlaps_exact`] where f32 cannot be sure). It mirrors the functions of the
-//! same names in `shaders/surface.wgsl`; [`super::thin`] moves its values inward for `surface6`, and
-//! [`super::cpu`] walks the voxels with it.
+//! The mirror of `shaders/surface.wgsl`, function by function with the same names: the Schwarz–Seidel 2010
+//! triangle/box overlap test, set up once per triangle ([`setup_triangle`]), its f32 values laid out per row of
+//! voxels ([`row_terms`]) and decided per voxel ([`decision_at`] in f32, [`voxel_overlaps_exact`] where f32 cannot
+//! be sure), and the walk over each triangle's voxels ([`walk`]). [`super::thin`] moves the test's values inward
+//! for `surface6`; [`crate::voxel::voxelize`] drives the walk over all triangles.
 //!
-//! Everything works in grid space (see [`GridSpec::to_grid`](super::GridSpec::to_grid)) on coordinates rounded
+//! Everything works in grid space (see [`GridSpec::to_grid`](crate::voxel::GridSpec::to_grid)) on coordinates rounded
 //! onto the fixed-point [`Lattice`]: voxel `(i, j, k)` is the box with minimum corner `p = (i, j, k)` and size
 //! `Δp = (1, 1, 1)`.
 //!
@@ -25,9 +25,19 @@
 //! shader. The grid is therefore the exact answer for the lattice triangles, identical on every backend and
 //! every conformant adapter.
 //!
+//! # Traversal
+//! The voxels a triangle overlaps in one row along `x` (the grid's word axis) form one interval: the test is a
+//! conjunction of inequalities affine in the voxel's coordinates. So the walk ([`walk`]) goes over the rows
+//! `(y, z)` of the triangle's bounding box that its YZ edge functions allow, narrows each row's `x` range with
+//! the ZX edges, the plane and the XY edges, tests inward from both ends of that range until the f32 decision is
+//! certain of an overlap, and sets everything between with one OR per 32-voxel word. The narrowing only chooses
+//! candidates; each range is widened by the error bound of its computation plus rounding of the division (so it
+//! is a superset of the exact range), and every voxel outside the filled interval still goes through the full
+//! test, so the result equals testing the whole bounding box.
 
-pub use super::exact::{ERROR_FACTOR, ceil, dot3, exact_normal_component, floor};
-use super::lattice::Lattice;
+use super::common::dot3;
+use super::exact::{ERROR_FACTOR, ceil, exact_normal_component, floor};
+use crate::voxel::Lattice;
 use glam::{IVec3, UVec3, Vec2, Vec3, Vec4};
 
 /// `a · q + d`: an edge function.
@@ -378,4 +388,260 @@ pub fn decision_at(r: &RowTerms, x: f32) -> u32 {
     }
     let high = (v[0] - r.eps[0]).min(v[1] - r.eps[1]).min_element().min(r.yz_high);
     if high >= 0.0 { 1 } else { 2 }
+}
+
+/// Ranges (of rows, of voxels in a row) shorter than this many voxels are tested whole rather than narrowed
+/// first: a narrowing costs two divisions per constraint, more than the tests of two blocks of four voxels (see
+/// [`row_block`]), and most ranges of a dense mesh's small triangles are this short.
+pub const DIRECT_ROW: f32 = 8.0;
+
+/// Narrows the local range `[lo, hi]` to the integer `t` where `slope * t + offset` may be non-negative, the
+/// value's error bound being `eps = err_over_slope * |slope|`. Why it is conservative: the exact line crosses
+/// zero at `t*`, and the f32 offset is within `eps` of the exact one, so `t*` lies within `eps / |slope|` of
+/// `-offset / slope`. The computed quotient and `err_over_slope` are each off by at most 2.5 ulps (WGSL's
+/// division), and the sums below by half an ulp each; the relative `2^-19` covers all of them with room to
+/// spare. So `bound - err <= t*` (for a positive slope), and `ceil` keeps every integer `t >= t*`. Constraints
+/// with a slope small against `scale` are ill-conditioned and left to the full test instead, which also keeps
+/// every quantity here finite.
+fn narrow(lo: &mut f32, hi: &mut f32, slope: f32, offset: f32, err_over_slope: f32, scale: f32) {
+    // A short range costs less to test than to narrow (a division), as for most triangles of a dense mesh.
+    if *hi - *lo < DIRECT_ROW || slope == 0.0 || slope.abs() * 16.0 < scale {
+        return;
+    }
+    let bound = -offset / slope;
+    let err = err_over_slope + (bound.abs() + err_over_slope) * (1.0 / 524_288.0);
+    if slope > 0.0 {
+        *lo = lo.max(ceil(bound - err));
+    } else {
+        *hi = hi.min(floor(bound + err));
+    }
+}
+
+/// Candidate span of the first projected local coordinate `a` in local row `b` of a projection: the 2D edge
+/// functions `ne.a * a + ne.b * b + de >= 0` bound `a` on one side each.
+pub fn row_span(e: &Edges, b: f32, lo: f32, hi: f32) -> (f32, f32) {
+    let (mut lo, mut hi) = (lo, hi);
+    // A short range is left as it is (see `narrow`); checked here too so that its error term is not computed
+    // for nothing.
+    for i in 0..3 {
+        if hi - lo < DIRECT_ROW {
+            break;
+        }
+        let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
+        narrow(&mut lo, &mut hi, e.ne[i].x, e.ne[i].y * b + e.de[i], e.eps[i] / e.ne[i].x.abs(), scale);
+    }
+    (lo, hi)
+}
+
+/// Candidate local depth range along axis `w` of the column whose other two local minimum-corner coordinates
+/// are in `pl` (its `w` component is ignored): the plane test `np + d2 <= 0 <= np + d1` bounds it on both sides.
+/// `depth_err` is `plane_eps / |n_w|`, the same for every column of the triangle.
+pub fn column_depth_range(s: &TriangleSetup, w: usize, pl: Vec3, lo: f32, hi: f32, depth_err: f32) -> (f32, f32) {
+    let (mut lo, mut hi) = (lo, hi);
+    let mut rest = pl;
+    rest[w] = 0.0;
+    let np = dot3(s.n, rest);
+    let scale = s.n.x.abs() + s.n.y.abs() + s.n.z.abs();
+    // np + n_w t + d1 >= 0 and -(np + n_w t + d2) >= 0.
+    narrow(&mut lo, &mut hi, s.n[w], np + s.d1, depth_err, scale);
+    narrow(&mut lo, &mut hi, -s.n[w], -(np + s.d2), depth_err, scale);
+    (lo, hi)
+}
+
+/// Rows (values of `y`) per work item: a triangle's work is one item per `z` row of its bounding box and chunk
+/// of `CHUNK` rows along `y`, so big triangles spread over many items (and threads, and GPU invocations) and
+/// small ones take one each.
+pub const CHUNK: u32 = 16;
+
+/// Work items of `y` rows in one `z` row of the triangle's bounding box.
+pub fn chunks_per_row(s: &TriangleSetup) -> u32 {
+    (s.hi.y - s.lo.y + 1).div_ceil(CHUNK)
+}
+
+/// The triangle's work items (see [`CHUNK`]); none for an empty range.
+pub fn work_items(s: &TriangleSetup) -> u32 {
+    if s.lo.cmpgt(s.hi).any() { 0 } else { (s.hi.z - s.lo.z + 1) * chunks_per_row(s) }
+}
+
+/// Candidate span of the second projected local coordinate `b` at first coordinate `a` of a projection (the
+/// counterpart of [`row_span`]).
+pub fn column_span(e: &Edges, a: f32, lo: f32, hi: f32) -> (f32, f32) {
+    let (mut lo, mut hi) = (lo, hi);
+    for i in 0..3 {
+        if hi - lo < DIRECT_ROW {
+            break;
+        }
+        let scale = e.ne[i].x.abs() + e.ne[i].y.abs();
+        narrow(&mut lo, &mut hi, e.ne[i].y, e.ne[i].x * a + e.de[i], e.eps[i] / e.ne[i].y.abs(), scale);
+    }
+    (lo, hi)
+}
+
+/// Candidate local `x` range of the row at local `(pl.y, pl.z)`, starting from `x_span`, the span the ZX edges
+/// allow in the row's `z` layer: the plane test bounds `x` on both sides, the XY edges on one side each.
+pub fn row_x_range(s: &TriangleSetup, pl: Vec3, x_span: (f32, f32), depth_err: f32) -> (f32, f32) {
+    if x_span.1 - x_span.0 < DIRECT_ROW {
+        return x_span;
+    }
+    let (lo, hi) = column_depth_range(s, 0, pl, x_span.0, x_span.1, depth_err);
+    row_span(&s.xy, pl.y, lo, hi)
+}
+
+/// [`decision_at`] for the four voxels at local `x0 .. x0 + 4` of a row at once, lanes along `x` (glam's `Vec4`
+/// is one SSE register): each lane does the same multiplies, adds and minima as `decision_at`, so the decisions
+/// are the same bit for bit. Returns the lanes that certainly overlap and the lanes the exact test must decide,
+/// as 4-bit masks.
+#[inline(always)]
+pub fn row_block(r: &RowTerms, x0: f32) -> (u32, u32) {
+    let x = Vec4::splat(x0) + Vec4::new(0.0, 1.0, 2.0, 3.0);
+    let mut low = Vec4::splat(r.yz_low);
+    let mut high = Vec4::splat(r.yz_high);
+    for g in 0..2 {
+        for j in 0..4 {
+            let v = Vec4::splat(r.slope[g][j]) * x + Vec4::splat(r.k[g][j]);
+            low = low.min(v + Vec4::splat(r.eps[g][j]));
+            high = high.min(v - Vec4::splat(r.eps[g][j]));
+        }
+    }
+    let maybe = low.cmpge(Vec4::ZERO).bitmask();
+    let certain = high.cmpge(Vec4::ZERO).bitmask() & maybe;
+    (certain, maybe & !certain)
+}
+
+/// The walk of one work item: for each row along `x` (the grid's word axis) in the item's `z` layer and chunk of
+/// `y` rows, the voxels the triangle overlaps.
+///
+/// Why rows along `x` are filled, not tested voxel by voxel: both tests are conjunctions of inequalities affine
+/// in the voxel's coordinates (bounding box, plane, edge functions), so the voxels a triangle overlaps in one
+/// row form one interval. The walk tests inward from each end of the row's candidate range until the f32
+/// decision is certain of an overlap, and `fill`s everything between the first and the last certain voxel
+/// without testing it; a big triangle's rows thus cost a few tests and whole 32-voxel words. Voxels the f32
+/// decision is unsure of on the way go to `unsure` (the shader lists them for its `exact` pass); voxels beyond
+/// the ends are certain misses. The shader tests one voxel at a time; here [`row_block`] tests four, and only
+/// the lanes the shader would have reached count.
+pub fn walk(
+    s: &TriangleSetup,
+    item: u32,
+    thin: Option<&ThinShrink>,
+    mut unsure: impl FnMut(UVec3),
+    mut fill: impl FnMut(u32, u32, u32, u32),
+) {
+    let cpr = chunks_per_row(s);
+    let zi = item / cpr;
+    let y0 = (item % cpr) * CHUNK;
+    let y1 = (y0 + CHUNK - 1).min(s.hi.y - s.lo.y);
+    let top = (s.hi - s.lo).as_vec3();
+    let z = zi as f32;
+    let (y_lo, y_hi) = row_span(&s.yz, z, y0 as f32, y1 as f32);
+    if y_lo > y_hi {
+        return;
+    }
+    let x_span = column_span(&s.zx, z, 0.0, top.x);
+    if x_span.0 > x_span.1 {
+        return;
+    }
+    let depth_err = s.plane_eps / s.n.x.abs();
+    let shrink = thin.unwrap_or(&ThinShrink::NONE);
+    for yi in y_lo as u32..=y_hi as u32 {
+        let r = row_terms(s, shrink, yi as f32, z);
+        if r.yz_low < 0.0 {
+            // The YZ edges exclude the whole row (a row the y narrowing would have skipped): no lane of it can
+            // be certain or unsure, so it needs no x range either.
+            continue;
+        }
+        let (x_lo, x_hi) = row_x_range(s, Vec3::new(0.0, yi as f32, z), x_span, depth_err);
+        if x_lo > x_hi {
+            continue;
+        }
+        let (x_lo, x_hi) = (x_lo as u32, x_hi as u32);
+        let mut list = |lanes: u32, x0: u32| {
+            for lane in BitIter(lanes) {
+                unsure(s.lo + UVec3::new(x0 + lane, yi, zi));
+            }
+        };
+        // Inward from the low end, four voxels at a time; lanes past the first certain one are not counted.
+        let mut found = None;
+        let mut x0 = x_lo;
+        while x0 <= x_hi {
+            let (certain, maybe) = row_block(&r, x0 as f32);
+            let inside = lanes_up_to(x_hi - x0);
+            let (certain, maybe) = (certain & inside, maybe & inside);
+            if certain != 0 {
+                let lane = certain.trailing_zeros();
+                list(maybe & ((1 << lane) - 1), x0);
+                found = Some((x0, certain, maybe));
+                break;
+            }
+            list(maybe, x0);
+            x0 += 4;
+        }
+        let Some((x0, certain, maybe)) = found else { continue };
+        let first = x0 + certain.trailing_zeros();
+        let last = if x_hi < x0 + 4 {
+            // The block that found the first reaches the row's end (a short row): the high end's test would be
+            // this block again.
+            let lane = 31 - certain.leading_zeros();
+            list(maybe & !lanes_up_to(lane), x0);
+            x0 + lane
+        } else {
+            last_certain(&r, first, x_hi, &mut list)
+        };
+        fill(s.lo.x + first, s.lo.x + last, s.lo.y + yi, s.lo.z + zi);
+    }
+}
+
+/// Inward from the high end `x_hi` of a row, four voxels at a time, down to the voxel after `first`: the last
+/// voxel the row certainly overlaps (`first` when there is none after it); `list(lanes, x0)` receives the lanes
+/// of block `x0` the exact test must decide on the way.
+fn last_certain(r: &RowTerms, first: u32, x_hi: u32, mut list: impl FnMut(u32, u32)) -> u32 {
+    let mut x1 = x_hi;
+    while x1 > first {
+        let x0 = x1.saturating_sub(3);
+        let (certain, maybe) = row_block(r, x0 as f32);
+        // Lanes of voxels first + 1 ..= x1.
+        let inside = lanes_up_to(x1 - x0) & !lanes_up_to((first + 1).saturating_sub(x0).wrapping_sub(1));
+        let (certain, maybe) = (certain & inside, maybe & inside);
+        if certain != 0 {
+            let lane = 31 - certain.leading_zeros();
+            list(maybe & !lanes_up_to(lane), x0);
+            return x0 + lane;
+        }
+        list(maybe, x0);
+        if x0 == 0 {
+            break;
+        }
+        x1 = x0 - 1;
+    }
+    first
+}
+
+/// The mask of lanes `0..=n` of a four-lane block (all four for `n >= 3`; none for `n == u32::MAX`, i.e. -1).
+#[inline]
+fn lanes_up_to(n: u32) -> u32 {
+    if n == u32::MAX { 0 } else { (2u32 << n.min(3)) - 1 }
+}
+
+/// The set bits of a mask, lowest first.
+struct BitIter(u32);
+
+impl Iterator for BitIter {
+    type Item = u32;
+    fn next(&mut self) -> Option<u32> {
+        (self.0 != 0).then(|| {
+            let bit = self.0.trailing_zeros();
+            self.0 &= self.0 - 1;
+            bit
+        })
+    }
+}
+
+/// Sets voxels `x0..=x1` of a row whose words start at `row`: one OR per 32-voxel word (the shader's
+/// `set_run`).
+#[inline]
+pub fn set_run(row: &mut [u32], x0: u32, x1: u32) {
+    for w in x0 / 32..=x1 / 32 {
+        let lo = x0.max(w * 32) - w * 32;
+        let hi = x1.min(w * 32 + 31) - w * 32;
+        row[w as usize] |= (u32::MAX >> (31 - hi)) & (u32::MAX << lo);
+    }
 }

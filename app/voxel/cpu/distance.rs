@@ -1,0 +1,108 @@
+//! The mirror of `shaders/distance.wgsl`, function by function with the same names: the band of a triangle, the
+//! squared distances of the voxel centres in one layer of it ([`triangle_layer`]), and the leaf a voxel's value
+//! is in. The rule, the leaves, the signs and [`DistanceField`](crate::voxel::distance::DistanceField) are in
+//! [`crate::voxel::distance`].
+
+use super::common::dot3;
+use super::exact::{ceil, floor};
+use super::nearest::{closest_barycentric, reach_range};
+use glam::{IVec3, UVec3, Vec3};
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// The voxels whose centres can be within `reach` voxels of triangle `t`: those within `reach` of its bounding
+/// box, `lo..=hi` per axis, clamped to the grid (empty where `lo > hi`).
+pub fn band_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
+    reach_range(t, dims, reach)
+}
+
+/// Squared distance from `p` to triangle `t`, in voxels². The offset to the closest point is `(a - p) + v ab + w
+/// ac`: with `p` and the vertices on the lattice, `a - p`, `ab` and `ac` are exact, so rounding is relative to
+/// the distance and the edges rather than to the coordinates.
+pub fn point_distance2(p: Vec3, t: [Vec3; 3]) -> f32 {
+    let w = closest_barycentric(p, t[0], t[1], t[2]);
+    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
+    dot3(d, d)
+}
+
+/// The leaf slot of leaf coordinates `l`.
+#[inline]
+pub fn leaf_slot(l: UVec3, leaf_dims: UVec3) -> usize {
+    (l.z as usize * leaf_dims.y as usize + l.y as usize) * leaf_dims.x as usize + l.x as usize
+}
+
+/// The value index of voxel `v` within its leaf.
+#[inline]
+pub fn leaf_offset(v: UVec3) -> usize {
+    (((v.z & 7) * 8 + (v.y & 7)) * 8 + (v.x & 7)) as usize
+}
+
+/// The voxel layers `z_lo..z_hi` of triangle `t`'s [`band_range`] that lie in `z_lo..z_hi`: the work items
+/// of one triangle on the GPU (one per layer), as `first..=last` (empty where `first > last`).
+pub fn triangle_layers(t: [Vec3; 3], dims: UVec3, reach: f32, z: (u32, u32)) -> (i32, i32) {
+    let (lo, hi) = band_range(t, dims, reach);
+    (first_layer(lo.z, z.0), hi.z.min(z.1 as i32 - 1))
+}
+
+/// The first voxel layer of a band box starting at `lo_z`, in a dispatch from layer `z_lo`.
+pub fn first_layer(lo_z: i32, z_lo: u32) -> i32 {
+    lo_z.max(z_lo as i32)
+}
+
+/// Pass 2: lowers `best` (squared voxel distances as f32 bits, 512 per leaf) over every voxel of triangle `t`'s
+/// [`band_range`], one layer at a time as the GPU's work items do ([`triangle_layer`]).
+pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
+    let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
+    for z in first..=last {
+        triangle_layer(t, z, dims, reach, slots, best);
+    }
+}
+
+/// Lowers `best` over layer `z` of triangle `t`'s [`band_range`]. A voxel whose squared distance to the
+/// triangle's plane is already no lower than its best is skipped: that bound is cheap and the triangle cannot win
+/// there, and so is one whose squared distance to the triangle's bounding box is.
+pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
+    let (lo, hi) = band_range(t, dims, reach);
+    let leaf_dims = (dims + 7) / 8;
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let n2 = dot3(n, n);
+    let (bmin, bmax) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+    for y in lo.y..=hi.y {
+        let (x0, x1) = band_span(bmin, bmax, y, z, reach);
+        for x in x0.max(lo.x)..=x1.min(hi.x) {
+            let v = IVec3::new(x, y, z).as_uvec3();
+            let slot = slots[leaf_slot(v / 8, leaf_dims)];
+            let at = &best[slot as usize * 512 + leaf_offset(v)];
+            let p = v.as_vec3() + 0.5;
+            let current = f32::from_bits(at.load(Ordering::Relaxed));
+            let plane = dot3(n, t[0] - p);
+            // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
+            if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+                continue;
+            }
+            // The bounding box no nearer than the best either.
+            let gap = (bmin - p).max(p - bmax).max(Vec3::ZERO);
+            if dot3(gap, gap) >= current * 1.0001 {
+                continue;
+            }
+            let d2 = point_distance2(p, t);
+            if d2 < current {
+                at.fetch_min(d2.to_bits(), Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
+/// box), as `x0..=x1`: the box's rounded dilation, not its square one, so rows and runs that cannot come within the
+/// band are never visited. Widened by 1e-3 voxel so rounding never leaves out a voxel inside the band.
+pub fn band_span(bmin: Vec3, bmax: Vec3, y: i32, z: i32, reach: f32) -> (i32, i32) {
+    let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
+    let dy = (bmin.y - py).max(py - bmax.y).max(0.0);
+    let dz = (bmin.z - pz).max(pz - bmax.z).max(0.0);
+    let rest = reach * reach - dy * dy - dz * dz;
+    if rest < 0.0 {
+        return (1, 0);
+    }
+    let w = rest.sqrt() + 1e-3;
+    (ceil(bmin.x - w - 0.5) as i32, floor(bmax.x + w - 0.5) as i32)
+}

@@ -1,0 +1,77 @@
+//! The mirror of `shaders/nearest.wgsl`: the nearest point of a triangle, as barycentric coordinates
+//! ([`closest_barycentric`]), shared by the colour and the distance passes; and the voxels whose centres a triangle
+//! may come within a reach of ([`reach_range`]), the CPU's form of the ranges both shaders compute inline.
+
+use super::common::dot3;
+use super::exact::{ceil, floor};
+use glam::{IVec3, UVec3, Vec3};
+
+/// The voxels whose centres lie within `reach` voxels of the triangle's bounding box, as [`candidate_range`] (and
+/// the distance field's band) need them.
+pub fn reach_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
+    let lo = t[0].min(t[1]).min(t[2]) - (reach + 0.5);
+    let hi = t[0].max(t[1]).max(t[2]) + (reach - 0.5);
+    let max = dims.as_ivec3() - 1;
+    let lo = IVec3::new(ceil(lo.x) as i32, ceil(lo.y) as i32, ceil(lo.z) as i32).clamp(IVec3::ZERO, max + 1);
+    let hi = IVec3::new(floor(hi.x) as i32, floor(hi.y) as i32, floor(hi.z) as i32).clamp(IVec3::splat(-1), max);
+    (lo, hi)
+}
+
+/// Barycentric weights of the point of triangle `abc` nearest `p` (Ericson, Real-Time Collision Detection §5.1.5,
+/// by Voronoi regions). A degenerate triangle, whose regions are not defined, answers with its nearest vertex.
+pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot3(ab, ap);
+    let d2 = dot3(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Vec3::X;
+    }
+    let bp = p - b;
+    let d3 = dot3(ab, bp);
+    let d4 = dot3(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return Vec3::Y;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return Vec3::new(1.0 - v, v, 0.0);
+    }
+    let cp = p - c;
+    let d5 = dot3(ab, cp);
+    let d6 = dot3(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return Vec3::Z;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return Vec3::new(1.0 - w, 0.0, w);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return Vec3::new(0.0, 1.0 - w, w);
+    }
+    let sum = va + vb + vc;
+    // Not positive (or NaN): a degenerate triangle.
+    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return nearest_vertex(p, a, b, c);
+    }
+    let v = vb / sum;
+    let w = vc / sum;
+    Vec3::new(1.0 - v - w, v, w)
+}
+
+fn nearest_vertex(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let (da, db, dc) = (dot3(a - p, a - p), dot3(b - p, b - p), dot3(c - p, c - p));
+    if da <= db && da <= dc {
+        Vec3::X
+    } else if db <= dc {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    }
+}

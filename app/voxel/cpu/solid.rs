@@ -1,0 +1,541 @@
+//! Solid voxelization: the surface shell plus every voxel whose centre is inside the mesh, inside meaning a
+//! generalized winding number of at least 1/2 (Jacobson et al. 2013). The mirror of `shaders/solid.wgsl`, function
+//! by function with the same names: the crossing tests, the winding numbers and their bounds, the fill of a row.
+//! The host's part (the crossing lists of all rows, the boundary, the fill of a grid) is [`crate::voxel::solid`].
+//!
+//! # Algorithm, and why
+//! The winding number of a closed mesh at a point is the signed count of the mesh's crossings with any ray from
+//! the point (+1 where the ray leaves through a face, -1 where it enters). For an open mesh that count depends on
+//! the ray, and the generalized winding number is the count plus a term from the open boundary alone: closing
+//! the mesh with the surface swept by its boundary curve to infinity along a direction `d` gives a closed surface
+//! that the ray from the point against `d` never crosses (and that closes at infinity along `d`, so the ray must
+//! run the other way), hence
+//!
+//! `w(p) = (crossings of the ray p - t d, t > 0) + (1/4π) Σ over boundary edges a→b of Ω(a - p, b - p, d)`,
+//!
+//! where `Ω(a, b, d)` is the signed solid angle of the spherical triangle with corners `a/|a|`, `b/|b|` and `d`
+//! (the swept strip seen from `p`). This is exact, and needs only the boundary edges, not all triangles.
+//!
+//! The pass works on rays along +x through voxel centres, one per x-row of the grid (a row of bit words, so a
+//! row is filled without atomics):
+//! 1. `column_crossings`: each triangle lists the rows whose centre line its projection onto the YZ plane
+//!    covers, with the first voxel at or beyond the crossing and the crossing's sign (the sign of `n_x`). Both
+//!    are exact: coverage is decided in integer arithmetic on the lattice coordinates with a tie rule that is a
+//!    fixed symbolic perturbation of the centre line, so a line through a shared edge or vertex is counted
+//!    exactly once (the flaw that makes other voxelizers fill or empty whole columns), and the crossing voxel is
+//!    found by an exact plane-side test.
+//! 2. `fill_row`: in each row the winding number at a centre is the running count plus the boundary term,
+//!    which is continuous along the row. Where the crossings cancel and the boundary term provably stays below
+//!    1/2 along the whole row ([`near_boundary`]: a bound from the YZ distance to each piece of the boundary,
+//!    which holds for any number of holes), the count is the answer: every row of a closed mesh and every row
+//!    far from the holes. Elsewhere every run between crossings is certified ([`fill_open_run`]): the winding
+//!    number at a stretch's middle, its error bound and a bound on how far it can drift over the stretch (from
+//!    the distances to the boundary edges) put the whole stretch on one side of 1/2, or the stretch is split
+//!    until they do, down to single voxels, which are decided in f64 where f32's bound cannot ([`inside_exact`]).
+//!
+//! Cost: one exact test per (triangle, covered row), one pass over the rows, and boundary sums only in rows whose
+//! boundary term may reach 1/2: it grows with rows and surface, and with the holes, not rows × triangles. A
+//! closed mesh costs no winding-number evaluation at all; a stretch far from every boundary edge costs one.
+//!
+//! # Exact, and the same decisions on every adapter
+//! The crossings are exact; the winding number is f32 `atan2` and `sqrt`, which a GPU need not compute as the
+//! CPU's libm does. Both backends therefore evaluate [`winding_number_bounded`] and take a side only where the
+//! bounds put the true winding number on it ([`certain_side`]). What neither bound decides is a voxel within
+//! about 1e-3 of 1/2 (or on the strip swept from a boundary edge): the CPU decides it in f64, exactly up to f64's
+//! rounding, and the shader lists its row for the host, which fills it with this reference
+//! ([`fill_listed_rows`](crate::voxel::solid::fill_listed_rows)). So every decision is the exact winding number's wherever it is more than 1e-6 from
+//! 1/2, and the GPU's grid is this one.
+
+use super::common::dot3;
+use super::exact::{ERROR_FACTOR, ceil, floor};
+use crate::voxel::Lattice;
+use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
+
+/// A crossing as stored on both backends: the first voxel at or beyond it along the row (at most `dims.x`),
+/// shifted left by one, and bit 0 set when the ray leaves the mesh there (`n_x > 0`).
+#[inline]
+pub fn pack_crossing(voxel: u32, exits: bool) -> u32 {
+    voxel << 1 | u32::from(exits)
+}
+
+/// The voxel of a packed crossing.
+#[inline]
+pub fn crossing_voxel(c: u32) -> u32 {
+    c >> 1
+}
+
+/// The sign of a packed crossing: +1 where the ray leaves, -1 where it enters.
+#[inline]
+pub fn crossing_sign(c: u32) -> i32 {
+    if c & 1 != 0 { 1 } else { -1 }
+}
+
+/// What the crossing tests of one triangle need, in lattice units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrossingSetup {
+    /// The vertices in doubled lattice units (a voxel centre is then a lattice point), ordered so the YZ
+    /// projection runs counter-clockwise.
+    pub v: [IVec3; 3],
+    /// The sign of the exact `n_x` of the triangle as given: +1 when the ray leaves through it.
+    pub sign: i32,
+    /// Inclusive range of rows `(y, z)` whose centre lines the triangle's YZ bounding box holds; empty when
+    /// `lo > hi`.
+    pub lo: [u32; 2],
+    pub hi: [u32; 2],
+}
+
+/// `(b - a) × (q - a)` in the YZ plane (doubled lattice units, below `2^51` in magnitude).
+#[inline]
+fn edge_yz(a: IVec3, b: IVec3, q: I64Vec2) -> i64 {
+    (b.y - a.y) as i64 * (q.y - a.z as i64) - (b.z - a.z) as i64 * (q.x - a.y as i64)
+}
+
+/// Sets up the crossing tests of the lattice triangle `t` (grid space) in a grid of `dims` voxels.
+pub fn crossing_setup(t: [Vec3; 3], dims: UVec3, lattice: Lattice) -> CrossingSetup {
+    let u = t.map(|p| lattice.units(p) * 2);
+    let area = edge_yz(u[0], u[1], I64Vec2::new(u[2].y as i64, u[2].z as i64));
+    let sign = area.signum() as i32;
+    let v = if area < 0 { [u[0], u[2], u[1]] } else { u };
+    let min = t[0].min(t[1]).min(t[2]);
+    let max = t[0].max(t[1]).max(t[2]);
+    // Centre lines at y + 1/2 within [min, max]: exact, the lattice values minus 1/2 being exact in f32.
+    let lo_y = ceil(min.y - 0.5).max(0.0);
+    let lo_z = ceil(min.z - 0.5).max(0.0);
+    let hi_y = floor(max.y - 0.5).min(dims.y as f32 - 1.0);
+    let hi_z = floor(max.z - 0.5).min(dims.z as f32 - 1.0);
+    if sign == 0 || lo_y > hi_y || lo_z > hi_z {
+        return CrossingSetup { v, sign: 0, lo: [1, 1], hi: [0, 0] };
+    }
+    CrossingSetup { v, sign, lo: [lo_y as u32, lo_z as u32], hi: [hi_y as u32, hi_z as u32] }
+}
+
+/// Whether the triangle's YZ projection covers the centre line of row `(y, z)`. A line on an edge or vertex is
+/// decided as if moved by `(-ε, ε²)`: on an edge with direction `d`, covered iff `d_z > 0`, or `d_z = 0` and
+/// `d_y > 0`. Two triangles sharing an edge see it in opposite directions (or, at a fold, both in the same one
+/// with opposite signs), so every line is counted once.
+pub fn covers_row(s: &CrossingSetup, y: u32, z: u32, unit: i32) -> bool {
+    let q = I64Vec2::new((2 * y as i64 + 1) * unit as i64, (2 * z as i64 + 1) * unit as i64);
+    (0..3).all(|i| {
+        let (a, b) = (s.v[i], s.v[(i + 1) % 3]);
+        let e = edge_yz(a, b, q);
+        let d = b - a;
+        e > 0 || (e == 0 && (d.z > 0 || (d.z == 0 && d.y > 0)))
+    })
+}
+
+/// Whether the centre of voxel `k` of row `(y, z)` is at or beyond the triangle's plane along +x: the sign of
+/// `n · (P - V0)` in doubled lattice units (below `2^77`), times the sign of `n_x`.
+pub fn beyond_plane(t: &[IVec3; 3], sign: i32, k: u32, y: u32, z: u32, unit: i32) -> bool {
+    let (e0, e1) = (t[1] - t[0], t[2] - t[1]);
+    let p = IVec3::new(2 * k as i32 + 1, 2 * y as i32 + 1, 2 * z as i32 + 1) * unit;
+    let d = p - t[0] * 2;
+    let mut f = 0i128;
+    for c in 0..3 {
+        f += super::exact::exact_normal_component(e0, e1, c) * d[c] as i128;
+    }
+    f * sign as i128 >= 0
+}
+
+/// The first voxel of row `(y, z)` whose centre is at or beyond the crossing (`dims_x` when none is), exactly.
+/// `x` is the f32 estimate of the crossing and `err` a bound on its error: where the estimate is farther than
+/// that from every voxel centre it decides alone; otherwise the exact test checks it, and a bisection takes over
+/// when it was wrong (a face nearly parallel to the row, where the estimate is ill-conditioned).
+#[allow(clippy::too_many_arguments)]
+pub fn crossing_voxel_exact(
+    t: &[IVec3; 3],
+    sign: i32,
+    x: f32,
+    err: f32,
+    y: u32,
+    z: u32,
+    dims_x: u32,
+    unit: i32,
+) -> u32 {
+    let below = floor(x - 0.5) + 0.5;
+    let clear = (x - below).min(below + 1.0 - x);
+    let guess = ceil(x - 0.5);
+    if clear > err {
+        return guess.clamp(0.0, dims_x as f32) as u32;
+    }
+    let k = if guess >= 0.0 && guess <= dims_x as f32 { guess as u32 } else { 0 };
+    let at = |k: u32| k >= dims_x || beyond_plane(t, sign, k, y, z, unit);
+    if at(k) && (k == 0 || !at(k - 1)) {
+        return k;
+    }
+    let (mut lo, mut hi) = (0u32, dims_x);
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if at(mid) { hi = mid } else { lo = mid + 1 }
+    }
+    lo
+}
+
+/// The f32 crossing of row `(y, z)` with the plane of `t` (grid space), and a bound on its error:
+/// `x = v0.x - (n_y (y + 1/2 - v0.y) + n_z (z + 1/2 - v0.z)) / n_x`. The differences are exact (lattice values),
+/// each normal component is off by at most `2u` times `nabs` (its two products' magnitudes), and the rest adds a
+/// few roundings relative to the magnitudes involved; `ERROR_FACTOR` (32 units of roundoff) covers them all.
+/// A face parallel to the row (`n_x` zero in f32) gives a bound that is not a number, so the exact test decides.
+pub fn row_crossing_estimate(t: [Vec3; 3], y: u32, z: u32) -> (f32, f32) {
+    let (e0, e1) = (t[1] - t[0], t[2] - t[0]);
+    let n = e0.cross(e1);
+    let nabs = Vec3::new(
+        (e0.y * e1.z).abs() + (e0.z * e1.y).abs(),
+        (e0.z * e1.x).abs() + (e0.x * e1.z).abs(),
+        (e0.x * e1.y).abs() + (e0.y * e1.x).abs(),
+    );
+    let (dy, dz) = (y as f32 + 0.5 - t[0].y, z as f32 + 0.5 - t[0].z);
+    let q = (n.y * dy + n.z * dz) / n.x;
+    let x = t[0].x - q;
+    let err =
+        ERROR_FACTOR * ((nabs.y * dy.abs() + nabs.z * dz.abs() + q.abs() * nabs.x) / n.x.abs() + q.abs() + x.abs());
+    (x, err)
+}
+
+/// An edge of the mesh's open boundary, in grid space, with its multiplicity (negative when the boundary runs
+/// the other way) and the length of its projection onto the YZ plane (what bounds how fast its strip's solid
+/// angle changes along a row). The 4-float layout is the shader's: `a.xyz, weight` then `b.xyz, span`.
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct BoundaryEdge {
+    pub a: [f32; 3],
+    pub weight: f32,
+    pub b: [f32; 3],
+    pub span: f32,
+}
+
+/// A connected piece of the boundary (a hole's loop, on a mesh with holes): its box, the sum of its edges' YZ
+/// spans and the area of a fan spanning it (from its first edge's start, each edge times its multiplicity: a
+/// surface whose boundary is the piece, inside the box), all rounded up, and its edges' range in
+/// [`Boundary::edges`]. The shader's layout: `lo, span`, `hi, area`, `first, count, 0, 0`.
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct BoundaryPiece {
+    pub lo: [f32; 3],
+    pub span: f32,
+    pub hi: [f32; 3],
+    pub area: f32,
+    pub first: u32,
+    pub count: u32,
+    pub _pad: [u32; 2],
+}
+
+impl BoundaryPiece {
+    /// How far the row through `(y, z)` (grid space) passes outside the piece's box along y and along z (0 where
+    /// it is within the box's extent): the shader's `piece_yz_gap`.
+    #[inline]
+    pub fn yz_gap(&self, y: f32, z: f32) -> (f32, f32) {
+        let dy = (self.lo[1] - y).max(y - self.hi[1]).max(0.0);
+        let dz = (self.lo[2] - z).max(z - self.hi[2]).max(0.0);
+        (dy, dz)
+    }
+}
+
+/// A mesh's open boundary: its edges ([`boundary_edges`]) grouped by piece, and the pieces.
+pub struct Boundary {
+    pub edges: Vec<BoundaryEdge>,
+    pub pieces: Vec<BoundaryPiece>,
+}
+
+/// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x, the spherical
+/// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector), as what it is
+/// made from: `(|a|, |b|, num, den)`, the solid angle being `2 atan2(num, den)`.
+#[inline]
+pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32, f32) {
+    let la = a.length();
+    let lb = b.length();
+    let num = a.y * b.z - a.z * b.y;
+    let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
+    (la, lb, num, den)
+}
+
+/// f32's unit roundoff, `2^-24`.
+const U: f32 = 1.0 / 16_777_216.0;
+
+/// How many error bounds from 1/2 an f32 winding number must be for the reference (and by default the GPU) to
+/// take its side: each backend's error and the other's are below one bound.
+pub const MARGIN: f32 = 2.0;
+
+/// How much of a winding number's uncertainty may come from pieces of the boundary that are bounded, not summed
+/// ([`winding_number_bounded`]).
+pub const FAR_BUDGET: f32 = 1.0 / 32.0;
+
+/// The relative error [`winding_number_bounded`] allows `atan2` on the GPU: WGSL's 4096 ulps.
+pub const ATAN2_WGSL: f32 = 1.0 / 2048.0;
+
+/// The relative error it allows `atan2` in the CPU reference: Rust's `f32::atan2` is the platform's `atan2f`
+/// (glibc's and the wasm32 build's musl-derived libm are within 2 ulps), given 8 ulps here. The tighter bound
+/// lets the CPU place most voxels a GPU would hand back, without the f64 evaluation; both are exact, so the grids
+/// are the same.
+pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
+
+/// The winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the ray from `p`
+/// towards -x meets) count `count` (+1 for each the ray leaves through, -1 for each it enters), with three
+/// bounds: `(w, e, drift, far)`. `e` bounds how far any conforming evaluation of `w` (the CPU's libm, or a GPU's
+/// `atan2`, `sqrt` and fused multiply-adds) can be from the exact sum it evaluates; `drift` how far that sum can
+/// move between `p` and any point of the row within `reach` voxels of it that no crossing separates from `p` (0
+/// when `reach` is 0); `far` how far the winding number anywhere on that stretch can be from the sum, for the
+/// pieces of the boundary left out of it: a piece whose box the stretch passes outside of in YZ contributes at
+/// most its spanning area over the squared distance from the stretch to its box (why: [`piece_reach`]), and such
+/// pieces are left out while those bounds add up to at most `budget` (0: every edge is summed).
+///
+/// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
+/// lengths are within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
+/// `3u (|a_y b_z| + |a_z b_y|)`; `den`, a sum of six terms whose magnitudes add up to `S`, within `40u S`; then
+/// `atan2(num, den)` moves by at most `(|den| Δnum + |num| Δden) / (num² + den²)` (doubled for the first-order
+/// approximation) plus its own error, `atan2_error |θ|` ([`ATAN2_WGSL`], [`ATAN2_CPU`]). Where `num² + den²` is
+/// too small for the first-order bound to mean anything (the point on the edge's line), or `num`'s sign is
+/// uncertain where `atan2` jumps (`den < 0`), the bound is infinite. The sum adds `n` roundings of at most
+/// `u Σ|terms|` each.
+///
+/// The drift: along a run the crossing count is constant, and the derivative of an edge's strip angle along x is
+/// the x-component of its Biot–Savart integral, `∫ ((t × x̂) · r) / |r|³ ds` over the edge (`r` from the point to
+/// the edge), at most `span / D²` where `span` is the edge's YZ length and `D` the least distance from the
+/// stretch to the edge: at least the YZ distance `ρ` from the row to the edge, and at least the distance from `p`
+/// less `reach` (each less its own rounding: `2^-10` relatively and `16u (|a| + |b|)` absolutely, far more than
+/// an f32 point-to-segment distance is off by). Since `|(t × x̂) · r| ≤ |t_yz| ρ`, the integral of that bound
+/// along the whole row is at most `2 span / ρ`, which caps an edge's drift over a long stretch.
+pub fn winding_number_bounded(
+    count: i32,
+    p: Vec3,
+    reach: f32,
+    boundary: &Boundary,
+    budget: f32,
+    atan2_error: f32,
+) -> (f32, f32, f32, f32) {
+    let (mut sum, mut magnitude, mut error, mut drift, mut far) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let mut summed = 0u32;
+    let scale = 1.0 / (4.0 * std::f32::consts::PI);
+    for piece in &boundary.pieces {
+        let (dy, dz) = piece.yz_gap(p.y, p.z);
+        if dy > 0.0 || dz > 0.0 {
+            let dx = (piece.lo[0] - (p.x + reach)).max(p.x - reach - piece.hi[0]).max(0.0);
+            let bound = piece.area / (dx * dx + dy * dy + dz * dz) * scale * 1.01;
+            if far + bound <= budget {
+                far += bound;
+                continue;
+            }
+        }
+        summed += piece.count;
+        let edges = &boundary.edges[piece.first as usize..(piece.first + piece.count) as usize];
+        for e in edges {
+            let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+            let (la, lb, num, den) = cone_parts(a, b);
+            let angle = 2.0 * num.atan2(den);
+            sum += e.weight * angle;
+            let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
+            let d_den = 40.0 * U * (la * lb + (a * b).abs().element_sum() + a.x.abs() * lb + b.x.abs() * la);
+            let r2 = num * num + den * den;
+            // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
+            // is on the strip swept from the edge, where the crossing count jumps the other way).
+            let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
+                true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
+                false => f32::INFINITY,
+            };
+            magnitude += (e.weight * angle).abs();
+            error += e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
+            if reach > 0.0 {
+                let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
+                let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
+                let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+                let gap = across.max(along);
+                let steep = if gap > 0.0 { reach * e.span / (gap * gap) } else { f32::INFINITY };
+                let whole = if across > 0.0 { 2.0 * e.span / across } else { f32::INFINITY };
+                drift += e.weight.abs() * steep.min(whole);
+            }
+        }
+    }
+    let w = count as f32 + sum * scale;
+    let bound = (error + (summed as f32 + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
+    (w, bound, drift * scale * 1.01, far)
+}
+
+/// The distance from the origin to the segment `a b`.
+#[inline]
+pub fn segment_distance(a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let length2 = dot3(ab, ab);
+    // (A segment of length zero: the YZ projection of an edge along x.)
+    let t = if length2 > 0.0 { (-dot3(a, ab) / length2).clamp(0.0, 1.0) } else { 0.0 };
+    (a + ab * t).length()
+}
+
+/// The side of 1/2 that every point the bounds of [`winding_number_bounded`] cover is certainly on: `1` (at
+/// least 1/2), `0` (below), or `2` when the bounds do not tell.
+#[inline]
+pub fn certain_side(w: f32, e: f32, drift: f32, margin: f32) -> u32 {
+    if w - 0.5 > margin * e + drift {
+        1
+    } else if 0.5 - w > margin * e + drift {
+        0
+    } else {
+        2
+    }
+}
+
+/// Whether the winding number at the centre of voxel `k` of row `(y, z)` is at least 1/2, in f64, for a voxel
+/// the f32 bounds leave open: within about `1e-3` of 1/2, or on the strip swept from a boundary edge. From the
+/// same inputs, the strip's `num` is exact in f64 (lattice coordinates less a voxel centre are integers below
+/// `2^25` in half lattice steps, so the products and their difference are below `2^53` of them), so a point on a
+/// strip is recognised exactly and decided as the crossing count's tie rule moves the row, by `(-ε, ε²)` in
+/// (y, z): `num` then has the sign of `Δz`, or of `Δy` where `Δz = 0`. What is left is f64's rounding of the
+/// lengths, `atan2` and the sum, some `1e-13` per edge: the decision is exact wherever the winding number is more
+/// than `1e-6` from 1/2, the tolerance docs/modes.md states.
+pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> bool {
+    let p = DVec3::new(k as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5);
+    let mut sum = 0.0f64;
+    for e in edges {
+        let (ea, eb) = (Vec3::from_array(e.a).as_dvec3(), Vec3::from_array(e.b).as_dvec3());
+        let (a, b) = (ea - p, eb - p);
+        let (la, lb) = (a.length(), b.length());
+        let mut num = a.y * b.z - a.z * b.y;
+        let den = la * lb + a.dot(b) + a.x * lb + b.x * la;
+        let d = eb - ea;
+        if num == 0.0 && (d.y != 0.0 || d.z != 0.0) {
+            // (An edge along x has no strip: its angle is 0 whatever the perturbation.)
+            num = if d.z != 0.0 { d.z.signum() } else { d.y.signum() } * f64::MIN_POSITIVE;
+        }
+        sum += e.weight as f64 * 2.0 * num.atan2(den);
+    }
+    count as f64 + sum / (4.0 * std::f64::consts::PI) >= 0.5
+}
+
+/// Sets bits `k0..k1` of a row.
+#[inline]
+fn set_range(row: &mut [u32], k0: u32, k1: u32) {
+    let mut k = k0;
+    while k < k1 {
+        let (w, b) = ((k / 32) as usize, k % 32);
+        let n = (32 - b).min(k1 - k);
+        let mask = if n == 32 { u32::MAX } else { ((1u32 << n) - 1) << b };
+        row[w] |= mask;
+        k += n;
+    }
+}
+
+/// The bound on one piece's boundary term, seen from anywhere on a row `d` away from its box in YZ (`d > 0`):
+/// the lune bound `2 span / d` ([`near_boundary`]) or, smaller far away, `area / d²`: outside the box in YZ, the
+/// ray towards -x misses both the piece's strips and a fan spanning it, so the strips' solid angle is minus the
+/// fan's, at most its area over the squared distance.
+#[inline]
+fn piece_reach(span: f32, area: f32, d: f32) -> f32 {
+    (2.0 * span / d).min(area / (d * d))
+}
+
+/// The bound on the boundary term below which a row's integer count decides it: 2π (a winding number within ½ of
+/// the count), less a margin far above f32's rounding of the sum.
+const NEAR: f32 = std::f32::consts::TAU * 0.99;
+
+/// Whether the boundary term of row `(y, z)` may reach 1/2 somewhere along it, so that the integer crossing count
+/// alone cannot decide its voxels. An edge's strip, seen from a point, is a spherical triangle with a corner at
+/// x̂, which lies in the lune between the half-planes through x̂ and each end: its solid angle is at most twice
+/// the angle `φ` the edge's YZ projection subtends from the row's (y, z), whatever x, and `φ ≤ span / d` with
+/// `d` the YZ distance to the edge's piece's box. Far from a piece its whole term is smaller still, its spanning
+/// fan's area over `d²` ([`piece_reach`]). Where these add up to less than 2π over all pieces, the term stays
+/// below 1/2 on the whole row, the winding number is the integer count plus less than 1/2, and the count decides.
+/// This holds for any number of holes, however close together.
+#[inline]
+pub fn near_boundary(y: u32, z: u32, pieces: &[BoundaryPiece]) -> bool {
+    let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
+    let mut sum = 0.0f32;
+    for piece in pieces {
+        let (dy, dz) = piece.yz_gap(cy, cz);
+        let d = (dy * dy + dz * dz).sqrt();
+        if d == 0.0 {
+            return true;
+        }
+        sum += piece_reach(piece.span, piece.area, d);
+        if sum >= NEAR {
+            return true;
+        }
+    }
+    false
+}
+
+/// Most runs deeper than the stack holds would need a grid far beyond `MAX_DIM` voxels: each level halves a run.
+pub const RUN_STACK: usize = 40;
+
+/// Sets the inside voxels of the run `first..=last` of row `(y, z)` in a row whose boundary term may reach 1/2,
+/// where `count` is the crossing count of the whole run. Each stretch is certified, not sampled: the winding
+/// number at its middle and its bounds ([`winding_number_bounded`], far pieces of the boundary bounded instead of
+/// summed) either put the whole stretch on one side of 1/2 ([`certain_side`]), or the middle voxel is decided
+/// alone (every edge summed) and the two halves beside it are examined the same way. A stretch far from every
+/// boundary edge takes one evaluation; close to a rim the stretches shrink to single voxels. A middle voxel the
+/// f32 bounds leave open is decided in f64 ([`inside_exact`]); the shader hands its row to the host there
+/// instead. An explicit stack, as in the shader, which cannot recurse.
+pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary: &Boundary, row: &mut [u32]) {
+    let mut stack = [(0u32, 0u32); RUN_STACK];
+    stack[0] = (first, last);
+    let mut len = 1;
+    while len > 0 {
+        len -= 1;
+        let (a, b) = stack[len];
+        let m = a + (b - a) / 2;
+        let p = Vec3::new(m as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+        let (w, e, drift, far) = winding_number_bounded(count, p, (b - m) as f32, boundary, FAR_BUDGET, ATAN2_CPU);
+        match certain_side(w, e, drift + far, MARGIN) {
+            1 => set_range(row, a, b + 1),
+            0 => {}
+            _ => {
+                // The middle alone, with every edge summed where some were bounded.
+                let (w, e) = match far > 0.0 {
+                    true => {
+                        let (w, e, _, _) = winding_number_bounded(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
+                        (w, e)
+                    }
+                    false => (w, e),
+                };
+                let inside = match certain_side(w, e, 0.0, MARGIN) {
+                    2 => inside_exact(count, m, y, z, &boundary.edges),
+                    side => side == 1,
+                };
+                if inside {
+                    set_range(row, m, m + 1);
+                }
+                if len + 2 > RUN_STACK {
+                    // Unreachable for grids within MAX_DIM; keeps the result exact if it were not.
+                    for k in (a..=b).filter(|&k| k != m && inside_exact(count, k, y, z, &boundary.edges)) {
+                        set_range(row, k, k + 1);
+                    }
+                    continue;
+                }
+                if m < b {
+                    stack[len] = (m + 1, b);
+                    len += 1;
+                }
+                if m > a {
+                    stack[len] = (a, m - 1);
+                    len += 1;
+                }
+            }
+        }
+    }
+}
+
+/// Sets the inside voxels of row `(y, z)` given its crossings, sorted (see the module documentation). Where the
+/// crossings cancel and the boundary term stays below 1/2 along the whole row (`near` false, see
+/// [`near_boundary`]: every row of a closed mesh, and every row far enough from the holes), the integer count
+/// decides; elsewhere every run between crossings is certified by [`fill_open_run`].
+pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, boundary: &Boundary, row: &mut [u32]) {
+    let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
+    let open = total != 0 || near;
+    let mut i = 0;
+    let mut before = 0i32;
+    let mut k0 = 0u32;
+    while k0 < dims_x {
+        while i < crossings.len() && crossing_voxel(crossings[i]) <= k0 {
+            before += crossing_sign(crossings[i]);
+            i += 1;
+        }
+        let k1 = if i < crossings.len() { crossing_voxel(crossings[i]).min(dims_x) } else { dims_x };
+        // The ray towards -x leaves through crossings of sign -1 (n_x < 0) and enters through those of +1.
+        let count = -before;
+        if !open {
+            if count >= 1 {
+                set_range(row, k0, k1);
+            }
+        } else {
+            fill_open_run(count, k0, k1 - 1, y, z, boundary, row);
+        }
+        k0 = k1;
+    }
+}

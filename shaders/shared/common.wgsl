@@ -1,0 +1,19 @@
+// Helpers every compute module joins, first (the `*_WGSL` constants in app/gpu/ join the files at build time), so
+// each is written once: the dot product in one order of operations (the CPU's `dot3` in app/voxel/cpu/common.rs
+// keeps the same order, so the two round alike) and the flat index of an invocation in a 2D dispatch. Nothing here
+// reads a binding, so every module can join it.
+
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// The invocation's index in a dispatch of `groups` workgroups of `size` invocations laid out in 2D (a dispatch is
+// at most 65535 groups along x, so large ones wrap onto y).
+fn linear_id(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>, size: u32) -> u32 {
+    return (wid.y * groups.x + wid.x) * size + lid.x;
+}
+
+// The thread's index in a dispatch by global id, `row_threads` threads per row along x.
+fn thread_index(gid: vec3<u32>, row_threads: u32) -> u32 {
+    return gid.x + gid.y * row_threads;
+}
