@@ -26,6 +26,7 @@ pub mod engine;
 pub mod gpu;
 pub mod memory;
 pub mod mesh;
+mod names;
 pub mod parallel;
 // PyO3's macros expand to `unsafe` FFI glue (the module's own code has none).
 #[cfg(feature = "python")]
@@ -37,4 +38,4 @@ pub mod render;
 pub mod ui;
 pub mod voxel;
 
-pub use engine::{Backend, Engine, Report, Request, Voxelized};
+pub use engine::{Backend, Engine, Job, Report, Request, Voxelized};

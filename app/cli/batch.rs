@@ -2,11 +2,11 @@
 //! parsing and writing on worker threads overlapping the voxelization, outputs mirroring the inputs' paths, a
 //! deterministic `--shard I/N` slice for cluster job arrays, `--skip-existing` to resume and a JSONL manifest.
 
-use super::{
-    BackendArg, ColourArgs, Engine, LimitArgs, ModeArg, VoxelizeArgs, check_merge, ms, open_engine, voxelize_loaded,
-};
+use super::{ColourArgs, Engine, LimitArgs, Request, VoxelizeArgs, check_merge, ms, open_engine, voxelize_loaded};
 use anyhow::{Context, Result, anyhow, bail};
+use meshvox::Backend;
 use meshvox::voxel::formats::VoxelFormat;
+use meshvox::voxel::{Axis, Mode};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -31,22 +31,23 @@ pub struct BatchArgs {
     #[arg(long = "voxel-size", value_name = "H")]
     voxel_size: Option<f64>,
     /// Axis along which -r counts voxels.
-    #[arg(long, value_enum, default_value_t = super::AxisArg::Longest)]
-    axis: super::AxisArg,
+    #[arg(long, value_enum, default_value_t = Axis::Longest)]
+    axis: Axis,
     /// Output format (the extension of every output file).
-    #[arg(long, value_name = "FORMAT", default_value = "npy", value_parser = ["npy", "binvox", "vox", "vdb", "npz", "glb", "ply", "obj"])]
+    #[arg(long, value_name = "FORMAT", default_value = "npy",
+          value_parser = clap::builder::PossibleValuesParser::new(VoxelFormat::ALL.map(VoxelFormat::extension)))]
     format: String,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles.
     #[arg(long)]
     merge: bool,
     /// What to voxelize (sdf/udf: a distance field, --format npy, vdb or npz).
-    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
-    mode: ModeArg,
+    #[arg(long, value_enum, default_value_t = Mode::Surface)]
+    mode: Mode,
     #[command(flatten)]
     band: super::BandArgs,
     /// Where to voxelize (one engine for the whole run).
-    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
-    backend: BackendArg,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
     /// Worker threads, each parsing, voxelizing and writing one file at a time (default: the number of cores).
     #[arg(long, value_name = "J")]
     jobs: Option<usize>,
@@ -203,7 +204,9 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
-    args.band.band(args.mode.into())?;
+    let resolution = super::resolution(args.resolution, args.voxel_size)?;
+    let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
+    let request = Request { format: Some(format), grid: args.grid.grid, ..request };
     let outputs = plan_outputs(args, &items, format)?;
     let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
@@ -221,7 +224,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let loop_started = Instant::now();
     // Every worker takes the next input and parses, voxelizes and writes it (see `engine::work_queue`); each
     // holds one mesh and one grid, which bounds memory however long the list is.
-    let work = Work { args, items: &items, outputs: &outputs, format, engine: &engine };
+    let work = Work { args, items: &items, outputs: &outputs, request, engine: &engine };
     meshvox::engine::work_queue(
         total,
         jobs,
@@ -277,7 +280,8 @@ struct Work<'a> {
     args: &'a BatchArgs,
     items: &'a [Item],
     outputs: &'a [PathBuf],
-    format: VoxelFormat,
+    /// Every input's request (the output format's included), made once for the run.
+    request: Request<'static>,
     engine: &'a Engine,
 }
 
@@ -288,7 +292,7 @@ impl Work<'_> {
         match (&item.refused, self.args.skip_existing && output.exists()) {
             (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
             (None, true) => Outcome::Skipped,
-            (None, false) => match voxelize_one(&self.voxelize_args(item, output), self.format, self.engine) {
+            (None, false) => match voxelize_one(&self.voxelize_args(item, output), &self.request, self.engine) {
                 Ok(report) => Outcome::Done(Box::new(report)),
                 Err(e) => Outcome::Failed(e),
             },
@@ -399,14 +403,14 @@ impl Tally {
 }
 
 /// One input parsed, voxelized and written into `args.output` (its folder created first).
-fn voxelize_one(args: &VoxelizeArgs, format: VoxelFormat, engine: &Engine) -> Result<meshvox::Report> {
+fn voxelize_one(args: &VoxelizeArgs, request: &Request, engine: &Engine) -> Result<meshvox::Report> {
     let t = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t);
     if let Some(parent) = args.output.parent() {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
     }
-    voxelize_loaded(args, format, engine, &mesh, load_ms, false)
+    voxelize_loaded(args, request, Some(engine), &mesh, load_ms, false)
 }
 
 /// What became of one input.

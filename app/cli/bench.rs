@@ -6,10 +6,11 @@
 
 mod sdf;
 
-use super::{BackendArg, Engine, ModeArg, median, ms, open_engine};
+use super::{Engine, median, ms, open_engine};
 use anyhow::{Context, Result, anyhow};
 use meshvox::mesh::{self, Mesh, builtin};
-use meshvox::voxel::{Axis, GridSpec, Mode, Resolution};
+use meshvox::voxel::{Axis, GridKind, GridSpec, Mode, Resolution};
+use meshvox::{Backend, Job, Request};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -56,11 +57,11 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',')]
     meshes: Vec<String>,
     /// Backends to compare.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendArg::Cpu, BackendArg::Gpu])]
-    backends: Vec<BackendArg>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Backend::Cpu, Backend::Gpu])]
+    backends: Vec<Backend>,
     /// Modes to run.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [ModeArg::Surface])]
-    modes: Vec<ModeArg>,
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Mode::Surface])]
+    modes: Vec<Mode>,
     /// Runs per case; the median is reported.
     #[arg(long, default_value_t = 3)]
     runs: usize,
@@ -173,7 +174,7 @@ type Meshes = Vec<(String, Mesh)>;
 
 fn cases(args: &BenchArgs) -> Result<(Meshes, Vec<Case>)> {
     let shared = |f: &str| format!("../shared/meshes/{f}");
-    let modes: Vec<Mode> = args.modes.iter().map(|&m| Mode::from(m)).collect();
+    let modes = args.modes.clone();
     match args.suite {
         Some(Suite::Seed) => {
             let names = ["builtin:rotated-cube".to_string(), shared("suzanne.obj"), shared("stanford-bunny.obj")];
@@ -280,7 +281,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     for &backend in &args.backends {
         let t = Instant::now();
         let engine = match open_engine(backend) {
-            Ok(e) if backend != BackendArg::Gpu || e.uses_gpu() => e,
+            Ok(e) if backend != Backend::Gpu || e.uses_gpu() => e,
             Ok(_) => continue,
             Err(e) => {
                 eprintln!("note: skipping the GPU backend: {e:#}");
@@ -288,7 +289,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             }
         };
         let cold = ms(t);
-        let warm = Engine::open(backend.into()).map(|e| e.setup_ms()).unwrap_or(f64::NAN);
+        let warm = Engine::open(backend).map(|e| e.setup_ms()).unwrap_or(f64::NAN);
         let mut label = None;
         for case in &cases {
             let (name, m) = &meshes[case.mesh];
@@ -348,8 +349,14 @@ fn sdf_bench(args: &BenchArgs, meshes: &Meshes) -> Result<()> {
 /// One case of the bench on `engine`: `repeats` voxelizations of `mesh`, their median, the GPU time and the peak
 /// memory of one run.
 fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -> Result<Row> {
-    let bounds = m.bounds().ok_or_else(|| anyhow!("{name}: empty"))?;
-    let spec = GridSpec::fit(bounds, Resolution::Count(case.n), case.axis)?;
+    // The grid only: no colours, whatever the mesh has; the grid the case asks for, dense or sparse.
+    let request = Request {
+        axis: case.axis,
+        colour: Some(false),
+        grid: GridKind::of(case.sparse),
+        ..Request::new(Resolution::Count(case.n), case.mode)
+    };
+    let job = Job::plan(name, m, &request)?;
     let measure_peak = meshvox::memory::reset_peak();
     let before = meshvox::memory::peak_resident();
     let mut runs = Vec::new();
@@ -359,10 +366,10 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         // The previous run's grid is dropped first, so the peak is one run's.
         drop(last.take());
         let t = Instant::now();
-        let out = engine.voxelize_spec(m, spec, case.mode, case.sparse, None)?;
+        let out = engine.run(&job)?;
         out.notices.iter().for_each(|n| eprintln!("{n}"));
         runs.push(ms(t));
-        gpu.extend(out.gpu_ms);
+        gpu.extend(out.report.gpu_ms);
         last = Some(out);
     }
     let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
@@ -394,13 +401,13 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         mode: case.mode.to_string(),
         dims: d.to_array(),
         voxels: out.grid.count(),
-        backend: out.backend.clone(),
+        backend: out.report.backend.clone(),
         voxelize_ms: median(runs.clone()),
         runs_ms: runs,
         gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
-        exact_tests: out.exact_tests,
+        exact_tests: out.report.exact_tests,
         peak_mib: peak,
-        grid: if case.sparse { "sparse" } else { "dense" }.to_string(),
+        grid: GridKind::of(case.sparse).name().to_string(),
         leaves: out.grid.sparse().map(|g| g.leaves.len() as u64),
         tiles: out.grid.sparse().map(|g| g.tiles.len() as u64),
         vdb_bytes: vdb.map(|v| v.0),
@@ -505,9 +512,13 @@ fn sparse_table(rows: &[Row]) -> String {
         );
     }
     let mut ratios = String::new();
-    for d in rows.iter().filter(|r| r.grid == "dense") {
+    for d in rows.iter().filter(|r| r.grid == GridKind::Dense.name()) {
         let same = |s: &&Row| {
-            s.grid == "sparse" && s.mesh == d.mesh && s.n == d.n && s.mode == d.mode && s.backend == d.backend
+            s.grid == GridKind::Sparse.name()
+                && s.mesh == d.mesh
+                && s.n == d.n
+                && s.mode == d.mode
+                && s.backend == d.backend
         };
         if let Some(s) = rows.iter().find(same) {
             ratios += &format!(

@@ -13,13 +13,13 @@ mod voxelize;
 
 use anyhow::Result;
 use bench::BenchArgs;
-use clap::{Parser, Subcommand, ValueEnum};
-use meshvox::engine::{Backend, Engine, Request};
+use clap::{Parser, Subcommand};
+use meshvox::engine::{Backend, Engine, Job, Request};
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{Axis, Mode, Resolution, formats::VoxelFormat};
+use meshvox::voxel::{Axis, GridKind, Mode, Resolution, formats::VoxelFormat};
 use output::remove_partials_on_interrupt;
 use render::RenderArgs;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use view::ViewArgs;
@@ -123,34 +123,44 @@ impl LimitArgs {
         Ok(mesh)
     }
 
-    /// A request within these limits (colour as `colour` says; no progress, no cancel).
+    /// The library's request for a command's arguments within these limits: where the CLI builds a [`Request`]
+    /// (colour as `colour` says, the band parsed once for `mode`; no progress, no cancel).
     fn request(
         &self,
         resolution: Resolution,
         axis: Axis,
         mode: Mode,
-        format: Option<VoxelFormat>,
+        band: &BandArgs,
         colour: &ColourArgs,
-    ) -> Request<'static> {
-        Request {
+    ) -> Result<Request<'static>> {
+        Ok(Request {
             axis,
             colour: colour.no_colour.then_some(false),
             max_memory: self.max_memory,
-            format,
+            band: band.band(mode)?,
             ..Request::new(resolution, mode)
-        }
+        })
     }
 }
 
+/// `-r N` or `--voxel-size H` (clap requires one of them).
+fn resolution(count: Option<u32>, voxel_size: Option<f64>) -> Result<Resolution> {
+    Ok(match (count, voxel_size) {
+        (Some(n), _) => Resolution::Count(n),
+        (None, Some(h)) => Resolution::VoxelSize(h),
+        (None, None) => anyhow::bail!("give -r N or --voxel-size H"),
+    })
+}
+
 /// Opens the engine, telling what opening noticed (no adapter under `auto`).
-fn open_engine(backend: BackendArg) -> Result<Engine> {
-    Ok(told(Engine::open(backend.into())?))
+fn open_engine(backend: Backend) -> Result<Engine> {
+    Ok(told(Engine::open(backend)?))
 }
 
 /// Opens the engine for one job (`voxelize`): under `auto` the job's cost decides first whether a GPU is worth
 /// opening.
-fn open_engine_for(backend: BackendArg, mesh: &mesh::Mesh, job: &Request) -> Result<Engine> {
-    Ok(told(Engine::open_for(backend.into(), mesh, job)?))
+fn open_engine_for(backend: Backend, job: &Job) -> Result<Engine> {
+    Ok(told(Engine::open_for(backend, job)?))
 }
 
 /// `engine`, once what opening it noticed is on stderr.
@@ -161,41 +171,17 @@ fn told(engine: Engine) -> Engine {
     engine
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum BackendArg {
-    Auto,
-    Gpu,
-    Cpu,
-}
-
 /// Which grid holds the voxels, and how sparse outputs are written.
 #[derive(clap::Args, Clone, Copy)]
 pub(super) struct GridArgs {
     /// The grid: dense bits, sparse 8³ leaves and tiles (memory grows with the surface), or auto: sparse for a
     /// .vdb or .npz output or where the dense grid would not fit the memory budget.
-    #[arg(long, value_enum, default_value_t = GridArg::Auto)]
-    pub(super) grid: GridArg,
+    #[arg(long, value_enum, default_value_t = GridKind::Auto)]
+    pub(super) grid: GridKind,
     /// For .vdb outputs, a float `density` grid (1 where set) instead of the bool `occupancy` grid, for tools
     /// that read only float grids.
     #[arg(long)]
     pub(super) vdb_float: bool,
-}
-
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(super) enum GridArg {
-    Auto,
-    Dense,
-    Sparse,
-}
-
-impl From<GridArg> for meshvox::voxel::GridKind {
-    fn from(g: GridArg) -> Self {
-        match g {
-            GridArg::Auto => meshvox::voxel::GridKind::Auto,
-            GridArg::Dense => meshvox::voxel::GridKind::Dense,
-            GridArg::Sparse => meshvox::voxel::GridKind::Sparse,
-        }
-    }
 }
 
 impl GridArgs {
@@ -206,21 +192,6 @@ impl GridArgs {
         }
         Ok(())
     }
-}
-
-/// What to voxelize (`voxel::Mode`).
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum ModeArg {
-    /// The conservative surface: every voxel a triangle touches (26-separating).
-    Surface,
-    /// The surface plus every voxel whose centre is inside (generalized winding number >= 1/2).
-    Solid,
-    /// The thin surface (6-separating): no face-connected leak from inside a closed mesh.
-    Surface6,
-    /// Signed distances near the surface (--band), negative inside (winding number >= 1/2): .npy, .vdb, .npz.
-    Sdf,
-    /// Unsigned distances near the surface (--band), for open surfaces: .npy, .vdb, .npz.
-    Udf,
 }
 
 /// How far from the surface `--mode sdf|udf` computes distances.
@@ -234,34 +205,12 @@ pub(super) struct BandArgs {
 
 impl BandArgs {
     /// The band for `mode`: `--band` only means something for the distance modes.
-    pub(super) fn band(&self, mode: Mode) -> Result<meshvox::voxel::distance::Band> {
+    fn band(&self, mode: Mode) -> Result<meshvox::voxel::distance::Band> {
         // Parsed here rather than by clap, so a bad value is one line like every other error.
         match (&self.band, mode.is_field()) {
             (Some(_), false) => anyhow::bail!("--band sets the distance field's width: use it with --mode sdf or udf"),
             (Some(band), true) => meshvox::voxel::distance::Band::parse(band).map_err(anyhow::Error::msg),
             (None, _) => Ok(Default::default()),
-        }
-    }
-}
-
-impl From<BackendArg> for Backend {
-    fn from(b: BackendArg) -> Backend {
-        match b {
-            BackendArg::Auto => Backend::Auto,
-            BackendArg::Gpu => Backend::Gpu,
-            BackendArg::Cpu => Backend::Cpu,
-        }
-    }
-}
-
-impl From<ModeArg> for Mode {
-    fn from(m: ModeArg) -> Mode {
-        match m {
-            ModeArg::Surface => Mode::Surface,
-            ModeArg::Solid => Mode::Solid,
-            ModeArg::Surface6 => Mode::Surface6,
-            ModeArg::Sdf => Mode::Sdf,
-            ModeArg::Udf => Mode::Udf,
         }
     }
 }
@@ -278,25 +227,6 @@ fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
         let names: Vec<&str> = ViewPreset::ALL.iter().map(|v| v.name()).collect();
         format!("'{s}': use one of {}", names.join(", "))
     })
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum AxisArg {
-    Longest,
-    X,
-    Y,
-    Z,
-}
-
-impl From<AxisArg> for Axis {
-    fn from(a: AxisArg) -> Axis {
-        match a {
-            AxisArg::Longest => Axis::Longest,
-            AxisArg::X => Axis::X,
-            AxisArg::Y => Axis::Y,
-            AxisArg::Z => Axis::Z,
-        }
-    }
 }
 
 pub fn main() -> ExitCode {
@@ -336,22 +266,13 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Keeps Mesa's Vulkan device-selection layer from probing for a Wayland compositor where there can be none.
-///
-/// Every Mesa install enables that layer implicitly. When the instance has the Wayland surface extension (wgpu
-/// enables every window-system extension the driver offers) the layer calls `wl_display_connect` to find the
-/// GPU driving the display, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
-/// environment.` twice when that variable is missing, as on servers, in containers and in CI: an alarming line
-/// on every headless run although nothing is wrong. The layer only reorders adapters, and wgpu chooses among
-/// them itself, so where there is no runtime directory the layer is switched off through its documented
-/// `NODEVICE_SELECT` variable.
+/// Sets the variable [`meshvox::gpu::headless_vulkan_setting`] names, where it is needed, before anything else.
 #[allow(unsafe_code)]
 fn quiet_headless_vulkan() {
-    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| Path::new(&d).is_dir());
-    if !runtime_dir && std::env::var_os("NODEVICE_SELECT").is_none() {
+    if let Some((name, value)) = meshvox::gpu::headless_vulkan_setting() {
         // SAFETY: this runs first thing in `main`, before any other thread exists (no rayon pool, no wgpu
         // instance), so nothing can read the environment while it changes.
-        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+        unsafe { std::env::set_var(name, value) };
     }
 }
 

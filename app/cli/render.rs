@@ -1,9 +1,10 @@
 //! `meshvox render`: voxelize through the engine on the device that draws, draw offscreen, write a PNG.
 
 use super::output::{temp_beside, write_atomically};
-use super::{AxisArg, BackendArg, ColourArgs, LimitArgs, ModeArg, parse_up, parse_view};
+use super::{ColourArgs, LimitArgs, parse_up, parse_view};
 use anyhow::{Context, Result, anyhow, bail};
-use meshvox::voxel::{Mode, Resolution};
+use meshvox::Backend;
+use meshvox::voxel::{Axis, Mode, Resolution};
 use meshvox::{Engine, Request};
 use std::path::PathBuf;
 
@@ -16,8 +17,8 @@ pub(super) struct RenderArgs {
     #[arg(short = 'r', long = "resolution", value_name = "N")]
     resolution: u32,
     /// Axis along which -r counts voxels.
-    #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
-    axis: AxisArg,
+    #[arg(long, value_enum, default_value_t = Axis::Longest)]
+    axis: Axis,
     /// Output PNG file.
     #[arg(short = 'o', long = "output", value_name = "PNG")]
     output: PathBuf,
@@ -39,8 +40,8 @@ pub(super) struct RenderArgs {
     pitch: f32,
     /// What to voxelize: the surface, the solid (surface plus inside), the thin 6-separating surface, or a
     /// distance field (sdf, udf), drawn as a slice (--slice) beside the surface's voxels.
-    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
-    mode: ModeArg,
+    #[arg(long, value_enum, default_value_t = Mode::Surface)]
+    mode: Mode,
     #[command(flatten)]
     band: super::BandArgs,
     /// sdf/udf: the slice through the field to draw, AXIS:FRACTION (default z:0.5): blue inside, orange
@@ -65,8 +66,8 @@ pub(super) struct RenderArgs {
     #[arg(long)]
     floor: bool,
     /// Where to voxelize (drawing always needs a GPU adapter; lavapipe will do).
-    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
-    backend: BackendArg,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
     #[command(flatten)]
     colour: ColourArgs,
     #[command(flatten)]
@@ -95,14 +96,13 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     }
     let temp = temp_beside(&args.output)?;
     let mesh = args.limits.load(&args.mesh)?;
-    let mode = Mode::from(args.mode);
-    let request = args.limits.request(Resolution::Count(args.resolution), args.axis.into(), mode, None, &args.colour);
+    let mode = args.mode;
+    let request = args.limits.request(Resolution::Count(args.resolution), args.axis, mode, &args.band, &args.colour)?;
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     args.colour.note_if_colourless(&args.mesh, &mesh);
     let showing = Showing { cut: args.cut, ao: !args.no_ao };
     // On the device that draws, so that the GPU's list of visible voxels can be drawn where it may be.
-    let engine = Engine::on_device(&gpu, args.backend.into())?;
-    let band = args.band.band(mode)?;
+    let engine = Engine::on_device(&gpu, args.backend)?;
     if args.slice.is_some() && !mode.is_field() {
         bail!("--slice draws a distance field: use it with --mode sdf or udf (--cut cuts the others)");
     }
@@ -110,7 +110,6 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         instances: showing.from_gpu_list(args.colour.wanted(&mesh)) && !mode.is_field(),
         // Drawn from the dense grid.
         grid: meshvox::voxel::GridKind::Dense,
-        band,
         ..request
     };
     let result = engine.voxelize(&args.mesh, &mesh, &request)?;

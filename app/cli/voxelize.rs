@@ -1,13 +1,12 @@
 //! `meshvox voxelize`: one mesh to one output file, through the engine; `batch` shares [`voxelize_loaded`].
 
 use super::output::{temp_beside, write_atomically};
-use super::{
-    AxisArg, BackendArg, BandArgs, ColourArgs, Engine, GridArgs, LimitArgs, ModeArg, Request, ms, open_engine_for,
-};
+use super::{BandArgs, ColourArgs, Engine, GridArgs, Job, LimitArgs, Request, ms, open_engine_for};
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use meshvox::Backend;
 use meshvox::mesh;
-use meshvox::voxel::{self, Mode, Resolution, formats::VoxelFormat};
+use meshvox::voxel::{self, Axis, Mode, formats::VoxelFormat};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -25,8 +24,8 @@ pub(super) struct VoxelizeArgs {
     #[arg(long = "voxel-size", value_name = "H", allow_negative_numbers = true)]
     pub(super) voxel_size: Option<f64>,
     /// Axis along which -r counts voxels.
-    #[arg(long, value_enum, default_value_t = AxisArg::Longest)]
-    pub(super) axis: AxisArg,
+    #[arg(long, value_enum, default_value_t = Axis::Longest)]
+    pub(super) axis: Axis,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB) or .npz (sorted
     /// coordinates); or .glb, .ply or .obj for the voxel model's outer faces as a mesh in world space.
     #[arg(short = 'o', long = "output", value_name = "OUT")]
@@ -36,16 +35,16 @@ pub(super) struct VoxelizeArgs {
     pub(super) merge: bool,
     /// What to voxelize: the surface, the solid (surface plus inside), the thin 6-separating surface, or a
     /// signed or unsigned distance field.
-    #[arg(long, value_enum, default_value_t = ModeArg::Surface)]
-    pub(super) mode: ModeArg,
+    #[arg(long, value_enum, default_value_t = Mode::Surface)]
+    pub(super) mode: Mode,
     #[command(flatten)]
     pub(super) band: BandArgs,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     pub(super) stats_json: bool,
     /// Where to voxelize: the GPU when there is an adapter (auto), only the GPU, or only the CPU.
-    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
-    pub(super) backend: BackendArg,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub(super) backend: Backend,
     #[command(flatten)]
     pub(super) grid: GridArgs,
     #[command(flatten)]
@@ -55,29 +54,26 @@ pub(super) struct VoxelizeArgs {
 }
 
 impl VoxelizeArgs {
-    /// `-r N` or `--voxel-size H`.
-    pub(super) fn resolution(&self) -> Result<Resolution> {
-        Ok(match (self.resolution, self.voxel_size) {
-            (Some(n), _) => Resolution::Count(n),
-            (None, Some(h)) => Resolution::VoxelSize(h),
-            (None, None) => bail!("give -r N or --voxel-size H"),
-        })
+    /// The request these arguments make for an output in `format`: `-r N` or `--voxel-size H`, the band, the
+    /// grid, colour and the memory limit, parsed once.
+    pub(super) fn request(&self, format: VoxelFormat) -> Result<Request<'static>> {
+        let resolution = super::resolution(self.resolution, self.voxel_size)?;
+        let request = self.limits.request(resolution, self.axis, self.mode, &self.band, &self.colour)?;
+        Ok(Request { format: Some(format), grid: self.grid.grid, ..request })
     }
 }
 
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
-    args.band.band(args.mode.into())?;
+    let request = args.request(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
     // One job: under `auto` its cost decides whether a GPU is worth opening (see meshvox::engine::cost).
-    let job = Request { axis: args.axis.into(), ..Request::new(args.resolution()?, args.mode.into()) };
-    let engine = open_engine_for(args.backend, &mesh, &job)?;
-    let report = voxelize_loaded(args, format, &engine, &mesh, load_ms, true)?;
+    let report = voxelize_loaded(args, &request, None, &mesh, load_ms, true)?;
     let [x, y, z] = report.dims;
     eprintln!(
         "{}: {} triangles -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {:.1} ms on {}; wrote {} ({} bytes)",
@@ -85,7 +81,7 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         report.triangles,
         report.voxel_size,
         report.voxels,
-        Mode::from(args.mode),
+        args.mode,
         report.voxelize_ms,
         report.backend,
         args.output.display(),
@@ -117,32 +113,37 @@ pub(super) fn check_merge(format: VoxelFormat, merge: bool) -> Result<()> {
     Ok(())
 }
 
-/// Voxelizes a loaded mesh as `args` ask, on `engine`, and writes the output atomically; returns the report with
-/// its output fields filled in. Shared by `voxelize` and `batch`, so both write the same bytes.
+/// Voxelizes a loaded mesh as `request` (made from `args`) asks, on `engine` (`None`: one opened for this job by
+/// `args.backend`), and writes the output atomically; returns the report with its output fields filled in. Shared
+/// by `voxelize` and `batch`, so both write the same bytes.
 pub(super) fn voxelize_loaded(
     args: &VoxelizeArgs,
-    format: VoxelFormat,
-    engine: &Engine,
+    request: &Request,
+    engine: Option<&Engine>,
     mesh: &mesh::Mesh,
     load_ms: f64,
     bars: bool,
 ) -> Result<meshvox::Report> {
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
-    let resolution = args.resolution()?;
+    let format = request.format.ok_or_else(|| anyhow!("no output format"))?;
     args.colour.note_if_colourless(&args.mesh, mesh);
     let bar = match bars {
         true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
         false => ProgressBar::hidden(),
     };
     let progress = |done: usize, _: usize| bar.set_position(done as u64);
-    let request = Request {
-        progress: Some(&progress),
-        grid: args.grid.grid.into(),
-        band: args.band.band(args.mode.into())?,
-        ..args.limits.request(resolution, args.axis.into(), args.mode.into(), Some(format), &args.colour)
+    let request = Request { progress: Some(&progress), ..*request };
+    let job = Job::plan(&args.mesh, mesh, &request)?;
+    let opened;
+    let engine = match engine {
+        Some(engine) => engine,
+        None => {
+            opened = open_engine_for(args.backend, &job)?;
+            &opened
+        }
     };
-    let voxelized = engine.voxelize(&args.mesh, mesh, &request)?;
+    let voxelized = engine.run(&job)?;
     bar.finish_and_clear();
     for notice in &voxelized.notices {
         eprintln!("{notice}");

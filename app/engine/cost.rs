@@ -10,7 +10,8 @@
 //!
 //! `auto` takes the CPU when its estimate is the smaller, without probing, and says so in `backend`.
 
-use crate::voxel::{GridSpec, Mode};
+use super::Job;
+use crate::voxel::Mode;
 
 /// One thread's time per triangle of the walk (set-up, narrowing, first touches): ~1.1 µs for small triangles.
 const CPU_NS_PER_TRIANGLE: f64 = 1100.0;
@@ -29,16 +30,6 @@ const GPU_OPEN_MS: f64 = 150.0;
 /// with a staging buffer and a copy of the grid's size), mostly the first touch of the host grid's pages.
 const GPU_NS_PER_GRID_BYTE: f64 = 2.0;
 
-/// What `auto` needs to know of a job.
-#[derive(Clone, Copy, Debug)]
-pub struct Job {
-    pub spec: GridSpec,
-    pub mode: Mode,
-    pub triangles: u64,
-    /// The mesh's surface area in world units².
-    pub area: f64,
-}
-
 /// The two estimates, in milliseconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Costs {
@@ -47,14 +38,14 @@ pub struct Costs {
     pub threads: usize,
 }
 
-impl Job {
+impl Job<'_> {
     /// The estimated wall time of `self` on `threads` CPU threads and on a GPU opened for it.
     pub fn costs(&self, threads: usize) -> Costs {
         let h = self.spec.voxel_size;
         let voxels = VOXELS_PER_AREA * self.area / (h * h);
         let bytes = self.spec.byte_size() as f64;
-        let surface = self.triangles as f64 * CPU_NS_PER_TRIANGLE + voxels * CPU_NS_PER_VOXEL;
-        let work = match self.mode {
+        let surface = self.triangles() as f64 * CPU_NS_PER_TRIANGLE + voxels * CPU_NS_PER_VOXEL;
+        let work = match self.request.mode {
             Mode::Surface | Mode::Surface6 => surface,
             // The fill visits every row of the grid: a few times the surface's work on the meshes measured.
             Mode::Solid => 3.0 * surface + bytes * 8.0 * CPU_NS_PER_SOLID_VOXEL,

@@ -13,14 +13,14 @@
 //! A device that also draws (the last two) falls back to the CPU only while it is alive: a lost device cannot
 //! draw either, so the error goes to the client.
 
-use super::{Backend, Colours, Engine, EngineError, Notice, Voxels, software_gpu_preferred};
+use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice, software_gpu_preferred};
 use crate::gpu::colour::GpuColourer;
 use crate::gpu::distance::GpuDistance;
 use crate::gpu::voxelize::{GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
 use crate::voxel::distance::{Band, DistanceField};
-use crate::voxel::{Grid, GridSpec, Mode, VoxelGrid};
+use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
@@ -184,121 +184,143 @@ fn no_compute_reason() -> String {
     "the device has no compute shaders (WebGL2)".to_string()
 }
 
+/// A stage of a request on the GPU, named as the notice that the CPU stands in for it says.
+#[derive(Clone, Copy)]
+enum Stage {
+    Grid,
+    Field,
+    Colour,
+}
+
+impl Stage {
+    /// What the CPU does instead: after a limit the GPU cannot take (`quiet`), or after a device failure.
+    fn instead(self, quiet: bool) -> &'static str {
+        match (self, quiet) {
+            (Stage::Grid, true) => "using the CPU voxelizer",
+            (Stage::Grid, false) => "voxelizing on the CPU instead",
+            (Stage::Field, true) => "distances on the CPU",
+            (Stage::Field, false) => "distances on the CPU instead",
+            (Stage::Colour, true) => "colouring on the CPU",
+            (Stage::Colour, false) => "colouring on the CPU instead",
+        }
+    }
+}
+
 impl OnGpu {
     fn voxelizer(&self) -> &GpuVoxelizer {
         self.voxelizer.get_or_init(|| GpuVoxelizer::new(&self.gpu))
     }
 
-    /// The grid on the GPU, or (`Ok(Err(..))`) why the CPU is to make it instead.
-    pub(super) async fn voxels(
+    /// Where this engine's stages run, as `backend` says it.
+    pub(super) fn label(&self) -> String {
+        format!("gpu: {}", self.gpu.summary)
+    }
+
+    /// The one rule for the CPU standing in, for every stage: what the GPU made, or `None` (with the notice
+    /// saying why) where the CPU is to make it instead, or the error where this engine does not fall back.
+    fn stand_in<T>(
         &self,
+        stage: Stage,
+        made: Result<T, GpuError>,
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<T>, EngineError> {
+        let (e, warning) = match made {
+            Ok(made) => return Ok(Some(made)),
+            // A limit of the adapter: the CPU makes the same result, said quietly.
+            Err(e @ GpuError::TooLarge { .. }) if self.fallback => (e, false),
+            // Lost, out of memory, hung: the same result comes from the CPU, said loudly because it is slower and
+            // because the GPU may need looking at.
+            Err(e) if self.may_stand_in(&e) => (e, true),
+            Err(e) => return Err(e.into()),
+        };
+        notices.push(Notice { warning, message: format!("{e}; {}", stage.instead(!warning)) });
+        Ok(None)
+    }
+
+    /// The job's grid on the GPU, or `None` where the CPU is to make it.
+    pub(super) async fn grid(
+        &self,
+        job: &Job<'_>,
         tris: &[[Vec3; 3]],
-        spec: GridSpec,
-        mode: Mode,
-        sparse: bool,
-        instances: bool,
-    ) -> Result<Result<Voxels, Notice>, EngineError> {
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<GridStage>, EngineError> {
+        let (spec, sparse) = (job.spec, job.sparse);
         // Presized so that a voxelization maps once (the visible voxels of a surface at N voxels along its
         // longest axis are a few N²; more than this compacts again at the exact size).
         let n = u64::from(spec.dims.max_element());
-        let list_capacity = instances.then_some(12 * n * n);
-        let instances = instances && !sparse;
+        let instance_capacity = job.request.instances.then_some(12 * n * n);
+        let instances = job.request.instances && !sparse;
         let options = Options {
             read_grid: true,
             sparse,
             // A sparse grid holds one slab of the dense grid on the host at a time.
-            max_slab_bytes: sparse.then_some(crate::voxel::budget::SPARSE_SLAB_BYTES),
-            compact: instances,
+            max_slab_bytes: sparse.then_some(super::budget::SPARSE_SLAB_BYTES),
+            instances,
             surface_only: true,
-            mode,
-            list_capacity,
+            mode: job.request.mode.grid_mode(),
+            instance_capacity,
             ..Default::default()
         };
         let voxelized = {
             let _turn = self.turn().await;
             self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await
         };
-        match voxelized {
-            Ok(out) => {
-                let grid = match (out.sparse, out.grid) {
-                    (Some(sparse), _) => Grid::Sparse(*sparse),
-                    (None, Some(dense)) => Grid::Dense(dense),
-                    (None, None) => return Err(EngineError::NoGrid),
-                };
-                let mut backend = format!("gpu: {}", self.gpu.summary);
-                if out.decided_on_cpu {
-                    // Exact either way; said so that timings are not taken for the GPU's.
-                    backend.push_str(" (overflow: decided on the CPU)");
-                }
-                let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.points);
-                Ok(Ok(Voxels { grid, backend, gpu_ms, exact_tests, instances, notices: Vec::new() }))
-            }
-            Err(e @ GpuError::TooLarge { .. }) if self.fallback => {
-                Ok(Err(Notice { warning: false, message: format!("{e}; using the CPU voxelizer") }))
-            }
-            // Lost, out of memory, hung: the same grid comes from the CPU, said loudly because it is slower and
-            // because the GPU may need looking at.
-            Err(e) if self.may_stand_in(&e) => {
-                Ok(Err(Notice { warning: true, message: format!("{e}; voxelizing on the CPU instead") }))
-            }
-            Err(e) => Err(e.into()),
+        let Some(out) = self.stand_in(Stage::Grid, voxelized, notices)? else { return Ok(None) };
+        let grid = match (out.sparse, out.grid) {
+            (Some(sparse), _) => Grid::Sparse(*sparse),
+            (None, Some(dense)) => Grid::Dense(dense),
+            (None, None) => return Err(EngineError::NoGrid),
+        };
+        let mut backend = self.label();
+        if out.decided_on_cpu {
+            // Exact either way; said so that timings are not taken for the GPU's.
+            backend.push_str(" (overflow: decided on the CPU)");
         }
+        let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.instances);
+        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, instances }))
     }
 
-    /// The grid's colours on the GPU, or (`Ok(Err(..))`) what to say, if anything, as the CPU makes them instead.
-    pub(super) async fn colours(
+    /// The grid's colours on the GPU, or `None` where the CPU is to make them (a grid or textures past one
+    /// binding: quietly where this engine falls back, else an error).
+    pub(super) async fn colour(
         &self,
         grid: &VoxelGrid,
         tris: &[[Vec3; 3]],
         shading: &Shading,
-    ) -> Result<Result<Colours, Option<Notice>>, EngineError> {
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<ColourStage>, EngineError> {
         if !GpuColourer::fits(&self.gpu, grid, tris.len(), shading) {
-            return if self.fallback { Ok(Err(None)) } else { Err(EngineError::ColourTooLarge) };
+            return if self.fallback { Ok(None) } else { Err(EngineError::ColourTooLarge) };
         }
         let coloured = {
             let _turn = self.turn().await;
             let colourer = self.colourer.get_or_init(|| GpuColourer::new(&self.gpu));
             colourer.colour_async(&self.gpu, grid, tris, shading).await
         };
-        match coloured {
-            Ok(colours) => {
-                Ok(Ok(Colours { colours, backend: format!("gpu: {}", self.gpu.summary), notices: Vec::new() }))
-            }
-            Err(e) if self.may_stand_in(&e) => {
-                Ok(Err(Some(Notice { warning: true, message: format!("{e}; colouring on the CPU instead") })))
-            }
-            Err(e) => Err(e.into()),
-        }
+        let colours = self.stand_in(Stage::Colour, coloured, notices)?;
+        Ok(colours.map(|colours| ColourStage { colours, backend: self.label() }))
     }
 
-    /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that
-    /// does not also draw or is still alive.
-    /// The distance field on the GPU (compiled on first use), or why the CPU stands in.
+    /// The distance field on the GPU (compiled on first use), or `None` where the CPU is to compute it. `inside`
+    /// (the sign) is taken into the field only when the GPU's distances arrive, so the CPU can still use it.
     pub(super) async fn field(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         band: Band,
-        inside: Option<Grid>,
-    ) -> Result<Result<(DistanceField, String), (Notice, Option<Grid>)>, EngineError> {
-        let inside_copy = self.fallback.then(|| inside.clone()).flatten();
+        inside: &mut Option<Grid>,
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<DistanceField>, EngineError> {
         let field = {
             let _turn = self.turn().await;
             let pass = self.distance.get_or_init(|| GpuDistance::new(&self.gpu));
             pass.field(&self.gpu, tris, spec, band, inside).await
         };
-        match field {
-            Ok(field) => Ok(Ok((field, format!("gpu: {}", self.gpu.summary)))),
-            Err(e @ GpuError::TooLarge { .. }) if self.fallback => {
-                Ok(Err((Notice { warning: false, message: format!("{e}; distances on the CPU") }, inside_copy)))
-            }
-            Err(e) if self.may_stand_in(&e) => {
-                Ok(Err((Notice { warning: true, message: format!("{e}; distances on the CPU instead") }, inside_copy)))
-            }
-            Err(e) => Err(e.into()),
-        }
+        self.stand_in(Stage::Field, field, notices)
     }
 
+    /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that
+    /// does not also draw or is still alive.
     fn may_stand_in(&self, e: &GpuError) -> bool {
         self.fallback && e.is_device_failure() && !(self.shared && self.gpu.is_lost())
     }

@@ -71,6 +71,13 @@ pub struct Report {
     pub write_ms: f64,
 }
 
+/// The GPU's list of exposed voxels, drawn as instances ([`crate::gpu::compact`]).
+#[cfg(feature = "gpu")]
+pub type Instances = crate::gpu::compact::Instances;
+/// The GPU's list of exposed voxels: never made in a build without the GPU.
+#[cfg(not(feature = "gpu"))]
+pub enum Instances {}
+
 /// A finished voxelization.
 pub struct Voxelized {
     /// The voxels: for `sdf`/`udf`, the surface (the voxels of the zero crossing).
@@ -80,8 +87,7 @@ pub struct Voxelized {
     pub colours: Option<VoxelColours>,
     /// The exposed voxels as a list on the GPU, ready to draw as instances, when the request asked for it
     /// ([`super::Request::instances`]) and the grid was made there.
-    #[cfg(feature = "gpu")]
-    pub instances: Option<crate::gpu::compact::CompactVoxels>,
+    pub instances: Option<Instances>,
     pub report: Report,
     /// Fallbacks taken and failures worked around on the way, in order.
     pub notices: Vec<Notice>,

@@ -26,12 +26,12 @@ struct CompactParams {
 }
 
 /// Set-voxel coordinates on the GPU: `count` entries of two u32, `x | y << 16` and `z`, in no particular order.
-pub struct CompactVoxels {
+pub struct Instances {
     pub buffer: wgpu::Buffer,
     pub count: u32,
 }
 
-impl CompactVoxels {
+impl Instances {
     /// Reads the list back (for sparse output and tests); blocks until the GPU is done.
     #[cfg(not(target_arch = "wasm32"))]
     pub fn read(&self, gpu: &Gpu) -> Result<Vec<UVec3>, GpuError> {
@@ -169,7 +169,7 @@ impl Compactor {
         surface_only: bool,
         mut timer: Option<&mut PassTimer>,
         probe: Option<&wgpu::Buffer>,
-    ) -> Result<(CompactVoxels, Option<u32>), GpuError> {
+    ) -> Result<(Instances, Option<u32>), GpuError> {
         let device = &gpu.device;
         let (uniform, counters, groups) = scoped(device, || {
             let (uniform, groups) = Self::prepare(gpu, &slab, spec, surface_only);
@@ -200,11 +200,11 @@ impl Compactor {
             Ok(points)
         })
         .await?;
-        Ok((CompactVoxels { buffer: points, count }, probed))
+        Ok((Instances { buffer: points, count }, probed))
     }
 
     /// Joins per-slab lists into one buffer.
-    pub(crate) async fn concat(&self, gpu: &Gpu, parts: Vec<CompactVoxels>) -> Result<CompactVoxels, GpuError> {
+    pub(crate) async fn concat(&self, gpu: &Gpu, parts: Vec<Instances>) -> Result<Instances, GpuError> {
         let count: u64 = parts.iter().map(|p| p.count as u64).sum();
         if count * 8 > gpu.max_binding_bytes() {
             return Err(GpuError::TooLarge {
@@ -227,7 +227,7 @@ impl Compactor {
                 at += p.count as u64 * 8;
             }
             gpu.queue.submit([encoder.finish()]);
-            Ok(CompactVoxels { buffer, count: count as u32 })
+            Ok(Instances { buffer, count: count as u32 })
         })
         .await
     }

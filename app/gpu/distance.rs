@@ -70,13 +70,14 @@ impl GpuDistance {
 
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
     /// given: what [`crate::voxel::distance::DistanceField::compute`] gives, with the distances from the GPU.
+    /// `inside` is taken only once the distances have arrived, so a caller whose GPU failed still has it.
     pub async fn field(
         &self,
         gpu: &Gpu,
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
         band: Band,
-        inside: Option<Grid>,
+        inside: &mut Option<Grid>,
     ) -> Result<crate::voxel::distance::DistanceField, GpuError> {
         gpu.check()?;
         let dims = spec.dims;
@@ -97,7 +98,7 @@ impl GpuDistance {
             best.extend(range);
         }
         gpu.check()?;
-        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, &best, inside))
+        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, &best, inside.take()))
     }
 
     /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared

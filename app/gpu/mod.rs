@@ -260,3 +260,20 @@ pub(crate) use util::dispatch_2d;
 pub async fn map_read_async(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     readback::map_and_copy(device, buffer).await
 }
+
+/// The environment variable (name, value) that keeps Mesa's Vulkan device-selection layer from probing for a
+/// Wayland compositor where there can be none, or `None` where it is not needed (or already set). Each client
+/// sets it its own way before the first adapter is looked for: the CLI first thing in `main`, the Python package
+/// through `os.environ` when it is imported.
+///
+/// Every Mesa install enables that layer implicitly. When the instance has the Wayland surface extension (wgpu
+/// enables every window-system extension the driver offers) the layer calls `wl_display_connect` to find the
+/// GPU driving the display, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+/// environment.` twice when that variable is missing, as on servers, in containers and in CI: an alarming line
+/// on every headless run although nothing is wrong. The layer only reorders adapters, and wgpu chooses among
+/// them itself, so where there is no runtime directory the layer is switched off through its documented
+/// `NODEVICE_SELECT` variable.
+pub fn headless_vulkan_setting() -> Option<(&'static str, &'static str)> {
+    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir());
+    (!runtime_dir && std::env::var_os("NODEVICE_SELECT").is_none()).then_some(("NODEVICE_SELECT", "1"))
+}

@@ -11,7 +11,7 @@
 //!
 //! Each step that allocates or submits runs inside error scopes ([`scoped`]), so a failure names its step.
 
-use super::compact::{CompactVoxels, Slab};
+use super::compact::{Instances, Slab};
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers, stream_buffer, wait};
 use super::solid::SolidRun;
 use super::util::{pipeline_with, scoped, storage_buffer};
@@ -80,8 +80,8 @@ pub(super) struct Run<'a> {
     timer: Option<PassTimer>,
     gpu_ms: f64,
     exact_tests: Option<u64>,
-    points: Vec<CompactVoxels>,
-    /// The presized list and its counters (see `Options::list_capacity`) until its length comes back.
+    instances: Vec<Instances>,
+    /// The presized list and its counters (see `Options::instance_capacity`) until its length comes back.
     presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)>,
     solid: Option<SolidRun>,
     /// Rows the solid fill left to the host (see `solid_unsure` in `shaders/solid.wgsl`).
@@ -171,7 +171,7 @@ impl<'a> Run<'a> {
             timer: gpu.timestamps.then(|| PassTimer::new(device, 6)),
             gpu_ms: 0.0,
             exact_tests: None,
-            points: Vec::new(),
+            instances: Vec::new(),
             presized: None,
             solid: None,
             deferred_rows: Vec::new(),
@@ -328,7 +328,7 @@ impl<'a> Run<'a> {
         let part = Slab { buffer: &b.slab, z0: slab.z0, words: slab.words };
         let single = self.slabs == 1 && self.batches == 1;
         let compactor = self.v.compactor(gpu);
-        if let Some(capacity) = options.list_capacity.filter(|_| single) {
+        if let Some(capacity) = options.instance_capacity.filter(|_| single) {
             let capacity = capacity.min(spec.voxel_count()).min(gpu.max_binding_bytes() / 8).max(1);
             let (list, counters) =
                 compactor.compact_presized(gpu, part, spec, options.surface_only, self.timer.as_mut(), capacity);
@@ -342,7 +342,7 @@ impl<'a> Run<'a> {
         if listed.is_some_and(|n| n as u64 > self.unsure_entries) {
             return Ok(true);
         }
-        self.points.push(list);
+        self.instances.push(list);
         Ok(false)
     }
 
@@ -393,12 +393,12 @@ impl<'a> Run<'a> {
         if let Some((list, _, capacity)) = self.presized.take() {
             let count = first_word(&parts.next().unwrap_or_default()).unwrap_or(0);
             if count as u64 <= capacity {
-                self.points.push(CompactVoxels { buffer: list, count });
+                self.instances.push(Instances { buffer: list, count });
             } else {
                 let part = Slab { buffer: &b.slab, z0: slab.z0, words: slab.words };
                 let compactor = self.v.compactor(gpu);
                 let (list, _) = compactor.compact(gpu, part, self.spec, self.options.surface_only, None, None).await?;
-                self.points.push(list);
+                self.instances.push(list);
             }
         }
         let start = self.layer_start(slab.z0);
@@ -425,7 +425,7 @@ impl<'a> Run<'a> {
             let deferred = first_word(&parts.next().unwrap_or_default()).unwrap_or(0) as u64;
             // A voxel list compacted on the GPU cannot take the host's rows: such a run, and one with more rows
             // than the list holds, becomes the CPU's, like an overflowing unsure list.
-            if deferred > 0 && (self.options.compact || deferred > super::solid::UNSURE_ROWS as u64) {
+            if deferred > 0 && (self.options.instances || deferred > super::solid::UNSURE_ROWS as u64) {
                 return Ok(true);
             }
             if deferred > 0 {
@@ -464,16 +464,16 @@ impl<'a> Run<'a> {
             // Nothing was read back: wait for the work so timings and errors are complete.
             wait(&gpu.device)?;
         }
-        let points = match self.points.len() {
+        let instances = match self.instances.len() {
             0 => None,
-            1 => self.points.pop(),
-            _ => Some(self.v.compactor(gpu).concat(gpu, self.points).await?),
+            1 => self.instances.pop(),
+            _ => Some(self.v.compactor(gpu).concat(gpu, self.instances).await?),
         };
         let sparse = self.leaves.map(|set| Box::new(SparseGrid::from_leaf_sets(self.spec, vec![set]).prune()));
         Ok(Attempt::Done(GpuOutput {
             grid: self.grid,
             sparse,
-            points,
+            instances,
             gpu_ms: gpu.timestamps.then_some(self.gpu_ms),
             slabs: self.slabs,
             batches: self.batches as u32,
@@ -511,7 +511,7 @@ impl GpuVoxelizer {
                 let slab = run.slab(s);
                 run.encode_slab(batch, slab).await?;
                 // Compaction only makes sense on the finished grid, so it waits for the last batch.
-                if options.compact && last_batch && run.compact_slab(slab).await? {
+                if options.instances && last_batch && run.compact_slab(slab).await? {
                     return Ok(Attempt::Overflow);
                 }
                 if run.read_back_slab(slab).await? {

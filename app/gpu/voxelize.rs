@@ -7,7 +7,7 @@
 //! whose slabs are OR-ed together on the host. Both limits come from the adapter, and both can be lowered through
 //! [`Options`] to exercise the chunked paths on small inputs.
 
-use super::compact::{CompactVoxels, Compactor, Slab};
+use super::compact::{Compactor, Instances, Slab};
 use super::solid::SolidPipelines;
 use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError};
@@ -64,8 +64,8 @@ pub struct Options {
     /// Read it back as a sparse grid instead: each slab turned into leaves as it arrives, so the host holds one
     /// slab of the dense grid at a time (bound it with `max_slab_bytes`). Solid interiors become tiles.
     pub sparse: bool,
-    /// Compact the set voxels into a coordinate list on the GPU.
-    pub compact: bool,
+    /// Compact the set voxels into a coordinate list on the GPU, to draw them as instances.
+    pub instances: bool,
     /// In that list, leave out voxels whose six neighbours are all set (for drawing: they cannot be seen).
     pub surface_only: bool,
     /// Upper bound on a slab's size in bytes (default: the adapter's binding limit).
@@ -76,10 +76,10 @@ pub struct Options {
     pub max_unsure: Option<u64>,
     /// Surface, solid or thin surface.
     pub mode: Mode,
-    /// With `compact`, in one slab and batch: presize the voxel list for this many entries (clamped to the grid)
+    /// With `instances`, in one slab and batch: presize the voxel list for this many entries (clamped to the grid)
     /// and read its length back with the grid and the timings, so a voxelization maps once. If more voxels
     /// are listed, it is compacted again at its exact size (a second readback).
-    pub list_capacity: Option<u64>,
+    pub instance_capacity: Option<u64>,
     /// The solid fill decides a voxel on the GPU only where its winding number is farther from 1/2 than this
     /// many times its error bound (default 2: the GPU's error and the CPU's); other rows are filled on the host.
     /// Tests raise it to send rows to the host on purpose.
@@ -91,14 +91,14 @@ pub struct GpuOutput {
     pub grid: Option<VoxelGrid>,
     /// The grid as leaves and tiles, with `Options::sparse` (boxed: it is large beside the rest).
     pub sparse: Option<Box<SparseGrid>>,
-    pub points: Option<CompactVoxels>,
+    pub instances: Option<Instances>,
     /// Summed compute time of all passes from timestamp queries, when the adapter has them.
     pub gpu_ms: Option<f64>,
     pub slabs: u32,
     pub batches: u32,
     /// Voxel tests (triangle, voxel) the f32 decision left to the exact path, when the grid was read back.
     pub exact_tests: Option<u64>,
-    /// The unsure list overflowed and the CPU reference decided the grid (the points, if any, are still
+    /// The unsure list overflowed and the CPU reference decided the grid (the instances, if any, are still
     /// compacted on the GPU).
     pub decided_on_cpu: bool,
     /// Rows of the solid fill that the GPU could not decide as the CPU does and the host filled.
@@ -239,7 +239,7 @@ impl GpuVoxelizer {
             return Ok(GpuOutput {
                 grid: None,
                 sparse: Some(Box::new(sparse)),
-                points: None,
+                instances: None,
                 gpu_ms: None,
                 slabs: slab_plan(gpu, spec, options)?.1,
                 batches: 1,
@@ -256,8 +256,8 @@ impl GpuVoxelizer {
             &Default::default(),
         )?;
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
-        let mut points = Vec::new();
-        if options.compact {
+        let mut instances = Vec::new();
+        if options.instances {
             let layer_words = spec.words_per_row() * spec.dims.y as usize;
             for s in 0..slabs {
                 let z0 = s * slab_layers;
@@ -272,18 +272,18 @@ impl GpuVoxelizer {
                 .await?;
                 let part = Slab { buffer: &slab, z0, words: words.len() as u64 };
                 let (list, _) = self.compactor(gpu).compact(gpu, part, spec, options.surface_only, None, None).await?;
-                points.push(list);
+                instances.push(list);
             }
         }
-        let points = match points.len() {
+        let instances = match instances.len() {
             0 => None,
-            1 => points.pop(),
-            _ => Some(self.compactor(gpu).concat(gpu, points).await?),
+            1 => instances.pop(),
+            _ => Some(self.compactor(gpu).concat(gpu, instances).await?),
         };
         Ok(GpuOutput {
             grid: options.read_grid.then_some(grid),
             sparse: None,
-            points,
+            instances,
             gpu_ms: None,
             slabs,
             batches: 1,

@@ -7,7 +7,7 @@
 
 mod process;
 
-use crate::engine::{Backend, EngineError, Request, Voxelized};
+use crate::engine::{Backend, Engine, EngineError, Job, Request, Voxelized};
 use crate::mesh::{self, Aabb, Mesh, MeshError};
 use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{Axis, GridError, Mode, Resolution};
@@ -31,16 +31,9 @@ enum Input {
     Mesh(Mesh),
 }
 
-/// What a request asks for, from the keyword arguments of `meshvox.voxelize`.
-struct Options {
-    resolution: Resolution,
-    axis: Axis,
-    mode: Mode,
-    backend: Backend,
-    colour: Option<bool>,
-    bounds: Option<Aabb>,
-    band: crate::voxel::distance::Band,
-}
+/// What a call asks for, from the keyword arguments of `meshvox.voxelize`: where, and the library's request
+/// (the one place the package builds it; each call adds its progress and cancel flag).
+type Options = (Backend, Request<'static>);
 
 /// Why a call failed, turned into the Python exception users expect ([`into_py_err`]).
 enum Failure {
@@ -51,10 +44,12 @@ enum Failure {
 fn into_py_err(failure: Failure) -> PyErr {
     match failure {
         // Arrays that make no mesh are the caller's values; a file that makes none is a MeshError.
-        Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(e.to_string()),
-        Failure::Mesh(e) => PyMeshError::new_err(e.to_string()),
-        Failure::Engine(e @ EngineError::Grid { error: GridError::OverBudget { .. }, .. }) => {
-            PyMemoryError::new_err(e.to_string())
+        Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(worded(e)),
+        Failure::Mesh(e) => PyMeshError::new_err(worded(e)),
+        // The package's grids are dense and its budget is the default: the CLI's hint (--max-memory, sparse
+        // outputs) names nothing a Python caller can change.
+        Failure::Engine(EngineError::Grid { mesh, error: error @ GridError::OverBudget { .. }, .. }) => {
+            PyMemoryError::new_err(worded(format!("{mesh}: {error}")))
         }
         Failure::Engine(
             e @ (EngineError::Grid { .. }
@@ -62,9 +57,38 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::Bounds { .. }
             | EngineError::FieldFormat { .. }
             | EngineError::FullBandSparse),
-        ) => PyValueError::new_err(e.to_string()),
+        ) => PyValueError::new_err(worded(e)),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
-        Failure::Engine(e) => PyRuntimeError::new_err(e.to_string()),
+        Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
+    }
+}
+
+/// The library's messages name its settings as the command line spells them; a Python caller passes keywords.
+const KEYWORDS: [(&str, &str); 6] = [
+    ("--voxel-size", "pitch="),
+    ("--band full", "band=\"full\""),
+    ("--band ", "band="),
+    ("--axis", "axis="),
+    ("--backend cpu", "backend=\"cpu\""),
+    ("--mode ", "mode="),
+];
+
+/// A library message in the package's words ([`KEYWORDS`]).
+fn worded(message: impl ToString) -> String {
+    KEYWORDS.iter().fold(message.to_string(), |m, (flag, keyword)| m.replace(flag, keyword))
+}
+
+/// A writer's failure as Python reports file errors: a missing folder is a `FileNotFoundError`, a folder that
+/// cannot be written a `PermissionError`, both naming the path the caller gave.
+fn save_err(path: &std::path::Path, e: crate::voxel::formats::FormatError) -> PyErr {
+    use crate::voxel::formats::FormatError;
+    use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyPermissionError};
+    let message = format!("{}: {e}", path.display());
+    match e {
+        FormatError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+        FormatError::Io(io) if io.kind() == std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+        FormatError::Io(_) => PyOSError::new_err(message),
+        FormatError::Invalid { .. } => PyValueError::new_err(message),
     }
 }
 
@@ -126,48 +150,43 @@ fn options(
         (None, Some(p)) => return Err(PyValueError::new_err(format!("pitch must be a positive number, not {p}"))),
         _ => return Err(PyValueError::new_err("give either resolution or pitch")),
     };
-    let axis = match axis {
-        "longest" => Axis::Longest,
-        "x" => Axis::X,
-        "y" => Axis::Y,
-        "z" => Axis::Z,
-        _ => return Err(PyValueError::new_err(format!("axis '{axis}': use longest, x, y or z"))),
-    };
+    let axis = Axis::from_name(axis)
+        .ok_or_else(|| PyValueError::new_err(format!("axis '{axis}': use {}", Axis::choices())))?;
     let mode = Mode::from_name(mode)
-        .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use surface, solid, surface6, sdf or udf")))?;
-    let band = crate::voxel::distance::Band::parse(band).map_err(PyValueError::new_err)?;
-    let backend = match backend {
-        "auto" => Backend::Auto,
-        "gpu" => Backend::Gpu,
-        "cpu" => Backend::Cpu,
-        _ => return Err(PyValueError::new_err(format!("backend '{backend}': use auto, gpu or cpu"))),
-    };
+        .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use {}", Mode::choices())))?;
+    let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(worded(e)))?;
+    let backend = Backend::from_name(backend)
+        .ok_or_else(|| PyValueError::new_err(format!("backend '{backend}': use {}", Backend::choices())))?;
     let bounds = bounds.map(|(min, max)| Aabb { min: DVec3::from(min), max: DVec3::from(max) });
-    Ok(Options { resolution, axis, mode, backend, colour, bounds, band })
+    let request = Request {
+        axis,
+        colour,
+        bounds,
+        // The package's VoxelGrid holds the dense bits (`.matrix`).
+        grid: crate::voxel::GridKind::Dense,
+        band,
+        ..Request::new(resolution, mode)
+    };
+    Ok((backend, request))
 }
 
 /// One voxelization on this process's engine, inside [`process::run`]'s working thread (or one of
 /// `voxelize_many`'s): `progress` as the engine calls it, `cancel` the flag Ctrl-C sets.
 fn voxelize_one(
     input: Input,
-    options: &Options,
+    &(backend, request): &Options,
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<Voxelized, Failure> {
     let (name, mesh) = input.load()?;
-    let engine = process::engine(options.backend).map_err(Failure::Engine)?;
-    let request = Request {
-        axis: options.axis,
-        colour: options.colour,
-        bounds: options.bounds,
-        progress: Some(progress),
-        cancel: Some(cancel),
-        // The package's VoxelGrid holds the dense bits (`.matrix`).
-        grid: crate::voxel::GridKind::Dense,
-        band: options.band,
-        ..Request::new(options.resolution, options.mode)
+    let request = Request { progress: Some(progress), cancel: Some(cancel), ..request };
+    let job = Job::plan(&name, &mesh, &request).map_err(Failure::Engine)?;
+    // Priced first, as the CLI does: a job the CPU finishes sooner opens (or probes) no GPU.
+    let voxelized = match Engine::priced_out(backend, &job) {
+        Some(cpu) => cpu.run(&job),
+        None => process::engine(backend).map_err(Failure::Engine)?.run(&job),
     };
-    engine.voxelize(&name, &mesh, &request).map_err(Failure::Engine)
+    voxelized.map_err(Failure::Engine)
 }
 
 /// The dictionary `meshvox.VoxelGrid` is made from: `words` (the bit grid as it is, uint32, x-rows z-major: `.matrix`
@@ -310,7 +329,7 @@ fn backends(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let engine = opened.map_err(|e| into_py_err(Failure::Engine(e)))?;
     let (label, notices) = (engine.label(), engine.notices());
     let dict = PyDict::new(py);
-    dict.set_item("auto", if engine.uses_gpu() { "gpu" } else { "cpu" })?;
+    dict.set_item("auto", if engine.uses_gpu() { Backend::Gpu } else { Backend::Cpu }.name())?;
     dict.set_item("backend", &label)?;
     dict.set_item("notes", notices.iter().map(|n| n.message.clone()).collect::<Vec<_>>())?;
     dict.set_item("threads", crate::parallel::threads())?;
@@ -323,6 +342,14 @@ fn backends(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 #[pyfunction]
 fn devices_opened() -> usize {
     crate::gpu::devices_opened()
+}
+
+/// `meshvox._native.headless_vulkan_setting`: the `(name, value)` the package puts in `os.environ` when it is
+/// imported, so that probing for a GPU prints nothing where there is no `XDG_RUNTIME_DIR`
+/// ([`crate::gpu::headless_vulkan_setting`]); `None` where nothing is needed.
+#[pyfunction]
+fn headless_vulkan_setting() -> Option<(&'static str, &'static str)> {
+    crate::gpu::headless_vulkan_setting()
 }
 
 /// `VoxelGrid.save`: writes a grid (from its `.matrix`, origin, pitch and colours) in the format its extension
@@ -340,15 +367,12 @@ fn save(
     merge: bool,
 ) -> PyResult<()> {
     let format = VoxelFormat::from_extension(&path).ok_or_else(|| {
-        PyValueError::new_err(format!(
-            "{}: unknown output format (use .npy, .binvox, .vox, .glb, .ply or .obj)",
-            path.display()
-        ))
+        PyValueError::new_err(format!("{}: unknown output format (use {})", path.display(), VoxelFormat::choices()))
     })?;
     let grid = from_matrix::grid(&matrix.as_array(), origin, pitch)?;
     let colours = colors.map(|c| from_matrix::colours(&grid, &c.as_array())).transpose()?;
     let written = process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), merge))?;
-    written.map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+    written.map_err(|e| save_err(&path, e))
 }
 
 /// `VoxelGrid.save` of a distance field: its float32 `[x, y, z]` values (background `background` world units)
@@ -376,7 +400,7 @@ fn save_field(
             crate::voxel::formats::write_field(&field, format, out)
         })
     })?;
-    written.map(|_| ()).map_err(|e| PyValueError::new_err(format!("{}: {e}", path.display())))
+    written.map(|_| ()).map_err(|e| save_err(&path, e))
 }
 
 mod from_matrix;
@@ -389,6 +413,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_function(wrap_pyfunction!(devices_opened, m)?)?;
+    m.add_function(wrap_pyfunction!(headless_vulkan_setting, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -4,7 +4,7 @@
 use super::camera::OrbitCamera;
 use super::floor::Floor;
 use super::instances::is_webgl2;
-use crate::gpu::compact::CompactVoxels;
+use crate::gpu::compact::Instances;
 use crate::mesh::Mesh;
 use crate::voxel::GridSpec;
 use wgpu::util::DeviceExt;
@@ -61,7 +61,7 @@ struct ViewUniform {
 /// GPU data of one voxelized mesh, ready to draw.
 pub struct Scene {
     pub spec: GridSpec,
-    pub voxels: CompactVoxels,
+    pub voxels: Instances,
     /// Whether each instance has a colour (sRGB RGBA8, one u32 per instance, in the list's order).
     pub coloured: bool,
     /// The instances' colours, if any (bound as a vertex buffer on WebGL2).
@@ -251,7 +251,7 @@ impl CubeRenderer {
     }
 
     /// Builds the drawable scene for a voxel list in grid `spec`, with the source mesh for the overlay.
-    pub fn scene(&self, device: &wgpu::Device, voxels: CompactVoxels, spec: GridSpec, mesh: Option<&Mesh>) -> Scene {
+    pub fn scene(&self, device: &wgpu::Device, voxels: Instances, spec: GridSpec, mesh: Option<&Mesh>) -> Scene {
         self.coloured_scene(device, voxels, None, spec, mesh)
     }
 
@@ -259,7 +259,7 @@ impl CubeRenderer {
     pub fn coloured_scene(
         &self,
         device: &wgpu::Device,
-        voxels: CompactVoxels,
+        voxels: Instances,
         colours: Option<wgpu::Buffer>,
         spec: GridSpec,
         mesh: Option<&Mesh>,
@@ -302,7 +302,7 @@ impl CubeRenderer {
         &self,
         device: &wgpu::Device,
         uniform: &wgpu::Buffer,
-        voxels: &CompactVoxels,
+        voxels: &Instances,
         colours: Option<&wgpu::Buffer>,
         occlusion: Option<&wgpu::Buffer>,
     ) -> wgpu::BindGroup {

@@ -1,7 +1,7 @@
 //! The instances the cube shader draws: voxels from a host grid (with their colours) in the compacted layout the
 //! GPU's list has, and the ambient occlusion of each instance's face corners. On WebGL2 they are vertex buffers.
 
-use crate::gpu::compact::CompactVoxels;
+use crate::gpu::compact::Instances;
 use crate::voxel::VoxelGrid;
 use crate::voxel::colour::VoxelColours;
 use wgpu::util::DeviceExt;
@@ -23,7 +23,7 @@ fn instance_usage(device: &wgpu::Device) -> wgpu::BufferUsages {
 }
 
 /// Uploads a host grid's set voxels in the compacted layout, for grids voxelized on the CPU.
-pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVoxels {
+pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> Instances {
     let packed: Vec<u32> = grid.iter_set().flat_map(|v| [v.x | (v.y << 16), v.z]).collect();
     let count = (packed.len() / 2) as u32;
     let contents: &[u8] = if packed.is_empty() { &[0; 8] } else { bytemuck::cast_slice(&packed) };
@@ -32,7 +32,7 @@ pub fn instances_from_grid(device: &wgpu::Device, grid: &VoxelGrid) -> CompactVo
         contents,
         usage: instance_usage(device) | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     });
-    CompactVoxels { buffer, count }
+    Instances { buffer, count }
 }
 
 /// Uploads the set voxels of `shown` (all of `grid`, its exposed voxels, a cut-away of it) with their colours
@@ -42,7 +42,7 @@ pub fn coloured_instances(
     grid: &VoxelGrid,
     shown: &VoxelGrid,
     colours: &VoxelColours,
-) -> (CompactVoxels, wgpu::Buffer) {
+) -> (Instances, wgpu::Buffer) {
     let ranks = crate::voxel::colour::word_ranks(grid);
     let rgba: Vec<u32> = shown
         .iter_set()

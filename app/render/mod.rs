@@ -3,7 +3,7 @@
 //! window: the `render` command and the tests use it headless, the app inside egui's render pass.
 //!
 //! One file per thing it owns: [`cubes`] (pipelines, style, scene), [`instances`] (voxels and their occlusion as
-//! instances), [`scene`] (whether a scene draws the GPU's list or the grid), [`floor`], [`target`] (offscreen targets, images), [`cut`], [`slice`]
+//! instances), [`scene`] (whether a scene draws the GPU's list or the grid), [`floor`], [`target`] (offscreen targets, images), [`cut`], [`slice`](mod@slice)
 //! (a distance field's slice) and [`camera`].
 
 pub mod camera;

@@ -3,7 +3,7 @@
 
 use super::instances::{coloured_instances, instances_from_grid, occlusion_buffer};
 use super::{CubeRenderer, Cut, Scene};
-use crate::gpu::compact::CompactVoxels;
+use crate::gpu::compact::Instances;
 use crate::mesh::Mesh;
 use crate::voxel::VoxelGrid;
 use crate::voxel::colour::VoxelColours;
@@ -31,7 +31,7 @@ impl CubeRenderer {
         &self,
         device: &wgpu::Device,
         grid: &VoxelGrid,
-        list: Option<CompactVoxels>,
+        list: Option<Instances>,
         colours: Option<&VoxelColours>,
         showing: Showing,
         mesh: Option<&Mesh>,

@@ -134,7 +134,7 @@ impl ViewerApp {
             mode: p.mode,
             gpu_ms: done.report.gpu_ms,
             voxelize_ms: p.started.elapsed().as_secs_f64() * 1e3,
-            on_gpu: !done.report.backend.starts_with("cpu"),
+            on_gpu: !done.report.backend.starts_with(crate::engine::Backend::Cpu.name()),
             voxel_size: grid.spec.voxel_size,
             coloured: done.colours.is_some(),
         });

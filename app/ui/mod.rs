@@ -277,7 +277,7 @@ impl ViewerApp {
 
     /// The scene of the current grid: its voxels (from the GPU's list where there is one) with their colours,
     /// or for a distance field its slice beside the zero crossing's voxels.
-    fn build_scene(&self, instances: Option<crate::gpu::compact::CompactVoxels>, mesh: Option<&Mesh>) -> Option<Scene> {
+    fn build_scene(&self, instances: Option<crate::gpu::compact::Instances>, mesh: Option<&Mesh>) -> Option<Scene> {
         let grid = self.grid.as_ref()?;
         let mesh = mesh.or(self.mesh.as_deref());
         let device = &self.gpu.device;

@@ -83,8 +83,8 @@ impl ViewerApp {
         }
         ui.horizontal(|ui| {
             ui.label("Axis");
-            for (axis, label) in [(Axis::Longest, "longest"), (Axis::X, "x"), (Axis::Y, "y"), (Axis::Z, "z")] {
-                if ui.radio_value(&mut self.axis, axis, label).changed() {
+            for axis in Axis::ALL {
+                if ui.radio_value(&mut self.axis, axis, axis.name()).changed() {
                     self.needs_voxelize = true;
                 }
             }
@@ -92,7 +92,7 @@ impl ViewerApp {
         // Two rows' worth of modes: the occupancy modes and the distance fields wrap instead of widening the panel.
         ui.horizontal_wrapped(|ui| {
             ui.label("Mode");
-            for mode in Mode::ALL.into_iter().chain(Mode::FIELDS) {
+            for mode in Mode::ALL {
                 let hint = match mode {
                     Mode::Surface => "every voxel a triangle touches (26-separating)",
                     Mode::Solid => "the surface plus every voxel whose centre is inside (winding number ≥ ½)",

@@ -24,19 +24,6 @@ pub struct UrlState {
     pub camera: Option<OrbitCamera>,
 }
 
-fn axis_name(axis: Axis) -> &'static str {
-    match axis {
-        Axis::Longest => "longest",
-        Axis::X => "x",
-        Axis::Y => "y",
-        Axis::Z => "z",
-    }
-}
-
-fn parse_axis(s: &str) -> Option<Axis> {
-    [Axis::Longest, Axis::X, Axis::Y, Axis::Z].into_iter().find(|&a| axis_name(a) == s)
-}
-
 /// `yaw,pitch,distance,x,y,z`, all finite, distance positive.
 fn parse_camera(s: &str) -> Option<OrbitCamera> {
     let v: Vec<f32> = s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().ok()?;
@@ -76,7 +63,7 @@ impl UrlState {
                 "mesh" if !value.is_empty() => state.mesh = Some(value),
                 "file" if !value.is_empty() => state.file = Some(value),
                 "r" => state.resolution = value.parse().ok().filter(|&r| (1..=4096).contains(&r)),
-                "axis" => state.axis = parse_axis(&value),
+                "axis" => state.axis = Axis::from_name(&value),
                 "mode" => state.mode = Mode::from_name(&value),
                 "up" => state.up = UpAxis::from_name(&value),
                 "cam" => state.camera = parse_camera(&value),
@@ -102,7 +89,7 @@ impl UrlState {
             parts.push(format!("r={r}"));
         }
         if let Some(a) = self.axis {
-            parts.push(format!("axis={}", axis_name(a)));
+            parts.push(format!("axis={}", a.name()));
         }
         if let Some(m) = self.mode {
             parts.push(format!("mode={}", m.name()));

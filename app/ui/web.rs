@@ -6,6 +6,7 @@
 //! message asks egui for a repaint, since an idle page only runs frames when something happens.
 
 use super::{Stats, ViewerApp};
+use crate::engine::Backend;
 use crate::gpu::AdapterSummary;
 use crate::mesh;
 use crate::render::{self, camera::ViewPreset};
@@ -153,7 +154,7 @@ pub(crate) fn publish_status(
     set("ready", stats.is_some().into());
     set("adapter", adapter.name.as_str().into());
     set("backend", adapter.backend.as_str().into());
-    set("voxelizer", if on_gpu { "gpu" } else { "cpu" }.into());
+    set("voxelizer", if on_gpu { Backend::Gpu } else { Backend::Cpu }.name().into());
     set("error", error.map_or(JsValue::NULL, JsValue::from));
     if let Some(s) = stats {
         set("mesh", s.mesh.as_str().into());

@@ -13,6 +13,8 @@ pub enum Axis {
     Z,
 }
 
+crate::names::names!(Axis { Longest => "longest", X => "x", Y => "y", Z => "z" });
+
 impl Axis {
     /// The index (0, 1, 2 for x, y, z) of the axis along which the resolution counts voxels over `bounds`.
     pub fn index(self, bounds: Aabb) -> usize {

@@ -17,7 +17,6 @@
 //! (bit 0 is the least significant). Padding bits at the end of a row are always zero. Rows being word-aligned
 //! lets the GPU process the grid in z-slabs that are whole word ranges.
 
-pub mod budget;
 pub mod colour;
 pub mod cpu;
 pub mod distance;
@@ -51,26 +50,19 @@ pub enum Mode {
     Udf,
 }
 
+crate::names::names!(Mode {
+    Surface => "surface": "The conservative surface: every voxel a triangle touches (26-separating)",
+    Solid => "solid": "The surface plus every voxel whose centre is inside (generalized winding number >= 1/2)",
+    Surface6 => "surface6": "The thin surface (6-separating): no face-connected leak from inside a closed mesh",
+    Sdf => "sdf": "Signed distances near the surface (--band), negative inside (winding number >= 1/2): .npy, .vdb, .npz",
+    Udf => "udf": "Unsigned distances near the surface (--band), for open surfaces: .npy, .vdb, .npz",
+});
+
 impl Mode {
     /// The occupancy modes: a grid of voxels and nothing else.
-    pub const ALL: [Mode; 3] = [Mode::Surface, Mode::Solid, Mode::Surface6];
+    pub const OCCUPANCY: [Mode; 3] = [Mode::Surface, Mode::Solid, Mode::Surface6];
     /// The distance-field modes.
     pub const FIELDS: [Mode; 2] = [Mode::Sdf, Mode::Udf];
-
-    /// The name used on the command line, in JSON and in the page's status.
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Surface => "surface",
-            Mode::Solid => "solid",
-            Mode::Surface6 => "surface6",
-            Mode::Sdf => "sdf",
-            Mode::Udf => "udf",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Mode> {
-        Mode::ALL.into_iter().chain(Mode::FIELDS).find(|m| m.name() == name)
-    }
 
     /// Whether the mode makes a distance field (beside the surface grid).
     pub fn is_field(self) -> bool {
@@ -80,12 +72,6 @@ impl Mode {
     /// The occupancy mode whose grid comes with the result: the surface (the zero crossing) for the fields.
     pub fn grid_mode(self) -> Mode {
         if self.is_field() { Mode::Surface } else { self }
-    }
-}
-
-impl std::fmt::Display for Mode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
     }
 }
 
@@ -155,14 +141,11 @@ pub enum GridKind {
     Sparse,
 }
 
-impl GridKind {
-    pub const ALL: [GridKind; 3] = [GridKind::Auto, GridKind::Dense, GridKind::Sparse];
+crate::names::names!(GridKind { Auto => "auto", Dense => "dense", Sparse => "sparse" });
 
-    pub fn name(self) -> &'static str {
-        match self {
-            GridKind::Auto => "auto",
-            GridKind::Dense => "dense",
-            GridKind::Sparse => "sparse",
-        }
+impl GridKind {
+    /// The kind a grid is: `Sparse` or `Dense`.
+    pub fn of(sparse: bool) -> GridKind {
+        if sparse { GridKind::Sparse } else { GridKind::Dense }
     }
 }

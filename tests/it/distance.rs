@@ -280,7 +280,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
             let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
             let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
             let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
-            let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, Some(inside))).expect("gpu field");
+            let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
             let d = field_difference(&cpu, &on_gpu);
             let bound = gpu_bound_voxels(spec.dims.max_element());
             assert!(d <= bound, "{name} at {n}: GPU and CPU differ by {d} voxels (bound {bound:.2e})");

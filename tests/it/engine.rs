@@ -320,3 +320,86 @@ fn the_engine_never_waits_for_rayons_global_pool() {
         panic!("an engine call waited for rayon's global pool (a loop not in meshvox::parallel::install?): {e}");
     }
 }
+
+/// One planned job (issue 44): `Job::plan` lays the grid, picks dense or sparse and sums the area once; running it
+/// gives what `Engine::voxelize` gives for the same request; `auto` prices it before probing any adapter.
+#[test]
+fn a_planned_job_is_what_voxelize_runs_and_what_auto_prices() {
+    let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
+    let engine = Engine::open(Backend::Cpu).expect("cpu");
+    for (mode, format) in [(Mode::Solid, None), (Mode::Surface, Some(VoxelFormat::Vdb)), (Mode::Sdf, None)] {
+        let request = Request { format, ..Request::new(Resolution::Count(37), mode) };
+        let job = meshvox::Job::plan("knot", &mesh, &request).expect("plan");
+        // The grid the job lays is the grid the run fills, dense or sparse as the format asks.
+        let bounds = mesh.bounds().expect("bounds");
+        let spec = meshvox::voxel::GridSpec::fit(bounds, Resolution::Count(37), meshvox::voxel::Axis::Longest);
+        assert_eq!(job.spec, spec.expect("fit"), "{mode}");
+        assert_eq!(job.sparse, format.is_some_and(VoxelFormat::is_sparse), "{mode}");
+        let area: f64 = mesh.triangles.iter().map(|t| 0.5 * f64::from((t[1] - t[0]).cross(t[2] - t[0]).length())).sum();
+        assert!((job.area - area).abs() <= 1e-9 * area, "{mode}: area {} against {area}", job.area);
+        let (run, voxelized) =
+            (engine.run(&job).expect("run"), engine.voxelize("knot", &mesh, &request).expect("voxelize"));
+        assert_eq!(run.grid, voxelized.grid, "{mode}");
+        assert_eq!(run.report.dims, voxelized.report.dims, "{mode}");
+        assert_eq!(run.field.map(|f| f.band_voxels), voxelized.field.map(|f| f.band_voxels), "{mode}");
+        // A 37-voxel job is the CPU's under `auto`, said in `backend`, with nothing probed; `gpu` is never priced.
+        let priced = Engine::priced_out(Backend::Auto, &job).expect("the CPU is cheaper at 37");
+        assert!(!priced.uses_gpu() && priced.label().contains("auto: ~"), "{}", priced.label());
+        assert!(Engine::priced_out(Backend::Gpu, &job).is_none());
+        assert!(Engine::priced_out(Backend::Cpu, &job).is_none());
+    }
+    // Planning refuses what no run could do, before anything is allocated.
+    let field_in_vox = Request { format: Some(VoxelFormat::Vox), ..Request::new(Resolution::Count(16), Mode::Sdf) };
+    assert!(matches!(
+        meshvox::Job::plan("knot", &mesh, &field_in_vox),
+        Err(meshvox::engine::EngineError::FieldFormat { .. })
+    ));
+    let over = Request { max_memory: Some(1 << 20), ..Request::new(Resolution::Count(4000), Mode::Surface) };
+    let e = meshvox::Job::plan("knot", &mesh, &over).err().expect("over the budget");
+    assert!(e.to_string().contains("largest resolution that fits is -r "), "{e}");
+}
+
+/// The library owns its names (issue 44): every setting's values round-trip through `name`/`from_name`, are
+/// spelled once, and are what the CLI accepts (`--help` lists them; a wrong one lists them as `choices`).
+#[test]
+fn every_setting_has_one_spelling_that_every_client_takes() {
+    fn check<T: Copy + PartialEq + std::fmt::Debug>(
+        all: &[T],
+        name: fn(T) -> &'static str,
+        from: fn(&str) -> Option<T>,
+    ) {
+        let names: std::collections::BTreeSet<_> = all.iter().map(|&v| name(v)).collect();
+        assert_eq!(names.len(), all.len(), "{all:?}: a name is spelled twice");
+        for &v in all {
+            assert_eq!(from(name(v)), Some(v));
+        }
+        assert_eq!(from("no-such-value"), None);
+    }
+    use meshvox::voxel::{Axis, GridKind};
+    check(&Axis::ALL, Axis::name, Axis::from_name);
+    check(&Backend::ALL, Backend::name, Backend::from_name);
+    check(&GridKind::ALL, GridKind::name, GridKind::from_name);
+    check(&Mode::ALL, Mode::name, Mode::from_name);
+    assert_eq!(Mode::ALL.len(), Mode::OCCUPANCY.len() + Mode::FIELDS.len());
+    assert!(Mode::OCCUPANCY.iter().chain(&Mode::FIELDS).all(|m| Mode::ALL.contains(m)));
+    assert_eq!(Backend::choices(), "auto, gpu or cpu");
+    for format in VoxelFormat::ALL {
+        assert_eq!(VoxelFormat::from_name(&format.extension().to_uppercase()), Some(format));
+    }
+    // The CLI parses through the same names: each is accepted, and a wrong one is refused naming them all.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let wrong =
+        super::cli::meshvox(&["voxelize", "builtin:torus", "-r", "8", "-o", "t.npy", "--mode", "hollow"], dir.path());
+    let stderr = String::from_utf8_lossy(&wrong.stderr);
+    assert!(!wrong.status.success());
+    for mode in Mode::ALL {
+        assert!(stderr.contains(mode.name()), "{mode} missing from: {stderr}");
+    }
+    for axis in Axis::ALL {
+        let out = super::cli::meshvox(
+            &["voxelize", "builtin:torus", "-r", "8", "--axis", axis.name(), "-o", "t.npy", "--backend", "cpu"],
+            dir.path(),
+        );
+        assert!(out.status.success(), "--axis {axis}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+}

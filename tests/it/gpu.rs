@@ -105,7 +105,7 @@ fn every_mesh_in_every_mode_gives_the_cpus_sparse_grid_on_the_gpu() {
         for n in [45, 110] {
             let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("grid");
             let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
-            for mode in Mode::ALL {
+            for mode in Mode::OCCUPANCY {
                 let options = Options { read_grid: true, sparse: true, mode, ..Default::default() };
                 let out = v.voxelize(gpu, &tris, s, &options).unwrap_or_else(|e| panic!("{m}: {e}"));
                 let (cpu_sparse, _) =
@@ -156,11 +156,11 @@ fn decimal_boundary_scenes_are_bit_identical_including_the_overflow_fallback() {
             assert_eq!(out.decided_on_cpu, max_unsure.is_some(), "{what}");
             // Compaction only, in slabs of a few layers: the overflow is seen in the compactor's readback.
             let slab = Some(s.words_per_row() as u64 * 4 * s.dims.y as u64 * 7);
-            let options = Options { compact: true, max_unsure, max_slab_bytes: slab, ..Default::default() };
+            let options = Options { instances: true, max_unsure, max_slab_bytes: slab, ..Default::default() };
             let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
             assert_eq!(out.decided_on_cpu, max_unsure.is_some(), "{what}, compaction only");
             let mut points: Vec<[u32; 3]> =
-                out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+                out.instances.expect("instances").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
             points.sort();
             assert!(
                 points == expected,
@@ -186,13 +186,13 @@ fn grid_past_the_binding_limit_is_processed_in_slabs() {
         [v3(2048.0, 0.0, 150.0), v3(2048.0, 2048.0, 299.0), v3(0.0, 2048.0, 299.5)],
     ];
     let out =
-        v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..Default::default() }).expect("gpu");
+        v.voxelize(gpu, &tris, s, &Options { read_grid: true, instances: true, ..Default::default() }).expect("gpu");
     if s.byte_size() > gpu.max_binding_bytes() {
         assert!(out.slabs > 1, "a grid over the binding limit must be split, got {} slab", out.slabs);
     }
     let g = out.grid.expect("grid");
     assert_same_grid(&g, &cpu_grid(&tris, s), "2048x2048x300 plane");
-    let points = out.points.expect("points").read(gpu).expect("read points");
+    let points = out.instances.expect("instances").read(gpu).expect("read points");
     assert_eq!(points.len() as u64, g.count());
 }
 
@@ -232,12 +232,12 @@ fn forced_slabs_and_batches_give_the_same_grid() {
         let options =
             Options { max_slab_bytes: Some(layer * 37), max_batch_triangles: Some(300), ..Default::default() };
         let (gpu, v) = gpu().expect("gpu");
-        let out = v.voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, ..options }).expect("gpu");
+        let out = v.voxelize(gpu, &tris, s, &Options { read_grid: true, instances: true, ..options }).expect("gpu");
         assert!(out.slabs > 1 && out.batches > 1, "slabs {} batches {}", out.slabs, out.batches);
         let g = out.grid.expect("grid");
         assert_same_grid(&g, &reference, &format!("{} at {r} in slabs and batches", mesh.name));
         let mut points: Vec<[u32; 3]> =
-            out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+            out.instances.expect("instances").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
         points.sort();
         let mut expected: Vec<[u32; 3]> = g.iter_set().map(|p| p.to_array()).collect();
         expected.sort();
@@ -256,10 +256,11 @@ fn compaction_lists_exactly_the_set_voxels() {
         // presized too short (10 entries), which must compact again at the exact size.
         for capacity in [None, Some(1 << 22), Some(10)] {
             let what = format!("{name}, list capacity {capacity:?}");
-            let options = Options { read_grid: true, compact: true, list_capacity: capacity, ..Default::default() };
+            let options =
+                Options { read_grid: true, instances: true, instance_capacity: capacity, ..Default::default() };
             let out = v.voxelize(gpu, &tris, s, &options).expect("gpu");
             let g = out.grid.expect("grid");
-            let list = out.points.expect("points");
+            let list = out.instances.expect("instances");
             assert_eq!(list.count as u64, g.count(), "{what}");
             let mut points: Vec<[u32; 3]> = list.read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
             points.sort();
@@ -285,7 +286,12 @@ fn surface_only_compaction_leaves_out_enclosed_voxels() {
         .collect();
     let s = spec(UVec3::splat(20));
     let out = v
-        .voxelize(gpu, &tris, s, &Options { read_grid: true, compact: true, surface_only: true, ..Default::default() })
+        .voxelize(
+            gpu,
+            &tris,
+            s,
+            &Options { read_grid: true, instances: true, surface_only: true, ..Default::default() },
+        )
         .expect("gpu");
     let g = out.grid.expect("grid");
     let d = s.dims.as_ivec3();
@@ -302,7 +308,7 @@ fn surface_only_compaction_leaves_out_enclosed_voxels() {
         .collect();
     expected.sort();
     let mut listed: Vec<[u32; 3]> =
-        out.points.expect("points").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
+        out.instances.expect("instances").read(gpu).expect("read").into_iter().map(|p| p.to_array()).collect();
     listed.sort();
     assert!(g.count() == 8000 && expected.len() < 8000, "{} set, {} visible", g.count(), expected.len());
     assert_eq!(listed, expected);

@@ -36,7 +36,8 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
         GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(case.resolution), Axis::Longest).expect("grid");
     let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let v = GpuVoxelizer::new(gpu);
-    let options = Options { compact: true, surface_only: true, read_grid: true, mode: case.mode, ..Default::default() };
+    let options =
+        Options { instances: true, surface_only: true, read_grid: true, mode: case.mode, ..Default::default() };
     let out = v.voxelize(gpu, &tris, spec, &options).expect("voxelize");
     let grid = out.grid.expect("grid");
     let (points, colours) = match case.cut {
@@ -66,7 +67,7 @@ pub(crate) fn render(gpu: &Gpu, case: &Case) -> image::RgbaImage {
             (instances_from_grid(&gpu.device, &shown), None)
         }
         None if case.ao => (instances_from_grid(&gpu.device, &grid.exposed()), None),
-        None => (out.points.expect("points"), None),
+        None => (out.instances.expect("instances"), None),
     };
     let show_mesh = case.show_mesh;
     let offscreen = Offscreen::new(gpu);

@@ -35,7 +35,8 @@ def adapter() -> None:
 
 
 def _run(*args: str, timeout: float) -> dict:
-    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1")
+    # `auto` takes lavapipe (software) and probes for every job instead of pricing small ones onto the CPU.
+    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1", MESHVOX_AUTO_PROBE="1")
     try:
         out = subprocess.run([sys.executable, __file__, *args], capture_output=True, text=True, env=env,
                              timeout=timeout)

@@ -100,7 +100,7 @@ pub(super) fn run(args: &BenchArgs, meshes: &Meshes) -> Result<Vec<SdfRow>> {
         .backends
         .iter()
         .filter_map(|&b| match open_engine(b) {
-            Ok(e) if b != super::BackendArg::Gpu || e.uses_gpu() => Some(e),
+            Ok(e) if b != meshvox::Backend::Gpu || e.uses_gpu() => Some(e),
             _ => None,
         })
         .collect();
@@ -112,7 +112,7 @@ pub(super) fn run(args: &BenchArgs, meshes: &Meshes) -> Result<Vec<SdfRow>> {
             let runs = if n >= 1024 { 1 } else { args.runs };
             let surface = Request { grid: GridKind::Dense, ..Request::new(Resolution::Count(n), Mode::Surface) };
             let sdf = Request { band: Band::Voxels(BAND), ..Request { mode: Mode::Sdf, ..surface } };
-            let spec = meshvox::engine::plan(name, mesh, &sdf)?.spec;
+            let spec = meshvox::engine::Job::plan(name, mesh, &sdf)?.spec;
             let vdb = openvdb(dir.path(), &spec, runs);
             for engine in &engines {
                 let (surface_ms, _) = timed(engine, name, mesh, &surface, runs)?;

@@ -28,6 +28,13 @@ from ._native import MeshError
 __all__ = ["VoxelGrid", "MeshError", "voxelize", "voxelize_many", "batched_coords", "load", "backends"]
 __version__ = _native.__version__
 
+# Before any GPU is probed: without a runtime directory, Mesa's Vulkan layer would print an alarming line twice
+# on every probe (meshvox.gpu::headless_vulkan_setting says why); the CLI sets the same variable.
+_setting = _native.headless_vulkan_setting()
+if _setting is not None:
+    os.environ.setdefault(*_setting)
+del _setting
+
 Progress = Callable[[int, int], Any]
 
 

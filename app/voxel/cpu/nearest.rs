@@ -6,7 +6,7 @@ use super::common::dot3;
 use super::exact::{ceil, floor};
 use glam::{IVec3, UVec3, Vec3};
 
-/// The voxels whose centres lie within `reach` voxels of the triangle's bounding box, as [`candidate_range`] (and
+/// The voxels whose centres lie within `reach` voxels of the triangle's bounding box, as [`candidate_range`](super::colour::candidate_range) (and
 /// the distance field's band) need them.
 pub fn reach_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
     let lo = t[0].min(t[1]).min(t[2]) - (reach + 0.5);

@@ -230,7 +230,7 @@ impl BoundaryPiece {
     }
 }
 
-/// A mesh's open boundary: its edges ([`boundary_edges`]) grouped by piece, and the pieces.
+/// A mesh's open boundary: its edges ([`boundary_edges`](crate::voxel::solid::boundary_edges)) grouped by piece, and the pieces.
 pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
@@ -275,7 +275,7 @@ pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
 /// move between `p` and any point of the row within `reach` voxels of it that no crossing separates from `p` (0
 /// when `reach` is 0); `far` how far the winding number anywhere on that stretch can be from the sum, for the
 /// pieces of the boundary left out of it: a piece whose box the stretch passes outside of in YZ contributes at
-/// most its spanning area over the squared distance from the stretch to its box (why: [`piece_reach`]), and such
+/// most its spanning area over the squared distance from the stretch to its box (why: `piece_reach`), and such
 /// pieces are left out while those bounds add up to at most `budget` (0: every edge is summed).
 ///
 /// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
@@ -430,7 +430,7 @@ const NEAR: f32 = std::f32::consts::TAU * 0.99;
 /// x̂, which lies in the lune between the half-planes through x̂ and each end: its solid angle is at most twice
 /// the angle `φ` the edge's YZ projection subtends from the row's (y, z), whatever x, and `φ ≤ span / d` with
 /// `d` the YZ distance to the edge's piece's box. Far from a piece its whole term is smaller still, its spanning
-/// fan's area over `d²` ([`piece_reach`]). Where these add up to less than 2π over all pieces, the term stays
+/// fan's area over `d²` (`piece_reach`). Where these add up to less than 2π over all pieces, the term stays
 /// below 1/2 on the whole row, the winding number is the integer count plus less than 1/2, and the count decides.
 /// This holds for any number of holes, however close together.
 #[inline]

@@ -46,7 +46,14 @@ impl AtomicFile {
             _ => Path::new("."),
         };
         let mut list = partials();
-        let temp = tempfile::Builder::new().prefix(".meshvox-").suffix(".partial").tempfile_in(dir)?;
+        let temp = tempfile::Builder::new().prefix(".meshvox-").suffix(".partial").tempfile_in(dir);
+        // The error names the folder, not the hidden temporary file nobody asked for.
+        let temp = temp.map_err(|e| match e.kind() {
+            io::ErrorKind::NotFound => io::Error::new(e.kind(), format!("no such folder: {}", dir.display())),
+            kind => {
+                io::Error::new(kind, format!("cannot create a file in {}: {}", dir.display(), io::Error::from(kind)))
+            }
+        })?;
         list.push(temp.path().to_path_buf());
         Ok(AtomicFile { temp: Some(temp), path: path.to_path_buf() })
     }

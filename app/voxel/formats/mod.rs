@@ -45,24 +45,33 @@ pub enum VoxelFormat {
 }
 
 impl VoxelFormat {
+    /// Every format, in the order messages list them.
+    pub const ALL: [VoxelFormat; 8] = [
+        VoxelFormat::Npy,
+        VoxelFormat::Binvox,
+        VoxelFormat::Vox,
+        VoxelFormat::Npz,
+        VoxelFormat::Vdb,
+        VoxelFormat::Mesh(MeshFormat::Glb),
+        VoxelFormat::Mesh(MeshFormat::Ply),
+        VoxelFormat::Mesh(MeshFormat::Obj),
+    ];
+
     /// The format named by a file's extension.
     pub fn from_extension(path: &std::path::Path) -> Option<VoxelFormat> {
         VoxelFormat::from_name(path.extension()?.to_str()?)
     }
 
-    /// The format named by its extension without the dot (`npy`, `binvox`, `vox`, `glb`, `ply`, `obj`), in any case.
+    /// The format named by its extension without the dot ([`VoxelFormat::extension`]), in any case.
     pub fn from_name(name: &str) -> Option<VoxelFormat> {
-        match name.to_ascii_lowercase().as_str() {
-            "npy" => Some(VoxelFormat::Npy),
-            "binvox" => Some(VoxelFormat::Binvox),
-            "vox" => Some(VoxelFormat::Vox),
-            "npz" => Some(VoxelFormat::Npz),
-            "vdb" => Some(VoxelFormat::Vdb),
-            "glb" => Some(VoxelFormat::Mesh(MeshFormat::Glb)),
-            "ply" => Some(VoxelFormat::Mesh(MeshFormat::Ply)),
-            "obj" => Some(VoxelFormat::Mesh(MeshFormat::Obj)),
-            _ => None,
-        }
+        VoxelFormat::ALL.into_iter().find(|f| f.extension().eq_ignore_ascii_case(name))
+    }
+
+    /// The extensions as a message lists them: `.npy, .binvox, … or .obj`.
+    pub fn choices() -> String {
+        crate::names::choices(
+            &VoxelFormat::ALL.map(|f| f.extension()).map(|e| format!(".{e}")).each_ref().map(String::as_str),
+        )
     }
 
     /// Whether the format is written from a sparse grid, in space that grows with the set voxels (the others

@@ -12,9 +12,10 @@
 //! peak ([`LEAF_BYTES`]); a solid adds its row crossings and the interior's tiles along the surface. A dense
 //! format written from a sparse grid needs the dense grid too.
 
-use super::formats::VoxelFormat;
-use super::{Axis, GridError, GridSpec, Mode, Resolution};
 use crate::mesh::{Aabb, Mesh};
+use crate::voxel::distance::Band;
+use crate::voxel::formats::VoxelFormat;
+use crate::voxel::{Axis, GridError, GridSpec, Mode, Resolution};
 use rayon::prelude::*;
 
 /// Bytes of one grid-space triangle (nine f32).
@@ -31,18 +32,6 @@ pub const LEAF_BYTES: u64 = 256;
 /// The GPU's slab for a sparse grid: read back and turned into leaves one at a time, so at most this much of the
 /// dense grid is on the host at once.
 pub const SPARSE_SLAB_BYTES: u64 = 64 << 20;
-
-/// The request a grid is planned for, beside its spec.
-#[derive(Clone, Copy, Debug)]
-pub struct Job {
-    /// The world box the grid covers (what `-r` divides).
-    pub bounds: Aabb,
-    pub axis: Axis,
-    pub mode: Mode,
-    pub triangles: u64,
-    /// `Sdf`/`Udf`: the band distances are computed in.
-    pub band: super::distance::Band,
-}
 
 /// The mesh's surface area in world units², for the sparse estimate.
 pub fn surface_area(mesh: &Mesh) -> f64 {
@@ -76,22 +65,30 @@ impl Estimate {
     }
 }
 
-/// Host bytes voxelizing `job` into `spec`'s grid takes, writing it as `format` if given: dense, or sparse for a
-/// surface of `area` world units² when given.
-pub fn estimate(spec: &GridSpec, job: &Job, area: Option<f64>, format: Option<VoxelFormat>) -> Estimate {
+/// Host bytes voxelizing `triangles` in `mode` into `spec`'s grid takes, writing it as `format` if given: dense,
+/// or sparse for a surface of `area` world units² when given (a field's leaves for its `band` too).
+pub fn estimate(
+    spec: &GridSpec,
+    mode: Mode,
+    band: Band,
+    format: Option<VoxelFormat>,
+    triangles: u64,
+    area: Option<f64>,
+) -> Estimate {
     let dense = spec.byte_size();
-    let triangles = job.triangles.saturating_mul(2 * TRIANGLE_BYTES);
-    let field = match (job.mode.is_field(), area) {
-        (true, Some(area)) => field_bytes(spec, job, area),
+    let triangle_bytes = triangles.saturating_mul(2 * TRIANGLE_BYTES);
+    let field = match (mode.is_field(), area) {
+        (true, Some(area)) => field_bytes(spec, band, triangles, area),
         _ => 0,
     };
-    let Some(area) = area.filter(|_| !job.mode.is_field() || format.is_some_and(VoxelFormat::is_sparse)) else {
+    let Some(area) = area.filter(|_| !mode.is_field() || format.is_some_and(VoxelFormat::is_sparse)) else {
         let grid = dense.saturating_add(field);
-        return Estimate { grid, triangles, readback: dense.min(MAX_READBACK), writer: writer(spec, format) };
+        let (readback, writer) = (dense.min(MAX_READBACK), writer(spec, format));
+        return Estimate { grid, triangles: triangle_bytes, readback, writer };
     };
-    let leaves = sparse_leaves(spec, area, job.triangles);
+    let leaves = sparse_leaves(spec, area, triangles);
     let mut grid = leaves.saturating_mul(LEAF_BYTES).saturating_add(field);
-    if matches!(job.mode, Mode::Solid | Mode::Sdf) {
+    if matches!(mode, Mode::Solid | Mode::Sdf) {
         // Row crossings (two per row of leaves' worth of surface, 8 bytes each, sorted with a copy) and the
         // interior's tiles along the surface (as many again as leaves at most, 16 bytes each).
         let area_voxels = (area / (spec.voxel_size * spec.voxel_size)) as u64;
@@ -104,20 +101,20 @@ pub fn estimate(spec: &GridSpec, job: &Job, area: Option<f64>, format: Option<Vo
         Some(f) => dense.saturating_add(writer(spec, Some(f))),
         None => 0,
     };
-    Estimate { grid, triangles, readback: dense.min(SPARSE_SLAB_BYTES), writer }
+    Estimate { grid, triangles: triangle_bytes, readback: dense.min(SPARSE_SLAB_BYTES), writer }
 }
 
 /// A distance field's leaves (values, and their atomics while computed: 4 KiB each) and slots: the surface's
 /// leaves widened by the band on both sides, or every leaf for `Band::Full`. A dense `.npy` of it is written
 /// a slice at a time ([`writer`]).
-fn field_bytes(spec: &GridSpec, job: &Job, area: f64) -> u64 {
+fn field_bytes(spec: &GridSpec, band: Band, triangles: u64, area: f64) -> u64 {
     let d = spec.dims.as_u64vec3();
     let all = d.x.div_ceil(8) * d.y.div_ceil(8) * d.z.div_ceil(8);
-    let leaves = match job.band {
-        super::distance::Band::Full => all,
-        super::distance::Band::Voxels(k) => {
+    let leaves = match band {
+        Band::Full => all,
+        Band::Voxels(k) => {
             let widen = 1.0 + (2.0 * f64::from(k) + 8.0) / 8.0;
-            ((sparse_leaves(spec, area, job.triangles) as f64 * widen * widen) as u64).min(all)
+            ((sparse_leaves(spec, area, triangles) as f64 * widen * widen) as u64).min(all)
         }
     };
     leaves.saturating_mul(4096).saturating_add(all.saturating_mul(4))
@@ -148,26 +145,23 @@ fn writer(spec: &GridSpec, format: Option<VoxelFormat>) -> u64 {
     }
 }
 
-/// Checks a request against `budget` bytes (sparse for a surface of `area` world units² when given). When it
-/// does not fit, the error names the largest `-r` along the request's axis that does (found by bisection over
+/// Checks the grid `spec` laid over `bounds` against `budget` bytes, with `estimate` giving what a grid takes.
+/// When it does not fit, the error names the largest `-r` along `axis` that does (found by bisection over
 /// [`GridSpec::fit`], so it is exactly the grid `-r` makes).
 pub fn check(
     spec: &GridSpec,
-    job: &Job,
-    area: Option<f64>,
-    format: Option<VoxelFormat>,
+    bounds: Aabb,
+    axis: Axis,
     budget: u64,
+    estimate: impl Fn(&GridSpec) -> Estimate,
 ) -> Result<Estimate, GridError> {
-    let needed = estimate(spec, job, area, format);
+    let needed = estimate(spec);
     if needed.total() <= budget {
         return Ok(needed);
     }
-    let fits = |n: u32| {
-        GridSpec::fit(job.bounds, Resolution::Count(n), job.axis)
-            .is_ok_and(|s| estimate(&s, job, area, format).total() <= budget)
-    };
+    let fits = |n: u32| GridSpec::fit(bounds, Resolution::Count(n), axis).is_ok_and(|s| estimate(&s).total() <= budget);
     // The resolution this request amounts to along its axis bounds the search from above.
-    let (mut lo, mut hi) = (0u32, spec.dims[job.axis.index(job.bounds)].max(1));
+    let (mut lo, mut hi) = (0u32, spec.dims[axis.index(bounds)].max(1));
     while lo < hi {
         let mid = lo + (hi - lo).div_ceil(2);
         if fits(mid) { lo = mid } else { hi = mid - 1 }

@@ -1,0 +1,148 @@
+//! What to voxelize: the client's [`Request`], and the [`Job`] planned from it against a mesh. Planning lays the
+//! grid over the mesh, picks dense or sparse, sums the surface area and checks the memory budget once, before
+//! anything large is allocated; the cost model ([`super::cost`]), [`Engine::open_for`](super::Engine::open_for)
+//! and the run all read the job instead of working any of it out again.
+
+use super::{EngineError, budget};
+use crate::mesh::{Aabb, Mesh};
+use crate::voxel::distance::Band;
+use crate::voxel::formats::VoxelFormat;
+use crate::voxel::{Axis, GridError, GridKind, GridSpec, Mode, Resolution};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// What to voxelize, and within which limits: what a client asks for, in the library's words. Each client (the
+/// CLI, Python, the viewer, bench) builds one in one place.
+#[derive(Clone, Copy)]
+pub struct Request<'a> {
+    pub resolution: Resolution,
+    pub axis: Axis,
+    pub mode: Mode,
+    /// Colour the voxels from the mesh's materials: `None` when the mesh has any colour, `Some(false)` never
+    /// (`Some(true)` on a mesh without colour leaves the voxels uncoloured, as `None` does).
+    pub colour: Option<bool>,
+    /// Host memory the request may use; `None`: four fifths of what is available ([`crate::memory`]).
+    pub max_memory: Option<u64>,
+    /// The format the grid will be written in, whose writer's memory the budget counts.
+    pub format: Option<VoxelFormat>,
+    /// Dense or sparse grid, or `Auto`: sparse for a sparse format or where the dense grid does not fit the
+    /// budget ([`Job::plan`]).
+    pub grid: GridKind,
+    /// Also list the exposed voxels on the GPU, for drawing them as instances on the engine's device
+    /// ([`super::Voxelized::instances`]; nothing where the CPU voxelizes).
+    pub instances: bool,
+    /// Called now and then with (triangles done, triangles) while the CPU voxelizes, from worker threads.
+    pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// Set to stop the request: checked before voxelizing and before colouring, and per triangle by the CPU
+    /// voxelizer (a GPU submission runs to its end).
+    pub cancel: Option<&'a AtomicBool>,
+    /// The world box the grid covers instead of the mesh's bounds, so that a dataset shares one frame; triangles
+    /// outside it are clipped.
+    pub bounds: Option<Aabb>,
+    /// `Mode::Sdf`/`Mode::Udf`: how far from the surface distances are computed.
+    pub band: Band,
+}
+
+impl Request<'_> {
+    /// A request for `resolution` voxels along the longest axis, in `mode`, with every other setting as default.
+    pub fn new(resolution: Resolution, mode: Mode) -> Request<'static> {
+        Request {
+            resolution,
+            axis: Axis::Longest,
+            mode,
+            colour: None,
+            max_memory: None,
+            format: None,
+            grid: GridKind::Auto,
+            instances: false,
+            progress: None,
+            cancel: None,
+            bounds: None,
+            band: Band::default(),
+        }
+    }
+
+    pub(super) fn cancelled(&self) -> Result<(), EngineError> {
+        match self.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            true => Err(EngineError::Cancelled),
+            false => Ok(()),
+        }
+    }
+}
+
+/// A request planned against its mesh: everything the run, the cost model and the budget need, worked out once.
+#[derive(Clone, Copy)]
+pub struct Job<'a> {
+    /// The mesh as the user named it, for messages and the report.
+    pub name: &'a str,
+    pub mesh: &'a Mesh,
+    pub request: Request<'a>,
+    /// The world box the grid covers (what the resolution divides).
+    pub bounds: Aabb,
+    pub spec: GridSpec,
+    /// Leaves and tiles instead of the dense bit grid.
+    pub sparse: bool,
+    /// The mesh's surface area in world units².
+    pub area: f64,
+}
+
+impl<'a> Job<'a> {
+    /// Lays the grid over `mesh` as `request` asks, picks dense or sparse, and checks the memory it needs, before
+    /// anything large is allocated. `name` is the mesh as the user named it, for messages.
+    ///
+    /// `GridKind::Auto` is sparse when the output format is (`.vdb`, `.npz`) or when the dense grid would not fit
+    /// the budget and a sparse one would; a dense format past the budget is refused, pointing at the sparse
+    /// formats. Colours are made on dense grids, so `Auto` keeps a coloured request dense wherever that fits.
+    pub fn plan(name: &'a str, mesh: &'a Mesh, request: &Request<'a>) -> Result<Job<'a>, EngineError> {
+        let grid_error = |error, sparse| EngineError::Grid { mesh: name.to_string(), error, sparse };
+        let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
+        let bounds = match request.bounds {
+            Some(b) if b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all() => b,
+            Some(b) => return Err(EngineError::Bounds { min: b.min.to_array(), max: b.max.to_array() }),
+            None => mesh_bounds,
+        };
+        let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
+        let format = request.format;
+        let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
+        if request.mode.is_field() {
+            match format {
+                Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb) | None => {}
+                Some(f) => {
+                    return Err(EngineError::FieldFormat { mode: request.mode.name(), extension: f.extension() });
+                }
+            }
+            if request.band == Band::Full && (sparse_format || request.grid == GridKind::Sparse) {
+                return Err(EngineError::FullBandSparse);
+            }
+        }
+        let coloured = request.colour != Some(false) && mesh.shading.is_some();
+        let sparse = match request.grid {
+            GridKind::Dense => false,
+            GridKind::Sparse => true,
+            GridKind::Auto => sparse_format && !coloured,
+        };
+        let area = budget::surface_area(mesh);
+        let mut job = Job { name, mesh, request: *request, bounds, spec, sparse, area };
+        let Some(limit) = request.max_memory.or_else(crate::memory::default_budget) else { return Ok(job) };
+        let dense_fits = job.check_budget(None, limit).is_ok();
+        if request.grid == GridKind::Auto && !sparse && !dense_fits && format.is_none_or(VoxelFormat::is_sparse) {
+            // Over the budget dense (coloured or not), with no dense format asked for: sparse, if that fits.
+            job.sparse = true;
+        }
+        // The area counts where a sparse estimate or a field is made.
+        let area = (job.sparse || request.mode.is_field()).then_some(area);
+        job.check_budget(area, limit).map_err(|e| grid_error(e, job.sparse))?;
+        Ok(job)
+    }
+
+    /// The grid's memory against `limit` bytes ([`budget::check`]): sparse for a surface of `area` when given.
+    fn check_budget(&self, area: Option<f64>, limit: u64) -> Result<budget::Estimate, GridError> {
+        let (r, triangles) = (&self.request, self.triangles());
+        let estimate = |spec: &GridSpec| budget::estimate(spec, r.mode, r.band, r.format, triangles, area);
+        budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
+    }
+
+    /// Triangles in the mesh.
+    pub fn triangles(&self) -> u64 {
+        self.mesh.triangles.len() as u64
+    }
+}
