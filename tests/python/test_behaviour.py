@@ -151,8 +151,14 @@ def test_ctrl_c_stops_a_long_run_and_the_next_call_works():
             timers.append(threading.Timer(0.05, send))
             timers[0].start()
 
-    with pytest.raises(KeyboardInterrupt):
-        meshvox.voxelize(soup, 512, backend="cpu", progress=on_progress)
+    # Python raises KeyboardInterrupt only where SIGINT was not ignored when it started: a process started in the
+    # background by a non-interactive shell (`cmd &`, nohup) inherits SIGINT ignored. Ctrl-C as a terminal sends it.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            meshvox.voxelize(soup, 512, backend="cpu", progress=on_progress)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     stopped = time.monotonic()
     assert sent, "the interrupt was never sent"
     assert stopped - sent[0] < 0.5, f"KeyboardInterrupt came {stopped - sent[0]:.2f} s after Ctrl-C"
