@@ -141,6 +141,12 @@ impl<'a> Job<'a> {
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
     }
 
+    /// A failure of the run on this job's grid (a lattice or allocation error), named by the grid's size.
+    pub(super) fn grid_error(&self, error: GridError) -> EngineError {
+        let d = self.spec.dims;
+        EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse: self.sparse }
+    }
+
     /// Triangles in the mesh.
     pub fn triangles(&self) -> u64 {
         self.mesh.triangles.len() as u64

@@ -333,8 +333,7 @@ impl Engine {
         let progress = job.request.progress.unwrap_or(&silent);
         let never = AtomicBool::new(false);
         let cancel = job.request.cancel.unwrap_or(&never);
-        let d = spec.dims;
-        let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
+        let grid_error = |error| job.grid_error(error);
         let (grid, stats) = match sparse {
             true => voxel::voxelize::voxelize_grid_space_sparse(tris, spec, mode, progress, cancel)
                 .map(|(g, s)| (Grid::Sparse(g), s))
@@ -358,9 +357,8 @@ impl Engine {
         notices: &mut Vec<Notice>,
     ) -> Result<(DistanceField, String), EngineError> {
         let (spec, sparse, band) = (job.spec, job.sparse, job.request.band);
-        let d = spec.dims;
-        let grid_error = |error| EngineError::Grid { mesh: format!("{}×{}×{} grid", d.x, d.y, d.z), error, sparse };
-        let (tris, lattice) = voxel::on_lattice(tris, d).map_err(grid_error)?;
+        let grid_error = |error| job.grid_error(error);
+        let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
         let mut inside = match job.request.mode {
             Mode::Sdf => Some(voxel::distance::inside_grid(&tris, lattice, spec, sparse).map_err(grid_error)?),
             _ => None,
