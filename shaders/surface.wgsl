@@ -46,11 +46,26 @@ struct Params {
     block_count: u32,
     // Lattice steps per voxel (2^shift): coordinates times this are exact integers below 2^23.
     lattice_scale: f32,
+    // A sparse run's brick (leaves.wgsl): its leaf table's length (at the start of `grid`), the first word of its
+    // slots and how many slots there is room for. Zero in a dense run.
+    table_leaves: u32,
+    slot_base: u32,
+    slots: u32,
+    // The box [brick_lo, brick_hi) the walk writes into: a sparse run's brick (multiples of 8), the whole grid in
+    // a dense run (whose z-slab is slab_z0..slab_z1 besides).
+    brick_lo: vec3<u32>,
+    _pad_lo: u32,
+    brick_hi: vec3<u32>,
+    _pad_hi: u32,
 }
 
 // The thin (6-separating) test instead of the thick one in `voxelize` and `exact`. A pipeline constant, so each
 // variant compiles without the other: CPU implementations of WebGPU run both sides of a branch under a mask.
 override THIN: bool = false;
+// A sparse run (leaves.wgsl): MARK walks only to mark the leaves the brick's voxels fall in, SPARSE writes the voxels
+// into those leaves' slots instead of the dense slab. Pipeline constants, for the same reason as THIN.
+override MARK: bool = false;
+override SPARSE: bool = false;
 
 struct Edges {
     ne: array<vec2<f32>, 3>,
@@ -434,12 +449,24 @@ fn setup(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) li
 }
 
 fn set_voxel(v: vec3<u32>) {
+    if SPARSE {
+        set_leaf_run(v.x, v.x, v.y, v.z);
+        return;
+    }
     let row = (v.z - params.slab_z0) * params.dims.y + v.y;
     atomicOr(&grid[row * params.words_per_row + v.x / 32u], 1u << (v.x % 32u));
 }
 
 // Sets voxels x0..=x1 of row (y, z): one atomicOr per 32-voxel word.
 fn set_run(x0: u32, x1: u32, y: u32, z: u32) {
+    if MARK {
+        mark_leaves(x0, x1, y, z);
+        return;
+    }
+    if SPARSE {
+        set_leaf_run(x0, x1, y, z);
+        return;
+    }
     let row = ((z - params.slab_z0) * params.dims.y + y) * params.words_per_row;
     for (var w = x0 / 32u; w <= x1 / 32u; w++) {
         let lo = max(x0, w * 32u) - w * 32u;
@@ -449,10 +476,24 @@ fn set_run(x0: u32, x1: u32, y: u32, z: u32) {
 }
 
 fn list_unsure(t: u32, p: vec3<u32>) {
+    if MARK {
+        // The exact test may set it: its leaf gets a slot (one left empty is dropped on the host).
+        mark_leaves(p.x, p.x, p.y, p.z);
+        return;
+    }
     let i = atomicAdd(&unsure_count[0], 1u);
     if i < arrayLength(&unsure) {
         unsure[i] = vec4<u32>(t, p);
     }
+}
+
+// The part of local range r (relative to lo) along axis k that lies in the brick [brick_lo, brick_hi): the walk of
+// a row cut to the brick sets exactly the brick's part of the row's voxels, since a triangle's voxels in a row form
+// one interval (see walk in app/voxel/cpu/surface.rs). A no-op in a dense run, whose brick is the grid.
+fn brick_span(r: vec2<f32>, lo: u32, k: u32) -> vec2<f32> {
+    let first = f32(params.brick_lo[k]) - f32(lo);
+    let last = f32(params.brick_hi[k]) - 1.0 - f32(lo);
+    return vec2<f32>(max(r.x, first), min(r.y, last));
 }
 
 // The walk of one work item (see walk in app/voxel/cpu/surface.rs for why the voxels between the first and the last
@@ -478,7 +519,7 @@ fn walk(item: u32) {
     let y1 = min(y0 + CHUNK - 1u, s.hi.y - s.lo.y);
     let top = vec3<f32>(s.hi - s.lo);
     let z = f32(zi);
-    let ys = row_span(s.yz, z, f32(y0), f32(y1));
+    let ys = brick_span(row_span(s.yz, z, f32(y0), f32(y1)), s.lo.y, 1u);
     if ys.x > ys.y {
         return;
     }
@@ -497,7 +538,7 @@ fn walk(item: u32) {
         if terms.yz_low < 0.0 {
             continue;
         }
-        let r = row_x_range(s, vec3<f32>(0.0, f32(yi), z), x_span, depth_err);
+        let r = brick_span(row_x_range(s, vec3<f32>(0.0, f32(yi), z), x_span, depth_err), s.lo.x, 0u);
         if r.x > r.y {
             continue;
         }

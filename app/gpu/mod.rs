@@ -7,10 +7,12 @@ pub mod distance;
 mod readback;
 mod run;
 pub mod solid;
+mod sparse;
 mod util;
 pub mod voxelize;
 
 pub use readback::watchdog;
+pub use run::Traffic;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 

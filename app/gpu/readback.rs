@@ -127,22 +127,28 @@ impl StreamPool {
 /// Why not one staging buffer the size of the grid, mapped and copied into a `Vec`, as [`read_buffers`] does:
 /// that touches three fresh regions of the grid's size (staging, `Vec`, host grid), and first touches are what
 /// the readback cost (~2.9 ns per grid byte on the H100 and on lavapipe alike, where the passes took 0.3 ms).
+///
+/// The bytes read are `source[start..start + size]`, and each chunk handed over is a whole number of `unit`s (a
+/// multiple of four: a grid word, a sparse run's slot), so that the sink never sees one cut in two.
+#[allow(clippy::too_many_arguments)]
 pub(crate) async fn stream_buffer(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     pool: &StreamPool,
     source: &wgpu::Buffer,
+    start: u64,
     size: u64,
+    unit: u64,
     mut sink: impl FnMut(u64, &[u8]),
 ) -> Result<(), GpuError> {
     let stream = pool.take(device);
-    let chunk = stream.0[0].size();
+    let chunk = (stream.0[0].size() / unit * unit).max(unit);
     let chunks = size.div_ceil(chunk);
     let span = |i: u64| (i * chunk, chunk.min(size - i * chunk));
     let copy = |i: u64| {
         let (at, len) = span(i);
         let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(source, at, &stream.0[(i % 2) as usize], 0, len);
+        encoder.copy_buffer_to_buffer(source, start + at, &stream.0[(i % 2) as usize], 0, len);
         queue.submit([encoder.finish()]);
     };
     let mut result = Ok(());

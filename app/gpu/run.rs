@@ -25,28 +25,38 @@ use crate::voxel::{GridSpec, Lattice, Mode, SparseGrid, VoxelGrid, on_lattice};
 use glam::Vec3;
 
 /// A bind group entry for a whole buffer.
-fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(super) fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
 }
 
 /// The buffers of one voxelization and the bind groups over them.
-struct Buffers {
-    params: wgpu::Buffer,
-    triangles: wgpu::Buffer,
-    slab: wgpu::Buffer,
-    dispatch: wgpu::Buffer,
-    unsure_count: wgpu::Buffer,
-    bind: wgpu::BindGroup,
-    bind_dispatch: wgpu::BindGroup,
+pub(super) struct Buffers {
+    pub(super) params: wgpu::Buffer,
+    pub(super) triangles: wgpu::Buffer,
+    /// The dense slab, or a sparse run's leaf table and slots (`shaders/leaves.wgsl`).
+    pub(super) slab: wgpu::Buffer,
+    pub(super) dispatch: wgpu::Buffer,
+    pub(super) unsure_count: wgpu::Buffer,
+    pub(super) bind: wgpu::BindGroup,
+    pub(super) bind_dispatch: wgpu::BindGroup,
+    pub(super) setups: wgpu::Buffer,
+    pub(super) unsure: wgpu::Buffer,
     /// Bound above and used only by the shaders; held so that their lifetime is plainly this run's.
-    _scratch: [wgpu::Buffer; 4],
+    _scratch: [wgpu::Buffer; 2],
 }
 
 /// One batch of triangles as the passes see it.
 #[derive(Clone, Copy)]
 pub(super) struct Batch {
-    tri_count: u32,
-    block_count: u32,
+    pub(super) tri_count: u32,
+    pub(super) block_count: u32,
+}
+
+/// Bytes that crossed the bus each way, for the stats: what bounds a run on a discrete GPU.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Traffic {
+    pub upload: u64,
+    pub readback: u64,
 }
 
 /// One z-slab: layers `z0..z1`, `words` grid words.
@@ -59,33 +69,37 @@ pub(super) struct SlabRange {
 
 /// A voxelization in progress: what the steps hand on to each other.
 pub(super) struct Run<'a> {
-    v: &'a GpuVoxelizer,
-    gpu: &'a Gpu,
-    spec: GridSpec,
-    options: &'a Options,
-    lattice_scale: f32,
+    pub(super) v: &'a GpuVoxelizer,
+    pub(super) gpu: &'a Gpu,
+    pub(super) spec: GridSpec,
+    pub(super) options: &'a Options,
+    pub(super) lattice_scale: f32,
     /// Grid words per row.
-    wpr: u64,
+    pub(super) wpr: u64,
     slab_layers: u32,
     pub(super) slabs: u32,
     /// Triangles per batch, and the number of batches.
     pub(super) batch: usize,
     pub(super) batches: usize,
     /// Capacity of the unsure list.
-    unsure_entries: u64,
-    buffers: Buffers,
-    grid: Option<VoxelGrid>,
+    pub(super) unsure_entries: u64,
+    pub(super) buffers: Buffers,
+    /// A sparse run's plan and the brick being voxelized (`gpu/sparse.rs`); the walk's box is then the brick's.
+    pub(super) sparse: Option<super::sparse::SparsePlan>,
+    pub(super) brick: Option<crate::voxel::sparse::Brick>,
+    pub(super) traffic: Traffic,
+    pub(super) grid: Option<VoxelGrid>,
     /// The sparse grid's leaves, with `Options::sparse`.
     leaves: Option<LeafSet>,
-    timer: Option<PassTimer>,
-    gpu_ms: f64,
-    exact_tests: Option<u64>,
+    pub(super) timer: Option<PassTimer>,
+    pub(super) gpu_ms: f64,
+    pub(super) exact_tests: Option<u64>,
     instances: Vec<Instances>,
     /// The presized list and its counters (see `Options::instance_capacity`) until its length comes back.
     presized: Option<(wgpu::Buffer, wgpu::Buffer, u64)>,
-    solid: Option<SolidRun>,
+    pub(super) solid: Option<SolidRun>,
     /// Rows the solid fill left to the host (see `solid_unsure` in `shaders/solid.wgsl`).
-    deferred_rows: Vec<u32>,
+    pub(super) deferred_rows: Vec<u32>,
 }
 
 impl<'a> Run<'a> {
@@ -102,8 +116,14 @@ impl<'a> Run<'a> {
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
-        let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
-        let slab_bytes = slab_layers as u64 * layer_bytes;
+        let sparse = super::sparse::SparsePlan::for_run(gpu, spec, options);
+        let (slab_layers, slabs, slab_bytes) = match &sparse {
+            Some(plan) => (spec.dims.z, 1, plan.buffer_bytes),
+            None => {
+                let (layers, slabs) = slab_plan(gpu, spec, options)?;
+                (layers, slabs, layers as u64 * layer_bytes)
+            }
+        };
         let fit = (limit / SETUP_BYTES).min(limit / TRIANGLE_BYTES) as usize;
         let batch = options.max_batch_triangles.unwrap_or(fit).min(fit).max(1).min(triangles.len().max(1));
         let batches = triangles.len().div_ceil(batch).max(1);
@@ -147,8 +167,8 @@ impl<'a> Run<'a> {
                 layout: &v.dispatch_layout,
                 entries: &[entry(0, &dispatch)],
             });
-            let _scratch = [setups, offsets, block_sums, unsure];
-            Ok(Buffers { params, triangles, slab, dispatch, unsure_count, bind, bind_dispatch, _scratch })
+            let _scratch = [offsets, block_sums];
+            Ok(Buffers { params, triangles, slab, dispatch, unsure_count, bind, bind_dispatch, setups, unsure, _scratch })
         })
         .await?;
         Ok(Run {
@@ -164,10 +184,14 @@ impl<'a> Run<'a> {
             batches,
             unsure_entries,
             buffers,
-            grid: if options.read_grid && !options.sparse { Some(VoxelGrid::new(spec)?) } else { None },
-            leaves: options.sparse.then(LeafSet::default),
-            // Collected after every slab: at most set-up, voxelize, exact, the solid fill and two compaction
-            // passes in between.
+            // A sparse run makes its grid (sparse or dense) from the leaves at the end.
+            grid: (options.read_grid && !options.sparse && sparse.is_none()).then(|| VoxelGrid::new(spec)).transpose()?,
+            leaves: (options.sparse && sparse.is_none()).then(LeafSet::default),
+            sparse,
+            brick: None,
+            traffic: Traffic::default(),
+            // Collected after every slab (or brick): at most set-up, voxelize, exact, the solid fill and two
+            // compaction passes in between (set-up, mark, leaf scan, walk, exact and finish for a brick).
             timer: gpu.timestamps.then(|| PassTimer::new(device, 6)),
             gpu_ms: 0.0,
             exact_tests: None,
@@ -178,8 +202,11 @@ impl<'a> Run<'a> {
         })
     }
 
-    /// The shader's parameters for `batch` and the layers `z0..z1`.
-    fn params(&self, batch: Batch, z0: u32, z1: u32) -> Params {
+    /// The shader's parameters for `batch` and the layers `z0..z1` (a sparse run's brick instead, when one is set).
+    pub(super) fn params(&self, batch: Batch, z0: u32, z1: u32) -> Params {
+        if let (Some(brick), Some(plan)) = (self.brick, &self.sparse) {
+            return plan.params(self.spec, brick, batch, self.wpr as u32, self.lattice_scale);
+        }
         Params {
             dims: self.spec.dims.to_array(),
             tri_count: batch.tri_count,
@@ -188,7 +215,13 @@ impl<'a> Run<'a> {
             slab_z1: z1,
             block_count: batch.block_count,
             lattice_scale: self.lattice_scale,
-            _pad: [0; 3],
+            table_leaves: 0,
+            slot_base: 0,
+            slots: 0,
+            brick_lo: [0; 3],
+            _pad_lo: 0,
+            brick_hi: self.spec.dims.to_array(),
+            _pad_hi: 0,
         }
     }
 
@@ -223,6 +256,7 @@ impl<'a> Run<'a> {
         let (gpu, v) = (self.gpu, self.v);
         let params = self.params(batch, 0, 0);
         let (b, timer) = (&self.buffers, &mut self.timer);
+        self.traffic.upload += std::mem::size_of_val(chunk) as u64;
         scoped(&gpu.device, || {
             gpu.queue.write_buffer(&b.triangles, 0, bytemuck::cast_slice(chunk));
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
@@ -380,6 +414,7 @@ impl<'a> Run<'a> {
             // The count of rows left to the host; the rows themselves only when there are some.
             ranges.push((&solid.unsure, 0, 4));
         }
+        self.traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
         let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
         let mut parts = parts.into_iter();
         let bytes = if self.leaves.is_some() { parts.next() } else { None };
@@ -408,7 +443,8 @@ impl<'a> Run<'a> {
         } else if let Some(host) = self.grid.as_mut() {
             *self.exact_tests.get_or_insert(0) += listed as u64;
             let dst = &mut host.words[start..start + slab.words as usize];
-            stream_buffer(device, &gpu.queue, &self.v.streams, &b.slab, slab.words * 4, |at, bytes| {
+            self.traffic.readback += slab.words * 4;
+            stream_buffer(device, &gpu.queue, &self.v.streams, &b.slab, 0, slab.words * 4, 4, |at, bytes| {
                 let words = &mut dst[at as usize / 4..];
                 for (d, s) in words.iter_mut().zip(bytemuck::cast_slice::<u8, u32>(bytes)) {
                     *d |= *s;
@@ -480,6 +516,7 @@ impl<'a> Run<'a> {
             exact_tests: self.exact_tests,
             decided_on_cpu: false,
             rows_on_host: self.deferred_rows.len() as u32,
+            traffic: self.traffic,
         }))
     }
 }
@@ -496,6 +533,9 @@ impl GpuVoxelizer {
         // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
         let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
+        if run.sparse.is_some() {
+            return run.voxelize_bricks(&triangles).await;
+        }
         for (b, chunk) in triangles.chunks(run.batch).enumerate() {
             let batch = run.set_up_batch(chunk).await?;
             if options.mode == Mode::Solid && b == 0 {

@@ -23,12 +23,20 @@ pub const VOXELIZE_WGSL: &str = concat!(
     include_str!("../../shaders/surface.wgsl"),
     include_str!("../../shaders/scan.wgsl"),
     include_str!("../../shaders/thin.wgsl"),
+    include_str!("../../shaders/leaves.wgsl"),
 );
 
 /// The files [`VOXELIZE_WGSL`] is joined from, in order, relative to `shaders/` (module-scope declarations in WGSL
 /// may come in any order, so each file uses what the others declare).
-pub const VOXELIZE_PARTS: [&str; 6] =
-    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "surface.wgsl", "scan.wgsl", "thin.wgsl"];
+pub const VOXELIZE_PARTS: [&str; 7] = [
+    "shared/common.wgsl",
+    "shared/items.wgsl",
+    "exact.wgsl",
+    "surface.wgsl",
+    "scan.wgsl",
+    "thin.wgsl",
+    "leaves.wgsl",
+];
 
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
 pub const SETUP_BYTES: u64 = 256;
@@ -53,7 +61,13 @@ pub(super) struct Params {
     pub(super) slab_z1: u32,
     pub(super) block_count: u32,
     pub(super) lattice_scale: f32,
-    pub(super) _pad: [u32; 3],
+    pub(super) table_leaves: u32,
+    pub(super) slot_base: u32,
+    pub(super) slots: u32,
+    pub(super) brick_lo: [u32; 3],
+    pub(super) _pad_lo: u32,
+    pub(super) brick_hi: [u32; 3],
+    pub(super) _pad_hi: u32,
 }
 
 /// What to do besides voxelizing.
@@ -103,6 +117,8 @@ pub struct GpuOutput {
     pub decided_on_cpu: bool,
     /// Rows of the solid fill that the GPU could not decide as the CPU does and the host filled.
     pub rows_on_host: u32,
+    /// Bytes uploaded (triangles) and read back (grid, leaves, counters, timings).
+    pub traffic: super::Traffic,
 }
 
 /// How one attempt on the GPU ended.
@@ -130,6 +146,8 @@ pub struct GpuVoxelizer {
     /// and runs that never ask for them do not pay for their compilation (seconds on SwiftShader).
     pub(super) thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
     pub(super) solid: OnceLock<SolidPipelines>,
+    /// The sparse chain's pipelines (`gpu/sparse.rs`), thick and thin, compiled on first use.
+    pub(super) leaves: [OnceLock<super::sparse::LeafPipelines>; 2],
     /// The staging buffers dense grids are read back through, kept between runs.
     pub(super) streams: super::readback::StreamPool,
 }
@@ -171,6 +189,7 @@ impl GpuVoxelizer {
             compactor: OnceLock::new(),
             thin: OnceLock::new(),
             solid: OnceLock::new(),
+            leaves: Default::default(),
             streams: Default::default(),
             module,
             layout,
@@ -246,6 +265,7 @@ impl GpuVoxelizer {
                 exact_tests: Some(stats.exact_tests),
                 decided_on_cpu: true,
                 rows_on_host: 0,
+                traffic: Default::default(),
             });
         }
         let (grid, stats) = crate::voxel::voxelize::voxelize_grid_space_mode(
@@ -290,6 +310,7 @@ impl GpuVoxelizer {
             exact_tests: Some(stats.exact_tests),
             decided_on_cpu: true,
             rows_on_host: 0,
+            traffic: Default::default(),
         })
     }
 }

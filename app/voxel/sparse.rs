@@ -256,6 +256,76 @@ impl SparseGrid {
     }
 }
 
+/// A box of whole leaves, `[lo, hi)` in voxels (multiples of [`LEAF_DIM`]; `hi` may pass the grid's dims by less
+/// than a leaf): the piece of the grid one GPU sparse run voxelizes at a time, so that its leaf table (a word per
+/// leaf) fits one binding (`app/gpu/sparse.rs`, `shaders/leaves.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Brick {
+    pub lo: UVec3,
+    pub hi: UVec3,
+}
+
+impl Brick {
+    /// Leaves along each axis.
+    pub fn size(&self) -> UVec3 {
+        (self.hi - self.lo) / LEAF_DIM
+    }
+
+    /// Leaves in the brick (its table's length).
+    pub fn leaves(&self) -> u64 {
+        let s = self.size().as_u64vec3();
+        s.x * s.y * s.z
+    }
+
+    /// Equal bricks of at most `max_leaves` leaves (at least one) tiling a grid of `dims`, x-major: the grid's
+    /// leaves halved along the longest side until a brick fits.
+    pub fn tiling(dims: UVec3, max_leaves: u64) -> (UVec3, Vec<Brick>) {
+        let grid = dims.map(|d| d.div_ceil(LEAF_DIM).max(1));
+        let mut size = grid;
+        while size.as_u64vec3().element_product() > max_leaves.max(1) {
+            let k = if size.x >= size.y && size.x >= size.z { 0 } else if size.y >= size.z { 1 } else { 2 };
+            size[k] = size[k].div_ceil(2);
+        }
+        let count = (grid + size - 1) / size;
+        let mut bricks = Vec::with_capacity(count.element_product() as usize);
+        for x in 0..count.x {
+            for y in 0..count.y {
+                for z in 0..count.z {
+                    let lo = UVec3::new(x, y, z) * size;
+                    let hi = (lo + size).min(grid);
+                    bricks.push(Brick { lo: lo * LEAF_DIM, hi: hi * LEAF_DIM });
+                }
+            }
+        }
+        (size * LEAF_DIM, bricks)
+    }
+
+    /// The brick cut in two along each side longer than a leaf (up to eight parts), for a brick whose occupied
+    /// leaves outnumber the slots.
+    pub fn split(&self) -> Vec<Brick> {
+        let half = (self.size() / 2).max(UVec3::ONE) * LEAF_DIM;
+        let mut parts = Vec::new();
+        for x in [self.lo.x, self.lo.x + half.x] {
+            for y in [self.lo.y, self.lo.y + half.y] {
+                for z in [self.lo.z, self.lo.z + half.z] {
+                    let lo = UVec3::new(x, y, z);
+                    if lo.cmplt(self.hi).all() && !parts.iter().any(|p: &Brick| p.lo == lo) {
+                        let hi = (lo + half).min(self.hi);
+                        let hi = UVec3::select(UVec3::new(x, y, z).cmpeq(self.lo), hi, self.hi);
+                        parts.push(Brick { lo, hi });
+                    }
+                }
+            }
+        }
+        parts
+    }
+
+    /// Whether the voxel box `lo..=hi` meets the brick.
+    pub fn touches(&self, lo: UVec3, hi: UVec3) -> bool {
+        lo.cmplt(self.hi).all() && hi.cmpge(self.lo).all()
+    }
+}
+
 /// The leaves one task of the walk sets (see the module documentation).
 #[derive(Default)]
 pub struct LeafSet {

@@ -385,3 +385,59 @@ fn batch_writes_vdb_npz_and_distance_fields_with_the_voxelize_writers() {
     let Some(v) = openvdb_read(&dir.path().join("out-solid-vdb/b.vdb")) else { return };
     assert_eq!(v["grids"][0]["active"].as_u64(), Some(j["set"].as_array().expect("set").len() as u64));
 }
+
+/// The GPU's sparse chain (`shaders/leaves.wgsl`) run on the host by its mirror (`voxel::cpu::leaves`), brick by
+/// brick: the CPU walk's runs cut to each brick mark the leaves (unsure voxels as runs of one), the scan gives
+/// slots, the runs are written into row bytes and transposed into OpenVDB's order, and the leaves of all bricks
+/// equal the CPU's sparse walk field for field, on the hard cases and the built-in meshes, with bricks of several
+/// sizes (one leaf up to the whole grid).
+#[test]
+fn the_leaf_chain_mirror_gives_the_sparse_walks_leaves_brick_by_brick() {
+    use meshvox::voxel::cpu::leaves::brick_leaves;
+    use meshvox::voxel::cpu::surface::{setup_triangle, voxel_overlaps_exact, walk, work_items};
+    use meshvox::voxel::on_lattice;
+    use meshvox::voxel::sparse::Brick;
+    let mut cases: Vec<(String, Vec<[glam::Vec3; 3]>, GridSpec)> = hard_cases()
+        .into_iter()
+        .map(|(name, tris, dims)| (name.to_string(), tris, GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims }))
+        .collect();
+    for name in ["builtin:knot", "builtin:torus", "builtin:sphere"] {
+        let mesh = meshvox::mesh::load(name).expect("mesh");
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(53), Axis::Longest).expect("grid");
+        cases.push((name.to_string(), grid_space_triangles(&mesh, &spec).expect("grid space"), spec));
+    }
+    for (name, tris, spec) in &cases {
+        let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
+        let setups: Vec<_> = tris.iter().map(|&t| setup_triangle(t, spec.dims, lattice)).collect();
+        let (expected, _) = voxelize_grid_space_sparse(&tris, *spec, Mode::Surface, &|_, _| {}, &AtomicBool::new(false))
+            .expect("sparse");
+        for max_leaves in [1, 7, 64, u64::MAX] {
+            let mut leaves = Vec::new();
+            for brick in Brick::tiling(spec.dims, max_leaves).1 {
+                let inside = |y: u32, z: u32| (brick.lo.y..brick.hi.y).contains(&y) && (brick.lo.z..brick.hi.z).contains(&z);
+                leaves.extend(brick_leaves(&brick, |mark, sink| {
+                    let mut cut = |x0: u32, x1: u32, y: u32, z: u32| {
+                        let (x0, x1) = (x0.max(brick.lo.x), x1.min(brick.hi.x - 1));
+                        if inside(y, z) && x0 <= x1 {
+                            sink(x0, x1, y, z);
+                        }
+                    };
+                    for s in &setups {
+                        let mut unsure = Vec::new();
+                        for item in 0..work_items(s) {
+                            walk(s, item, None, |p| unsure.push(p), &mut cut);
+                        }
+                        for p in unsure {
+                            if mark || voxel_overlaps_exact(s, p) {
+                                cut(p.x, p.x, p.y, p.z);
+                            }
+                        }
+                    }
+                }));
+            }
+            leaves.sort_unstable_by_key(|(key, _)| *key);
+            let got = SparseGrid { spec: *spec, leaves, tiles: Vec::new() }.prune();
+            assert!(got == expected, "{name}, bricks of at most {max_leaves} leaves: the mirror's leaves differ");
+        }
+    }
+}

@@ -14,6 +14,7 @@ pub mod colour;
 pub mod common;
 pub mod distance;
 pub mod exact;
+pub mod leaves;
 pub mod nearest;
 pub mod solid;
 pub mod surface;

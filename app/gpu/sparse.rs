@@ -1,0 +1,446 @@
+//! Sparse grids made on the GPU (`shaders/leaves.wgsl`): the grid cut into bricks whose leaf table fits one
+//! binding, each brick's triangles binned on the host once, and per brick the chain mark → scan → list → walk →
+//! exact → finish, after which only the occupied leaves come back (17 words each). No dense slab is allocated or
+//! read, and a triangle is walked only in the bricks its box meets. Dense surface grids are made the same way and
+//! scattered from the leaves, so what crosses the bus follows the surface, not the box.
+//!
+//! Steps, each named for what it does: [`SparsePlan::for_run`] sizes the bricks and the buffer, [`bin_triangles`]
+//! sorts the triangles into them, [`Run::voxelize_bricks`] runs the bricks (cutting one in eight whose leaves
+//! outnumber the slots), [`Run::mark_brick`], [`Run::list_brick`], [`Run::write_brick`] and [`Run::read_brick`]
+//! are the chain of one brick. The solid keeps the slab path (its crossing lists are per row of the whole grid).
+
+use super::readback::{first_word, read_buffers, stream_buffer};
+use super::run::{Batch, Run};
+use super::util::{pipeline_with, scoped, storage_buffer};
+use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, Params, SCAN_WG, WG};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::cpu::leaves::{SLOT_WORDS, slot_leaves};
+use crate::voxel::cpu::surface::voxel_range;
+use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
+use crate::voxel::{GridSpec, Mode};
+use glam::{UVec3, Vec3};
+use std::collections::VecDeque;
+
+/// The sparse chain's pipelines for one variant of the walk (thick or thin): the walk and exact pass with `MARK`
+/// or `SPARSE` set, and the leaf passes.
+pub(super) struct LeafPipelines {
+    mark: wgpu::ComputePipeline,
+    walk: wgpu::ComputePipeline,
+    exact: wgpu::ComputePipeline,
+    list_leaves: wgpu::ComputePipeline,
+    finish_leaves: wgpu::ComputePipeline,
+}
+
+impl LeafPipelines {
+    pub(super) fn new(device: &wgpu::Device, v: &GpuVoxelizer, thin: bool) -> LeafPipelines {
+        let one = [Some(&v.layout)];
+        let thin = if thin { 1.0 } else { 0.0 };
+        let with = |entry: &str, mark: f64, sparse: f64| {
+            let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", sparse)];
+            pipeline_with(device, &v.module, &one, entry, &constants)
+        };
+        LeafPipelines {
+            mark: with("voxelize", 1.0, 1.0),
+            walk: with("voxelize", 0.0, 1.0),
+            exact: with("exact", 0.0, 1.0),
+            list_leaves: with("list_leaves", 0.0, 1.0),
+            finish_leaves: with("finish_leaves", 0.0, 1.0),
+        }
+    }
+}
+
+/// Whether a run makes its grid from leaves: surface and surface6 grids read back (sparse, or dense without a
+/// voxel list). The solid's crossing lists span whole rows of the grid, so it keeps the slab path, and a voxel list
+/// for drawing is compacted from the slab.
+pub(super) fn uses_leaves(options: &Options) -> bool {
+    options.mode != Mode::Solid && (options.sparse || (options.read_grid && !options.instances))
+}
+
+/// How a sparse run is cut: the bricks, and the one buffer each brick's table and slots share.
+pub(crate) struct SparsePlan {
+    pub(super) bricks: Vec<Brick>,
+    /// Words of the largest brick's table; the slots start after it.
+    slot_base: u32,
+    /// Slots the buffer holds.
+    slots: u32,
+    pub(super) buffer_bytes: u64,
+}
+
+/// The most leaves a brick's table may have: its scan's blocks are one dispatch of at most 65,535 workgroups.
+const MAX_TABLE: u64 = 65_535 * SCAN_WG as u64;
+
+impl SparsePlan {
+    /// The plan of a run that [`uses_leaves`]: bricks whose table is an eighth of one binding (or of
+    /// `max_slab_bytes`, which the tests lower to force many bricks), the rest of the binding for slots.
+    pub(super) fn for_run(gpu: &Gpu, spec: GridSpec, options: &Options) -> Option<SparsePlan> {
+        if !uses_leaves(options) {
+            return None;
+        }
+        let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
+        let words = (limit / 4).min(u32::MAX as u64);
+        let (_, bricks) = Brick::tiling(spec.dims, (words / 8).clamp(1, MAX_TABLE));
+        let table = bricks.iter().map(Brick::leaves).max().unwrap_or(1);
+        let slot_base = table.next_multiple_of(64);
+        let slots = (words.saturating_sub(slot_base) / SLOT_WORDS as u64).clamp(1, table);
+        let buffer_bytes = (slot_base + slots * SLOT_WORDS as u64) * 4;
+        Some(SparsePlan { bricks, slot_base: slot_base as u32, slots: slots as u32, buffer_bytes })
+    }
+
+    /// The shader's parameters for `batch` of `brick`'s triangles.
+    pub(super) fn params(&self, spec: GridSpec, brick: Brick, batch: Batch, wpr: u32, scale: f32) -> Params {
+        Params {
+            dims: spec.dims.to_array(),
+            tri_count: batch.tri_count,
+            words_per_row: wpr,
+            slab_z0: brick.lo.z,
+            slab_z1: brick.hi.z,
+            block_count: batch.block_count,
+            lattice_scale: scale,
+            table_leaves: brick.leaves() as u32,
+            slot_base: self.slot_base,
+            slots: self.slots,
+            brick_lo: brick.lo.to_array(),
+            _pad_lo: 0,
+            brick_hi: brick.hi.to_array(),
+            _pad_hi: 0,
+        }
+    }
+}
+
+/// The indices of the triangles whose voxel range meets each brick (triangles outside the grid in none).
+pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Brick]) -> Vec<Vec<u32>> {
+    let mut bins = vec![Vec::new(); bricks.len()];
+    let Some(first) = bricks.first() else { return bins };
+    let size = first.hi - first.lo;
+    let count = (dims.map(|d| d.div_ceil(8) * 8) + size - 1) / size;
+    for (t, &tri) in triangles.iter().enumerate() {
+        let (lo, hi) = voxel_range(tri, dims);
+        if lo.cmpgt(hi).any() {
+            continue;
+        }
+        let (a, b) = (lo / size, (hi / size).min(count - 1));
+        for x in a.x..=b.x {
+            for y in a.y..=b.y {
+                for z in a.z..=b.z {
+                    bins[((x * count.y + y) * count.z + z) as usize].push(t as u32);
+                }
+            }
+        }
+    }
+    bins
+}
+
+/// The leaf scan's own parameters, block sums and dispatch, and the bind groups that make a brick's table the
+/// scan's `first_items` (the walk's bind group sees it at the start of `grid`).
+pub(super) struct LeafScan {
+    params: wgpu::Buffer,
+    block_sums: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    bind_dispatch: wgpu::BindGroup,
+}
+
+impl LeafScan {
+    async fn new(run: &Run<'_>, plan: &SparsePlan) -> Result<LeafScan, GpuError> {
+        let (device, b, v) = (&run.gpu.device, &run.buffers, run.v);
+        scoped(device, || {
+            let params = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("leaf scan params"),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let blocks = (plan.slot_base as u64).div_ceil(SCAN_WG as u64) + 1;
+            let block_sums = storage_buffer(device, "leaf block sums", blocks * 4, wgpu::BufferUsages::COPY_SRC);
+            let dispatch = storage_buffer(device, "leaf dispatch", 48, wgpu::BufferUsages::INDIRECT);
+            let table = wgpu::BufferBinding { buffer: &b.slab, offset: 0, size: wgpu::BufferSize::new(plan.slot_base as u64 * 4) };
+            let entry = super::run::bind_entry;
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("leaf scan"),
+                layout: &v.layout,
+                entries: &[
+                    entry(0, &params),
+                    entry(1, &b.triangles),
+                    entry(2, &b.setups),
+                    wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Buffer(table) },
+                    entry(4, &block_sums),
+                    entry(5, &b.slab),
+                    entry(6, &b.unsure),
+                    entry(7, &b.unsure_count),
+                ],
+            });
+            let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("leaf dispatch"),
+                layout: &v.dispatch_layout,
+                entries: &[entry(0, &dispatch)],
+            });
+            Ok(LeafScan { params, block_sums, dispatch, bind, bind_dispatch })
+        })
+        .await
+    }
+}
+
+/// How one brick ended.
+enum BrickEnd {
+    Done,
+    /// More leaves than slots: cut the brick and run its parts.
+    Split,
+    /// The unsure list overflowed: the grid on the GPU is incomplete.
+    Overflow,
+}
+
+impl Run<'_> {
+    /// The sparse chain over every brick; the grid comes back sparse, or dense when that was asked for.
+    pub(super) async fn voxelize_bricks(mut self, triangles: &[[Vec3; 3]]) -> Result<Attempt, GpuError> {
+        let Some(plan) = self.sparse.take() else {
+            return Err(GpuError::Device("a sparse run without its plan".into()));
+        };
+        let thin = self.options.mode == Mode::Surface6;
+        let v = self.v;
+        let pipelines = v.leaves[thin as usize].get_or_init(|| LeafPipelines::new(&self.gpu.device, v, thin));
+        let scan = LeafScan::new(&self, &plan).await?;
+        let bins = bin_triangles(triangles, self.spec.dims, &plan.bricks);
+        let mut queue: VecDeque<(Brick, Vec<u32>)> =
+            plan.bricks.iter().copied().zip(bins).filter(|(_, bin)| !bin.is_empty()).collect();
+        self.sparse = Some(plan);
+        let mut leaves: Vec<(u64, LeafMask)> = Vec::new();
+        let mut bricks = 0;
+        while let Some((brick, bin)) = queue.pop_front() {
+            bricks += 1;
+            let chunk: Vec<[Vec3; 3]> = bin.iter().map(|&t| triangles[t as usize]).collect();
+            match self.brick(pipelines, &scan, brick, &chunk, &mut leaves).await? {
+                BrickEnd::Done => {}
+                BrickEnd::Overflow => return Ok(Attempt::Overflow),
+                BrickEnd::Split => {
+                    for part in brick.split() {
+                        let mine: Vec<u32> = bin
+                            .iter()
+                            .copied()
+                            .filter(|&t| {
+                                let (lo, hi) = voxel_range(triangles[t as usize], self.spec.dims);
+                                part.touches(lo, hi)
+                            })
+                            .collect();
+                        if !mine.is_empty() {
+                            queue.push_front((part, mine));
+                        }
+                    }
+                }
+            }
+        }
+        self.slabs = bricks;
+        crate::parallel::install(|| {
+            use rayon::slice::ParallelSliceMut;
+            leaves.par_sort_unstable_by_key(|(key, _)| *key)
+        });
+        let sparse = SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }.prune();
+        let (grid, sparse) = match self.options.sparse {
+            true => (None, Some(Box::new(sparse))),
+            false => (self.options.read_grid.then(|| sparse.to_dense()).transpose()?, None),
+        };
+        Ok(Attempt::Done(GpuOutput {
+            grid,
+            sparse,
+            instances: None,
+            gpu_ms: self.gpu.timestamps.then_some(self.gpu_ms),
+            slabs: self.slabs,
+            batches: self.batches as u32,
+            exact_tests: self.exact_tests,
+            decided_on_cpu: false,
+            rows_on_host: 0,
+            traffic: self.traffic,
+        }))
+    }
+
+    /// One brick's chain: mark (every batch), list, walk and exact (every batch), finish, read back.
+    async fn brick(
+        &mut self,
+        pipelines: &LeafPipelines,
+        scan: &LeafScan,
+        brick: Brick,
+        chunk: &[[Vec3; 3]],
+        leaves: &mut Vec<(u64, LeafMask)>,
+    ) -> Result<BrickEnd, GpuError> {
+        self.brick = Some(brick);
+        let batches: Vec<&[[Vec3; 3]]> = chunk.chunks(self.batch).collect();
+        let mut set_up = None;
+        for (i, part) in batches.iter().enumerate() {
+            let batch = self.set_up_batch(part).await?;
+            self.mark_brick(pipelines, batch, i == 0).await?;
+            set_up = Some(batch);
+        }
+        self.list_brick(pipelines, scan).await?;
+        for (i, part) in batches.iter().enumerate() {
+            // With one batch its set-up is still in place; with several, each is set up again.
+            let batch = match (batches.len(), set_up) {
+                (1, Some(batch)) => batch,
+                _ => self.set_up_batch(part).await?,
+            };
+            let last = i + 1 == batches.len();
+            self.write_brick(pipelines, scan, batch, last).await?;
+            if !last && self.unsure_overflowed(false, scan).await?.0 {
+                return Ok(BrickEnd::Overflow);
+            }
+        }
+        let (overflow, total) = self.unsure_overflowed(true, scan).await?;
+        if overflow {
+            return Ok(BrickEnd::Overflow);
+        }
+        let plan = self.sparse.as_ref().ok_or_else(|| GpuError::Device("a sparse run without its plan".into()))?;
+        if total > plan.slots {
+            return Ok(BrickEnd::Split);
+        }
+        let (gpu, start) = (self.gpu, plan.slot_base as u64 * 4);
+        let bytes = total as u64 * SLOT_WORDS as u64 * 4;
+        self.traffic.readback += bytes;
+        let slot = SLOT_WORDS as u64 * 4;
+        stream_buffer(&gpu.device, &gpu.queue, &self.v.streams, &self.buffers.slab, start, bytes, slot, |_, part| {
+            slot_leaves(&brick, bytemuck::cast_slice(part), |key, mask| leaves.push((key, mask)));
+        })
+        .await?;
+        Ok(BrickEnd::Done)
+    }
+
+    /// The walk in `MARK` mode over one batch: the brick's table (cleared before the first batch) gets a 1 for
+    /// every leaf a run or an unsure voxel touches.
+    async fn mark_brick(&mut self, pipelines: &LeafPipelines, batch: Batch, first: bool) -> Result<(), GpuError> {
+        let (gpu, table) = (self.gpu, self.brick.map_or(0, |b| b.leaves() * 4));
+        let params = self.params(batch, 0, 0);
+        let (b, timer) = (&self.buffers, &mut self.timer);
+        scoped(&gpu.device, || {
+            gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            if first {
+                encoder.clear_buffer(&b.slab, 0, Some(table));
+            }
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("mark leaves"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_pipeline(&pipelines.mark);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await
+    }
+
+    /// The scan of the brick's table (slots for the marked leaves) and `list_leaves` (each slot cleared and
+    /// labelled with its leaf).
+    async fn list_brick(&mut self, pipelines: &LeafPipelines, scan: &LeafScan) -> Result<(), GpuError> {
+        let (gpu, v) = (self.gpu, self.v);
+        let table = self.brick.map_or(0, |b| b.leaves() as u32);
+        let blocks = table.div_ceil(SCAN_WG);
+        let params = self.params(Batch { tri_count: table, block_count: blocks }, 0, 0);
+        let timer = &mut self.timer;
+        scoped(&gpu.device, || {
+            gpu.queue.write_buffer(&scan.params, 0, bytemuck::bytes_of(&params));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("leaf scan + list"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &scan.bind, &[]);
+                pass.set_bind_group(1, &scan.bind_dispatch, &[]);
+                pass.set_pipeline(&v.scan_blocks);
+                pass.dispatch_workgroups(blocks.max(1), 1, 1);
+                pass.set_pipeline(&v.scan_block_sums);
+                pass.dispatch_workgroups(1, 1, 1);
+                pass.set_pipeline(&v.add_block_offsets);
+                pass.dispatch_workgroups(blocks.max(1), 1, 1);
+                let (x, y) = dispatch_2d(table.div_ceil(WG));
+                pass.set_pipeline(&pipelines.list_leaves);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await
+    }
+
+    /// The walk and the exact pass in `SPARSE` mode over one batch, writing into the slots; after the last batch,
+    /// `finish_leaves` puts each slot's mask in OpenVDB's order.
+    async fn write_brick(
+        &mut self,
+        pipelines: &LeafPipelines,
+        scan: &LeafScan,
+        batch: Batch,
+        last: bool,
+    ) -> Result<(), GpuError> {
+        let (gpu, v) = (self.gpu, self.v);
+        let params = self.params(batch, 0, 0);
+        let (b, timer) = (&self.buffers, &mut self.timer);
+        scoped(&gpu.device, || {
+            gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(&b.unsure_count, 0, None);
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxelize leaves"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_bind_group(1, &b.bind_dispatch, &[]);
+                pass.set_pipeline(&pipelines.walk);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+                pass.set_pipeline(&v.prepare_exact);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("exact leaves"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &b.bind, &[]);
+                pass.set_pipeline(&pipelines.exact);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 12);
+            }
+            if last {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("finish leaves"),
+                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+                });
+                pass.set_bind_group(0, &scan.bind, &[]);
+                pass.set_pipeline(&pipelines.finish_leaves);
+                pass.dispatch_workgroups_indirect(&scan.dispatch, 0);
+            }
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await
+    }
+
+    /// Reads back the unsure count (whether the list overflowed), and after the brick's last batch the count of
+    /// its marked leaves and the pass times, in one map.
+    async fn unsure_overflowed(&mut self, last: bool, scan: &LeafScan) -> Result<(bool, u32), GpuError> {
+        let gpu = self.gpu;
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let timed = match last {
+            true => self.timer.as_mut().map_or(0, |t| t.resolve(&mut encoder)),
+            false => 0,
+        };
+        gpu.queue.submit([encoder.finish()]);
+        let blocks = self.brick.map_or(0, |b| (b.leaves() as u32).div_ceil(SCAN_WG)) as u64;
+        let mut ranges = vec![(&self.buffers.unsure_count, 0, 4)];
+        if last {
+            ranges.push((&scan.block_sums, blocks * 4, 4));
+        }
+        if let Some(t) = self.timer.as_ref().filter(|_| timed > 0) {
+            ranges.push((t.resolved(), 0, timed));
+        }
+        self.traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
+        let parts = read_buffers(&gpu.device, &gpu.queue, &ranges).await?;
+        let mut parts = parts.into_iter();
+        let listed = first_word(&parts.next().unwrap_or_default()).unwrap_or(0) as u64;
+        *self.exact_tests.get_or_insert(0) += listed;
+        let total = if last { first_word(&parts.next().unwrap_or_default()).unwrap_or(0) } else { 0 };
+        if let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next()) {
+            self.gpu_ms += t.finish(&gpu.queue, &bytes);
+        }
+        Ok((listed > self.unsure_entries, total))
+    }
+}

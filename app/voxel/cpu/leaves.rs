@@ -1,0 +1,124 @@
+//! The mirror of `shaders/leaves.wgsl`: a sparse run's leaf table, slots and masks, function by function. The CPU
+//! backend's sparse walk writes leaves directly ([`crate::voxel::sparse::LeafSet`]); these functions are what the
+//! GPU does per brick ([`crate::voxel::sparse::Brick`]), and [`brick_leaves`] runs them in the shader's order on
+//! the host, so the tests can hold the chain itself against the CPU's sparse grid without a GPU.
+
+use crate::voxel::sparse::{Brick, LeafMask, leaf_key};
+use glam::UVec3;
+
+/// Words of one slot: the leaf's 16 mask words, then its table index.
+pub const SLOT_WORDS: u32 = 17;
+
+/// The table index of the leaf holding voxel `v` in `brick` (x-major).
+pub fn leaf_index(brick: &Brick, v: UVec3) -> u32 {
+    let size = (brick.hi - brick.lo) / 8;
+    let l = (v - brick.lo) / 8;
+    (l.x * size.y + l.y) * size.z + l.z
+}
+
+/// The byte of a slot that holds the row of voxel `(y, z)`.
+pub fn row_byte(y: u32, z: u32) -> u32 {
+    (y % 8) * 8 + z % 8
+}
+
+/// The bits of voxels `x0..=x1` (within one leaf) in a row byte.
+pub fn run_bits(x0: u32, x1: u32) -> u32 {
+    (0xff >> (7 - x1 % 8)) & (0xff << (x0 % 8))
+}
+
+/// Marks the leaves voxels `x0..=x1` of row `(y, z)` fall in.
+pub fn mark_leaves(table: &mut [u32], brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
+    let mut x = x0 - x0 % 8;
+    while x <= x1 {
+        table[leaf_index(brick, UVec3::new(x, y, z)) as usize] = 1;
+        x += 8;
+    }
+}
+
+/// Sets voxels `x0..=x1` of row `(y, z)` in their leaves' slots (`slots` starts at the first slot; `table` holds
+/// each leaf's slot).
+pub fn set_leaf_run(table: &[u32], slots: &mut [u32], brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
+    let r = row_byte(y, z);
+    let mut x = x0 - x0 % 8;
+    while x <= x1 {
+        let slot = table[leaf_index(brick, UVec3::new(x, y, z)) as usize];
+        let word = (slot * SLOT_WORDS + r / 4) as usize;
+        slots[word] |= run_bits(x0.max(x), x1.min(x + 7)) << (r % 4 * 8);
+        x += 8;
+    }
+}
+
+/// The pass after the scan: `table` holds each leaf's slot (an exclusive prefix sum of the marks) and `total` the
+/// marked leaves; each marked leaf clears its slot and writes its index into it.
+pub fn list_leaves(table: &[u32], total: u32, slots: &mut [u32]) {
+    for (i, &slot) in table.iter().enumerate() {
+        let next = table.get(i + 1).copied().unwrap_or(total);
+        if next == slot {
+            continue;
+        }
+        let base = (slot * SLOT_WORDS) as usize;
+        slots[base..base + 16].fill(0);
+        slots[base + 16] = i as u32;
+    }
+}
+
+/// A leaf's mask in OpenVDB's order from its 64 row bytes: bit `r` of 64-bit word `x` (words `2x`, `2x + 1`) is
+/// bit `x` of row byte `r`.
+pub fn transpose_leaf(rows: [u32; 16]) -> [u32; 16] {
+    let mut out = [0u32; 16];
+    for r in 0..64 {
+        let byte = (rows[r / 4] >> (r % 4 * 8)) & 0xff;
+        for x in 0..8 {
+            out[2 * x + r / 32] |= ((byte >> x) & 1) << (r % 32);
+        }
+    }
+    out
+}
+
+/// Every slot's rows into OpenVDB's order.
+pub fn finish_leaves(slots: &mut [u32], total: u32) {
+    for slot in slots.chunks_exact_mut(SLOT_WORDS as usize).take(total as usize) {
+        let mut rows = [0u32; 16];
+        rows.copy_from_slice(&slot[..16]);
+        slot[..16].copy_from_slice(&transpose_leaf(rows));
+    }
+}
+
+/// The leaves of finished slots as the sparse grid holds them (`(leaf_key, mask)`), the empty ones (marked for an
+/// unsure voxel the exact test then left clear) dropped. The host reads the GPU's slots with this too.
+pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafMask)) {
+    let size = (brick.hi - brick.lo) / 8;
+    for slot in slots.chunks_exact(SLOT_WORDS as usize) {
+        let mask: LeafMask = std::array::from_fn(|x| u64::from(slot[2 * x]) | u64::from(slot[2 * x + 1]) << 32);
+        if mask == [0; 8] {
+            continue;
+        }
+        let i = slot[16];
+        let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
+        let origin = brick.lo + l * 8;
+        push(leaf_key(origin.x, origin.y, origin.z), mask);
+    }
+}
+
+/// The GPU's chain for one brick, on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
+/// walk, handing each run of voxels to `sink(x0, x1, y, z)`. It runs twice, as on the GPU: to mark (`mark` true:
+/// unsure voxels are handed over as runs of one, undecided), then to write (the exact decisions included).
+pub fn brick_leaves(brick: &Brick, mut walk: impl FnMut(bool, &mut dyn FnMut(u32, u32, u32, u32))) -> Vec<(u64, LeafMask)> {
+    let size = (brick.hi - brick.lo) / 8;
+    let mut table = vec![0u32; (size.x * size.y * size.z) as usize];
+    walk(true, &mut |x0, x1, y, z| mark_leaves(&mut table, brick, x0, x1, y, z));
+    // The scan: exclusive prefix sums of the marks.
+    let mut total = 0;
+    for entry in &mut table {
+        let mark = *entry;
+        *entry = total;
+        total += mark;
+    }
+    let mut slots = vec![0u32; (total * SLOT_WORDS) as usize];
+    list_leaves(&table, total, &mut slots);
+    walk(false, &mut |x0, x1, y, z| set_leaf_run(&table, &mut slots, brick, x0, x1, y, z));
+    finish_leaves(&mut slots, total);
+    let mut leaves = Vec::new();
+    slot_leaves(brick, &slots, |key, mask| leaves.push((key, mask)));
+    leaves
+}
