@@ -3,18 +3,19 @@
 // app/gpu/voxelize.rs); mirrored by app/voxel/cpu/leaves.rs, and driven by app/gpu/sparse.rs.
 //
 // A sparse run cuts the grid into bricks whose leaf table fits one binding. Per brick, in `grid`:
-//   words [0, table_leaves)   the leaf table, one word per leaf of the brick (x-major: leaf_index)
+//   words [0, table_leaves)   the leaf table, one word per leaf of the brick (x-major: leaf_index): 0 for a leaf
+//                             without a slot, else its slot + 1
 //   words from slot_base      one slot of SLOT_WORDS per occupied leaf: 16 mask words, then the leaf's table index
-// and the passes, over the brick's triangles:
-//   voxelize (MARK)           the surface walk, marking (table word = 1) every leaf a run or an unsure voxel touches
-//   scan_blocks, scan_block_sums, add_block_offsets
-//                             the scan of scan.wgsl over the table (a second bind group makes the table its
-//                             `first_items`): each marked leaf's slot, and their count in block_sums[block_count]
-//   list_leaves               each marked leaf clears its slot and writes its table index into it
+// and `unsure_count[1]` counts the slots given out. The passes, over the brick's triangles:
+//   voxelize (MARK)           the surface walk; the first run (or unsure voxel) to touch a leaf gives it the next
+//                             slot (mark_leaves: one compare-exchange claims the leaf, one atomicAdd the slot)
 //   voxelize, exact (SPARSE)  the walk and the exact pass again, writing runs into the slots (set_leaf_run)
-//   finish_leaves             each slot's rows turned into OpenVDB's mask order
-// so no dense slab is allocated, no triangle is walked outside the bricks it touches, and what crosses the bus is
-// SLOT_WORDS words per leaf.
+//   prepare_finish            the finish pass's dispatch size from the slot count
+//   finish_leaves             each slot's rows turned into OpenVDB's mask order, and its table entry cleared, so
+//                             the next brick finds the table clean without clearing all of it
+// so no dense slab is allocated, no triangle is walked outside the bricks it touches, no pass visits the brick's
+// empty leaves, and what crosses the bus is SLOT_WORDS words per leaf. Slots are given out in no fixed order; the
+// host sorts the leaves by key.
 //
 // While the walk writes, a slot holds the leaf's 64 rows along x as bytes (row_byte: one atomicOr per leaf a run
 // crosses); finish_leaves transposes them into OpenVDB's order, bit y * 8 + z of 64-bit word x (app/voxel/sparse.rs).
@@ -38,10 +39,40 @@ fn run_bits(x0: u32, x1: u32) -> u32 {
     return (0xffu >> (7u - x1 % 8u)) & (0xffu << (x0 % 8u));
 }
 
-// Marks the leaves voxels x0..=x1 of row (y, z) fall in.
+// Gives a slot to each leaf voxels x0..=x1 of row (y, z) fall in that has none yet: its 16 mask words cleared and
+// its table index written. Past the last slot the count goes on (the host cuts the brick and runs it again) and
+// nothing is written.
 fn mark_leaves(x0: u32, x1: u32, y: u32, z: u32) {
     for (var x = x0 - x0 % 8u; x <= x1; x += 8u) {
-        atomicStore(&grid[leaf_index(vec3<u32>(x, y, z))], 1u);
+        let i = leaf_index(vec3<u32>(x, y, z));
+        if atomicLoad(&grid[i]) != 0u {
+            continue;
+        }
+        // The claim: only the invocation that turns 0 into the placeholder gives out a slot (a weak exchange may
+        // fail with 0 still there, so it is tried again).
+        var claimed = false;
+        loop {
+            let r = atomicCompareExchangeWeak(&grid[i], 0u, 0xffffffffu);
+            if r.exchanged {
+                claimed = true;
+                break;
+            }
+            if r.old_value != 0u {
+                break;
+            }
+        }
+        if !claimed {
+            continue;
+        }
+        let slot = atomicAdd(&unsure_count[1], 1u);
+        atomicStore(&grid[i], slot + 1u);
+        if slot < params.slots {
+            let base = params.slot_base + slot * SLOT_WORDS;
+            for (var w = 0u; w < 16u; w++) {
+                atomicStore(&grid[base + w], 0u);
+            }
+            atomicStore(&grid[base + 16u], i);
+        }
     }
 }
 
@@ -49,7 +80,7 @@ fn mark_leaves(x0: u32, x1: u32, y: u32, z: u32) {
 fn set_leaf_run(x0: u32, x1: u32, y: u32, z: u32) {
     let r = row_byte(y, z);
     for (var x = x0 - x0 % 8u; x <= x1; x += 8u) {
-        let slot = atomicLoad(&grid[leaf_index(vec3<u32>(x, y, z))]);
+        let slot = atomicLoad(&grid[leaf_index(vec3<u32>(x, y, z))]) - 1u;
         if slot >= params.slots {
             continue;
         }
@@ -58,28 +89,13 @@ fn set_leaf_run(x0: u32, x1: u32, y: u32, z: u32) {
     }
 }
 
-// One invocation per table entry, after the scan: a leaf whose slot is not the next one's was marked.
-@compute @workgroup_size(64)
-fn list_leaves(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
-               @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = linear_id(wid, lid, groups, WG);
-    if i >= params.table_leaves {
-        return;
-    }
-    let slot = first_items[i];
-    var next = block_sums[params.block_count];
-    if i + 1u < params.table_leaves {
-        next = first_items[i + 1u];
-    }
-    // A brick with more leaves than slots writes nothing past them; the host cuts it smaller and runs it again.
-    if next == slot || slot >= params.slots {
-        return;
-    }
-    let base = params.slot_base + slot * SLOT_WORDS;
-    for (var w = 0u; w < 16u; w++) {
-        atomicStore(&grid[base + w], 0u);
-    }
-    atomicStore(&grid[base + 16u], i);
+// Sizes the finish pass from the slot count (at most the slots there are).
+@compute @workgroup_size(1)
+fn prepare_finish() {
+    let slots = min(atomicLoad(&unsure_count[1]), params.slots);
+    dispatch[6] = (slots + WG - 1u) / WG;
+    dispatch[7] = 1u;
+    dispatch[8] = 1u;
 }
 
 // The 16 words of a leaf's mask in OpenVDB's order from its 64 row bytes: bit r of 64-bit word x (words 2x, 2x + 1)
@@ -95,12 +111,12 @@ fn transpose_leaf(rows: array<u32, 16>) -> array<u32, 16> {
     return out;
 }
 
-// One invocation per slot (the scan's dispatch size): the slot's rows into OpenVDB's order.
+// One invocation per slot: the slot's rows into OpenVDB's order, and its leaf's table entry back to 0.
 @compute @workgroup_size(64)
 fn finish_leaves(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                  @builtin(num_workgroups) groups: vec3<u32>) {
     let slot = linear_id(wid, lid, groups, WG);
-    if slot >= min(block_sums[params.block_count], params.slots) {
+    if slot >= min(atomicLoad(&unsure_count[1]), params.slots) {
         return;
     }
     let base = params.slot_base + slot * SLOT_WORDS;
@@ -112,4 +128,5 @@ fn finish_leaves(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     for (var w = 0u; w < 16u; w++) {
         atomicStore(&grid[base + w], mask[w]);
     }
+    atomicStore(&grid[atomicLoad(&grid[base + 16u])], 0u);
 }

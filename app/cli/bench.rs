@@ -103,6 +103,11 @@ struct Row {
     voxelize_ms: f64,
     runs_ms: Vec<f64>,
     gpu_ms: Option<f64>,
+    /// The median run's time outside the GPU's passes, and the bytes its grid passes moved (`--stats-json`'s
+    /// `host_ms`, `upload_bytes`, `readback_bytes`): what bounds the case.
+    host_ms: f64,
+    upload_bytes: Option<u64>,
+    readback_bytes: Option<u64>,
     exact_tests: Option<u64>,
     /// Peak resident memory above what the process held before the case.
     peak_mib: Option<f64>,
@@ -361,6 +366,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
     let before = meshvox::memory::peak_resident();
     let mut runs = Vec::new();
     let mut gpu = Vec::new();
+    let mut host = Vec::new();
     let mut last = None;
     for _ in 0..repeats.max(1) {
         // The previous run's grid is dropped first, so the peak is one run's.
@@ -370,6 +376,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         out.notices.iter().for_each(|n| eprintln!("{n}"));
         runs.push(ms(t));
         gpu.extend(out.report.gpu_ms);
+        host.push(out.report.host_ms);
         last = Some(out);
     }
     let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
@@ -405,6 +412,9 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         voxelize_ms: median(runs.clone()),
         runs_ms: runs,
         gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
+        host_ms: median(host),
+        upload_bytes: out.report.upload_bytes,
+        readback_bytes: out.report.readback_bytes,
         exact_tests: out.report.exact_tests,
         peak_mib: peak,
         grid: GridKind::of(case.sparse).name().to_string(),
@@ -415,6 +425,15 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         paper_ms: case.paper_ms,
     };
     Ok(row)
+}
+
+/// Upload and readback in MiB (`-` on the CPU).
+fn traffic(r: &Row) -> String {
+    let mib = |b: u64| b as f64 / (1 << 20) as f64;
+    match (r.upload_bytes, r.readback_bytes) {
+        (Some(up), Some(back)) => format!("{:.2} / {:.2}", mib(up), mib(back)),
+        _ => "-".to_string(),
+    }
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {
@@ -455,15 +474,17 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
     } else if args.suite == Some(Suite::Sparse) {
         md += &sparse_table(rows);
     } else {
-        md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | ns per voxel | peak MiB | exact tests |\n";
-        md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|\n";
+        md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | host ms | up / back MiB | ns per voxel | peak MiB | exact tests |\n";
+        md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n";
         for r in rows {
             md += &format!(
-                "| {} | {} | {:.2} | {} | {:.1} | {} | {} |\n",
+                "| {} | {} | {:.2} | {} | {:.1} | {} | {:.1} | {} | {} |\n",
                 r.head(true),
                 r.backend,
                 r.voxelize_ms,
                 opt(r.gpu_ms, 2),
+                r.host_ms,
+                traffic(r),
                 r.voxelize_ms * 1e6 / r.voxels.max(1) as f64,
                 opt(r.peak_mib, 0),
                 r.exact_tests.map_or("-".to_string(), |n| n.to_string()),
@@ -491,18 +512,21 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
 /// grid's time over the dense one's where both ran.
 fn sparse_table(rows: &[Row]) -> String {
     let mut md = String::from(
-        "| mesh | triangles | N | mode | grid | voxels | backend | grid kind | voxelize ms | peak MiB | leaves | tiles | .vdb MB | .vdb write ms | dense would need |\n\
-         |---|---:|---:|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| mesh | triangles | N | mode | grid | voxels | backend | grid kind | voxelize ms | gpu ms | host ms | up / back MiB | peak MiB | leaves | tiles | .vdb MB | .vdb write ms | dense would need |\n\
+         |---|---:|---:|---|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let [x, y, z] = r.dims.map(u64::from);
         let dense = meshvox::memory::human(x.div_ceil(32) * 4 * y * z);
         md += &format!(
-            "| {} | {} | {} | {:.0} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {:.0} | {} | {:.0} | {} | {} | {} | {} | {} | {} | {} |\n",
             r.head(true),
             r.backend,
             r.grid,
             r.voxelize_ms,
+            opt(r.gpu_ms, 1),
+            r.host_ms,
+            traffic(r),
             opt(r.peak_mib, 0),
             r.leaves.map_or("-".to_string(), |l| l.to_string()),
             r.tiles.map_or("-".to_string(), |t| t.to_string()),

@@ -211,6 +211,14 @@ impl OnGpu {
         self.voxelizer.get_or_init(|| GpuVoxelizer::new(&self.gpu))
     }
 
+    /// Compiles what `job` needs beyond the pipelines every job uses (a surface's leaf passes), so that opening
+    /// holds it and the job's `voxelize_ms` does not.
+    pub(super) fn prepare(&self, job: &Job<'_>) {
+        if !job.request.instances {
+            self.voxelizer().prepare_leaves(&self.gpu, job.request.mode.grid_mode());
+        }
+    }
+
     /// Where this engine's stages run, as `backend` says it.
     pub(super) fn label(&self) -> String {
         format!("gpu: {}", self.gpu.summary)
@@ -277,7 +285,8 @@ impl OnGpu {
             backend.push_str(" (overflow: decided on the CPU)");
         }
         let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.instances);
-        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, instances }))
+        let traffic = Some((out.traffic.upload, out.traffic.readback));
+        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances }))
     }
 
     /// The grid's colours on the GPU, or `None` where the CPU is to make them (a grid or textures past one

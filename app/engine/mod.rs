@@ -124,6 +124,8 @@ struct GridStage {
     backend: String,
     gpu_ms: Option<f64>,
     exact_tests: Option<u64>,
+    /// Bytes uploaded and read back, on the GPU.
+    traffic: Option<(u64, u64)>,
     /// The GPU's list of exposed voxels, when asked for and made there.
     instances: Option<Instances>,
 }
@@ -163,7 +165,15 @@ impl Engine {
     pub fn open_for(backend: Backend, job: &Job) -> Result<Engine, EngineError> {
         match Engine::priced_out(backend, job) {
             Some(cpu) => Ok(cpu),
-            None => Engine::open(backend),
+            None => {
+                let mut engine = Engine::open(backend)?;
+                if let Some(on) = &engine.gpu {
+                    let t = Instant::now();
+                    on.prepare(job);
+                    engine.setup_ms += ms(t);
+                }
+                Ok(engine)
+            }
         }
     }
 
@@ -309,6 +319,9 @@ impl Engine {
             band_voxels: field.as_ref().map(|f| f.band_voxels),
             field_ms,
             field_backend,
+            host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) - made.gpu_ms.unwrap_or(0.0),
+            upload_bytes: made.traffic.map(|t| t.0),
+            readback_bytes: made.traffic.map(|t| t.1),
             ..Report::default()
         };
         let colours = colours.map(|c| c.colours);
@@ -343,7 +356,7 @@ impl Engine {
                 .map_err(grid_error)?,
         };
         let exact_tests = Some(stats.exact_tests);
-        Ok(GridStage { grid, backend: self.cpu_label(), gpu_ms: None, exact_tests, instances: None })
+        Ok(GridStage { grid, backend: self.cpu_label(), gpu_ms: None, exact_tests, traffic: None, instances: None })
     }
 
     /// The distance field of the job's mode (`Sdf` or `Udf`) and band, from the mesh's grid-space triangles,

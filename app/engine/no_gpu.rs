@@ -25,6 +25,10 @@ impl OnGpu {
         match *self {}
     }
 
+    pub(super) fn prepare(&self, _: &Job<'_>) {
+        match *self {}
+    }
+
     pub(super) fn busy_ms(&self) -> f64 {
         match *self {}
     }

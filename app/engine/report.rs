@@ -48,6 +48,9 @@ pub struct Report {
     pub grid: String,
     /// The compute passes alone, from timestamp queries; `None` on the CPU or without timestamps.
     pub gpu_ms: Option<f64>,
+    /// The engine's time that is not the GPU's passes: `voxelize_ms + field_ms + colour_ms - gpu_ms` (all of it on
+    /// the CPU). Loading and writing are the client's (`load_ms`, `write_ms`).
+    pub host_ms: f64,
     /// Leaves of a sparse grid (8³ blocks with a voxel set); `None` for a dense grid.
     pub leaves: Option<u64>,
     pub load_ms: f64,
@@ -56,12 +59,17 @@ pub struct Report {
     /// The grid's world minimum corner.
     pub origin: [f64; 3],
     pub output: String,
+    /// Bytes the grid's GPU passes read back (the grid or its leaves, counters, timings); `None` on the CPU.
+    pub readback_bytes: Option<u64>,
     /// Adapter, device and pipeline creation, once per engine.
     pub setup_ms: f64,
     pub threads: usize,
     /// Tiles of a sparse grid (blocks of 8³, 128³ or 4096³ voxels all set); `None` for a dense grid.
     pub tiles: Option<u64>,
     pub triangles: usize,
+    /// Bytes the grid's GPU passes uploaded (the triangles, once per brick or batch they fall in); `None` on the
+    /// CPU.
+    pub upload_bytes: Option<u64>,
     pub voxel_size: f64,
     /// Host triangles to host grid: grid-space conversion, upload, all passes and readback.
     pub voxelize_ms: f64,

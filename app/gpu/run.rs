@@ -25,7 +25,7 @@ use crate::voxel::{GridSpec, Lattice, Mode, SparseGrid, VoxelGrid, on_lattice};
 use glam::Vec3;
 
 /// A bind group entry for a whole buffer.
-pub(super) fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+fn bind_entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
 }
 
@@ -39,10 +39,8 @@ pub(super) struct Buffers {
     pub(super) unsure_count: wgpu::Buffer,
     pub(super) bind: wgpu::BindGroup,
     pub(super) bind_dispatch: wgpu::BindGroup,
-    pub(super) setups: wgpu::Buffer,
-    pub(super) unsure: wgpu::Buffer,
     /// Bound above and used only by the shaders; held so that their lifetime is plainly this run's.
-    _scratch: [wgpu::Buffer; 2],
+    _scratch: [wgpu::Buffer; 4],
 }
 
 /// One batch of triangles as the passes see it.
@@ -146,7 +144,8 @@ impl<'a> Run<'a> {
             let slab = storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC);
             let dispatch = storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT);
             let unsure = storage_buffer(device, "unsure", unsure_entries * UNSURE_BYTES, none);
-            let unsure_count = storage_buffer(device, "unsure count", 4, wgpu::BufferUsages::COPY_SRC);
+            // The unsure count, and a sparse run's slot count (`shaders/leaves.wgsl`).
+            let unsure_count = storage_buffer(device, "unsure count", 8, wgpu::BufferUsages::COPY_SRC);
             let entry = bind_entry;
             let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("voxelize"),
@@ -167,8 +166,8 @@ impl<'a> Run<'a> {
                 layout: &v.dispatch_layout,
                 entries: &[entry(0, &dispatch)],
             });
-            let _scratch = [offsets, block_sums];
-            Ok(Buffers { params, triangles, slab, dispatch, unsure_count, bind, bind_dispatch, setups, unsure, _scratch })
+            let _scratch = [setups, offsets, block_sums, unsure];
+            Ok(Buffers { params, triangles, slab, dispatch, unsure_count, bind, bind_dispatch, _scratch })
         })
         .await?;
         Ok(Run {

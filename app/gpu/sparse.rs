@@ -1,19 +1,19 @@
 //! Sparse grids made on the GPU (`shaders/leaves.wgsl`): the grid cut into bricks whose leaf table fits one
-//! binding, each brick's triangles binned on the host once, and per brick the chain mark → scan → list → walk →
-//! exact → finish, after which only the occupied leaves come back (17 words each). No dense slab is allocated or
+//! binding, each brick's triangles binned on the host once, and per brick the chain mark (a slot for each leaf the
+//! surface touches) → walk → exact → finish, after which only the occupied leaves come back (17 words each). No dense slab is allocated or
 //! read, and a triangle is walked only in the bricks its box meets. Dense surface grids are made the same way and
 //! scattered from the leaves, so what crosses the bus follows the surface, not the box.
 //!
 //! Steps, each named for what it does: [`SparsePlan::for_run`] sizes the bricks and the buffer, [`bin_triangles`]
 //! sorts the triangles into them, [`Run::voxelize_bricks`] runs the bricks (cutting one in eight whose leaves
-//! outnumber the slots), [`Run::mark_brick`], [`Run::list_brick`], [`Run::write_brick`] and [`Run::read_brick`]
-//! are the chain of one brick. The solid keeps the slab path (its crossing lists are per row of the whole grid).
+//! outnumber the slots), [`Run::mark_brick`], [`Run::write_brick`] and [`Run::brick_counts`] are the chain of one
+//! brick. The solid keeps the slab path (its crossing lists are per row of the whole grid).
 
 use super::readback::{first_word, read_buffers, stream_buffer};
 use super::run::{Batch, Run};
-use super::util::{pipeline_with, scoped, storage_buffer};
-use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, Params, SCAN_WG, WG};
-use super::{Gpu, GpuError, dispatch_2d};
+use super::util::{pipeline_with, scoped};
+use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, Params};
+use super::{Gpu, GpuError};
 use crate::voxel::cpu::leaves::{SLOT_WORDS, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
@@ -22,29 +22,29 @@ use glam::{UVec3, Vec3};
 use std::collections::VecDeque;
 
 /// The sparse chain's pipelines for one variant of the walk (thick or thin): the walk and exact pass with `MARK`
-/// or `SPARSE` set, and the leaf passes.
+/// or `SPARSE` set, and the finish passes.
 pub(super) struct LeafPipelines {
     mark: wgpu::ComputePipeline,
     walk: wgpu::ComputePipeline,
     exact: wgpu::ComputePipeline,
-    list_leaves: wgpu::ComputePipeline,
+    prepare_finish: wgpu::ComputePipeline,
     finish_leaves: wgpu::ComputePipeline,
 }
 
 impl LeafPipelines {
     pub(super) fn new(device: &wgpu::Device, v: &GpuVoxelizer, thin: bool) -> LeafPipelines {
-        let one = [Some(&v.layout)];
+        let (one, two) = ([Some(&v.layout)], [Some(&v.layout), Some(&v.dispatch_layout)]);
         let thin = if thin { 1.0 } else { 0.0 };
-        let with = |entry: &str, mark: f64, sparse: f64| {
-            let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", sparse)];
+        let with = |entry: &str, mark: f64| {
+            let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", 1.0)];
             pipeline_with(device, &v.module, &one, entry, &constants)
         };
         LeafPipelines {
-            mark: with("voxelize", 1.0, 1.0),
-            walk: with("voxelize", 0.0, 1.0),
-            exact: with("exact", 0.0, 1.0),
-            list_leaves: with("list_leaves", 0.0, 1.0),
-            finish_leaves: with("finish_leaves", 0.0, 1.0),
+            mark: with("voxelize", 1.0),
+            walk: with("voxelize", 0.0),
+            exact: with("exact", 0.0),
+            prepare_finish: pipeline_with(device, &v.module, &two, "prepare_finish", &[("SPARSE", 1.0)]),
+            finish_leaves: with("finish_leaves", 0.0),
         }
     }
 }
@@ -64,10 +64,14 @@ pub(crate) struct SparsePlan {
     /// Slots the buffer holds.
     slots: u32,
     pub(super) buffer_bytes: u64,
+    /// Whether the table may hold entries (a brick cut after its slots ran out leaves some): the next brick
+    /// clears it whole. `finish_leaves` clears the entries of the slots it finishes.
+    dirty: bool,
 }
 
-/// The most leaves a brick's table may have: its scan's blocks are one dispatch of at most 65,535 workgroups.
-const MAX_TABLE: u64 = 65_535 * SCAN_WG as u64;
+/// The most leaves a brick's table may have (16 M leaves, a 2048³ box): the table's clear, after a brick that ran
+/// out of slots, stays short.
+const MAX_TABLE: u64 = 1 << 24;
 
 impl SparsePlan {
     /// The plan of a run that [`uses_leaves`]: bricks whose table is an eighth of one binding (or of
@@ -83,7 +87,7 @@ impl SparsePlan {
         let slot_base = table.next_multiple_of(64);
         let slots = (words.saturating_sub(slot_base) / SLOT_WORDS as u64).clamp(1, table);
         let buffer_bytes = (slot_base + slots * SLOT_WORDS as u64) * 4;
-        Some(SparsePlan { bricks, slot_base: slot_base as u32, slots: slots as u32, buffer_bytes })
+        Some(SparsePlan { bricks, slot_base: slot_base as u32, slots: slots as u32, buffer_bytes, dirty: false })
     }
 
     /// The shader's parameters for `batch` of `brick`'s triangles.
@@ -130,56 +134,6 @@ pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Bric
     bins
 }
 
-/// The leaf scan's own parameters, block sums and dispatch, and the bind groups that make a brick's table the
-/// scan's `first_items` (the walk's bind group sees it at the start of `grid`).
-pub(super) struct LeafScan {
-    params: wgpu::Buffer,
-    block_sums: wgpu::Buffer,
-    dispatch: wgpu::Buffer,
-    bind: wgpu::BindGroup,
-    bind_dispatch: wgpu::BindGroup,
-}
-
-impl LeafScan {
-    async fn new(run: &Run<'_>, plan: &SparsePlan) -> Result<LeafScan, GpuError> {
-        let (device, b, v) = (&run.gpu.device, &run.buffers, run.v);
-        scoped(device, || {
-            let params = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("leaf scan params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let blocks = (plan.slot_base as u64).div_ceil(SCAN_WG as u64) + 1;
-            let block_sums = storage_buffer(device, "leaf block sums", blocks * 4, wgpu::BufferUsages::COPY_SRC);
-            let dispatch = storage_buffer(device, "leaf dispatch", 48, wgpu::BufferUsages::INDIRECT);
-            let table = wgpu::BufferBinding { buffer: &b.slab, offset: 0, size: wgpu::BufferSize::new(plan.slot_base as u64 * 4) };
-            let entry = super::run::bind_entry;
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("leaf scan"),
-                layout: &v.layout,
-                entries: &[
-                    entry(0, &params),
-                    entry(1, &b.triangles),
-                    entry(2, &b.setups),
-                    wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Buffer(table) },
-                    entry(4, &block_sums),
-                    entry(5, &b.slab),
-                    entry(6, &b.unsure),
-                    entry(7, &b.unsure_count),
-                ],
-            });
-            let bind_dispatch = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("leaf dispatch"),
-                layout: &v.dispatch_layout,
-                entries: &[entry(0, &dispatch)],
-            });
-            Ok(LeafScan { params, block_sums, dispatch, bind, bind_dispatch })
-        })
-        .await
-    }
-}
-
 /// How one brick ended.
 enum BrickEnd {
     Done,
@@ -198,7 +152,6 @@ impl Run<'_> {
         let thin = self.options.mode == Mode::Surface6;
         let v = self.v;
         let pipelines = v.leaves[thin as usize].get_or_init(|| LeafPipelines::new(&self.gpu.device, v, thin));
-        let scan = LeafScan::new(&self, &plan).await?;
         let bins = bin_triangles(triangles, self.spec.dims, &plan.bricks);
         let mut queue: VecDeque<(Brick, Vec<u32>)> =
             plan.bricks.iter().copied().zip(bins).filter(|(_, bin)| !bin.is_empty()).collect();
@@ -208,7 +161,7 @@ impl Run<'_> {
         while let Some((brick, bin)) = queue.pop_front() {
             bricks += 1;
             let chunk: Vec<[Vec3; 3]> = bin.iter().map(|&t| triangles[t as usize]).collect();
-            match self.brick(pipelines, &scan, brick, &chunk, &mut leaves).await? {
+            match self.brick(pipelines, brick, &chunk, &mut leaves).await? {
                 BrickEnd::Done => {}
                 BrickEnd::Overflow => return Ok(Attempt::Overflow),
                 BrickEnd::Split => {
@@ -252,11 +205,10 @@ impl Run<'_> {
         }))
     }
 
-    /// One brick's chain: mark (every batch), list, walk and exact (every batch), finish, read back.
+    /// One brick's chain: mark (every batch), walk and exact (every batch), finish, read back.
     async fn brick(
         &mut self,
         pipelines: &LeafPipelines,
-        scan: &LeafScan,
         brick: Brick,
         chunk: &[[Vec3; 3]],
         leaves: &mut Vec<(u64, LeafMask)>,
@@ -269,7 +221,6 @@ impl Run<'_> {
             self.mark_brick(pipelines, batch, i == 0).await?;
             set_up = Some(batch);
         }
-        self.list_brick(pipelines, scan).await?;
         for (i, part) in batches.iter().enumerate() {
             // With one batch its set-up is still in place; with several, each is set up again.
             let batch = match (batches.len(), set_up) {
@@ -277,17 +228,18 @@ impl Run<'_> {
                 _ => self.set_up_batch(part).await?,
             };
             let last = i + 1 == batches.len();
-            self.write_brick(pipelines, scan, batch, last).await?;
-            if !last && self.unsure_overflowed(false, scan).await?.0 {
+            self.write_brick(pipelines, batch, last).await?;
+            if !last && self.brick_counts(false).await?.0 {
                 return Ok(BrickEnd::Overflow);
             }
         }
-        let (overflow, total) = self.unsure_overflowed(true, scan).await?;
+        let (overflow, total) = self.brick_counts(true).await?;
         if overflow {
             return Ok(BrickEnd::Overflow);
         }
-        let plan = self.sparse.as_ref().ok_or_else(|| GpuError::Device("a sparse run without its plan".into()))?;
+        let plan = self.sparse.as_mut().ok_or_else(|| GpuError::Device("a sparse run without its plan".into()))?;
         if total > plan.slots {
+            plan.dirty = true;
             return Ok(BrickEnd::Split);
         }
         let (gpu, start) = (self.gpu, plan.slot_base as u64 * 4);
@@ -301,16 +253,21 @@ impl Run<'_> {
         Ok(BrickEnd::Done)
     }
 
-    /// The walk in `MARK` mode over one batch: the brick's table (cleared before the first batch) gets a 1 for
-    /// every leaf a run or an unsure voxel touches.
+    /// The walk in `MARK` mode over one batch: every leaf a run or an unsure voxel touches gets a slot. Before the
+    /// first batch the slot count is reset (and a table left dirty cleared).
     async fn mark_brick(&mut self, pipelines: &LeafPipelines, batch: Batch, first: bool) -> Result<(), GpuError> {
-        let (gpu, table) = (self.gpu, self.brick.map_or(0, |b| b.leaves() * 4));
+        let gpu = self.gpu;
+        let dirty = self.sparse.as_mut().map(|plan| std::mem::take(&mut plan.dirty)).unwrap_or(false);
+        let table = self.sparse.as_ref().map_or(0, |plan| plan.slot_base as u64 * 4);
         let params = self.params(batch, 0, 0);
         let (b, timer) = (&self.buffers, &mut self.timer);
         scoped(&gpu.device, || {
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             if first {
+                encoder.clear_buffer(&b.unsure_count, 4, Some(4));
+            }
+            if first && dirty {
                 encoder.clear_buffer(&b.slab, 0, Some(table));
             }
             {
@@ -328,56 +285,16 @@ impl Run<'_> {
         .await
     }
 
-    /// The scan of the brick's table (slots for the marked leaves) and `list_leaves` (each slot cleared and
-    /// labelled with its leaf).
-    async fn list_brick(&mut self, pipelines: &LeafPipelines, scan: &LeafScan) -> Result<(), GpuError> {
-        let (gpu, v) = (self.gpu, self.v);
-        let table = self.brick.map_or(0, |b| b.leaves() as u32);
-        let blocks = table.div_ceil(SCAN_WG);
-        let params = self.params(Batch { tri_count: table, block_count: blocks }, 0, 0);
-        let timer = &mut self.timer;
-        scoped(&gpu.device, || {
-            gpu.queue.write_buffer(&scan.params, 0, bytemuck::bytes_of(&params));
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("leaf scan + list"),
-                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                });
-                pass.set_bind_group(0, &scan.bind, &[]);
-                pass.set_bind_group(1, &scan.bind_dispatch, &[]);
-                pass.set_pipeline(&v.scan_blocks);
-                pass.dispatch_workgroups(blocks.max(1), 1, 1);
-                pass.set_pipeline(&v.scan_block_sums);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(&v.add_block_offsets);
-                pass.dispatch_workgroups(blocks.max(1), 1, 1);
-                let (x, y) = dispatch_2d(table.div_ceil(WG));
-                pass.set_pipeline(&pipelines.list_leaves);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
-            Ok(())
-        })
-        .await
-    }
-
     /// The walk and the exact pass in `SPARSE` mode over one batch, writing into the slots; after the last batch,
     /// `finish_leaves` puts each slot's mask in OpenVDB's order.
-    async fn write_brick(
-        &mut self,
-        pipelines: &LeafPipelines,
-        scan: &LeafScan,
-        batch: Batch,
-        last: bool,
-    ) -> Result<(), GpuError> {
+    async fn write_brick(&mut self, pipelines: &LeafPipelines, batch: Batch, last: bool) -> Result<(), GpuError> {
         let (gpu, v) = (self.gpu, self.v);
         let params = self.params(batch, 0, 0);
         let (b, timer) = (&self.buffers, &mut self.timer);
         scoped(&gpu.device, || {
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(&b.unsure_count, 0, None);
+            encoder.clear_buffer(&b.unsure_count, 0, Some(4));
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("voxelize leaves"),
@@ -389,6 +306,10 @@ impl Run<'_> {
                 pass.dispatch_workgroups_indirect(&b.dispatch, 0);
                 pass.set_pipeline(&v.prepare_exact);
                 pass.dispatch_workgroups(1, 1, 1);
+                if last {
+                    pass.set_pipeline(&pipelines.prepare_finish);
+                    pass.dispatch_workgroups(1, 1, 1);
+                }
             }
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -404,9 +325,9 @@ impl Run<'_> {
                     label: Some("finish leaves"),
                     timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
                 });
-                pass.set_bind_group(0, &scan.bind, &[]);
+                pass.set_bind_group(0, &b.bind, &[]);
                 pass.set_pipeline(&pipelines.finish_leaves);
-                pass.dispatch_workgroups_indirect(&scan.dispatch, 0);
+                pass.dispatch_workgroups_indirect(&b.dispatch, 24);
             }
             gpu.queue.submit([encoder.finish()]);
             Ok(())
@@ -414,9 +335,9 @@ impl Run<'_> {
         .await
     }
 
-    /// Reads back the unsure count (whether the list overflowed), and after the brick's last batch the count of
-    /// its marked leaves and the pass times, in one map.
-    async fn unsure_overflowed(&mut self, last: bool, scan: &LeafScan) -> Result<(bool, u32), GpuError> {
+    /// Reads back the unsure count (whether the list overflowed), the slots given out and, after the brick's last
+    /// batch, the pass times, in one map.
+    async fn brick_counts(&mut self, last: bool) -> Result<(bool, u32), GpuError> {
         let gpu = self.gpu;
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let timed = match last {
@@ -424,20 +345,17 @@ impl Run<'_> {
             false => 0,
         };
         gpu.queue.submit([encoder.finish()]);
-        let blocks = self.brick.map_or(0, |b| (b.leaves() as u32).div_ceil(SCAN_WG)) as u64;
-        let mut ranges = vec![(&self.buffers.unsure_count, 0, 4)];
-        if last {
-            ranges.push((&scan.block_sums, blocks * 4, 4));
-        }
+        let mut ranges = vec![(&self.buffers.unsure_count, 0, 8)];
         if let Some(t) = self.timer.as_ref().filter(|_| timed > 0) {
             ranges.push((t.resolved(), 0, timed));
         }
         self.traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
         let parts = read_buffers(&gpu.device, &gpu.queue, &ranges).await?;
         let mut parts = parts.into_iter();
-        let listed = first_word(&parts.next().unwrap_or_default()).unwrap_or(0) as u64;
+        let counts = parts.next().unwrap_or_default();
+        let listed = first_word(&counts).unwrap_or(0) as u64;
+        let total = counts.get(4..).and_then(first_word).unwrap_or(0);
         *self.exact_tests.get_or_insert(0) += listed;
-        let total = if last { first_word(&parts.next().unwrap_or_default()).unwrap_or(0) } else { 0 };
         if let (Some(t), Some(bytes)) = (self.timer.as_mut(), parts.next()) {
             self.gpu_ms += t.finish(&gpu.queue, &bytes);
         }

@@ -197,6 +197,15 @@ impl GpuVoxelizer {
         }
     }
 
+    /// Compiles the pipelines a grid of `mode` read back from leaves needs (`gpu/sparse.rs`), which are otherwise
+    /// made on first use; clients that time opening apart from voxelizing call it when they open.
+    pub fn prepare_leaves(&self, gpu: &Gpu, mode: Mode) {
+        if mode != Mode::Solid {
+            let thin = mode == Mode::Surface6;
+            self.leaves[thin as usize].get_or_init(|| super::sparse::LeafPipelines::new(&gpu.device, self, thin));
+        }
+    }
+
     pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {
         self.compactor.get_or_init(|| Compactor::new(gpu))
     }

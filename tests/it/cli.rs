@@ -191,6 +191,14 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
         return;
     }
     let g = stats(&gpu);
+    // Where the time and the bytes went: the triangles uploaded once (one brick), the leaves read back (less
+    // than the dense grid's 32 KiB), the host's share of the time.
+    let triangles = g["triangles"].as_u64().expect("triangles");
+    assert_eq!(g["upload_bytes"].as_u64(), Some(triangles * 36), "{g}");
+    let back = g["readback_bytes"].as_u64().expect("readback_bytes");
+    assert!(back > 0 && back < 64 * 64 * 64 / 8, "{g}");
+    let (host, total, passes) = (g["host_ms"].as_f64(), g["voxelize_ms"].as_f64(), g["gpu_ms"].as_f64());
+    assert!(host.zip(total).is_some_and(|(h, t)| h > 0.0 && h <= t && h >= t - passes.unwrap_or(0.0) - 1e-6), "{g}");
     let software = g["backend"].as_str().is_some_and(|b| b.contains("llvmpipe") || b.contains("SwiftShader"));
     // The probe's path: a job the cost model would send to the CPU anyway is probed with MESHVOX_AUTO_PROBE=1.
     let auto = stats(&meshvox_env(&args("auto"), dir.path(), &[("MESHVOX_AUTO_PROBE", "1")]));
@@ -222,6 +230,8 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
         );
         assert_eq!(auto["setup_ms"].as_f64(), Some(0.0), "{auto}");
         assert_eq!(auto["voxels"], cpu["voxels"]);
+        assert!(cpu["upload_bytes"].is_null() && cpu["readback_bytes"].is_null(), "nothing crossed a bus: {cpu}");
+        assert_eq!(cpu["host_ms"].as_f64(), cpu["voxelize_ms"].as_f64(), "all of it on the host: {cpu}");
     }
     // A distance field of many voxels costs more on the CPU than opening a GPU would: the adapter is probed.
     let big = ["voxelize", "builtin:knot", "-r", "700", "--mode", "sdf", "-o", "k.npy", "--stats-json"];

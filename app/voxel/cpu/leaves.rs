@@ -26,39 +26,38 @@ pub fn run_bits(x0: u32, x1: u32) -> u32 {
     (0xff >> (7 - x1 % 8)) & (0xff << (x0 % 8))
 }
 
-/// Marks the leaves voxels `x0..=x1` of row `(y, z)` fall in.
-pub fn mark_leaves(table: &mut [u32], brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
+/// Gives a slot to each leaf voxels `x0..=x1` of row `(y, z)` fall in that has none yet (`table` holds slot + 1,
+/// 0 for none; `count` the slots given out): its mask cleared and its table index written. Past the last slot of
+/// `slots` the count goes on and nothing is written.
+pub fn mark_leaves(table: &mut [u32], slots: &mut [u32], count: &mut u32, brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
     let mut x = x0 - x0 % 8;
     while x <= x1 {
-        table[leaf_index(brick, UVec3::new(x, y, z)) as usize] = 1;
+        let i = leaf_index(brick, UVec3::new(x, y, z));
+        if table[i as usize] == 0 {
+            let slot = *count;
+            *count += 1;
+            table[i as usize] = slot + 1;
+            if slot < slots.len() as u32 / SLOT_WORDS {
+                let base = (slot * SLOT_WORDS) as usize;
+                slots[base..base + 16].fill(0);
+                slots[base + 16] = i;
+            }
+        }
         x += 8;
     }
 }
 
-/// Sets voxels `x0..=x1` of row `(y, z)` in their leaves' slots (`slots` starts at the first slot; `table` holds
-/// each leaf's slot).
+/// Sets voxels `x0..=x1` of row `(y, z)` in their leaves' slots.
 pub fn set_leaf_run(table: &[u32], slots: &mut [u32], brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
     let r = row_byte(y, z);
     let mut x = x0 - x0 % 8;
     while x <= x1 {
-        let slot = table[leaf_index(brick, UVec3::new(x, y, z)) as usize];
-        let word = (slot * SLOT_WORDS + r / 4) as usize;
-        slots[word] |= run_bits(x0.max(x), x1.min(x + 7)) << (r % 4 * 8);
-        x += 8;
-    }
-}
-
-/// The pass after the scan: `table` holds each leaf's slot (an exclusive prefix sum of the marks) and `total` the
-/// marked leaves; each marked leaf clears its slot and writes its index into it.
-pub fn list_leaves(table: &[u32], total: u32, slots: &mut [u32]) {
-    for (i, &slot) in table.iter().enumerate() {
-        let next = table.get(i + 1).copied().unwrap_or(total);
-        if next == slot {
-            continue;
+        let slot = table[leaf_index(brick, UVec3::new(x, y, z)) as usize].wrapping_sub(1);
+        if slot < slots.len() as u32 / SLOT_WORDS {
+            let word = (slot * SLOT_WORDS + r / 4) as usize;
+            slots[word] |= run_bits(x0.max(x), x1.min(x + 7)) << (r % 4 * 8);
         }
-        let base = (slot * SLOT_WORDS) as usize;
-        slots[base..base + 16].fill(0);
-        slots[base + 16] = i as u32;
+        x += 8;
     }
 }
 
@@ -75,12 +74,13 @@ pub fn transpose_leaf(rows: [u32; 16]) -> [u32; 16] {
     out
 }
 
-/// Every slot's rows into OpenVDB's order.
-pub fn finish_leaves(slots: &mut [u32], total: u32) {
-    for slot in slots.chunks_exact_mut(SLOT_WORDS as usize).take(total as usize) {
+/// Every slot's rows into OpenVDB's order, and its leaf's table entry back to 0.
+pub fn finish_leaves(table: &mut [u32], slots: &mut [u32], count: u32) {
+    for slot in slots.chunks_exact_mut(SLOT_WORDS as usize).take(count as usize) {
         let mut rows = [0u32; 16];
         rows.copy_from_slice(&slot[..16]);
         slot[..16].copy_from_slice(&transpose_leaf(rows));
+        table[slot[16] as usize] = 0;
     }
 }
 
@@ -100,25 +100,20 @@ pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafM
     }
 }
 
-/// The GPU's chain for one brick, on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
+/// The GPU's chain for one brick (with a slot for every leaf), on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
 /// walk, handing each run of voxels to `sink(x0, x1, y, z)`. It runs twice, as on the GPU: to mark (`mark` true:
 /// unsure voxels are handed over as runs of one, undecided), then to write (the exact decisions included).
 pub fn brick_leaves(brick: &Brick, mut walk: impl FnMut(bool, &mut dyn FnMut(u32, u32, u32, u32))) -> Vec<(u64, LeafMask)> {
     let size = (brick.hi - brick.lo) / 8;
-    let mut table = vec![0u32; (size.x * size.y * size.z) as usize];
-    walk(true, &mut |x0, x1, y, z| mark_leaves(&mut table, brick, x0, x1, y, z));
-    // The scan: exclusive prefix sums of the marks.
-    let mut total = 0;
-    for entry in &mut table {
-        let mark = *entry;
-        *entry = total;
-        total += mark;
-    }
-    let mut slots = vec![0u32; (total * SLOT_WORDS) as usize];
-    list_leaves(&table, total, &mut slots);
+    let leaves = (size.x * size.y * size.z) as usize;
+    let mut table = vec![0u32; leaves];
+    let mut slots = vec![0u32; leaves * SLOT_WORDS as usize];
+    let mut count = 0;
+    walk(true, &mut |x0, x1, y, z| mark_leaves(&mut table, &mut slots, &mut count, brick, x0, x1, y, z));
     walk(false, &mut |x0, x1, y, z| set_leaf_run(&table, &mut slots, brick, x0, x1, y, z));
-    finish_leaves(&mut slots, total);
-    let mut leaves = Vec::new();
-    slot_leaves(brick, &slots, |key, mask| leaves.push((key, mask)));
-    leaves
+    finish_leaves(&mut table, &mut slots, count);
+    debug_assert!(table.iter().all(|&e| e == 0), "finish_leaves leaves the table clean");
+    let mut out = Vec::new();
+    slot_leaves(brick, &slots[..(count * SLOT_WORDS) as usize], |key, mask| out.push((key, mask)));
+    out
 }
