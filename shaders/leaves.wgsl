@@ -4,11 +4,11 @@
 //
 // A sparse run cuts the grid into bricks whose leaf table fits one binding. Per brick, in `grid`:
 //   words [0, table_leaves)   the leaf table, one word per leaf of the brick (x-major: leaf_index): 0 for a leaf
-//                             without a slot, else its slot + 1
+//                             without a slot, else CLAIMED | its slot
 //   words from slot_base      one slot of SLOT_WORDS per occupied leaf: 16 mask words, then the leaf's table index
 // and `unsure_count[1]` counts the slots given out. The passes, over the brick's triangles:
 //   voxelize (MARK)           the surface walk; the first run (or unsure voxel) to touch a leaf gives it the next
-//                             slot (mark_leaves: one compare-exchange claims the leaf, one atomicAdd the slot)
+//                             slot (mark_leaves: an atomicOr claims the leaf, an atomicAdd gives the slot)
 //   voxelize, exact (SPARSE)  the walk and the exact pass again, writing runs into the slots (set_leaf_run)
 //   prepare_finish            the finish pass's dispatch size from the slot count
 //   finish_leaves             each slot's rows turned into OpenVDB's mask order, and its table entry cleared, so
@@ -21,6 +21,8 @@
 // crosses); finish_leaves transposes them into OpenVDB's order, bit y * 8 + z of 64-bit word x (app/voxel/sparse.rs).
 
 const SLOT_WORDS: u32 = 17u;
+// A table entry's flag: the leaf has a slot, whose number is the entry's other bits.
+const CLAIMED: u32 = 0x80000000u;
 
 // The table index of the leaf holding voxel v, in the brick (x-major, so a brick's leaves come back sorted by
 // app/voxel/sparse.rs's leaf_key).
@@ -45,27 +47,13 @@ fn run_bits(x0: u32, x1: u32) -> u32 {
 fn mark_leaves(x0: u32, x1: u32, y: u32, z: u32) {
     for (var x = x0 - x0 % 8u; x <= x1; x += 8u) {
         let i = leaf_index(vec3<u32>(x, y, z));
-        if atomicLoad(&grid[i]) != 0u {
-            continue;
-        }
-        // The claim: only the invocation that turns 0 into the placeholder gives out a slot (a weak exchange may
-        // fail with 0 still there, so it is tried again).
-        var claimed = false;
-        loop {
-            let r = atomicCompareExchangeWeak(&grid[i], 0u, 0xffffffffu);
-            if r.exchanged {
-                claimed = true;
-                break;
-            }
-            if r.old_value != 0u {
-                break;
-            }
-        }
-        if !claimed {
+        // The claim: the one invocation that finds the flag clear gives out the slot, and ORs it in beside the
+        // flag (no loop, which CPU implementations of WebGPU run for every lane).
+        if atomicLoad(&grid[i]) != 0u || atomicOr(&grid[i], CLAIMED) != 0u {
             continue;
         }
         let slot = atomicAdd(&unsure_count[1], 1u);
-        atomicStore(&grid[i], slot + 1u);
+        atomicOr(&grid[i], slot);
         if slot < params.slots {
             let base = params.slot_base + slot * SLOT_WORDS;
             for (var w = 0u; w < 16u; w++) {
@@ -80,7 +68,7 @@ fn mark_leaves(x0: u32, x1: u32, y: u32, z: u32) {
 fn set_leaf_run(x0: u32, x1: u32, y: u32, z: u32) {
     let r = row_byte(y, z);
     for (var x = x0 - x0 % 8u; x <= x1; x += 8u) {
-        let slot = atomicLoad(&grid[leaf_index(vec3<u32>(x, y, z))]) - 1u;
+        let slot = atomicLoad(&grid[leaf_index(vec3<u32>(x, y, z))]) & ~CLAIMED;
         if slot >= params.slots {
             continue;
         }

@@ -212,7 +212,8 @@ impl OnGpu {
     }
 
     /// Compiles what `job` needs beyond the pipelines every job uses (a surface's leaf passes), so that opening
-    /// holds it and the job's `voxelize_ms` does not.
+    /// holds it and the job's `voxelize_ms` does not. (The browser opens no engine per job.)
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(super) fn prepare(&self, job: &Job<'_>) {
         if !job.request.instances {
             self.voxelizer().prepare_leaves(&self.gpu, job.request.mode.grid_mode());

@@ -184,7 +184,9 @@ impl<'a> Run<'a> {
             unsure_entries,
             buffers,
             // A sparse run makes its grid (sparse or dense) from the leaves at the end.
-            grid: (options.read_grid && !options.sparse && sparse.is_none()).then(|| VoxelGrid::new(spec)).transpose()?,
+            grid: (options.read_grid && !options.sparse && sparse.is_none())
+                .then(|| VoxelGrid::new(spec))
+                .transpose()?,
             leaves: (options.sparse && sparse.is_none()).then(LeafSet::default),
             sparse,
             brick: None,

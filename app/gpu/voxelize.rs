@@ -28,15 +28,8 @@ pub const VOXELIZE_WGSL: &str = concat!(
 
 /// The files [`VOXELIZE_WGSL`] is joined from, in order, relative to `shaders/` (module-scope declarations in WGSL
 /// may come in any order, so each file uses what the others declare).
-pub const VOXELIZE_PARTS: [&str; 7] = [
-    "shared/common.wgsl",
-    "shared/items.wgsl",
-    "exact.wgsl",
-    "surface.wgsl",
-    "scan.wgsl",
-    "thin.wgsl",
-    "leaves.wgsl",
-];
+pub const VOXELIZE_PARTS: [&str; 7] =
+    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "surface.wgsl", "scan.wgsl", "thin.wgsl", "leaves.wgsl"];
 
 /// Bytes of one `TriangleSetup` in the shader (the validation test checks this against naga's layout).
 pub const SETUP_BYTES: u64 = 256;

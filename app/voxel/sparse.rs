@@ -283,7 +283,13 @@ impl Brick {
         let grid = dims.map(|d| d.div_ceil(LEAF_DIM).max(1));
         let mut size = grid;
         while size.as_u64vec3().element_product() > max_leaves.max(1) {
-            let k = if size.x >= size.y && size.x >= size.z { 0 } else if size.y >= size.z { 1 } else { 2 };
+            let k = if size.x >= size.y && size.x >= size.z {
+                0
+            } else if size.y >= size.z {
+                1
+            } else {
+                2
+            };
             size[k] = size[k].div_ceil(2);
         }
         let count = (grid + size - 1) / size;

@@ -399,7 +399,9 @@ fn the_leaf_chain_mirror_gives_the_sparse_walks_leaves_brick_by_brick() {
     use meshvox::voxel::sparse::Brick;
     let mut cases: Vec<(String, Vec<[glam::Vec3; 3]>, GridSpec)> = hard_cases()
         .into_iter()
-        .map(|(name, tris, dims)| (name.to_string(), tris, GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims }))
+        .map(|(name, tris, dims)| {
+            (name.to_string(), tris, GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims })
+        })
         .collect();
     for name in ["builtin:knot", "builtin:torus", "builtin:sphere"] {
         let mesh = meshvox::mesh::load(name).expect("mesh");
@@ -409,12 +411,14 @@ fn the_leaf_chain_mirror_gives_the_sparse_walks_leaves_brick_by_brick() {
     for (name, tris, spec) in &cases {
         let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
         let setups: Vec<_> = tris.iter().map(|&t| setup_triangle(t, spec.dims, lattice)).collect();
-        let (expected, _) = voxelize_grid_space_sparse(&tris, *spec, Mode::Surface, &|_, _| {}, &AtomicBool::new(false))
-            .expect("sparse");
+        let (expected, _) =
+            voxelize_grid_space_sparse(&tris, *spec, Mode::Surface, &|_, _| {}, &AtomicBool::new(false))
+                .expect("sparse");
         for max_leaves in [1, 7, 64, u64::MAX] {
             let mut leaves = Vec::new();
             for brick in Brick::tiling(spec.dims, max_leaves).1 {
-                let inside = |y: u32, z: u32| (brick.lo.y..brick.hi.y).contains(&y) && (brick.lo.z..brick.hi.z).contains(&z);
+                let inside =
+                    |y: u32, z: u32| (brick.lo.y..brick.hi.y).contains(&y) && (brick.lo.z..brick.hi.z).contains(&z);
                 leaves.extend(brick_leaves(&brick, |mark, sink| {
                     let mut cut = |x0: u32, x1: u32, y: u32, z: u32| {
                         let (x0, x1) = (x0.max(brick.lo.x), x1.min(brick.hi.x - 1));

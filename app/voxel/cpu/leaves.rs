@@ -9,6 +9,9 @@ use glam::UVec3;
 /// Words of one slot: the leaf's 16 mask words, then its table index.
 pub const SLOT_WORDS: u32 = 17;
 
+/// A table entry's flag: the leaf has a slot, whose number is the entry's other bits.
+pub const CLAIMED: u32 = 0x8000_0000;
+
 /// The table index of the leaf holding voxel `v` in `brick` (x-major).
 pub fn leaf_index(brick: &Brick, v: UVec3) -> u32 {
     let size = (brick.hi - brick.lo) / 8;
@@ -26,17 +29,28 @@ pub fn run_bits(x0: u32, x1: u32) -> u32 {
     (0xff >> (7 - x1 % 8)) & (0xff << (x0 % 8))
 }
 
-/// Gives a slot to each leaf voxels `x0..=x1` of row `(y, z)` fall in that has none yet (`table` holds slot + 1,
-/// 0 for none; `count` the slots given out): its mask cleared and its table index written. Past the last slot of
-/// `slots` the count goes on and nothing is written.
-pub fn mark_leaves(table: &mut [u32], slots: &mut [u32], count: &mut u32, brick: &Brick, x0: u32, x1: u32, y: u32, z: u32) {
+/// Gives a slot to each leaf voxels `x0..=x1` of row `(y, z)` fall in that has none yet (`table` holds
+/// `CLAIMED | slot`, 0 for none; `count` the slots given out): its mask cleared and its table index written. Past the last slot of
+/// `slots` the count goes on and nothing is written. (The shader's arguments, plus the bindings it reaches.)
+#[allow(clippy::too_many_arguments)]
+pub fn mark_leaves(
+    table: &mut [u32],
+    slots: &mut [u32],
+    count: &mut u32,
+    brick: &Brick,
+    x0: u32,
+    x1: u32,
+    y: u32,
+    z: u32,
+) {
     let mut x = x0 - x0 % 8;
     while x <= x1 {
         let i = leaf_index(brick, UVec3::new(x, y, z));
         if table[i as usize] == 0 {
+            table[i as usize] |= CLAIMED;
             let slot = *count;
             *count += 1;
-            table[i as usize] = slot + 1;
+            table[i as usize] |= slot;
             if slot < slots.len() as u32 / SLOT_WORDS {
                 let base = (slot * SLOT_WORDS) as usize;
                 slots[base..base + 16].fill(0);
@@ -52,7 +66,7 @@ pub fn set_leaf_run(table: &[u32], slots: &mut [u32], brick: &Brick, x0: u32, x1
     let r = row_byte(y, z);
     let mut x = x0 - x0 % 8;
     while x <= x1 {
-        let slot = table[leaf_index(brick, UVec3::new(x, y, z)) as usize].wrapping_sub(1);
+        let slot = table[leaf_index(brick, UVec3::new(x, y, z)) as usize] & !CLAIMED;
         if slot < slots.len() as u32 / SLOT_WORDS {
             let word = (slot * SLOT_WORDS + r / 4) as usize;
             slots[word] |= run_bits(x0.max(x), x1.min(x + 7)) << (r % 4 * 8);
@@ -103,7 +117,10 @@ pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafM
 /// The GPU's chain for one brick (with a slot for every leaf), on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
 /// walk, handing each run of voxels to `sink(x0, x1, y, z)`. It runs twice, as on the GPU: to mark (`mark` true:
 /// unsure voxels are handed over as runs of one, undecided), then to write (the exact decisions included).
-pub fn brick_leaves(brick: &Brick, mut walk: impl FnMut(bool, &mut dyn FnMut(u32, u32, u32, u32))) -> Vec<(u64, LeafMask)> {
+pub fn brick_leaves(
+    brick: &Brick,
+    mut walk: impl FnMut(bool, &mut dyn FnMut(u32, u32, u32, u32)),
+) -> Vec<(u64, LeafMask)> {
     let size = (brick.hi - brick.lo) / 8;
     let leaves = (size.x * size.y * size.z) as usize;
     let mut table = vec![0u32; leaves];
