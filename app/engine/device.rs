@@ -216,7 +216,7 @@ impl OnGpu {
     #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(super) fn prepare(&self, job: &Job<'_>) {
         if !job.request.instances {
-            self.voxelizer().prepare_leaves(&self.gpu, job.request.mode.grid_mode());
+            self.voxelizer().prepare_leaves(&self.gpu, job.request.mode.grid_mode(), job.sparse);
         }
     }
 

@@ -49,11 +49,13 @@ impl LeafPipelines {
     }
 }
 
-/// Whether a run makes its grid from leaves: surface and surface6 grids read back (sparse, or dense without a
-/// voxel list). The solid's crossing lists span whole rows of the grid, so it keeps the slab path, and a voxel list
-/// for drawing is compacted from the slab.
-pub(super) fn uses_leaves(options: &Options) -> bool {
-    options.mode != Mode::Solid && (options.sparse || (options.read_grid && !options.instances))
+/// Whether a run makes its grid from leaves: surface and surface6 grids read back, sparse, or dense without a voxel
+/// list where [`Options::dense_from_leaves`] says so. The solid's crossing lists span whole rows of the grid, so it
+/// keeps the slab path, and a voxel list for drawing is compacted from the slab.
+pub(super) fn uses_leaves(gpu: &Gpu, options: &Options) -> bool {
+    let dense =
+        options.read_grid && !options.instances && options.dense_from_leaves.unwrap_or(!gpu.summary.is_software());
+    options.mode != Mode::Solid && (options.sparse || dense)
 }
 
 /// How a sparse run is cut: the bricks, and the one buffer each brick's table and slots share.
@@ -77,7 +79,7 @@ impl SparsePlan {
     /// The plan of a run that [`uses_leaves`]: bricks whose table is an eighth of one binding (or of
     /// `max_slab_bytes`, which the tests lower to force many bricks), the rest of the binding for slots.
     pub(super) fn for_run(gpu: &Gpu, spec: GridSpec, options: &Options) -> Option<SparsePlan> {
-        if !uses_leaves(options) {
+        if !uses_leaves(gpu, options) {
             return None;
         }
         let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());

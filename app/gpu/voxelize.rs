@@ -91,6 +91,10 @@ pub struct Options {
     /// many times its error bound (default 2: the GPU's error and the CPU's); other rows are filled on the host.
     /// Tests raise it to send rows to the host on purpose.
     pub solid_margin: Option<f32>,
+    /// Make a dense surface grid from leaves (`gpu/sparse.rs`: only the occupied leaves cross the bus) instead of
+    /// dense slabs. Default: on hardware adapters. On a software one (lavapipe) there is no bus to spare, and the
+    /// leaves' second walk costs more than the copy it saves (bench/RESULTS.md).
+    pub dense_from_leaves: Option<bool>,
 }
 
 /// What a GPU voxelization produced.
@@ -191,9 +195,11 @@ impl GpuVoxelizer {
     }
 
     /// Compiles the pipelines a grid of `mode` read back from leaves needs (`gpu/sparse.rs`), which are otherwise
-    /// made on first use; clients that time opening apart from voxelizing call it when they open.
-    pub fn prepare_leaves(&self, gpu: &Gpu, mode: Mode) {
-        if mode != Mode::Solid {
+    /// made on first use; clients that time opening apart from voxelizing call it when they open (`sparse`: the
+    /// grid is sparse, else dense by the default of [`Options::dense_from_leaves`]).
+    pub fn prepare_leaves(&self, gpu: &Gpu, mode: Mode, sparse: bool) {
+        let options = Options { mode, sparse, read_grid: true, ..Default::default() };
+        if super::sparse::uses_leaves(gpu, &options) {
             let thin = mode == Mode::Surface6;
             self.leaves[thin as usize].get_or_init(|| super::sparse::LeafPipelines::new(&gpu.device, self, thin));
         }

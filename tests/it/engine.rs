@@ -62,9 +62,17 @@ fn the_cli_writes_what_the_public_api_writes() {
             // The report: every field but the times and what only writing knows.
             let mut report = serde_json::to_value(&result.report).expect("a report serializes");
             let mut stats = stats;
-            for key in
-                ["load_ms", "voxelize_ms", "colour_ms", "write_ms", "output", "format", "bytes", "colours_output"]
-            {
+            for key in [
+                "load_ms",
+                "voxelize_ms",
+                "colour_ms",
+                "host_ms",
+                "write_ms",
+                "output",
+                "format",
+                "bytes",
+                "colours_output",
+            ] {
                 report[key] = serde_json::Value::Null;
                 stats[key] = serde_json::Value::Null;
             }

@@ -373,7 +373,8 @@ fn small_device_limits_refuse_cleanly_or_work_in_slabs() {
     let too_big = GridSpec::fit(bounds, Resolution::Count(1200), Axis::Longest).expect("spec");
     assert!(too_big.words_per_row() as u64 * 4 * too_big.dims.y as u64 > 64 << 10, "a layer exceeds a binding");
     let tris = voxelize::grid_space_triangles(&mesh, &too_big).expect("grid space");
-    let out = v.voxelize(&small, &tris, too_big, &options).expect("a surface from leaves");
+    let leaves = Options { dense_from_leaves: Some(true), ..options.clone() };
+    let out = v.voxelize(&small, &tris, too_big, &leaves).expect("a surface from leaves");
     assert!(out.slabs > 100, "{} bricks", out.slabs);
     assert_same_grid(&out.grid.expect("grid"), &cpu_grid(&tris, too_big), "knot@1200 on 64 KiB buffers");
     let e = v.voxelize(&small, &tris, too_big, &solid).err().expect("one layer cannot fit");
@@ -453,7 +454,8 @@ fn occupied_leaves(grid: &meshvox::voxel::SparseGrid) -> u64 {
 /// cases and every mesh, in surface and surface6 with the adapter's limits, and in surface with tiny ones (a 2 KiB stand-in
 /// binding: bricks of 4³ leaves with 26 slots, so most bricks a surface crosses are cut in eight and run again),
 /// and with triangles in batches of 7. What comes back is the occupied leaves (68 bytes each) and a few counters
-/// per brick: `readback_bytes` is held to the leaf count, so a return to dense slabs fails here.
+/// per brick: `readback_bytes` is held to the leaf count, so a return to dense slabs fails here. Dense grids made
+/// from the same leaves equal the CPU's too.
 #[test]
 fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_the_leaves() {
     let Some((gpu, v)) = gpu() else { return };
@@ -489,6 +491,10 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
                     out.slabs
                 );
                 assert!(out.traffic.readback >= leaves * 68, "{what}: every leaf came back");
+                // The dense grid scattered from the same leaves (the default on hardware adapters).
+                let dense = Options { sparse: false, dense_from_leaves: Some(true), ..options };
+                let grid = v.voxelize(gpu, tris, *s, &dense).unwrap_or_else(|e| panic!("{name}: {e}")).grid;
+                assert!(grid == Some(cpu.to_dense().expect("dense")), "{what}: the dense grid from leaves differs");
                 let tiling = meshvox::voxel::sparse::Brick::tiling(s.dims, 64).1.len() as u32;
                 split |= limits == "tiny" && out.slabs > tiling;
             }
