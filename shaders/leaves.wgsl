@@ -23,6 +23,9 @@
 const SLOT_WORDS: u32 = 17u;
 // A table entry's flag: the leaf has a slot, whose number is the entry's other bits.
 const CLAIMED: u32 = 0x80000000u;
+// A dense grid is scattered from the slots' row bytes as they are (one byte of the grid each), so its finish pass
+// leaves them untransposed.
+override ROW_BYTES: bool = false;
 
 // The table index of the leaf holding voxel v, in the brick (x-major, so a brick's leaves come back sorted by
 // app/voxel/sparse.rs's leaf_key).
@@ -99,7 +102,8 @@ fn transpose_leaf(rows: array<u32, 16>) -> array<u32, 16> {
     return out;
 }
 
-// One invocation per slot: the slot's rows into OpenVDB's order, and its leaf's table entry back to 0.
+// One invocation per slot: the slot's rows into OpenVDB's order (for a sparse grid), and its leaf's table entry
+// back to 0.
 @compute @workgroup_size(64)
 fn finish_leaves(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                  @builtin(num_workgroups) groups: vec3<u32>) {
@@ -112,9 +116,11 @@ fn finish_leaves(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     for (var w = 0u; w < 16u; w++) {
         rows[w] = atomicLoad(&grid[base + w]);
     }
-    let mask = transpose_leaf(rows);
-    for (var w = 0u; w < 16u; w++) {
-        atomicStore(&grid[base + w], mask[w]);
+    if !ROW_BYTES {
+        let mask = transpose_leaf(rows);
+        for (var w = 0u; w < 16u; w++) {
+            atomicStore(&grid[base + w], mask[w]);
+        }
     }
     atomicStore(&grid[atomicLoad(&grid[base + 16u])], 0u);
 }

@@ -14,10 +14,10 @@ use super::run::{Batch, Run};
 use super::util::{pipeline_with, scoped};
 use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, Params};
 use super::{Gpu, GpuError};
-use crate::voxel::cpu::leaves::{SLOT_WORDS, slot_leaves};
+use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
-use crate::voxel::{GridSpec, Mode};
+use crate::voxel::{GridSpec, Mode, VoxelGrid};
 use glam::{UVec3, Vec3};
 use std::collections::VecDeque;
 
@@ -29,6 +29,8 @@ pub(super) struct LeafPipelines {
     exact: wgpu::ComputePipeline,
     prepare_finish: wgpu::ComputePipeline,
     finish_leaves: wgpu::ComputePipeline,
+    /// `finish_leaves` for a dense grid: the rows stay bytes, scattered into the grid as they are.
+    finish_rows: wgpu::ComputePipeline,
 }
 
 impl LeafPipelines {
@@ -39,12 +41,14 @@ impl LeafPipelines {
             let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", 1.0)];
             pipeline_with(device, &v.module, &one, entry, &constants)
         };
+        let rows = [("SPARSE", 1.0), ("ROW_BYTES", 1.0)];
         LeafPipelines {
             mark: with("voxelize", 1.0),
             walk: with("voxelize", 0.0),
             exact: with("exact", 0.0),
             prepare_finish: pipeline_with(device, &v.module, &two, "prepare_finish", &[("SPARSE", 1.0)]),
             finish_leaves: with("finish_leaves", 0.0),
+            finish_rows: pipeline_with(device, &v.module, &one, "finish_leaves", &rows),
         }
     }
 }
@@ -159,11 +163,16 @@ impl Run<'_> {
             plan.bricks.iter().copied().zip(bins).filter(|(_, bin)| !bin.is_empty()).collect();
         self.sparse = Some(plan);
         let mut leaves: Vec<(u64, LeafMask)> = Vec::new();
+        // A dense grid takes the slots' rows as they come; a sparse one their masks.
+        let mut dense = match self.options.sparse {
+            false => Some(VoxelGrid::new(self.spec)?),
+            true => None,
+        };
         let mut bricks = 0;
         while let Some((brick, bin)) = queue.pop_front() {
             bricks += 1;
             let chunk: Vec<[Vec3; 3]> = bin.iter().map(|&t| triangles[t as usize]).collect();
-            match self.brick(pipelines, brick, &chunk, &mut leaves).await? {
+            match self.brick(pipelines, brick, &chunk, &mut leaves, dense.as_mut()).await? {
                 BrickEnd::Done => {}
                 BrickEnd::Overflow => return Ok(Attempt::Overflow),
                 BrickEnd::Split => {
@@ -184,15 +193,17 @@ impl Run<'_> {
             }
         }
         self.slabs = bricks;
-        crate::parallel::install(|| {
-            use rayon::slice::ParallelSliceMut;
-            leaves.par_sort_unstable_by_key(|(key, _)| *key)
-        });
-        let sparse = SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }.prune();
-        let (grid, sparse) = match self.options.sparse {
-            true => (None, Some(Box::new(sparse))),
-            false => (self.options.read_grid.then(|| sparse.to_dense()).transpose()?, None),
+        let sparse = match dense {
+            Some(_) => None,
+            None => {
+                crate::parallel::install(|| {
+                    use rayon::slice::ParallelSliceMut;
+                    leaves.par_sort_unstable_by_key(|(key, _)| *key)
+                });
+                Some(Box::new(SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }.prune()))
+            }
         };
+        let grid = dense;
         Ok(Attempt::Done(GpuOutput {
             grid,
             sparse,
@@ -214,6 +225,7 @@ impl Run<'_> {
         brick: Brick,
         chunk: &[[Vec3; 3]],
         leaves: &mut Vec<(u64, LeafMask)>,
+        mut dense: Option<&mut VoxelGrid>,
     ) -> Result<BrickEnd, GpuError> {
         self.brick = Some(brick);
         let batches: Vec<&[[Vec3; 3]]> = chunk.chunks(self.batch).collect();
@@ -249,7 +261,10 @@ impl Run<'_> {
         self.traffic.readback += bytes;
         let slot = SLOT_WORDS as u64 * 4;
         stream_buffer(&gpu.device, &gpu.queue, &self.v.streams, &self.buffers.slab, start, bytes, slot, |_, part| {
-            slot_leaves(&brick, bytemuck::cast_slice(part), |key, mask| leaves.push((key, mask)));
+            match dense.as_deref_mut() {
+                Some(grid) => scatter_rows(&brick, bytemuck::cast_slice(part), grid),
+                None => slot_leaves(&brick, bytemuck::cast_slice(part), |key, mask| leaves.push((key, mask))),
+            }
         })
         .await?;
         Ok(BrickEnd::Done)
@@ -290,7 +305,7 @@ impl Run<'_> {
     /// The walk and the exact pass in `SPARSE` mode over one batch, writing into the slots; after the last batch,
     /// `finish_leaves` puts each slot's mask in OpenVDB's order.
     async fn write_brick(&mut self, pipelines: &LeafPipelines, batch: Batch, last: bool) -> Result<(), GpuError> {
-        let (gpu, v) = (self.gpu, self.v);
+        let (gpu, v, dense) = (self.gpu, self.v, !self.options.sparse);
         let params = self.params(batch, 0, 0);
         let (b, timer) = (&self.buffers, &mut self.timer);
         scoped(&gpu.device, || {
@@ -328,7 +343,7 @@ impl Run<'_> {
                     timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
                 });
                 pass.set_bind_group(0, &b.bind, &[]);
-                pass.set_pipeline(&pipelines.finish_leaves);
+                pass.set_pipeline(if dense { &pipelines.finish_rows } else { &pipelines.finish_leaves });
                 pass.dispatch_workgroups_indirect(&b.dispatch, 24);
             }
             gpu.queue.submit([encoder.finish()]);

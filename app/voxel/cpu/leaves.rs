@@ -114,6 +114,27 @@ pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafM
     }
 }
 
+/// Scatters finished slots whose rows were left as bytes (a dense grid's: `ROW_BYTES` in the shader) into `grid`:
+/// row byte `y * 8 + z` of a leaf holds its voxels `x0..x0 + 8` of row `(y, z)`, which is one byte of the grid's
+/// row (`x0` is a multiple of 8), so each is one OR.
+pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::VoxelGrid) {
+    let size = (brick.hi - brick.lo) / 8;
+    let (dims, wpr) = (grid.spec.dims, grid.spec.words_per_row());
+    for slot in slots.chunks_exact(SLOT_WORDS as usize) {
+        let i = slot[16];
+        let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
+        let origin = brick.lo + l * 8;
+        for r in 0..64u32 {
+            let byte = slot[(r / 4) as usize] >> (r % 4 * 8) & 0xff;
+            let (y, z) = (origin.y + r / 8, origin.z + r % 8);
+            if byte != 0 && y < dims.y && z < dims.z {
+                let word = (z as usize * dims.y as usize + y as usize) * wpr + (origin.x / 32) as usize;
+                grid.words[word] |= byte << (origin.x % 32);
+            }
+        }
+    }
+}
+
 /// The GPU's chain for one brick (with a slot for every leaf), on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
 /// walk, handing each run of voxels to `sink(x0, x1, y, z)`. It runs twice, as on the GPU: to mark (`mark` true:
 /// unsure voxels are handed over as runs of one, undecided), then to write (the exact decisions included).
