@@ -4,6 +4,7 @@
 pub mod colour;
 pub mod compact;
 pub mod distance;
+mod plan;
 mod readback;
 mod run;
 pub mod solid;
@@ -12,9 +13,9 @@ mod util;
 pub mod voxelize;
 
 pub use readback::watchdog;
-pub use run::Traffic;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+pub use voxelize::Traffic;
 
 /// Devices [`Gpu::from_adapter_with_limits`] has opened in this process.
 static DEVICES_OPENED: AtomicUsize = AtomicUsize::new(0);

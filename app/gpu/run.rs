@@ -16,7 +16,7 @@ use super::readback::{PassTimer, first_word, read_buffer, read_buffers, stream_b
 use super::solid::SolidRun;
 use super::util::{pipeline_with, scoped, storage_buffer};
 use super::voxelize::{
-    Attempt, GpuOutput, GpuVoxelizer, Options, Params, SCAN_WG, SETUP_BYTES, TRIANGLE_BYTES, UNSURE_BYTES,
+    Attempt, GpuOutput, GpuVoxelizer, Options, Params, SCAN_WG, SETUP_BYTES, TRIANGLE_BYTES, Traffic, UNSURE_BYTES,
     UNSURE_ENTRIES, WG, slab_plan,
 };
 use super::{Gpu, GpuError, dispatch_2d};
@@ -50,13 +50,6 @@ pub(super) struct Batch {
     pub(super) block_count: u32,
 }
 
-/// Bytes that crossed the bus each way, for the stats: what bounds a run on a discrete GPU.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Traffic {
-    pub upload: u64,
-    pub readback: u64,
-}
-
 /// One z-slab: layers `z0..z1`, `words` grid words.
 #[derive(Clone, Copy)]
 pub(super) struct SlabRange {
@@ -83,7 +76,7 @@ pub(super) struct Run<'a> {
     pub(super) unsure_entries: u64,
     pub(super) buffers: Buffers,
     /// A sparse run's plan and the brick being voxelized (`gpu/sparse.rs`); the walk's box is then the brick's.
-    pub(super) sparse: Option<super::sparse::SparsePlan>,
+    pub(super) sparse: Option<super::plan::SparsePlan>,
     pub(super) brick: Option<crate::voxel::sparse::Brick>,
     pub(super) traffic: Traffic,
     pub(super) grid: Option<VoxelGrid>,
@@ -114,7 +107,7 @@ impl<'a> Run<'a> {
         let limit = gpu.max_binding_bytes();
         let wpr = spec.words_per_row() as u64;
         let layer_bytes = wpr * 4 * spec.dims.y as u64;
-        let sparse = super::sparse::SparsePlan::for_run(gpu, spec, options);
+        let sparse = super::plan::SparsePlan::for_run(gpu, spec, options);
         let (slab_layers, slabs, slab_bytes) = match &sparse {
             Some(plan) => (spec.dims.z, 1, plan.buffer_bytes),
             None => {
@@ -206,7 +199,8 @@ impl<'a> Run<'a> {
     /// The shader's parameters for `batch` and the layers `z0..z1` (a sparse run's brick instead, when one is set).
     pub(super) fn params(&self, batch: Batch, z0: u32, z1: u32) -> Params {
         if let (Some(brick), Some(plan)) = (self.brick, &self.sparse) {
-            return plan.params(self.spec, brick, batch, self.wpr as u32, self.lattice_scale);
+            let counts = (batch.tri_count, batch.block_count);
+            return plan.params(self.spec, brick, counts, self.wpr as u32, self.lattice_scale);
         }
         Params {
             dims: self.spec.dims.to_array(),

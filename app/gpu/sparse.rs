@@ -4,118 +4,22 @@
 //! read, and a triangle is walked only in the bricks its box meets. Dense surface grids are made the same way and
 //! scattered from the leaves, so what crosses the bus follows the surface, not the box.
 //!
-//! Steps, each named for what it does: [`SparsePlan::for_run`] sizes the bricks and the buffer, [`bin_triangles`]
+//! Steps, each named for what it does: [`SparsePlan::for_run`](super::plan::SparsePlan::for_run) sizes the bricks and the buffer, [`bin_triangles`]
 //! sorts the triangles into them, [`Run::voxelize_bricks`] runs the bricks (cutting one in eight whose leaves
 //! outnumber the slots), [`Run::mark_brick`], [`Run::write_brick`] and [`Run::brick_counts`] are the chain of one
 //! brick. The solid keeps the slab path (its crossing lists are per row of the whole grid).
 
+use super::GpuError;
 use super::readback::{first_word, read_buffers, stream_buffer};
 use super::run::{Batch, Run};
-use super::util::{pipeline_with, scoped};
-use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, Params};
-use super::{Gpu, GpuError};
+use super::util::scoped;
+use super::voxelize::{Attempt, GpuOutput, LeafPipelines};
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
-use crate::voxel::{GridSpec, Mode, VoxelGrid};
+use crate::voxel::{Mode, VoxelGrid};
 use glam::{UVec3, Vec3};
 use std::collections::VecDeque;
-
-/// The sparse chain's pipelines for one variant of the walk (thick or thin): the walk and exact pass with `MARK`
-/// or `SPARSE` set, and the finish passes.
-pub(super) struct LeafPipelines {
-    mark: wgpu::ComputePipeline,
-    walk: wgpu::ComputePipeline,
-    exact: wgpu::ComputePipeline,
-    prepare_finish: wgpu::ComputePipeline,
-    finish_leaves: wgpu::ComputePipeline,
-    /// `finish_leaves` for a dense grid: the rows stay bytes, scattered into the grid as they are.
-    finish_rows: wgpu::ComputePipeline,
-}
-
-impl LeafPipelines {
-    pub(super) fn new(device: &wgpu::Device, v: &GpuVoxelizer, thin: bool) -> LeafPipelines {
-        let (one, two) = ([Some(&v.layout)], [Some(&v.layout), Some(&v.dispatch_layout)]);
-        let thin = if thin { 1.0 } else { 0.0 };
-        let with = |entry: &str, mark: f64| {
-            let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", 1.0)];
-            pipeline_with(device, &v.module, &one, entry, &constants)
-        };
-        let rows = [("SPARSE", 1.0), ("ROW_BYTES", 1.0)];
-        LeafPipelines {
-            mark: with("voxelize", 1.0),
-            walk: with("voxelize", 0.0),
-            exact: with("exact", 0.0),
-            prepare_finish: pipeline_with(device, &v.module, &two, "prepare_finish", &[("SPARSE", 1.0)]),
-            finish_leaves: with("finish_leaves", 0.0),
-            finish_rows: pipeline_with(device, &v.module, &one, "finish_leaves", &rows),
-        }
-    }
-}
-
-/// Whether a run makes its grid from leaves: surface and surface6 grids read back, sparse, or dense without a voxel
-/// list where [`Options::dense_from_leaves`] says so. The solid's crossing lists span whole rows of the grid, so it
-/// keeps the slab path, and a voxel list for drawing is compacted from the slab.
-pub(super) fn uses_leaves(gpu: &Gpu, options: &Options) -> bool {
-    let dense =
-        options.read_grid && !options.instances && options.dense_from_leaves.unwrap_or(!gpu.summary.is_software());
-    options.mode != Mode::Solid && (options.sparse || dense)
-}
-
-/// How a sparse run is cut: the bricks, and the one buffer each brick's table and slots share.
-pub(crate) struct SparsePlan {
-    pub(super) bricks: Vec<Brick>,
-    /// Words of the largest brick's table; the slots start after it.
-    slot_base: u32,
-    /// Slots the buffer holds.
-    slots: u32,
-    pub(super) buffer_bytes: u64,
-    /// Whether the table may hold entries (a brick cut after its slots ran out leaves some): the next brick
-    /// clears it whole. `finish_leaves` clears the entries of the slots it finishes.
-    dirty: bool,
-}
-
-/// The most leaves a brick's table may have (16 M leaves, a 2048³ box): the table's clear, after a brick that ran
-/// out of slots, stays short.
-const MAX_TABLE: u64 = 1 << 24;
-
-impl SparsePlan {
-    /// The plan of a run that [`uses_leaves`]: bricks whose table is an eighth of one binding (or of
-    /// `max_slab_bytes`, which the tests lower to force many bricks), the rest of the binding for slots.
-    pub(super) fn for_run(gpu: &Gpu, spec: GridSpec, options: &Options) -> Option<SparsePlan> {
-        if !uses_leaves(gpu, options) {
-            return None;
-        }
-        let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
-        let words = (limit / 4).min(u32::MAX as u64);
-        let (_, bricks) = Brick::tiling(spec.dims, (words / 8).clamp(1, MAX_TABLE));
-        let table = bricks.iter().map(Brick::leaves).max().unwrap_or(1);
-        let slot_base = table.next_multiple_of(64);
-        let slots = (words.saturating_sub(slot_base) / SLOT_WORDS as u64).clamp(1, table);
-        let buffer_bytes = (slot_base + slots * SLOT_WORDS as u64) * 4;
-        Some(SparsePlan { bricks, slot_base: slot_base as u32, slots: slots as u32, buffer_bytes, dirty: false })
-    }
-
-    /// The shader's parameters for `batch` of `brick`'s triangles.
-    pub(super) fn params(&self, spec: GridSpec, brick: Brick, batch: Batch, wpr: u32, scale: f32) -> Params {
-        Params {
-            dims: spec.dims.to_array(),
-            tri_count: batch.tri_count,
-            words_per_row: wpr,
-            slab_z0: brick.lo.z,
-            slab_z1: brick.hi.z,
-            block_count: batch.block_count,
-            lattice_scale: scale,
-            table_leaves: brick.leaves() as u32,
-            slot_base: self.slot_base,
-            slots: self.slots,
-            brick_lo: brick.lo.to_array(),
-            _pad_lo: 0,
-            brick_hi: brick.hi.to_array(),
-            _pad_hi: 0,
-        }
-    }
-}
 
 /// The indices of the triangles whose voxel range meets each brick (triangles outside the grid in none).
 pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Brick]) -> Vec<Vec<u32>> {
@@ -157,7 +61,7 @@ impl Run<'_> {
         };
         let thin = self.options.mode == Mode::Surface6;
         let v = self.v;
-        let pipelines = v.leaves[thin as usize].get_or_init(|| LeafPipelines::new(&self.gpu.device, v, thin));
+        let pipelines = v.leaf_pipelines(self.gpu, thin);
         let bins = bin_triangles(triangles, self.spec.dims, &plan.bricks);
         let mut queue: VecDeque<(Brick, Vec<u32>)> =
             plan.bricks.iter().copied().zip(bins).filter(|(_, bin)| !bin.is_empty()).collect();

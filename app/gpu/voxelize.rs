@@ -9,7 +9,7 @@
 
 use super::compact::{Compactor, Instances, Slab};
 use super::solid::SolidPipelines;
-use super::util::{ErrorScopes, pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
+use super::util::{ErrorScopes, pipeline, pipeline_with, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError};
 use crate::voxel::{GridSpec, Mode, SparseGrid, VoxelGrid};
 use glam::Vec3;
@@ -115,7 +115,14 @@ pub struct GpuOutput {
     /// Rows of the solid fill that the GPU could not decide as the CPU does and the host filled.
     pub rows_on_host: u32,
     /// Bytes uploaded (triangles) and read back (grid, leaves, counters, timings).
-    pub traffic: super::Traffic,
+    pub traffic: Traffic,
+}
+
+/// Bytes that crossed the bus each way, for the stats: what bounds a run on a discrete GPU.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Traffic {
+    pub upload: u64,
+    pub readback: u64,
 }
 
 /// How one attempt on the GPU ended.
@@ -144,7 +151,7 @@ pub struct GpuVoxelizer {
     pub(super) thin: OnceLock<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
     pub(super) solid: OnceLock<SolidPipelines>,
     /// The sparse chain's pipelines (`gpu/sparse.rs`), thick and thin, compiled on first use.
-    pub(super) leaves: [OnceLock<super::sparse::LeafPipelines>; 2],
+    pub(super) leaves: [OnceLock<LeafPipelines>; 2],
     /// The staging buffers dense grids are read back through, kept between runs.
     pub(super) streams: super::readback::StreamPool,
 }
@@ -199,10 +206,15 @@ impl GpuVoxelizer {
     /// grid is sparse, else dense by the default of [`Options::dense_from_leaves`]).
     pub fn prepare_leaves(&self, gpu: &Gpu, mode: Mode, sparse: bool) {
         let options = Options { mode, sparse, read_grid: true, ..Default::default() };
-        if super::sparse::uses_leaves(gpu, &options) {
+        if uses_leaves(gpu, &options) {
             let thin = mode == Mode::Surface6;
-            self.leaves[thin as usize].get_or_init(|| super::sparse::LeafPipelines::new(&gpu.device, self, thin));
+            self.leaf_pipelines(gpu, thin);
         }
+    }
+
+    /// The sparse chain's pipelines, thick or `thin`, compiled on first use.
+    pub(super) fn leaf_pipelines(&self, gpu: &Gpu, thin: bool) -> &LeafPipelines {
+        self.leaves[thin as usize].get_or_init(|| LeafPipelines::new(&gpu.device, self, thin))
     }
 
     pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {
@@ -321,6 +333,47 @@ impl GpuVoxelizer {
             traffic: Default::default(),
         })
     }
+}
+
+/// The sparse chain's pipelines (`gpu/sparse.rs`) for one variant of the walk (thick or thin): the walk and exact pass with `MARK`
+/// or `SPARSE` set, and the finish passes.
+pub struct LeafPipelines {
+    pub(super) mark: wgpu::ComputePipeline,
+    pub(super) walk: wgpu::ComputePipeline,
+    pub(super) exact: wgpu::ComputePipeline,
+    pub(super) prepare_finish: wgpu::ComputePipeline,
+    pub(super) finish_leaves: wgpu::ComputePipeline,
+    /// `finish_leaves` for a dense grid: the rows stay bytes, scattered into the grid as they are.
+    pub(super) finish_rows: wgpu::ComputePipeline,
+}
+
+impl LeafPipelines {
+    fn new(device: &wgpu::Device, v: &GpuVoxelizer, thin: bool) -> LeafPipelines {
+        let (one, two) = ([Some(&v.layout)], [Some(&v.layout), Some(&v.dispatch_layout)]);
+        let thin = if thin { 1.0 } else { 0.0 };
+        let with = |entry: &str, mark: f64| {
+            let constants = [("THIN", thin), ("MARK", mark), ("SPARSE", 1.0)];
+            pipeline_with(device, &v.module, &one, entry, &constants)
+        };
+        let rows = [("SPARSE", 1.0), ("ROW_BYTES", 1.0)];
+        LeafPipelines {
+            mark: with("voxelize", 1.0),
+            walk: with("voxelize", 0.0),
+            exact: with("exact", 0.0),
+            prepare_finish: pipeline_with(device, &v.module, &two, "prepare_finish", &[("SPARSE", 1.0)]),
+            finish_leaves: with("finish_leaves", 0.0),
+            finish_rows: pipeline_with(device, &v.module, &one, "finish_leaves", &rows),
+        }
+    }
+}
+
+/// Whether a run makes its grid from leaves: surface and surface6 grids read back, sparse, or dense without a voxel
+/// list where [`Options::dense_from_leaves`] says so. The solid's crossing lists span whole rows of the grid, so it
+/// keeps the slab path, and a voxel list for drawing is compacted from the slab.
+pub(super) fn uses_leaves(gpu: &Gpu, options: &Options) -> bool {
+    let dense =
+        options.read_grid && !options.instances && options.dense_from_leaves.unwrap_or(!gpu.summary.is_software());
+    options.mode != Mode::Solid && (options.sparse || dense)
 }
 
 /// Layers per z-slab and the number of slabs: as many whole layers as one binding (or `max_slab_bytes`) holds.
