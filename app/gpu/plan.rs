@@ -37,7 +37,11 @@ impl SparsePlan {
         let (_, bricks) = Brick::tiling(spec.dims, (words / 8).clamp(1, MAX_TABLE));
         let table = bricks.iter().map(Brick::leaves).max().unwrap_or(1);
         let slot_base = table.next_multiple_of(64);
-        let slots = (words.saturating_sub(slot_base) / SLOT_WORDS as u64).clamp(1, table);
+        // A slot for every leaf of a small table; an eighth of a large one (a surface crosses a few percent of a
+        // brick's leaves: the bunny at 2048, 225 k of 12.9 M), so a dense grid on a large adapter does not take a
+        // gigabyte of slots. A brick with more leaves than slots is cut and run again.
+        let wanted = table.min((table / 8).max(1 << 16));
+        let slots = (words.saturating_sub(slot_base) / SLOT_WORDS as u64).clamp(1, wanted);
         let buffer_bytes = (slot_base + slots * SLOT_WORDS as u64) * 4;
         Some(SparsePlan { bricks, slot_base: slot_base as u32, slots: slots as u32, buffer_bytes, dirty: false })
     }
