@@ -280,13 +280,22 @@ fn set_range(base: u32, k0: u32, k1: u32) {
     }
 }
 
-// (|a|, |b|, num, den): the strip's solid angle is 2 atan2(num, den) (the CPU's `cone_parts`).
-fn cone_parts(a: vec3<f32>, b: vec3<f32>) -> vec4<f32> {
-    let la = length(a);
-    let lb = length(b);
+// (num, den, mag): the strip's solid angle is 2 atan2(num, den), den's rounding relative to mag (the CPU's `cone_parts`).
+fn cone_parts(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
     let num = a.y * b.z - a.z * b.y;
-    let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
-    return vec4<f32>(la, lb, num, den);
+    let ta = strip_term(a);
+    let tb = strip_term(b);
+    let yz = a.y * b.y + a.z * b.z;
+    return vec3<f32>(num, ta * tb + yz, ta * tb + abs(a.y * b.y) + abs(a.z * b.z));
+}
+
+// |a| + a.x without the cancellation where a.x < 0 (the CPU reference's `strip_term`).
+fn strip_term(a: vec3<f32>) -> f32 {
+    let la = length(a);
+    if a.x >= 0.0 {
+        return la + a.x;
+    }
+    return (a.y * a.y + a.z * a.z) / (la - a.x);
 }
 
 const U: f32 = 5.9604645e-8;
@@ -339,15 +348,14 @@ fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32, budget: f32) -> 
             let a = ea.xyz - p;
             let b = eb.xyz - p;
             let parts = cone_parts(a, b);
-            let la = parts.x;
-            let lb = parts.y;
-            let num = parts.z;
-            let den = parts.w;
+            let la = length(a);
+            let lb = length(b);
+            let num = parts.x;
+            let den = parts.y;
             let angle = 2.0 * atan2(num, den);
             sum += ea.w * angle;
             let d_num = 3.0 * U * (abs(a.y * b.z) + abs(a.z * b.y));
-            let ab = abs(a * b);
-            let d_den = 40.0 * U * (la * lb + (ab.x + ab.y + ab.z) + abs(a.x) * lb + abs(b.x) * la);
+            let d_den = 64.0 * U * parts.z;
             let r2 = num * num + den * den;
             var moved = 3.4e38;
             if r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || abs(num) > d_num) {

@@ -144,7 +144,7 @@ impl SolidPipelines {
         if rows * 8 > limit {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
-        let Boundary { edges, pieces } = boundary(triangles, lattice);
+        let Boundary { edges, pieces, nodes } = boundary(triangles, lattice);
         let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
@@ -195,7 +195,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
-            boundary: Boundary { edges, pieces },
+            boundary: Boundary { edges, pieces, nodes },
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

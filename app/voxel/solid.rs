@@ -162,8 +162,9 @@ pub fn fill_listed_rows(
 }
 
 /// The mesh's boundary ([`boundary_edges`]) grouped into its connected pieces (its loops, on a mesh with holes;
-/// edges sharing an end point are joined), in order of each piece's first edge, with each piece's box, span and
-/// spanning area ([`BoundaryPiece`]). Every piece is a closed chain (every vertex has as many edges in as out, and
+/// edges sharing an end point are joined), in order of each piece's first edge and in chain order within it
+/// ([`chain_order`]), with each piece's box, span and spanning area ([`BoundaryPiece`]) and the tree over its
+/// chains ([`build_tree`], what [`winding_number_tree`] descends). Every piece is a closed chain (every vertex has as many edges in as out, and
 /// a vertex is in one piece), which is what lets a far piece's term be bounded by its spanning area
 /// ([`winding_number_bounded`]).
 pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
@@ -202,16 +203,19 @@ pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
         .collect();
     let mut order: Vec<usize> = (0..edges.len()).collect();
     order.sort_by_key(|&i| piece_of[i]);
-    let edges: Vec<BoundaryEdge> = order.iter().map(|&i| edges[i]).collect();
+    let mut grouped: Vec<BoundaryEdge> = Vec::with_capacity(edges.len());
     let mut pieces: Vec<BoundaryPiece> = Vec::new();
+    let mut nodes = Vec::new();
     let mut i = 0;
     while i < edges.len() {
         let n = order[i..].iter().take_while(|&&k| piece_of[k] == piece_of[order[i]]).count();
-        let group = &edges[i..i + n];
+        let group: Vec<BoundaryEdge> = chain_order(&order[i..i + n].iter().map(|&k| edges[k]).collect::<Vec<_>>());
+        let root = build_tree(&group, i as u32, &mut nodes);
+        grouped.extend_from_slice(&group);
         let centre = Vec3::from_array(group[0].a).as_dvec3();
         let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
         let (mut span, mut area) = (0.0f64, 0.0f64);
-        for e in group {
+        for e in &group {
             let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
             (lo, hi) = (lo.min(a).min(b), hi.max(a).max(b));
             span += f64::from(e.weight.abs() * e.span);
@@ -224,11 +228,117 @@ pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
             area: (area * (1.0 + 1e-6)) as f32,
             first: i as u32,
             count: n as u32,
-            _pad: [0; 2],
+            root,
+            _pad: 0,
         });
         i += n;
     }
-    Boundary { edges, pieces }
+    Boundary { edges: grouped, pieces, nodes }
+}
+
+/// The net ends of a chain of weighted edges (`-w` where an edge starts, `+w` where it ends), those not zero.
+fn net_ends(edges: &[BoundaryEdge]) -> Vec<([f32; 3], f32)> {
+    let mut ends: Vec<([f32; 3], f32)> = Vec::new();
+    let mut add = |v: [f32; 3], w: f32| match ends.iter_mut().find(|(u, _)| u.map(f32::to_bits) == v.map(f32::to_bits))
+    {
+        Some((_, total)) => *total += w,
+        None => ends.push((v, w)),
+    };
+    for e in edges {
+        add(e.a, -e.weight);
+        add(e.b, e.weight);
+    }
+    // (Weights are small integers in f32: the sums are exact.)
+    ends.retain(|&(_, w)| w != 0.0);
+    ends
+}
+
+/// The chord of a chain, and the fan's centre that goes with it.
+fn chord_of(edges: &[BoundaryEdge]) -> (Chord, Vec3) {
+    let ends = net_ends(edges);
+    match ends.as_slice() {
+        [] => (Chord::Closed, Vec3::from_array(edges[0].a)),
+        [(p, wp), (q, wq)] if *wp == -*wq => {
+            let (start, end, w) = if *wp < 0.0 { (*p, *q, *wq) } else { (*q, *p, *wp) };
+            let (a, b) = (Vec3::from_array(start), Vec3::from_array(end));
+            let span = (b.y - a.y).hypot(b.z - a.z) * (1.0 + 1e-6);
+            (Chord::Edge(BoundaryEdge { a: start, weight: w, b: end, span }), a)
+        }
+        _ => (Chord::Branched, Vec3::from_array(edges[0].a)),
+    }
+}
+
+/// Appends the tree over `edges` (a piece's, in chain order, starting at index `first` of the boundary's edges) to
+/// `nodes`, and returns its root.
+pub fn build_tree(edges: &[BoundaryEdge], first: u32, nodes: &mut Vec<BoundaryNode>) -> u32 {
+    let (chord, centre) = chord_of(edges);
+    let centre = centre.as_dvec3();
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    let mut area = 0.0f64;
+    let mut axis_area = glam::DVec3::ZERO;
+    for e in edges {
+        let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
+        (lo, hi) = (lo.min(a).min(b), hi.max(a).max(b));
+        let vector = f64::from(e.weight.abs()) * 0.5 * (a.as_dvec3() - centre).cross(b.as_dvec3() - centre);
+        area += vector.length();
+        axis_area += vector.abs();
+    }
+    let index = nodes.len() as u32;
+    nodes.push(BoundaryNode {
+        lo,
+        hi,
+        // Rounded up: it only ever enlarges a bound.
+        area: (area * (1.0 + 1e-6)) as f32,
+        axis_area: (axis_area * (1.0 + 1e-6)).as_vec3(),
+        chord,
+        first,
+        count: edges.len() as u32,
+        children: [NO_NODE, NO_NODE],
+    });
+    if edges.len() as u32 > LEAF_EDGES {
+        let half = edges.len() / 2;
+        let left = build_tree(&edges[..half], first, nodes);
+        let right = build_tree(&edges[half..], first + half as u32, nodes);
+        nodes[index as usize].children = [left, right];
+    }
+    index
+}
+
+/// `edges` (one piece's) reordered into chains: each edge followed, where it can be, by one that starts or ends
+/// where it ends, so that a node's contiguous edges form few chains and its chord can stand in for them. The walk
+/// takes the lowest unused edge at each vertex, so the order is the same on every run.
+pub fn chain_order(edges: &[BoundaryEdge]) -> Vec<BoundaryEdge> {
+    let key = |v: [f32; 3]| v.map(f32::to_bits);
+    let mut at: std::collections::HashMap<[u32; 3], Vec<usize>> = std::collections::HashMap::new();
+    for (i, e) in edges.iter().enumerate() {
+        at.entry(key(e.a)).or_default().push(i);
+        at.entry(key(e.b)).or_default().push(i);
+    }
+    // Lowest index last, to pop.
+    at.values_mut().for_each(|list| list.reverse());
+    let mut used = vec![false; edges.len()];
+    let mut order = Vec::with_capacity(edges.len());
+    for start in 0..edges.len() {
+        if used[start] {
+            continue;
+        }
+        let mut i = start;
+        let mut vertex = edges[start].a;
+        loop {
+            used[i] = true;
+            order.push(edges[i]);
+            vertex = if key(edges[i].a) == key(vertex) { edges[i].b } else { edges[i].a };
+            let list = at.get_mut(&key(vertex)).expect("every end is listed");
+            while list.last().is_some_and(|&k| used[k]) {
+                list.pop();
+            }
+            match list.last() {
+                Some(&k) => i = k,
+                None => break,
+            }
+        }
+    }
+    order
 }
 
 /// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell).

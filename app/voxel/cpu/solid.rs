@@ -206,7 +206,7 @@ pub struct BoundaryEdge {
 /// A connected piece of the boundary (a hole's loop, on a mesh with holes): its box, the sum of its edges' YZ
 /// spans and the area of a fan spanning it (from its first edge's start, each edge times its multiplicity: a
 /// surface whose boundary is the piece, inside the box), all rounded up, and its edges' range in
-/// [`Boundary::edges`]. The shader's layout: `lo, span`, `hi, area`, `first, count, 0, 0`.
+/// [`Boundary::edges`]. The shader's layout: `lo, span`, `hi, area`, `first, count, root, 0`.
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct BoundaryPiece {
@@ -216,7 +216,9 @@ pub struct BoundaryPiece {
     pub area: f32,
     pub first: u32,
     pub count: u32,
-    pub _pad: [u32; 2],
+    /// The piece's root in [`Boundary::nodes`] (the CPU's tree; the shader ignores it).
+    pub root: u32,
+    pub _pad: u32,
 }
 
 impl BoundaryPiece {
@@ -230,22 +232,35 @@ impl BoundaryPiece {
     }
 }
 
-/// A mesh's open boundary: its edges ([`boundary_edges`](crate::voxel::solid::boundary_edges)) grouped by piece, and the pieces.
+/// A mesh's open boundary: its edges ([`boundary_edges`](crate::voxel::solid::boundary_edges)) grouped by piece, in
+/// chain order within each, the pieces, and the tree over each piece's chains ([`winding_number_tree`]).
 pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
+    pub nodes: Vec<BoundaryNode>,
 }
 
 /// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x, the spherical
 /// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector), as what it is
-/// made from: `(|a|, |b|, num, den)`, the solid angle being `2 atan2(num, den)`.
+/// made from: `(num, den, mag)`, the solid angle being `2 atan2(num, den)`, with `den = |a||b| + a·b + a_x|b| +
+/// b_x|a| = (|a| + a_x)(|b| + b_x) + a_y b_y + a_z b_z` evaluated in the second form ([`strip_term`]) and `mag`
+/// the sum of its terms' magnitudes, which its rounding is relative to.
 #[inline]
-pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32, f32) {
-    let la = a.length();
-    let lb = b.length();
+pub fn cone_parts(a: Vec3, b: Vec3) -> (f32, f32, f32) {
     let num = a.y * b.z - a.z * b.y;
-    let den = la * lb + dot3(a, b) + a.x * lb + b.x * la;
-    (la, lb, num, den)
+    let (ta, tb) = (strip_term(a), strip_term(b));
+    let yz = a.y * b.y + a.z * b.z;
+    (num, ta * tb + yz, ta * tb + (a.y * b.y).abs() + (a.z * b.z).abs())
+}
+
+/// `|a| + a_x` without the cancellation where `a_x < 0`: `(a_y² + a_z²) / (|a| - a_x)`. Seen from far along +x
+/// beyond an edge (`a_x`, `b_x` large and negative), `den`'s other form `|a||b| + a·b + a_x |b| + b_x |a|` cancels
+/// four terms of size `a_x²` down to one of the edge's YZ offsets' size, and its rounding bound with them, which
+/// left every point of a row passing within a voxel of a rim's YZ shadow undecided in f32.
+#[inline]
+pub fn strip_term(a: Vec3) -> f32 {
+    let la = a.length();
+    if a.x >= 0.0 { la + a.x } else { (a.y * a.y + a.z * a.z) / (la - a.x) }
 }
 
 /// f32's unit roundoff, `2^-24`.
@@ -254,6 +269,10 @@ const U: f32 = 1.0 / 16_777_216.0;
 /// How many error bounds from 1/2 an f32 winding number must be for the reference (and by default the GPU) to
 /// take its side: each backend's error and the other's are below one bound.
 pub const MARGIN: f32 = 2.0;
+
+/// The far budget a stretch's first evaluation takes in the CPU's tree ([`winding_number_tree`]): a stretch
+/// whose winding number is near 0 or 1 has that much to spare; one near 1/2 is evaluated again with less.
+pub const STRETCH_BUDGET: f32 = 1.0 / 8.0;
 
 /// How much of a winding number's uncertainty may come from pieces of the boundary that are bounded, not summed
 /// ([`winding_number_bounded`]).
@@ -280,7 +299,9 @@ pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
 ///
 /// The error, per edge, from the same `a`, `b` (each component one correctly rounded subtraction on both): the
 /// lengths are within 16 u relatively (a sum of squares, then `sqrt`, which WGSL allows a few ulps); `num` within
-/// `3u (|a_y b_z| + |a_z b_y|)`; `den`, a sum of six terms whose magnitudes add up to `S`, within `40u S`; then
+/// `3u (|a_y b_z| + |a_z b_y|)`; `den` within `64u mag` ([`cone_parts`]: each strip term within `26u` relatively
+/// (the length's `16u`, a sum, or a sum of squares over a sum and WGSL's 2.5-ulp division), their product within
+/// `53u`, the YZ products and the sums a few `u` of their magnitudes); then
 /// `atan2(num, den)` moves by at most `(|den| Δnum + |num| Δden) / (num² + den²)` (doubled for the first-order
 /// approximation) plus its own error, `atan2_error |θ|` ([`ATAN2_WGSL`], [`ATAN2_CPU`]). Where `num² + den²` is
 /// too small for the first-order bound to mean anything (the point on the edge's line), or `num`'s sign is
@@ -302,8 +323,8 @@ pub fn winding_number_bounded(
     budget: f32,
     atan2_error: f32,
 ) -> (f32, f32, f32, f32) {
-    let (mut sum, mut magnitude, mut error, mut drift, mut far) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    let mut summed = 0u32;
+    let mut terms = EdgeTerms::default();
+    let mut far = 0.0f32;
     let scale = 1.0 / (4.0 * std::f32::consts::PI);
     for piece in &boundary.pieces {
         let (dy, dz) = piece.yz_gap(p.y, p.z);
@@ -315,38 +336,215 @@ pub fn winding_number_bounded(
                 continue;
             }
         }
-        summed += piece.count;
         let edges = &boundary.edges[piece.first as usize..(piece.first + piece.count) as usize];
-        for e in edges {
-            let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-            let (la, lb, num, den) = cone_parts(a, b);
-            let angle = 2.0 * num.atan2(den);
-            sum += e.weight * angle;
-            let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
-            let d_den = 40.0 * U * (la * lb + (a * b).abs().element_sum() + a.x.abs() * lb + b.x.abs() * la);
-            let r2 = num * num + den * den;
-            // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
-            // is on the strip swept from the edge, where the crossing count jumps the other way).
-            let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
-                true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
-                false => f32::INFINITY,
-            };
-            magnitude += (e.weight * angle).abs();
-            error += e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
-            if reach > 0.0 {
-                let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
-                let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
-                let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
-                let gap = across.max(along);
-                let steep = if gap > 0.0 { reach * e.span / (gap * gap) } else { f32::INFINITY };
-                let whole = if across > 0.0 { 2.0 * e.span / across } else { f32::INFINITY };
-                drift += e.weight.abs() * steep.min(whole);
+        edges.iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+    }
+    let (w, bound, drift) = terms.finish(count);
+    (w, bound, drift, far)
+}
+
+/// The sums [`winding_number_bounded`] keeps over the edges it adds (the shader keeps them in its loop): the
+/// boundary term, the magnitudes of its terms, their error bounds and their drift.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EdgeTerms {
+    sum: f32,
+    magnitude: f32,
+    error: f32,
+    drift: f32,
+    /// The drift per voxel of reach, for any reach up to the one added with: `Σ |w| span / gap²`.
+    rate: f32,
+    summed: u32,
+}
+
+impl EdgeTerms {
+    /// Adds edge `e`'s strip angle seen from `p`, its error bound and its drift over `reach` voxels of the row.
+    #[inline]
+    pub fn add(&mut self, e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) {
+        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+        let (num, den, mag) = cone_parts(a, b);
+        let (la, lb) = (a.length(), b.length());
+        let angle = 2.0 * num.atan2(den);
+        self.sum += e.weight * angle;
+        self.summed += 1;
+        let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
+        let d_den = 64.0 * U * mag;
+        let r2 = num * num + den * den;
+        // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
+        // is on the strip swept from the edge, where the crossing count jumps the other way).
+        let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
+            true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
+            false => f32::INFINITY,
+        };
+        self.magnitude += (e.weight * angle).abs();
+        self.error += e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
+        if reach > 0.0 {
+            let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
+            let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
+            let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+            let gap = across.max(along);
+            let steep = if gap > 0.0 { reach * e.span / (gap * gap) } else { f32::INFINITY };
+            let whole = if across > 0.0 { 2.0 * e.span / across } else { f32::INFINITY };
+            self.drift += e.weight.abs() * steep.min(whole);
+            // A shorter reach only widens the gap: its drift is at most `reach' span / gap²`.
+            self.rate += e.weight.abs() * if gap > 0.0 { e.span / (gap * gap) } else { f32::INFINITY };
+        }
+    }
+
+    /// `(w, e, drift)` with `count` crossings before the point: the winding number, its error bound and its drift.
+    pub fn finish(&self, count: i32) -> (f32, f32, f32) {
+        let scale = 1.0 / (4.0 * std::f32::consts::PI);
+        let w = count as f32 + self.sum * scale;
+        let bound = (self.error + (self.summed as f32 + 2.0) * U * self.magnitude) * scale * 1.01 + 2.0 * U * w.abs();
+        (w, bound, self.drift * scale * 1.01)
+    }
+}
+
+/// The winding number at a point from the tree, with its bounds ([`winding_number_tree`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Winding {
+    pub w: f32,
+    /// How far an evaluation can be from the sum it evaluates.
+    pub e: f32,
+    /// How far the sum can move within the reach.
+    pub drift: f32,
+    /// What the nodes that stood in for their chains may add, anywhere within the reach.
+    pub far: f32,
+    /// A bound on the drift per voxel, for any shorter reach.
+    pub rate: f32,
+}
+
+/// A node has no child.
+pub const NO_NODE: u32 = u32::MAX;
+
+/// The deepest a piece's tree can be: halving `u32::MAX` edges down to [`LEAF_EDGES`].
+pub const TREE_DEPTH: usize = 32;
+
+/// Edges a leaf of the tree sums directly.
+pub const LEAF_EDGES: u32 = 2;
+
+/// What a node's chain reduces to when its stretch passes outside its box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Chord {
+    /// A closed chain: its term is the fan's alone.
+    Closed,
+    /// An open chain from `chord.a` to `chord.b` with the chord's weight.
+    Edge(BoundaryEdge),
+    /// More than two net ends (a chain joined across a vertex where the boundary branches): never stands in.
+    Branched,
+}
+
+/// A node of a piece's tree: the edges `first..first + count` of [`Boundary::edges`], their box, the area of the fan
+/// from the chord's start (or the first edge's start when closed) rounded up, the chord, and its two halves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryNode {
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub area: f32,
+    /// The fan's vector areas per axis, each triangle's taken absolute: `Σ |w| |A_k|`, rounded up.
+    pub axis_area: Vec3,
+    pub chord: Chord,
+    pub first: u32,
+    pub count: u32,
+    pub children: [u32; 2],
+}
+
+impl BoundaryNode {
+    /// The squared distance from the stretch `p.x ± reach` of row `(p.y, p.z)` to the node's box, where the row
+    /// passes outside the box in YZ; `None` where it does not (the chord may not stand in there).
+    #[inline]
+    fn outside_distance2(&self, p: Vec3, reach: f32) -> Option<f32> {
+        let dy = (self.lo.y - p.y).max(p.y - self.hi.y).max(0.0);
+        let dz = (self.lo.z - p.z).max(p.z - self.hi.z).max(0.0);
+        if dy == 0.0 && dz == 0.0 {
+            return None;
+        }
+        let dx = (self.lo.x - (p.x + reach)).max(p.x - reach - self.hi.x).max(0.0);
+        Some(dx * dx + dy * dy + dz * dz)
+    }
+
+    /// A bound on the fan's solid angle from anywhere on the stretch `p.x ± reach` at squared distance `d2` from
+    /// the box: each fan triangle's `∫ |(q − p) · n| / |q − p|³ dA` is at most `Σ_k R_k |A_k| / d³`, with `R_k`
+    /// the farthest the box reaches from the stretch along axis `k`, and at most its area over `d²`. The first is
+    /// the smaller for a flat chain seen edge on (the bunny's holes, seen from the rows beside them).
+    #[inline]
+    fn fan_bound(&self, p: Vec3, reach: f32, d2: f32) -> f32 {
+        let lo = Vec3::new(p.x - reach, p.y, p.z);
+        let hi = Vec3::new(p.x + reach, p.y, p.z);
+        let r = (self.hi - lo).abs().max((hi - self.lo).abs());
+        let flux = self.axis_area.dot(r) / (d2 * d2.sqrt());
+        flux.min(self.area / d2)
+    }
+}
+
+/// [`winding_number_bounded`]'s value and bounds `(w, e, drift, far)` from the tree: from each piece's root down,
+/// a node the stretch passes outside of in YZ adds its chord's term (summed, with its error and drift, as an edge)
+/// and its fan's bound to `far` while `far` stays within `budget`; other nodes are opened, and a leaf's edges are
+/// summed. With `budget` 0 every edge is summed, as the flat sum does.
+pub fn winding_number_tree(
+    count: i32,
+    p: Vec3,
+    reach: f32,
+    boundary: &Boundary,
+    budget: f32,
+    atan2_error: f32,
+) -> Winding {
+    let scale = 1.0 / (4.0 * std::f32::consts::PI);
+    let mut terms = EdgeTerms::default();
+    let mut far = 0.0f32;
+    let share = budget / boundary.edges.len().max(1) as f32;
+    // Depth first, each node before its halves. A piece's tree is balanced, so the stack holds at most its depth
+    // plus one entry per level.
+    let mut stack = [0u32; 2 * TREE_DEPTH];
+    for piece in &boundary.pieces {
+        stack[0] = piece.root;
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &boundary.nodes[stack[len] as usize];
+            if node.chord != Chord::Branched
+                && let Some(d2) = node.outside_distance2(p, reach)
+            {
+                let bound = node.fan_bound(p, reach, d2) * scale * 1.01;
+                // Each node's share of the budget is its share of the edges: the nodes that stand in are disjoint,
+                // so their bounds add up to at most `budget`, and a near node's need does not starve the far ones.
+                if bound <= share * node.count as f32 {
+                    far += bound;
+                    if let Chord::Edge(chord) = node.chord {
+                        terms.add(&chord, p, reach, atan2_error);
+                    }
+                    continue;
+                }
+            }
+            match node.children {
+                [NO_NODE, NO_NODE] => {
+                    let edges = &boundary.edges[node.first as usize..(node.first + node.count) as usize];
+                    edges.iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+                }
+                [left, right] => {
+                    stack[len] = right;
+                    stack[len + 1] = left;
+                    len += 2;
+                }
             }
         }
     }
-    let w = count as f32 + sum * scale;
-    let bound = (error + (summed as f32 + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
-    (w, bound, drift * scale * 1.01, far)
+    let (w, e, drift) = terms.finish(count);
+    let rate = terms.rate * scale * 1.01;
+    Winding { w, e, drift, far, rate }
+}
+
+/// The side of 1/2 of the winding number at `p` alone (`1` at least, `0` below, `2` undecided by f32): the tree
+/// with the far budget first, then with every edge summed where that left it open.
+pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
+    for budget in [FAR_BUDGET, FAR_BUDGET / 64.0] {
+        let Winding { w, e, far, .. } = winding_number_tree(count, p, 0.0, boundary, budget, ATAN2_CPU);
+        match certain_side(w, e, far, MARGIN) {
+            2 if far > 0.0 => continue,
+            side => return side,
+        }
+    }
+    let Winding { w, e, .. } = winding_number_tree(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
+    certain_side(w, e, 0.0, MARGIN)
 }
 
 /// The distance from the origin to the segment `a b`.
@@ -386,9 +584,9 @@ pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) 
     for e in edges {
         let (ea, eb) = (Vec3::from_array(e.a).as_dvec3(), Vec3::from_array(e.b).as_dvec3());
         let (a, b) = (ea - p, eb - p);
-        let (la, lb) = (a.length(), b.length());
+        let term = |v: DVec3| if v.x >= 0.0 { v.length() + v.x } else { (v.y * v.y + v.z * v.z) / (v.length() - v.x) };
         let mut num = a.y * b.z - a.z * b.y;
-        let den = la * lb + a.dot(b) + a.x * lb + b.x * la;
+        let den = term(a) * term(b) + a.y * b.y + a.z * b.z;
         let d = eb - ea;
         if num == 0.0 && (d.y != 0.0 || d.z != 0.0) {
             // (An edge along x has no strip: its angle is 0 whatever the perturbation.)
@@ -463,33 +661,46 @@ pub const RUN_STACK: usize = 40;
 /// f32 bounds leave open is decided in f64 ([`inside_exact`]); the shader hands its row to the host there
 /// instead. An explicit stack, as in the shader, which cannot recurse.
 pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary: &Boundary, row: &mut [u32]) {
-    let mut stack = [(0u32, 0u32); RUN_STACK];
-    stack[0] = (first, last);
+    let mut stack = [(0u32, 0u32, 0.0f32); RUN_STACK];
+    stack[0] = (first, last, STRETCH_BUDGET);
     let mut len = 1;
     while len > 0 {
         len -= 1;
-        let (a, b) = stack[len];
+        let (a, b, budget) = stack[len];
         let m = a + (b - a) / 2;
         let p = Vec3::new(m as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
-        let (w, e, drift, far) = winding_number_bounded(count, p, (b - m) as f32, boundary, FAR_BUDGET, ATAN2_CPU);
-        match certain_side(w, e, drift + far, MARGIN) {
+        let reach = (b - m) as f32;
+        let mut v = winding_number_tree(count, p, reach, boundary, budget, ATAN2_CPU);
+        let mut side = certain_side(v.w, v.e, v.drift + v.far, MARGIN);
+        // Where the chords' bound alone kept it open, again with the budget the rest leaves.
+        let spare = (v.w - 0.5).abs() - MARGIN * v.e - v.drift;
+        if side == 2 && v.far > 0.0 && spare > 0.0 {
+            v = winding_number_tree(count, p, reach, boundary, spare / 2.0, ATAN2_CPU);
+            side = certain_side(v.w, v.e, v.drift + v.far, MARGIN);
+        }
+        match side {
             1 => set_range(row, a, b + 1),
             0 => {}
             _ => {
-                // The middle alone, with every edge summed where some were bounded.
-                let (w, e) = match far > 0.0 {
+                // The voxels around the middle that the drift rate keeps on its side, or the middle alone.
+                let slack = (v.w - 0.5).abs() - MARGIN * v.e - v.far;
+                let r = ((slack / v.rate) * 0.999).floor();
+                let (lo, hi) = match r >= 1.0 {
                     true => {
-                        let (w, e, _, _) = winding_number_bounded(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
-                        (w, e)
+                        let r = r.min((b - m) as f32) as u32;
+                        ((m - r).max(a), m + r)
                     }
-                    false => (w, e),
+                    false => (m, m),
                 };
-                let inside = match certain_side(w, e, 0.0, MARGIN) {
-                    2 => inside_exact(count, m, y, z, &boundary.edges),
-                    side => side == 1,
+                let inside = match r >= 1.0 {
+                    true => v.w > 0.5,
+                    false => match point_side(count, p, boundary) {
+                        2 => inside_exact(count, m, y, z, &boundary.edges),
+                        side => side == 1,
+                    },
                 };
                 if inside {
-                    set_range(row, m, m + 1);
+                    set_range(row, lo, hi + 1);
                 }
                 if len + 2 > RUN_STACK {
                     // Unreachable for grids within MAX_DIM; keeps the result exact if it were not.
@@ -498,12 +709,14 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
                     }
                     continue;
                 }
-                if m < b {
-                    stack[len] = (m + 1, b);
+                // The halves' budget: what their winding number's distance from 1/2 is likely to allow.
+                let budget = ((v.w - 0.5).abs() / 4.0).clamp(STRETCH_BUDGET / 512.0, STRETCH_BUDGET);
+                if hi < b {
+                    stack[len] = (hi + 1, b, budget);
                     len += 1;
                 }
-                if m > a {
-                    stack[len] = (a, m - 1);
+                if lo > a {
+                    stack[len] = (a, lo - 1, budget);
                     len += 1;
                 }
             }
