@@ -344,7 +344,8 @@ impl Tally {
         Ok(match outcome {
             Outcome::Done(report) => {
                 self.done += 1;
-                let times = [report.load_ms, report.voxelize_ms, report.colour_ms.unwrap_or(0.0), report.write_ms];
+                let engine = report.voxelize_ms + report.field_ms.unwrap_or(0.0);
+                let times = [report.load_ms, engine, report.colour_ms.unwrap_or(0.0), report.write_ms];
                 for (stage, ms) in self.stage_ms.iter_mut().zip(times) {
                     *stage += ms;
                 }

@@ -320,6 +320,7 @@ impl Engine {
             field_ms,
             field_backend,
             host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) - made.gpu_ms.unwrap_or(0.0),
+            total_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0),
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
             ..Report::default()
@@ -382,7 +383,9 @@ impl Engine {
         {
             return Ok((field, on.label()));
         }
-        Ok((DistanceField::compute(&tris, spec, band, inside), self.cpu_label()))
+        let silent = |_: usize, _: usize| {};
+        let progress = job.request.progress.unwrap_or(&silent);
+        Ok((DistanceField::compute_with_progress(&tris, spec, band, inside, progress), self.cpu_label()))
     }
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) from its grid-space triangles on the GPU when it fits

@@ -66,6 +66,10 @@ pub struct Report {
     pub threads: usize,
     /// Tiles of a sparse grid (blocks of 8³, 128³ or 4096³ voxels all set); `None` for a dense grid.
     pub tiles: Option<u64>,
+    /// The whole job. From the engine: `voxelize_ms + field_ms + colour_ms`; from `meshvox voxelize` and `batch`,
+    /// everything from reading the mesh to the output written (loading, opening a GPU, the engine's stages and
+    /// writing).
+    pub total_ms: f64,
     pub triangles: usize,
     /// Bytes the grid's GPU passes uploaded (the triangles, once per brick or batch they fall in); `None` on the
     /// CPU.

@@ -36,6 +36,9 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// The widest band in voxels (`--band full` covers the whole grid).
 pub const MAX_BAND: f32 = 64.0;
 
+/// Triangles between two progress calls of [`DistanceField::compute_with_progress`].
+const PROGRESS_CHUNK: usize = 4096;
+
 /// A leaf slot with no leaf.
 pub const NO_LEAF: u32 = u32::MAX;
 
@@ -180,13 +183,31 @@ impl DistanceField {
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
     /// given (passes 1–3 on rayon's threads).
     pub fn compute(triangles: &[[Vec3; 3]], spec: GridSpec, band: Band, inside: Option<Grid>) -> DistanceField {
+        DistanceField::compute_with_progress(triangles, spec, band, inside, &|_, _| {})
+    }
+
+    /// [`DistanceField::compute`], calling `progress(triangles done, triangles)` as the distances are computed
+    /// (from any thread, every few thousand triangles).
+    pub fn compute_with_progress(
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        band: Band,
+        inside: Option<Grid>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> DistanceField {
         parallel::install(|| {
             let dims = spec.dims;
             let reach = band.reach(dims);
             let (slots, leaves) = mark_leaves(triangles, dims, reach);
             let start = (reach * reach).to_bits();
             let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
-            triangles.par_iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
+            let done = std::sync::atomic::AtomicUsize::new(0);
+            progress(0, triangles.len());
+            triangles.par_chunks(PROGRESS_CHUNK).for_each(|chunk| {
+                chunk.iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
+                let done = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
+                progress(done, triangles.len());
+            });
             let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
             DistanceField::from_squared(spec, band, slots, leaves, &best, inside)
         })

@@ -312,3 +312,21 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
         assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot {mode} in chunks: {d} voxels");
     }
 }
+
+#[test]
+fn the_summary_line_and_total_ms_count_the_field() {
+    // A field's time is most of the job: the line and `total_ms` must say so, not the surface's time alone.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = ["voxelize", "builtin:rotated-cube", "-r", "40", "--mode", "sdf", "--band", "full"];
+    let out =
+        crate::cli::meshvox(&[&args[..], &["--backend", "cpu", "-o", "f.npy", "--stats-json"]].concat(), dir.path());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let s = crate::cli::stats(&out);
+    let ms = |key: &str| s[key].as_f64().unwrap_or_else(|| panic!("{key} in {s}"));
+    let stages = ms("voxelize_ms") + ms("field_ms");
+    assert!(ms("field_ms") > 0.0, "{s}");
+    assert!(ms("total_ms") >= ms("load_ms") + stages + ms("write_ms"), "total_ms covers every part: {s}");
+    let line = String::from_utf8_lossy(&out.stderr);
+    let said = format!("in {stages:.1} ms (surface {:.1} ms, field {:.1} ms)", ms("voxelize_ms"), ms("field_ms"));
+    assert!(line.contains(&said), "the line gives the whole job and its parts ({said}): {line}");
+}

@@ -67,6 +67,7 @@ fn the_cli_writes_what_the_public_api_writes() {
                 "voxelize_ms",
                 "colour_ms",
                 "host_ms",
+                "total_ms",
                 "write_ms",
                 "output",
                 "format",
