@@ -36,8 +36,8 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// The widest band in voxels (`--band full` covers the whole grid).
 pub const MAX_BAND: f32 = 64.0;
 
-/// Triangles between two progress calls of [`DistanceField::compute_with_progress`].
-const PROGRESS_CHUNK: usize = 4096;
+/// About how many progress calls [`DistanceField::compute_with_progress`] makes.
+const PROGRESS_CALLS: usize = 256;
 
 /// A leaf slot with no leaf.
 pub const NO_LEAF: u32 = u32::MAX;
@@ -187,7 +187,7 @@ impl DistanceField {
     }
 
     /// [`DistanceField::compute`], calling `progress(triangles done, triangles)` as the distances are computed
-    /// (from any thread, every few thousand triangles).
+    /// (from any thread, about [`PROGRESS_CALLS`] times).
     pub fn compute_with_progress(
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
@@ -203,7 +203,8 @@ impl DistanceField {
             let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
             let done = std::sync::atomic::AtomicUsize::new(0);
             progress(0, triangles.len());
-            triangles.par_chunks(PROGRESS_CHUNK).for_each(|chunk| {
+            // Chunks small enough to balance the threads, large enough that the calls cost nothing.
+            triangles.par_chunks(triangles.len().div_ceil(PROGRESS_CALLS).max(1)).for_each(|chunk| {
                 chunk.iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
                 let done = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
                 progress(done, triangles.len());

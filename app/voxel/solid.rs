@@ -5,6 +5,7 @@
 //! also explains the algorithm.
 
 use super::cpu::solid::*;
+use super::sparse::leaf_key;
 use super::{Lattice, VoxelGrid};
 use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
@@ -154,7 +155,7 @@ pub fn fill_listed_rows(
                 list.sort_unstable();
                 let (y, z) = (r % dims.y, r / dims.y);
                 let mut words = vec![0u32; wpr];
-                fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &mut words);
+                fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &[], &mut words);
                 (r, words)
             })
             .collect()
@@ -275,12 +276,14 @@ pub fn build_tree(edges: &[BoundaryEdge], first: u32, nodes: &mut Vec<BoundaryNo
     let centre = centre.as_dvec3();
     let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
     let mut area = 0.0f64;
+    let mut length = 0.0f64;
     let mut axis_area = glam::DVec3::ZERO;
     for e in edges {
         let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
         (lo, hi) = (lo.min(a).min(b), hi.max(a).max(b));
         let vector = f64::from(e.weight.abs()) * 0.5 * (a.as_dvec3() - centre).cross(b.as_dvec3() - centre);
         area += vector.length();
+        length += f64::from(e.weight.abs()) * (b.as_dvec3() - a.as_dvec3()).length();
         axis_area += vector.abs();
     }
     let index = nodes.len() as u32;
@@ -290,6 +293,7 @@ pub fn build_tree(edges: &[BoundaryEdge], first: u32, nodes: &mut Vec<BoundaryNo
         // Rounded up: it only ever enlarges a bound.
         area: (area * (1.0 + 1e-6)) as f32,
         axis_area: (axis_area * (1.0 + 1e-6)).as_vec3(),
+        length: (length * (1.0 + 1e-6)) as f32,
         chord,
         first,
         count: edges.len() as u32,
@@ -341,22 +345,122 @@ pub fn chain_order(edges: &[BoundaryEdge]) -> Vec<BoundaryEdge> {
     order
 }
 
-/// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell).
+/// The 8³ leaves (keys, sorted) that a triangle's bounding box, widened by a voxel, touches: a superset of the
+/// leaves the surface passes through, which [`certify_leaves`] must not certify (the winding number jumps across
+/// the surface). Made from the triangles, not from a grid, because the sign of a field is filled into a grid
+/// without the surface shell.
+pub fn surface_leaves(triangles: &[[Vec3; 3]], dims: UVec3) -> Vec<u64> {
+    crate::parallel::install(|| {
+        let top = dims.as_vec3() - 1.0;
+        let mut keys: Vec<u64> = triangles
+            .par_iter()
+            .flat_map_iter(|t| {
+                let lo = (t[0].min(t[1]).min(t[2]) - 1.0).clamp(Vec3::ZERO, top).as_uvec3() / 8;
+                let hi = (t[0].max(t[1]).max(t[2]) + 1.0).clamp(Vec3::ZERO, top).as_uvec3() / 8;
+                (lo.z..=hi.z).flat_map(move |z| {
+                    (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| leaf_key(x * 8, y * 8, z * 8)))
+                })
+            })
+            .collect();
+        keys.par_sort_unstable();
+        keys.dedup();
+        keys
+    })
+}
+
+/// Which leaves along x of the group of rows at `(ya, za)` the surface may pass through ([`surface_leaves`]).
+pub fn group_surface(keys: &[u64], dims: UVec3, ya: u32, za: u32) -> Vec<bool> {
+    (0..dims.x.div_ceil(8)).map(|lx| keys.binary_search(&leaf_key(lx * 8, ya, za)).is_ok()).collect()
+}
+
+/// The crossing count of row `r` before voxel `k`'s centre (the ray towards -x from it).
+fn count_before(rows: &RowCrossings, r: usize, k: u32) -> i32 {
+    let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+    -list.iter().take_while(|&&c| crossing_voxel(c) <= k).map(|&c| crossing_sign(c)).sum::<i32>()
+}
+
+/// The 8³ leaves along x of the group of rows `ya..ya + 8`, `za..za + 8` (multiples of 8) whose voxels are all on
+/// one side of 1/2, found with one winding number per box of leaves instead of one per stretch of each row: a box
+/// with no surface voxel (`surface[lx]` false for each of its leaves) is certified where the winding number at its
+/// middle voxel, less its error, the far chains' bound and the gradient's bound ([`gradient_bound`]) times the
+/// distance to its farthest voxel, is on one side of 1/2; otherwise it is halved, down to single leaves. Off the
+/// surface the winding number is continuous, so this decides what the rows' own certification would, from the
+/// same exact quantities. The leaves left open are the rows' to decide ([`fill_row`]).
+pub fn certify_leaves(
+    rows: &RowCrossings,
+    dims: UVec3,
+    ya: u32,
+    za: u32,
+    boundary: &Boundary,
+    surface: &[bool],
+) -> Vec<u8> {
+    let mut states = vec![LEAF_OPEN; surface.len()];
+    let mut prefix = vec![0u32; surface.len() + 1];
+    for (i, &s) in surface.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + u32::from(s);
+    }
+    let (y0, y1, z0, z1) = (ya, (ya + 7).min(dims.y - 1), za, (za + 7).min(dims.z - 1));
+    let mut stack = vec![(0u32, surface.len() as u32 - 1)];
+    while let Some((a, b)) = stack.pop() {
+        if prefix[b as usize + 1] == prefix[a as usize] {
+            let (x0, x1) = (a * 8, (b * 8 + 7).min(dims.x - 1));
+            let (xm, ym, zm) = ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2);
+            let far = |m: u32, lo: u32, hi: u32| (m - lo).max(hi - m) as f32;
+            let radius = Vec3::new(far(xm, x0, x1), far(ym, y0, y1), far(zm, z0, z1)).length() * (1.0 + 1e-6);
+            let p = Vec3::new(xm as f32 + 0.5, ym as f32 + 0.5, zm as f32 + 0.5);
+            let count = count_before(rows, (zm * dims.y + ym) as usize, xm);
+            let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
+            let side = certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN);
+            if side != 2 {
+                let state = if side == 1 { LEAF_INSIDE } else { LEAF_OUTSIDE };
+                states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state);
+                continue;
+            }
+        }
+        if a < b {
+            let m = a + (b - a) / 2;
+            stack.extend([(m + 1, b), (a, m)]);
+        }
+    }
+    states
+}
+
+/// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell), eight z-layers
+/// at a time: a group of 8×8 rows beside a hole first certifies the leaves it can whole ([`certify_leaves`]).
 pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         let spec = grid.spec;
-        let rows = column_crossings(triangles, spec.dims, lattice);
+        let dims = spec.dims;
+        let rows = column_crossings(triangles, dims, lattice);
         let boundary = boundary(triangles, lattice);
+        let keys = match boundary.edges.is_empty() {
+            true => Vec::new(),
+            false => surface_leaves(triangles, dims),
+        };
         let wpr = spec.words_per_row();
-        grid.words.par_chunks_mut(wpr).enumerate().for_each(|(r, row)| {
-            let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-            let (y, z) = ((r % spec.dims.y as usize) as u32, (r / spec.dims.y as usize) as u32);
-            let near = near_boundary(y, z, &boundary.pieces);
-            if list.is_empty() && !near {
-                return;
+        let layer = wpr * dims.y as usize;
+        grid.words.par_chunks_mut(8 * layer).enumerate().for_each(|(slab, words)| {
+            let za = slab as u32 * 8;
+            for ya in (0..dims.y).step_by(8) {
+                let group: Vec<(u32, u32)> =
+                    (za..(za + 8).min(dims.z)).flat_map(|z| (ya..(ya + 8).min(dims.y)).map(move |y| (y, z))).collect();
+                let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
+                let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
+                let decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
+                    true => certify_leaves(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
+                    false => Vec::new(),
+                };
+                for (&(y, z), &near) in group.iter().zip(&near) {
+                    let r = (z * dims.y + y) as usize;
+                    let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                    if list.is_empty() && !near {
+                        continue;
+                    }
+                    let at = word(y, z);
+                    fill_row(list, y, z, dims.x, near, &boundary, &decided, &mut words[at..at + wpr]);
+                }
             }
-            fill_row(list, y, z, spec.dims.x, near, &boundary, row);
         });
     })
 }

@@ -13,7 +13,7 @@
 
 use super::Lattice;
 use super::cpu::solid::{fill_row, near_boundary};
-use super::solid::{boundary, column_crossings};
+use super::solid::{boundary, certify_leaves, column_crossings, group_surface, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -43,6 +43,17 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         let dims = spec.dims;
         let rows = column_crossings(triangles, dims, lattice);
         let boundary = boundary(triangles, lattice);
+        // Where the surface is: the shell the solid is filled around, or for a field's sign (filled without one)
+        // the triangles' boxes.
+        let shell = !surface.leaves.is_empty() || !surface.tiles.is_empty();
+        let keys = match boundary.edges.is_empty() || shell {
+            true => Vec::new(),
+            false => surface_leaves(triangles, dims),
+        };
+        let group_surface = |ya: u32, za: u32| match shell {
+            true => (0..dims.x.div_ceil(8)).map(|lx| surface.leaf_mask(UVec3::new(lx * 8, ya, za)) != [0; 8]).collect(),
+            false => group_surface(&keys, dims, ya, za),
+        };
         let wpr = spec.words_per_row();
         let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
         let leaves_x = dims.x.div_ceil(8) as usize;
@@ -66,6 +77,15 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         group[i * wpr..(i + 1) * wpr].iter_mut().for_each(|w| *w = 0);
                     }
                     written = 0;
+                    // Beside a hole, the leaves certified whole first (one winding number per box of leaves).
+                    let near_group = (0..64u32).any(|i| {
+                        let (y, z) = (ya + i / 8, za + i % 8);
+                        y < dims.y && z < dims.z && near_boundary(y, z, &boundary.pieces)
+                    });
+                    let decided = match near_group && !boundary.edges.is_empty() {
+                        true => certify_leaves(&rows, dims, ya, za, &boundary, &group_surface(ya, za)),
+                        false => Vec::new(),
+                    };
                     for dz in 0..8 {
                         for dy in 0..8 {
                             let (y, z) = (ya + dy, za + dz);
@@ -79,7 +99,8 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                                 continue;
                             }
                             let i = (dy * 8 + dz) as usize;
-                            fill_row(list, y, z, dims.x, near, &boundary, &mut group[i * wpr..(i + 1) * wpr]);
+                            let row = &mut group[i * wpr..(i + 1) * wpr];
+                            fill_row(list, y, z, dims.x, near, &boundary, &decided, row);
                             written |= 1 << i;
                         }
                     }

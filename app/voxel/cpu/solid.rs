@@ -442,6 +442,9 @@ pub struct BoundaryNode {
     pub area: f32,
     /// The fan's vector areas per axis, each triangle's taken absolute: `Σ |w| |A_k|`, rounded up.
     pub axis_area: Vec3,
+    /// The chain's length, each edge times its multiplicity, rounded up: what bounds its pull on the winding
+    /// number's gradient ([`gradient_bound`]).
+    pub length: f32,
     pub chord: Chord,
     pub first: u32,
     pub count: u32,
@@ -545,6 +548,84 @@ pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
     }
     let Winding { w, e, .. } = winding_number_tree(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
     certain_side(w, e, 0.0, MARGIN)
+}
+
+/// A bound on the winding number's gradient anywhere within `radius` of `p` that the mesh's surface does not
+/// separate from `p`. Off the surface the gradient of the solid angle is the Biot–Savart integral of the boundary
+/// curve, so `|∇w| ≤ (1/4π) Σ |w_e| len_e / d_e²` with `d_e` the least distance from the ball to edge `e`; a
+/// chain at least twice its box's diagonal from the ball counts as one term, its length over the squared
+/// distance to its box. Infinite where an edge comes within the ball.
+pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
+    let mut sum = 0.0f32;
+    let mut stack = [0u32; 2 * TREE_DEPTH];
+    for piece in &boundary.pieces {
+        stack[0] = piece.root;
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &boundary.nodes[stack[len] as usize];
+            let gap = (node.lo - p).max(p - node.hi).max(Vec3::ZERO).length() * (1.0 - 1.0 / 1024.0) - radius;
+            if gap > 2.0 * (node.hi - node.lo).length() {
+                sum += node.length / (gap * gap);
+                continue;
+            }
+            match node.children {
+                [NO_NODE, NO_NODE] => {
+                    for e in &boundary.edges[node.first as usize..(node.first + node.count) as usize] {
+                        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+                        let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (a.length() + b.length());
+                        let d = d - radius;
+                        if d <= 0.0 {
+                            return f32::INFINITY;
+                        }
+                        sum += e.weight.abs() * (b - a).length() * (1.0 + 1e-5) / (d * d);
+                    }
+                }
+                [left, right] => {
+                    stack[len] = right;
+                    stack[len + 1] = left;
+                    len += 2;
+                }
+            }
+        }
+    }
+    sum / (4.0 * std::f32::consts::PI) * 1.01
+}
+
+/// What the host's 3D certificates ([`crate::voxel::solid::certify_leaves`]) found for an 8³ leaf of a row
+/// ([`fill_row`]'s `decided`): nothing (the row's runs decide it), inside, or outside.
+pub const LEAF_OPEN: u8 = 0;
+pub const LEAF_INSIDE: u8 = 1;
+pub const LEAF_OUTSIDE: u8 = 2;
+
+/// The run `run` of a row whose boundary term may reach 1/2, with the leaves `decided` certified whole set or
+/// skipped and the rest certified stretch by stretch ([`fill_open_run`]). A certified leaf holds no surface, so
+/// no crossing cuts it: it lies within one run.
+fn fill_decided_run(
+    count: i32,
+    run: std::ops::Range<u32>,
+    y: u32,
+    z: u32,
+    boundary: &Boundary,
+    decided: &[u8],
+    row: &mut [u32],
+) {
+    let state = |k: u32| decided.get((k / 8) as usize).copied().unwrap_or(LEAF_OPEN);
+    let (mut k, k1) = (run.start, run.end);
+    while k < k1 {
+        let mut end = ((k / 8 + 1) * 8).min(k1);
+        match state(k) {
+            LEAF_INSIDE => set_range(row, k, end),
+            LEAF_OUTSIDE => {}
+            _ => {
+                while end < k1 && state(end) == LEAF_OPEN {
+                    end = ((end / 8 + 1) * 8).min(k1);
+                }
+                fill_open_run(count, k, end - 1, y, z, boundary, row);
+            }
+        }
+        k = end;
+    }
 }
 
 /// The distance from the origin to the segment `a b`.
@@ -728,7 +809,19 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
 /// crossings cancel and the boundary term stays below 1/2 along the whole row (`near` false, see
 /// [`near_boundary`]: every row of a closed mesh, and every row far enough from the holes), the integer count
 /// decides; elsewhere every run between crossings is certified by [`fill_open_run`].
-pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, boundary: &Boundary, row: &mut [u32]) {
+///
+/// `decided` (CPU only; empty for none, as the shader has) holds the host's certified leaves of the row's group.
+#[allow(clippy::too_many_arguments)]
+pub fn fill_row(
+    crossings: &[u32],
+    y: u32,
+    z: u32,
+    dims_x: u32,
+    near: bool,
+    boundary: &Boundary,
+    decided: &[u8],
+    row: &mut [u32],
+) {
     let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
     let open = total != 0 || near;
     let mut i = 0;
@@ -747,7 +840,7 @@ pub fn fill_row(crossings: &[u32], y: u32, z: u32, dims_x: u32, near: bool, boun
                 set_range(row, k0, k1);
             }
         } else {
-            fill_open_run(count, k0, k1 - 1, y, z, boundary, row);
+            fill_decided_run(count, k0..k1, y, z, boundary, decided, row);
         }
         k0 = k1;
     }
