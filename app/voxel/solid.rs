@@ -425,6 +425,75 @@ pub fn certify_leaves(
     states
 }
 
+/// The leaves along x of the group of rows at `(ya, za)` whose boundary term is within ½ of one integer `k`
+/// throughout, as `LEAF_COUNT + k` (else [`LEAF_OPEN`]): the rows' crossing counts plus `k` then decide every voxel
+/// of them, surface or not. The boundary term is continuous across the surface (only the count jumps there) and
+/// jumps only across the strips swept from the boundary edges along +x, so a box before the first strip that
+/// meets the group's rows (from the edges whose YZ boxes meet the group's, widened by a voxel) is certified by the
+/// term at its middle, its error, the far chains' bound and the gradient bound times its radius, as in
+/// [`certify_leaves`]; boxes that are not are halved down to single leaves.
+pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec<u8> {
+    let leaves_x = dims.x.div_ceil(8);
+    let mut states = vec![LEAF_OPEN; leaves_x as usize];
+    let (y0, y1, z0, z1) = (ya, (ya + 7).min(dims.y - 1), za, (za + 7).min(dims.z - 1));
+    let (ylo, yhi, zlo, zhi) = (y0 as f32 - 0.5, y1 as f32 + 2.5, z0 as f32 - 0.5, z1 as f32 + 2.5);
+    let strip = boundary
+        .edges
+        .iter()
+        .filter(|e| {
+            let (ey0, ey1) = (e.a[1].min(e.b[1]), e.a[1].max(e.b[1]));
+            let (ez0, ez1) = (e.a[2].min(e.b[2]), e.a[2].max(e.b[2]));
+            ey1 >= ylo && ey0 <= yhi && ez1 >= zlo && ez0 <= zhi
+        })
+        .map(|e| e.a[0].min(e.b[0]))
+        .fold(f32::INFINITY, f32::min);
+    // Leaves wholly before the first strip (a voxel of slack).
+    let clear = match strip.is_finite() {
+        true => ((strip - 1.0).max(0.0) as u32 / 8).min(leaves_x),
+        false => leaves_x,
+    };
+    if clear == 0 {
+        return states;
+    }
+    let mut stack = vec![(0u32, clear - 1)];
+    while let Some((a, b)) = stack.pop() {
+        let (x0, x1) = (a * 8, (b * 8 + 7).min(dims.x - 1));
+        let (xm, ym, zm) = ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2);
+        let far = |m: u32, lo: u32, hi: u32| (m - lo).max(hi - m) as f32;
+        let radius = Vec3::new(far(xm, x0, x1), far(ym, y0, y1), far(zm, z0, z1)).length() * (1.0 + 1e-6);
+        let p = Vec3::new(xm as f32 + 0.5, ym as f32 + 0.5, zm as f32 + 0.5);
+        let v = winding_number_tree(0, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
+        let k = v.w.round();
+        let spread = MARGIN * v.e + v.far + radius * gradient_bound(p, radius, boundary);
+        if (v.w - k).abs() + spread < 0.5 && k.abs() < 64.0 {
+            let state = (i32::from(LEAF_COUNT) + k as i32) as u8;
+            states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state);
+            continue;
+        }
+        if a < b {
+            let m = a + (b - a) / 2;
+            stack.extend([(m + 1, b), (a, m)]);
+        }
+    }
+    states
+}
+
+/// A near group's certified leaves: by the count plus an integer where no strip crosses ([`certify_counts`]),
+/// else, where the surface does not pass, by one side of ½ ([`certify_leaves`]).
+pub fn certify_group(
+    rows: &RowCrossings,
+    dims: UVec3,
+    ya: u32,
+    za: u32,
+    boundary: &Boundary,
+    surface: &[bool],
+) -> Vec<u8> {
+    let counted = certify_counts(dims, ya, za, boundary);
+    let left: Vec<bool> = surface.iter().zip(&counted).map(|(&s, &c)| s || c != LEAF_OPEN).collect();
+    let whole = certify_leaves(rows, dims, ya, za, boundary, &left);
+    counted.into_iter().zip(whole).map(|(c, w)| if c != LEAF_OPEN { c } else { w }).collect()
+}
+
 /// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell), eight z-layers
 /// at a time: a group of 8×8 rows beside a hole first certifies the leaves it can whole ([`certify_leaves`]).
 pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
@@ -448,7 +517,7 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
                 let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
                 let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
                 let decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
-                    true => certify_leaves(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
+                    true => certify_group(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
                     false => Vec::new(),
                 };
                 for (&(y, z), &near) in group.iter().zip(&near) {

@@ -4,16 +4,19 @@
 //! than through its volume.
 //!
 //! The grid is taken in blocks of 128 × 128 rows (y, z), one rayon task each, which owns the leaves and tiles of
-//! its block: its rows are filled 64 at a time (an 8 × 8 group, one leaf row), and per group the rows give each
-//! leaf's mask, kept as an 8³ tile where it is full and as a leaf where it is partly inside; the AND over the whole
-//! block gives its 128³ tiles. Full leaves never exist as leaves, so the inside costs 16 bytes per 8³ block along
-//! the surface and one tile per 128³ block within. The surface's leaves are then joined
+//! its block, and each block in groups of 8 × 8 rows (one leaf row). The work follows the surface: in a group, a
+//! run of leaves the surface does not pass through is decided whole (by each row's crossing count, one lookup per
+//! row, where the counts decide; beside a hole by the certificates of [`certify_group`]), and the rows are filled
+//! bit by bit only through the leaves left (those the surface crosses, and those beside a hole no certificate
+//! decided). Whole 16-leaf segments count towards the block's 128³ tiles; other full leaves are 8³ tiles, partly
+//! inside ones leaves. Full leaves never exist as leaves, so the inside costs 16 bytes per 8³ block along
+//! the surface and one tile per 128³ block within, and no row is filled through the interior. The surface's leaves are then joined
 //! with the interior's, leaves under a tile dropped, and [`SparseGrid::prune`] gives the canonical form (full
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::cpu::solid::{fill_row, near_boundary};
-use super::solid::{boundary, certify_leaves, column_crossings, group_surface, surface_leaves};
+use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, crossing_voxel, fill_row_span, near_boundary};
+use super::solid::{boundary, certify_group, column_crossings, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -35,7 +38,54 @@ fn row_byte(row: &[u32], lx: usize) -> u8 {
     (row[lx / 4] >> ((lx % 4) * 8)) as u8
 }
 
+/// Clears byte `lx` of a row, so the next group starts from an empty row without clearing all of it.
+#[inline]
+fn clear_byte(row: &mut [u32], lx: usize) {
+    row[lx / 4] &= !(0xffu32 << ((lx % 4) * 8));
+}
+
+/// The leaves the surface passes through, per group of 8×8 rows: `(group << 21) | lx`, sorted, with `group` the
+/// index `gz * groups_y + gy` of the group. From the shell the solid is filled around, or, for a field's sign
+/// (filled without one), from the triangles' boxes ([`surface_leaves`]).
+fn group_leaves(surface: &SparseGrid, triangles: &[[Vec3; 3]], dims: UVec3) -> Vec<u64> {
+    let groups_y = u64::from(dims.y.div_ceil(8));
+    let pack = |o: UVec3| (u64::from(o.z / 8) * groups_y + u64::from(o.y / 8)) << 21 | u64::from(o.x / 8);
+    let mut keys: Vec<u64> = match surface.leaves.is_empty() && surface.tiles.is_empty() {
+        true => surface_leaves(triangles, dims).into_iter().map(|k| pack(key_origin(k))).collect(),
+        false => {
+            let mut keys: Vec<u64> = surface.leaves.iter().map(|(k, _)| pack(key_origin(*k))).collect();
+            for tile in &surface.tiles {
+                let n = (1u32 << tile.log2) / 8;
+                for (z, y, x) in (0..n).flat_map(|z| (0..n).flat_map(move |y| (0..n).map(move |x| (z, y, x)))) {
+                    let o = tile.origin + UVec3::new(x, y, z) * 8;
+                    if o.cmplt(dims).all() {
+                        keys.push(pack(o));
+                    }
+                }
+            }
+            keys
+        }
+    };
+    keys.par_sort_unstable();
+    keys.dedup();
+    keys
+}
+
+/// What a group of 8×8 rows holds along x, leaf by leaf.
+#[derive(Clone, Copy, PartialEq)]
+enum Leaf {
+    Outside,
+    Inside,
+    /// Decided voxel by voxel, from the rows' bits: the surface passes through, or nothing decided it whole.
+    Bits,
+}
+
 /// Adds the voxels whose centres are inside the lattice triangles' mesh to `surface` (which holds the shell).
+///
+/// The work follows the surface: a group of 8×8 rows is filled row by row only in the leaves the surface passes
+/// through (and those beside a hole that no certificate decided); the runs of leaves between them are decided
+/// whole, by each row's crossing count where the count decides (the rows that pass no hole, [`near_boundary`]),
+/// or by one winding number per box ([`certify_leaves`]) beside a hole.
 pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
@@ -43,115 +93,176 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         let dims = spec.dims;
         let rows = column_crossings(triangles, dims, lattice);
         let boundary = boundary(triangles, lattice);
-        // Where the surface is: the shell the solid is filled around, or for a field's sign (filled without one)
-        // the triangles' boxes.
-        let shell = !surface.leaves.is_empty() || !surface.tiles.is_empty();
-        let keys = match boundary.edges.is_empty() || shell {
-            true => Vec::new(),
-            false => surface_leaves(triangles, dims),
-        };
-        let group_surface = |ya: u32, za: u32| match shell {
-            true => (0..dims.x.div_ceil(8)).map(|lx| surface.leaf_mask(UVec3::new(lx * 8, ya, za)) != [0; 8]).collect(),
-            false => group_surface(&keys, dims, ya, za),
-        };
+        let surface_keys = group_leaves(&surface, triangles, dims);
+        let groups_y = dims.y.div_ceil(8);
         let wpr = spec.words_per_row();
         let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
         let leaves_x = dims.x.div_ceil(8) as usize;
+        let segments = leaves_x.div_ceil(16);
         let fill_block = |b: u32| -> BlockInterior {
             let (y0, z0) = ((b % blocks_y) * BLOCK, (b / blocks_y) * BLOCK);
             let mut out = BlockInterior::default();
-            // The AND over all rows of the block: 128³ tiles where 128 bits in a row are set. A row outside the
-            // grid counts as empty, so a block cut by the grid's end has no tile.
-            let mut all = vec![u32::MAX; wpr];
-            let mut all_empty = false;
+            // Per 16-leaf segment along x (a 128³ tile's width), the groups in which it is all inside; a block cut
+            // by the grid's end has no tile.
+            let whole_block = y0 + BLOCK <= dims.y && z0 + BLOCK <= dims.z;
+            let mut full_groups = vec![0u32; segments];
+            // Each group's whole segments, and its leaves partly or wholly inside, until the block's tiles are known.
+            let mut full_segments: Vec<(usize, u32, u32)> = Vec::new();
+            let mut found: Vec<(usize, UVec3, LeafMask)> = Vec::new();
             let mut group = vec![0u32; 64 * wpr];
-            // Rows of `group` written by the last group (the only ones to clear), as bits `dy * 8 + dz`.
-            let mut written = 0u64;
-            let (mut or, mut and) = (vec![0u32; wpr], vec![0u32; wpr]);
-            // Each group's leaves that are partly or wholly inside, before the block's 128³ tiles are known.
-            let mut found: Vec<(u32, UVec3, LeafMask)> = Vec::new();
+            let mut states = vec![Leaf::Outside; leaves_x];
             for gz in 0..BLOCK / 8 {
                 for gy in 0..BLOCK / 8 {
                     let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
-                    for i in (0..64).filter(|i| written >> i & 1 != 0) {
-                        group[i * wpr..(i + 1) * wpr].iter_mut().for_each(|w| *w = 0);
-                    }
-                    written = 0;
-                    // Beside a hole, the leaves certified whole first (one winding number per box of leaves).
-                    let near_group = (0..64u32).any(|i| {
-                        let (y, z) = (ya + i / 8, za + i % 8);
-                        y < dims.y && z < dims.z && near_boundary(y, z, &boundary.pieces)
-                    });
-                    let decided = match near_group && !boundary.edges.is_empty() {
-                        true => certify_leaves(&rows, dims, ya, za, &boundary, &group_surface(ya, za)),
-                        false => Vec::new(),
-                    };
-                    for dz in 0..8 {
-                        for dy in 0..8 {
-                            let (y, z) = (ya + dy, za + dz);
-                            if y >= dims.y || z >= dims.z {
-                                continue;
-                            }
-                            let r = (z * dims.y + y) as usize;
-                            let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-                            let near = near_boundary(y, z, &boundary.pieces);
-                            if list.is_empty() && !near {
-                                continue;
-                            }
-                            let i = (dy * 8 + dz) as usize;
-                            let row = &mut group[i * wpr..(i + 1) * wpr];
-                            fill_row(list, y, z, dims.x, near, &boundary, &decided, row);
-                            written |= 1 << i;
-                        }
-                    }
-                    // The block's AND: zero unless every row of every group was filled.
-                    if written != u64::MAX {
-                        all_empty = true;
-                    }
-                    if written == 0 {
+                    if ya >= dims.y || za >= dims.z {
                         continue;
                     }
-                    // The group's AND: the leaves wholly inside, found without reading their voxels.
-                    and.iter_mut().for_each(|w| *w = if written == u64::MAX { u32::MAX } else { 0 });
-                    if written == u64::MAX {
-                        for row in group.chunks(wpr) {
-                            and.iter_mut().zip(row).for_each(|(a, r)| *a &= r);
-                        }
+                    let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
+                    // The group's rows (y, z, crossings, near), and which leaves the surface passes through.
+                    let group_rows: Vec<(u32, u32, &[u32], bool)> = (0..64u32)
+                        .map(|i| (ya + i / 8, za + i % 8))
+                        .filter(|&(y, z)| y < dims.y && z < dims.z)
+                        .map(|(y, z)| {
+                            let r = (z * dims.y + y) as usize;
+                            let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                            (y, z, list, near_boundary(y, z, &boundary.pieces))
+                        })
+                        .collect();
+                    let first = u64::from(gz + z0 / 8) * u64::from(groups_y) + u64::from(gy + y0 / 8);
+                    let at = surface_keys.partition_point(|&k| k < first << 21);
+                    let crossed: Vec<usize> = surface_keys[at..]
+                        .iter()
+                        .take_while(|&&k| k >> 21 == first)
+                        .map(|&k| (k & 0x1f_ffff) as usize)
+                        .collect();
+                    let quiet =
+                        crossed.is_empty() && group_rows.iter().all(|(_, _, list, near)| list.is_empty() && !near);
+                    if quiet {
+                        continue;
                     }
-                    if !all_empty {
-                        all.iter_mut().zip(&and).for_each(|(a, r)| *a &= r);
-                    }
-                    or.iter_mut().for_each(|w| *w = 0);
-                    for i in (0..64).filter(|i| written >> i & 1 != 0) {
-                        or.iter_mut().zip(&group[i * wpr..(i + 1) * wpr]).for_each(|(o, r)| *o |= r);
-                    }
-                    // Only the leaves some row reaches, and only the rows that were filled.
-                    for lx in (0..leaves_x).filter(|&lx| row_byte(&or, lx) != 0) {
-                        if row_byte(&and, lx) == 0xff {
-                            found.push((lx as u32 / 16, UVec3::new(lx as u32 * 8, ya, za), FULL_LEAF));
+                    let near_group = group_rows.iter().any(|row| row.3) && !boundary.edges.is_empty();
+                    let mut surface_here = vec![false; leaves_x];
+                    crossed.iter().for_each(|&lx| surface_here[lx] = true);
+                    let decided = match near_group {
+                        true => certify_group(&rows, dims, ya, za, &boundary, &surface_here),
+                        false => Vec::new(),
+                    };
+                    // Each run of leaves the surface does not pass through: decided whole where it can be.
+                    let mut lx = 0;
+                    while lx < leaves_x {
+                        if surface_here[lx] {
+                            states[lx] = Leaf::Bits;
+                            lx += 1;
                             continue;
                         }
-                        let mut mask: LeafMask = [0; 8];
-                        for i in (0..64).filter(|i| written >> i & 1 != 0) {
-                            let mut bits = row_byte(&group[i * wpr..(i + 1) * wpr], lx);
-                            while bits != 0 {
-                                let x = bits.trailing_zeros();
-                                mask[x as usize] |= 1u64 << i;
-                                bits &= bits - 1;
+                        let end = (lx..leaves_x).find(|&k| surface_here[k]).unwrap_or(leaves_x);
+                        let x0 = lx as u32 * 8;
+                        // Each row's count at the run's first voxel, where the count decides that row.
+                        let counts: Option<Vec<bool>> = group_rows
+                            .iter()
+                            .map(|(_, _, list, near)| {
+                                let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
+                                let count = -list
+                                    .iter()
+                                    .take_while(|&&c| crossing_voxel(c) <= x0)
+                                    .map(|&c| crossing_sign(c))
+                                    .sum::<i32>();
+                                (total == 0 && !near).then_some(count >= 1)
+                            })
+                            .collect();
+                        let by_count = match &counts {
+                            Some(c) if c.iter().all(|&i| i) => Leaf::Inside,
+                            Some(c) if c.iter().all(|&i| !i) => Leaf::Outside,
+                            _ => Leaf::Bits,
+                        };
+                        for (k, state) in states.iter_mut().enumerate().take(end).skip(lx) {
+                            let partial = !whole || (k + 1) * 8 > dims.x as usize;
+                            *state = match decided.get(k) {
+                                _ if partial => Leaf::Bits,
+                                Some(&LEAF_INSIDE) => Leaf::Inside,
+                                Some(&LEAF_OUTSIDE) => Leaf::Outside,
+                                _ => by_count,
+                            };
+                        }
+                        lx = end;
+                    }
+                    // The rows, only through the leaves left to them.
+                    let mut k = 0;
+                    while k < leaves_x {
+                        if states[k] != Leaf::Bits {
+                            k += 1;
+                            continue;
+                        }
+                        let end = (k..leaves_x).find(|&e| states[e] != Leaf::Bits).unwrap_or(leaves_x);
+                        let span = k as u32 * 8..(end as u32 * 8).min(dims.x);
+                        for &(y, z, list, near) in &group_rows {
+                            let i = ((y - ya) * 8 + (z - za)) as usize;
+                            let row = &mut group[i * wpr..(i + 1) * wpr];
+                            fill_row_span(list, y, z, span.clone(), near, &boundary, &decided, row);
+                        }
+                        k = end;
+                    }
+                    // The group's leaves: whole segments counted for the block's tiles, the rest kept.
+                    for (t, full_count) in full_groups.iter_mut().enumerate() {
+                        let leaves = t * 16..((t + 1) * 16).min(leaves_x);
+                        let segment = &states[leaves.clone()];
+                        // Most segments are all outside or all inside: no leaf of them is looked at.
+                        if segment.iter().all(|&s| s == Leaf::Outside) {
+                            continue;
+                        }
+                        if segment.len() == 16 && segment.iter().all(|&s| s == Leaf::Inside) {
+                            *full_count += 1;
+                            full_segments.push((t, ya, za));
+                            continue;
+                        }
+                        let mut full = leaves.len() == 16;
+                        let before = found.len();
+                        for lx in leaves {
+                            let origin = UVec3::new(lx as u32 * 8, ya, za);
+                            match states[lx] {
+                                Leaf::Outside => full = false,
+                                Leaf::Inside => found.push((t, origin, FULL_LEAF)),
+                                Leaf::Bits => {
+                                    let mut mask: LeafMask = [0; 8];
+                                    for i in 0..64 {
+                                        let row = &mut group[i * wpr..(i + 1) * wpr];
+                                        let mut bits = row_byte(row, lx);
+                                        clear_byte(row, lx);
+                                        while bits != 0 {
+                                            let x = bits.trailing_zeros();
+                                            mask[x as usize] |= 1u64 << i;
+                                            bits &= bits - 1;
+                                        }
+                                    }
+                                    full &= mask == FULL_LEAF;
+                                    if mask != [0; 8] {
+                                        found.push((t, origin, mask));
+                                    }
+                                }
                             }
                         }
-                        found.push((lx as u32 / 16, UVec3::new(lx as u32 * 8, ya, za), mask));
+                        if full {
+                            // Kept as the segment, not as its sixteen leaves.
+                            found.truncate(before);
+                            *full_count += 1;
+                            full_segments.push((t, ya, za));
+                        }
                     }
+                    states.iter_mut().for_each(|s| *s = Leaf::Outside);
                 }
             }
-            // 128³ tiles: four whole words of the block's AND.
-            let tiled: Vec<bool> = (0..wpr.div_ceil(4))
-                .map(|t| !all_empty && all.get(t * 4..t * 4 + 4).is_some_and(|w| w.iter().all(|w| *w == u32::MAX)))
-                .collect();
+            // 128³ tiles: segments whole in every group of a whole block.
+            let groups = (BLOCK / 8) * (BLOCK / 8);
+            let tiled: Vec<bool> = full_groups.iter().map(|&n| whole_block && n == groups).collect();
             for (t, _) in tiled.iter().enumerate().filter(|(_, t)| **t) {
                 out.tiles.push(Tile { log2: 7, origin: UVec3::new(t as u32 * BLOCK, y0, z0) });
             }
-            for (_, origin, mask) in found.into_iter().filter(|(b, _, _)| !tiled[*b as usize]) {
+            for (t, ya, za) in full_segments.into_iter().filter(|(t, _, _)| !tiled[*t]) {
+                for lx in t * 16..(t + 1) * 16 {
+                    out.tiles.push(Tile { log2: 3, origin: UVec3::new(lx as u32 * 8, ya, za) });
+                }
+            }
+            for (_, origin, mask) in found.into_iter().filter(|(t, _, _)| !tiled[*t]) {
                 match mask == FULL_LEAF {
                     true => out.tiles.push(Tile { log2: 3, origin }),
                     false => out.leaves.push((leaf_key(origin.x, origin.y, origin.z), mask)),

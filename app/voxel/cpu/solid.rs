@@ -597,6 +597,10 @@ pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
 pub const LEAF_OPEN: u8 = 0;
 pub const LEAF_INSIDE: u8 = 1;
 pub const LEAF_OUTSIDE: u8 = 2;
+/// A leaf whose boundary term is certified within ½ of the integer `state - LEAF_COUNT` throughout (no strip
+/// crosses it): each voxel is inside where its row's crossing count plus that integer is at least 1, exactly as a
+/// row far from the holes is decided by its count alone, surface or not.
+pub const LEAF_COUNT: u8 = 128;
 
 /// The run `run` of a row whose boundary term may reach 1/2, with the leaves `decided` certified whole set or
 /// skipped and the rest certified stretch by stretch ([`fill_open_run`]). A certified leaf holds no surface, so
@@ -617,6 +621,11 @@ fn fill_decided_run(
         match state(k) {
             LEAF_INSIDE => set_range(row, k, end),
             LEAF_OUTSIDE => {}
+            s if s >= LEAF_COUNT / 2 => {
+                if count + i32::from(s) - i32::from(LEAF_COUNT) >= 1 {
+                    set_range(row, k, end);
+                }
+            }
             _ => {
                 while end < k1 && state(end) == LEAF_OPEN {
                     end = ((end / 8 + 1) * 8).min(k1);
@@ -822,17 +831,33 @@ pub fn fill_row(
     decided: &[u8],
     row: &mut [u32],
 ) {
+    fill_row_span(crossings, y, z, 0..dims_x, near, boundary, decided, row);
+}
+
+/// [`fill_row`] over the voxels `span` of the row only (CPU only): what the sparse fill asks of the rows through
+/// leaves it could not decide whole.
+#[allow(clippy::too_many_arguments)]
+pub fn fill_row_span(
+    crossings: &[u32],
+    y: u32,
+    z: u32,
+    span: std::ops::Range<u32>,
+    near: bool,
+    boundary: &Boundary,
+    decided: &[u8],
+    row: &mut [u32],
+) {
     let total: i32 = crossings.iter().map(|&c| crossing_sign(c)).sum();
     let open = total != 0 || near;
     let mut i = 0;
     let mut before = 0i32;
-    let mut k0 = 0u32;
-    while k0 < dims_x {
+    let mut k0 = span.start;
+    while k0 < span.end {
         while i < crossings.len() && crossing_voxel(crossings[i]) <= k0 {
             before += crossing_sign(crossings[i]);
             i += 1;
         }
-        let k1 = if i < crossings.len() { crossing_voxel(crossings[i]).min(dims_x) } else { dims_x };
+        let k1 = if i < crossings.len() { crossing_voxel(crossings[i]).min(span.end) } else { span.end };
         // The ray towards -x leaves through crossings of sign -1 (n_x < 0) and enters through those of +1.
         let count = -before;
         if !open {
