@@ -187,7 +187,7 @@ impl DistanceField {
     }
 
     /// [`DistanceField::compute`], calling `progress(triangles done, triangles)` as the distances are computed
-    /// (from any thread, about [`PROGRESS_CALLS`] times).
+    /// (from any thread, a few hundred times in all).
     pub fn compute_with_progress(
         triangles: &[[Vec3; 3]],
         spec: GridSpec,

@@ -394,32 +394,52 @@ pub fn certify_leaves(
     boundary: &Boundary,
     surface: &[bool],
 ) -> Vec<u8> {
-    let mut states = vec![LEAF_OPEN; surface.len()];
     let mut prefix = vec![0u32; surface.len() + 1];
     for (i, &s) in surface.iter().enumerate() {
         prefix[i + 1] = prefix[i] + u32::from(s);
     }
-    let (y0, y1, z0, z1) = (ya, (ya + 7).min(dims.y - 1), za, (za + 7).min(dims.z - 1));
-    let mut stack = vec![(0u32, surface.len() as u32 - 1)];
-    while let Some((a, b)) = stack.pop() {
-        if prefix[b as usize + 1] == prefix[a as usize] {
-            let (x0, x1) = (a * 8, (b * 8 + 7).min(dims.x - 1));
-            let (xm, ym, zm) = ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2);
-            let far = |m: u32, lo: u32, hi: u32| (m - lo).max(hi - m) as f32;
-            let radius = Vec3::new(far(xm, x0, x1), far(ym, y0, y1), far(zm, z0, z1)).length() * (1.0 + 1e-6);
-            let p = Vec3::new(xm as f32 + 0.5, ym as f32 + 0.5, zm as f32 + 0.5);
-            let count = count_before(rows, (zm * dims.y + ym) as usize, xm);
-            let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
-            let side = certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN);
-            if side != 2 {
-                let state = if side == 1 { LEAF_INSIDE } else { LEAF_OUTSIDE };
-                states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state);
-                continue;
-            }
+    bisect_leaves(surface.len() as u32, |a, b| {
+        if prefix[b as usize + 1] != prefix[a as usize] {
+            return None;
         }
-        if a < b {
-            let m = a + (b - a) / 2;
-            stack.extend([(m + 1, b), (a, m)]);
+        let (m, radius) = group_box(a, b, dims, ya, za);
+        let p = m.as_vec3() + 0.5;
+        let count = count_before(rows, (m.z * dims.y + m.y) as usize, m.x);
+        let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
+        match certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN) {
+            1 => Some(LEAF_INSIDE),
+            0 => Some(LEAF_OUTSIDE),
+            _ => None,
+        }
+    })
+}
+
+/// The middle voxel of the box of leaves `a..=b` along x of the group of rows at `(ya, za)`, and the distance from
+/// its centre to the box's farthest voxel centre (rounded up).
+fn group_box(a: u32, b: u32, dims: UVec3, ya: u32, za: u32) -> (UVec3, f32) {
+    let lo = UVec3::new(a * 8, ya, za);
+    let hi = UVec3::new(b * 8 + 7, ya + 7, za + 7).min(dims - 1);
+    let m = (lo + hi) / 2;
+    let far = (m - lo).max(hi - m).as_vec3();
+    (m, far.length() * (1.0 + 1e-6))
+}
+
+/// The states of leaves `0..len` from `decide(a, b)`, a state for all of `a..=b` or none: tried on the whole,
+/// then on halves down to single leaves where it gives none ([`LEAF_OPEN`] where no range did).
+fn bisect_leaves(len: u32, mut decide: impl FnMut(u32, u32) -> Option<u8>) -> Vec<u8> {
+    let mut states = vec![LEAF_OPEN; len as usize];
+    let mut stack = match len {
+        0 => Vec::new(),
+        _ => vec![(0u32, len - 1)],
+    };
+    while let Some((a, b)) = stack.pop() {
+        match decide(a, b) {
+            Some(state) => states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state),
+            None if a < b => {
+                let m = a + (b - a) / 2;
+                stack.extend([(m + 1, b), (a, m)]);
+            }
+            None => {}
         }
     }
     states
@@ -434,9 +454,8 @@ pub fn certify_leaves(
 /// [`certify_leaves`]; boxes that are not are halved down to single leaves.
 pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec<u8> {
     let leaves_x = dims.x.div_ceil(8);
-    let mut states = vec![LEAF_OPEN; leaves_x as usize];
-    let (y0, y1, z0, z1) = (ya, (ya + 7).min(dims.y - 1), za, (za + 7).min(dims.z - 1));
-    let (ylo, yhi, zlo, zhi) = (y0 as f32 - 0.5, y1 as f32 + 2.5, z0 as f32 - 0.5, z1 as f32 + 2.5);
+    let (y1, z1) = ((ya + 7).min(dims.y - 1), (za + 7).min(dims.z - 1));
+    let (ylo, yhi, zlo, zhi) = (ya as f32 - 0.5, y1 as f32 + 2.5, za as f32 - 0.5, z1 as f32 + 2.5);
     let strip = boundary
         .edges
         .iter()
@@ -452,29 +471,15 @@ pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec
         true => ((strip - 1.0).max(0.0) as u32 / 8).min(leaves_x),
         false => leaves_x,
     };
-    if clear == 0 {
-        return states;
-    }
-    let mut stack = vec![(0u32, clear - 1)];
-    while let Some((a, b)) = stack.pop() {
-        let (x0, x1) = (a * 8, (b * 8 + 7).min(dims.x - 1));
-        let (xm, ym, zm) = ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2);
-        let far = |m: u32, lo: u32, hi: u32| (m - lo).max(hi - m) as f32;
-        let radius = Vec3::new(far(xm, x0, x1), far(ym, y0, y1), far(zm, z0, z1)).length() * (1.0 + 1e-6);
-        let p = Vec3::new(xm as f32 + 0.5, ym as f32 + 0.5, zm as f32 + 0.5);
+    let mut states = bisect_leaves(clear, |a, b| {
+        let (m, radius) = group_box(a, b, dims, ya, za);
+        let p = m.as_vec3() + 0.5;
         let v = winding_number_tree(0, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         let k = v.w.round();
         let spread = MARGIN * v.e + v.far + radius * gradient_bound(p, radius, boundary);
-        if (v.w - k).abs() + spread < 0.5 && k.abs() < 64.0 {
-            let state = (i32::from(LEAF_COUNT) + k as i32) as u8;
-            states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state);
-            continue;
-        }
-        if a < b {
-            let m = a + (b - a) / 2;
-            stack.extend([(m + 1, b), (a, m)]);
-        }
-    }
+        ((v.w - k).abs() + spread < 0.5 && k.abs() < 64.0).then(|| (i32::from(LEAF_COUNT) + k as i32) as u8)
+    });
+    states.resize(leaves_x as usize, LEAF_OPEN);
     states
 }
 

@@ -1,5 +1,5 @@
 //! The solid fill of [`super::solid`] into a [`SparseGrid`]: the same crossings, the same rows and the same
-//! winding-number rule (each row is filled by [`fill_row`], the function the dense grid uses), but the interior
+//! winding-number rule (each row is filled by [`fill_row_span`], the function the dense grid uses), but the interior
 //! is kept as tiles wherever whole blocks are inside, so a solid at 8192³ costs memory along its surface rather
 //! than through its volume.
 //!
@@ -85,7 +85,7 @@ enum Leaf {
 /// The work follows the surface: a group of 8×8 rows is filled row by row only in the leaves the surface passes
 /// through (and those beside a hole that no certificate decided); the runs of leaves between them are decided
 /// whole, by each row's crossing count where the count decides (the rows that pass no hole, [`near_boundary`]),
-/// or by one winding number per box ([`certify_leaves`]) beside a hole.
+/// or by one winding number per box ([`certify_group`]) beside a hole.
 pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {

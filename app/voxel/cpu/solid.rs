@@ -495,42 +495,26 @@ pub fn winding_number_tree(
     let mut terms = EdgeTerms::default();
     let mut far = 0.0f32;
     let share = budget / boundary.edges.len().max(1) as f32;
-    // Depth first, each node before its halves. A piece's tree is balanced, so the stack holds at most its depth
-    // plus one entry per level.
-    let mut stack = [0u32; 2 * TREE_DEPTH];
-    for piece in &boundary.pieces {
-        stack[0] = piece.root;
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let node = &boundary.nodes[stack[len] as usize];
-            if node.chord != Chord::Branched
-                && let Some(d2) = node.outside_distance2(p, reach)
-            {
-                let bound = node.fan_bound(p, reach, d2) * scale * 1.01;
-                // Each node's share of the budget is its share of the edges: the nodes that stand in are disjoint,
-                // so their bounds add up to at most `budget`, and a near node's need does not starve the far ones.
-                if bound <= share * node.count as f32 {
-                    far += bound;
-                    if let Chord::Edge(chord) = node.chord {
-                        terms.add(&chord, p, reach, atan2_error);
-                    }
-                    continue;
+    walk_tree(boundary, |node| {
+        if node.chord != Chord::Branched
+            && let Some(d2) = node.outside_distance2(p, reach)
+        {
+            let bound = node.fan_bound(p, reach, d2) * scale * 1.01;
+            // Each node's share of the budget is its share of the edges: the nodes that stand in are disjoint, so
+            // their bounds add up to at most `budget`, and a near node's need does not starve the far ones.
+            if bound <= share * node.count as f32 {
+                far += bound;
+                if let Chord::Edge(chord) = node.chord {
+                    terms.add(&chord, p, reach, atan2_error);
                 }
-            }
-            match node.children {
-                [NO_NODE, NO_NODE] => {
-                    let edges = &boundary.edges[node.first as usize..(node.first + node.count) as usize];
-                    edges.iter().for_each(|e| terms.add(e, p, reach, atan2_error));
-                }
-                [left, right] => {
-                    stack[len] = right;
-                    stack[len + 1] = left;
-                    len += 2;
-                }
+                return false;
             }
         }
-    }
+        if node.children == [NO_NODE, NO_NODE] {
+            boundary.node_edges(node).iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+        }
+        true
+    });
     let (w, e, drift) = terms.finish(count);
     let rate = terms.rate * scale * 1.01;
     Winding { w, e, drift, far, rate }
@@ -557,6 +541,32 @@ pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
 /// distance to its box. Infinite where an edge comes within the ball.
 pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
     let mut sum = 0.0f32;
+    walk_tree(boundary, |node| {
+        let gap = (node.lo - p).max(p - node.hi).max(Vec3::ZERO).length() * (1.0 - 1.0 / 1024.0) - radius;
+        if gap > 2.0 * (node.hi - node.lo).length() {
+            sum += node.length / (gap * gap);
+            return false;
+        }
+        if node.children == [NO_NODE, NO_NODE] {
+            for e in boundary.node_edges(node) {
+                let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+                let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (a.length() + b.length()) - radius;
+                // An edge within the ball: no bound.
+                sum += match d > 0.0 {
+                    true => e.weight.abs() * (b - a).length() * (1.0 + 1e-5) / (d * d),
+                    false => f32::INFINITY,
+                };
+            }
+        }
+        true
+    });
+    sum / (4.0 * std::f32::consts::PI) * 1.01
+}
+
+/// Walks each piece's tree depth first, each node before its halves: `visit(node)` says whether to open it (a
+/// node without halves is the visit's to finish). A piece's tree is balanced, so the stack holds at most its
+/// depth plus one entry per level.
+fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bool) {
     let mut stack = [0u32; 2 * TREE_DEPTH];
     for piece in &boundary.pieces {
         stack[0] = piece.root;
@@ -564,32 +574,20 @@ pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
         while len > 0 {
             len -= 1;
             let node = &boundary.nodes[stack[len] as usize];
-            let gap = (node.lo - p).max(p - node.hi).max(Vec3::ZERO).length() * (1.0 - 1.0 / 1024.0) - radius;
-            if gap > 2.0 * (node.hi - node.lo).length() {
-                sum += node.length / (gap * gap);
-                continue;
-            }
-            match node.children {
-                [NO_NODE, NO_NODE] => {
-                    for e in &boundary.edges[node.first as usize..(node.first + node.count) as usize] {
-                        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-                        let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (a.length() + b.length());
-                        let d = d - radius;
-                        if d <= 0.0 {
-                            return f32::INFINITY;
-                        }
-                        sum += e.weight.abs() * (b - a).length() * (1.0 + 1e-5) / (d * d);
-                    }
-                }
-                [left, right] => {
-                    stack[len] = right;
-                    stack[len + 1] = left;
-                    len += 2;
-                }
+            if visit(node) && node.children != [NO_NODE, NO_NODE] {
+                stack[len] = node.children[1];
+                stack[len + 1] = node.children[0];
+                len += 2;
             }
         }
     }
-    sum / (4.0 * std::f32::consts::PI) * 1.01
+}
+
+impl Boundary {
+    /// The edges under `node`.
+    pub fn node_edges(&self, node: &BoundaryNode) -> &[BoundaryEdge] {
+        &self.edges[node.first as usize..(node.first + node.count) as usize]
+    }
 }
 
 /// What the host's 3D certificates ([`crate::voxel::solid::certify_leaves`]) found for an 8³ leaf of a row
