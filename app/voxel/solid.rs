@@ -213,20 +213,15 @@ pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
         let group: Vec<BoundaryEdge> = chain_order(&order[i..i + n].iter().map(|&k| edges[k]).collect::<Vec<_>>());
         let root = build_tree(&group, i as u32, &mut nodes);
         grouped.extend_from_slice(&group);
-        let centre = Vec3::from_array(group[0].a).as_dvec3();
-        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-        let (mut span, mut area) = (0.0f64, 0.0f64);
-        for e in &group {
-            let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
-            (lo, hi) = (lo.min(a).min(b), hi.max(a).max(b));
-            span += f64::from(e.weight.abs() * e.span);
-            area += f64::from(e.weight.abs()) * 0.5 * (a.as_dvec3() - centre).cross(b.as_dvec3() - centre).length();
-        }
+        // The piece's box and spanning area are its tree's root's (a closed chain: the fan from its first edge's
+        // start); its span is the YZ lengths' sum.
+        let top = nodes[root as usize];
+        let span: f64 = group.iter().map(|e| f64::from(e.weight.abs() * e.span)).sum();
         pieces.push(BoundaryPiece {
-            lo: lo.to_array(),
+            lo: top.lo.to_array(),
             span: (span * (1.0 + 1e-6)) as f32,
-            hi: hi.to_array(),
-            area: (area * (1.0 + 1e-6)) as f32,
+            hi: top.hi.to_array(),
+            area: top.area,
             first: i as u32,
             count: n as u32,
             root,
@@ -373,9 +368,8 @@ pub fn group_surface(keys: &[u64], dims: UVec3, ya: u32, za: u32) -> Vec<bool> {
     (0..dims.x.div_ceil(8)).map(|lx| keys.binary_search(&leaf_key(lx * 8, ya, za)).is_ok()).collect()
 }
 
-/// The crossing count of row `r` before voxel `k`'s centre (the ray towards -x from it).
-fn count_before(rows: &RowCrossings, r: usize, k: u32) -> i32 {
-    let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+/// The crossing count of a row (its sorted crossings `list`) before voxel `k`'s centre: the ray towards -x from it.
+pub fn count_before(list: &[u32], k: u32) -> i32 {
     -list.iter().take_while(|&&c| crossing_voxel(c) <= k).map(|&c| crossing_sign(c)).sum::<i32>()
 }
 
@@ -404,7 +398,8 @@ pub fn certify_leaves(
         }
         let (m, radius) = group_box(a, b, dims, ya, za);
         let p = m.as_vec3() + 0.5;
-        let count = count_before(rows, (m.z * dims.y + m.y) as usize, m.x);
+        let r = (m.z * dims.y + m.y) as usize;
+        let count = count_before(&rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize], m.x);
         let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         match certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN) {
             1 => Some(LEAF_INSIDE),

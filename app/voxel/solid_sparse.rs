@@ -15,8 +15,8 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, crossing_voxel, fill_row_span, near_boundary};
-use super::solid::{boundary, certify_group, column_crossings, surface_leaves};
+use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -119,13 +119,16 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                     }
                     let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
                     // The group's rows (y, z, crossings, near), and which leaves the surface passes through.
-                    let group_rows: Vec<(u32, u32, &[u32], bool)> = (0..64u32)
+                    // The group's rows: (y, z, crossings, near, whether the count alone decides the row).
+                    let group_rows: Vec<(u32, u32, &[u32], bool, bool)> = (0..64u32)
                         .map(|i| (ya + i / 8, za + i % 8))
                         .filter(|&(y, z)| y < dims.y && z < dims.z)
                         .map(|(y, z)| {
                             let r = (z * dims.y + y) as usize;
                             let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-                            (y, z, list, near_boundary(y, z, &boundary.pieces))
+                            let near = near_boundary(y, z, &boundary.pieces);
+                            let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
+                            (y, z, list, near, total == 0 && !near)
                         })
                         .collect();
                     let first = u64::from(gz + z0 / 8) * u64::from(groups_y) + u64::from(gy + y0 / 8);
@@ -136,7 +139,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         .map(|&k| (k & 0x1f_ffff) as usize)
                         .collect();
                     let quiet =
-                        crossed.is_empty() && group_rows.iter().all(|(_, _, list, near)| list.is_empty() && !near);
+                        crossed.is_empty() && group_rows.iter().all(|(_, _, list, near, _)| list.is_empty() && !near);
                     if quiet {
                         continue;
                     }
@@ -160,15 +163,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         // Each row's count at the run's first voxel, where the count decides that row.
                         let counts: Option<Vec<bool>> = group_rows
                             .iter()
-                            .map(|(_, _, list, near)| {
-                                let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
-                                let count = -list
-                                    .iter()
-                                    .take_while(|&&c| crossing_voxel(c) <= x0)
-                                    .map(|&c| crossing_sign(c))
-                                    .sum::<i32>();
-                                (total == 0 && !near).then_some(count >= 1)
-                            })
+                            .map(|&(_, _, list, _, decides)| decides.then(|| count_before(list, x0) >= 1))
                             .collect();
                         let by_count = match &counts {
                             Some(c) if c.iter().all(|&i| i) => Leaf::Inside,
@@ -195,7 +190,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         }
                         let end = (k..leaves_x).find(|&e| states[e] != Leaf::Bits).unwrap_or(leaves_x);
                         let span = k as u32 * 8..(end as u32 * 8).min(dims.x);
-                        for &(y, z, list, near) in &group_rows {
+                        for &(y, z, list, near, _) in &group_rows {
                             let i = ((y - ya) * 8 + (z - za)) as usize;
                             let row = &mut group[i * wpr..(i + 1) * wpr];
                             fill_row_span(list, y, z, span.clone(), near, &boundary, &decided, row);
