@@ -317,6 +317,7 @@ impl Engine {
             voxelize_ms,
             band: request.mode.is_field().then(|| request.band.name()),
             band_voxels: field.as_ref().map(|f| f.band_voxels),
+            distance_evaluations: field.as_ref().map(|f| f.evaluations).filter(|&n| n > 0),
             field_ms,
             field_backend,
             host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) - made.gpu_ms.unwrap_or(0.0),

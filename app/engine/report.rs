@@ -37,6 +37,9 @@ pub struct Report {
     pub colour_ms: Option<f64>,
     pub colours_output: Option<String>,
     pub dims: [u32; 3],
+    /// `sdf`/`udf` on the CPU: the point-to-triangle distances its pass evaluated (a few per band voxel; `None`
+    /// where not counted, as on the GPU).
+    pub distance_evaluations: Option<u64>,
     /// Voxel tests decided by the exact integer path.
     pub exact_tests: Option<u64>,
     /// `sdf`/`udf`: where the distances were computed, like `backend`.

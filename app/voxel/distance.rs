@@ -14,12 +14,14 @@
 //! 1. `mark_leaves`: each triangle marks the 8³ leaves its dilated box ([`band_range`]) touches: the voxels a
 //!    triangle can be within `K` of. Their union is the conservative surface dilated by the band, so candidates
 //!    for a voxel come from the triangles near it, not from all of them. The leaves get slots in x-major order.
-//! 2. `band_distance`: one work item per triangle and voxel layer of its dilated box (`triangle_layer`) lowers
-//!    the squared distance of every voxel centre in that layer of the box (an atomic minimum of the f32 bits, which order like the numbers for non-negative values),
-//!    starting from `K²`. A voxel's value is then the minimum over every triangle within `K` of it: exact up to
-//!    f32 rounding, because the vector from the centre to the closest point is formed from exact differences of
-//!    lattice points ([`point_distance2`]), so its error is a few ulps of the distance and the triangle's size,
-//!    not of the grid coordinates.
+//! 2. `band_distance`: each triangle lowers the squared distance of every voxel centre of its dilated box,
+//!    starting from `K²`. On the GPU one work item per triangle and voxel layer (`triangle_layer`) lowers the leaves'
+//!    values by an atomic minimum of the f32 bits (which order like the numbers for non-negative values); on the
+//!    CPU the triangles are binned by [`BRICK`]³ bricks and one thread lowers one brick in its cache
+//!    ([`BrickCells`]). A voxel's value is then the minimum over every triangle within `K` of it, whatever the
+//!    order: exact up to f32 rounding, because the vector from the centre to the closest point is formed from
+//!    exact differences of lattice points ([`point_distance2`]), so its error is a few ulps of the distance and the
+//!    triangle's size, not of the grid coordinates.
 //! 3. `finish_values`: squared distance in voxels → signed world distance (`√d² · h`, negative inside).
 //!
 //! `Band::Full` takes the same passes with a band as wide as the grid's diagonal, which costs triangles × voxels:
@@ -29,9 +31,9 @@ use super::cpu::distance::*;
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
 use crate::parallel;
-use glam::{UVec3, Vec3};
+use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering};
 
 /// The widest band in voxels (`--band full` covers the whole grid).
 pub const MAX_BAND: f32 = 64.0;
@@ -113,6 +115,8 @@ pub struct DistanceField {
     pub inside: Option<Grid>,
     /// Voxels in the band ([`DistanceField::band_grid`]'s count).
     pub band_voxels: u64,
+    /// Point-to-triangle distances the CPU's pass 2 evaluated (0 where not counted: the GPU, a field from values).
+    pub evaluations: u64,
 }
 
 /// Pass 1: the slots of the leaves any triangle's [`band_range`] touches, numbered in slot order, and their
@@ -186,8 +190,8 @@ impl DistanceField {
         DistanceField::compute_with_progress(triangles, spec, band, inside, &|_, _| {})
     }
 
-    /// [`DistanceField::compute`], calling `progress(triangles done, triangles)` as the distances are computed
-    /// (from any thread, a few hundred times in all).
+    /// [`DistanceField::compute`], calling `progress(done, work)` as the distances are computed (from any thread,
+    /// a few hundred times in all; the work is counted in triangles per brick).
     pub fn compute_with_progress(
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
@@ -199,18 +203,27 @@ impl DistanceField {
             let dims = spec.dims;
             let reach = band.reach(dims);
             let (slots, leaves) = mark_leaves(triangles, dims, reach);
-            let start = (reach * reach).to_bits();
-            let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start)).collect();
-            let done = std::sync::atomic::AtomicUsize::new(0);
-            progress(0, triangles.len());
-            // Chunks small enough to balance the threads, large enough that the calls cost nothing.
-            triangles.par_chunks(triangles.len().div_ceil(PROGRESS_CALLS).max(1)).for_each(|chunk| {
-                chunk.iter().for_each(|&t| band_distance(t, dims, reach, &slots, &best));
-                let done = done.fetch_add(chunk.len(), Ordering::Relaxed) + chunk.len();
-                progress(done, triangles.len());
+            let start = reach * reach;
+            let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start.to_bits())).collect();
+            let bins = bin_bricks(triangles, dims, reach);
+            let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
+            let (done, evaluations) = (AtomicUsize::new(0), AtomicU64::new(0));
+            let every = work.div_ceil(PROGRESS_CALLS).max(1);
+            progress(0, work);
+            bins.par_iter().for_each(|(origin, bin)| {
+                let mut cells = BrickCells::new(*origin, dims, start);
+                let n: u64 = bin.iter().map(|&i| band_distance(triangles[i as usize], dims, reach, &mut cells)).sum();
+                evaluations.fetch_add(n, Ordering::Relaxed);
+                store_brick(&cells, dims, &slots, &best, start);
+                let before = done.fetch_add(bin.len(), Ordering::Relaxed);
+                if (before + bin.len()) / every != before / every {
+                    progress(before + bin.len(), work);
+                }
             });
             let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
-            DistanceField::from_squared(spec, band, slots, leaves, &best, inside)
+            let mut field = DistanceField::from_squared(spec, band, slots, leaves, &best, inside);
+            field.evaluations = evaluations.into_inner();
+            field
         })
     }
 
@@ -249,6 +262,7 @@ impl DistanceField {
                 values,
                 inside,
                 band_voxels: 0,
+                evaluations: 0,
             }
             .with_band_count()
         })
@@ -291,6 +305,7 @@ impl DistanceField {
                 values: leaf_values,
                 inside: None,
                 band_voxels: 0,
+                evaluations: 0,
             }
             .with_band_count()
         })
@@ -373,6 +388,58 @@ impl DistanceField {
             leaves.par_sort_unstable_by_key(|(key, _)| *key);
             SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
         })
+    }
+}
+
+/// The CPU's pass 2 in bricks of [`BRICK`]³ voxels: for each brick that a triangle's [`band_range`] touches, its
+/// origin and those triangles (indices, in mesh order, so a brick's sums are the same on every thread count).
+fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, Vec<u32>)> {
+    let brick_dims = (dims + BRICK - 1) / BRICK;
+    let mut pairs: Vec<(u32, u32)> = triangles
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(i, &t)| {
+            let (lo, hi) = band_range(t, dims, reach);
+            let empty = lo.cmpgt(hi).any();
+            let (lo, hi) = (lo.max(IVec3::ZERO).as_uvec3() / BRICK, hi.max(IVec3::ZERO).as_uvec3() / BRICK);
+            (lo.z..=hi.z)
+                .flat_map(move |z| (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| UVec3::new(x, y, z))))
+                .filter(move |_| !empty)
+                .map(move |b| (leaf_slot(b, brick_dims) as u32, i as u32))
+        })
+        .collect();
+    pairs.par_sort_unstable();
+    pairs
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|run| {
+            let b = run[0].0;
+            let (x, y) = (b % brick_dims.x, b / brick_dims.x % brick_dims.y);
+            let origin = UVec3::new(x, y, b / (brick_dims.x * brick_dims.y)) * BRICK;
+            (origin.as_ivec3(), run.iter().map(|p| p.1).collect())
+        })
+        .collect()
+}
+
+/// Copies a brick's squared distances into the leaves it holds (every leaf belongs to one brick).
+fn store_brick(cells: &BrickCells, dims: UVec3, slots: &[u32], best: &[AtomicU32], start: f32) {
+    let leaf_dims = (dims + 7) / 8;
+    let (lo, hi) = (cells.origin.as_uvec3() / 8, cells.hi.as_uvec3() / 8);
+    for lz in lo.z..=hi.z {
+        for ly in lo.y..=hi.y {
+            for lx in lo.x..=hi.x {
+                let slot = slots[leaf_slot(UVec3::new(lx, ly, lz), leaf_dims)];
+                if slot == NO_LEAF {
+                    continue;
+                }
+                let origin = UVec3::new(lx, ly, lz) * 8;
+                for i in 0..512u32 {
+                    let v = (origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6)).as_ivec3();
+                    // Voxels past the grid's end keep the start value, as the leaves' atomics would.
+                    let d2 = if v.cmple(cells.hi).all() { cells.get(v) } else { start };
+                    best[slot as usize * 512 + i as usize].store(d2.to_bits(), Ordering::Relaxed);
+                }
+            }
+        }
     }
 }
 

@@ -330,3 +330,53 @@ fn the_summary_line_and_total_ms_count_the_field() {
     let said = format!("in {stages:.1} ms (surface {:.1} ms, field {:.1} ms)", ms("voxelize_ms"), ms("field_ms"));
     assert!(line.contains(&said), "the line gives the whole job and its parts ({said}): {line}");
 }
+
+/// The field's work follows the band: on real meshes whose triangles are not far smaller than a voxel, the
+/// distances the CPU evaluates stay within a small multiple of the band's voxels (every triangle against every
+/// voxel of its box would be 12–40x). The count is the pass's own, so the work cannot drift back unnoticed.
+#[test]
+fn distance_evaluations_stay_a_small_multiple_of_the_band_voxels() {
+    let Some(dir) = shared_meshes() else { return };
+    let engine = Engine::open(Backend::Cpu).expect("cpu");
+    for (name, n) in [("spot.obj", 256), ("teapot.obj", 256), ("suzanne.obj", 200), ("stanford-bunny.obj", 512)] {
+        let mesh = meshvox::mesh::load(&dir.join(name).to_string_lossy()).expect("mesh");
+        let out = engine.voxelize(name, &mesh, &Request::new(Resolution::Count(n), Mode::Sdf)).expect("sdf");
+        let (band, evaluated) =
+            (out.report.band_voxels.expect("band"), out.report.distance_evaluations.expect("count"));
+        eprintln!(
+            "{name} at {n}: {evaluated} distances for {band} band voxels ({:.2} each)",
+            evaluated as f64 / band as f64
+        );
+        assert!(band > 100_000, "{name}: a band of {band} voxels is too small to judge");
+        assert!(evaluated <= 6 * band, "{name} at {n}: {evaluated} distance evaluations for {band} band voxels");
+    }
+}
+
+/// The CPU's bricks give the field the GPU's layout gives (every triangle lowering the leaves' shared atomics,
+/// `LeafCells`), bit for bit, on a mesh with decimal coordinates at a size that is not a multiple of a brick.
+#[test]
+fn bricks_give_the_leaves_atomics_field_bit_for_bit() {
+    use meshvox::voxel::cpu::distance::{LeafCells, band_distance};
+    use meshvox::voxel::distance::mark_leaves;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
+    for (n, band) in [(77, Band::Voxels(3.0)), (45, Band::Voxels(7.5)), (19, Band::Full)] {
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
+            .expect("spec");
+        let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let (tris, _) = on_lattice(&tris, spec.dims).expect("lattice");
+        let field = DistanceField::compute(&tris, spec, band, None);
+        let reach = band.reach(spec.dims);
+        let (slots, leaves) = mark_leaves(&tris, spec.dims, reach);
+        let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new((reach * reach).to_bits())).collect();
+        let mut cells = LeafCells { dims: spec.dims, slots: &slots, best: &best };
+        let evaluated: u64 = tris.iter().map(|&t| band_distance(t, spec.dims, reach, &mut cells)).sum();
+        let best: Vec<f32> = best.iter().map(|b| f32::from_bits(b.load(Ordering::Relaxed))).collect();
+        let atomics = DistanceField::from_squared(spec, band, slots, leaves, &best, None);
+        assert_eq!(field.values.len(), atomics.values.len(), "{n}");
+        let differ = field.values.iter().zip(&atomics.values).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+        assert_eq!(differ, 0, "torus at {n}, band {}: values differ", band.name());
+        assert_eq!(field.band_voxels, atomics.band_voxels);
+        assert!(evaluated > 0 && field.evaluations > 0);
+    }
+}

@@ -48,32 +48,113 @@ pub fn first_layer(lo_z: i32, z_lo: u32) -> i32 {
     lo_z.max(z_lo as i32)
 }
 
-/// Pass 2: lowers `best` (squared voxel distances as f32 bits, 512 per leaf) over every voxel of triangle `t`'s
-/// [`band_range`], one layer at a time as the GPU's work items do ([`triangle_layer`]).
-pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
-    let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
-    for z in first..=last {
-        triangle_layer(t, z, dims, reach, slots, best);
+/// Where pass 2 keeps the squared voxel distances it lowers: the leaves' shared atomics, as the GPU's `best`
+/// buffer has them ([`LeafCells`]), or one thread's brick of the grid ([`BrickCells`]).
+pub trait Cells {
+    /// The voxels this store holds, `lo..=hi` per axis: the work is clipped to them.
+    fn clip(&self) -> (IVec3, IVec3);
+    /// Voxel `v`'s squared distance so far.
+    fn get(&self, v: IVec3) -> f32;
+    /// Lowers voxel `v`'s squared distance to `d2`, which is below what [`Cells::get`] gave.
+    fn lower(&mut self, v: IVec3, d2: f32);
+}
+
+/// The GPU's layout: 512 atomics per leaf slot, lowered with an atomic minimum of the f32 bits (which order like
+/// the numbers for non-negative values).
+pub struct LeafCells<'a> {
+    pub dims: UVec3,
+    pub slots: &'a [u32],
+    pub best: &'a [AtomicU32],
+}
+
+impl LeafCells<'_> {
+    fn at(&self, v: IVec3) -> &AtomicU32 {
+        let v = v.as_uvec3();
+        let slot = self.slots[leaf_slot(v / 8, (self.dims + 7) / 8)];
+        &self.best[slot as usize * 512 + leaf_offset(v)]
     }
 }
 
-/// Lowers `best` over layer `z` of triangle `t`'s [`band_range`]. A voxel whose squared distance to the
-/// triangle's plane is already no lower than its best is skipped: that bound is cheap and the triangle cannot win
-/// there, and so is one whose squared distance to the triangle's bounding box is.
-pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u32], best: &[AtomicU32]) {
+impl Cells for LeafCells<'_> {
+    fn clip(&self) -> (IVec3, IVec3) {
+        (IVec3::ZERO, self.dims.as_ivec3() - 1)
+    }
+    fn get(&self, v: IVec3) -> f32 {
+        f32::from_bits(self.at(v).load(Ordering::Relaxed))
+    }
+    fn lower(&mut self, v: IVec3, d2: f32) {
+        self.at(v).fetch_min(d2.to_bits(), Ordering::Relaxed);
+    }
+}
+
+/// The edge of the CPU's bricks, in voxels: a brick's squared distances (128 KiB) stay in one core's cache while
+/// the triangles near it lower them, where the leaves' atomics spread over the whole band.
+pub const BRICK: u32 = 32;
+
+/// One brick of `BRICK³` voxels at `origin`, x fastest, lowered by one thread without atomics.
+pub struct BrickCells {
+    pub origin: IVec3,
+    /// The brick's last voxel in the grid, per axis.
+    pub hi: IVec3,
+    pub best: Vec<f32>,
+}
+
+impl BrickCells {
+    /// The brick at `origin` of a grid of `dims`, every voxel starting at `start`.
+    pub fn new(origin: IVec3, dims: UVec3, start: f32) -> BrickCells {
+        let hi = (origin + BRICK as i32 - 1).min(dims.as_ivec3() - 1);
+        BrickCells { origin, hi, best: vec![start; (BRICK * BRICK * BRICK) as usize] }
+    }
+
+    /// Where voxel `v` (in the brick) is in `best`.
+    #[inline]
+    pub fn index(&self, v: IVec3) -> usize {
+        let l = (v - self.origin).as_uvec3();
+        ((l.z * BRICK + l.y) * BRICK + l.x) as usize
+    }
+}
+
+impl Cells for BrickCells {
+    fn clip(&self) -> (IVec3, IVec3) {
+        (self.origin, self.hi)
+    }
+    #[inline]
+    fn get(&self, v: IVec3) -> f32 {
+        self.best[self.index(v)]
+    }
+    #[inline]
+    fn lower(&mut self, v: IVec3, d2: f32) {
+        let i = self.index(v);
+        self.best[i] = d2;
+    }
+}
+
+/// Pass 2: lowers `cells` over every voxel of triangle `t`'s [`band_range`] that they hold, one layer at a time as
+/// the GPU's work items do ([`triangle_layer`]); returns how many distances it evaluated.
+pub fn band_distance(t: [Vec3; 3], dims: UVec3, reach: f32, cells: &mut impl Cells) -> u64 {
+    let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
+    let (lo, hi) = cells.clip();
+    (first.max(lo.z)..=last.min(hi.z)).map(|z| u64::from(triangle_layer(t, z, dims, reach, cells))).sum()
+}
+
+/// Lowers `cells` over layer `z` of triangle `t`'s [`band_range`]; returns how many distances it evaluated. A
+/// voxel whose squared distance to the triangle's plane is already no lower than its best is skipped: that bound
+/// is cheap and the triangle cannot win there, and so is one whose squared distance to the triangle's bounding box
+/// is.
+pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, cells: &mut impl Cells) -> u32 {
     let (lo, hi) = band_range(t, dims, reach);
-    let leaf_dims = (dims + 7) / 8;
+    let (clip_lo, clip_hi) = cells.clip();
+    let (lo, hi) = (lo.max(clip_lo), hi.min(clip_hi));
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let n2 = dot3(n, n);
     let (bmin, bmax) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+    let mut evaluated = 0;
     for y in lo.y..=hi.y {
         let (x0, x1) = band_span(bmin, bmax, y, z, reach);
         for x in x0.max(lo.x)..=x1.min(hi.x) {
-            let v = IVec3::new(x, y, z).as_uvec3();
-            let slot = slots[leaf_slot(v / 8, leaf_dims)];
-            let at = &best[slot as usize * 512 + leaf_offset(v)];
+            let v = IVec3::new(x, y, z);
             let p = v.as_vec3() + 0.5;
-            let current = f32::from_bits(at.load(Ordering::Relaxed));
+            let current = cells.get(v);
             let plane = dot3(n, t[0] - p);
             // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
             if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
@@ -85,11 +166,13 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, slots: &[u3
                 continue;
             }
             let d2 = point_distance2(p, t);
+            evaluated += 1;
             if d2 < current {
-                at.fetch_min(d2.to_bits(), Ordering::Relaxed);
+                cells.lower(v, d2);
             }
         }
     }
+    evaluated
 }
 
 /// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
