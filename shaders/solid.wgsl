@@ -370,13 +370,14 @@ fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32, budget: f32) -> 
                 let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (length(ya) + length(yb));
                 let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
                 let gap = max(across, along);
+                let pull = edge_pull(num, d_num);
                 var steep = 3.4e38;
                 if gap > 0.0 {
-                    steep = reach * eb.w / (gap * gap);
+                    steep = reach * min(eb.w / (gap * gap), pull / (gap * gap * gap));
                 }
                 var whole = 3.4e38;
                 if across > 0.0 {
-                    whole = 2.0 * eb.w / across;
+                    whole = min(2.0 * eb.w / across, 2.0 * pull / (across * across));
                 }
                 drift = min(drift + abs(ea.w) * min(steep, whole), 3.4e38);
             }
@@ -385,6 +386,11 @@ fn winding_number_bounded(count: i32, p: vec3<f32>, reach: f32, budget: f32) -> 
     let w = f32(count) + sum * scale;
     let bound = (error + (f32(summed) + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * abs(w);
     return vec4<f32>(w, bound, drift * scale * 1.01, far);
+}
+
+// A bound on an edge's Biot-Savart numerator along x times its length: num for the exact a, b (edge_pull).
+fn edge_pull(num: f32, d_num: f32) -> f32 {
+    return (abs(num) + 2.0 * d_num) * (1.0 + 1.0 / 1024.0);
 }
 
 // The distance from the origin to the segment a b.

@@ -463,3 +463,91 @@ fn sparse_solids_equal_dense_ones_on_every_mesh_open_and_closed() {
         }
     }
 }
+
+/// The canonical form of the voxel box `lo..=hi` built directly: 4096³, 128³ and 8³ blocks wholly inside (and not
+/// in a larger one) as tiles, the 8³ blocks it cuts as leaves: the reference for a solid too large to fill densely.
+fn box_canonical(lo: UVec3, hi: UVec3, dims: UVec3) -> (Vec<Tile>, Vec<(u64, meshvox::voxel::sparse::LeafMask)>) {
+    let (mut tiles, mut leaves) = (Vec::new(), Vec::new());
+    let inside = |o: UVec3, n: u32| o.cmpge(lo).all() && (o + (n - 1)).cmple(hi).all();
+    let meets = |o: UVec3, n: u32| o.cmple(hi).all() && (o + (n - 1)).cmpge(lo).all();
+    // One block over the whole grid (below 8192 per axis), split at each size in turn.
+    let mut blocks = vec![(UVec3::ZERO, 8192u32)];
+    let mut sub = Vec::new();
+    for step in [4096u32, 128, 8] {
+        for (o, n) in blocks.drain(..) {
+            for z in (o.z..(o.z + n).min(dims.z)).step_by(step as usize) {
+                for y in (o.y..(o.y + n).min(dims.y)).step_by(step as usize) {
+                    for x in (o.x..(o.x + n).min(dims.x)).step_by(step as usize) {
+                        let b = UVec3::new(x, y, z);
+                        let whole = (b + step).cmple(dims).all() && inside(b, step);
+                        match (whole, meets(b, step), step) {
+                            (true, _, _) => tiles.push(Tile { log2: step.trailing_zeros(), origin: b }),
+                            (false, true, 8) => {
+                                let mut mask = [0u64; 8];
+                                for i in 0..512u32 {
+                                    let v = b + UVec3::new(i >> 6, (i >> 3) & 7, i & 7);
+                                    if v.cmpge(lo).all() && v.cmple(hi).all() && v.cmplt(dims).all() {
+                                        mask[(i >> 6) as usize] |= 1 << (i & 63);
+                                    }
+                                }
+                                leaves.push((leaf_key(b.x, b.y, b.z), mask));
+                            }
+                            (false, true, _) => sub.push((b, step)),
+                            (false, false, _) => {}
+                        }
+                    }
+                }
+            }
+        }
+        // The blocks cut by the box are split at the next size.
+        blocks.append(&mut sub);
+    }
+    leaves.sort_unstable_by_key(|(k, _)| *k);
+    (tiles, leaves)
+}
+
+/// A box with decimal corners, its near faces inside the grid's first voxel layer and its far faces cutting the
+/// last leaves, in a grid of 4104 × 4100 × 4103 voxels: its solid holds a whole 4096³ tile, which no dense fill
+/// could hold here (8.6 GB), so the reference is the box's voxels built directly in canonical form. Every voxel the
+/// faces touch is set, and every voxel between them, so the solid is the voxel box from the first voxel to the one
+/// holding the far corner.
+#[test]
+fn a_solid_whose_interior_spans_a_4096_tile_is_that_tile_and_its_canonical_box() {
+    let (a, b) = (glam::Vec3::new(0.3, 0.25, 0.4), glam::Vec3::new(4100.7, 4097.6, 4099.5));
+    let c = |x: bool, y: bool, z: bool| {
+        glam::Vec3::new([a.x, b.x][x as usize], [a.y, b.y][y as usize], [a.z, b.z][z as usize])
+    };
+    let quad = |p: [glam::Vec3; 4]| [[p[0], p[1], p[2]], [p[0], p[2], p[3]]];
+    let (f, t) = (false, true);
+    let tris: Vec<[glam::Vec3; 3]> = [
+        quad([c(f, f, f), c(f, t, f), c(t, t, f), c(t, f, f)]),
+        quad([c(f, f, t), c(t, f, t), c(t, t, t), c(f, t, t)]),
+        quad([c(f, f, f), c(t, f, f), c(t, f, t), c(f, f, t)]),
+        quad([c(f, t, f), c(f, t, t), c(t, t, t), c(t, t, f)]),
+        quad([c(f, f, f), c(f, f, t), c(f, t, t), c(f, t, f)]),
+        quad([c(t, f, f), c(t, t, f), c(t, t, t), c(t, f, t)]),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(4104, 4100, 4103) };
+    let cancel = AtomicBool::new(false);
+    let (sparse, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &cancel).expect("sparse");
+    let (lo, hi) = (a.floor().as_uvec3(), b.floor().as_uvec3());
+    let (mut tiles, leaves) = box_canonical(lo, hi, spec.dims);
+    let key = |t: &Tile| (t.log2, t.origin.x, t.origin.y, t.origin.z);
+    tiles.sort_unstable_by_key(key);
+    let mut got = sparse.tiles.clone();
+    got.sort_unstable_by_key(key);
+    assert!(
+        got.iter().any(|t| t.log2 == 12),
+        "no 4096³ tile: {:?}",
+        got.iter().filter(|t| t.log2 > 7).collect::<Vec<_>>()
+    );
+    assert_eq!(got.len(), tiles.len(), "tiles");
+    assert!(got == tiles, "the tiles differ from the box's canonical tiles");
+    assert_eq!(sparse.leaves.len(), leaves.len(), "leaves");
+    assert!(sparse.leaves == leaves, "the leaves differ from the box's");
+    let extent = (hi - lo + 1).as_u64vec3();
+    assert_eq!(sparse.count(), extent.x * extent.y * extent.z);
+}

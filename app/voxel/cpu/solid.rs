@@ -314,7 +314,9 @@ pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
 /// stretch to the edge: at least the YZ distance `ρ` from the row to the edge, and at least the distance from `p`
 /// less `reach` (each less its own rounding: `2^-10` relatively and `16u (|a| + |b|)` absolutely, far more than
 /// an f32 point-to-segment distance is off by). Since `|(t × x̂) · r| ≤ |t_yz| ρ`, the integral of that bound
-/// along the whole row is at most `2 span / ρ`, which caps an edge's drift over a long stretch.
+/// along the whole row is at most `2 span / ρ`, which caps an edge's drift over a long stretch. On a straight edge
+/// `(t × x̂) · r` times the edge's length is `num` itself, the same at every point ([`edge_pull`]), so the
+/// derivative is also at most `|num| / D³` and the whole row's drift `2 |num| / ρ²`: whichever is less.
 pub fn winding_number_bounded(
     count: i32,
     p: Vec3,
@@ -382,11 +384,18 @@ impl EdgeTerms {
             let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
             let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
             let gap = across.max(along);
-            let steep = if gap > 0.0 { reach * e.span / (gap * gap) } else { f32::INFINITY };
-            let whole = if across > 0.0 { 2.0 * e.span / across } else { f32::INFINITY };
-            self.drift += e.weight.abs() * steep.min(whole);
-            // A shorter reach only widens the gap: its drift is at most `reach' span / gap²`.
-            self.rate += e.weight.abs() * if gap > 0.0 { e.span / (gap * gap) } else { f32::INFINITY };
+            let pull = edge_pull(num, d_num);
+            let per_voxel = match gap > 0.0 {
+                true => (e.span / (gap * gap)).min(pull / (gap * gap * gap)),
+                false => f32::INFINITY,
+            };
+            let whole = match across > 0.0 {
+                true => (2.0 * e.span / across).min(2.0 * pull / (across * across)),
+                false => f32::INFINITY,
+            };
+            self.drift += e.weight.abs() * (reach * per_voxel).min(whole);
+            // A shorter reach only widens the gap: its drift is at most `reach'` times this.
+            self.rate += e.weight.abs() * per_voxel;
         }
     }
 
@@ -633,6 +642,18 @@ fn fill_decided_run(
         }
         k = end;
     }
+}
+
+/// A bound on `|(t × x̂) · r|` along a straight edge, the numerator of its Biot–Savart integrand along x (`t` the
+/// edge's direction, `r` from the point to the edge), times the edge's length: for the exact `a`, `b` that product
+/// is `a_y b_z − a_z b_y` at every point of the edge, the strip angle's `num`. So an edge pulls along the row by at
+/// most `|num| / D³` per voxel (`D` its least distance from the stretch), a factor `h / D` below `span / D²` (`h`
+/// the row's YZ distance from the edge's line): beside a hole seen from the rows that run along its virtual cap,
+/// where the winding number stays near ½, long stretches are decided at once instead of voxel by voxel. `num`'s
+/// own rounding and its inputs' (`a`, `b` each one rounded subtraction) are within `2 d_num`.
+#[inline]
+pub fn edge_pull(num: f32, d_num: f32) -> f32 {
+    (num.abs() + 2.0 * d_num) * (1.0 + 1.0 / 1024.0)
 }
 
 /// The distance from the origin to the segment `a b`.
