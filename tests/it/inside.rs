@@ -432,3 +432,57 @@ fn solid_and_sdf_signs_equal_the_winding_number_beside_holes_on_the_cpu_and_the_
         }
     }
 }
+
+/// The CPU's `atan2` (`voxel::cpu::atan`) keeps the bound the winding number's error charges it: its polynomial
+/// within `ATAN_UNIT_ERROR` of f64 `atan` on every f32 in `[2^-12, 1]` (below, the polynomial is `t (1 + δ)` with
+/// `|δ| < t² < 2^-24`), and the whole `atan2` within `ATAN2_CPU` of f64 `atan2` in every octant, with signed zeros
+/// and `x < 0` on the negative axis answered as `f32::atan2` answers them.
+#[test]
+fn the_cpus_atan2_is_within_its_stated_bound_on_every_f32_it_takes() {
+    use meshvox::voxel::cpu::atan::{ATAN_UNIT_ERROR, atan_unit, atan2};
+    use meshvox::voxel::cpu::solid::ATAN2_CPU;
+    let (first, last) = ((2f32).powi(-12).to_bits(), 1f32.to_bits());
+    let worst = (first..=last)
+        .into_par_iter()
+        .map(|bits| {
+            let t = f32::from_bits(bits);
+            let exact = f64::from(t).atan();
+            (f64::from(atan_unit(t)) - exact).abs() / exact
+        })
+        .reduce(|| 0.0, f64::max);
+    eprintln!("atan_unit: at most {worst:.2e} relatively on [2^-12, 1]");
+    assert!(worst <= ATAN_UNIT_ERROR, "atan_unit is off by {worst:.3e} relatively");
+    // Below 2^-12 the polynomial's higher terms are under 2^-24 of t.
+    for t in [1e-30f32, 1e-20, 1e-10, 1e-5, 2.4e-4] {
+        assert!((f64::from(atan_unit(t)) - f64::from(t).atan()).abs() <= 1.2e-7 * f64::from(t), "{t}");
+    }
+    let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        let m = (rng >> 40) as f32 / (1u64 << 24) as f32;
+        let e = ((rng >> 8) % 60) as i32 - 30;
+        let s = if rng & 1 == 0 { 1.0 } else { -1.0 };
+        s * m * 2f32.powi(e)
+    };
+    let mut worst = 0f64;
+    for _ in 0..2_000_000 {
+        let (y, x) = (next(), next());
+        if y == 0.0 && x == 0.0 {
+            continue;
+        }
+        let exact = f64::from(y).atan2(f64::from(x));
+        let error = (f64::from(atan2(y, x)) - exact).abs() / exact.abs();
+        worst = worst.max(error);
+        assert!(error <= f64::from(ATAN2_CPU), "atan2({y}, {x}): off by {error:.3e} relatively");
+    }
+    eprintln!("atan2: at most {worst:.2e} relatively in every octant");
+    for (y, x) in [(0.0f32, -1.0f32), (-0.0, -1.0), (0.0, 1.0), (-0.0, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, 0.0)] {
+        assert_eq!(atan2(y, x).to_bits(), y.atan2(x).to_bits(), "atan2({y}, {x})");
+    }
+    for (y, x) in [(1.0f32, 1.0f32), (-1.0, -1.0), (3.0, -3.0), (f32::NAN, 1.0), (1.0, f32::INFINITY)] {
+        let (ours, libm) = (atan2(y, x), y.atan2(x));
+        assert!(ours == libm || (ours.is_nan() && libm.is_nan()) || (ours - libm).abs() <= 1e-6, "atan2({y}, {x})");
+    }
+}

@@ -9,7 +9,9 @@
 //! distance passes over all triangles in [`super::colour`] and [`super::distance`]) sits beside this folder.
 //! Shaders with no CPU counterpart have no file: `scan.wgsl` (the CPU walks each triangle's work items in turn),
 //! `shared/items.wgsl` (the same), `compact.wgsl` (the host lists a grid's voxels with `VoxelGrid::exposed`).
+//! One file has no shader: `atan.rs`, the CPU's `atan2` with a proven bound (a shader calls its own).
 
+pub mod atan;
 pub mod colour;
 pub mod common;
 pub mod distance;

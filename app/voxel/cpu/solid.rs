@@ -281,10 +281,10 @@ pub const FAR_BUDGET: f32 = 1.0 / 32.0;
 /// The relative error [`winding_number_bounded`] allows `atan2` on the GPU: WGSL's 4096 ulps.
 pub const ATAN2_WGSL: f32 = 1.0 / 2048.0;
 
-/// The relative error it allows `atan2` in the CPU reference: Rust's `f32::atan2` is the platform's `atan2f`
-/// (glibc's and the wasm32 build's musl-derived libm are within 2 ulps), given 8 ulps here. The tighter bound
-/// lets the CPU place most voxels a GPU would hand back, without the f64 evaluation; both are exact, so the grids
-/// are the same.
+/// The relative error it allows `atan2` in the CPU reference ([`super::atan::atan2`]: its polynomial within 3e-7,
+/// checked on every f32 it takes, plus a division's and a subtraction's rounding), 8 ulps. The tighter bound lets
+/// the CPU place most voxels a GPU would hand back, without the f64 evaluation; both are exact, so the grids are
+/// the same.
 pub const ATAN2_CPU: f32 = 1.0 / 1_048_576.0;
 
 /// The winding number at `p` (grid space) of a mesh whose crossings before `p` along +x (those the ray from `p`
@@ -365,7 +365,7 @@ impl EdgeTerms {
         let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
         let (num, den, mag) = cone_parts(a, b);
         let (la, lb) = (a.length(), b.length());
-        let angle = 2.0 * num.atan2(den);
+        let angle = 2.0 * super::atan::atan2(num, den);
         self.sum += e.weight * angle;
         self.summed += 1;
         let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
