@@ -35,7 +35,7 @@ pub use report::{Instances, Notice, Report, Voxelized};
 use crate::mesh::Mesh;
 use crate::parallel;
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::distance::DistanceField;
+use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::{self, Grid, GridError, GridKind, GridSpec, Mode, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::AtomicBool;
@@ -379,7 +379,18 @@ impl Engine {
             _ => None,
         };
         job.request.cancelled()?;
-        if let Some(on) = &self.gpu
+        // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
+        // take every triangle's box over the whole grid.
+        let on_gpu = self.gpu.as_ref().filter(|_| band != Band::Full);
+        if band == Band::Full && self.gpu.is_some() {
+            notices.push(Notice {
+                warning: false,
+                message: "--band full: each voxel's nearest triangle is searched on the CPU (a hierarchy over the \
+                          triangles); the GPU's band pass would test every triangle against every voxel"
+                    .into(),
+            });
+        }
+        if let Some(on) = on_gpu
             && let Some(field) = on.field(&tris, spec, band, &mut inside, notices).await?
         {
             return Ok((field, on.label()));

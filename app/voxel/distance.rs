@@ -24,9 +24,12 @@
 //!    triangle's size, not of the grid coordinates.
 //! 3. `finish_values`: squared distance in voxels → signed world distance (`√d² · h`, negative inside).
 //!
-//! `Band::Full` takes the same passes with a band as wide as the grid's diagonal, which costs triangles × voxels:
-//! meant for the small grids (32–128) of learned-shape datasets.
+//! `Band::Full` puts every voxel in the band. On the CPU each voxel then takes its nearest triangle from a
+//! [`Bvh`] (`full_field`), starting from the bound its neighbour's distance gives, so a voxel evaluates the
+//! triangles near its distance rather than all of them; the GPU takes the same passes as for a band as wide as
+//! the grid's diagonal, which costs triangles × voxels.
 
+use super::bvh::Bvh;
 use super::cpu::distance::*;
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
@@ -203,6 +206,9 @@ impl DistanceField {
             let dims = spec.dims;
             let reach = band.reach(dims);
             let (slots, leaves) = mark_leaves(triangles, dims, reach);
+            if band == Band::Full {
+                return full_field(triangles, spec, slots, leaves, inside, progress);
+            }
             let start = reach * reach;
             let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start.to_bits())).collect();
             let bins = bin_bricks(triangles, dims, reach);
@@ -389,6 +395,67 @@ impl DistanceField {
             SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
         })
     }
+}
+
+/// The CPU's field for [`Band::Full`]: each voxel's nearest triangle from a [`Bvh`], starting from the bound its
+/// leaf's previous voxel gives (the distance is 1-Lipschitz: no more than that voxel's plus the step between
+/// them), so a voxel evaluates the triangles whose boxes come within its distance, not every triangle. The
+/// minimum is the one every triangle gives (`tests/it/distance.rs` holds it bit for bit to the leaves' atomics).
+fn full_field(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    slots: Vec<u32>,
+    leaves: Vec<UVec3>,
+    inside: Option<Grid>,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> DistanceField {
+    let (dims, reach) = (spec.dims, Band::Full.reach(spec.dims));
+    let bvh = Bvh::build(triangles);
+    let (done, evaluations) = (AtomicUsize::new(0), AtomicU64::new(0));
+    let every = leaves.len().div_ceil(PROGRESS_CALLS).max(1);
+    progress(0, leaves.len());
+    let best: Vec<f32> = leaves
+        .par_iter()
+        .flat_map_iter(|&origin| {
+            let mut values = [reach * reach; 512];
+            let mut previous: Option<(Vec3, f32)> = None;
+            let mut evaluated = 0u64;
+            for (i, value) in values.iter_mut().enumerate() {
+                let v = origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+                if !v.cmplt(dims).all() {
+                    continue;
+                }
+                let p = v.as_vec3() + 0.5;
+                // A bound above the previous voxel's distance plus the step, by far more than their rounding.
+                let bound = previous.map_or(reach * reach, |(q, d2)| {
+                    let d = d2.sqrt() * (1.0 + 1e-5) + (p - q).length() * (1.0 + 1e-5) + 1e-3;
+                    (d * d).min(reach * reach)
+                });
+                let (found, n) = bvh.nearest(triangles, p, bound);
+                evaluated += u64::from(n);
+                let d2 = match found {
+                    Some(d2) => d2,
+                    None if bound < reach * reach => {
+                        let (found, n) = bvh.nearest(triangles, p, reach * reach);
+                        evaluated += u64::from(n);
+                        found.unwrap_or(reach * reach)
+                    }
+                    None => reach * reach,
+                };
+                *value = d2;
+                previous = Some((p, d2));
+            }
+            evaluations.fetch_add(evaluated, Ordering::Relaxed);
+            let before = done.fetch_add(1, Ordering::Relaxed);
+            if (before + 1) % every == 0 {
+                progress(before + 1, leaves.len());
+            }
+            values
+        })
+        .collect();
+    let mut field = DistanceField::from_squared(spec, Band::Full, slots, leaves, &best, inside);
+    field.evaluations = evaluations.into_inner();
+    field
 }
 
 /// The CPU's pass 2 in bricks of [`BRICK`]³ voxels: for each brick that a triangle's [`band_range`] touches, its

@@ -360,7 +360,7 @@ fn bricks_give_the_leaves_atomics_field_bit_for_bit() {
     use meshvox::voxel::distance::mark_leaves;
     use std::sync::atomic::{AtomicU32, Ordering};
     let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
-    for (n, band) in [(77, Band::Voxels(3.0)), (45, Band::Voxels(7.5)), (19, Band::Full)] {
+    for (n, band) in [(77, Band::Voxels(3.0)), (45, Band::Voxels(7.5)), (19, Band::Full), (33, Band::Full)] {
         let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
             .expect("spec");
         let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
