@@ -98,7 +98,7 @@ impl GpuDistance {
             best.extend(range);
         }
         gpu.check()?;
-        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, &best, inside.take()))
+        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take()))
     }
 
     /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared

@@ -227,35 +227,33 @@ impl DistanceField {
                 }
             });
             let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
-            let mut field = DistanceField::from_squared(spec, band, slots, leaves, &best, inside);
+            let mut field = DistanceField::from_squared(spec, band, slots, leaves, best, inside);
             field.evaluations = evaluations.into_inner();
             field
         })
     }
 
-    /// The field from each leaf voxel's squared voxel distance (pass 3; shared by both backends).
+    /// The field from each leaf voxel's squared voxel distance (pass 3; shared by both backends), turned into the
+    /// values in place: a large band's values are its largest allocation, and held once.
     pub fn from_squared(
         spec: GridSpec,
         band: Band,
         slots: Vec<u32>,
         leaves: Vec<UVec3>,
-        best: &[f32],
+        best: Vec<f32>,
         inside: Option<Grid>,
     ) -> DistanceField {
         parallel::install(|| {
             let h = spec.voxel_size as f32;
-            let values = leaves
-                .par_iter()
-                .zip(best.par_chunks(512))
-                .flat_map_iter(|(&origin, leaf)| {
-                    // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
-                    let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
-                    leaf.iter().enumerate().map(move |(i, &d2)| {
-                        let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-                        finish_value(d2, mask[x] >> (y * 8 + z) & 1 != 0, h)
-                    })
-                })
-                .collect();
+            let mut values = best;
+            leaves.par_iter().zip(values.par_chunks_mut(512)).for_each(|(&origin, leaf)| {
+                // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
+                let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
+                for (i, value) in leaf.iter_mut().enumerate() {
+                    let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
+                    *value = finish_value(*value, mask[x] >> (y * 8 + z) & 1 != 0, h);
+                }
+            });
             let dims = spec.dims;
             DistanceField {
                 spec,
@@ -453,7 +451,7 @@ fn full_field(
             values
         })
         .collect();
-    let mut field = DistanceField::from_squared(spec, Band::Full, slots, leaves, &best, inside);
+    let mut field = DistanceField::from_squared(spec, Band::Full, slots, leaves, best, inside);
     field.evaluations = evaluations.into_inner();
     field
 }

@@ -372,7 +372,7 @@ fn bricks_give_the_leaves_atomics_field_bit_for_bit() {
         let mut cells = LeafCells { dims: spec.dims, slots: &slots, best: &best };
         let evaluated: u64 = tris.iter().map(|&t| band_distance(t, spec.dims, reach, &mut cells)).sum();
         let best: Vec<f32> = best.iter().map(|b| f32::from_bits(b.load(Ordering::Relaxed))).collect();
-        let atomics = DistanceField::from_squared(spec, band, slots, leaves, &best, None);
+        let atomics = DistanceField::from_squared(spec, band, slots, leaves, best, None);
         assert_eq!(field.values.len(), atomics.values.len(), "{n}");
         let differ = field.values.iter().zip(&atomics.values).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
         assert_eq!(differ, 0, "torus at {n}, band {}: values differ", band.name());
