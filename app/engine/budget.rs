@@ -89,10 +89,15 @@ pub fn estimate(
     let leaves = sparse_leaves(spec, area, triangles);
     let mut grid = leaves.saturating_mul(LEAF_BYTES).saturating_add(field);
     if matches!(mode, Mode::Solid | Mode::Sdf) {
-        // Row crossings (two per row of leaves' worth of surface, 8 bytes each, sorted with a copy) and the
-        // interior's tiles along the surface (as many again as leaves at most, 16 bytes each).
+        // Row crossings (at most one per voxel² of surface, 4 bytes, sorted with a copy), the rows' offsets (4
+        // bytes per row of the grid, with a copy) and the interior's tiles along the surface (16 bytes each; the
+        // bunny at 8192 has 8 per leaf). Measured peaks are 0.40–0.70 of this (bench/RESULTS.md).
         let area_voxels = (area / (spec.voxel_size * spec.voxel_size)) as u64;
-        grid = grid.saturating_add(area_voxels.saturating_mul(32)).saturating_add(leaves.saturating_mul(16));
+        let rows = u64::from(spec.dims.y) * u64::from(spec.dims.z);
+        grid = grid
+            .saturating_add(area_voxels.saturating_mul(8))
+            .saturating_add(rows.saturating_mul(8))
+            .saturating_add(leaves.saturating_mul(8 * 16));
     }
     let writer = match format {
         // The tree order of every leaf and tile, and a batch of leaf buffers.

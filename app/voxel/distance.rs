@@ -226,6 +226,8 @@ impl DistanceField {
                     progress(before + bin.len(), work);
                 }
             });
+            // The last call says all of it, whatever `every` divides.
+            progress(work, work);
             let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
             let mut field = DistanceField::from_squared(spec, band, slots, leaves, best, inside);
             field.evaluations = evaluations.into_inner();
@@ -451,6 +453,7 @@ fn full_field(
             values
         })
         .collect();
+    progress(leaves.len(), leaves.len());
     let mut field = DistanceField::from_squared(spec, Band::Full, slots, leaves, best, inside);
     field.evaluations = evaluations.into_inner();
     field
