@@ -7,7 +7,7 @@
 //! pruning rule, so that its minimum is bit for bit the minimum over every triangle.
 
 use super::cpu::common::dot3;
-use super::cpu::distance::point_distance2;
+use super::cpu::distance::{box_distance2, cannot_lower, point_distance2};
 use glam::Vec3;
 
 /// Triangles per leaf.
@@ -31,13 +31,6 @@ struct Node {
 pub struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
-}
-
-/// The squared distance from `p` to the box `lo..hi` (0 inside it).
-#[inline]
-fn box_distance2(p: Vec3, lo: Vec3, hi: Vec3) -> f32 {
-    let gap = (lo - p).max(p - hi).max(Vec3::ZERO);
-    dot3(gap, gap)
 }
 
 impl Bvh {
@@ -85,9 +78,9 @@ impl Bvh {
     }
 
     /// The least squared distance from `p` to `triangles` (those the hierarchy was built over) where one is below
-    /// `best` (`None` where none is), and how many distances it evaluated. A node or triangle is skipped where its box, or for a triangle its plane,
-    /// is no nearer than the best so far by the distance pass's margin (`triangle_layer`'s bounds): the triangle
-    /// that gives the minimum is never skipped.
+    /// `bound` (`None` where none is), and how many distances it evaluated. A node is skipped where its box is no
+    /// nearer than the best so far, a triangle by the distance pass's own rule ([`cannot_lower`]), each by a margin
+    /// above their rounding: the triangle that gives the minimum is never skipped.
     pub fn nearest(&self, triangles: &[[Vec3; 3]], p: Vec3, bound: f32) -> (Option<f32>, u32) {
         let (mut best, mut found, mut evaluated) = (bound, false, 0);
         let mut stack = [0u32; DEPTH];
@@ -102,11 +95,8 @@ impl Bvh {
                 for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
                     let t = triangles[i as usize];
                     let n = (t[1] - t[0]).cross(t[2] - t[0]);
-                    let (n2, plane) = (dot3(n, n), dot3(n, t[0] - p));
-                    let (bmin, bmax) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-                    if (plane * plane >= best * n2 * 1.0001 && n2 > 0.0)
-                        || box_distance2(p, bmin, bmax) >= best * 1.0001
-                    {
+                    let bounds = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                    if cannot_lower(p, t[0], n, dot3(n, n), bounds, best) {
                         continue;
                     }
                     evaluated += 1;

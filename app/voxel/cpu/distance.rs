@@ -160,14 +160,8 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, cells: &mut
             for k in 0..8 {
                 let v = IVec3::new((start + k).min(x1), y, z);
                 let p = v.as_vec3() + 0.5;
-                let current = cells.get(v);
-                let plane = dot3(n, t[0] - p);
-                // plane² / n2 ≥ current, without the division; n2 = 0 (degenerate) never skips.
-                let far_plane = plane * plane >= current * n2 * 1.0001 && n2 > 0.0;
-                // The bounding box no nearer than the best either.
-                let gap = (bmin - p).max(p - bmax).max(Vec3::ZERO);
-                let far_box = dot3(gap, gap) >= current * 1.0001;
-                pass |= u32::from(!(far_plane || far_box) && start + k <= x1) << k;
+                let far = cannot_lower(p, t[0], n, n2, (bmin, bmax), cells.get(v));
+                pass |= u32::from(!far && start + k <= x1) << k;
             }
             while pass != 0 {
                 let k = pass.trailing_zeros() as i32;
@@ -183,6 +177,23 @@ pub fn triangle_layer(t: [Vec3; 3], z: i32, dims: UVec3, reach: f32, cells: &mut
         }
     }
     evaluated
+}
+
+/// The squared distance from `p` to the box `lo..hi` (0 inside it).
+#[inline]
+pub fn box_distance2(p: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    let gap = (lo - p).max(p - hi).max(Vec3::ZERO);
+    dot3(gap, gap)
+}
+
+/// Whether a triangle with first vertex `a`, normal `n` (`n2 = n · n`) and bounding box `bounds` cannot lower
+/// `current` at `p`: its plane's squared distance (`plane² / n2`, without the division; a degenerate triangle,
+/// `n2 = 0`, never skips) or its box's is already no lower, by a margin far above their rounding. The one pruning
+/// rule of pass 2 and of [`crate::voxel::bvh`], so both find the same minimum.
+#[inline]
+pub fn cannot_lower(p: Vec3, a: Vec3, n: Vec3, n2: f32, bounds: (Vec3, Vec3), current: f32) -> bool {
+    let plane = dot3(n, a - p);
+    (plane * plane >= current * n2 * 1.0001 && n2 > 0.0) || box_distance2(p, bounds.0, bounds.1) >= current * 1.0001
 }
 
 /// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
