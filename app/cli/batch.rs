@@ -48,7 +48,8 @@ pub struct BatchArgs {
     /// Where to voxelize (one engine for the whole run).
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
-    /// Worker threads, each parsing, voxelizing and writing one file at a time (default: the number of cores).
+    /// Worker threads, each parsing, voxelizing and writing one file at a time (default: the number of cores;
+    /// on a GPU twice that, at least 4, so that small grids wait for the device together and share a submission).
     #[arg(long, value_name = "J")]
     jobs: Option<usize>,
     /// Only the I-th of N deterministic slices of the sorted input list (0 <= I < N), for job arrays.
@@ -208,7 +209,6 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
     let request = Request { format: Some(format), grid: args.grid.grid, ..request };
     let outputs = plan_outputs(args, &items, format)?;
-    let jobs = args.jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
     let mut manifest = match &args.manifest {
         Some(path) => Some(std::io::LineWriter::new(
@@ -217,6 +217,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         None => None,
     };
     let engine = open_engine(args.backend)?;
+    let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);
     let total = items.len();
     let mut tally = Tally::default();
     let bar = files_bar(total as u64);

@@ -16,14 +16,15 @@
 use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice, software_gpu_preferred};
 use crate::gpu::colour::GpuColourer;
 use crate::gpu::distance::GpuDistance;
-use crate::gpu::voxelize::{GpuVoxelizer, Options};
+use crate::gpu::group::{GROUP_BYTES, GROUP_JOBS, GroupJob};
+use crate::gpu::voxelize::{GpuOutput, GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
 use crate::voxel::distance::{Band, DistanceField};
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 use web_time::Instant;
 
 /// An engine's GPU: the device with what it shares with the other engines on it ([`Engine::with_backend`]),
@@ -49,6 +50,17 @@ pub(super) struct OnDevice {
     turn: async_lock::Mutex<()>,
     /// Nanoseconds spent in those turns, for `batch`'s account of what bounds a run.
     busy_ns: AtomicU64,
+    /// Small grids waiting for a turn: whoever takes the next turn makes all of them in one submission
+    /// ([`OnGpu::grid_in_group`]).
+    waiting: Mutex<Vec<Waiting>>,
+}
+
+/// A small grid waiting to join the next group, and where its result goes.
+struct Waiting {
+    triangles: Vec<[Vec3; 3]>,
+    spec: GridSpec,
+    options: Options,
+    result: Arc<Mutex<Option<Result<GpuOutput, GpuError>>>>,
 }
 
 impl Engine {
@@ -129,11 +141,11 @@ impl Engine {
     fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant, eager: bool) -> Engine {
         let voxelizer = OnceLock::new();
         let (colourer, distance) = (OnceLock::new(), OnceLock::new());
-        let (turn, busy_ns) = (async_lock::Mutex::new(()), AtomicU64::new(0));
+        let (turn, busy_ns, waiting) = (async_lock::Mutex::new(()), AtomicU64::new(0), Mutex::new(Vec::new()));
         // Shared by the engines `with_backend` makes. In the browser wgpu's handles are neither `Send` nor `Sync`
         // (the page has one thread), so there the `Arc` is only a shared owner.
         #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
-        let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, turn, busy_ns });
+        let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, turn, busy_ns, waiting });
         let on_gpu = OnGpu { device, fallback, shared };
         let engine = Engine { gpu: Some(on_gpu), ..Engine::cpu(None) };
         if eager {
@@ -270,9 +282,12 @@ impl OnGpu {
             instance_capacity,
             ..Default::default()
         };
-        let voxelized = {
-            let _turn = self.turn().await;
-            self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await
+        let voxelized = match self.voxelizer().groupable(&self.gpu, tris.len(), spec, &options) {
+            true => self.grid_in_group(tris, spec, options).await,
+            false => {
+                let _turn = self.turn().await;
+                self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await
+            }
         };
         let Some(out) = self.stand_in(Stage::Grid, voxelized, notices)? else { return Ok(None) };
         let grid = match (out.sparse, out.grid) {
@@ -287,7 +302,47 @@ impl OnGpu {
         }
         let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.instances);
         let traffic = Some((out.traffic.upload, out.traffic.readback));
-        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances }))
+        let group = Some(out.group).filter(|&n| n > 0);
+        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group }))
+    }
+
+    /// A small grid made in a group with the others waiting for the device (`gpu/group.rs`): it waits in line for
+    /// a turn, and whoever gets the turn first makes every grid waiting then (this one and up to
+    /// [`GROUP_JOBS`] in all) in one submission. A thread on its own makes a group of one, as a single run.
+    async fn grid_in_group(&self, tris: &[[Vec3; 3]], spec: GridSpec, options: Options) -> Result<GpuOutput, GpuError> {
+        let result = Arc::new(Mutex::new(None));
+        let mine = Waiting { triangles: tris.to_vec(), spec, options, result: result.clone() };
+        lock(&self.waiting).push(mine);
+        let _turn = self.turn().await;
+        if let Some(made) = lock(&result).take() {
+            // An earlier turn made it in its group.
+            return made;
+        }
+        let group = self.take_group(&result);
+        let jobs: Vec<GroupJob> = group
+            .iter()
+            .map(|w| GroupJob { triangles: &w.triangles, spec: w.spec, options: w.options.clone() })
+            .collect();
+        let outputs = self.voxelizer().voxelize_group_async(&self.gpu, &jobs).await;
+        for (waiting, output) in group.iter().zip(outputs) {
+            *lock(&waiting.result) = Some(output);
+        }
+        lock(&result).take().unwrap_or(Err(GpuError::Device("a grouped grid was lost".into())))
+    }
+
+    /// The next group: this turn's own grid (whose result goes to `mine`) and the oldest others waiting, up to
+    /// [`GROUP_JOBS`] grids and [`GROUP_BYTES`] of them.
+    fn take_group(&self, mine: &Arc<Mutex<Option<Result<GpuOutput, GpuError>>>>) -> Vec<Waiting> {
+        let mut waiting = lock(&self.waiting);
+        let own = waiting.iter().position(|w| Arc::ptr_eq(&w.result, mine));
+        let mut group: Vec<Waiting> = own.map(|k| waiting.remove(k)).into_iter().collect();
+        let mut bytes = group.iter().map(|w| w.spec.byte_size()).sum::<u64>();
+        while group.len() < GROUP_JOBS && waiting.first().is_some_and(|w| bytes + w.spec.byte_size() <= GROUP_BYTES) {
+            let next = waiting.remove(0);
+            bytes += next.spec.byte_size();
+            group.push(next);
+        }
+        group
     }
 
     /// The grid's colours on the GPU, or `None` where the CPU is to make them (a grid or textures past one
@@ -345,6 +400,12 @@ impl OnGpu {
     pub(super) fn busy_ms(&self) -> f64 {
         self.busy_ns.load(Ordering::Relaxed) as f64 * 1e-6
     }
+}
+
+/// `mutex`'s guard, also after a thread panicked holding it (what it guards stays consistent: whole entries are
+/// pushed and taken).
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 /// A turn on the device, timed into `busy_ns` when it ends.

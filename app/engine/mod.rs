@@ -29,7 +29,7 @@ mod report;
 
 pub use job::{Job, Request};
 #[cfg(not(target_arch = "wasm32"))]
-pub use queue::work_queue;
+pub use queue::{default_workers, work_queue};
 pub use report::{Instances, Notice, Report, Voxelized};
 
 use crate::mesh::Mesh;
@@ -128,6 +128,8 @@ struct GridStage {
     traffic: Option<(u64, u64)>,
     /// The GPU's list of exposed voxels, when asked for and made there.
     instances: Option<Instances>,
+    /// Grids made in the same GPU submission, this one's included.
+    group: Option<u32>,
 }
 
 /// The colour stage's result, from the GPU or the CPU.
@@ -324,6 +326,7 @@ impl Engine {
             total_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0),
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
+            meshes_in_submission: made.group,
             ..Report::default()
         };
         let colours = colours.map(|c| c.colours);
@@ -358,7 +361,8 @@ impl Engine {
                 .map_err(grid_error)?,
         };
         let exact_tests = Some(stats.exact_tests);
-        Ok(GridStage { grid, backend: self.cpu_label(), gpu_ms: None, exact_tests, traffic: None, instances: None })
+        let backend = self.cpu_label();
+        Ok(GridStage { grid, backend, gpu_ms: None, exact_tests, traffic: None, instances: None, group: None })
     }
 
     /// The distance field of the job's mode (`Sdf` or `Udf`) and band, from the mesh's grid-space triangles,

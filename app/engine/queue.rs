@@ -5,6 +5,14 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// The workers a many-mesh client runs when the user names no number: one per core on the CPU; with a GPU
+/// (`gpu`), twice that and at least four, since a worker waiting for the device holds no core, and the small grids
+/// of several waiting workers are made in one submission (`gpu/group.rs`) while others parse and write.
+pub fn default_workers(gpu: bool) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if gpu { (2 * cores).max(4) } else { cores }
+}
+
 /// Runs `job(k)` for every `k` in `0..count` on `workers` threads and hands each result to `take(k, result)` on
 /// the calling thread, in the order they finish. Results wait in a channel of two per worker, so a slow `take`
 /// holds the workers back instead of letting results pile up. When `take` fails, the workers stop after the job

@@ -58,6 +58,9 @@ pub struct Report {
     pub leaves: Option<u64>,
     pub load_ms: f64,
     pub mesh: String,
+    /// How many meshes' grids were made in the GPU submission that made this one: 1 for a submission of its own,
+    /// more where small grids waiting for the device were grouped (`batch`, `voxelize_many`); `None` on the CPU.
+    pub meshes_in_submission: Option<u32>,
     pub mode: String,
     /// The grid's world minimum corner.
     pub origin: [f64; 3],

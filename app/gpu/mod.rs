@@ -4,6 +4,7 @@
 pub mod colour;
 pub mod compact;
 pub mod distance;
+pub mod group;
 mod plan;
 mod readback;
 mod run;

@@ -228,7 +228,7 @@ impl<'a> Run<'a> {
     }
 
     /// The walk and exact pipelines of the mode (the thin surface's are compiled on first use).
-    fn walk_and_exact(&self) -> (&'a wgpu::ComputePipeline, &'a wgpu::ComputePipeline) {
+    pub(super) fn walk_and_exact(&self) -> (&'a wgpu::ComputePipeline, &'a wgpu::ComputePipeline) {
         let v = self.v;
         if self.options.mode != Mode::Surface6 {
             return (&v.voxelize, &v.exact);
@@ -512,6 +512,7 @@ impl<'a> Run<'a> {
             decided_on_cpu: false,
             rows_on_host: self.deferred_rows.len() as u32,
             traffic: self.traffic,
+            group: 1,
         }))
     }
 }

@@ -119,6 +119,7 @@ impl Run<'_> {
             decided_on_cpu: false,
             rows_on_host: 0,
             traffic: self.traffic,
+            group: 1,
         }))
     }
 

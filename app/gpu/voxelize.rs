@@ -116,6 +116,9 @@ pub struct GpuOutput {
     pub rows_on_host: u32,
     /// Bytes uploaded (triangles) and read back (grid, leaves, counters, timings).
     pub traffic: Traffic,
+    /// Jobs in the submission that made this grid: 1 for a run of its own, more in a group (`gpu/group.rs`),
+    /// 0 where the CPU decided it.
+    pub group: u32,
 }
 
 /// Bytes that crossed the bus each way, for the stats: what bounds a run on a discrete GPU.
@@ -263,7 +266,7 @@ impl GpuVoxelizer {
     }
 
     /// The CPU reference's grid, delivered like a GPU result: read back, or uploaded slab by slab and compacted.
-    async fn decide_on_cpu(
+    pub(super) async fn decide_on_cpu(
         &self,
         gpu: &Gpu,
         triangles: &[[Vec3; 3]],
@@ -286,6 +289,7 @@ impl GpuVoxelizer {
                 decided_on_cpu: true,
                 rows_on_host: 0,
                 traffic: Default::default(),
+                group: 0,
             });
         }
         let (grid, stats) = crate::voxel::voxelize::voxelize_grid_space_mode(
@@ -331,6 +335,7 @@ impl GpuVoxelizer {
             decided_on_cpu: true,
             rows_on_host: 0,
             traffic: Default::default(),
+            group: 0,
         })
     }
 }

@@ -277,8 +277,8 @@ fn voxelize_many<'py>(
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();
-    let workers =
-        workers.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).clamp(1, total.max(1));
+    // The CPU's default unless the GPU is asked for by name (`auto` prices small jobs out to the CPU).
+    let workers = workers.unwrap_or_else(|| crate::engine::default_workers(backend == "gpu")).clamp(1, total.max(1));
     let results = process::run(py, progress, |control| {
         let mut slots: Vec<Option<Result<Voxelized, Failure>>> = (0..total).map(|_| None).collect();
         // Each mesh's own progress is not reported: the count of finished meshes is.

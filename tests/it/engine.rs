@@ -200,6 +200,9 @@ impl Job {
     fn check(&self, engine: &Engine) {
         let got = Outcome::of(engine, self.name, &self.mesh, self.n, self.mode);
         assert!(got.backend.starts_with("gpu"), "{} {:?}: ran on {}", self.name, self.mode, got.backend);
+        // Small grids may be made in a group with other threads' (`gpu/group.rs`), never more than a group holds.
+        let most = meshvox::gpu::group::GROUP_JOBS as u32;
+        assert!(got.group.is_some_and(|n| (1..=most).contains(&n)), "{} {:?}: {:?}", self.name, self.mode, got.group);
         assert!(
             got.words == self.expected.words,
             "{} {:?}: the GPU's grid differs from the CPU's",
@@ -226,6 +229,8 @@ struct Outcome {
     words: Vec<u32>,
     field: Vec<f32>,
     backend: String,
+    /// `meshes_in_submission`.
+    group: Option<u32>,
     largest: f32,
     pitch: f32,
 }
@@ -243,7 +248,8 @@ impl Outcome {
             }
         }
         let (largest, pitch) = (d.max_element() as f32, grid.spec.voxel_size as f32);
-        Outcome { words: grid.words.clone(), field, backend: result.report.backend, largest, pitch }
+        let (backend, group) = (result.report.backend, result.report.meshes_in_submission);
+        Outcome { words: grid.words.clone(), field, backend, group, largest, pitch }
     }
 }
 

@@ -509,3 +509,68 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
     let (cpu, _) = voxelize::voxelize_grid_space_sparse(tris, *s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
     assert!(out.sparse.as_deref() == Some(&cpu), "{name}: the overflow's grid equals the CPU's");
 }
+
+#[test]
+fn small_grids_made_in_one_submission_equal_the_cpus_with_an_overflowing_member() {
+    use meshvox::gpu::group::GroupJob;
+    let Some((gpu, v)) = gpu() else { return };
+    // Every mesh at small sizes that are not powers of two, surface and surface6 in turn, the hard cases, and the
+    // decimal boundary scene twice: once as it is, once with an unsure list of 64 entries, which overflows and
+    // sends that member (alone) to the CPU.
+    let mut members: Vec<(String, Vec<[Vec3; 3]>, GridSpec, Mode, Option<u64>)> = Vec::new();
+    for (k, m) in all_meshes().iter().enumerate() {
+        let mesh = meshvox::mesh::load(m).unwrap_or_else(|e| panic!("{e}"));
+        let n = [37, 64, 100, 129][k % 4];
+        let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("grid");
+        let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
+        let mode = if k % 2 == 0 { Mode::Surface } else { Mode::Surface6 };
+        members.push((format!("{m} at {n}, {mode:?}"), tris, s, mode, None));
+    }
+    for (name, tris, dims) in hard_cases() {
+        members.push((name.to_string(), tris, spec(dims), Mode::Surface, None));
+    }
+    let (obj, _) = crate::exactness::boundary_scene(&mut Rng::new(0xdec1_0005), 50, DVec3::new(3.21, -7.5, 0.03), 1.37);
+    let mesh = obj.load("scene.obj");
+    let s = GridSpec::fit(mesh.bounds().expect("b"), Resolution::Count(50), Axis::X).expect("grid");
+    let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid space");
+    members.push(("boundary scene".into(), tris.clone(), s, Mode::Surface, None));
+    members.push(("boundary scene, 64 unsure entries".into(), tris, s, Mode::Surface, Some(64)));
+    let jobs: Vec<GroupJob> = members
+        .iter()
+        .map(|(_, tris, spec, mode, max_unsure)| {
+            let options = Options { read_grid: true, mode: *mode, max_unsure: *max_unsure, ..Default::default() };
+            GroupJob { triangles: tris, spec: *spec, options }
+        })
+        .collect();
+    for (job, member) in jobs.iter().zip(&members) {
+        assert!(v.groupable(gpu, job.triangles.len(), job.spec, &job.options), "{} must fit a group", member.0);
+    }
+    let outputs = pollster::block_on(v.voxelize_group_async(gpu, &jobs));
+    assert_eq!(outputs.len(), jobs.len());
+    let mut overflowed = 0;
+    for ((name, tris, spec, mode, max_unsure), out) in members.iter().zip(outputs) {
+        let out = out.unwrap_or_else(|e| panic!("{name}: {e}"));
+        let (reference, stats) =
+            voxelize::voxelize_grid_space_mode(tris, *spec, *mode, &|_, _| {}, &Default::default()).expect("cpu");
+        assert_same_grid(out.grid.as_ref().expect("grid"), &reference, name);
+        assert_eq!(out.exact_tests, Some(stats.exact_tests), "{name}");
+        if max_unsure.is_some() {
+            assert!(stats.exact_tests > 64, "{name}: the scene must overflow 64 entries ({})", stats.exact_tests);
+            assert!(out.decided_on_cpu && out.group == 0, "{name}: decided on the CPU, outside the group");
+            overflowed += 1;
+            continue;
+        }
+        // Made in the one submission, and what crossed the bus is the member's triangles and its grid (with the
+        // unsure count and at most three passes' timestamps).
+        assert_eq!(out.group as usize, jobs.len(), "{name}");
+        assert!(!out.decided_on_cpu, "{name}");
+        assert_eq!(out.traffic.upload, tris.len() as u64 * 36, "{name}");
+        let (least, most) = (spec.byte_size() + 4, spec.byte_size() + 4 + 3 * 16);
+        assert!((least..=most).contains(&out.traffic.readback), "{name}: {} bytes read back", out.traffic.readback);
+    }
+    assert_eq!(overflowed, 1);
+    // A group of one is a single run, made exactly as `voxelize` makes it.
+    let single = pollster::block_on(v.voxelize_group_async(gpu, &jobs[..1]));
+    let single = single.into_iter().next().expect("one").expect("gpu");
+    assert_eq!(single.group, 1);
+}
