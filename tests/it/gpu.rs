@@ -510,6 +510,9 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
     assert!(out.sparse.as_deref() == Some(&cpu), "{name}: the overflow's grid equals the CPU's");
 }
 
+/// A group member of the test below: its name, triangles, grid, mode and unsure list's size.
+type Member = (String, Vec<[Vec3; 3]>, GridSpec, Mode, Option<u64>);
+
 #[test]
 fn small_grids_made_in_one_submission_equal_the_cpus_with_an_overflowing_member() {
     use meshvox::gpu::group::GroupJob;
@@ -517,7 +520,7 @@ fn small_grids_made_in_one_submission_equal_the_cpus_with_an_overflowing_member(
     // Every mesh at small sizes that are not powers of two, surface and surface6 in turn, the hard cases, and the
     // decimal boundary scene twice: once as it is, once with an unsure list of 64 entries, which overflows and
     // sends that member (alone) to the CPU.
-    let mut members: Vec<(String, Vec<[Vec3; 3]>, GridSpec, Mode, Option<u64>)> = Vec::new();
+    let mut members: Vec<Member> = Vec::new();
     for (k, m) in all_meshes().iter().enumerate() {
         let mesh = meshvox::mesh::load(m).unwrap_or_else(|e| panic!("{e}"));
         let n = [37, 64, 100, 129][k % 4];
