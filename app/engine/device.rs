@@ -310,6 +310,8 @@ impl OnGpu {
     /// a turn, and whoever gets the turn first makes every grid waiting then (this one and up to
     /// [`GROUP_JOBS`] in all) in one submission. A thread on its own makes a group of one, as a single run.
     async fn grid_in_group(&self, tris: &[[Vec3; 3]], spec: GridSpec, options: Options) -> Result<GpuOutput, GpuError> {
+        // In the browser wgpu's handles are not `Send` and the page has one thread: the `Arc` is only shared there.
+        #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
         let result = Arc::new(Mutex::new(None));
         let mine = Waiting { triangles: tris.to_vec(), spec, options, result: result.clone() };
         lock(&self.waiting).push(mine);
