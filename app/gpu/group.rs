@@ -1,10 +1,9 @@
 //! Several small voxelizations in one submission ([`GpuVoxelizer::voxelize_group_async`]): a dataset's meshes at
 //! 128³ take a tenth of a millisecond of GPU time each, and a run of its own costs each of them five submissions
 //! and two waits for the device (set-up, walk, the counters' copy and map, the grid's copy and map), which on a
-//! discrete GPU is most of
-//! the ~0.7 ms an H100 took per small mesh (bench/RESULTS.md, "seed"). A group records every member's set-up,
-//! walk and exact passes into one command buffer and reads every grid, unsure count and pass timing back through
-//! one staging buffer and one map.
+//! discrete GPU is most of the ~0.7 ms an H100 took per small mesh (bench/RESULTS.md, "seed"). A group records
+//! every member's set-up, walk and exact passes into one command buffer and reads every grid, unsure count and
+//! pass timing back through one staging buffer and one map.
 //!
 //! Each member keeps its own buffers and bind groups ([`Run::allocate`]), so the passes are the single run's,
 //! unchanged; what a group may hold is what one slab and one triangle batch hold ([`GpuVoxelizer::groupable`]).
