@@ -49,8 +49,9 @@ impl Job<'_> {
             Mode::Surface | Mode::Surface6 => surface,
             // The fill visits every row of the grid: a few times the surface's work on the meshes measured.
             Mode::Solid => 3.0 * surface + bytes * 8.0 * CPU_NS_PER_SOLID_VOXEL,
-            // Distance fields: 5–40x the surface (bench sdf).
-            Mode::Sdf | Mode::Udf => 10.0 * surface,
+            // Distance fields: 15–25x the surface as whole jobs (the bunny, the teapot and the knot at 512, sign
+            // and values included, on the 2-core box; bench/RESULTS.md "auto").
+            Mode::Sdf | Mode::Udf => 20.0 * surface,
         };
         let cpu_ms = (work / threads.max(1) as f64 + bytes * CPU_NS_PER_GRID_BYTE) / 1e6;
         let gpu_ms = GPU_OPEN_MS + bytes * GPU_NS_PER_GRID_BYTE / 1e6;
@@ -69,6 +70,18 @@ impl Costs {
                 round(self.gpu_ms)
             )
         })
+    }
+}
+
+impl Costs {
+    /// Why `auto` opened a GPU for the job: the two estimates, for `backend`.
+    pub fn gpu_reason(&self) -> String {
+        format!(
+            "auto: ~{} ms on the GPU, under the ~{} ms of {} CPU threads",
+            round(self.gpu_ms),
+            round(self.cpu_ms),
+            self.threads
+        )
     }
 }
 

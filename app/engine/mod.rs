@@ -102,8 +102,9 @@ fn budget_hint(error: &GridError, sparse: bool) -> &'static str {
 pub struct Engine {
     gpu: Option<device::OnGpu>,
     setup_ms: f64,
-    /// Why the CPU voxelizes although there is an adapter (a software one, no compute), for `backend`.
-    cpu_reason: Option<String>,
+    /// Why the CPU voxelizes although there may be an adapter (a software one, no compute, `auto`'s estimate), or
+    /// why `auto` opened a GPU: said in `backend`.
+    reason: Option<String>,
     /// What opening noticed (no adapter under `auto`).
     opened: Vec<Notice>,
 }
@@ -158,7 +159,7 @@ fn ms(since: Instant) -> f64 {
 impl Engine {
     /// The CPU engine; `reason` says why there is no GPU where one might be expected.
     fn cpu(reason: Option<String>) -> Engine {
-        Engine { gpu: None, setup_ms: 0.0, cpu_reason: reason, opened: Vec::new() }
+        Engine { gpu: None, setup_ms: 0.0, reason, opened: Vec::new() }
     }
 
     /// Opens `backend` for `job`: under `auto` the job's estimated cost decides first whether a GPU is worth
@@ -173,6 +174,9 @@ impl Engine {
                     let t = Instant::now();
                     on.prepare(job);
                     engine.setup_ms += ms(t);
+                    if backend == Backend::Auto && !auto_probes_always() {
+                        engine.reason = Some(job.costs(parallel::threads()).gpu_reason());
+                    }
                 }
                 Ok(engine)
             }
@@ -213,7 +217,7 @@ impl Engine {
     }
 
     fn cpu_label(&self) -> String {
-        match &self.cpu_reason {
+        match &self.reason {
             Some(reason) => format!("cpu ({} threads; {reason})", parallel::threads()),
             None => format!("cpu ({} threads)", parallel::threads()),
         }
@@ -270,7 +274,10 @@ impl Engine {
         // Grid-space triangles once, for the voxels and their colours.
         let tris = grid_space(mesh, &spec)?;
         let mut notices = Vec::new();
-        let made = self.grid(job, &tris, &mut notices).await?;
+        let mut made = self.grid(job, &tris, &mut notices).await?;
+        if let (Some(reason), true) = (&self.reason, made.backend.starts_with("gpu")) {
+            made.backend = format!("{} ({reason})", made.backend);
+        }
         request.cancelled()?;
         let voxelize_ms = ms(t);
         let t = Instant::now();

@@ -245,6 +245,14 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
     if backend.starts_with("cpu (") {
         assert!(backend.contains("is software") || backend.contains("no GPU adapter"), "{backend}");
     }
+    // Where `auto` does open the GPU for the job (a software one allowed), `backend` says why, with both estimates.
+    if super::gpu::gpu().is_some() {
+        let field = ["voxelize", "builtin:knot", "-r", "300", "--mode", "sdf", "-o", "k.npy", "--stats-json"];
+        let auto = stats(&meshvox_env(&field, dir.path(), &[("MESHVOX_SOFTWARE_GPU", "1")]));
+        let backend = auto["backend"].as_str().unwrap_or_default();
+        assert!(backend.starts_with("gpu: ") && backend.contains("(auto: ~"), "{backend}");
+        assert!(backend.contains(" ms on the GPU, under the ~") && backend.ends_with("CPU threads)"), "{backend}");
+    }
 }
 
 #[test]
