@@ -528,6 +528,9 @@ impl GpuVoxelizer {
     ) -> Result<Attempt, GpuError> {
         // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        if options.sparse && options.mode == Mode::Solid {
+            return self.sparse_solid(gpu, &triangles, spec, lattice, options).await;
+        }
         let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
         if run.sparse.is_some() {
             return run.voxelize_bricks(&triangles).await;

@@ -7,17 +7,18 @@
 //! Steps, each named for what it does: [`SparsePlan::for_run`](super::plan::SparsePlan::for_run) sizes the bricks and the buffer, [`bin_triangles`]
 //! sorts the triangles into them, [`Run::voxelize_bricks`] runs the bricks (cutting one in eight whose leaves
 //! outnumber the slots), [`Run::mark_brick`], [`Run::write_brick`] and [`Run::brick_counts`] are the chain of one
-//! brick. The solid keeps the slab path (its crossing lists are per row of the whole grid).
+//! brick. A sparse solid ([`GpuVoxelizer::sparse_solid`]) is its shell made here and its inside filled on the
+//! host along that shell; a dense solid keeps the slab path (its crossing lists are per row of the whole grid).
 
-use super::GpuError;
 use super::readback::{first_word, read_buffers, stream_buffer};
 use super::run::{Batch, Run};
 use super::util::scoped;
-use super::voxelize::{Attempt, GpuOutput, LeafPipelines};
+use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
+use super::{Gpu, GpuError};
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
-use crate::voxel::{Mode, VoxelGrid};
+use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid};
 use glam::{UVec3, Vec3};
 use std::collections::VecDeque;
 
@@ -42,6 +43,29 @@ pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Bric
         }
     }
     bins
+}
+
+impl GpuVoxelizer {
+    /// A sparse solid: its shell, the conservative surface, made as leaves on the GPU (the chain below: no dense
+    /// slab is allocated or read), then its inside filled on the host along that shell by the CPU backend's own
+    /// fill ([`fill_sparse`](crate::voxel::solid_sparse::fill_sparse): runs of leaves the surface does not cross
+    /// decided whole, rows filled only through the leaves it crosses), so the grid is the CPU's, field for field.
+    /// An overflowing unsure list hands the whole solid to the CPU, as for a surface.
+    pub(super) async fn sparse_solid(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        lattice: Lattice,
+        options: &Options,
+    ) -> Result<Attempt, GpuError> {
+        let shell = Options { mode: Mode::Surface, ..options.clone() };
+        let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
+        let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(Attempt::Overflow) };
+        let surface = out.sparse.take().ok_or_else(|| GpuError::Device("the shell came back without leaves".into()))?;
+        out.sparse = Some(Box::new(crate::voxel::solid_sparse::fill_sparse(triangles, lattice, *surface)));
+        Ok(Attempt::Done(out))
+    }
 }
 
 /// How one brick ended.

@@ -208,6 +208,8 @@ impl GpuVoxelizer {
     /// made on first use; clients that time opening apart from voxelizing call it when they open (`sparse`: the
     /// grid is sparse, else dense by the default of [`Options::dense_from_leaves`]).
     pub fn prepare_leaves(&self, gpu: &Gpu, mode: Mode, sparse: bool) {
+        // A sparse solid's shell is made as a surface's.
+        let mode = if sparse && mode == Mode::Solid { Mode::Surface } else { mode };
         let options = Options { mode, sparse, read_grid: true, ..Default::default() };
         if uses_leaves(gpu, &options) {
             let thin = mode == Mode::Surface6;
@@ -373,8 +375,9 @@ impl LeafPipelines {
 }
 
 /// Whether a run makes its grid from leaves: surface and surface6 grids read back, sparse, or dense without a voxel
-/// list where [`Options::dense_from_leaves`] says so. The solid's crossing lists span whole rows of the grid, so it
-/// keeps the slab path, and a voxel list for drawing is compacted from the slab.
+/// list where [`Options::dense_from_leaves`] says so. A dense solid's crossing lists span whole rows of the grid, so
+/// it keeps the slab path (a sparse solid's shell is a surface run: `gpu/sparse.rs`), and a voxel list for drawing
+/// is compacted from the slab.
 pub(super) fn uses_leaves(gpu: &Gpu, options: &Options) -> bool {
     let dense =
         options.read_grid && !options.instances && options.dense_from_leaves.unwrap_or(!gpu.summary.is_software());

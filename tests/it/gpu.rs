@@ -451,11 +451,12 @@ fn occupied_leaves(grid: &meshvox::voxel::SparseGrid) -> u64 {
 }
 
 /// The sparse chain on the GPU (`shaders/leaves.wgsl`) against the CPU's sparse walk, field for field, on the hard
-/// cases and every mesh, in surface and surface6 with the adapter's limits, and in surface with tiny ones (a 2 KiB stand-in
-/// binding: bricks of 4³ leaves with 26 slots, so most bricks a surface crosses are cut in eight and run again),
-/// and with triangles in batches of 7. What comes back is the occupied leaves (68 bytes each) and a few counters
-/// per brick: `readback_bytes` is held to the leaf count, so a return to dense slabs fails here. Dense grids made
-/// from the same leaves equal the CPU's too.
+/// cases and every mesh, in surface, surface6 and solid with the adapter's limits, and in surface (and solid, on the
+/// hard cases) with tiny ones (a 2 KiB stand-in binding: bricks of 4³ leaves with 26 slots, so most bricks a
+/// surface crosses are cut in eight and run again), and with triangles in batches of 7. What comes back is the
+/// occupied leaves of the surface (68 bytes each; a solid's shell) and a few counters per brick: `readback_bytes` is
+/// held to the leaf count, so a return to dense slabs fails here. Dense grids of the same voxels equal the CPU's
+/// too.
 #[test]
 fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_the_leaves() {
     let Some((gpu, v)) = gpu() else { return };
@@ -469,11 +470,16 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
         cases.push((m.clone(), voxelize::grid_space_triangles(&mesh, &s).expect("grid space"), s));
     }
     let mut split = false;
-    for (name, tris, s) in &cases {
-        for mode in [Mode::Surface, Mode::Surface6] {
+    let hard = hard_cases().len();
+    for (k, (name, tris, s)) in cases.iter().enumerate() {
+        let (shell, _) =
+            voxelize::voxelize_grid_space_sparse(tris, *s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+        for mode in [Mode::Surface, Mode::Surface6, Mode::Solid] {
             let (cpu, _) = voxelize::voxelize_grid_space_sparse(tris, *s, mode, &|_, _| {}, &never).expect("cpu");
-            // Tiny limits in surface mode only: the chunking is the same for both tests, and costs seconds.
-            let tiny = (mode == Mode::Surface).then(|| ("tiny", tiny.clone()));
+            // Tiny limits in surface mode, and for the solid's shell on the hard cases: the chunking is the same in
+            // every mode, and costs seconds on the shared meshes.
+            let tiny_here = mode == Mode::Surface || (mode == Mode::Solid && k < hard);
+            let tiny = tiny_here.then(|| ("tiny", tiny.clone()));
             for (limits, options) in [("adapter", Options::default())].into_iter().chain(tiny) {
                 let options = Options { read_grid: true, sparse: true, mode, ..options };
                 let out = v.voxelize(gpu, tris, *s, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -481,8 +487,9 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
                 let what = format!("{name} ({mode}, {limits} limits)");
                 assert!(out.sparse.as_deref() == Some(&cpu), "{what}: GPU sparse differs from the CPU's");
                 // Leaves marked for an unsure voxel the exact test left clear come back too: at most a quarter.
-                // (With tiny limits the counters of the many bricks and batches outweigh the leaves.)
-                let leaves = occupied_leaves(&cpu);
+                // (With tiny limits the counters of the many bricks and batches outweigh the leaves.) A solid's
+                // are its shell's: the inside is filled on the host along them.
+                let leaves = occupied_leaves(if mode == Mode::Solid { &shell } else { &cpu });
                 let counters = out.slabs as u64 * 128;
                 assert!(
                     limits == "tiny" || out.traffic.readback <= leaves * 64 * 5 / 4 + counters,
@@ -491,7 +498,11 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
                     out.slabs
                 );
                 assert!(out.traffic.readback >= leaves * 68, "{what}: every leaf came back");
-                // The dense grid scattered from the same leaves (the default on hardware adapters).
+                // The dense grid scattered from the same leaves (the default on hardware adapters; a dense solid
+                // takes the slab path, compared with the CPU's in `modes`).
+                if mode == Mode::Solid {
+                    continue;
+                }
                 let dense = Options { sparse: false, dense_from_leaves: Some(true), ..options };
                 let grid = v.voxelize(gpu, tris, *s, &dense).unwrap_or_else(|e| panic!("{name}: {e}")).grid;
                 assert!(grid == Some(cpu.to_dense().expect("dense")), "{what}: the dense grid from leaves differs");
@@ -508,6 +519,11 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
     assert!(out.decided_on_cpu, "{name}: the overflow was forced");
     let (cpu, _) = voxelize::voxelize_grid_space_sparse(tris, *s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
     assert!(out.sparse.as_deref() == Some(&cpu), "{name}: the overflow's grid equals the CPU's");
+    let options = Options { mode: Mode::Solid, ..options };
+    let out = v.voxelize(gpu, tris, *s, &options).expect("gpu");
+    assert!(out.decided_on_cpu, "{name}: the overflow was forced for the solid's shell");
+    let (cpu, _) = voxelize::voxelize_grid_space_sparse(tris, *s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+    assert!(out.sparse.as_deref() == Some(&cpu), "{name}: the solid's overflow gives the CPU's solid");
 }
 
 /// A group member of the test below: its name, triangles, grid, mode and unsure list's size.
