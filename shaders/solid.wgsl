@@ -25,9 +25,11 @@ struct SolidParams {
     unsure_capacity: u32,
     // How many error bounds from 1/2 a winding number must be for the GPU to decide its voxel (2; tests raise it).
     margin: f32,
+    // The z layers the row table holds, rows_z0 .. rows_z1: the whole grid for a dense solid, a slab of it for a
+    // sparse one (rows_z0 a multiple of 8; row (y, z) is entry (z - rows_z0) * dims.y + y).
+    rows_z0: u32,
+    rows_z1: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(8) var<uniform> solid: SolidParams;
@@ -211,10 +213,10 @@ fn crossing_rows(item: u32, write: bool) {
     for (var i = first; i < end; i++) {
         let y = s.lo.x + i % width;
         let z = s.lo.y + i / width;
-        if !covers_row(s, y, z) {
+        if z < solid.rows_z0 || z >= solid.rows_z1 || !covers_row(s, y, z) {
             continue;
         }
-        let row = z * solid.dims.y + y;
+        let row = (z - solid.rows_z0) * solid.dims.y + y;
         if !write {
             atomicAdd(&row_counts[row], 1u);
             continue;
@@ -240,7 +242,7 @@ fn count_crossings(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocat
 fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
                  @builtin(num_workgroups) groups: vec3<u32>) {
     let row = linear_id(wid, lid, groups, 64u);
-    if row >= solid.dims.y * solid.dims.z {
+    if row >= solid.dims.y * (solid.rows_z1 - solid.rows_z0) {
         return;
     }
     let n = atomicLoad(&row_counts[row]);
@@ -489,10 +491,8 @@ fn near_boundary(y: u32, z: u32) -> bool {
     return false;
 }
 
-// The row's crossings are solid's crossings[start .. start + n], sorted here (insertion sort: rows hold a
-// handful).
-fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
-    var total = 0;
+// Sorts a row's crossings, crossings[start .. start + n], in place (insertion sort: rows hold a handful).
+fn sort_row(start: u32, n: u32) {
     for (var i = 1u; i < n; i++) {
         let c = crossings[start + i];
         var j = i;
@@ -502,6 +502,12 @@ fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
         }
         crossings[start + j] = c;
     }
+}
+
+// The row's crossings are solid's crossings[start .. start + n], sorted here.
+fn fill_row(start: u32, n: u32, y: u32, z: u32, near: bool, base: u32) {
+    var total = 0;
+    sort_row(start, n);
     for (var i = 0u; i < n; i++) {
         total += crossing_sign(crossings[start + i]);
     }
@@ -542,7 +548,7 @@ fn fill_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id
     }
     let y = i % solid.dims.y;
     let z = solid.slab_z0 + i / solid.dims.y;
-    let segment = row_segments[z * solid.dims.y + y];
+    let segment = row_segments[(z - solid.rows_z0) * solid.dims.y + y];
     let near = near_boundary(y, z);
     if segment.y == 0u && !near {
         return;

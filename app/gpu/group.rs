@@ -209,6 +209,7 @@ async fn read_back_group(gpu: &Gpu, runs: &mut [Run<'_>], timed: &[u64]) -> Resu
             exact_tests: Some(listed as u64),
             decided_on_cpu: false,
             rows_on_host: 0,
+            inside_on_host: false,
             traffic: run.traffic,
             group: members as u32,
         }));

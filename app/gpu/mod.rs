@@ -5,6 +5,7 @@ pub mod colour;
 pub mod compact;
 pub mod distance;
 pub mod group;
+mod groups;
 mod plan;
 mod readback;
 mod run;

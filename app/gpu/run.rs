@@ -511,6 +511,7 @@ impl<'a> Run<'a> {
             exact_tests: self.exact_tests,
             decided_on_cpu: false,
             rows_on_host: self.deferred_rows.len() as u32,
+            inside_on_host: false,
             traffic: self.traffic,
             group: 1,
         }))

@@ -21,17 +21,19 @@ pub const SOLID_WGSL: &str = concat!(
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/exact.wgsl"),
     include_str!("../../shaders/solid.wgsl"),
+    include_str!("../../shaders/groups.wgsl"),
 );
 /// The files joined into [`SOLID_WGSL`], in order, relative to `shaders/`.
-pub const SOLID_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "solid.wgsl"];
+pub const SOLID_PARTS: [&str; 5] =
+    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "solid.wgsl", "groups.wgsl"];
 
-const WG: u32 = 64;
+pub(super) const WG: u32 = 64;
 /// The shader's `ROWS_PER_ITEM`.
 const ROWS_PER_ITEM: u64 = 32;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct SolidParams {
+pub(super) struct SolidParams {
     dims: [u32; 3],
     tri_count: u32,
     words_per_row: u32,
@@ -43,16 +45,21 @@ struct SolidParams {
     item_count: u32,
     unsure_capacity: u32,
     margin: f32,
-    _pad: [u32; 3],
+    /// The layers the row table holds (the whole grid for a dense solid, a slab for a sparse one).
+    rows_z0: u32,
+    rows_z1: u32,
+    _pad: u32,
 }
 
 /// The compiled solid pipelines.
 pub(crate) struct SolidPipelines {
     layout: wgpu::BindGroupLayout,
-    count: wgpu::ComputePipeline,
-    allocate: wgpu::ComputePipeline,
-    write: wgpu::ComputePipeline,
+    pub(super) count: wgpu::ComputePipeline,
+    pub(super) allocate: wgpu::ComputePipeline,
+    pub(super) write: wgpu::ComputePipeline,
     fill: wgpu::ComputePipeline,
+    /// A sparse solid's inside by groups of 8×8 rows (`shaders/groups.wgsl`, driven by `gpu/groups.rs`).
+    pub(super) groups: wgpu::ComputePipeline,
 }
 
 /// Rows per slab that the fill may hand to the host (`solid_unsure`): those where this adapter's `atan2` and
@@ -83,6 +90,47 @@ impl SolidRun {
     }
 }
 
+impl SolidParams {
+    /// The parameters of `spec`'s grid, its triangles, boundary and work items, with the whole grid's rows.
+    pub(super) fn new(
+        spec: GridSpec,
+        triangles: usize,
+        edges: &[BoundaryEdge],
+        pieces: &[crate::voxel::cpu::solid::BoundaryPiece],
+        lattice: Lattice,
+        items: u64,
+    ) -> SolidParams {
+        SolidParams {
+            dims: spec.dims.to_array(),
+            tri_count: triangles as u32,
+            words_per_row: spec.words_per_row() as u32,
+            slab_z0: 0,
+            slab_z1: spec.dims.z,
+            edge_count: edges.len() as u32,
+            piece_count: pieces.len() as u32,
+            lattice_scale: lattice.scale(),
+            item_count: items as u32,
+            unsure_capacity: UNSURE_ROWS,
+            margin: crate::voxel::cpu::solid::MARGIN,
+            rows_z0: 0,
+            rows_z1: spec.dims.z,
+            _pad: 0,
+        }
+    }
+
+    /// The same with the row table holding layers `z0..z1`.
+    pub(super) fn rows(self, z0: u32, z1: u32) -> SolidParams {
+        SolidParams { rows_z0: z0, rows_z1: z1, ..self }
+    }
+}
+
+/// The boundary as the shader reads it: the edges (two vec4 each), then the pieces (three vec4 each).
+pub(super) fn boundary_bytes(edges: &[BoundaryEdge], pieces: &[crate::voxel::cpu::solid::BoundaryPiece]) -> Vec<u8> {
+    let mut bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(edges).to_vec();
+    bytes.extend_from_slice(bytemuck::cast_slice(pieces));
+    bytes
+}
+
 impl SolidPipelines {
     pub fn new(device: &wgpu::Device) -> SolidPipelines {
         let module = &device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -110,11 +158,12 @@ impl SolidPipelines {
             allocate: pipeline(device, module, &one, "allocate_rows"),
             write: pipeline(device, module, &one, "write_crossings"),
             fill: pipeline(device, module, &one, "fill_rows"),
+            groups: pipeline(device, module, &one, "fill_groups"),
             layout,
         }
     }
 
-    fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 10]) -> wgpu::BindGroup {
+    pub(super) fn bind(&self, device: &wgpu::Device, buffers: [&wgpu::Buffer; 10]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -149,23 +198,8 @@ impl SolidPipelines {
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
         }
-        let base = SolidParams {
-            dims: spec.dims.to_array(),
-            tri_count: triangles.len() as u32,
-            words_per_row: spec.words_per_row() as u32,
-            slab_z0: 0,
-            slab_z1: spec.dims.z,
-            edge_count: edges.len() as u32,
-            piece_count: pieces.len() as u32,
-            lattice_scale: lattice.scale(),
-            item_count: items as u32,
-            unsure_capacity: UNSURE_ROWS,
-            margin: crate::voxel::cpu::solid::MARGIN,
-            _pad: [0; 3],
-        };
-        // The edges (two vec4 each), then the boundary's pieces (three vec4 each).
-        let mut edge_bytes: Vec<u8> = bytemuck::cast_slice::<BoundaryEdge, u8>(&edges).to_vec();
-        edge_bytes.extend_from_slice(bytemuck::cast_slice(&pieces));
+        let base = SolidParams::new(spec, triangles.len(), &edges, &pieces, lattice, items);
+        let edge_bytes = boundary_bytes(&edges, &pieces);
         let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;
         let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets, unsure } = buffers;
         let item_groups = dispatch_2d((items as u32).div_ceil(WG));
@@ -174,7 +208,7 @@ impl SolidPipelines {
             device,
             [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets, &unsure],
         );
-        run_passes(gpu, &first, &[(&self.count, item_groups), (&self.allocate, row_groups)]).await?;
+        run_passes(gpu, &first, &[(&self.count, item_groups), (&self.allocate, row_groups)], None).await?;
         let listed = first_word(&read_buffer(device, &gpu.queue, &total, 0, 4).await?).unwrap_or(0) as u64;
         if listed * 4 > limit {
             return Err(GpuError::TooLarge {
@@ -189,7 +223,7 @@ impl SolidPipelines {
             device,
             [&params, tris, &counts, &segments, &crossings, &boundary, slab, &total, &item_offsets, &unsure],
         );
-        run_passes(gpu, &bind, &[(&self.write, item_groups)]).await?;
+        run_passes(gpu, &bind, &[(&self.write, item_groups)], None).await?;
         Ok(SolidRun {
             params,
             bind,
@@ -224,16 +258,19 @@ impl SolidPipelines {
     }
 }
 
-/// Submits one compute pass that dispatches `pipelines` in order over `groups` workgroups each (x, y).
-async fn run_passes(
+/// Submits one compute pass that dispatches `pipelines` in order over `groups` workgroups each (x, y), timed where
+/// `timestamp_writes` is given.
+pub(super) async fn run_passes(
     gpu: &Gpu,
     bind: &wgpu::BindGroup,
     pipelines: &[(&wgpu::ComputePipeline, (u32, u32))],
+    timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
 ) -> Result<(), GpuError> {
     scoped(&gpu.device, || {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("solid"), timestamp_writes });
             pass.set_bind_group(0, bind, &[]);
             for (pipeline, (x, y)) in pipelines {
                 pass.set_pipeline(pipeline);
@@ -248,7 +285,7 @@ async fn run_passes(
 
 /// Each triangle's first work item of the crossing passes, and the total, from the same set-up the shader
 /// computes (exact, so both count the same rows).
-fn item_offsets(triangles: &[[Vec3; 3]], spec: GridSpec, lattice: Lattice) -> (Vec<u32>, u64) {
+pub(super) fn item_offsets(triangles: &[[Vec3; 3]], spec: GridSpec, lattice: Lattice) -> (Vec<u32>, u64) {
     let mut offsets = Vec::with_capacity(triangles.len() + 1);
     let mut items = 0u64;
     for &t in triangles {
@@ -264,20 +301,20 @@ fn item_offsets(triangles: &[[Vec3; 3]], spec: GridSpec, lattice: Lattice) -> (V
 }
 
 /// The solid passes' buffers besides the triangles, the slab and the crossing list (sized once counted).
-struct SolidBuffers {
-    params: wgpu::Buffer,
-    counts: wgpu::Buffer,
-    segments: wgpu::Buffer,
-    placeholder: wgpu::Buffer,
-    boundary: wgpu::Buffer,
-    total: wgpu::Buffer,
-    item_offsets: wgpu::Buffer,
-    unsure: wgpu::Buffer,
+pub(super) struct SolidBuffers {
+    pub(super) params: wgpu::Buffer,
+    pub(super) counts: wgpu::Buffer,
+    pub(super) segments: wgpu::Buffer,
+    pub(super) placeholder: wgpu::Buffer,
+    pub(super) boundary: wgpu::Buffer,
+    pub(super) total: wgpu::Buffer,
+    pub(super) item_offsets: wgpu::Buffer,
+    pub(super) unsure: wgpu::Buffer,
 }
 
 impl SolidBuffers {
     /// Allocates them (inside error scopes) and uploads the parameters, work-item offsets and boundary edges.
-    async fn new(
+    pub(super) async fn new(
         gpu: &Gpu,
         rows: u64,
         offsets: &[u32],

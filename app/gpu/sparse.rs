@@ -17,6 +17,7 @@ use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
 use super::{Gpu, GpuError};
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
+use crate::voxel::solid_sparse::{fill_sparse, solid_from_groups};
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
 use crate::voxel::{GridSpec, Lattice, Mode, VoxelGrid};
 use glam::{UVec3, Vec3};
@@ -47,10 +48,11 @@ pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Bric
 
 impl GpuVoxelizer {
     /// A sparse solid: its shell, the conservative surface, made as leaves on the GPU (the chain below: no dense
-    /// slab is allocated or read), then its inside filled on the host along that shell by the CPU backend's own
-    /// fill ([`fill_sparse`](crate::voxel::solid_sparse::fill_sparse): runs of leaves the surface does not cross
-    /// decided whole, rows filled only through the leaves it crosses), so the grid is the CPU's, field for field.
-    /// An overflowing unsure list hands the whole solid to the CPU, as for a surface.
+    /// slab is allocated or read), then its inside by groups of 8×8 rows on the GPU too (`gpu/groups.rs`), or,
+    /// beside an open mesh's holes, on the host along that shell by the CPU backend's own fill ([`fill_sparse`]:
+    /// runs of leaves the surface does not cross decided whole, rows filled only through the leaves it crosses).
+    /// Either way the grid is the CPU's, field for field. An overflowing unsure list hands the whole solid to the
+    /// CPU, as for a surface.
     pub(super) async fn sparse_solid(
         &self,
         gpu: &Gpu,
@@ -63,7 +65,23 @@ impl GpuVoxelizer {
         let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
         let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(Attempt::Overflow) };
         let surface = out.sparse.take().ok_or_else(|| GpuError::Device("the shell came back without leaves".into()))?;
-        out.sparse = Some(Box::new(crate::voxel::solid_sparse::fill_sparse(triangles, lattice, *surface)));
+        let inside = match options.inside_on_gpu.unwrap_or(!gpu.summary.is_software()) {
+            true => {
+                let solid = self.solid.get_or_init(|| super::solid::SolidPipelines::new(&gpu.device));
+                let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
+                let mut gpu_ms = 0.0;
+                let account = (&mut out.traffic, &mut gpu_ms);
+                let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, limit, account).await?;
+                out.gpu_ms = out.gpu_ms.map(|ms| ms + gpu_ms);
+                inside
+            }
+            false => None,
+        };
+        out.inside_on_host = inside.is_none();
+        out.sparse = Some(Box::new(match inside {
+            Some(groups) => solid_from_groups(*surface, &groups),
+            None => fill_sparse(triangles, lattice, *surface),
+        }));
         Ok(Attempt::Done(out))
     }
 }
@@ -142,6 +160,7 @@ impl Run<'_> {
             exact_tests: self.exact_tests,
             decided_on_cpu: false,
             rows_on_host: 0,
+            inside_on_host: false,
             traffic: self.traffic,
             group: 1,
         }))

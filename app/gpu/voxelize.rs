@@ -95,6 +95,10 @@ pub struct Options {
     /// dense slabs. Default: on hardware adapters. On a software one (lavapipe) there is no bus to spare, and the
     /// leaves' second walk costs more than the copy it saves (bench/RESULTS.md).
     pub dense_from_leaves: Option<bool>,
+    /// Make a sparse solid's inside by groups of 8×8 rows on the GPU (`gpu/groups.rs`) instead of on the host
+    /// along the shell. Default: on hardware adapters. On a software one the groups' barriers run as the cores'
+    /// context switches, and the host's fill on the same cores is faster (bench/RESULTS.md).
+    pub inside_on_gpu: Option<bool>,
 }
 
 /// What a GPU voxelization produced.
@@ -114,6 +118,9 @@ pub struct GpuOutput {
     pub decided_on_cpu: bool,
     /// Rows of the solid fill that the GPU could not decide as the CPU does and the host filled.
     pub rows_on_host: u32,
+    /// A sparse solid's inside was filled on the host along the shell (beside an open mesh's holes, or where no
+    /// slab of its rows fit a binding), not by the GPU's groups.
+    pub inside_on_host: bool,
     /// Bytes uploaded (triangles) and read back (grid, leaves, counters, timings).
     pub traffic: Traffic,
     /// Jobs in the submission that made this grid: 1 for a run of its own, more in a group (`gpu/group.rs`),
@@ -222,6 +229,25 @@ impl GpuVoxelizer {
         self.leaves[thin as usize].get_or_init(|| LeafPipelines::new(&gpu.device, self, thin))
     }
 
+    /// The inside of a sparse solid by groups of 8×8 rows on the GPU (`gpu/groups.rs`; what
+    /// [`crate::voxel::cpu::groups::fill_groups`] mirrors), from grid-space triangles and the solid's shell, with
+    /// bindings of at most `limit` bytes; `None` where the host is to fill it. For the mirror's tests.
+    #[cfg(not(target_arch = "wasm32"))]
+    pub fn inside_groups(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        shell: &SparseGrid,
+        limit: u64,
+    ) -> Result<Option<crate::voxel::cpu::groups::GroupOutput>, GpuError> {
+        let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
+        let solid = self.solid.get_or_init(|| SolidPipelines::new(&gpu.device));
+        let (mut traffic, mut gpu_ms) = (Traffic::default(), 0.0);
+        let account = (&mut traffic, &mut gpu_ms);
+        pollster::block_on(solid.sparse_inside(gpu, &triangles, spec, lattice, shell, limit, account))
+    }
+
     pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {
         self.compactor.get_or_init(|| Compactor::new(gpu))
     }
@@ -290,6 +316,7 @@ impl GpuVoxelizer {
                 exact_tests: Some(stats.exact_tests),
                 decided_on_cpu: true,
                 rows_on_host: 0,
+                inside_on_host: false,
                 traffic: Default::default(),
                 group: 0,
             });
@@ -336,6 +363,7 @@ impl GpuVoxelizer {
             exact_tests: Some(stats.exact_tests),
             decided_on_cpu: true,
             rows_on_host: 0,
+            inside_on_host: false,
             traffic: Default::default(),
             group: 0,
         })

@@ -15,6 +15,7 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
+use super::cpu::groups::GroupOutput;
 use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
 use super::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
@@ -273,6 +274,15 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
             tiles.extend(part.tiles);
             inside.extend(part.leaves);
         }
+        join_interior(surface, tiles, inside)
+    })
+}
+
+/// The solid from its shell and its inside's tiles and leaves (partly inside leaves, in any order): the leaves of
+/// both ORed together, those under a tile dropped, in canonical form ([`SparseGrid::prune`]).
+fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64, LeafMask)>) -> SparseGrid {
+    crate::parallel::install(|| {
+        let spec = surface.spec;
         inside.par_sort_unstable_by_key(|(k, _)| *k);
         // A surface leaf under a tile adds nothing: the tile's voxels are all set.
         let blocks: HashSet<UVec3> = tiles.iter().filter(|t| t.log2 == 7).map(|t| t.origin).collect();
@@ -303,4 +313,36 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         tiles.extend(surface.tiles);
         SparseGrid { spec, leaves, tiles }.prune()
     })
+}
+
+/// A solid from its shell and the inside that groups of 8×8 rows found ([`crate::voxel::cpu::groups`], the GPU's
+/// `fill_groups`): each block of 128 × 128 rows whose 256 groups all hold a 16-leaf segment whole gets a 128³
+/// tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³ tiles, the partly inside leaves
+/// leaves. The result is [`fill_sparse`]'s grid wherever no group was left to the host (`output.host` empty).
+pub fn solid_from_groups(surface: SparseGrid, output: &GroupOutput) -> SparseGrid {
+    let dims = surface.spec.dims;
+    let groups = (BLOCK / 8) * (BLOCK / 8);
+    let whole_block = |gy: u32, gz: u32| (gy / 16 + 1) * BLOCK <= dims.y && (gz / 16 + 1) * BLOCK <= dims.z;
+    // Per (block y, block z, segment): the groups that hold the segment whole.
+    let mut segments: std::collections::HashMap<(u32, u32, u32), u32> = std::collections::HashMap::new();
+    for run in &output.runs {
+        for t in run.lx0.div_ceil(16)..run.lx1 / 16 {
+            *segments.entry((run.gy / 16, run.gz / 16, t)).or_default() += 1;
+        }
+    }
+    let tiled = |gy: u32, gz: u32, t: u32| {
+        whole_block(gy, gz) && segments.get(&(gy / 16, gz / 16, t)).is_some_and(|&n| n == groups)
+    };
+    let mut tiles: Vec<Tile> = segments
+        .iter()
+        .filter(|&(&(by, bz, t), _)| tiled(by * 16, bz * 16, t))
+        .map(|(&(by, bz, t), _)| Tile { log2: 7, origin: UVec3::new(t, by, bz) * BLOCK })
+        .collect();
+    for run in &output.runs {
+        for lx in (run.lx0..run.lx1).filter(|&lx| !tiled(run.gy, run.gz, lx / 16)) {
+            tiles.push(Tile { log2: 3, origin: UVec3::new(lx, run.gy, run.gz) * 8 });
+        }
+    }
+    let inside = output.leaves.iter().map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask)).collect();
+    join_interior(surface, tiles, inside)
 }

@@ -593,3 +593,46 @@ fn small_grids_made_in_one_submission_equal_the_cpus_with_an_overflowing_member(
     let single = single.into_iter().next().expect("one").expect("gpu");
     assert_eq!(single.group, 1);
 }
+
+/// The groups on the GPU (`shaders/groups.wgsl`) against their mirror (`voxel::cpu::groups`), leaf for leaf and run
+/// for run, on every closed mesh and hard case: with the adapter's bindings (one slab) and with 64 KiB ones (or the
+/// triangles' size), which cut the rows into slabs (and halve a slab whose output would not fit). The sparse solid `voxelize` makes is the
+/// CPU's, with its inside made by the groups on a closed mesh and on the host beside an open mesh's holes.
+#[test]
+fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
+    let Some((gpu, v)) = gpu() else { return };
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let mut sliced = false;
+    for (name, points, s) in crate::sparse::group_cases() {
+        let tris: Vec<[Vec3; 3]> = points.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let (lattice_tris, lattice) = meshvox::voxel::on_lattice(&tris, s.dims).expect("lattice");
+        let boundary = meshvox::voxel::solid::boundary(&lattice_tris, lattice);
+        let (shell, _) =
+            voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+        let options = Options { read_grid: true, sparse: true, mode: Mode::Solid, ..Default::default() };
+        let (cpu, _) = voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+        // The groups where asked for (a software adapter's default is the host's fill, which is faster there).
+        for inside_on_gpu in [Some(true), None] {
+            let options = Options { inside_on_gpu, ..options.clone() };
+            let out = v.voxelize(gpu, &tris, s, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(out.sparse.as_deref() == Some(&cpu), "{name}: the GPU's sparse solid differs from the CPU's");
+            let groups = inside_on_gpu.unwrap_or(!gpu.summary.is_software()) && boundary.edges.is_empty();
+            assert_eq!(out.inside_on_host, !groups, "{name} ({inside_on_gpu:?}): where the inside was made");
+        }
+        if !boundary.edges.is_empty() {
+            continue;
+        }
+        let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, s.dims, lattice);
+        let mirror = meshvox::voxel::cpu::groups::fill_groups(&crossings, s.dims, &boundary, 0, s.dims.z).sorted();
+        // The triangles are one binding: the smallest one must hold them.
+        let small = (64u64 << 10).max(tris.len() as u64 * 36);
+        for limit in [gpu.max_binding_bytes(), small] {
+            let groups = v.inside_groups(gpu, &tris, s, &shell, limit).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let groups =
+                groups.unwrap_or_else(|| panic!("{name}: the groups left a closed mesh to the host ({limit})"));
+            assert!(groups.sorted() == mirror, "{name}, bindings of {limit} bytes: the GPU's groups differ");
+            sliced |= limit == small && 8 * u64::from(s.dims.y) * u64::from(s.dims.z) > small;
+        }
+    }
+    assert!(sliced, "some grid's rows were cut into slabs");
+}

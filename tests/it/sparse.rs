@@ -551,3 +551,60 @@ fn a_solid_whose_interior_spans_a_4096_tile_is_that_tile_and_its_canonical_box()
     let extent = (hi - lo + 1).as_u64vec3();
     assert_eq!(sparse.count(), extent.x * extent.y * extent.z);
 }
+
+/// The grid-space triangles of every mesh at two sizes that are not powers of two, and of the hard cases, with
+/// names: the inputs of the groups' tests.
+pub(crate) fn group_cases() -> Vec<(String, Vec<glam::Vec3>, GridSpec)> {
+    let mut cases: Vec<(String, Vec<glam::Vec3>, GridSpec)> = Vec::new();
+    for (name, tris, dims) in hard_cases() {
+        let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims };
+        cases.push((name.to_string(), tris.into_iter().flatten().collect(), spec));
+    }
+    for m in all_meshes() {
+        let mesh = meshvox::mesh::load(&m).unwrap_or_else(|e| panic!("{e}"));
+        for n in [45, 110] {
+            let s = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest).expect("grid");
+            let tris = grid_space_triangles(&mesh, &s).expect("grid space");
+            cases.push((format!("{m} at {n}"), tris.into_iter().flatten().collect(), s));
+        }
+    }
+    cases
+}
+
+/// The sparse solid's inside by groups of 8×8 rows (`voxel::cpu::groups`, the mirror of `shaders/groups.wgsl`)
+/// gives the CPU's sparse solid, field for field in canonical form, on every closed mesh and hard case, whether the
+/// groups run over all rows at once or in slabs of 8 and 24 layers; on an open mesh the groups beside its holes are
+/// left to the host (and where none is, the groups' solid is the fill's there too).
+#[test]
+fn the_groups_mirror_gives_the_sparse_fills_solid_on_closed_meshes() {
+    use meshvox::voxel::cpu::groups::{GroupOutput, fill_groups};
+    let never = AtomicBool::new(false);
+    let (mut closed, mut hosted) = (0, 0);
+    for (name, points, spec) in group_cases() {
+        let tris: Vec<[glam::Vec3; 3]> = points.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let (lattice_tris, lattice) = meshvox::voxel::on_lattice(&tris, spec.dims).expect("lattice");
+        let boundary = meshvox::voxel::solid::boundary(&lattice_tris, lattice);
+        let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, spec.dims, lattice);
+        let whole = fill_groups(&crossings, spec.dims, &boundary, 0, spec.dims.z).sorted();
+        if !whole.host.is_empty() {
+            assert!(!boundary.edges.is_empty(), "{name}: every row of a closed mesh is decided by its count");
+            hosted += 1;
+            continue;
+        }
+        for step in [8, 24] {
+            let mut parts = GroupOutput::default();
+            for z0 in (0..spec.dims.z).step_by(step) {
+                let part = fill_groups(&crossings, spec.dims, &boundary, z0, (z0 + step as u32).min(spec.dims.z));
+                parts.leaves.extend(part.leaves);
+                parts.runs.extend(part.runs);
+            }
+            assert!(parts.sorted() == whole, "{name}: slabs of {step} layers give the same groups");
+        }
+        let (shell, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("shell");
+        let (solid, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &never).expect("solid");
+        let grouped = meshvox::voxel::solid_sparse::solid_from_groups(shell, &whole);
+        assert!(grouped == solid, "{name}: the groups' solid differs from the sparse fill's");
+        closed += usize::from(boundary.edges.is_empty());
+    }
+    assert!(closed >= 8 && hosted >= 2, "{closed} closed cases, {hosted} with groups left to the host");
+}

@@ -16,6 +16,7 @@ pub mod colour;
 pub mod common;
 pub mod distance;
 pub mod exact;
+pub mod groups;
 pub mod leaves;
 pub mod nearest;
 pub mod solid;

@@ -1,0 +1,253 @@
+//! A sparse solid's inside made on the GPU (`shaders/groups.wgsl`, mirrored by `voxel/cpu/groups.rs`), after its
+//! shell came back as leaves (`gpu/sparse.rs`): the grid's rows in z-slabs of whole groups whose row table,
+//! crossing list and output each fit one binding; per slab the crossing passes of `solid.wgsl` over the slab's rows
+//! (`count_crossings`, `allocate_rows`, `write_crossings`), then `fill_groups`, one workgroup per group of 8×8 rows.
+//! Only the partly inside leaves (18 words each) and the runs of full leaves (2 words) come back, so what crosses
+//! the bus follows the surface: the shell's leaf count bounds both (a leaf partly inside is crossed by the surface),
+//! and the host makes 128³ tiles from the runs ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)).
+//!
+//! Where the groups cannot decide a row by its crossing count (an open mesh's holes) the host fills the solid as
+//! the CPU backend does; so does it when a slab of eight layers is past a binding or an output past its capacity.
+
+use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
+use super::solid::{SolidBuffers, SolidParams, SolidPipelines, WG, boundary_bytes, item_offsets, run_passes};
+use super::util::{dispatch_2d, scoped, storage_buffer};
+use super::{Gpu, GpuError, Traffic};
+use crate::voxel::cpu::groups::{GroupLeaf, GroupOutput, GroupRun};
+use crate::voxel::solid::boundary;
+use crate::voxel::{GridSpec, Lattice, SparseGrid};
+use glam::Vec3;
+
+/// The shader's `GROUP_LEAF_WORDS`.
+const LEAF_WORDS: u64 = 18;
+/// Words before the leaves: the two counters and the two capacities.
+const HEADER_WORDS: u64 = 4;
+
+/// The shell's leaves per layer of groups (`gz`): a bound on what each layer's groups write.
+fn shell_leaves_per_layer(shell: &SparseGrid) -> Vec<u64> {
+    let mut per = vec![0u64; shell.spec.dims.z.div_ceil(8) as usize + 1];
+    for (key, _) in &shell.leaves {
+        per[crate::voxel::sparse::key_origin(*key).z as usize / 8] += 1;
+    }
+    for tile in &shell.tiles {
+        let n = (1u64 << tile.log2) / 8;
+        for gz in tile.origin.z / 8..tile.origin.z / 8 + n as u32 {
+            if let Some(p) = per.get_mut(gz as usize) {
+                *p += n * n;
+            }
+        }
+    }
+    per
+}
+
+impl SolidPipelines {
+    /// The inside of the sparse solid whose shell is `shell`, from `triangles` (on the lattice), in slabs under
+    /// `limit` bytes per binding; `None` where it is the host's to fill (an open mesh, or no slab of eight layers
+    /// fits). What crossed the bus is added to `traffic`, the passes' time (where the adapter times them) to
+    /// `gpu_ms`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) async fn sparse_inside(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        lattice: Lattice,
+        shell: &SparseGrid,
+        limit: u64,
+        (traffic, gpu_ms): (&mut Traffic, &mut f64),
+    ) -> Result<Option<GroupOutput>, GpuError> {
+        let device = &gpu.device;
+        let dims = spec.dims;
+        let boundary = boundary(triangles, lattice);
+        // Beside a hole the groups' rows need winding numbers and certificates: the host's fill has both.
+        if !boundary.edges.is_empty() || triangles.len() as u64 * 36 > limit {
+            return Ok(None);
+        }
+        let mut layers = ((limit / (8 * u64::from(dims.y))) as u32 / 8 * 8).min(dims.z.next_multiple_of(8));
+        if layers < 8 {
+            return Ok(None);
+        }
+        let (offsets, items) = item_offsets(triangles, spec, lattice);
+        let base = SolidParams::new(spec, triangles.len(), &boundary.edges, &boundary.pieces, lattice, items);
+        let edge_bytes = boundary_bytes(&boundary.edges, &boundary.pieces);
+        let buffers =
+            SolidBuffers::new(gpu, u64::from(dims.y) * u64::from(layers), &offsets, &edge_bytes, &base).await?;
+        let tris = scoped(device, || {
+            let tris =
+                storage_buffer(device, "solid triangles", triangles.len() as u64 * 36, wgpu::BufferUsages::empty());
+            gpu.queue.write_buffer(&tris, 0, bytemuck::cast_slice(triangles));
+            Ok(tris)
+        })
+        .await?;
+        traffic.upload += triangles.len() as u64 * 36;
+        let per_layer = shell_leaves_per_layer(shell);
+        let mut out = GroupOutput::default();
+        let mut z0 = 0;
+        while z0 < dims.z {
+            let z1 = (z0 + layers).min(dims.z);
+            let (g0, g1) = (z0 as usize / 8, z1.div_ceil(8) as usize);
+            let leaf_capacity = per_layer[g0..g1].iter().sum::<u64>() + 64;
+            let groups = u64::from(dims.y.div_ceil(8)) * (g1 - g0) as u64;
+            let run_capacity = leaf_capacity + groups;
+            let out_bytes = (HEADER_WORDS + LEAF_WORDS * leaf_capacity + 2 * run_capacity) * 4;
+            let rows = dims.y * (z1 - z0);
+            let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups };
+            let account = (&mut *traffic, &mut *gpu_ms);
+            match self.slab_inside(gpu, &buffers, &tris, base, items, slab, limit, account).await? {
+                SlabEnd::Done(part) => {
+                    out.leaves.extend(part.leaves);
+                    out.runs.extend(part.runs);
+                    z0 = z1;
+                }
+                SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
+                SlabEnd::TooLarge | SlabEnd::Host => return Ok(None),
+            }
+        }
+        Ok(Some(out))
+    }
+
+    /// One slab: its crossing lists, its groups, what they wrote.
+    #[allow(clippy::too_many_arguments)]
+    async fn slab_inside(
+        &self,
+        gpu: &Gpu,
+        buffers: &SolidBuffers,
+        tris: &wgpu::Buffer,
+        base: SolidParams,
+        items: u64,
+        slab: Slab,
+        limit: u64,
+        (traffic, gpu_ms): (&mut Traffic, &mut f64),
+    ) -> Result<SlabEnd, GpuError> {
+        let device = &gpu.device;
+        if slab.out_bytes > limit {
+            return Ok(SlabEnd::TooLarge);
+        }
+        let b = buffers;
+        let params = base.rows(slab.z0, slab.z1);
+        let rows = slab.rows;
+        let output =
+            scoped(device, || Ok(storage_buffer(device, "groups", slab.out_bytes, wgpu::BufferUsages::COPY_SRC)))
+                .await?;
+        let header = [0u32, 0, slab.leaf_capacity as u32, slab.run_capacity as u32];
+        gpu.queue.write_buffer(&output, 0, bytemuck::cast_slice(&header));
+        gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+        gpu.queue.write_buffer(&b.total, 0, &[0; 4]);
+        gpu.queue.write_buffer(&b.unsure, 0, &[0; 4]);
+        // The last slab's `write_crossings` left its cursors in the counts.
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(&b.counts, 0, None);
+            gpu.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+        .await?;
+        let bind = |crossings: &wgpu::Buffer| {
+            let list = [
+                &b.params,
+                tris,
+                &b.counts,
+                &b.segments,
+                crossings,
+                &b.boundary,
+                &output,
+                &b.total,
+                &b.item_offsets,
+                &b.unsure,
+            ];
+            self.bind(device, list)
+        };
+        let item_groups = dispatch_2d((items as u32).div_ceil(WG));
+        let row_groups = dispatch_2d(rows.div_ceil(WG));
+        let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 2));
+        let counting = [(&self.count, item_groups), (&self.allocate, row_groups)];
+        run_passes(gpu, &bind(&b.placeholder), &counting, timer.as_mut().and_then(|t| t.next_pass())).await?;
+        let listed = u64::from(first_word(&read_buffer(device, &gpu.queue, &b.total, 0, 4).await?).unwrap_or(0));
+        traffic.readback += 4;
+        if listed * 4 > limit {
+            return Ok(SlabEnd::TooLarge);
+        }
+        let crossings =
+            scoped(device, || Ok(storage_buffer(device, "crossings", listed * 4, wgpu::BufferUsages::empty()))).await?;
+        let groups = dispatch_2d(slab.groups as u32);
+        let filling = [(&self.write, item_groups), (&self.groups, groups)];
+        run_passes(gpu, &bind(&crossings), &filling, timer.as_mut().and_then(|t| t.next_pass())).await?;
+        let mut ranges = vec![(&output, 0, 8), (&b.unsure, 0, 4)];
+        let timed = match timer.as_mut() {
+            Some(t) => {
+                let mut encoder = device.create_command_encoder(&Default::default());
+                let timed = t.resolve(&mut encoder);
+                gpu.queue.submit([encoder.finish()]);
+                timed
+            }
+            None => 0,
+        };
+        if let Some(t) = timer.as_ref().filter(|_| timed > 0) {
+            ranges.push((t.resolved(), 0, timed));
+        }
+        let counters = read_buffers(device, &gpu.queue, &ranges).await?;
+        if let (Some(t), Some(times)) = (timer.as_mut(), counters.get(2)) {
+            *gpu_ms += t.finish(&gpu.queue, times);
+        }
+        traffic.readback += 12 + timed;
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&counters[0]);
+        let (leaves, runs) = (u64::from(words[0]), u64::from(words[1]));
+        if first_word(&counters[1]).unwrap_or(0) > 0 {
+            return Ok(SlabEnd::Host);
+        }
+        if leaves > slab.leaf_capacity || runs > slab.run_capacity {
+            return Ok(SlabEnd::Host);
+        }
+        let leaf_at = HEADER_WORDS * 4;
+        let run_at = (HEADER_WORDS + LEAF_WORDS * slab.leaf_capacity) * 4;
+        let ranges = [(&output, leaf_at, leaves * LEAF_WORDS * 4), (&output, run_at, runs * 8)];
+        let ranges: Vec<_> = ranges.into_iter().filter(|r| r.2 > 0).collect();
+        traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
+        let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
+        let mut parts = parts.into_iter();
+        let leaf_words = if leaves > 0 { parts.next().unwrap_or_default() } else { Vec::new() };
+        let run_words = if runs > 0 { parts.next().unwrap_or_default() } else { Vec::new() };
+        let (leaf_words, run_words) =
+            (bytemuck::pod_collect_to_vec(&leaf_words), bytemuck::pod_collect_to_vec(&run_words));
+        Ok(SlabEnd::Done(decode(&leaf_words, &run_words)))
+    }
+}
+
+/// One slab of groups and the room its output has.
+#[derive(Clone, Copy)]
+struct Slab {
+    z0: u32,
+    z1: u32,
+    rows: u32,
+    leaf_capacity: u64,
+    run_capacity: u64,
+    out_bytes: u64,
+    groups: u64,
+}
+
+/// How a slab ended.
+enum SlabEnd {
+    Done(GroupOutput),
+    /// Its crossing list or output is past a binding: cut the slab.
+    TooLarge,
+    /// A group is the host's, or the output overflowed: the host fills the solid.
+    Host,
+}
+
+/// The leaves and runs as the shader wrote them (see `shaders/groups.wgsl`).
+fn decode(leaves: &[u32], runs: &[u32]) -> GroupOutput {
+    let leaves = leaves
+        .chunks_exact(LEAF_WORDS as usize)
+        .map(|w| GroupLeaf {
+            gz: w[1],
+            gy: w[0] >> 16,
+            lx: w[0] & 0xffff,
+            mask: std::array::from_fn(|x| u64::from(w[2 + 2 * x]) | u64::from(w[3 + 2 * x]) << 32),
+        })
+        .collect();
+    let runs = runs
+        .chunks_exact(2)
+        .map(|w| GroupRun { gz: w[0] >> 16, gy: w[0] & 0xffff, lx0: w[1] & 0xffff, lx1: w[1] >> 16 })
+        .collect();
+    GroupOutput { leaves, runs, host: Vec::new() }
+}

@@ -1,0 +1,238 @@
+// ---- groups: a sparse solid's inside by groups of 8×8 rows, mirroring app/voxel/cpu/groups.rs ----
+//
+//   fill_groups   one workgroup of 64 invocations per group of 8×8 rows (y, z) of the row table's slab, one
+//                 invocation per row: sort the row's crossings, then walk the group's leaves along x from event to
+//                 event (a leaf in which some row has a crossing). Each event leaf's 64 rows of 8 voxels are all
+//                 inside (the leaf joins a run of full leaves), partly (the leaf comes back with its mask) or not at
+//                 all; between two events every row keeps its state, so the stretch is decided whole. The work
+//                 follows the surface: a group costs one step per leaf its rows' crossings fall in.
+// Joined into the solid module after solid.wgsl, whose crossing lists it reads (`count_crossings`, `allocate_rows`,
+// `write_crossings` over the slab's rows). A group with a row its crossing count does not decide (beside an open
+// mesh's hole, or crossings that do not cancel) is listed for the host and left alone.
+//
+// Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
+// capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
+// mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
+// lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Host groups go to `solid_unsure` (a count, then
+// gy | gz << 16 each). gy and gz index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
+
+const GROUP_LEAF_WORDS: u32 = 18u;
+const NO_LEAF: u32 = 0xffffffffu;
+
+// The current leaf's mask (16 words), whether all its voxels are inside, whether any is, the rows inside after it
+// (bit r of two words), the next event leaf; and the host flag.
+var<workgroup> group_mask: array<atomic<u32>, 16>;
+var<workgroup> group_full: atomic<u32>;
+var<workgroup> group_any: atomic<u32>;
+var<workgroup> group_after: array<atomic<u32>, 2>;
+var<workgroup> group_next: atomic<u32>;
+var<workgroup> group_host: atomic<u32>;
+// Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is the host's.
+var<workgroup> group_step: u32;
+var<workgroup> group_defer: u32;
+
+// The 8 bits of leaf `l` of a sorted row (crossings[start .. start + n]): voxel 8 l + k is inside where the
+// crossings up to it leave a count of at least 1, and it lies in the grid. `cursor` and `before` carry the row's
+// position and signed sum from leaf to leaf.
+fn row_leaf_bits(start: u32, n: u32, cursor: ptr<function, u32>, before: ptr<function, i32>, l: u32,
+                 dims_x: u32) -> u32 {
+    var bits = 0u;
+    for (var k = 0u; k < 8u; k++) {
+        let x = 8u * l + k;
+        while *cursor < n && (crossings[start + *cursor] >> 1u) <= x {
+            *before += crossing_sign(crossings[start + *cursor]);
+            *cursor += 1u;
+        }
+        if -*before >= 1 && x < dims_x {
+            bits |= 1u << k;
+        }
+    }
+    return bits;
+}
+
+// The leaf of the row's next crossing (after `cursor`), or NO_LEAF.
+fn next_event_leaf(start: u32, n: u32, cursor: u32) -> u32 {
+    if cursor < n {
+        return (crossings[start + cursor] >> 1u) / 8u;
+    }
+    return NO_LEAF;
+}
+
+// The bits of a leaf's x positions that lie in the grid: all 8 but in a last leaf cut by dims.x.
+fn leaf_columns(l: u32, dims_x: u32) -> u32 {
+    let inside = min(dims_x - min(8u * l, dims_x), 8u);
+    return (1u << inside) - 1u;
+}
+
+fn emit_leaf(gy: u32, gz: u32, l: u32, mask: array<u32, 16>) {
+    let slot = atomicAdd(&solid_grid[0], 1u);
+    if slot >= atomicLoad(&solid_grid[2]) {
+        return;
+    }
+    let base = 4u + slot * GROUP_LEAF_WORDS;
+    atomicStore(&solid_grid[base], l | (gy << 16u));
+    atomicStore(&solid_grid[base + 1u], gz);
+    for (var i = 0u; i < 16u; i++) {
+        atomicStore(&solid_grid[base + 2u + i], mask[i]);
+    }
+}
+
+fn emit_run(gy: u32, gz: u32, lx0: u32, lx1: u32) {
+    let slot = atomicAdd(&solid_grid[1], 1u);
+    if slot >= atomicLoad(&solid_grid[3]) {
+        return;
+    }
+    let base = 4u + atomicLoad(&solid_grid[2]) * GROUP_LEAF_WORDS + 2u * slot;
+    atomicStore(&solid_grid[base], gy | (gz << 16u));
+    atomicStore(&solid_grid[base + 1u], lx0 | (lx1 << 16u));
+}
+
+fn defer_group(gy: u32, gz: u32) {
+    let i = atomicAdd(&solid_unsure[0], 1u);
+    if i < solid.unsure_capacity {
+        atomicStore(&solid_unsure[1u + i], gy | (gz << 16u));
+    }
+}
+
+// What the group's leaf `l` and the stretch after it, up to the next event leaf `next`, add (the first invocation,
+// once the rows have written the leaf's mask, fullness and the states after it): a run of full leaves is extended
+// or ended and written, a leaf partly inside written with its mask, a stretch where the rows disagree written leaf
+// by leaf. Returns the open run's first leaf, or NO_LEAF.
+fn settle_leaf(gy: u32, gz: u32, l: u32, next: u32, open: u32, dims_x: u32) -> u32 {
+    var run = open;
+    if atomicLoad(&group_full) == 1u {
+        if run == NO_LEAF {
+            run = l;
+        }
+    } else {
+        if run != NO_LEAF {
+            emit_run(gy, gz, run, l);
+            run = NO_LEAF;
+        }
+        if atomicLoad(&group_any) != 0u {
+            var mask: array<u32, 16>;
+            for (var i = 0u; i < 16u; i++) {
+                mask[i] = atomicLoad(&group_mask[i]);
+            }
+            emit_leaf(gy, gz, l, mask);
+        }
+    }
+    if next <= l + 1u {
+        return run;
+    }
+    let a0 = atomicLoad(&group_after[0]);
+    let a1 = atomicLoad(&group_after[1]);
+    if a0 == 0xffffffffu && a1 == 0xffffffffu {
+        if run == NO_LEAF {
+            run = l + 1u;
+        }
+        return run;
+    }
+    if run != NO_LEAF {
+        emit_run(gy, gz, run, l + 1u);
+        run = NO_LEAF;
+    }
+    if (a0 | a1) != 0u {
+        for (var s = l + 1u; s < next; s++) {
+            let columns = leaf_columns(s, dims_x);
+            var mask: array<u32, 16>;
+            for (var x = 0u; x < 8u; x++) {
+                if (columns & (1u << x)) != 0u {
+                    mask[2u * x] = a0;
+                    mask[2u * x + 1u] = a1;
+                }
+            }
+            emit_leaf(gy, gz, s, mask);
+        }
+    }
+    return run;
+}
+
+@compute @workgroup_size(64)
+fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) r: u32,
+               @builtin(num_workgroups) groups: vec3<u32>) {
+    let groups_y = (solid.dims.y + 7u) / 8u;
+    let g = wid.x + wid.y * groups.x;
+    let gy = g % groups_y;
+    let gz = solid.rows_z0 / 8u + g / groups_y;
+    let y = gy * 8u + r / 8u;
+    let z = gz * 8u + r % 8u;
+    let valid = y < solid.dims.y && z < solid.rows_z1;
+    var start = 0u;
+    var n = 0u;
+    if valid {
+        let segment = row_segments[(z - solid.rows_z0) * solid.dims.y + y];
+        start = segment.x;
+        n = segment.y;
+    }
+    if r == 0u {
+        atomicStore(&group_next, NO_LEAF);
+        atomicStore(&group_host, 0u);
+    }
+    workgroupBarrier();
+    sort_row(start, n);
+    var total = 0;
+    for (var i = 0u; i < n; i++) {
+        total += crossing_sign(crossings[start + i]);
+    }
+    if valid && (total != 0 || (solid.piece_count > 0u && near_boundary(y, z))) {
+        atomicStore(&group_host, 1u);
+    }
+    var cursor = 0u;
+    var before = 0;
+    atomicMin(&group_next, next_event_leaf(start, n, cursor));
+    workgroupBarrier();
+    if r == 0u {
+        group_defer = atomicLoad(&group_host);
+        group_step = atomicLoad(&group_next);
+    }
+    if workgroupUniformLoad(&group_defer) != 0u {
+        if r == 0u {
+            defer_group(gy, gz);
+        }
+        return;
+    }
+    let leaves_x = (solid.dims.x + 7u) / 8u;
+    var run = NO_LEAF;
+    var l = workgroupUniformLoad(&group_step);
+    while l < leaves_x {
+        if r == 0u {
+            for (var i = 0u; i < 16u; i++) {
+                atomicStore(&group_mask[i], 0u);
+            }
+            atomicStore(&group_full, 1u);
+            atomicStore(&group_any, 0u);
+            atomicStore(&group_after[0], 0u);
+            atomicStore(&group_after[1], 0u);
+            atomicStore(&group_next, NO_LEAF);
+        }
+        workgroupBarrier();
+        let bits = row_leaf_bits(start, n, &cursor, &before, l, solid.dims.x);
+        let bit = 1u << (r % 32u);
+        for (var k = 0u; k < 8u; k++) {
+            if (bits & (1u << k)) != 0u {
+                atomicOr(&group_mask[2u * k + r / 32u], bit);
+            }
+        }
+        if bits != 0xffu || !valid {
+            atomicStore(&group_full, 0u);
+        }
+        if bits != 0u {
+            atomicStore(&group_any, 1u);
+        }
+        if -before >= 1 && valid {
+            atomicOr(&group_after[r / 32u], bit);
+        }
+        atomicMin(&group_next, next_event_leaf(start, n, cursor));
+        workgroupBarrier();
+        if r == 0u {
+            let next = min(atomicLoad(&group_next), leaves_x);
+            run = settle_leaf(gy, gz, l, next, run, solid.dims.x);
+            group_step = next;
+        }
+        l = workgroupUniformLoad(&group_step);
+    }
+    if r == 0u && run != NO_LEAF {
+        emit_run(gy, gz, run, leaves_x);
+    }
+}
