@@ -11,10 +11,10 @@
 //! a whole (a device error) is run again member by member, so each meets its own error.
 
 use super::readback::{first_word, read_buffers};
-use super::run::{Batch, Run};
+use super::run::{Batch, Run, record_set_up, record_walk};
 use super::util::scoped;
-use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, SCAN_WG, SETUP_BYTES, TRIANGLE_BYTES, WG, slab_plan};
-use super::{Gpu, GpuError, dispatch_2d};
+use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, Options, SCAN_WG, SETUP_BYTES, TRIANGLE_BYTES, slab_plan};
+use super::{Gpu, GpuError};
 use crate::voxel::{GridSpec, Mode, VoxelGrid, on_lattice};
 use glam::Vec3;
 
@@ -123,48 +123,8 @@ impl Run<'_> {
         // parameters (the set-up ignores the slab).
         gpu.queue.write_buffer(&b.triangles, 0, bytemuck::cast_slice(triangles));
         gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
-        encoder.clear_buffer(&b.slab, 0, None);
-        encoder.clear_buffer(&b.unsure_count, 0, None);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("group: setup + scan + voxelize"),
-                timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-            });
-            pass.set_bind_group(0, &b.bind, &[]);
-            pass.set_bind_group(1, &b.bind_dispatch, &[]);
-            let (x, y) = dispatch_2d(tri_count.div_ceil(WG));
-            pass.set_pipeline(&v.setup);
-            pass.dispatch_workgroups(x, y, 1);
-            pass.set_pipeline(&v.scan_blocks);
-            pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
-            pass.set_pipeline(&v.scan_block_sums);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&v.add_block_offsets);
-            pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
-        }
-        {
-            // A pass of its own: `scan_block_sums` wrote `dispatch` as storage, which the walk reads as indirect
-            // arguments.
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("group: voxelize"),
-                timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-            });
-            pass.set_bind_group(0, &b.bind, &[]);
-            pass.set_pipeline(walk);
-            pass.dispatch_workgroups_indirect(&b.dispatch, 0);
-            pass.set_bind_group(1, &b.bind_dispatch, &[]);
-            pass.set_pipeline(&v.prepare_exact);
-            pass.dispatch_workgroups(1, 1, 1);
-        }
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("group: exact"),
-                timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-            });
-            pass.set_bind_group(0, &b.bind, &[]);
-            pass.set_pipeline(exact);
-            pass.dispatch_workgroups_indirect(&b.dispatch, 12);
-        }
+        record_set_up(v, b, encoder, timer, batch);
+        record_walk(v, b, encoder, timer, (walk, exact));
         self.timer.as_mut().map_or(0, |t| t.resolve(encoder))
     }
 }

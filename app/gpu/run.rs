@@ -256,23 +256,7 @@ impl<'a> Run<'a> {
             gpu.queue.write_buffer(&b.triangles, 0, bytemuck::cast_slice(chunk));
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("setup + scan"),
-                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                });
-                pass.set_bind_group(0, &b.bind, &[]);
-                pass.set_bind_group(1, &b.bind_dispatch, &[]);
-                let (x, y) = dispatch_2d(tri_count.div_ceil(WG));
-                pass.set_pipeline(&v.setup);
-                pass.dispatch_workgroups(x, y, 1);
-                pass.set_pipeline(&v.scan_blocks);
-                pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
-                pass.set_pipeline(&v.scan_block_sums);
-                pass.dispatch_workgroups(1, 1, 1);
-                pass.set_pipeline(&v.add_block_offsets);
-                pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
-            }
+            record_set_up(v, b, &mut encoder, timer, batch);
             gpu.queue.submit([encoder.finish()]);
             Ok(())
         })
@@ -301,30 +285,7 @@ impl<'a> Run<'a> {
         scoped(&gpu.device, || {
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(&b.slab, 0, None);
-            encoder.clear_buffer(&b.unsure_count, 0, None);
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("voxelize"),
-                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                });
-                pass.set_bind_group(0, &b.bind, &[]);
-                pass.set_pipeline(walk);
-                pass.dispatch_workgroups_indirect(&b.dispatch, 0);
-                pass.set_bind_group(1, &b.bind_dispatch, &[]);
-                pass.set_pipeline(&v.prepare_exact);
-                pass.dispatch_workgroups(1, 1, 1);
-            }
-            {
-                // A pass of its own: `dispatch` was just written as storage and is now read as indirect arguments.
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("exact"),
-                    timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
-                });
-                pass.set_bind_group(0, &b.bind, &[]);
-                pass.set_pipeline(exact);
-                pass.dispatch_workgroups_indirect(&b.dispatch, 12);
-            }
+            record_walk(v, b, &mut encoder, timer, (walk, exact));
             if let (Some(run), Some(solid)) = (solid_run, v.solid.get()) {
                 solid.fill(gpu, run, &mut encoder, slab.z0, slab.z1, timer.as_mut().and_then(|t| t.next_pass()));
             }
@@ -516,6 +477,63 @@ impl<'a> Run<'a> {
             group: 1,
         }))
     }
+}
+
+/// Records the set-up and prefix-sum passes over `batch`'s triangles (already uploaded) into `encoder`.
+pub(super) fn record_set_up(
+    v: &GpuVoxelizer,
+    b: &Buffers,
+    encoder: &mut wgpu::CommandEncoder,
+    timer: &mut Option<PassTimer>,
+    batch: Batch,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("setup + scan"),
+        timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+    });
+    pass.set_bind_group(0, &b.bind, &[]);
+    pass.set_bind_group(1, &b.bind_dispatch, &[]);
+    let (x, y) = dispatch_2d(batch.tri_count.div_ceil(WG));
+    pass.set_pipeline(&v.setup);
+    pass.dispatch_workgroups(x, y, 1);
+    pass.set_pipeline(&v.scan_blocks);
+    pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
+    pass.set_pipeline(&v.scan_block_sums);
+    pass.dispatch_workgroups(1, 1, 1);
+    pass.set_pipeline(&v.add_block_offsets);
+    pass.dispatch_workgroups(batch.block_count.max(1), 1, 1);
+}
+
+/// Records the slab's clearing, the walk, `prepare_exact` and the exact pass into `encoder`.
+pub(super) fn record_walk(
+    v: &GpuVoxelizer,
+    b: &Buffers,
+    encoder: &mut wgpu::CommandEncoder,
+    timer: &mut Option<PassTimer>,
+    (walk, exact): (&wgpu::ComputePipeline, &wgpu::ComputePipeline),
+) {
+    encoder.clear_buffer(&b.slab, 0, None);
+    encoder.clear_buffer(&b.unsure_count, 0, None);
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("voxelize"),
+            timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+        });
+        pass.set_bind_group(0, &b.bind, &[]);
+        pass.set_pipeline(walk);
+        pass.dispatch_workgroups_indirect(&b.dispatch, 0);
+        pass.set_bind_group(1, &b.bind_dispatch, &[]);
+        pass.set_pipeline(&v.prepare_exact);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+    // A pass of its own: `dispatch` was just written as storage and is now read as indirect arguments.
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("exact"),
+        timestamp_writes: timer.as_mut().and_then(|t| t.next_pass()),
+    });
+    pass.set_bind_group(0, &b.bind, &[]);
+    pass.set_pipeline(exact);
+    pass.dispatch_workgroups_indirect(&b.dispatch, 12);
 }
 
 impl GpuVoxelizer {
