@@ -21,7 +21,7 @@ use crate::gpu::voxelize::{GpuOutput, GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
 use crate::voxel::distance::{Band, DistanceField};
-use crate::voxel::{Grid, GridSpec, VoxelGrid};
+use crate::voxel::{Grid, GridSpec, SparseGrid, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -384,6 +384,22 @@ impl OnGpu {
             pass.field(&self.gpu, tris, spec, band, inside).await
         };
         self.stand_in(Stage::Field, field, notices)
+    }
+
+    /// A sparse field's sign (the voxels inside) on the GPU, or `None` where the CPU is to make it (an open mesh, a
+    /// software adapter unless `MESHVOX_SOFTWARE_GPU=1`, a limit).
+    pub(super) async fn inside(
+        &self,
+        tris: &[[Vec3; 3]],
+        spec: GridSpec,
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<SparseGrid>, EngineError> {
+        let inside_on_gpu = software_gpu_preferred().then_some(true);
+        let made = {
+            let _turn = self.turn().await;
+            self.voxelizer().inside_async(&self.gpu, tris, spec, inside_on_gpu).await
+        };
+        Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
     }
 
     /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that

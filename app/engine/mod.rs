@@ -382,12 +382,20 @@ impl Engine {
         tris: &[[Vec3; 3]],
         notices: &mut Vec<Notice>,
     ) -> Result<(DistanceField, String), EngineError> {
-        let (spec, sparse, band) = (job.spec, job.sparse, job.request.band);
+        let (spec, band) = (job.spec, job.request.band);
         let grid_error = |error| job.grid_error(error);
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
-        let mut inside = match job.request.mode {
-            Mode::Sdf => Some(voxel::distance::inside_grid(&tris, lattice, spec, sparse).map_err(grid_error)?),
-            _ => None,
+        let (mut inside, sign_on_gpu) = match job.request.mode {
+            Mode::Sdf => {
+                let (grid, on_gpu) = self.inside(job, &tris, lattice, notices).await?;
+                (Some(grid), on_gpu)
+            }
+            _ => (None, false),
+        };
+        // Where the sign was made, when not where the distances are.
+        let sign = |backend: String| match sign_on_gpu && !backend.starts_with("gpu") {
+            true => format!("{backend} (sign on the GPU)"),
+            false => backend,
         };
         job.request.cancelled()?;
         // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
@@ -408,7 +416,27 @@ impl Engine {
         }
         let silent = |_: usize, _: usize| {};
         let progress = job.request.progress.unwrap_or(&silent);
-        Ok((DistanceField::compute_with_progress(&tris, spec, band, inside, progress), self.cpu_label()))
+        Ok((DistanceField::compute_with_progress(&tris, spec, band, inside, progress), sign(self.cpu_label())))
+    }
+
+    /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a sparse field of a
+    /// closed mesh on a hardware adapter, `GpuVoxelizer::inside_async`), else on the CPU; and whether on the GPU.
+    async fn inside(
+        &self,
+        job: &Job<'_>,
+        tris: &[[Vec3; 3]],
+        lattice: voxel::Lattice,
+        notices: &mut Vec<Notice>,
+    ) -> Result<(Grid, bool), EngineError> {
+        if job.sparse
+            && let Some(on) = &self.gpu
+            && let Some(inside) = on.inside(tris, job.spec, notices).await?
+        {
+            return Ok((Grid::Sparse(inside), true));
+        }
+        let inside =
+            voxel::distance::inside_grid(tris, lattice, job.spec, job.sparse).map_err(|e| job.grid_error(e))?;
+        Ok((inside, false))
     }
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) from its grid-space triangles on the GPU when it fits

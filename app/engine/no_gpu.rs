@@ -53,6 +53,15 @@ impl OnGpu {
         match *self {}
     }
 
+    pub(super) async fn inside(
+        &self,
+        _: &[[Vec3; 3]],
+        _: GridSpec,
+        _: &mut Vec<Notice>,
+    ) -> Result<Option<crate::voxel::SparseGrid>, EngineError> {
+        match *self {}
+    }
+
     pub(super) async fn colour(
         &self,
         _: &VoxelGrid,

@@ -86,6 +86,37 @@ impl GpuVoxelizer {
     }
 }
 
+impl GpuVoxelizer {
+    /// The voxels whose centres are inside the mesh (the winding number at least ½), without the shell, as a sparse
+    /// grid: a distance field's sign (what [`crate::voxel::distance::inside_grid`] makes on the CPU). Made on the
+    /// GPU by the groups (`gpu/groups.rs`), their output bounded by the shell's leaves, which the chain makes
+    /// first; `None` where the host is to make it: an open mesh (the groups cannot decide rows beside its holes),
+    /// a software adapter unless `inside_on_gpu` says otherwise, or no slab of rows that fits.
+    pub async fn inside_async(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        inside_on_gpu: Option<bool>,
+    ) -> Result<Option<SparseGrid>, GpuError> {
+        let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
+        let closed = crate::voxel::solid::boundary(&triangles, lattice).edges.is_empty();
+        if !closed || !inside_on_gpu.unwrap_or(!gpu.summary.is_software()) {
+            return Ok(None);
+        }
+        let shell = Options { read_grid: true, sparse: true, mode: Mode::Surface, ..Default::default() };
+        let run = Run::allocate(self, gpu, &triangles, spec, lattice, &shell).await?;
+        let Attempt::Done(mut out) = run.voxelize_bricks(&triangles).await? else { return Ok(None) };
+        let Some(surface) = out.sparse.take() else { return Ok(None) };
+        let solid = self.solid.get_or_init(|| super::solid::SolidPipelines::new(&gpu.device));
+        let limit = gpu.max_binding_bytes();
+        let mut gpu_ms = 0.0;
+        let account = (&mut out.traffic, &mut gpu_ms);
+        let inside = solid.sparse_inside(gpu, &triangles, spec, lattice, &surface, limit, account).await?;
+        Ok(inside.map(|groups| solid_from_groups(SparseGrid::new(spec), &groups)))
+    }
+}
+
 /// How one brick ended.
 enum BrickEnd {
     Done,

@@ -245,6 +245,19 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
     if backend.starts_with("cpu (") {
         assert!(backend.contains("is software") || backend.contains("no GPU adapter"), "{backend}");
     }
+    // A sparse field's sign made on the GPU (the groups: a closed mesh, a software adapter allowed) gives the CPU's
+    // level set byte for byte (lavapipe's distances are the CPU's bit for bit).
+    if super::gpu::gpu().is_some() {
+        let env = [("MESHVOX_SOFTWARE_GPU", "1")];
+        for b in ["gpu", "cpu"] {
+            let output = format!("{b}.vdb");
+            let args = ["voxelize", "builtin:knot", "-r", "60", "--mode", "sdf", "-o", &output, "--backend", b];
+            let out = meshvox_env(&args, dir.path(), &env);
+            assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        }
+        let read = |name: &str| std::fs::read(dir.path().join(name)).expect("vdb");
+        assert!(read("gpu.vdb") == read("cpu.vdb"), "the GPU-signed level set differs from the CPU's");
+    }
     // Where `auto` does open the GPU for the job (a software one allowed), `backend` says why, with both estimates.
     if super::gpu::gpu().is_some() {
         let field = ["voxelize", "builtin:knot", "-r", "300", "--mode", "sdf", "-o", "k.npy", "--stats-json"];

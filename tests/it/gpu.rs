@@ -599,7 +599,7 @@ fn small_grids_made_in_one_submission_equal_the_cpus_with_an_overflowing_member(
 /// for run, on every closed mesh and hard case: with the adapter's bindings (one slab) and with 64 KiB ones (or the
 /// triangles' size), which cut the rows into slabs (and halve a slab whose output would not fit). The sparse solid
 /// `voxelize` makes is the CPU's, with its inside made by the groups on a closed mesh (where asked for: by default
-/// on hardware adapters) and on the host beside an open mesh's holes.
+/// on hardware adapters) and on the host beside an open mesh's holes; so is a sparse field's sign.
 #[test]
 fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
     let Some((gpu, v)) = gpu() else { return };
@@ -621,9 +621,16 @@ fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
             let groups = inside_on_gpu.unwrap_or(!gpu.summary.is_software()) && boundary.edges.is_empty();
             assert_eq!(out.inside_on_host, !groups, "{name} ({inside_on_gpu:?}): where the inside was made");
         }
+        // A sparse field's sign, the voxels inside without the shell: the groups' on a closed mesh, the host's
+        // (`None`) beside holes.
+        let inside = pollster::block_on(v.inside_async(gpu, &tris, s, Some(true))).expect("gpu inside");
         if !boundary.edges.is_empty() {
+            assert!(inside.is_none(), "{name}: an open mesh's inside is the host's");
             continue;
         }
+        let cpu_inside = meshvox::voxel::distance::inside_grid(&lattice_tris, lattice, s, true).expect("cpu inside");
+        let inside = inside.map(meshvox::voxel::Grid::Sparse);
+        assert!(inside.as_ref() == Some(&cpu_inside), "{name}: the GPU's inside differs from the CPU's");
         let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, s.dims, lattice);
         let mirror = meshvox::voxel::cpu::groups::fill_groups(&crossings, s.dims, &boundary, 0, s.dims.z).sorted();
         // The triangles are one binding: the smallest one must hold them.
