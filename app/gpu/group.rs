@@ -5,7 +5,7 @@
 //! every member's set-up, walk and exact passes into one command buffer and reads every grid, unsure count and
 //! pass timing back through one staging buffer and one map.
 //!
-//! Each member keeps its own buffers and bind groups ([`Run::allocate`]), so the passes are the single run's,
+//! Each member keeps its own buffers and bind groups (`Run::allocate`), so the passes are the single run's,
 //! unchanged; what a group may hold is what one slab and one triangle batch hold ([`GpuVoxelizer::groupable`]).
 //! A member whose unsure list overflows is decided on the CPU as a single run's would be; a group that fails as
 //! a whole (a device error) is run again member by member, so each meets its own error.
