@@ -97,7 +97,7 @@ for step in "${steps[@]}"; do
         [ -e /work/main ] || ln -s "$PWD" /work/main
         [ -e /work/shared ] || { mkdir -p /work/shared && ln -s "$dir/meshes" /work/shared/meshes; }
         (cd /work/main && "$dir/it" --test-threads 4 gpu:: modes::gpu distance::gpu colour::gpu far::far_meshes_on_the_gpu \
-            exactness sparse 2>&1 | tee "$out/tests.log" | grep -E "GPU tests on|^test result|FAILED|panicked" )
+            exactness sparse engine::threads cli::auto 2>&1 | tee "$out/tests.log" | grep -E "GPU tests on|^test result|FAILED|panicked" )
         ;;
     seed | scale | sparse | sdf)
         # One run per case: on a lent machine the time is the budget (the medians of three are for this box).
