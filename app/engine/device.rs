@@ -21,7 +21,7 @@ use crate::gpu::voxelize::{GpuOutput, GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
 use crate::voxel::distance::{Band, DistanceField};
-use crate::voxel::{Grid, GridSpec, SparseGrid, VoxelGrid};
+use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -386,19 +386,44 @@ impl OnGpu {
         self.stand_in(Stage::Field, field, notices)
     }
 
-    /// A sparse field's sign (the voxels inside) on the GPU, or `None` where the CPU is to make it (an open mesh, a
-    /// software adapter unless `MESHVOX_SOFTWARE_GPU=1`, a limit).
+    /// A distance field's sign (the voxels inside, without the shell) on the GPU, or `None` where the CPU is to
+    /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a sparse
+    /// grid of an open mesh (the groups cannot decide rows beside its holes), a limit of the adapter. A dense grid
+    /// is the dense solid's fill without the walk (`Options::inside_only`), a sparse one the groups'
+    /// (`GpuVoxelizer::inside_async`).
     pub(super) async fn inside(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
+        sparse: bool,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<SparseGrid>, EngineError> {
-        let inside_on_gpu = software_gpu_preferred().then_some(true);
+    ) -> Result<Option<Grid>, EngineError> {
+        if self.gpu.summary.is_software() && !software_gpu_preferred() {
+            return Ok(None);
+        }
         let made = {
             let _turn = self.turn().await;
-            self.voxelizer().inside_async(&self.gpu, tris, spec, inside_on_gpu).await
+            match sparse {
+                true => {
+                    self.voxelizer().inside_async(&self.gpu, tris, spec, Some(true)).await.map(|g| g.map(Grid::Sparse))
+                }
+                false => {
+                    let options = Options {
+                        read_grid: true,
+                        mode: crate::voxel::Mode::Solid,
+                        inside_only: true,
+                        ..Default::default()
+                    };
+                    let made = self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await;
+                    made.map(|out| out.grid.map(Grid::Dense))
+                }
+            }
         };
+        // The sign is the CPU's wherever the adapter's limits do not take it, whatever the backend: the distances
+        // may still be the GPU's.
+        if let Err(GpuError::TooLarge { .. }) = made {
+            return Ok(None);
+        }
         Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
     }
 

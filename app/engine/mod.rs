@@ -419,8 +419,8 @@ impl Engine {
         Ok((DistanceField::compute_with_progress(&tris, spec, band, inside, progress), sign(self.cpu_label())))
     }
 
-    /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a sparse field of a
-    /// closed mesh on a hardware adapter, `GpuVoxelizer::inside_async`), else on the CPU; and whether on the GPU.
+    /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a hardware adapter; a
+    /// sparse field only of a closed mesh), else on the CPU; and whether on the GPU.
     async fn inside(
         &self,
         job: &Job<'_>,
@@ -428,11 +428,10 @@ impl Engine {
         lattice: voxel::Lattice,
         notices: &mut Vec<Notice>,
     ) -> Result<(Grid, bool), EngineError> {
-        if job.sparse
-            && let Some(on) = &self.gpu
-            && let Some(inside) = on.inside(tris, job.spec, notices).await?
+        if let Some(on) = &self.gpu
+            && let Some(inside) = on.inside(tris, job.spec, job.sparse, notices).await?
         {
-            return Ok((Grid::Sparse(inside), true));
+            return Ok((inside, true));
         }
         let inside =
             voxel::distance::inside_grid(tris, lattice, job.spec, job.sparse).map_err(|e| job.grid_error(e))?;

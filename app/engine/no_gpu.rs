@@ -57,8 +57,9 @@ impl OnGpu {
         &self,
         _: &[[Vec3; 3]],
         _: GridSpec,
+        _: bool,
         _: &mut Vec<Notice>,
-    ) -> Result<Option<crate::voxel::SparseGrid>, EngineError> {
+    ) -> Result<Option<Grid>, EngineError> {
         match *self {}
     }
 

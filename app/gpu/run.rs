@@ -276,16 +276,25 @@ impl<'a> Run<'a> {
         Ok(())
     }
 
-    /// The walk, the exact pass and the solid fill over one slab, into the cleared slab buffer.
+    /// The walk, the exact pass and the solid fill over one slab, into the cleared slab buffer (the fill alone for
+    /// `Options::inside_only`).
     pub(super) async fn encode_slab(&mut self, batch: Batch, slab: SlabRange) -> Result<(), GpuError> {
         let (gpu, v) = (self.gpu, self.v);
         let params = self.params(batch, slab.z0, slab.z1);
         let (walk, exact) = self.walk_and_exact();
         let (b, timer, solid_run) = (&self.buffers, &mut self.timer, &self.solid);
+        let inside_only = self.options.inside_only && solid_run.is_some();
         scoped(&gpu.device, || {
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            record_walk(v, b, &mut encoder, timer, (walk, exact));
+            match inside_only {
+                // The sign's grid: the fill alone, into a cleared slab.
+                true => {
+                    encoder.clear_buffer(&b.slab, 0, None);
+                    encoder.clear_buffer(&b.unsure_count, 0, None);
+                }
+                false => record_walk(v, b, &mut encoder, timer, (walk, exact)),
+            }
             if let (Some(run), Some(solid)) = (solid_run, v.solid.get()) {
                 solid.fill(gpu, run, &mut encoder, slab.z0, slab.z1, timer.as_mut().and_then(|t| t.next_pass()));
             }

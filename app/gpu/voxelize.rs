@@ -99,6 +99,9 @@ pub struct Options {
     /// along the shell. Default: on hardware adapters. On a software one the groups' barriers run as the cores'
     /// context switches, and the host's fill on the same cores is faster (bench/RESULTS.md).
     pub inside_on_gpu: Option<bool>,
+    /// With `Mode::Solid` and a dense grid: only the voxels whose centres are inside, without the shell (no walk):
+    /// a distance field's sign, as [`crate::voxel::distance::inside_grid`] makes it.
+    pub inside_only: bool,
 }
 
 /// What a GPU voxelization produced.
@@ -321,13 +324,22 @@ impl GpuVoxelizer {
                 group: 0,
             });
         }
-        let (grid, stats) = crate::voxel::voxelize::voxelize_grid_space_mode(
-            triangles,
-            spec,
-            options.mode,
-            &|_, _| {},
-            &Default::default(),
-        )?;
+        let (grid, stats) = match options.inside_only {
+            // The sign's grid: the voxels inside, without the shell.
+            true => {
+                let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
+                let mut grid = VoxelGrid::new(spec)?;
+                crate::voxel::solid::fill(&triangles, lattice, &mut grid);
+                (grid, Default::default())
+            }
+            false => crate::voxel::voxelize::voxelize_grid_space_mode(
+                triangles,
+                spec,
+                options.mode,
+                &|_, _| {},
+                &Default::default(),
+            )?,
+        };
         let (slab_layers, slabs) = slab_plan(gpu, spec, options)?;
         let mut instances = Vec::new();
         if options.instances {

@@ -245,18 +245,20 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
     if backend.starts_with("cpu (") {
         assert!(backend.contains("is software") || backend.contains("no GPU adapter"), "{backend}");
     }
-    // A sparse field's sign made on the GPU (the groups: a closed mesh, a software adapter allowed) gives the CPU's
-    // level set byte for byte (lavapipe's distances are the CPU's bit for bit).
+    // A field's sign made on the GPU (a software adapter allowed: the groups for a sparse level set, the solid's fill
+    // without the walk for a dense field) gives the CPU's field byte for byte (lavapipe's distances are the CPU's
+    // bit for bit).
     if super::gpu::gpu().is_some() {
         let env = [("MESHVOX_SOFTWARE_GPU", "1")];
-        for b in ["gpu", "cpu"] {
-            let output = format!("{b}.vdb");
+        for (b, format) in [("gpu", "vdb"), ("cpu", "vdb"), ("gpu", "npy"), ("cpu", "npy")] {
+            let output = format!("{b}.{format}");
             let args = ["voxelize", "builtin:knot", "-r", "60", "--mode", "sdf", "-o", &output, "--backend", b];
             let out = meshvox_env(&args, dir.path(), &env);
             assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         }
-        let read = |name: &str| std::fs::read(dir.path().join(name)).expect("vdb");
+        let read = |name: &str| std::fs::read(dir.path().join(name)).expect("field");
         assert!(read("gpu.vdb") == read("cpu.vdb"), "the GPU-signed level set differs from the CPU's");
+        assert!(read("gpu.npy") == read("cpu.npy"), "the GPU-signed dense field differs from the CPU's");
     }
     // Where `auto` does open the GPU for the job (a software one allowed), `backend` says why, with both estimates.
     if super::gpu::gpu().is_some() {

@@ -371,6 +371,23 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
         }
         let never = std::sync::atomic::AtomicBool::new(false);
         let (sparse, _) = voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+        // A distance field's sign, the voxels inside without the shell (the fill without the walk), with the rows
+        // the GPU cannot decide filled on the host: the CPU's inside grid.
+        let (lattice_tris, lattice) = meshvox::voxel::on_lattice(&tris, s.dims).expect("lattice");
+        let inside = meshvox::voxel::distance::inside_grid(&lattice_tris, lattice, s, false).expect("cpu inside");
+        for margin in [None, Some(1e12)] {
+            let options = Options {
+                read_grid: true,
+                mode: Mode::Solid,
+                inside_only: true,
+                solid_margin: margin,
+                ..Default::default()
+            };
+            let out = v.voxelize(gpu, &tris, s, &options).expect("gpu inside");
+            assert!(!out.decided_on_cpu && (margin.is_none() || out.rows_on_host > 0), "{name} inside {margin:?}");
+            let got = meshvox::voxel::Grid::Dense(out.grid.expect("grid"));
+            assert!(got == inside, "{name}, margin {margin:?}: the GPU's inside differs from the CPU's");
+        }
         // A sparse solid's inside beside holes is the host's fill along the GPU's shell (`gpu/sparse.rs`).
         let options = Options { sparse: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
         let out = v.voxelize(gpu, &tris, s, &options).expect("gpu sparse");
