@@ -249,6 +249,11 @@ fn allocate_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocatio
     var start = 0u;
     if n > 0u {
         start = atomicAdd(&crossing_total[0], n);
+        // Word 1 flags a total past 2^32, which the count alone cannot show: the one row whose segment crosses it
+        // sees the sum wrap.
+        if start > 0xffffffffu - n {
+            atomicStore(&crossing_total[1], 1u);
+        }
     }
     row_segments[row] = vec2<u32>(start, n);
     atomicStore(&row_counts[row], 0u);

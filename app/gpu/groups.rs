@@ -10,7 +10,9 @@
 //! the CPU backend does; so does it when a slab of eight layers is past a binding or an output past its capacity.
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
-use super::solid::{SolidBuffers, SolidParams, SolidPipelines, WG, boundary_bytes, item_offsets, run_passes};
+use super::solid::{
+    SolidBuffers, SolidParams, SolidPipelines, WG, boundary_bytes, crossing_total, item_offsets, run_passes,
+};
 use super::util::{dispatch_2d, scoped, storage_buffer};
 use super::{Gpu, GpuError, Traffic};
 use crate::voxel::cpu::groups::{GroupLeaf, GroupOutput, GroupRun};
@@ -68,6 +70,10 @@ impl SolidPipelines {
             return Ok(None);
         }
         let (offsets, items) = item_offsets(triangles, spec, lattice);
+        // The work items are counted in u32, as the dense solid's (which refuses past this).
+        if items > u64::from(u32::MAX) / 2 {
+            return Ok(None);
+        }
         let base = SolidParams::new(spec, triangles.len(), &boundary.edges, &boundary.pieces, lattice, items);
         let edge_bytes = boundary_bytes(&boundary.edges, &boundary.pieces);
         let buffers =
@@ -132,7 +138,7 @@ impl SolidPipelines {
         let header = [0u32, 0, slab.leaf_capacity as u32, slab.run_capacity as u32];
         gpu.queue.write_buffer(&output, 0, bytemuck::cast_slice(&header));
         gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
-        gpu.queue.write_buffer(&b.total, 0, &[0; 4]);
+        gpu.queue.write_buffer(&b.total, 0, &[0; 8]);
         gpu.queue.write_buffer(&b.unsure, 0, &[0; 4]);
         // The last slab's `write_crossings` left its cursors in the counts.
         scoped(device, || {
@@ -162,9 +168,9 @@ impl SolidPipelines {
         let mut timer = gpu.timestamps.then(|| PassTimer::new(device, 2));
         let counting = [(&self.count, item_groups), (&self.allocate, row_groups)];
         run_passes(gpu, &bind(&b.placeholder), &counting, timer.as_mut().and_then(|t| t.next_pass())).await?;
-        let listed = u64::from(first_word(&read_buffer(device, &gpu.queue, &b.total, 0, 4).await?).unwrap_or(0));
-        traffic.readback += 4;
-        if listed * 4 > limit {
+        let listed = crossing_total(&read_buffer(device, &gpu.queue, &b.total, 0, 8).await?);
+        traffic.readback += 8;
+        if listed.saturating_mul(4) > limit {
             return Ok(SlabEnd::TooLarge);
         }
         let crossings =

@@ -5,7 +5,7 @@
 //! The crossing list is sized by one readback of its length between counting and writing; the boundary edges
 //! (which only open meshes have) are found on the host, where welding vertices by position is a sort.
 
-use super::readback::{first_word, read_buffer};
+use super::readback::read_buffer;
 use super::util::{pipeline, scoped, storage_buffer, storage_entry, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::cpu::solid::{Boundary, BoundaryEdge, crossing_setup};
@@ -209,8 +209,8 @@ impl SolidPipelines {
             [&params, tris, &counts, &segments, &placeholder, &boundary, slab, &total, &item_offsets, &unsure],
         );
         run_passes(gpu, &first, &[(&self.count, item_groups), (&self.allocate, row_groups)], None).await?;
-        let listed = first_word(&read_buffer(device, &gpu.queue, &total, 0, 4).await?).unwrap_or(0) as u64;
-        if listed * 4 > limit {
+        let listed = crossing_total(&read_buffer(device, &gpu.queue, &total, 0, 8).await?);
+        if listed.saturating_mul(4) > limit {
             return Err(GpuError::TooLarge {
                 what: "the solid pass's crossing list".into(),
                 needed: listed * 4,
@@ -255,6 +255,16 @@ impl SolidPipelines {
         pass.set_bind_group(0, &run.bind, &[]);
         pass.set_pipeline(&self.fill);
         pass.dispatch_workgroups(x, y, 1);
+    }
+}
+
+/// The crossing list's length from the total's two words (the count, and the flag `allocate_rows` sets where the
+/// count passed 2^32: then no list can hold it, and `u64::MAX` says so).
+pub(super) fn crossing_total(words: &[u8]) -> u64 {
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(words);
+    match words.as_slice() {
+        [count, 0] => u64::from(*count),
+        _ => u64::MAX,
     }
 }
 
@@ -343,7 +353,8 @@ impl SolidBuffers {
                 segments: storage_buffer(device, "row segments", rows * 8, none),
                 placeholder: storage_buffer(device, "crossings (placeholder)", 4, none),
                 boundary,
-                total: storage_buffer(device, "crossing total", 4, wgpu::BufferUsages::COPY_SRC),
+                // The total, and a flag set where it passed 2^32.
+                total: storage_buffer(device, "crossing total", 8, wgpu::BufferUsages::COPY_SRC),
                 item_offsets,
                 unsure: storage_buffer(
                     device,
