@@ -71,9 +71,7 @@ impl Costs {
             )
         })
     }
-}
 
-impl Costs {
     /// Why `auto` opened a GPU for the job: the two estimates, for `backend`.
     pub fn gpu_reason(&self) -> String {
         format!(

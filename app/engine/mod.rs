@@ -392,11 +392,6 @@ impl Engine {
             }
             _ => (None, false),
         };
-        // Where the sign was made, when not where the distances are.
-        let sign = |backend: String| match sign_on_gpu && !backend.starts_with("gpu") {
-            true => format!("{backend} (sign on the GPU)"),
-            false => backend,
-        };
         job.request.cancelled()?;
         // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
         // take every triangle's box over the whole grid.
@@ -416,7 +411,13 @@ impl Engine {
         }
         let silent = |_: usize, _: usize| {};
         let progress = job.request.progress.unwrap_or(&silent);
-        Ok((DistanceField::compute_with_progress(&tris, spec, band, inside, progress), sign(self.cpu_label())))
+        let field = DistanceField::compute_with_progress(&tris, spec, band, inside, progress);
+        // The distances are the CPU's: say so where the sign was the GPU's.
+        let backend = match sign_on_gpu {
+            true => format!("{} (sign on the GPU)", self.cpu_label()),
+            false => self.cpu_label(),
+        };
+        Ok((field, backend))
     }
 
     /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a hardware adapter; a

@@ -15,6 +15,7 @@ use super::run::{Batch, Run};
 use super::util::scoped;
 use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
 use super::{Gpu, GpuError};
+use crate::voxel::cpu::groups::GroupOutput;
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::solid_sparse::{fill_sparse, solid_from_groups};
@@ -61,32 +62,20 @@ impl GpuVoxelizer {
         lattice: Lattice,
         options: &Options,
     ) -> Result<Attempt, GpuError> {
-        let shell = Options { mode: Mode::Surface, ..options.clone() };
-        let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
-        let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(Attempt::Overflow) };
-        let surface = out.sparse.take().ok_or_else(|| GpuError::Device("the shell came back without leaves".into()))?;
-        let inside = match options.inside_on_gpu.unwrap_or(!gpu.summary.is_software()) {
-            true => {
-                let solid = self.solid.get_or_init(|| super::solid::SolidPipelines::new(&gpu.device));
-                let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
-                let mut gpu_ms = 0.0;
-                let account = (&mut out.traffic, &mut gpu_ms);
-                let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, limit, account).await?;
-                out.gpu_ms = out.gpu_ms.map(|ms| ms + gpu_ms);
-                inside
-            }
-            false => None,
+        let groups = options.inside_on_gpu.unwrap_or(!gpu.summary.is_software());
+        let Some((mut out, surface, inside)) =
+            self.shell_and_groups(gpu, triangles, spec, lattice, options, groups).await?
+        else {
+            return Ok(Attempt::Overflow);
         };
         out.inside_on_host = inside.is_none();
         out.sparse = Some(Box::new(match inside {
-            Some(groups) => solid_from_groups(*surface, &groups),
-            None => fill_sparse(triangles, lattice, *surface),
+            Some(groups) => solid_from_groups(surface, &groups),
+            None => fill_sparse(triangles, lattice, surface),
         }));
         Ok(Attempt::Done(out))
     }
-}
 
-impl GpuVoxelizer {
     /// The voxels whose centres are inside the mesh (the winding number at least ½), without the shell, as a sparse
     /// grid: a distance field's sign (what [`crate::voxel::distance::inside_grid`] makes on the CPU). Made on the
     /// GPU by the groups (`gpu/groups.rs`), their output bounded by the shell's leaves, which the chain makes
@@ -104,16 +93,38 @@ impl GpuVoxelizer {
         if !closed || !inside_on_gpu.unwrap_or(!gpu.summary.is_software()) {
             return Ok(None);
         }
-        let shell = Options { read_grid: true, sparse: true, mode: Mode::Surface, ..Default::default() };
-        let run = Run::allocate(self, gpu, &triangles, spec, lattice, &shell).await?;
-        let Attempt::Done(mut out) = run.voxelize_bricks(&triangles).await? else { return Ok(None) };
-        let Some(surface) = out.sparse.take() else { return Ok(None) };
+        let options = Options { read_grid: true, sparse: true, ..Default::default() };
+        let made = self.shell_and_groups(gpu, &triangles, spec, lattice, &options, true).await?;
+        let inside = made.and_then(|(_, _, inside)| inside);
+        Ok(inside.map(|groups| solid_from_groups(SparseGrid::new(spec), &groups)))
+    }
+
+    /// A solid's shell made by the chain (a surface run with `options`' limits), and, where `groups`, its inside's
+    /// groups on the GPU (`None` where the host is to fill it), their bytes and pass times added to the shell's
+    /// output; `None` where the shell's unsure list overflowed.
+    async fn shell_and_groups(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        lattice: Lattice,
+        options: &Options,
+        groups: bool,
+    ) -> Result<Option<(GpuOutput, SparseGrid, Option<GroupOutput>)>, GpuError> {
+        let shell = Options { mode: Mode::Surface, ..options.clone() };
+        let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
+        let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(None) };
+        let surface = out.sparse.take().ok_or_else(|| GpuError::Device("the shell came back without leaves".into()))?;
+        if !groups {
+            return Ok(Some((out, *surface, None)));
+        }
         let solid = self.solid.get_or_init(|| super::solid::SolidPipelines::new(&gpu.device));
-        let limit = gpu.max_binding_bytes();
+        let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
         let mut gpu_ms = 0.0;
         let account = (&mut out.traffic, &mut gpu_ms);
-        let inside = solid.sparse_inside(gpu, &triangles, spec, lattice, &surface, limit, account).await?;
-        Ok(inside.map(|groups| solid_from_groups(SparseGrid::new(spec), &groups)))
+        let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, limit, account).await?;
+        out.gpu_ms = out.gpu_ms.map(|ms| ms + gpu_ms);
+        Ok(Some((out, *surface, inside)))
     }
 }
 

@@ -70,11 +70,6 @@ pub fn crossing_sign(c: u32) -> i32 {
     if c & 1 != 0 { 1 } else { -1 }
 }
 
-/// Sorts a row's crossings in place (the shader's insertion sort; any sort gives the same list).
-pub fn sort_row(list: &mut [u32]) {
-    list.sort_unstable();
-}
-
 /// What the crossing tests of one triangle need, in lattice units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CrossingSetup {
