@@ -7,6 +7,7 @@
 mod batch;
 mod bench;
 mod output;
+mod query;
 mod render;
 mod view;
 mod voxelize;
@@ -51,6 +52,8 @@ enum Command {
     Render(RenderArgs),
     /// Voxelize many meshes (files, directories, glob patterns) with one engine, outputs mirroring the inputs.
     Batch(batch::BatchArgs),
+    /// Exact signed distance, winding number, nearest point and triangle at the points of an .npy, as an .npz.
+    Query(query::QueryArgs),
 }
 
 /// Limits on what one request may take, shared by the commands that load and voxelize a mesh.
@@ -232,7 +235,7 @@ fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
 pub fn main() -> ExitCode {
     quiet_headless_vulkan();
     let cli = Cli::parse();
-    if matches!(cli.command, Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_))) {
+    if matches!(cli.command, Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_) | Command::Query(_))) {
         remove_partials_on_interrupt();
     }
     let result = match cli.command {
@@ -250,6 +253,7 @@ pub fn main() -> ExitCode {
             Err(e) => Err(e),
         },
         Some(Command::Render(args)) => render::render(&args),
+        Some(Command::Query(args)) => query::query(&args),
         Some(Command::Builtins) => {
             for name in builtin::NAMES {
                 println!("builtin:{name:<14} {}", builtin::describe(name));

@@ -39,6 +39,7 @@ type Options = (Backend, Request<'static>);
 enum Failure {
     Mesh(MeshError),
     Engine(EngineError),
+    Query(crate::voxel::query::QueryError),
 }
 
 fn into_py_err(failure: Failure) -> PyErr {
@@ -60,6 +61,7 @@ fn into_py_err(failure: Failure) -> PyErr {
         ) => PyValueError::new_err(worded(e)),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
         Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
+        Failure::Query(e) => PyValueError::new_err(e.to_string()),
     }
 }
 
@@ -92,12 +94,16 @@ fn save_err(path: &std::path::Path, e: crate::voxel::formats::FormatError) -> Py
     }
 }
 
-/// A path (`str` or `os.PathLike`), or a `(vertices float64 (V, 3), faces int64 (F, 3))` pair made into a mesh
+/// A path (`str` or `os.PathLike`), a prepared mesh (`meshvox.Mesh`'s), or a `(vertices float64 (V, 3), faces
+/// int64 (F, 3))` pair made into a mesh
 /// straight from numpy's memory while the GIL is held (no copy of the arrays first: building the mesh is most of
 /// what the binding adds to a call).
 fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
     if let Ok(path) = source.extract::<PathBuf>() {
         return Ok(Input::Path(path));
+    }
+    if let Ok(prepared) = source.cast::<query::PyPrepared>() {
+        return Ok(prepared.get().input());
     }
     let (vertices, faces): (PyReadonlyArray2<'_, f64>, PyReadonlyArray2<'_, i64>) = source.extract()?;
     let (vertices, faces) = (vertices.as_array(), faces.as_array());
@@ -404,6 +410,7 @@ fn save_field(
 }
 
 mod from_matrix;
+mod query;
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -416,6 +423,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(headless_vulkan_setting, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
+    m.add_function(wrap_pyfunction!(query::query, m)?)?;
+    m.add_class::<query::PyPrepared>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,5 +1,6 @@
-//! A bounding-volume hierarchy over a mesh's grid-space triangles, for nearest-triangle queries: what makes a
-//! field whose band is the whole grid (`--band full`) cost what its voxels need instead of triangles × voxels.
+//! A bounding-volume hierarchy over a mesh's grid-space triangles, for nearest-triangle queries (what makes a
+//! field whose band is the whole grid, `--band full`, cost what its voxels need instead of triangles × voxels) and
+//! for the triangles a ray along -x may cross (the winding number at a point, [`super::query`]).
 //! Built by median splits along each node's longest axis; a query walks it nearer child first and prunes every
 //! node whose box is no nearer than the best distance so far, so the distances it evaluates are those of the
 //! triangles whose boxes come within that distance. Written here (about a hundred lines) rather than taken from a
@@ -26,11 +27,12 @@ struct Node {
     count: u32,
 }
 
-/// The hierarchy: nodes in depth-first order of creation, children side by side, and the triangles' indices in
-/// leaf order.
+/// The hierarchy: nodes in depth-first order of creation, children side by side, and the triangles in leaf order
+/// (a leaf's are side by side in memory) with their indices in the mesh.
 pub struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
+    triangles: Vec<[Vec3; 3]>,
 }
 
 impl Bvh {
@@ -74,35 +76,47 @@ impl Bvh {
             nodes[at].first = first as u32;
             nodes[at].count = 0;
         }
-        Bvh { nodes, order }
+        let triangles = order.iter().map(|&i| triangles[i as usize]).collect();
+        Bvh { nodes, order, triangles }
     }
 
-    /// The least squared distance from `p` to `triangles` (those the hierarchy was built over) where one is below
-    /// `bound` (`None` where none is), and how many distances it evaluated. A node is skipped where its box is no
-    /// nearer than the best so far, a triangle by the distance pass's own rule ([`cannot_lower`]), each by a margin
-    /// above their rounding: the triangle that gives the minimum is never skipped.
-    pub fn nearest(&self, triangles: &[[Vec3; 3]], p: Vec3, bound: f32) -> (Option<f32>, u32) {
-        let (mut best, mut found, mut evaluated) = (bound, false, 0);
-        let mut stack = [0u32; DEPTH];
+    /// The least squared distance from `p` to the triangles where one is below `bound` (`None` where none is), and
+    /// how many distances it evaluated ([`Bvh::nearest_triangle`]).
+    pub fn nearest(&self, p: Vec3, bound: f32) -> (Option<f32>, u32) {
+        let (best, evaluated) = self.nearest_triangle(p, (bound, None));
+        (best.map(|(d2, _)| d2), evaluated)
+    }
+
+    /// The least squared distance from `p` to the triangles where one is below `start`'s, with the index (in the
+    /// mesh) of the first triangle in the walk's order that gives it, and how many distances it evaluated;
+    /// `start` may name a triangle at that distance (a neighbour's nearest: a tight bound to prune from), which is
+    /// the answer where none is nearer. A node is skipped where its box is no nearer than the best so far, a
+    /// triangle by the distance pass's own rule ([`cannot_lower`]), each by a margin above their rounding: the
+    /// triangle that gives the minimum is never skipped.
+    pub fn nearest_triangle(&self, p: Vec3, start: (f32, Option<u32>)) -> (Option<(f32, u32)>, u32) {
+        let ((mut best, mut found), mut evaluated) = (start, 0);
+        // Each node with its box's squared distance, found when its parent was opened.
+        let mut stack = [(0u32, 0.0f32); DEPTH];
         let mut len = usize::from(!self.nodes.is_empty());
         while len > 0 {
             len -= 1;
-            let node = self.nodes[stack[len] as usize];
-            if box_distance2(p, node.lo, node.hi) >= best * 1.0001 {
+            let (at, d2) = stack[len];
+            if d2 >= best * 1.0001 {
                 continue;
             }
+            let node = self.nodes[at as usize];
             if node.count > 0 {
-                for &i in &self.order[node.first as usize..(node.first + node.count) as usize] {
-                    let t = triangles[i as usize];
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (t, &i) in self.triangles[range.clone()].iter().zip(&self.order[range]) {
                     let n = (t[1] - t[0]).cross(t[2] - t[0]);
                     let bounds = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
                     if cannot_lower(p, t[0], n, dot3(n, n), bounds, best) {
                         continue;
                     }
                     evaluated += 1;
-                    let d2 = point_distance2(p, t);
+                    let d2 = point_distance2(p, *t);
                     if d2 < best {
-                        (best, found) = (d2, true);
+                        (best, found) = (d2, Some(i));
                     }
                 }
                 continue;
@@ -110,12 +124,41 @@ impl Bvh {
             // The nearer child on top, so it is walked first and the farther one is more often pruned.
             let (a, b) = (node.first, node.first + 1);
             let (da, db) = (self.box_distance2_of(a, p), self.box_distance2_of(b, p));
-            let (near, far) = if da <= db { (a, b) } else { (b, a) };
+            let (near, far) = if da <= db { ((a, da), (b, db)) } else { ((b, db), (a, da)) };
             stack[len] = far;
             stack[len + 1] = near;
             len += 2;
         }
-        (found.then_some(best), evaluated)
+        (found.map(|i| (best, i)), evaluated)
+    }
+
+    /// Calls `visit(i, t)` for each triangle `t` (mesh index `i`) whose bounding box meets the ray from `p`
+    /// towards -x: its YZ box holds `(p.y, p.z)` (boundaries included, as a tie rule may count a ray through an
+    /// edge) and it starts at or before `p.x`. A superset of the triangles the ray crosses, for the exact crossing
+    /// test to decide.
+    pub fn along_ray(&self, p: Vec3, mut visit: impl FnMut(u32, [Vec3; 3])) {
+        let meets = |lo: Vec3, hi: Vec3| lo.y <= p.y && p.y <= hi.y && lo.z <= p.z && p.z <= hi.z && lo.x <= p.x;
+        let mut stack = [0u32; DEPTH];
+        let mut len = usize::from(!self.nodes.is_empty());
+        while len > 0 {
+            len -= 1;
+            let node = self.nodes[stack[len] as usize];
+            if !meets(node.lo, node.hi) {
+                continue;
+            }
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (t, &i) in self.triangles[range.clone()].iter().zip(&self.order[range]) {
+                    if meets(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])) {
+                        visit(i, *t);
+                    }
+                }
+                continue;
+            }
+            stack[len] = node.first;
+            stack[len + 1] = node.first + 1;
+            len += 2;
+        }
     }
 
     fn box_distance2_of(&self, node: u32, p: Vec3) -> f32 {

@@ -431,12 +431,12 @@ fn full_field(
                     let d = d2.sqrt() * (1.0 + 1e-5) + (p - q).length() * (1.0 + 1e-5) + 1e-3;
                     (d * d).min(reach * reach)
                 });
-                let (found, n) = bvh.nearest(triangles, p, bound);
+                let (found, n) = bvh.nearest(p, bound);
                 evaluated += u64::from(n);
                 let d2 = match found {
                     Some(d2) => d2,
                     None if bound < reach * reach => {
-                        let (found, n) = bvh.nearest(triangles, p, reach * reach);
+                        let (found, n) = bvh.nearest(p, reach * reach);
                         evaluated += u64::from(n);
                         found.unwrap_or(reach * reach)
                     }

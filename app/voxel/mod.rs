@@ -24,6 +24,7 @@ pub mod distance;
 pub mod formats;
 mod grid;
 mod lattice;
+pub mod query;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;

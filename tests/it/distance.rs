@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// Distance from `p` to triangle `t` in float64: to the plane where `p` projects inside the triangle, else to
 /// the nearest edge (not the Voronoi-region walk meshvox takes).
-fn distance_f64(p: DVec3, t: [DVec3; 3]) -> f64 {
+pub(crate) fn distance_f64(p: DVec3, t: [DVec3; 3]) -> f64 {
     let n = (t[1] - t[0]).cross(t[2] - t[0]);
     let inside = n.length_squared() > 0.0 && (0..3).all(|i| (t[(i + 1) % 3] - t[i]).cross(p - t[i]).dot(n) >= 0.0);
     if inside {
@@ -29,7 +29,7 @@ fn distance_f64(p: DVec3, t: [DVec3; 3]) -> f64 {
 }
 
 /// The generalized winding number at `p` (the triangles' solid angles over 4π, Van Oosterom and Strackee).
-fn winding_f64(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
+pub(crate) fn winding_f64(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
     let sum: f64 = tris
         .iter()
         .map(|t| {

@@ -293,7 +293,7 @@ fn holed_box(size: DVec3, holes: [Vec<Hole>; 6], angle: f64) -> String {
 }
 
 /// The open meshes judged: name, OBJ path, resolutions.
-fn open_meshes(dir: &std::path::Path) -> Vec<(String, String, Vec<u32>)> {
+pub(crate) fn open_meshes(dir: &std::path::Path) -> Vec<(String, String, Vec<u32>)> {
     let write = |name: &str, text: String| {
         let path = dir.join(name);
         std::fs::write(&path, text).expect("write");

@@ -22,6 +22,7 @@ mod mesh_loading;
 mod mirror;
 mod modes;
 mod optimized_gltf;
+mod query;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;

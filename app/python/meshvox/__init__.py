@@ -25,7 +25,18 @@ import numpy as np
 from . import _native
 from ._native import MeshError
 
-__all__ = ["VoxelGrid", "MeshError", "voxelize", "voxelize_many", "batched_coords", "load", "backends"]
+__all__ = [
+    "VoxelGrid",
+    "MeshError",
+    "Mesh",
+    "Query",
+    "voxelize",
+    "voxelize_many",
+    "query",
+    "batched_coords",
+    "load",
+    "backends",
+]
 __version__ = _native.__version__
 
 # Before any GPU is probed: without a runtime directory, Mesa's Vulkan layer would print an alarming line twice
@@ -196,7 +207,9 @@ class VoxelGrid:
 
 
 def _source(mesh: Any) -> Any:
-    """A path as str, or (float64 (V, 3), int64 (F, 3)) arrays, from what users pass."""
+    """A path as str, a prepared mesh, or (float64 (V, 3), int64 (F, 3)) arrays, from what users pass."""
+    if isinstance(mesh, Mesh):
+        return mesh._native
     if isinstance(mesh, (str, os.PathLike)):
         return os.fspath(mesh)
     module = type(mesh).__module__
@@ -298,6 +311,88 @@ def voxelize_many(
         sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band)
     )
     return [_grid(o) for o in outs]
+
+
+class Mesh:
+    """A mesh loaded and prepared once for :func:`query` (its spatial index and open boundary), accepted wherever
+    a mesh is (``voxelize``, ``voxelize_many``, ``query``) without loading the file again.
+
+        >>> bunny = meshvox.Mesh("bunny.obj")
+        >>> bunny.triangles, bunny.is_open                        # (69451, True)
+        >>> q = meshvox.query(bunny, points)                      # reuses the index
+    """
+
+    def __init__(self, mesh: Any) -> None:
+        self._native = mesh._native if isinstance(mesh, Mesh) else _native.PreparedMesh(_source(mesh))
+
+    @property
+    def triangles(self) -> int:
+        """The number of triangles (the faces of :func:`load`, in that order)."""
+        return int(self._native.triangles)
+
+    @property
+    def is_open(self) -> bool:
+        """Whether the mesh has holes or open sheets (its winding number is then not an integer)."""
+        return bool(self._native.is_open)
+
+    @property
+    def name(self) -> str:
+        return str(self._native.name)
+
+    def __repr__(self) -> str:
+        return f"meshvox.Mesh({self.name!r}, triangles={self.triangles}, open={self.is_open})"
+
+
+class Query:
+    """What :func:`query` answers, one entry per point.
+
+    ``distance`` float32 (N,): world distance to the nearest triangle, negative inside with ``sign="winding"``;
+    ``winding`` float32 (N,): the generalized winding number (None unsigned); ``inside`` bool (N,): winding number
+    at least 1/2 (None unsigned); ``closest`` float64 (N, 3): the nearest point on the mesh; ``triangle`` int64
+    (N,): its triangle, an index into :func:`load`'s faces; ``barycentric`` float32 (N, 3): its weights in that
+    triangle.
+    """
+
+    distance: np.ndarray
+    winding: np.ndarray | None
+    inside: np.ndarray | None
+    closest: np.ndarray
+    triangle: np.ndarray
+    barycentric: np.ndarray
+
+    def __init__(self, out: dict[str, Any]) -> None:
+        for name in ("distance", "winding", "inside", "closest", "triangle", "barycentric"):
+            setattr(self, name, out[name])
+        self.evaluations = int(out["evaluations"])
+
+    def __len__(self) -> int:
+        return len(self.distance)
+
+    def __repr__(self) -> str:
+        signed = self.inside is not None
+        inside = f", {int(self.inside.sum())} inside" if signed else ""  # type: ignore[union-attr]
+        return f"meshvox.Query({len(self)} points{inside})"
+
+
+def query(mesh: Any, points: Any, *, sign: str = "winding", backend: str = "auto") -> Query:
+    """Exact answers at ``points`` (array-like (N, 3), world coordinates) about ``mesh`` (a path, a
+    ``(vertices, faces)`` pair, a trimesh, or a :class:`Mesh`, which keeps its index for the next call): the
+    distance to the nearest triangle, signed by the generalized winding number with ``sign="winding"`` (negative
+    inside; right on open, cracked and self-intersecting meshes), the winding number, the nearest point, its
+    triangle and barycentric coordinates. See :class:`Query` and docs/training.md for what "exact" means here.
+
+    ``backend``: ``"auto"`` or ``"cpu"``; queries run on the CPU's threads (``"gpu"`` is refused until the GPU
+    answers them). The GIL is released meanwhile.
+    """
+    if backend not in ("auto", "cpu", "gpu"):
+        raise ValueError(f"backend '{backend}': use auto, gpu or cpu")
+    if backend == "gpu":
+        raise ValueError('queries run on the CPU for now: use backend="auto" or "cpu"')
+    prepared = mesh if isinstance(mesh, Mesh) else Mesh(mesh)
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), not {p.shape}")
+    return Query(_native.query(prepared._native, np.ascontiguousarray(p), sign))
 
 
 def batched_coords(grids: Sequence[VoxelGrid], order: str = "xyz") -> np.ndarray:

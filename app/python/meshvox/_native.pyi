@@ -7,7 +7,7 @@ __version__: str
 
 class MeshError(ValueError): ...
 
-_Source = str | tuple[np.ndarray, np.ndarray]
+_Source = str | tuple[np.ndarray, np.ndarray] | PreparedMesh
 _Bounds = tuple[tuple[float, float, float], tuple[float, float, float]] | None
 
 def voxelize(
@@ -55,3 +55,14 @@ def save_field(
     background: float,
     signed: bool,
 ) -> None: ...
+
+class PreparedMesh:
+    def __init__(self, source: _Source | PreparedMesh) -> None: ...
+    @property
+    def triangles(self) -> int: ...
+    @property
+    def is_open(self) -> bool: ...
+    @property
+    def name(self) -> str: ...
+
+def query(mesh: PreparedMesh, points: np.ndarray, sign: str) -> dict[str, Any]: ...

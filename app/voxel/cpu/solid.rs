@@ -688,7 +688,12 @@ pub fn certain_side(w: f32, e: f32, drift: f32, margin: f32) -> u32 {
 /// lengths, `atan2` and the sum, some `1e-13` per edge: the decision is exact wherever the winding number is more
 /// than `1e-6` from 1/2, the tolerance docs/modes.md states.
 pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) -> bool {
-    let p = DVec3::new(k as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5);
+    winding_exact(count, DVec3::new(k as f64 + 0.5, y as f64 + 0.5, z as f64 + 0.5), edges) >= 0.5
+}
+
+/// The winding number at `p` (grid space) in f64, `count` crossings before it along +x: [`inside_exact`]'s sum,
+/// for any point (the queries of [`crate::voxel::query`] take it where the f32 bounds leave one open).
+pub fn winding_exact(count: i32, p: DVec3, edges: &[BoundaryEdge]) -> f64 {
     let mut sum = 0.0f64;
     for e in edges {
         let (ea, eb) = (Vec3::from_array(e.a).as_dvec3(), Vec3::from_array(e.b).as_dvec3());
@@ -703,7 +708,7 @@ pub fn inside_exact(count: i32, k: u32, y: u32, z: u32, edges: &[BoundaryEdge]) 
         }
         sum += e.weight as f64 * 2.0 * num.atan2(den);
     }
-    count as f64 + sum / (4.0 * std::f64::consts::PI) >= 0.5
+    count as f64 + sum / (4.0 * std::f64::consts::PI)
 }
 
 /// Sets bits `k0..k1` of a row.

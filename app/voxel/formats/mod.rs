@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod npy;
 pub mod npz;
 pub mod palette;
+pub mod points;
 pub mod vdb;
 pub mod vox;
 

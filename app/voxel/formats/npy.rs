@@ -92,14 +92,13 @@ pub fn write_field_npy(field: &DistanceField, out: &mut impl Write) -> Result<()
     Ok(())
 }
 
-/// Reads an `.npy` file of dtype `uint8`/`bool`, C order, three dimensions. Origin 0 and voxel size 1, since
-/// the format carries no placement.
-pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
-    const F: &str = "npy";
+/// Reads an `.npy` header (`format` names the file kind in errors): the dtype's descr without quotes (`<f4`),
+/// and the shape. C order only.
+pub fn read_npy_header(input: &mut impl Read, format: &'static str) -> Result<(String, Vec<u64>), FormatError> {
     let mut pre = [0u8; 10];
     input.read_exact(&mut pre)?;
     if &pre[..6] != NPY_MAGIC {
-        return Err(invalid(F, "missing magic"));
+        return Err(invalid(format, "missing magic"));
     }
     let len = match pre[6] {
         1 => u16::from_le_bytes([pre[8], pre[9]]) as usize,
@@ -108,8 +107,11 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
             input.read_exact(&mut more)?;
             u32::from_le_bytes([pre[8], pre[9], more[0], more[1]]) as usize
         }
-        v => return Err(invalid(F, format!("unsupported version {v}"))),
+        v => return Err(invalid(format, format!("unsupported version {v}"))),
     };
+    if len > 1 << 20 {
+        return Err(invalid(format, format!("a header of {len} bytes")));
+    }
     let mut header = vec![0u8; len];
     input.read_exact(&mut header)?;
     let header = String::from_utf8_lossy(&header);
@@ -119,22 +121,34 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
         let end = if rest.starts_with('(') { rest.find(')')? + 1 } else { rest.find(',')? };
         Some(rest[..end].trim().to_string())
     };
-    let descr = field("descr").ok_or_else(|| invalid(F, "no descr"))?;
-    if !matches!(descr.as_str(), "'|u1'" | "'|b1'" | "'u1'" | "'<u1'") {
-        return Err(invalid(F, format!("dtype {descr} is not uint8")));
-    }
+    let descr = field("descr").ok_or_else(|| invalid(format, "no descr"))?;
     if field("fortran_order").as_deref() != Some("False") {
-        return Err(invalid(F, "Fortran order is not supported"));
+        return Err(invalid(format, "Fortran order is not supported"));
     }
-    let shape = field("shape").ok_or_else(|| invalid(F, "no shape"))?;
-    let dims: Vec<u32> = shape
+    let shape = field("shape").ok_or_else(|| invalid(format, "no shape"))?;
+    let dims: Vec<u64> = shape
         .trim_matches(|c| c == '(' || c == ')')
         .split(',')
         .filter(|s| !s.trim().is_empty())
-        .map(|s| s.trim().parse::<u32>().map_err(|_| invalid(F, format!("bad shape {shape}"))))
+        .map(|s| s.trim().parse::<u64>().map_err(|_| invalid(format, format!("bad shape {shape}"))))
         .collect::<Result<_, _>>()?;
+    Ok((descr.trim_matches(|c| c == '\'' || c == '"').to_string(), dims))
+}
+
+/// Reads an `.npy` file of dtype `uint8`/`bool`, C order, three dimensions. Origin 0 and voxel size 1, since
+/// the format carries no placement.
+pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
+    const F: &str = "npy";
+    let (descr, dims) = read_npy_header(input, F)?;
+    if !matches!(descr.as_str(), "|u1" | "|b1" | "u1" | "<u1") {
+        return Err(invalid(F, format!("dtype '{descr}' is not uint8")));
+    }
     let [x, y, z] = dims[..] else {
-        return Err(invalid(F, format!("shape {shape} is not three-dimensional")));
+        return Err(invalid(F, format!("shape {dims:?} is not three-dimensional")));
+    };
+    let (x, y, z) = (u32::try_from(x), u32::try_from(y), u32::try_from(z));
+    let (Ok(x), Ok(y), Ok(z)) = (x, y, z) else {
+        return Err(invalid(F, format!("shape {dims:?} is too large")));
     };
     let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(x, y, z) };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;

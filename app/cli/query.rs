@@ -1,0 +1,80 @@
+//! `meshvox query MESH POINTS.npy -o out.npz`: exact distances, nearest points and winding numbers at the points
+//! of an `.npy` (docs/training.md).
+
+use super::{LimitArgs, ms};
+use anyhow::{Context, Result, bail};
+use meshvox::voxel::formats::atomic::write_atomically;
+use meshvox::voxel::formats::points::{read_points_npy, write_query_npz};
+use meshvox::voxel::query::{Prepared, Sign};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub(super) struct QueryArgs {
+    /// Mesh file (.obj, .gltf, .glb, .stl, .ply) or builtin:NAME.
+    #[arg(value_name = "MESH")]
+    mesh: String,
+    /// The points: an .npy of float32 or float64, shape (N, 3), world coordinates.
+    #[arg(value_name = "POINTS")]
+    points: PathBuf,
+    /// Output .npz: distance, winding, inside, closest, triangle, barycentric.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    output: PathBuf,
+    /// Sign the distances by the generalized winding number (negative inside), or leave them unsigned.
+    #[arg(long, value_enum, default_value_t = Sign::Winding)]
+    sign: Sign,
+    /// Print a JSON object with the statistics as the last line of stdout.
+    #[arg(long)]
+    stats_json: bool,
+    #[command(flatten)]
+    limits: LimitArgs,
+}
+
+pub(super) fn query(args: &QueryArgs) -> Result<()> {
+    if args.output.extension().and_then(|e| e.to_str()) != Some("npz") {
+        bail!("the output of query is an .npz, not '{}'", args.output.display());
+    }
+    let start = Instant::now();
+    let mesh = args.limits.load(&args.mesh)?;
+    let load_ms = ms(start);
+    let file = std::fs::File::open(&args.points).with_context(|| format!("{}", args.points.display()))?;
+    let points = read_points_npy(&mut std::io::BufReader::new(file))
+        .with_context(|| format!("reading points from {}", args.points.display()))?;
+    let start = Instant::now();
+    let prepared = Prepared::new(&mesh).with_context(|| args.mesh.clone())?;
+    let prepare_ms = ms(start);
+    let start = Instant::now();
+    let answers = prepared.query(&points, args.sign)?;
+    let query_ms = ms(start);
+    let bytes = write_atomically(&args.output, |out| write_query_npz(&answers, out))
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let inside = answers.inside.as_ref().map(|i| i.iter().filter(|&&b| b).count());
+    eprintln!(
+        "{}: {} triangles, {} points answered in {query_ms:.1} ms (prepared in {prepare_ms:.1} ms){}; wrote {} ({bytes} bytes)",
+        args.mesh,
+        prepared.triangle_count(),
+        points.len(),
+        inside.map_or(String::new(), |n| format!(", {n} inside")),
+        args.output.display(),
+    );
+    if args.stats_json {
+        let stats = serde_json::json!({
+            "mesh": args.mesh,
+            "triangles": prepared.triangle_count(),
+            "points": points.len(),
+            "sign": args.sign.name(),
+            "open": prepared.is_open(),
+            "inside": inside,
+            "load_ms": load_ms,
+            "prepare_ms": prepare_ms,
+            "query_ms": query_ms,
+            "distance_evaluations": answers.evaluations,
+            "points_per_second": points.len() as f64 / (query_ms / 1e3).max(1e-9),
+            "backend": format!("cpu ({} threads)", meshvox::parallel::threads()),
+            "output": args.output,
+            "bytes": bytes,
+        });
+        println!("{stats}");
+    }
+    Ok(())
+}

@@ -1,0 +1,69 @@
+//! Points in and answers out for `meshvox query`: an `.npy` of float32 or float64 `(N, 3)` world points, and the
+//! `.npz` of the answers (docs/training.md), arrays named as the Python package's fields.
+
+use super::error::{FormatError, invalid};
+use super::npy::{read_npy_header, write_npy_header};
+use crate::voxel::query::Answers;
+use glam::DVec3;
+use std::io::{Read, Seek, Write};
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, ZipWriter};
+
+/// Reads `(N, 3)` points from an `.npy` of dtype `<f4` or `<f8`, C order.
+pub fn read_points_npy(input: &mut impl Read) -> Result<Vec<DVec3>, FormatError> {
+    const F: &str = "npy";
+    let (descr, shape) = read_npy_header(input, F)?;
+    let n = match shape[..] {
+        [n, 3] => n,
+        _ => return Err(invalid(F, format!("points must have shape (N, 3), not {shape:?}"))),
+    };
+    let width = match descr.as_str() {
+        "<f4" => 4,
+        "<f8" => 8,
+        _ => return Err(invalid(F, format!("points must be float32 or float64 (little-endian), not '{descr}'"))),
+    };
+    let bytes = n.checked_mul(3 * width).ok_or_else(|| invalid(F, format!("{n} points")))?;
+    let mut data = Vec::new();
+    // Read what is there rather than trusting the header's count for the allocation.
+    input.take(bytes).read_to_end(&mut data)?;
+    if (data.len() as u64) < bytes {
+        return Err(invalid(F, format!("the file ends after {} of its {n} points", data.len() as u64 / (3 * width))));
+    }
+    let value = |c: &[u8]| match width {
+        4 => f64::from(f32::from_le_bytes([c[0], c[1], c[2], c[3]])),
+        _ => f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
+    };
+    Ok(data
+        .chunks_exact(3 * width as usize)
+        .map(|p| DVec3::new(value(&p[..width as usize]), value(&p[width as usize..]), value(&p[2 * width as usize..])))
+        .collect())
+}
+
+/// Writes the answers as an `.npz`: `distance` float32 (N,), `winding` float32 (N,) and `inside` bool (N,) when
+/// signed, `closest` float64 (N, 3), `triangle` int64 (N,), `barycentric` float32 (N, 3).
+pub fn write_query_npz<W: Write + Seek>(answers: &Answers, out: W) -> Result<(), FormatError> {
+    let n = answers.distance.len();
+    let mut zip = ZipWriter::new(out);
+    let mut array = |name: &str, descr: &str, shape: String, bytes: Vec<u8>| -> Result<(), FormatError> {
+        let options = SimpleFileOptions::default()
+            .compression_method(CompressionMethod::Stored)
+            .large_file(bytes.len() as u64 >= u64::from(u32::MAX) - 1024);
+        zip.start_file(format!("{name}.npy"), options).map_err(|e| std::io::Error::other(e.to_string()))?;
+        write_npy_header(descr, &shape, &mut zip)?;
+        zip.write_all(&bytes)?;
+        Ok(())
+    };
+    let f32s = |v: &mut dyn Iterator<Item = f32>| v.flat_map(f32::to_le_bytes).collect::<Vec<u8>>();
+    array("distance", "<f4", format!("({n},)"), f32s(&mut answers.distance.iter().copied()))?;
+    if let (Some(winding), Some(inside)) = (&answers.winding, &answers.inside) {
+        array("winding", "<f4", format!("({n},)"), f32s(&mut winding.iter().copied()))?;
+        array("inside", "|b1", format!("({n},)"), inside.iter().map(|&b| u8::from(b)).collect())?;
+    }
+    let closest = answers.closest.iter().flat_map(|p| p.to_array()).flat_map(f64::to_le_bytes).collect();
+    array("closest", "<f8", format!("({n}, 3)"), closest)?;
+    let triangle = answers.triangle.iter().flat_map(|&t| i64::from(t).to_le_bytes()).collect();
+    array("triangle", "<i8", format!("({n},)"), triangle)?;
+    array("barycentric", "<f4", format!("({n}, 3)"), f32s(&mut answers.barycentric.iter().flatten().copied()))?;
+    zip.finish().map_err(|e| std::io::Error::other(e.to_string()))?;
+    Ok(())
+}

@@ -1,0 +1,314 @@
+//! Answers at arbitrary points, for training data (DeepSDF, Occupancy Networks and the like): the distance to a
+//! mesh, its nearest point, triangle and barycentric coordinates, and the generalized winding number with the
+//! inside it decides, exact as the grids' fields are (docs/training.md).
+//!
+//! A [`Prepared`] mesh is built once and answers any number of calls: its triangles in a frame (the grid space
+//! of a 1024-voxel grid around the mesh, on that grid's lattice, as every mode voxelizes them), a bounding-volume
+//! hierarchy over them, and the mesh's open boundary with its tree. A point is answered in three steps:
+//! 1. `nearest`: the hierarchy's nearest triangle, by the distance field's own f32 arithmetic (so a point at a
+//!    voxel centre finds what the field's pass finds), then its nearest point and barycentric coordinates in f64
+//!    in world space, from the triangle as loaded;
+//! 2. `crossings_before`: the signed count of the triangles the ray from the point towards -x crosses, decided by
+//!    exact predicates (Shewchuk's, the `robust` crate) with the solid fill's tie rule for a ray through an edge;
+//! 3. `winding`: that count plus the open boundary's term ([`winding_number_tree`]), certified on one side of ½
+//!    by its error bounds or else summed in f64 ([`winding_exact`]), as the solid fill decides a voxel centre.
+
+use super::bvh::Bvh;
+use super::cpu::distance::point_distance2;
+use super::cpu::solid::{ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, winding_exact, winding_number_tree};
+use super::solid::boundary;
+use super::{Axis, GridError, GridSpec, Lattice, Resolution};
+use crate::mesh::Mesh;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
+use robust::{Coord, Coord3D, orient2d, orient3d};
+
+/// Voxels along the longest axis of the frame the points are answered in. The answers do not depend on it
+/// beyond f32's rounding: 1024 puts the lattice a few ulps of f32 apart, as a grid of that size has it.
+const FRAME: u32 = 1024;
+
+/// The far parts of the boundary that may stand in for their edges when the winding number's value is asked
+/// for: their bound stays under this.
+const FAR_VALUE: f32 = 2.5e-5;
+
+/// How far a returned winding number may be from the exact one; beyond it the f64 sum is taken.
+pub const WINDING_TOLERANCE: f32 = 1e-4;
+
+/// Points per task: consecutive along the curve of [`morton_order`], so each starts near its predecessor.
+const CHUNK: usize = 1024;
+
+/// The points' indices in the order of a Morton (Z-order) curve through the frame, at 2^10 cells per axis
+/// across three frames' width: points close in space are close in the order.
+fn morton_order(frame: &[Vec3], dims: glam::UVec3) -> Vec<u32> {
+    let size = dims.max_element() as f32;
+    let spread = |v: u32| {
+        let mut x = u64::from(v) & 0x3ff;
+        x = (x | x << 16) & 0x0300_00ff;
+        x = (x | x << 8) & 0x0300_f00f;
+        x = (x | x << 4) & 0x030c_30c3;
+        (x | x << 2) & 0x0924_9249
+    };
+    let key = |q: Vec3| {
+        let c = ((q + size) / (3.0 * size) * 1024.0).clamp(Vec3::ZERO, Vec3::splat(1023.0)).as_uvec3();
+        spread(c.x) | spread(c.y) << 1 | spread(c.z) << 2
+    };
+    let mut order: Vec<(u64, u32)> =
+        crate::parallel::install(|| frame.par_iter().enumerate().map(|(i, &q)| (key(q), i as u32)).collect());
+    order.par_sort_unstable();
+    order.into_iter().map(|(_, i)| i).collect()
+}
+
+/// Whether to sign the distances (and compute the winding number).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sign {
+    /// Negative inside: generalized winding number at least ½.
+    Winding,
+    /// Unsigned distances; no winding number.
+    Unsigned,
+}
+
+crate::names::names!(Sign { Winding => "winding", Unsigned => "none" });
+
+/// A mesh made ready for queries (see the module documentation).
+pub struct Prepared {
+    /// The frame: grid space of this spec.
+    pub spec: GridSpec,
+    /// The triangles in the frame, on its lattice, in the mesh's order.
+    frame: Vec<[Vec3; 3]>,
+    /// The triangles as loaded: world position `anchor + v`.
+    anchor: DVec3,
+    world: Vec<[Vec3; 3]>,
+    bvh: Bvh,
+    boundary: Boundary,
+}
+
+/// The answers for a list of points, one entry per point in each.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Answers {
+    /// World distance to the nearest triangle; negative inside when signed.
+    pub distance: Vec<f32>,
+    /// The generalized winding number (signed queries only), within [`WINDING_TOLERANCE`].
+    pub winding: Option<Vec<f32>>,
+    /// Winding number at least ½ (signed queries only).
+    pub inside: Option<Vec<bool>>,
+    /// The nearest point on the mesh, world space.
+    pub closest: Vec<DVec3>,
+    /// The nearest triangle's index in the mesh's order.
+    pub triangle: Vec<u32>,
+    /// The nearest point's barycentric coordinates in that triangle.
+    pub barycentric: Vec<[f32; 3]>,
+    /// Point-to-triangle distances evaluated, over all points (the work the hierarchy left).
+    pub evaluations: u64,
+}
+
+/// Why a query cannot be answered.
+#[derive(Debug, thiserror::Error)]
+pub enum QueryError {
+    #[error("the mesh has no triangles to measure from")]
+    Empty,
+    #[error("point {index} is not finite: {point:?}")]
+    NonFinite { index: usize, point: [f64; 3] },
+    #[error(transparent)]
+    Grid(#[from] GridError),
+}
+
+impl Prepared {
+    /// Prepares `mesh` for queries.
+    pub fn new(mesh: &Mesh) -> Result<Prepared, QueryError> {
+        let bounds = mesh.bounds().ok_or(QueryError::Empty)?;
+        let spec = GridSpec::fit(bounds, Resolution::Count(FRAME), Axis::Longest)?;
+        let frame = super::voxelize::grid_space_triangles(mesh, &spec)?;
+        let lattice = Lattice::fit(&frame, spec.dims)?;
+        let (bvh, boundary) =
+            crate::parallel::install(|| rayon::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
+        Ok(Prepared { spec, frame, anchor: mesh.anchor, world: mesh.triangles.clone(), bvh, boundary })
+    }
+
+    /// Triangles in the mesh.
+    pub fn triangle_count(&self) -> usize {
+        self.world.len()
+    }
+
+    /// Whether the mesh has an open boundary (holes, or a sheet): then the winding number is not an integer.
+    pub fn is_open(&self) -> bool {
+        !self.boundary.edges.is_empty()
+    }
+
+    /// The answers at `points` (world space), on the library's threads.
+    pub fn query(&self, points: &[DVec3], sign: Sign) -> Result<Answers, QueryError> {
+        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
+            return Err(QueryError::NonFinite { index, point: points[index].to_array() });
+        }
+        let frame: Vec<Vec3> = points.iter().map(|&p| self.to_frame(p)).collect();
+        let order = morton_order(&frame, self.spec.dims);
+        let chunks: Vec<Vec<(Near, Option<f64>)>> = crate::parallel::install(|| {
+            order
+                .par_chunks(CHUNK)
+                .map(|chunk| {
+                    // Along the curve each point starts from its predecessor's nearest triangle, a bound that is
+                    // often the answer, so the hierarchy prunes from its first node.
+                    let mut last: Option<u32> = None;
+                    chunk
+                        .iter()
+                        .map(|&i| {
+                            let q = frame[i as usize];
+                            let near = self.nearest(points[i as usize], q, last);
+                            last = Some(near.triangle);
+                            (near, (sign == Sign::Winding).then(|| self.winding(q)))
+                        })
+                        .collect()
+                })
+                .collect()
+        });
+        let mut answers: Vec<Option<(Near, Option<f64>)>> = (0..points.len()).map(|_| None).collect();
+        for (&i, answer) in order.iter().zip(chunks.into_iter().flatten()) {
+            answers[i as usize] = Some(answer);
+        }
+        let mut out = Answers {
+            winding: (sign == Sign::Winding).then(|| Vec::with_capacity(points.len())),
+            inside: (sign == Sign::Winding).then(|| Vec::with_capacity(points.len())),
+            ..Answers::default()
+        };
+        for (near, w) in answers.into_iter().flatten() {
+            let inside = w.is_some_and(|w| w >= 0.5);
+            out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
+            if let (Some(ws), Some(is), Some(w)) = (out.winding.as_mut(), out.inside.as_mut(), w) {
+                ws.push(w as f32);
+                is.push(inside);
+            }
+            out.evaluations += u64::from(near.evaluations);
+            out.closest.push(near.closest);
+            out.triangle.push(near.triangle);
+            out.barycentric.push(near.barycentric.as_vec3().to_array());
+        }
+        Ok(out)
+    }
+
+    /// `p` in the frame, rounded to f32: the point the crossings and the winding number are exact for.
+    fn to_frame(&self, p: DVec3) -> Vec3 {
+        ((p - self.spec.origin) / self.spec.voxel_size).as_vec3()
+    }
+
+    /// The nearest triangle to `p` (the frame's `q`), and its nearest point in world space; the search starts from
+    /// triangle `seed`'s distance when given.
+    fn nearest(&self, p: DVec3, q: Vec3, seed: Option<u32>) -> Near {
+        let start = seed.map_or((f32::INFINITY, None), |i| (point_distance2(q, self.frame[i as usize]), Some(i)));
+        let (best, evaluations) = self.bvh.nearest_triangle(q, start);
+        // Every mesh has a nearest triangle to a finite point; a non-finite distance in the frame (a point beyond
+        // f32's range) falls back to the first.
+        let triangle = best.map_or(0, |(_, i)| i);
+        let t = self.world[triangle as usize].map(|v| self.anchor + v.as_dvec3());
+        let barycentric = closest_barycentric_f64(p, t[0], t[1], t[2]);
+        let closest = t[0] * barycentric.x + t[1] * barycentric.y + t[2] * barycentric.z;
+        Near { distance: (p - closest).length(), closest, triangle, barycentric, evaluations }
+    }
+
+    /// The winding number at frame point `q`: within [`WINDING_TOLERANCE`], and on the exact side of ½ wherever
+    /// it is more than about 1e-6 from it (f64's rounding of the sum below that).
+    fn winding(&self, q: Vec3) -> f64 {
+        let count = self.crossings_before(q);
+        if self.boundary.edges.is_empty() {
+            return f64::from(count);
+        }
+        let Winding { w, e, far, .. } = winding_number_tree(count, q, 0.0, &self.boundary, FAR_VALUE, ATAN2_CPU);
+        match certain_side(w, e, far, MARGIN) {
+            2 => winding_exact(count, q.as_dvec3(), &self.boundary.edges),
+            _ if e + far > WINDING_TOLERANCE => winding_exact(count, q.as_dvec3(), &self.boundary.edges),
+            _ => f64::from(w),
+        }
+    }
+
+    /// The crossing count before `q` along +x (the ray from it towards -x), exactly: +1 for each triangle the ray
+    /// leaves through, -1 for each it enters, as the solid fill counts a row's crossings before a voxel centre.
+    fn crossings_before(&self, q: Vec3) -> i32 {
+        let mut count = 0;
+        self.bvh.along_ray(q, |_, t| count -= crossing(t, q));
+        count
+    }
+}
+
+/// The nearest point of a triangle.
+struct Near {
+    distance: f64,
+    /// Point-to-triangle distances the hierarchy evaluated.
+    evaluations: u32,
+    closest: DVec3,
+    triangle: u32,
+    barycentric: DVec3,
+}
+
+/// The sign of the triangle's `n_x` (+1 where a ray along -x leaves through it) where the ray from `q` towards -x
+/// crosses it at or before `q`, else 0. Exact: the YZ coverage by `orient2d` with the solid fill's tie rule (a ray
+/// through an edge is moved by `(-ε, ε²)` in (y, z), so an edge shared by two triangles is crossed once,
+/// [`covers_row`](super::cpu::solid::covers_row)), and the side of the plane by `orient3d`, a point on the plane
+/// counting as beyond it (its crossing at the point itself, as a voxel centre on a face counts the face).
+fn crossing(t: [Vec3; 3], q: Vec3) -> i32 {
+    let yz = |v: Vec3| Coord { x: v.y, y: v.z };
+    let n_x = orient2d(yz(t[0]), yz(t[1]), yz(t[2]));
+    if n_x == 0.0 {
+        return 0;
+    }
+    let sign = if n_x > 0.0 { 1 } else { -1 };
+    let v = if sign > 0 { t } else { [t[0], t[2], t[1]] };
+    let covered = (0..3).all(|i| {
+        let (a, b) = (v[i], v[(i + 1) % 3]);
+        let e = orient2d(yz(a), yz(b), yz(q));
+        let d = b - a;
+        e > 0.0 || (e == 0.0 && (d.z > 0.0 || (d.z == 0.0 && d.y > 0.0)))
+    });
+    if !covered {
+        return 0;
+    }
+    let xyz = |v: Vec3| Coord3D { x: v.x, y: v.y, z: v.z };
+    // orient3d(a, b, c, q) = -n · (q - a): q at or beyond the plane along +x when n · (q - a) has n_x's sign.
+    let side = -orient3d(xyz(t[0]), xyz(t[1]), xyz(t[2]), xyz(q));
+    if side == 0.0 || (side > 0.0) == (sign > 0) { sign } else { 0 }
+}
+
+/// Barycentric weights of the point of triangle `abc` nearest `p`, in f64: the same Voronoi-region walk as the
+/// shaders' f32 [`closest_barycentric`](super::cpu::nearest::closest_barycentric) (Ericson §5.1.5), kept apart
+/// because that one is the mirror of `nearest.wgsl` and this one answers in world space to f64's precision.
+pub fn closest_barycentric_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return DVec3::X;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return DVec3::Y;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return DVec3::new(1.0 - v, v, 0.0);
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return DVec3::Z;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return DVec3::new(1.0 - w, 0.0, w);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return DVec3::new(0.0, 1.0 - w, w);
+    }
+    let sum = va + vb + vc;
+    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        // A degenerate triangle: its nearest vertex.
+        let d = [a, b, c].map(|v| (v - p).length_squared());
+        return match (d[0] <= d[1] && d[0] <= d[2], d[1] <= d[2]) {
+            (true, _) => DVec3::X,
+            (false, true) => DVec3::Y,
+            _ => DVec3::Z,
+        };
+    }
+    let (v, w) = (vb / sum, vc / sum);
+    DVec3::new(1.0 - v - w, v, w)
+}
