@@ -54,6 +54,9 @@ enum Command {
     Batch(batch::BatchArgs),
     /// Exact signed distance, winding number, nearest point and triangle at the points of an .npy, as an .npz.
     Query(query::QueryArgs),
+    /// Training samples: points uniform around the mesh, on its surface and near it, with their exact signed
+    /// distance and occupancy, as an .npz.
+    Sample(query::SampleArgs),
 }
 
 /// Limits on what one request may take, shared by the commands that load and voxelize a mesh.
@@ -235,7 +238,10 @@ fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
 pub fn main() -> ExitCode {
     quiet_headless_vulkan();
     let cli = Cli::parse();
-    if matches!(cli.command, Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_) | Command::Query(_))) {
+    if matches!(
+        cli.command,
+        Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_) | Command::Query(_) | Command::Sample(_))
+    ) {
         remove_partials_on_interrupt();
     }
     let result = match cli.command {
@@ -254,6 +260,7 @@ pub fn main() -> ExitCode {
         },
         Some(Command::Render(args)) => render::render(&args),
         Some(Command::Query(args)) => query::query(&args),
+        Some(Command::Sample(args)) => query::sample(&args),
         Some(Command::Builtins) => {
             for name in builtin::NAMES {
                 println!("builtin:{name:<14} {}", builtin::describe(name));

@@ -1,11 +1,13 @@
 //! `meshvox query MESH POINTS.npy -o out.npz`: exact distances, nearest points and winding numbers at the points
-//! of an `.npy` (docs/training.md).
+//! of an `.npy`; `meshvox sample MESH -o out.npz`: training samples (uniform, surface and near-surface points with
+//! their signed distance and occupancy). docs/training.md.
 
 use super::{LimitArgs, ms};
 use anyhow::{Context, Result, bail};
 use meshvox::voxel::formats::atomic::write_atomically;
-use meshvox::voxel::formats::points::{read_points_npy, write_query_npz};
+use meshvox::voxel::formats::points::{read_points_npy, write_query_npz, write_samples_npz};
 use meshvox::voxel::query::{Prepared, Sign};
+use meshvox::voxel::sample::{Normalize, SampleRequest, sample as make_samples};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -71,6 +73,100 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
             "distance_evaluations": answers.evaluations,
             "points_per_second": points.len() as f64 / (query_ms / 1e3).max(1e-9),
             "backend": format!("cpu ({} threads)", meshvox::parallel::threads()),
+            "output": args.output,
+            "bytes": bytes,
+        });
+        println!("{stats}");
+    }
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub(super) struct SampleArgs {
+    /// Mesh file (.obj, .gltf, .glb, .stl, .ply) or builtin:NAME.
+    #[arg(value_name = "MESH")]
+    mesh: String,
+    /// Output .npz: points, sdf, occupancy, triangle, normal, kind, scale, offset.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    output: PathBuf,
+    /// Points uniform in the cube around the mesh (side: 1 + padding times its longest side).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    uniform: usize,
+    /// Points on the surface, area-weighted, with their triangle and normal.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    surface: usize,
+    /// Surface points moved by a Gaussian of each --sigma (an equal share each).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    near: usize,
+    /// The Gaussians' standard deviations, in the normalised frame's units.
+    #[arg(long, value_name = "S,S,...", value_delimiter = ',', default_values_t = [0.005, 0.05])]
+    sigma: Vec<f64>,
+    /// How much larger than the mesh's longest side the uniform points' cube is.
+    #[arg(long, default_value_t = 0.1)]
+    padding: f64,
+    /// The frame of the points and distances: the bounding box centred with its longest side 1 (unit-cube), the
+    /// farthest vertex at 1 (unit-sphere), or world coordinates (none).
+    #[arg(long, value_enum, default_value_t = Normalize::UnitCube)]
+    normalize: Normalize,
+    /// The same seed gives the same samples on any machine and thread count.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Print a JSON object with the statistics as the last line of stdout.
+    #[arg(long)]
+    stats_json: bool,
+    #[command(flatten)]
+    limits: LimitArgs,
+}
+
+impl SampleArgs {
+    /// The library's request for these arguments.
+    pub(super) fn request(&self) -> SampleRequest {
+        SampleRequest {
+            uniform: self.uniform,
+            surface: self.surface,
+            near: self.near,
+            sigma: self.sigma.clone(),
+            padding: self.padding,
+            normalize: self.normalize,
+            seed: self.seed,
+        }
+    }
+}
+
+pub(super) fn sample(args: &SampleArgs) -> Result<()> {
+    if args.output.extension().and_then(|e| e.to_str()) != Some("npz") {
+        bail!("the output of sample is an .npz, not '{}'", args.output.display());
+    }
+    if args.uniform + args.surface + args.near == 0 {
+        bail!("nothing to sample: give --uniform, --surface and/or --near a count");
+    }
+    let mesh = args.limits.load(&args.mesh)?;
+    let start = Instant::now();
+    let prepared = Prepared::new(&mesh).with_context(|| args.mesh.clone())?;
+    let samples = make_samples(&mesh, &prepared, &args.request()).with_context(|| args.mesh.clone())?;
+    let sample_ms = ms(start);
+    let bytes = write_atomically(&args.output, |out| write_samples_npz(&samples, out))
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let inside = samples.occupancy.iter().filter(|&&b| b).count();
+    eprintln!(
+        "{}: {} samples ({} inside) in {sample_ms:.1} ms; wrote {} ({bytes} bytes)",
+        args.mesh,
+        samples.points.len(),
+        inside,
+        args.output.display(),
+    );
+    if args.stats_json {
+        let stats = serde_json::json!({
+            "mesh": args.mesh,
+            "triangles": prepared.triangle_count(),
+            "samples": samples.points.len(),
+            "inside": inside,
+            "open": prepared.is_open(),
+            "normalize": args.normalize.name(),
+            "scale": samples.scale,
+            "offset": samples.offset.to_array(),
+            "seed": args.seed,
+            "sample_ms": sample_ms,
             "output": args.output,
             "bytes": bytes,
         });

@@ -40,6 +40,7 @@ enum Failure {
     Mesh(MeshError),
     Engine(EngineError),
     Query(crate::voxel::query::QueryError),
+    Sample(crate::voxel::sample::SampleError),
 }
 
 fn into_py_err(failure: Failure) -> PyErr {
@@ -62,6 +63,7 @@ fn into_py_err(failure: Failure) -> PyErr {
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
         Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
         Failure::Query(e) => PyValueError::new_err(e.to_string()),
+        Failure::Sample(e) => PyValueError::new_err(e.to_string()),
     }
 }
 
@@ -424,6 +426,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
     m.add_function(wrap_pyfunction!(query::query, m)?)?;
+    m.add_function(wrap_pyfunction!(query::sample, m)?)?;
+    m.add_function(wrap_pyfunction!(query::sample_many, m)?)?;
     m.add_class::<query::PyPrepared>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -1,9 +1,11 @@
-//! `meshvox.Mesh` and `meshvox.query` from Python: a mesh loaded and prepared once ([`Prepared`]: its frame,
-//! hierarchy and boundary), and exact answers at an array of points, computed off the GIL on the library's pool.
+//! `meshvox.Mesh`, `meshvox.query`, `meshvox.sample` and `meshvox.sample_many` from Python: a mesh loaded and
+//! prepared once ([`Prepared`]: its frame, hierarchy and boundary), exact answers at an array of points, and
+//! training samples, computed off the GIL on the library's pool.
 
 use super::{Failure, Input, input, into_py_err, process};
 use crate::mesh::Mesh;
 use crate::voxel::query::{Prepared, QueryError, Sign};
+use crate::voxel::sample::{Normalize, SampleRequest, Samples, sample as make_samples};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
@@ -111,4 +113,137 @@ pub(super) fn query<'py>(
     dict.set_item("barycentric", barycentric.into_pyarray(py).reshape([n, 3])?)?;
     dict.set_item("evaluations", answers.evaluations)?;
     Ok(dict)
+}
+
+/// The request of `meshvox.sample`'s keywords.
+#[allow(clippy::too_many_arguments)]
+fn sample_request(
+    uniform: usize,
+    surface: usize,
+    near: usize,
+    sigma: Vec<f64>,
+    padding: f64,
+    normalize: Option<&str>,
+    seed: u64,
+) -> PyResult<SampleRequest> {
+    let normalize = match normalize {
+        None => Normalize::Off,
+        Some(name) => Normalize::from_name(name).filter(|n| *n != Normalize::Off).ok_or_else(|| {
+            PyValueError::new_err(format!("normalize '{name}': use \"unit-cube\", \"unit-sphere\" or None"))
+        })?,
+    };
+    Ok(SampleRequest { uniform, surface, near, sigma, padding, normalize, seed })
+}
+
+/// A prepared mesh's samples, or why there are none.
+fn samples_of(mesh: &PyPrepared, request: &SampleRequest) -> Result<Samples, Failure> {
+    make_samples(&mesh.mesh, &mesh.prepared, request).map_err(Failure::Sample)
+}
+
+/// The dictionary `meshvox.Samples` is made from.
+fn samples_dict(py: Python<'_>, s: Samples) -> PyResult<Bound<'_, PyDict>> {
+    let m = s.points.len();
+    let dict = PyDict::new(py);
+    let points: Vec<f32> = s.points.iter().flatten().copied().collect();
+    dict.set_item("points", points.into_pyarray(py).reshape([m, 3])?)?;
+    dict.set_item("sdf", s.sdf.into_pyarray(py))?;
+    dict.set_item("occupancy", s.occupancy.into_pyarray(py))?;
+    dict.set_item("triangle", s.triangle.into_pyarray(py))?;
+    let normal: Vec<f32> = s.normal.iter().flatten().copied().collect();
+    dict.set_item("normal", normal.into_pyarray(py).reshape([m, 3])?)?;
+    dict.set_item("kind", s.kind.into_pyarray(py))?;
+    dict.set_item("scale", s.scale)?;
+    dict.set_item("offset", s.offset.to_array())?;
+    Ok(dict)
+}
+
+/// `meshvox._native.sample(mesh, uniform, surface, near, sigma, padding, normalize, seed)`.
+#[pyfunction]
+#[pyo3(signature = (mesh, uniform, surface, near, sigma, padding, normalize, seed))]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn sample<'py>(
+    py: Python<'py>,
+    mesh: &Bound<'py, PyPrepared>,
+    uniform: usize,
+    surface: usize,
+    near: usize,
+    sigma: Vec<f64>,
+    padding: f64,
+    normalize: Option<&str>,
+    seed: u64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
+    let mesh = mesh.get();
+    let samples = process::run(py, None, |_| samples_of(mesh, &request))?.map_err(into_py_err)?;
+    samples_dict(py, samples)
+}
+
+/// `meshvox._native.sample_many(meshes, ..., workers, progress)`: each mesh (a prepared one, a path or arrays)
+/// prepared and sampled on `workers` threads at a time, in input order; `progress(done, total)` counts meshes.
+#[pyfunction]
+#[pyo3(signature = (meshes, uniform, surface, near, sigma, padding, normalize, seed, workers, progress))]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn sample_many<'py>(
+    py: Python<'py>,
+    meshes: Vec<Bound<'py, PyAny>>,
+    uniform: usize,
+    surface: usize,
+    near: usize,
+    sigma: Vec<f64>,
+    padding: f64,
+    normalize: Option<&str>,
+    seed: u64,
+    workers: Option<usize>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
+    // A prepared mesh is shared as it is; the others are loaded and prepared by the worker that takes them.
+    enum Item {
+        Ready(Arc<Mesh>, Arc<Prepared>),
+        Later(Input),
+    }
+    let items: Vec<std::sync::Mutex<Option<Item>>> = meshes
+        .iter()
+        .map(|m| match m.cast::<PyPrepared>() {
+            Ok(p) => Ok(Item::Ready(p.get().mesh.clone(), p.get().prepared.clone())),
+            Err(_) => input(m).map(Item::Later),
+        })
+        .map(|i| i.map(|i| std::sync::Mutex::new(Some(i))))
+        .collect::<PyResult<_>>()?;
+    let total = items.len();
+    // Each mesh's points already use every core; a few meshes at once keep them busy between meshes.
+    let workers = workers.unwrap_or(2).clamp(1, total.max(1));
+    let results = process::run(py, progress, |control| {
+        let mut slots: Vec<Option<Result<Samples, Failure>>> = (0..total).map(|_| None).collect();
+        let job = |i: usize| {
+            let item = items[i].lock().unwrap_or_else(|e| e.into_inner()).take();
+            let item = item.filter(|_| !control.cancel.load(std::sync::atomic::Ordering::Relaxed))?;
+            let ready = match item {
+                Item::Ready(mesh, prepared) => PyPrepared { mesh, prepared },
+                Item::Later(input) => match input.load() {
+                    Ok((_, mesh)) => match Prepared::new(&mesh) {
+                        Ok(prepared) => PyPrepared { mesh: Arc::new(mesh), prepared: Arc::new(prepared) },
+                        Err(e) => return Some(Err(Failure::Query(e))),
+                    },
+                    Err(e) => return Some(Err(e)),
+                },
+            };
+            Some(samples_of(&ready, &request))
+        };
+        let mut done = 0;
+        let finished = crate::engine::work_queue(total, workers, job, |i, result| {
+            slots[i] = result;
+            done += 1;
+            control.progress(done, total);
+            Ok::<(), std::convert::Infallible>(())
+        });
+        let Ok(()) = finished;
+        slots
+    })?;
+    let mut out = Vec::with_capacity(total);
+    for result in results {
+        let result = result.ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("cancelled"))?;
+        out.push(samples_dict(py, result.map_err(into_py_err)?)?);
+    }
+    Ok(out)
 }

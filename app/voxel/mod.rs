@@ -25,6 +25,7 @@ pub mod formats;
 mod grid;
 mod lattice;
 pub mod query;
+pub mod sample;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;

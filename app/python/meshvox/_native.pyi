@@ -66,3 +66,25 @@ class PreparedMesh:
     def name(self) -> str: ...
 
 def query(mesh: PreparedMesh, points: np.ndarray, sign: str) -> dict[str, Any]: ...
+def sample(
+    mesh: PreparedMesh,
+    uniform: int,
+    surface: int,
+    near: int,
+    sigma: list[float],
+    padding: float,
+    normalize: str | None,
+    seed: int,
+) -> dict[str, Any]: ...
+def sample_many(
+    meshes: Sequence[_Source],
+    uniform: int,
+    surface: int,
+    near: int,
+    sigma: list[float],
+    padding: float,
+    normalize: str | None,
+    seed: int,
+    workers: int | None,
+    progress: Callable[[int, int], Any] | None,
+) -> list[dict[str, Any]]: ...
