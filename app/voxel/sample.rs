@@ -152,7 +152,7 @@ pub fn sample(mesh: &Mesh, prepared: &Prepared, request: &SampleRequest) -> Resu
         areas.push(total);
     }
     let on_surface = request.surface + request.near;
-    if on_surface > 0 && !(total > 0.0) {
+    if on_surface > 0 && total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(SampleError::NoArea);
     }
     let seed = request.seed;
