@@ -25,6 +25,10 @@ pub(super) struct QueryArgs {
     /// Sign the distances by the generalized winding number (negative inside), or leave them unsigned.
     #[arg(long, value_enum, default_value_t = Sign::Winding)]
     sign: Sign,
+    /// Also write the winding number's value at each point (`winding`; beside a mesh's holes it costs more than
+    /// the inside, which a signed query always has).
+    #[arg(long)]
+    winding: bool,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     stats_json: bool,
@@ -46,7 +50,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     let prepared = Prepared::new(&mesh).with_context(|| args.mesh.clone())?;
     let prepare_ms = ms(start);
     let start = Instant::now();
-    let answers = prepared.query(&points, args.sign)?;
+    let answers = prepared.query(&points, args.sign, args.winding)?;
     let query_ms = ms(start);
     let bytes = write_atomically(&args.output, |out| write_query_npz(&answers, out))
         .with_context(|| format!("writing {}", args.output.display()))?;

@@ -70,8 +70,34 @@ impl PyPrepared {
     }
 }
 
-/// `meshvox._native.query(mesh, points float64 (N, 3), sign)`: a dict of numpy arrays (`distance`, `winding`,
-/// `inside`, `closest`, `triangle`, `barycentric`; `winding` and `inside` None when unsigned).
+/// The points of a float64 (N, 3) array.
+fn points_of(points: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<DVec3>> {
+    let view = points.as_array();
+    if view.ncols() != 3 {
+        return Err(PyValueError::new_err(format!("points must have shape (N, 3), not {:?}", view.shape())));
+    }
+    let Some(flat) = view.as_slice() else {
+        return Err(PyValueError::new_err("points must be C-contiguous"));
+    };
+    Ok(bytemuck::cast_slice::<f64, DVec3>(flat).to_vec())
+}
+
+/// `meshvox._native.winding(mesh, points float64 (N, 3))`: the winding numbers, float32 (N,).
+#[pyfunction]
+pub(super) fn winding<'py>(
+    py: Python<'py>,
+    mesh: &Bound<'py, PyPrepared>,
+    points: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, numpy::PyArray1<f32>>> {
+    let points = points_of(&points)?;
+    let prepared = mesh.get().prepared.clone();
+    let values = process::run(py, None, |_| prepared.winding_numbers(&points))?.map_err(query_err)?;
+    Ok(values.into_pyarray(py))
+}
+
+/// `meshvox._native.query(mesh, points float64 (N, 3), sign)`: a dict of numpy arrays (`distance`, `inside`,
+/// `closest`, `triangle`, `barycentric`; `inside` None when unsigned). The winding numbers' values are
+/// [`winding`]'s, asked for when wanted.
 #[pyfunction]
 #[pyo3(signature = (mesh, points, sign))]
 pub(super) fn query<'py>(
@@ -82,28 +108,15 @@ pub(super) fn query<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let sign = Sign::from_name(sign)
         .ok_or_else(|| PyValueError::new_err(format!("sign '{sign}': use {}", Sign::choices())))?;
-    let view = points.as_array();
-    if view.ncols() != 3 {
-        return Err(PyValueError::new_err(format!("points must have shape (N, 3), not {:?}", view.shape())));
-    }
-    let Some(flat) = view.as_slice() else {
-        return Err(PyValueError::new_err("points must be C-contiguous"));
-    };
-    let points: Vec<DVec3> = bytemuck::cast_slice::<f64, DVec3>(flat).to_vec();
+    let points = points_of(&points)?;
     let prepared = mesh.get().prepared.clone();
-    let answers = process::run(py, None, |_| prepared.query(&points, sign))?.map_err(query_err)?;
+    let answers = process::run(py, None, |_| prepared.query(&points, sign, false))?.map_err(query_err)?;
     let n = points.len();
     let dict = PyDict::new(py);
     dict.set_item("distance", answers.distance.into_pyarray(py))?;
-    match (answers.winding, answers.inside) {
-        (Some(w), Some(i)) => {
-            dict.set_item("winding", w.into_pyarray(py))?;
-            dict.set_item("inside", i.into_pyarray(py))?;
-        }
-        _ => {
-            dict.set_item("winding", py.None())?;
-            dict.set_item("inside", py.None())?;
-        }
+    match answers.inside {
+        Some(inside) => dict.set_item("inside", inside.into_pyarray(py))?,
+        None => dict.set_item("inside", py.None())?,
     }
     let closest: Vec<f64> = answers.closest.iter().flat_map(|p| p.to_array()).collect();
     dict.set_item("closest", closest.into_pyarray(py).reshape([n, 3])?)?;

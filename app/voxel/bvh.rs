@@ -33,6 +33,17 @@ pub struct Bvh {
     nodes: Vec<Node>,
     order: Vec<u32>,
     triangles: Vec<[Vec3; 3]>,
+    /// Per triangle in leaf order, what [`cannot_lower`] takes besides the point: made once, not per visit.
+    prune: Vec<Prune>,
+}
+
+/// A triangle's normal, its squared length and its bounding box.
+#[derive(Clone, Copy, Debug)]
+struct Prune {
+    n: Vec3,
+    n2: f32,
+    lo: Vec3,
+    hi: Vec3,
 }
 
 impl Bvh {
@@ -76,8 +87,15 @@ impl Bvh {
             nodes[at].first = first as u32;
             nodes[at].count = 0;
         }
-        let triangles = order.iter().map(|&i| triangles[i as usize]).collect();
-        Bvh { nodes, order, triangles }
+        let triangles: Vec<[Vec3; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
+        let prune = triangles
+            .iter()
+            .map(|t| {
+                let n = (t[1] - t[0]).cross(t[2] - t[0]);
+                Prune { n, n2: dot3(n, n), lo: t[0].min(t[1]).min(t[2]), hi: t[0].max(t[1]).max(t[2]) }
+            })
+            .collect();
+        Bvh { nodes, order, triangles, prune }
     }
 
     /// The least squared distance from `p` to the triangles where one is below `bound` (`None` where none is), and
@@ -107,10 +125,9 @@ impl Bvh {
             let node = self.nodes[at as usize];
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
-                for (t, &i) in self.triangles[range.clone()].iter().zip(&self.order[range]) {
-                    let n = (t[1] - t[0]).cross(t[2] - t[0]);
-                    let bounds = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-                    if cannot_lower(p, t[0], n, dot3(n, n), bounds, best) {
+                let leaf = self.triangles[range.clone()].iter().zip(&self.prune[range.clone()]);
+                for ((t, c), &i) in leaf.zip(&self.order[range]) {
+                    if cannot_lower(p, t[0], c.n, c.n2, (c.lo, c.hi), best) {
                         continue;
                     }
                     evaluated += 1;
@@ -148,8 +165,9 @@ impl Bvh {
             }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
-                for (t, &i) in self.triangles[range.clone()].iter().zip(&self.order[range]) {
-                    if meets(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])) {
+                let leaf = self.triangles[range.clone()].iter().zip(&self.prune[range.clone()]);
+                for ((t, c), &i) in leaf.zip(&self.order[range]) {
+                    if meets(c.lo, c.hi) {
                         visit(i, *t);
                     }
                 }

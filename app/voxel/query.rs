@@ -15,7 +15,9 @@
 
 use super::bvh::Bvh;
 use super::cpu::distance::point_distance2;
-use super::cpu::solid::{ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, winding_exact, winding_number_tree};
+use super::cpu::solid::{
+    ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
+};
 use super::solid::boundary;
 use super::{Axis, GridError, GridSpec, Lattice, Resolution};
 use crate::mesh::Mesh;
@@ -87,7 +89,7 @@ pub struct Prepared {
 pub struct Answers {
     /// World distance to the nearest triangle; negative inside when signed.
     pub distance: Vec<f32>,
-    /// The generalized winding number (signed queries only), within [`WINDING_TOLERANCE`].
+    /// The generalized winding number (signed queries that ask for it), within [`WINDING_TOLERANCE`].
     pub winding: Option<Vec<f32>>,
     /// Winding number at least ½ (signed queries only).
     pub inside: Option<Vec<bool>>,
@@ -134,14 +136,15 @@ impl Prepared {
         !self.boundary.edges.is_empty()
     }
 
-    /// The answers at `points` (world space), on the library's threads.
-    pub fn query(&self, points: &[DVec3], sign: Sign) -> Result<Answers, QueryError> {
+    /// The answers at `points` (world space), on the library's threads; the winding numbers' values only where
+    /// `winding` asks for them (the inside, which a signed query has, costs far less on a mesh with holes).
+    pub fn query(&self, points: &[DVec3], sign: Sign, winding: bool) -> Result<Answers, QueryError> {
         if let Some(index) = points.iter().position(|p| !p.is_finite()) {
             return Err(QueryError::NonFinite { index, point: points[index].to_array() });
         }
         let frame: Vec<Vec3> = points.iter().map(|&p| self.to_frame(p)).collect();
         let order = morton_order(&frame, self.spec.dims);
-        let chunks: Vec<Vec<(Near, Option<f64>)>> = crate::parallel::install(|| {
+        let chunks: Vec<Vec<(Near, Option<Side>)>> = crate::parallel::install(|| {
             order
                 .par_chunks(CHUNK)
                 .map(|chunk| {
@@ -154,34 +157,58 @@ impl Prepared {
                             let q = frame[i as usize];
                             let near = self.nearest(points[i as usize], q, last);
                             last = Some(near.triangle);
-                            (near, (sign == Sign::Winding).then(|| self.winding(q)))
+                            let side = match (sign, winding) {
+                                (Sign::Unsigned, _) => None,
+                                (Sign::Winding, true) => Some(Side::Value(self.winding(q))),
+                                (Sign::Winding, false) => Some(Side::Inside(self.inside(q))),
+                            };
+                            (near, side)
                         })
                         .collect()
                 })
                 .collect()
         });
-        let mut answers: Vec<Option<(Near, Option<f64>)>> = (0..points.len()).map(|_| None).collect();
+        let mut answers: Vec<Option<(Near, Option<Side>)>> = (0..points.len()).map(|_| None).collect();
         for (&i, answer) in order.iter().zip(chunks.into_iter().flatten()) {
             answers[i as usize] = Some(answer);
         }
+        let signed = sign == Sign::Winding;
         let mut out = Answers {
-            winding: (sign == Sign::Winding).then(|| Vec::with_capacity(points.len())),
-            inside: (sign == Sign::Winding).then(|| Vec::with_capacity(points.len())),
+            winding: (signed && winding).then(|| Vec::with_capacity(points.len())),
+            inside: signed.then(|| Vec::with_capacity(points.len())),
             ..Answers::default()
         };
-        for (near, w) in answers.into_iter().flatten() {
-            let inside = w.is_some_and(|w| w >= 0.5);
-            out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
-            if let (Some(ws), Some(is), Some(w)) = (out.winding.as_mut(), out.inside.as_mut(), w) {
-                ws.push(w as f32);
-                is.push(inside);
+        for (near, side) in answers.into_iter().flatten() {
+            let inside = match side {
+                Some(Side::Value(w)) => {
+                    if let Some(values) = out.winding.as_mut() {
+                        values.push(w as f32);
+                    }
+                    w >= 0.5
+                }
+                Some(Side::Inside(inside)) => inside,
+                None => false,
+            };
+            if let Some(sides) = out.inside.as_mut() {
+                sides.push(inside);
             }
+            out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
             out.evaluations += u64::from(near.evaluations);
             out.closest.push(near.closest);
             out.triangle.push(near.triangle);
             out.barycentric.push(near.barycentric.as_vec3().to_array());
         }
         Ok(out)
+    }
+
+    /// The winding numbers at `points` alone (world space), within [`WINDING_TOLERANCE`], on the library's threads.
+    pub fn winding_numbers(&self, points: &[DVec3]) -> Result<Vec<f32>, QueryError> {
+        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
+            return Err(QueryError::NonFinite { index, point: points[index].to_array() });
+        }
+        Ok(crate::parallel::install(|| {
+            points.par_iter().with_min_len(256).map(|&p| self.winding(self.to_frame(p)) as f32).collect()
+        }))
     }
 
     /// `p` in the frame, rounded to f32: the point the crossings and the winding number are exact for.
@@ -203,8 +230,23 @@ impl Prepared {
         Near { distance: (p - closest).length(), closest, triangle, barycentric, evaluations }
     }
 
+    /// Whether frame point `q` is inside (winding number at least ½), exactly wherever the winding number is more
+    /// than about 1e-6 from ½: the crossing count alone on a closed mesh; beside holes the boundary's term from
+    /// its tree with the solid fill's budget for far pieces ([`point_side`]), or in f64 where its bounds leave the
+    /// side open. Cheaper than the value ([`Prepared::winding`]), which needs nearly every boundary edge summed.
+    fn inside(&self, q: Vec3) -> bool {
+        let count = self.crossings_before(q);
+        if self.boundary.edges.is_empty() {
+            return count >= 1;
+        }
+        match point_side(count, q, &self.boundary) {
+            2 => winding_exact(count, q.as_dvec3(), &self.boundary.edges) >= 0.5,
+            side => side == 1,
+        }
+    }
+
     /// The winding number at frame point `q`: within [`WINDING_TOLERANCE`], and on the exact side of ½ wherever
-    /// it is more than about 1e-6 from it (f64's rounding of the sum below that).
+    /// it is more than about 1e-6 from it (f64's rounding of the sum below that), as [`Prepared::inside`] says.
     fn winding(&self, q: Vec3) -> f64 {
         let count = self.crossings_before(q);
         if self.boundary.edges.is_empty() {
@@ -225,6 +267,12 @@ impl Prepared {
         self.bvh.along_ray(q, |_, t| count -= crossing(t, q));
         count
     }
+}
+
+/// What a signed query found at a point: the winding number's value, or only its side of ½.
+enum Side {
+    Value(f64),
+    Inside(bool),
 }
 
 /// The nearest point of a triangle.

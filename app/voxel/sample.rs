@@ -196,7 +196,7 @@ pub fn sample(mesh: &Mesh, prepared: &Prepared, request: &SampleRequest) -> Resu
             .collect()
     });
     let points: Vec<DVec3> = made.iter().map(|m| m.0).collect();
-    let answers = prepared.query(&points, Sign::Winding)?;
+    let answers = prepared.query(&points, Sign::Winding, false)?;
     let occupancy = answers.inside.unwrap_or_default();
     Ok(Samples {
         points: points.iter().map(|&p| ((p - offset) * scale).as_vec3().to_array()).collect(),

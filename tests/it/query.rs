@@ -45,8 +45,13 @@ fn points_for(mesh: &Mesh, rng: &mut Rng, uniform: usize, near: usize) -> Vec<DV
 /// number is more than 1e-6 from ½ (off the surface). Returns the largest distance error.
 fn assert_answers(mesh: &Mesh, points: &[DVec3], what: &str) -> f64 {
     let prepared = Prepared::new(mesh).expect("prepare");
-    let answers = prepared.query(points, Sign::Winding).expect("query");
-    let unsigned = prepared.query(points, Sign::Unsigned).expect("query");
+    let answers = prepared.query(points, Sign::Winding, true).expect("query");
+    let unsigned = prepared.query(points, Sign::Unsigned, false).expect("query");
+    let sides = prepared.query(points, Sign::Winding, false).expect("query");
+    assert_eq!(sides.inside, answers.inside, "{what}: the inside alone is the value's side");
+    assert!(sides.winding.is_none(), "{what}: no values unless asked for");
+    let values = prepared.winding_numbers(points).expect("winding");
+    assert_eq!(Some(&values), answers.winding.as_ref(), "{what}: the values alone are the query's");
     let world: Vec<[DVec3; 3]> = (0..mesh.triangles.len()).map(|i| mesh.world_triangle(i)).collect();
     let scale = mesh.bounds().expect("bounds").extent().max_element().max(1e-30);
     let tol = 2e-7 * scale;
@@ -169,7 +174,7 @@ fn a_fields_values_equal_the_queries_at_its_voxel_centres() {
             }
         }
         let points: Vec<DVec3> = centres.iter().map(|&(_, p)| p).collect();
-        let answers = Prepared::new(&mesh).expect("prepare").query(&points, Sign::Winding).expect("query");
+        let answers = Prepared::new(&mesh).expect("prepare").query(&points, Sign::Winding, false).expect("query");
         let h = spec.voxel_size;
         for (i, &(v, _)) in centres.iter().enumerate() {
             let (a, b) = (f64::from(field.value(v)), f64::from(answers.distance[i]));

@@ -193,7 +193,7 @@ def test_the_cli_writes_the_packages_answers(meshes, cli, tmp_path):
     vertices, _ = meshvox.load(mesh)
     points = training_points(vertices, 800, 3)
     np.save(tmp_path / "p.npy", points.astype(np.float32))
-    run_cli(cli, "query", mesh, str(tmp_path / "p.npy"), "-o", str(tmp_path / "q.npz"))
+    run_cli(cli, "query", mesh, str(tmp_path / "p.npy"), "-o", str(tmp_path / "q.npz"), "--winding")
     got = np.load(tmp_path / "q.npz")
     q = meshvox.query(mesh, points.astype(np.float32))
     for name in ("distance", "winding", "inside", "closest", "triangle", "barycentric"):

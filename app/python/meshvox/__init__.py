@@ -350,23 +350,33 @@ class Query:
     """What :func:`query` answers, one entry per point.
 
     ``distance`` float32 (N,): world distance to the nearest triangle, negative inside with ``sign="winding"``;
-    ``winding`` float32 (N,): the generalized winding number (None unsigned); ``inside`` bool (N,): winding number
-    at least 1/2 (None unsigned); ``closest`` float64 (N, 3): the nearest point on the mesh; ``triangle`` int64
-    (N,): its triangle, an index into :func:`load`'s faces; ``barycentric`` float32 (N, 3): its weights in that
-    triangle.
+    ``inside`` bool (N,): winding number at least 1/2 (None unsigned); ``winding`` float32 (N,): the generalized
+    winding number, within 1e-4 (None unsigned; computed when first read: beside a mesh's holes its value costs
+    more than the inside); ``closest`` float64 (N, 3): the nearest point on the mesh; ``triangle`` int64 (N,): its
+    triangle, an index into :func:`load`'s faces; ``barycentric`` float32 (N, 3): its weights in that triangle.
     """
 
     distance: np.ndarray
-    winding: np.ndarray | None
     inside: np.ndarray | None
     closest: np.ndarray
     triangle: np.ndarray
     barycentric: np.ndarray
 
-    def __init__(self, out: dict[str, Any]) -> None:
-        for name in ("distance", "winding", "inside", "closest", "triangle", "barycentric"):
+    def __init__(self, out: dict[str, Any], mesh: Mesh, points: np.ndarray) -> None:
+        for name in ("distance", "inside", "closest", "triangle", "barycentric"):
             setattr(self, name, out[name])
         self.evaluations = int(out["evaluations"])
+        self._mesh, self._points = mesh, points
+        self._winding: np.ndarray | None = None
+
+    @property
+    def winding(self) -> np.ndarray | None:
+        """The generalized winding number at each point (float32, within 1e-4), computed when first read."""
+        if self.inside is None:
+            return None
+        if self._winding is None:
+            self._winding = _native.winding(self._mesh._native, self._points)
+        return self._winding
 
     def __len__(self) -> int:
         return len(self.distance)
@@ -395,7 +405,8 @@ def query(mesh: Any, points: Any, *, sign: str = "winding", backend: str = "auto
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must have shape (N, 3), not {p.shape}")
-    return Query(_native.query(prepared._native, np.ascontiguousarray(p), sign))
+    p = np.ascontiguousarray(p)
+    return Query(_native.query(prepared._native, p, sign), prepared, p)
 
 
 class Samples:
