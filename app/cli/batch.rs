@@ -6,7 +6,7 @@ use super::{ColourArgs, Engine, LimitArgs, Request, VoxelizeArgs, check_merge, m
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
 use meshvox::voxel::formats::VoxelFormat;
-use meshvox::voxel::{Axis, Mode};
+use meshvox::voxel::{Axis, Mode, Resolution};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -15,7 +15,7 @@ use std::time::Instant;
 const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb", "stl", "ply"];
 
 #[derive(clap::Args)]
-#[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
+#[command(group(clap::ArgGroup::new("size").args(["resolution", "voxel_size"])))]
 pub struct BatchArgs {
     /// Mesh files, directories (searched recursively for .obj, .gltf, .glb, .stl and .ply) or glob patterns.
     #[arg(value_name = "INPUTS", required = true)]
@@ -65,6 +65,12 @@ pub struct BatchArgs {
     grid: super::GridArgs,
     #[command(flatten)]
     colour: ColourArgs,
+    /// Write training samples instead of grids: one .npz per mesh, as `meshvox sample` makes it from --uniform,
+    /// --surface, --near, --sigma, --padding, --normalize and --seed.
+    #[arg(long)]
+    sample: bool,
+    #[command(flatten)]
+    samples: super::query::SampleSpec,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -205,10 +211,19 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
-    let resolution = super::resolution(args.resolution, args.voxel_size)?;
+    // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
+    let resolution = match args.sample {
+        true => Resolution::Count(1),
+        false => super::resolution(args.resolution, args.voxel_size)?,
+    };
     let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
     let request = Request { format: Some(format), grid: args.grid.grid, ..request };
-    let outputs = plan_outputs(args, &items, format)?;
+    let sampling = match args.sample {
+        true => Some(args.samples.request()?),
+        false => None,
+    };
+    let extension = if sampling.is_some() { "npz" } else { format.extension() };
+    let outputs = plan_outputs(args, &items, extension)?;
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
     let mut manifest = match &args.manifest {
         Some(path) => Some(std::io::LineWriter::new(
@@ -216,16 +231,17 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         )),
         None => None,
     };
-    let engine = open_engine(args.backend)?;
+    // Samples are made on the CPU's threads: no device to open for them.
+    let engine = open_engine(if sampling.is_some() { Backend::Cpu } else { args.backend })?;
     let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);
     let total = items.len();
-    let mut tally = Tally::default();
+    let mut tally = Tally { work: if sampling.is_some() { "sample" } else { "voxelize" }, ..Tally::default() };
     let bar = files_bar(total as u64);
     let mut last_line = Instant::now();
     let loop_started = Instant::now();
     // Every worker takes the next input and parses, voxelizes and writes it (see `engine::work_queue`); each
     // holds one mesh and one grid, which bounds memory however long the list is.
-    let work = Work { args, items: &items, outputs: &outputs, request, engine: &engine };
+    let work = Work { args, items: &items, outputs: &outputs, request, sampling, engine: &engine };
     meshvox::engine::work_queue(
         total,
         jobs,
@@ -260,9 +276,8 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
 
 /// Each input's output path; two inputs mapping onto one output would overwrite each other, so that is refused
 /// before any work.
-fn plan_outputs(args: &BatchArgs, items: &[Item], format: VoxelFormat) -> Result<Vec<PathBuf>> {
-    let outputs: Vec<PathBuf> =
-        items.iter().map(|i| args.output.join(&i.relative).with_extension(format.extension())).collect();
+fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec<PathBuf>> {
+    let outputs: Vec<PathBuf> = items.iter().map(|i| args.output.join(&i.relative).with_extension(extension)).collect();
     let mut order: Vec<usize> = (0..items.len()).collect();
     order.sort_by(|&a, &b| outputs[a].cmp(&outputs[b]));
     if let Some(w) = order.windows(2).find(|w| outputs[w[0]] == outputs[w[1]]) {
@@ -283,6 +298,8 @@ struct Work<'a> {
     outputs: &'a [PathBuf],
     /// Every input's request (the output format's included), made once for the run.
     request: Request<'static>,
+    /// With `--sample`, what to sample instead.
+    sampling: Option<meshvox::voxel::sample::SampleRequest>,
     engine: &'a Engine,
 }
 
@@ -293,9 +310,18 @@ impl Work<'_> {
         match (&item.refused, self.args.skip_existing && output.exists()) {
             (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
             (None, true) => Outcome::Skipped,
-            (None, false) => match voxelize_one(&self.voxelize_args(item, output), &self.request, self.engine) {
-                Ok(report) => Outcome::Done(Box::new(report)),
-                Err(e) => Outcome::Failed(e),
+            (None, false) => match &self.sampling {
+                Some(sampling) => {
+                    let mesh = item.source.display().to_string();
+                    match super::query::sample_file(&mesh, &self.args.limits, sampling, output) {
+                        Ok(sampled) => Outcome::Sampled(Box::new(sampled)),
+                        Err(e) => Outcome::Failed(e),
+                    }
+                }
+                None => match voxelize_one(&self.voxelize_args(item, output), &self.request, self.engine) {
+                    Ok(report) => Outcome::Done(Box::new(report)),
+                    Err(e) => Outcome::Failed(e),
+                },
             },
         }
     }
@@ -330,6 +356,8 @@ struct Tally {
     /// Milliseconds summed over the done files per stage (load, voxelize, colour, write: together what a worker
     /// spends on a file).
     stage_ms: [f64; 4],
+    /// What the second stage does: "voxelize", or "sample" with `--sample`.
+    work: &'static str,
 }
 
 impl Tally {
@@ -351,6 +379,17 @@ impl Tally {
                     *stage += ms;
                 }
                 let mut stats = serde_json::to_value(&report).context("the report")?;
+                stats["status"] = "done".into();
+                stats["error"] = serde_json::Value::Null;
+                stats
+            }
+            Outcome::Sampled(sampled) => {
+                self.done += 1;
+                let [load, sample, write] = sampled.stage_ms;
+                for (stage, ms) in self.stage_ms.iter_mut().zip([load, sample, 0.0, write]) {
+                    *stage += ms;
+                }
+                let mut stats = sampled.stats;
                 stats["status"] = "done".into();
                 stats["error"] = serde_json::Value::Null;
                 stats
@@ -387,9 +426,10 @@ impl Tally {
         let idle = (capacity - self.stage_ms.iter().sum::<f64>()).max(0.0);
         let per_file = |ms: f64| ms / self.done as f64;
         let mut line = format!(
-            "time of {jobs} workers: parse {:.0}% ({:.2} ms/file), voxelize {:.0}% ({:.2} ms/file)",
+            "time of {jobs} workers: parse {:.0}% ({:.2} ms/file), {} {:.0}% ({:.2} ms/file)",
             share(load),
             per_file(load),
+            self.work,
             share(voxelize),
             per_file(voxelize)
         );
@@ -421,6 +461,8 @@ enum Outcome {
     Skipped,
     /// Its report (the `--stats-json` fields).
     Done(Box<meshvox::Report>),
+    /// With `--sample`: what `meshvox sample --stats-json` says of it.
+    Sampled(Box<super::query::Sampled>),
     Failed(anyhow::Error),
 }
 

@@ -8,7 +8,7 @@ use meshvox::voxel::formats::atomic::write_atomically;
 use meshvox::voxel::formats::points::{read_points_npy, write_query_npz, write_samples_npz};
 use meshvox::voxel::query::{Prepared, Sign};
 use meshvox::voxel::sample::{Normalize, SampleRequest, sample as make_samples};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -85,14 +85,9 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     Ok(())
 }
 
-#[derive(clap::Args)]
-pub(super) struct SampleArgs {
-    /// Mesh file (.obj, .gltf, .glb, .stl, .ply) or builtin:NAME.
-    #[arg(value_name = "MESH")]
-    mesh: String,
-    /// Output .npz: points, sdf, occupancy, triangle, normal, kind, scale, offset.
-    #[arg(short = 'o', long = "output", value_name = "OUT")]
-    output: PathBuf,
+/// What to sample, shared by `meshvox sample` and `meshvox batch --sample`.
+#[derive(clap::Args, Clone, Debug)]
+pub(super) struct SampleSpec {
     /// Points uniform in the cube around the mesh (side: 1 + padding times its longest side).
     #[arg(long, value_name = "N", default_value_t = 0)]
     uniform: usize,
@@ -115,17 +110,15 @@ pub(super) struct SampleArgs {
     /// The same seed gives the same samples on any machine and thread count.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Print a JSON object with the statistics as the last line of stdout.
-    #[arg(long)]
-    stats_json: bool,
-    #[command(flatten)]
-    limits: LimitArgs,
 }
 
-impl SampleArgs {
-    /// The library's request for these arguments.
-    pub(super) fn request(&self) -> SampleRequest {
-        SampleRequest {
+impl SampleSpec {
+    /// The library's request for these arguments, refused when it asks for nothing.
+    pub(super) fn request(&self) -> Result<SampleRequest> {
+        if self.uniform + self.surface + self.near == 0 {
+            bail!("nothing to sample: give --uniform, --surface and/or --near a count");
+        }
+        Ok(SampleRequest {
             uniform: self.uniform,
             surface: self.surface,
             near: self.near,
@@ -133,47 +126,84 @@ impl SampleArgs {
             padding: self.padding,
             normalize: self.normalize,
             seed: self.seed,
-        }
+        })
     }
+}
+
+#[derive(clap::Args)]
+pub(super) struct SampleArgs {
+    /// Mesh file (.obj, .gltf, .glb, .stl, .ply) or builtin:NAME.
+    #[arg(value_name = "MESH")]
+    mesh: String,
+    /// Output .npz: points, sdf, occupancy, triangle, normal, kind, scale, offset.
+    #[arg(short = 'o', long = "output", value_name = "OUT")]
+    output: PathBuf,
+    #[command(flatten)]
+    spec: SampleSpec,
+    /// Print a JSON object with the statistics as the last line of stdout.
+    #[arg(long)]
+    stats_json: bool,
+    #[command(flatten)]
+    limits: LimitArgs,
+}
+
+/// What sampling one mesh took and made: the `--stats-json` object, and the load, sample and write times.
+pub(super) struct Sampled {
+    pub(super) stats: serde_json::Value,
+    pub(super) stage_ms: [f64; 3],
+}
+
+/// Samples `mesh` as `request` says and writes `output` (an .npz; its folder made first).
+pub(super) fn sample_file(mesh: &str, limits: &LimitArgs, request: &SampleRequest, output: &Path) -> Result<Sampled> {
+    let start = Instant::now();
+    let loaded = limits.load(mesh)?;
+    let load_ms = ms(start);
+    let start = Instant::now();
+    let prepared = Prepared::new(&loaded).with_context(|| mesh.to_string())?;
+    let samples = make_samples(&loaded, &prepared, request).with_context(|| mesh.to_string())?;
+    let sample_ms = ms(start);
+    if let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
+    }
+    let start = Instant::now();
+    let bytes = write_atomically(output, |out| write_samples_npz(&samples, out))
+        .with_context(|| format!("writing {}", output.display()))?;
+    let write_ms = ms(start);
+    let stats = serde_json::json!({
+        "mesh": mesh,
+        "triangles": prepared.triangle_count(),
+        "samples": samples.points.len(),
+        "inside": samples.occupancy.iter().filter(|&&b| b).count(),
+        "open": prepared.is_open(),
+        "normalize": request.normalize.name(),
+        "scale": samples.scale,
+        "offset": samples.offset.to_array(),
+        "seed": request.seed,
+        "load_ms": load_ms,
+        "sample_ms": sample_ms,
+        "write_ms": write_ms,
+        "output": output,
+        "bytes": bytes,
+    });
+    Ok(Sampled { stats, stage_ms: [load_ms, sample_ms, write_ms] })
 }
 
 pub(super) fn sample(args: &SampleArgs) -> Result<()> {
     if args.output.extension().and_then(|e| e.to_str()) != Some("npz") {
         bail!("the output of sample is an .npz, not '{}'", args.output.display());
     }
-    if args.uniform + args.surface + args.near == 0 {
-        bail!("nothing to sample: give --uniform, --surface and/or --near a count");
-    }
-    let mesh = args.limits.load(&args.mesh)?;
-    let start = Instant::now();
-    let prepared = Prepared::new(&mesh).with_context(|| args.mesh.clone())?;
-    let samples = make_samples(&mesh, &prepared, &args.request()).with_context(|| args.mesh.clone())?;
-    let sample_ms = ms(start);
-    let bytes = write_atomically(&args.output, |out| write_samples_npz(&samples, out))
-        .with_context(|| format!("writing {}", args.output.display()))?;
-    let inside = samples.occupancy.iter().filter(|&&b| b).count();
+    let request = args.spec.request()?;
+    let Sampled { stats, .. } = sample_file(&args.mesh, &args.limits, &request, &args.output)?;
     eprintln!(
-        "{}: {} samples ({} inside) in {sample_ms:.1} ms; wrote {} ({bytes} bytes)",
+        "{}: {} samples ({} inside) in {} ms; wrote {} ({} bytes)",
         args.mesh,
-        samples.points.len(),
-        inside,
+        stats["samples"],
+        stats["inside"],
+        stats["sample_ms"],
         args.output.display(),
+        stats["bytes"],
     );
     if args.stats_json {
-        let stats = serde_json::json!({
-            "mesh": args.mesh,
-            "triangles": prepared.triangle_count(),
-            "samples": samples.points.len(),
-            "inside": inside,
-            "open": prepared.is_open(),
-            "normalize": args.normalize.name(),
-            "scale": samples.scale,
-            "offset": samples.offset.to_array(),
-            "seed": args.seed,
-            "sample_ms": sample_ms,
-            "output": args.output,
-            "bytes": bytes,
-        });
         println!("{stats}");
     }
     Ok(())

@@ -204,3 +204,17 @@ def test_the_cli_writes_the_packages_answers(meshes, cli, tmp_path):
     for name in ("points", "sdf", "occupancy", "triangle", "normal", "kind"):
         assert np.array_equal(got[name], getattr(s, name)), name
     assert got["scale"] == s.scale and np.array_equal(got["offset"], s.offset)
+
+
+def test_batch_sample_writes_what_sample_writes(meshes, cli, tmp_path):
+    mesh = str(meshes / "suzanne.obj")
+    args = ("--uniform", "200", "--surface", "100", "--near", "300", "--sigma", "0.01,0.1", "--seed", "2")
+    run_cli(cli, "sample", mesh, "-o", str(tmp_path / "one.npz"), *args)
+    manifest = tmp_path / "m.jsonl"
+    run_cli(cli, "batch", mesh, "-o", str(tmp_path / "out"), "--sample", *args, "--manifest", str(manifest))
+    one, batched = np.load(tmp_path / "one.npz"), np.load(tmp_path / "out" / "suzanne.npz")
+    assert sorted(one.files) == sorted(batched.files)
+    for name in one.files:
+        assert np.array_equal(one[name], batched[name]), name
+    line = __import__("json").loads(manifest.read_text().splitlines()[0])
+    assert line["status"] == "done" and line["samples"] == 600
