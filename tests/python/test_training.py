@@ -3,6 +3,7 @@ float64 distances and winding numbers over every triangle) at every point asked,
 counts, determinism, distributions and frames, `sample_many`, and the CLI's `query` and `sample` files equal to
 the package's answers."""
 
+import json
 import os
 import subprocess
 import sys
@@ -216,5 +217,5 @@ def test_batch_sample_writes_what_sample_writes(meshes, cli, tmp_path):
     assert sorted(one.files) == sorted(batched.files)
     for name in one.files:
         assert np.array_equal(one[name], batched[name]), name
-    line = __import__("json").loads(manifest.read_text().splitlines()[0])
+    line = json.loads(manifest.read_text().splitlines()[0])
     assert line["status"] == "done" and line["samples"] == 600
