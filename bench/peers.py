@@ -2,7 +2,8 @@
 """meshvox against peer voxelizers (Open3D, trimesh, CudaVox) on the same grids: voxel counts, who is right
 where they differ, and meshvox's speed-up over each peer.
 
-Usage (from the repository root, with the system python; it sets up its own virtual environments):
+Usage (from the repository root, with the system python; it sets up its own virtual environments; `--query` runs
+bench/peers_query.py instead, the query table against Open3D, pysdf, libigl and mesh_to_sdf):
 
     python3 bench/peers.py [--resolutions 128,256,512] [--runs 3] [--meshes A.obj,B.obj] \\
         [--binary target/release/meshvox] [--markdown bench/RESULTS.md] [--plot bench/peers.png]
@@ -800,6 +801,13 @@ def main():
     if len(sys.argv) >= 4 and sys.argv[1] == "--worker":
         worker(sys.argv[2], sys.argv[3])
         return
+    if "--setup-only" in sys.argv[1:]:
+        setup_envs(False)
+        return
+    if "--query" in sys.argv[1:]:
+        # The query table (bench/peers_query.py): its own options after --query.
+        argv = [a for a in sys.argv[1:] if a != "--query"]
+        os.execv(sys.executable, [sys.executable, str(ROOT / "bench" / "peers_query.py"), *argv])
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--resolutions", default="128,256,512", help="comma-separated N (voxels along the longest axis)")

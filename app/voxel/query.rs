@@ -139,9 +139,7 @@ impl Prepared {
     /// The answers at `points` (world space), on the library's threads; the winding numbers' values only where
     /// `winding` asks for them (the inside, which a signed query has, costs far less on a mesh with holes).
     pub fn query(&self, points: &[DVec3], sign: Sign, winding: bool) -> Result<Answers, QueryError> {
-        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
-            return Err(QueryError::NonFinite { index, point: points[index].to_array() });
-        }
+        all_finite(points)?;
         let frame: Vec<Vec3> = points.iter().map(|&p| self.to_frame(p)).collect();
         let order = morton_order(&frame, self.spec.dims);
         let chunks: Vec<Vec<(Near, Option<Side>)>> = crate::parallel::install(|| {
@@ -203,9 +201,7 @@ impl Prepared {
 
     /// The winding numbers at `points` alone (world space), within [`WINDING_TOLERANCE`], on the library's threads.
     pub fn winding_numbers(&self, points: &[DVec3]) -> Result<Vec<f32>, QueryError> {
-        if let Some(index) = points.iter().position(|p| !p.is_finite()) {
-            return Err(QueryError::NonFinite { index, point: points[index].to_array() });
-        }
+        all_finite(points)?;
         Ok(crate::parallel::install(|| {
             points.par_iter().with_min_len(256).map(|&p| self.winding(self.to_frame(p)) as f32).collect()
         }))
@@ -266,6 +262,14 @@ impl Prepared {
         let mut count = 0;
         self.bvh.along_ray(q, |_, t| count -= crossing(t, q));
         count
+    }
+}
+
+/// Refuses the first point with a NaN or infinite coordinate.
+fn all_finite(points: &[DVec3]) -> Result<(), QueryError> {
+    match points.iter().position(|p| !p.is_finite()) {
+        Some(index) => Err(QueryError::NonFinite { index, point: points[index].to_array() }),
+        None => Ok(()),
     }
 }
 

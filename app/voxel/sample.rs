@@ -3,7 +3,7 @@
 //! around it by Gaussians of given widths, each answered by [`Prepared::query`] (signed distance, occupancy by the
 //! winding number), in a normalised frame the caller can map back.
 //!
-//! Every random number is a hash of `(seed, stream, index)` ([`Draw`]), not a generator's next value, so a point
+//! Every random number is a hash of `(seed, stream, index)` (`Draw`), not a generator's next value, so a point
 //! does not depend on how the work is split: the same seed gives the same samples on any thread count, any
 //! backend and any version of a random-number crate (why it is written here: ten lines of SplitMix64, where a
 //! crate's distributions may change between releases).
