@@ -288,24 +288,14 @@ fn voxelize_many<'py>(
     // The CPU's default unless the GPU is asked for by name (`auto` prices small jobs out to the CPU).
     let workers = workers.unwrap_or_else(|| crate::engine::default_workers(backend == "gpu")).clamp(1, total.max(1));
     let results = process::run(py, progress, |control| {
-        let mut slots: Vec<Option<Result<Voxelized, Failure>>> = (0..total).map(|_| None).collect();
         // Each mesh's own progress is not reported: the count of finished meshes is.
         let quiet = |_: usize, _: usize| {};
         // On the queue's own threads, not rayon workers: a voxelization waits for the GPU's turn.
-        let job = |i: usize| {
+        control.each(total, workers, |i| {
             let taken = inputs[i].lock().unwrap_or_else(|e| e.into_inner()).take();
             let input = taken.filter(|_| !control.cancel.load(Ordering::Relaxed))?;
             Some(voxelize_one(input, &options, &quiet, &control.cancel))
-        };
-        let mut done = 0;
-        let finished = crate::engine::work_queue(total, workers, job, |i, result| {
-            slots[i] = result;
-            done += 1;
-            control.progress(done, total);
-            Ok::<(), std::convert::Infallible>(())
-        });
-        let Ok(()) = finished;
-        slots
+        })
     })?;
     let mut out = Vec::with_capacity(total);
     for result in results {

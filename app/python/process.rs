@@ -79,6 +79,26 @@ impl Control {
         self.total.store(total, Ordering::Relaxed);
         self.done.store(done, Ordering::Relaxed);
     }
+
+    /// `job(i)` for `i` in `0..total` on `workers` threads of the library's work queue, each result in its slot
+    /// (`None` where the job gave none: cancelled), the progress counting finished jobs.
+    pub fn each<T: Send>(
+        &self,
+        total: usize,
+        workers: usize,
+        job: impl Fn(usize) -> Option<T> + Sync,
+    ) -> Vec<Option<T>> {
+        let mut slots: Vec<Option<T>> = (0..total).map(|_| None).collect();
+        let mut done = 0;
+        let finished = crate::engine::work_queue(total, workers, job, |i, result| {
+            slots[i] = result;
+            done += 1;
+            self.progress(done, total);
+            Ok::<(), std::convert::Infallible>(())
+        });
+        let Ok(()) = finished;
+        slots
+    }
 }
 
 /// Runs `work` on a thread of its own while the calling thread releases the GIL and every 50 ms calls

@@ -227,8 +227,7 @@ pub(super) fn sample_many<'py>(
     // Each mesh's points already use every core; a few meshes at once keep them busy between meshes.
     let workers = workers.unwrap_or(2).clamp(1, total.max(1));
     let results = process::run(py, progress, |control| {
-        let mut slots: Vec<Option<Result<Samples, Failure>>> = (0..total).map(|_| None).collect();
-        let job = |i: usize| {
+        control.each(total, workers, |i| {
             let item = items[i].lock().unwrap_or_else(|e| e.into_inner()).take();
             let item = item.filter(|_| !control.cancel.load(std::sync::atomic::Ordering::Relaxed))?;
             let ready = match item {
@@ -242,16 +241,7 @@ pub(super) fn sample_many<'py>(
                 },
             };
             Some(samples_of(&ready, &request))
-        };
-        let mut done = 0;
-        let finished = crate::engine::work_queue(total, workers, job, |i, result| {
-            slots[i] = result;
-            done += 1;
-            control.progress(done, total);
-            Ok::<(), std::convert::Infallible>(())
-        });
-        let Ok(()) = finished;
-        slots
+        })
     })?;
     let mut out = Vec::with_capacity(total);
     for result in results {
