@@ -219,3 +219,12 @@ def test_batch_sample_writes_what_sample_writes(meshes, cli, tmp_path):
         assert np.array_equal(one[name], batched[name]), name
     line = json.loads(manifest.read_text().splitlines()[0])
     assert line["status"] == "done" and line["samples"] == 600
+
+
+def test_a_prepared_mesh_is_taken_wherever_a_mesh_is(meshes):
+    path = meshes / "teapot.obj"
+    teapot = meshvox.Mesh(path)
+    assert meshvox.voxelize(teapot, 40, mode="solid", backend="cpu") == meshvox.voxelize(path, 40, mode="solid", backend="cpu")
+    many = meshvox.voxelize_many([teapot, path], 24, backend="cpu")
+    assert many[0] == many[1]
+    assert meshvox.Mesh(teapot).triangles == teapot.triangles and "teapot" in repr(teapot)
