@@ -6,7 +6,7 @@ use super::{ColourArgs, Engine, LimitArgs, Request, VoxelizeArgs, check_merge, m
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
 use meshvox::voxel::formats::VoxelFormat;
-use meshvox::voxel::{Axis, Mode, Resolution};
+use meshvox::voxel::{Axis, Mode};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -212,18 +212,16 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
-    let resolution = match args.sample {
-        true => Resolution::Count(1),
-        false => super::resolution(args.resolution, args.voxel_size)?,
+    let task = match args.sample {
+        true => Task::Sample(args.samples.request()?),
+        false => {
+            let resolution = super::resolution(args.resolution, args.voxel_size)?;
+            let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
+            Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request })
+        }
     };
-    let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
-    let request = Request { format: Some(format), grid: args.grid.grid, ..request };
-    let sampling = match args.sample {
-        true => Some(args.samples.request()?),
-        false => None,
-    };
-    let extension = if sampling.is_some() { "npz" } else { format.extension() };
-    let outputs = plan_outputs(args, &items, extension)?;
+    let sampling = matches!(task, Task::Sample(_));
+    let outputs = plan_outputs(args, &items, if sampling { "npz" } else { format.extension() })?;
     // Line-buffered, so that the lines of finished files are on disk even if the run is interrupted.
     let mut manifest = match &args.manifest {
         Some(path) => Some(std::io::LineWriter::new(
@@ -232,16 +230,16 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         None => None,
     };
     // Samples are made on the CPU's threads: no device to open for them.
-    let engine = open_engine(if sampling.is_some() { Backend::Cpu } else { args.backend })?;
+    let engine = open_engine(if sampling { Backend::Cpu } else { args.backend })?;
     let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);
     let total = items.len();
-    let mut tally = Tally { work: if sampling.is_some() { "sample" } else { "voxelize" }, ..Tally::default() };
+    let mut tally = Tally { work: if sampling { "sample" } else { "voxelize" }, ..Tally::default() };
     let bar = files_bar(total as u64);
     let mut last_line = Instant::now();
     let loop_started = Instant::now();
     // Every worker takes the next input and parses, voxelizes and writes it (see `engine::work_queue`); each
     // holds one mesh and one grid, which bounds memory however long the list is.
-    let work = Work { args, items: &items, outputs: &outputs, request, sampling, engine: &engine };
+    let work = Work { args, items: &items, outputs: &outputs, task, engine: &engine };
     meshvox::engine::work_queue(
         total,
         jobs,
@@ -291,15 +289,19 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec
     Ok(outputs)
 }
 
+/// What a batch makes of each input: a grid (the request, the output format's included) or training samples.
+enum Task {
+    Voxelize(Request<'static>),
+    Sample(meshvox::voxel::sample::SampleRequest),
+}
+
 /// What every worker shares: the inputs, their outputs and the engine.
 struct Work<'a> {
     args: &'a BatchArgs,
     items: &'a [Item],
     outputs: &'a [PathBuf],
-    /// Every input's request (the output format's included), made once for the run.
-    request: Request<'static>,
-    /// With `--sample`, what to sample instead.
-    sampling: Option<meshvox::voxel::sample::SampleRequest>,
+    /// What every input gets, made once for the run.
+    task: Task,
     engine: &'a Engine,
 }
 
@@ -310,18 +312,20 @@ impl Work<'_> {
         match (&item.refused, self.args.skip_existing && output.exists()) {
             (Some(why), _) => Outcome::Failed(anyhow!("{why}")),
             (None, true) => Outcome::Skipped,
-            (None, false) => match &self.sampling {
-                Some(sampling) => {
+            (None, false) => match &self.task {
+                Task::Sample(sampling) => {
                     let mesh = item.source.display().to_string();
                     match super::query::sample_file(&mesh, &self.args.limits, sampling, output) {
                         Ok(sampled) => Outcome::Sampled(Box::new(sampled)),
                         Err(e) => Outcome::Failed(e),
                     }
                 }
-                None => match voxelize_one(&self.voxelize_args(item, output), &self.request, self.engine) {
-                    Ok(report) => Outcome::Done(Box::new(report)),
-                    Err(e) => Outcome::Failed(e),
-                },
+                Task::Voxelize(request) => {
+                    match voxelize_one(&self.voxelize_args(item, output), request, self.engine) {
+                        Ok(report) => Outcome::Done(Box::new(report)),
+                        Err(e) => Outcome::Failed(e),
+                    }
+                }
             },
         }
     }

@@ -47,7 +47,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     let points = read_points_npy(&mut std::io::BufReader::new(file))
         .with_context(|| format!("reading points from {}", args.points.display()))?;
     let start = Instant::now();
-    let prepared = Prepared::new(&mesh).with_context(|| args.mesh.clone())?;
+    let prepared = Prepared::new(mesh).with_context(|| args.mesh.clone())?;
     let prepare_ms = ms(start);
     let start = Instant::now();
     let answers = prepared.query(&points, args.sign, args.winding)?;
@@ -159,8 +159,8 @@ pub(super) fn sample_file(mesh: &str, limits: &LimitArgs, request: &SampleReques
     let loaded = limits.load(mesh)?;
     let load_ms = ms(start);
     let start = Instant::now();
-    let prepared = Prepared::new(&loaded).with_context(|| mesh.to_string())?;
-    let samples = make_samples(&loaded, &prepared, request).with_context(|| mesh.to_string())?;
+    let prepared = Prepared::new(loaded).with_context(|| mesh.to_string())?;
+    let samples = make_samples(&prepared, request).with_context(|| mesh.to_string())?;
     let sample_ms = ms(start);
     if let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;

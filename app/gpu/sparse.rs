@@ -47,6 +47,12 @@ pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Bric
     bins
 }
 
+/// Whether a solid's inside is made by the groups on the GPU: as `asked`, else on hardware adapters (on a software
+/// one the groups' barriers cost more than the host's fill, docs/gpu.md).
+fn groups_on_gpu(gpu: &Gpu, asked: Option<bool>) -> bool {
+    asked.unwrap_or(!gpu.summary.is_software())
+}
+
 impl GpuVoxelizer {
     /// A sparse solid: its shell, the conservative surface, made as leaves on the GPU (the chain below: no dense
     /// slab is allocated or read), then its inside by groups of 8×8 rows on the GPU too (`gpu/groups.rs`), or,
@@ -62,7 +68,7 @@ impl GpuVoxelizer {
         lattice: Lattice,
         options: &Options,
     ) -> Result<Attempt, GpuError> {
-        let groups = options.inside_on_gpu.unwrap_or(!gpu.summary.is_software());
+        let groups = groups_on_gpu(gpu, options.inside_on_gpu);
         let Some((mut out, surface, inside)) =
             self.shell_and_groups(gpu, triangles, spec, lattice, options, groups).await?
         else {
@@ -90,7 +96,7 @@ impl GpuVoxelizer {
     ) -> Result<Option<SparseGrid>, GpuError> {
         let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
         let closed = crate::voxel::solid::boundary(&triangles, lattice).edges.is_empty();
-        if !closed || !inside_on_gpu.unwrap_or(!gpu.summary.is_software()) {
+        if !closed || !groups_on_gpu(gpu, inside_on_gpu) {
             return Ok(None);
         }
         let options = Options { read_grid: true, sparse: true, ..Default::default() };

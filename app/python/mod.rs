@@ -417,7 +417,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
     m.add_function(wrap_pyfunction!(query::query, m)?)?;
     m.add_function(wrap_pyfunction!(query::winding, m)?)?;
-    m.add_function(wrap_pyfunction!(query::sample, m)?)?;
     m.add_function(wrap_pyfunction!(query::sample_many, m)?)?;
     m.add_class::<query::PyPrepared>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -3,7 +3,6 @@
 //! training samples, computed off the GIL on the library's pool.
 
 use super::{Failure, Input, input, into_py_err, process};
-use crate::mesh::Mesh;
 use crate::voxel::query::{Prepared, QueryError, Sign};
 use crate::voxel::sample::{Normalize, SampleRequest, Samples, sample as make_samples};
 use glam::DVec3;
@@ -17,7 +16,6 @@ use std::sync::Arc;
 /// accepted wherever a mesh is: `voxelize` takes its mesh without loading the file again).
 #[pyclass(name = "PreparedMesh", frozen, module = "meshvox._native")]
 pub(super) struct PyPrepared {
-    pub(super) mesh: Arc<Mesh>,
     prepared: Arc<Prepared>,
 }
 
@@ -31,17 +29,11 @@ impl PyPrepared {
     #[new]
     fn new(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<PyPrepared> {
         if let Ok(prepared) = source.cast::<PyPrepared>() {
-            let p = prepared.get();
-            return Ok(PyPrepared { mesh: p.mesh.clone(), prepared: p.prepared.clone() });
+            return Ok(PyPrepared { prepared: prepared.get().prepared.clone() });
         }
         let input = input(source)?;
-        let made = process::run(py, None, |_| {
-            let (_, mesh) = input.load()?;
-            let prepared = Prepared::new(&mesh).map_err(Failure::Query)?;
-            Ok::<_, Failure>((mesh, prepared))
-        })?;
-        let (mesh, prepared) = made.map_err(into_py_err)?;
-        Ok(PyPrepared { mesh: Arc::new(mesh), prepared: Arc::new(prepared) })
+        let prepared = process::run(py, None, |_| prepare(input))?.map_err(into_py_err)?;
+        Ok(PyPrepared { prepared })
     }
 
     /// Triangles in the mesh (the faces of `meshvox.load`, in that order).
@@ -59,15 +51,21 @@ impl PyPrepared {
     /// The mesh's name (its path, or "arrays").
     #[getter]
     fn name(&self) -> String {
-        self.mesh.name.clone()
+        self.prepared.mesh().name.clone()
     }
 }
 
 impl PyPrepared {
     /// The mesh for a voxelization.
     pub(super) fn input(&self) -> Input {
-        Input::Mesh((*self.mesh).clone())
+        Input::Mesh(self.prepared.mesh().clone())
     }
+}
+
+/// The mesh of `input` (a file loaded, or arrays) prepared for queries.
+fn prepare(input: Input) -> Result<Arc<Prepared>, Failure> {
+    let (_, mesh) = input.load()?;
+    Ok(Arc::new(Prepared::new(mesh).map_err(Failure::Query)?))
 }
 
 /// The points of a float64 (N, 3) array.
@@ -148,11 +146,6 @@ fn sample_request(
     Ok(SampleRequest { uniform, surface, near, sigma, padding, normalize, seed })
 }
 
-/// A prepared mesh's samples, or why there are none.
-fn samples_of(mesh: &PyPrepared, request: &SampleRequest) -> Result<Samples, Failure> {
-    make_samples(&mesh.mesh, &mesh.prepared, request).map_err(Failure::Sample)
-}
-
 /// The dictionary `meshvox.Samples` is made from.
 fn samples_dict(py: Python<'_>, s: Samples) -> PyResult<Bound<'_, PyDict>> {
     let m = s.points.len();
@@ -170,29 +163,9 @@ fn samples_dict(py: Python<'_>, s: Samples) -> PyResult<Bound<'_, PyDict>> {
     Ok(dict)
 }
 
-/// `meshvox._native.sample(mesh, uniform, surface, near, sigma, padding, normalize, seed)`.
-#[pyfunction]
-#[pyo3(signature = (mesh, uniform, surface, near, sigma, padding, normalize, seed))]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn sample<'py>(
-    py: Python<'py>,
-    mesh: &Bound<'py, PyPrepared>,
-    uniform: usize,
-    surface: usize,
-    near: usize,
-    sigma: Vec<f64>,
-    padding: f64,
-    normalize: Option<&str>,
-    seed: u64,
-) -> PyResult<Bound<'py, PyDict>> {
-    let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
-    let mesh = mesh.get();
-    let samples = process::run(py, None, |_| samples_of(mesh, &request))?.map_err(into_py_err)?;
-    samples_dict(py, samples)
-}
-
 /// `meshvox._native.sample_many(meshes, ..., workers, progress)`: each mesh (a prepared one, a path or arrays)
 /// prepared and sampled on `workers` threads at a time, in input order; `progress(done, total)` counts meshes.
+/// `meshvox.sample` is this with one mesh.
 #[pyfunction]
 #[pyo3(signature = (meshes, uniform, surface, near, sigma, padding, normalize, seed, workers, progress))]
 #[allow(clippy::too_many_arguments)]
@@ -212,14 +185,14 @@ pub(super) fn sample_many<'py>(
     let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
     // A prepared mesh is shared as it is; the others are loaded and prepared by the worker that takes them.
     enum Item {
-        Ready(Arc<Mesh>, Arc<Prepared>),
-        Later(Input),
+        Ready(Arc<Prepared>),
+        Later(Box<Input>),
     }
     let items: Vec<std::sync::Mutex<Option<Item>>> = meshes
         .iter()
         .map(|m| match m.cast::<PyPrepared>() {
-            Ok(p) => Ok(Item::Ready(p.get().mesh.clone(), p.get().prepared.clone())),
-            Err(_) => input(m).map(Item::Later),
+            Ok(p) => Ok(Item::Ready(p.get().prepared.clone())),
+            Err(_) => input(m).map(|i| Item::Later(Box::new(i))),
         })
         .map(|i| i.map(|i| std::sync::Mutex::new(Some(i))))
         .collect::<PyResult<_>>()?;
@@ -230,17 +203,14 @@ pub(super) fn sample_many<'py>(
         control.each(total, workers, |i| {
             let item = items[i].lock().unwrap_or_else(|e| e.into_inner()).take();
             let item = item.filter(|_| !control.cancel.load(std::sync::atomic::Ordering::Relaxed))?;
-            let ready = match item {
-                Item::Ready(mesh, prepared) => PyPrepared { mesh, prepared },
-                Item::Later(input) => match input.load() {
-                    Ok((_, mesh)) => match Prepared::new(&mesh) {
-                        Ok(prepared) => PyPrepared { mesh: Arc::new(mesh), prepared: Arc::new(prepared) },
-                        Err(e) => return Some(Err(Failure::Query(e))),
-                    },
+            let prepared = match item {
+                Item::Ready(prepared) => prepared,
+                Item::Later(input) => match prepare(*input) {
+                    Ok(prepared) => prepared,
                     Err(e) => return Some(Err(e)),
                 },
             };
-            Some(samples_of(&ready, &request))
+            Some(make_samples(&prepared, &request).map_err(Failure::Sample))
         })
     })?;
     let mut out = Vec::with_capacity(total);

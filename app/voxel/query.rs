@@ -24,6 +24,7 @@ use crate::mesh::Mesh;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use robust::{Coord, Coord3D, orient2d, orient3d};
+use std::sync::Arc;
 
 /// Voxels along the longest axis of the frame the points are answered in. The answers do not depend on it
 /// beyond f32's rounding: 1024 puts the lattice a few ulps of f32 apart, as a grid of that size has it.
@@ -77,9 +78,8 @@ pub struct Prepared {
     pub spec: GridSpec,
     /// The triangles in the frame, on its lattice, in the mesh's order.
     frame: Vec<[Vec3; 3]>,
-    /// The triangles as loaded: world position `anchor + v`.
-    anchor: DVec3,
-    world: Vec<[Vec3; 3]>,
+    /// The mesh as loaded: the nearest points are computed from its world triangles.
+    mesh: Arc<Mesh>,
     bvh: Bvh,
     boundary: Boundary,
 }
@@ -115,20 +115,26 @@ pub enum QueryError {
 }
 
 impl Prepared {
-    /// Prepares `mesh` for queries.
-    pub fn new(mesh: &Mesh) -> Result<Prepared, QueryError> {
+    /// Prepares `mesh` for queries (kept, not copied: a caller sharing it passes an `Arc`).
+    pub fn new(mesh: impl Into<Arc<Mesh>>) -> Result<Prepared, QueryError> {
+        let mesh = mesh.into();
         let bounds = mesh.bounds().ok_or(QueryError::Empty)?;
         let spec = GridSpec::fit(bounds, Resolution::Count(FRAME), Axis::Longest)?;
-        let frame = super::voxelize::grid_space_triangles(mesh, &spec)?;
+        let frame = super::voxelize::grid_space_triangles(&mesh, &spec)?;
         let lattice = Lattice::fit(&frame, spec.dims)?;
         let (bvh, boundary) =
             crate::parallel::install(|| rayon::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
-        Ok(Prepared { spec, frame, anchor: mesh.anchor, world: mesh.triangles.clone(), bvh, boundary })
+        Ok(Prepared { spec, frame, mesh, bvh, boundary })
+    }
+
+    /// The mesh as loaded.
+    pub fn mesh(&self) -> &Mesh {
+        &self.mesh
     }
 
     /// Triangles in the mesh.
     pub fn triangle_count(&self) -> usize {
-        self.world.len()
+        self.mesh.triangles.len()
     }
 
     /// Whether the mesh has an open boundary (holes, or a sheet): then the winding number is not an integer.
@@ -220,7 +226,7 @@ impl Prepared {
         // Every mesh has a nearest triangle to a finite point; a non-finite distance in the frame (a point beyond
         // f32's range) falls back to the first.
         let triangle = best.map_or(0, |(_, i)| i);
-        let t = self.world[triangle as usize].map(|v| self.anchor + v.as_dvec3());
+        let t = self.mesh.world_triangle(triangle as usize);
         let barycentric = closest_barycentric_f64(p, t[0], t[1], t[2]);
         let closest = t[0] * barycentric.x + t[1] * barycentric.y + t[2] * barycentric.z;
         Near { distance: (p - closest).length(), closest, triangle, barycentric, evaluations }

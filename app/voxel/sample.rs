@@ -9,7 +9,7 @@
 //! crate's distributions may change between releases).
 
 use super::query::{Prepared, QueryError, Sign};
-use crate::mesh::Mesh;
+use crate::mesh::{Aabb, Mesh};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -115,9 +115,9 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The frame of `normalize`: `(scale, offset)` with frame coordinates `(world - offset) * scale`.
-pub fn frame(mesh: &Mesh, normalize: Normalize) -> (f64, DVec3) {
-    let Some(b) = mesh.bounds() else { return (1.0, DVec3::ZERO) };
+/// The frame of `normalize` for `mesh` with bounds `b`: `(scale, offset)` with frame coordinates
+/// `(world - offset) * scale`.
+pub fn frame(mesh: &Mesh, b: Aabb, normalize: Normalize) -> (f64, DVec3) {
     let centre = (b.min + b.max) * 0.5;
     let longest = b.extent().max_element();
     match normalize {
@@ -134,20 +134,22 @@ pub fn frame(mesh: &Mesh, normalize: Normalize) -> (f64, DVec3) {
     }
 }
 
-/// The samples of `request` around `mesh` (prepared as `prepared`), on the library's threads.
-pub fn sample(mesh: &Mesh, prepared: &Prepared, request: &SampleRequest) -> Result<Samples, SampleError> {
+/// The samples of `request` around the prepared mesh, on the library's threads.
+pub fn sample(prepared: &Prepared, request: &SampleRequest) -> Result<Samples, SampleError> {
+    let mesh = prepared.mesh();
     if request.sigma.is_empty() && request.near > 0 || request.sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(SampleError::Sigma(request.sigma.clone()));
     }
     if !(request.padding.is_finite() && request.padding >= 0.0) {
         return Err(SampleError::Padding(request.padding));
     }
-    let (scale, offset) = frame(mesh, request.normalize);
-    let world: Vec<[DVec3; 3]> = (0..mesh.triangles.len()).map(|i| mesh.world_triangle(i)).collect();
+    let b = mesh.bounds().ok_or(QueryError::Empty)?;
+    let (scale, offset) = frame(mesh, b, request.normalize);
     // Running areas, for an area-weighted choice of triangle by binary search.
-    let mut areas = Vec::with_capacity(world.len());
+    let count = mesh.triangles.len();
+    let mut areas = Vec::with_capacity(count);
     let mut total = 0.0f64;
-    for t in &world {
+    for t in (0..count).map(|i| mesh.world_triangle(i)) {
         total += (t[1] - t[0]).cross(t[2] - t[0]).length() * 0.5;
         areas.push(total);
     }
@@ -159,13 +161,12 @@ pub fn sample(mesh: &Mesh, prepared: &Prepared, request: &SampleRequest) -> Resu
     let surface_point = |stream: u64, i: u64| -> (usize, DVec3, Draw) {
         let mut draw = Draw::new(seed, stream, i);
         let at = draw.unit() * total;
-        let t = areas.partition_point(|&a| a <= at).min(world.len() - 1);
+        let t = areas.partition_point(|&a| a <= at).min(count - 1);
         let (r1, r2) = (draw.unit().sqrt(), draw.unit());
-        let tri = world[t];
+        let tri = mesh.world_triangle(t);
         let p = tri[0] * (1.0 - r1) + tri[1] * (r1 * (1.0 - r2)) + tri[2] * (r1 * r2);
         (t, p, draw)
     };
-    let b = mesh.bounds().ok_or(QueryError::Empty)?;
     let (centre, side) = ((b.min + b.max) * 0.5, b.extent().max_element() * (1.0 + request.padding));
     let mut kinds: Vec<(u8, usize)> = vec![(0, request.uniform), (1, request.surface)];
     let shares = request.sigma.len().max(1);
@@ -184,7 +185,8 @@ pub fn sample(mesh: &Mesh, prepared: &Prepared, request: &SampleRequest) -> Resu
                 }
                 1 => {
                     let (t, p, _) = surface_point(1, i);
-                    let n = (world[t][1] - world[t][0]).cross(world[t][2] - world[t][0]).normalize_or_zero();
+                    let w = mesh.world_triangle(t);
+                    let n = (w[1] - w[0]).cross(w[2] - w[0]).normalize_or_zero();
                     (p, t as i64, n.as_vec3().to_array())
                 }
                 k => {

@@ -44,7 +44,7 @@ fn points_for(mesh: &Mesh, rng: &mut Rng, uniform: usize, near: usize) -> Vec<DV
 /// distance, the winding number within its stated tolerance and the inside exactly wherever the float64 winding
 /// number is more than 1e-6 from ½ (off the surface). Returns the largest distance error.
 fn assert_answers(mesh: &Mesh, points: &[DVec3], what: &str) -> f64 {
-    let prepared = Prepared::new(mesh).expect("prepare");
+    let prepared = Prepared::new(mesh.clone()).expect("prepare");
     let answers = prepared.query(points, Sign::Winding, true).expect("query");
     let unsigned = prepared.query(points, Sign::Unsigned, false).expect("query");
     let sides = prepared.query(points, Sign::Winding, false).expect("query");
@@ -174,7 +174,8 @@ fn a_fields_values_equal_the_queries_at_its_voxel_centres() {
             }
         }
         let points: Vec<DVec3> = centres.iter().map(|&(_, p)| p).collect();
-        let answers = Prepared::new(&mesh).expect("prepare").query(&points, Sign::Winding, false).expect("query");
+        let answers =
+            Prepared::new(mesh.clone()).expect("prepare").query(&points, Sign::Winding, false).expect("query");
         let h = spec.voxel_size;
         for (i, &(v, _)) in centres.iter().enumerate() {
             let (a, b) = (f64::from(field.value(v)), f64::from(answers.distance[i]));

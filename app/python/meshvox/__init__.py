@@ -481,7 +481,7 @@ def sample(
     """
     prepared = mesh if isinstance(mesh, Mesh) else Mesh(mesh)
     args = _sample_args(uniform, surface, near, sigma, padding, normalize, seed)
-    return Samples(_native.sample(prepared._native, *args))
+    return Samples(_native.sample_many([prepared._native], *args, 1, None)[0])
 
 
 def sample_many(

@@ -67,16 +67,6 @@ class PreparedMesh:
 
 def query(mesh: PreparedMesh, points: np.ndarray, sign: str) -> dict[str, Any]: ...
 def winding(mesh: PreparedMesh, points: np.ndarray) -> np.ndarray: ...
-def sample(
-    mesh: PreparedMesh,
-    uniform: int,
-    surface: int,
-    near: int,
-    sigma: list[float],
-    padding: float,
-    normalize: str | None,
-    seed: int,
-) -> dict[str, Any]: ...
 def sample_many(
     meshes: Sequence[_Source],
     uniform: int,
