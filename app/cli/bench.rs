@@ -391,7 +391,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
             let t = Instant::now();
             let options = meshvox::voxel::formats::VdbOptions::default();
             let bytes = meshvox::voxel::formats::atomic::write_atomically(&path, |out| {
-                meshvox::voxel::formats::write_vdb(sparse, options, None, out)
+                meshvox::voxel::formats::write_vdb(sparse, options, None, &[], out)
             })?;
             let write_ms = ms(t);
             let _ = std::fs::remove_file(&path);

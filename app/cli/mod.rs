@@ -17,7 +17,7 @@ use bench::BenchArgs;
 use clap::{Parser, Subcommand};
 use meshvox::engine::{Backend, Engine, Job, Request};
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{Axis, GridKind, Mode, Resolution, formats::VoxelFormat};
+use meshvox::voxel::{Axis, GridKind, Mode, Resolution, formats::VoxelFormat, labels::AttributeSet};
 use output::remove_partials_on_interrupt;
 use render::RenderArgs;
 use std::path::PathBuf;
@@ -87,7 +87,7 @@ fn parse_dir(s: &str) -> Result<PathBuf, String> {
     }
 }
 
-/// Voxel colours from the mesh's materials, shared by the commands that voxelize.
+/// Voxel colours from the mesh's materials, and per-voxel labels, shared by the commands that voxelize.
 #[derive(clap::Args, Clone)]
 struct ColourArgs {
     /// Colour the voxels from the mesh's materials, textures and vertex colours: the colour of the surface point
@@ -97,6 +97,11 @@ struct ColourArgs {
     /// Leave the voxels uncoloured even when the mesh has colour.
     #[arg(long)]
     no_colour: bool,
+    /// Per-voxel labels, comma-separated: triangle (the nearest triangle touching the voxel), material, node
+    /// (glTF node, OBJ object or group). Written as int32 arrays in .npz, Int32Grids in .vdb, and
+    /// NAME.labels.npy beside an .npy; -1 where unset.
+    #[arg(long, value_name = "LIST", value_parser = AttributeSet::parse, default_value = "")]
+    attributes: AttributeSet,
 }
 
 impl ColourArgs {
@@ -142,6 +147,7 @@ impl LimitArgs {
         Ok(Request {
             axis,
             colour: colour.no_colour.then_some(false),
+            attributes: colour.attributes,
             max_memory: self.max_memory,
             band: band.band(mode)?,
             ..Request::new(resolution, mode)

@@ -169,8 +169,8 @@ pub(super) fn voxelize_loaded(
     }
 
     let t_write = Instant::now();
-    // The colour array beside an .npy grid is written first (atomically too), so a grid never appears without
-    // the colours it was asked for.
+    // The colour and label arrays beside an .npy grid are written first (atomically too), so a grid never
+    // appears without the colours or labels it was asked for.
     let colours_file = match (&voxelized.colours, voxelized.grid.dense(), format) {
         (Some(colours), Some(grid), VoxelFormat::Npy) => {
             let path = voxel::formats::colours_npy_path(&args.output);
@@ -180,12 +180,23 @@ pub(super) fn voxelize_loaded(
         }
         _ => None,
     };
-    let options = voxel::formats::WriteOptions { merge: args.merge, vdb_float: args.grid.vdb_float };
+    let labels_file = match (&voxelized.labels, voxelized.grid.dense(), format) {
+        (Some(labels), Some(grid), VoxelFormat::Npy) => {
+            let path = voxel::formats::labels_npy_path(&args.output);
+            let temp = temp_beside(&path)?;
+            write_atomically(temp, &path, |out| Ok(voxel::formats::write_labels_npy(grid, labels, out)?))?;
+            Some(path)
+        }
+        _ => None,
+    };
+    let options =
+        voxel::formats::WriteOptions { merge: args.merge, vdb_float: args.grid.vdb_float, ..Default::default() };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;
     Ok(meshvox::Report {
         output: args.output.display().to_string(),
         format: format.extension().to_string(),
         colours_output: colours_file.as_ref().map(|p| p.display().to_string()),
+        labels_output: labels_file.as_ref().map(|p| p.display().to_string()),
         bytes,
         load_ms,
         write_ms: ms(t_write),

@@ -7,6 +7,7 @@ use super::{EngineError, budget};
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::distance::Band;
 use crate::voxel::formats::VoxelFormat;
+use crate::voxel::labels::AttributeSet;
 use crate::voxel::{Axis, GridError, GridKind, GridSpec, Mode, Resolution};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -40,6 +41,9 @@ pub struct Request<'a> {
     pub bounds: Option<Aabb>,
     /// `Mode::Sdf`/`Mode::Udf`: how far from the surface distances are computed.
     pub band: Band,
+    /// Per-voxel labels to make ([`crate::voxel::labels`]): on dense grids, written in `.npy` (beside),
+    /// `.npz` and `.vdb`.
+    pub attributes: AttributeSet,
 }
 
 impl Request<'_> {
@@ -58,6 +62,7 @@ impl Request<'_> {
             cancel: None,
             bounds: None,
             band: Band::default(),
+            attributes: AttributeSet::NONE,
         }
     }
 
@@ -91,7 +96,7 @@ impl<'a> Job<'a> {
     ///
     /// `GridKind::Auto` is sparse when the output format is (`.vdb`, `.npz`) or when the dense grid would not fit
     /// the budget and a sparse one would; a dense format past the budget is refused, pointing at the sparse
-    /// formats. Colours are made on dense grids, so `Auto` keeps a coloured request dense wherever that fits.
+    /// formats. Colours and labels are made on dense grids, so `Auto` keeps such a request dense wherever that fits.
     pub fn plan(name: &'a str, mesh: &'a Mesh, request: &Request<'a>) -> Result<Job<'a>, EngineError> {
         let grid_error = |error, sparse| EngineError::Grid { mesh: name.to_string(), error, sparse };
         let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
@@ -114,11 +119,15 @@ impl<'a> Job<'a> {
                 return Err(EngineError::FullBandSparse);
             }
         }
+        let labelled = !request.attributes.is_empty();
+        if labelled && let Some(f) = format.filter(|f| !f.holds_labels()) {
+            return Err(EngineError::LabelsFormat { extension: f.extension() });
+        }
         let coloured = request.colour != Some(false) && mesh.shading.is_some();
         let sparse = match request.grid {
             GridKind::Dense => false,
             GridKind::Sparse => true,
-            GridKind::Auto => sparse_format && !coloured,
+            GridKind::Auto => sparse_format && !coloured && !labelled,
         };
         let area = budget::surface_area(mesh);
         let mut job = Job { name, mesh, request: *request, bounds, spec, sparse, area };

@@ -6,9 +6,9 @@
 //! the field, its colours, the GPU's instance list when asked for, and a typed [`Report`] (the `--stats-json`
 //! fields). An async call with a blocking twin ends in `_async`.
 //!
-//! A run is three stages, grid, field and colour, each tried on the GPU where the engine has one and made by the
-//! CPU otherwise; whether the CPU stands in after the GPU could not is decided in one place (`device.rs`'s
-//! `stand_in`), and a build without the GPU links an empty twin of that side (`no_gpu.rs`), so nothing here
+//! A run is four stages: grid, field and colour, each tried on the GPU where the engine has one and made by the
+//! CPU otherwise, then labels (CPU); whether the CPU stands in after the GPU could not is decided in one place
+//! (`device.rs`'s `stand_in`), and a build without the GPU links an empty twin of that side (`no_gpu.rs`), so nothing here
 //! needs a `cfg` inside a function. The GPU turn lock keeps one device's work to one request at a time when
 //! several threads share the engine (`batch`). What happened along the way comes back as [`Notice`]s for the
 //! client to show; the library prints nothing.
@@ -82,6 +82,12 @@ pub enum EngineError {
     /// A distance field asked for in a format that holds occupancy only.
     #[error("--mode {mode} writes a distance field: use a .npy, .npz or .vdb output, not .{extension}")]
     FieldFormat { mode: &'static str, extension: &'static str },
+    /// `--attributes` with an output that holds no labels.
+    #[error("--attributes: labels are written in .npy (as NAME.labels.npy beside it), .npz and .vdb, not .{extension}")]
+    LabelsFormat { extension: &'static str },
+    /// The labels' nearest triangles could not be found.
+    #[error("labels: {0}")]
+    Labels(#[from] crate::voxel::query::QueryError),
     /// `--band full` with a sparse grid or output.
     #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
     FullBandSparse,
@@ -303,6 +309,23 @@ impl Engine {
             (false, _) => None,
         };
         let colour_ms = colours.as_ref().map(|_| ms(t));
+        request.cancelled()?;
+        let t = Instant::now();
+        let labels = match (request.attributes.is_empty(), &made.grid) {
+            (false, Grid::Dense(grid)) => {
+                let triangles = voxel::labels::label_triangles(grid, &tris, mesh)?;
+                Some(voxel::labels::Labels::from_triangles(mesh, &triangles, request.attributes))
+            }
+            (false, Grid::Sparse(_)) => {
+                notices.push(Notice {
+                    warning: true,
+                    message: "labels are made on dense grids only for now: the sparse grid has none".into(),
+                });
+                None
+            }
+            (true, _) => None,
+        };
+        let labels_ms = labels.as_ref().map(|_| ms(t));
         let d = spec.dims;
         let report = Report {
             mesh: job.name.to_string(),
@@ -329,15 +352,18 @@ impl Engine {
             distance_evaluations: field.as_ref().map(|f| f.evaluations).filter(|&n| n > 0),
             field_ms,
             field_backend,
-            host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) - made.gpu_ms.unwrap_or(0.0),
-            total_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0),
+            host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) + labels_ms.unwrap_or(0.0)
+                - made.gpu_ms.unwrap_or(0.0),
+            total_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) + labels_ms.unwrap_or(0.0),
+            labels: labels.as_ref().map(|l| l.columns.iter().map(|(a, _)| a.name().to_string()).collect()),
+            labels_ms,
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
             meshes_in_submission: made.group,
             ..Report::default()
         };
         let colours = colours.map(|c| c.colours);
-        Ok(Voxelized { grid: made.grid, field, colours, instances: made.instances, report, notices })
+        Ok(Voxelized { grid: made.grid, field, colours, labels, instances: made.instances, report, notices })
     }
 
     /// The job's grid (in its mode's grid mode: the surface for the fields) on the GPU, with the CPU standing in

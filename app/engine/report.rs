@@ -5,6 +5,7 @@ use crate::voxel::Grid;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
+use crate::voxel::labels::Labels;
 
 /// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -47,11 +48,16 @@ pub struct Report {
     /// `sdf`/`udf`: the distance field's passes (the inside for the sign included), after the surface.
     pub field_ms: Option<f64>,
     pub format: String,
+    /// The per-voxel labels made (`--attributes`), in order; `None` without.
+    pub labels: Option<Vec<String>>,
+    pub labels_ms: Option<f64>,
+    /// The `.labels.npy` written beside an `.npy` grid.
+    pub labels_output: Option<String>,
     /// The grid the voxels were made in: `dense` or `sparse`.
     pub grid: String,
     /// The compute passes alone, from timestamp queries; `None` on the CPU or without timestamps.
     pub gpu_ms: Option<f64>,
-    /// The engine's time that is not the GPU's passes: `voxelize_ms + field_ms + colour_ms - gpu_ms` (all of it on
+    /// The engine's time that is not the GPU's passes: `voxelize_ms + field_ms + colour_ms + labels_ms - gpu_ms` (all of it on
     /// the CPU). Loading and writing are the client's (`load_ms`, `write_ms`).
     pub host_ms: f64,
     /// Leaves of a sparse grid (8³ blocks with a voxel set); `None` for a dense grid.
@@ -72,7 +78,7 @@ pub struct Report {
     pub threads: usize,
     /// Tiles of a sparse grid (blocks of 8³, 128³ or 4096³ voxels all set); `None` for a dense grid.
     pub tiles: Option<u64>,
-    /// The whole job. From the engine: `voxelize_ms + field_ms + colour_ms`; from `meshvox voxelize` and `batch`,
+    /// The whole job. From the engine: `voxelize_ms + field_ms + colour_ms + labels_ms`; from `meshvox voxelize` and `batch`,
     /// everything from reading the mesh to the output written (loading, opening a GPU, the engine's stages and
     /// writing).
     pub total_ms: f64,
@@ -103,6 +109,8 @@ pub struct Voxelized {
     /// `sdf`/`udf`: the distance field.
     pub field: Option<DistanceField>,
     pub colours: Option<VoxelColours>,
+    /// The per-voxel labels asked for (`Request::attributes`), on dense grids.
+    pub labels: Option<Labels>,
     /// The exposed voxels as a list on the GPU, ready to draw as instances, when the request asked for it
     /// ([`super::Request::instances`]) and the grid was made there.
     pub instances: Option<Instances>,
@@ -112,7 +120,7 @@ pub struct Voxelized {
 }
 
 impl Voxelized {
-    /// Writes the grid (with its colours, where the format holds them), or the distance field, as `format` into
+    /// Writes the grid (with its colours and labels, where the format holds them), or the distance field, as `format` into
     /// `out`: the bytes the CLI writes for the same request.
     pub fn write<W: std::io::Write + std::io::Seek>(
         &self,
@@ -122,7 +130,10 @@ impl Voxelized {
     ) -> Result<(), FormatError> {
         match &self.field {
             Some(field) => formats::write_field(field, format, out),
-            None => formats::write_grid(&self.grid, self.colours.as_ref(), format, options, out),
+            None => {
+                let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
+                formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)
+            }
         }
     }
 }

@@ -121,6 +121,6 @@ fn sphere(slices: usize, stacks: usize) -> Mesh {
 
 fn single_part(triangles: Vec<[Vec3; 3]>) -> Mesh {
     let mut mesh = Mesh::default();
-    mesh.push_part(Part { name: String::new(), mesh: 0, primitive: 0, material: None }, triangles);
+    mesh.push_part(Part { name: String::new(), mesh: 0, primitive: 0, material: None, node: 0 }, triangles);
     mesh
 }

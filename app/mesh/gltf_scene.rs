@@ -26,19 +26,20 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     mesh.shading = Some(shading);
     let mut pieces = Vec::new();
     let mut placed = Vec::new();
-    for (gmesh, world, instancing) in instances {
+    for (node, gmesh, world, instancing) in instances {
         match instancing {
             Some(instancing) => {
                 let transforms = instancing.transforms(&data).map_err(err)?;
-                placed.extend(transforms.into_iter().map(|m| (gmesh.clone(), world * m)));
+                placed.extend(transforms.into_iter().map(|m| (node, gmesh.clone(), world * m)));
             }
-            None => placed.push((gmesh, world)),
+            None => placed.push((node, gmesh, world)),
         }
     }
-    for (gmesh, world) in placed {
+    for (node, gmesh, world) in placed {
         for primitive in gmesh.primitives() {
             let source = Source { document: &document, data: &data, path };
-            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, world, &tex_sets)?);
+            let placed = Placed { node, world };
+            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, placed, &tex_sets)?);
         }
     }
     mesh.push_pieces(pieces);
@@ -80,14 +81,17 @@ fn parse_document(path: &Path, bytes: &[u8]) -> Result<Parsed, MeshError> {
     Ok(Parsed { document, blob, transforms })
 }
 
-/// The meshes the default scene (or every scene) places, with their world transforms and instancing, counting
+/// The meshes the default scene (or every scene) places, with their nodes, world transforms and instancing, counting
 /// the triangles they will make against the limit before any is read.
+/// A mesh placed by a node: the node's index, the mesh, its world transform and its instancing.
+type Instance<'a> = (u32, gltf::Mesh<'a>, DMat4, Option<gltf_data::Instancing<'a>>);
+
 fn mesh_instances<'a>(
     path: &Path,
     document: &'a gltf::Document,
     transforms: &[Option<DMat4>],
     limits: &LoadLimits,
-) -> Result<Vec<(gltf::Mesh<'a>, DMat4, Option<gltf_data::Instancing<'a>>)>, MeshError> {
+) -> Result<Vec<Instance<'a>>, MeshError> {
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
     let roots: Vec<gltf::Node> = match document.default_scene() {
         Some(scene) => scene.nodes().collect(),
@@ -96,7 +100,7 @@ fn mesh_instances<'a>(
     // An explicit stack instead of recursion: a hostile file cannot overflow it. glTF forbids cycles, and the
     // crate's validation rejects them, but a depth bound keeps a malformed file from looping forever anyway.
     let mut stack: Vec<(gltf::Node, DMat4, usize)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
-    let mut instances: Vec<(gltf::Mesh, DMat4, Option<gltf_data::Instancing>)> = Vec::new();
+    let mut instances: Vec<Instance> = Vec::new();
     // Triangles the file will make, from accessor counts alone: an instanced mesh counts once per node, and
     // once per instance of EXT_mesh_gpu_instancing.
     let mut triangles: u64 = 0;
@@ -128,7 +132,7 @@ fn mesh_instances<'a>(
             let per_copy = gmesh.primitives().map(|p| triangle_count(&p)).sum::<u64>();
             triangles = triangles.saturating_add(per_copy.saturating_mul(copies));
             limits.check_triangles(path, triangles)?;
-            instances.push((gmesh, world, instancing));
+            instances.push((node.index() as u32, gmesh, world, instancing));
         }
         stack.extend(node.children().map(|c| (c, world, depth + 1)));
     }
@@ -325,6 +329,13 @@ fn about(path: &Path, gmesh: &gltf::Mesh, primitive: &gltf::Primitive) -> String
     format!("{}: mesh {} '{name}' primitive {}", path.display(), gmesh.index(), primitive.index())
 }
 
+/// Where a mesh instance is: the node that instanced it, and its world transform.
+#[derive(Clone, Copy)]
+struct Placed {
+    node: u32,
+    world: DMat4,
+}
+
 /// A primitive's vertex arrays before they are placed in the world.
 struct Arrays {
     positions: Vec<[f64; 3]>,
@@ -340,7 +351,7 @@ fn read_primitive(
     source: Source,
     gmesh: &gltf::Mesh,
     primitive: &gltf::Primitive,
-    world: DMat4,
+    placed: Placed,
     tex_sets: &[u32],
 ) -> Result<Option<Piece>, MeshError> {
     let path = source.path;
@@ -373,7 +384,8 @@ fn read_primitive(
             None => return Ok(None),
         },
     };
-    let positions: Vec<DVec3> = arrays.positions.iter().map(|&p| world.transform_point3(DVec3::from(p))).collect();
+    let positions: Vec<DVec3> =
+        arrays.positions.iter().map(|&p| placed.world.transform_point3(DVec3::from(p))).collect();
     let indices = arrays.indices.unwrap_or_else(|| (0..positions.len() as u32).collect());
     if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
         mesh.warnings.push(format!(
@@ -408,6 +420,7 @@ fn read_primitive(
         mesh: gmesh.index() as u32,
         primitive: primitive.index() as u32,
         material: primitive.material().index().map(|i| i as u32),
+        node: placed.node,
     };
     let (uvs, colors) = (arrays.uvs, arrays.colors);
     Ok(Some(Piece { part, positions, triangles, uvs, colors, material: material as u32 }))

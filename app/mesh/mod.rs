@@ -29,6 +29,9 @@ pub struct Part {
     pub primitive: u32,
     /// Material index in the file, when the file assigns one.
     pub material: Option<u32>,
+    /// The scene object the triangles belong to: the glTF node that instanced the mesh, the OBJ object or group
+    /// (its index among the file's models, as `mesh`), 0 for STL, PLY and builtin meshes. The `node` label.
+    pub node: u32,
 }
 
 /// An axis-aligned box in world space, in f64 so that a box far from the origin keeps its size.
@@ -361,7 +364,7 @@ where
         triangles.push(t);
     }
     let mut mesh = Mesh { name: name.to_string(), anchor: anchor_of([(positions, used)]), ..Mesh::default() };
-    let part = Part { name: name.to_string(), mesh: 0, primitive: 0, material: None };
+    let part = Part { name: name.to_string(), mesh: 0, primitive: 0, material: None, node: 0 };
     mesh.push_part(part, local_triangles(positions, &triangles, mesh.anchor));
     Ok(mesh)
 }

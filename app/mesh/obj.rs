@@ -148,7 +148,8 @@ fn piece(model: tobj::Model, index: u32, textured: bool) -> Result<Piece, String
         }
         triangles = (0..triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
     }
-    let part = Part { name: model.name, mesh: index, primitive: 0, material: m.material_id.map(|id| id as u32) };
+    let part =
+        Part { name: model.name, mesh: index, primitive: 0, material: m.material_id.map(|id| id as u32), node: index };
     Ok(Piece { part, positions, triangles, uvs, colors, material: 0 })
 }
 

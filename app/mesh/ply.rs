@@ -129,7 +129,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
             Some(super::Shading { materials: vec![super::material::Material::default()], ..Default::default() });
     }
     let name = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    let part = Part { name, mesh: 0, primitive: 0, material: None };
+    let part = Part { name, mesh: 0, primitive: 0, material: None, node: 0 };
     mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors, material: 0 }]);
     Ok(mesh)
 }

@@ -31,7 +31,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
     };
     let triangles = (0..positions.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
     let name = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    let part = Part { name, mesh: 0, primitive: 0, material: None };
+    let part = Part { name, mesh: 0, primitive: 0, material: None, node: 0 };
     let mut mesh = Mesh::default();
     mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors: Vec::new(), material: 0 }]);
     Ok(mesh)

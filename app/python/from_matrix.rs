@@ -1,10 +1,11 @@
-//! `VoxelGrid.save` from Python: a bit grid and its colours made back from the dense arrays a `meshvox.VoxelGrid`
+//! `VoxelGrid.save` from Python: a bit grid, its colours and labels made back from the dense arrays a `meshvox.VoxelGrid`
 //! holds (which may have been edited, pickled or built by hand), written with the CLI's writers.
 
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::formats::atomic::write_atomically;
-use crate::voxel::formats::{self, FormatError, VoxelFormat};
-use crate::voxel::{GridSpec, VoxelGrid};
+use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
+use crate::voxel::labels::{Attribute, Labels};
+use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use numpy::ndarray::{ArrayView3, ArrayView4};
 use pyo3::exceptions::PyValueError;
@@ -71,17 +72,43 @@ pub(super) fn colours(grid: &VoxelGrid, colors: &ArrayView4<'_, u8>) -> PyResult
     Ok(VoxelColours { rgba })
 }
 
-/// Writes `grid` as `format` to `path` (and, for `.npy` with colours, the colour array beside it first), each
-/// through the library's atomic writer, as the CLI writes them.
+/// The labels of `grid`'s set voxels (in its storage order) from named int32 `[x, y, z]` arrays.
+pub(super) fn labels(grid: &VoxelGrid, arrays: &[(String, ArrayView3<'_, i32>)]) -> PyResult<Labels> {
+    let d = grid.spec.dims;
+    let columns = arrays
+        .iter()
+        .map(|(name, values)| {
+            let attribute = Attribute::from_name(name)
+                .ok_or_else(|| PyValueError::new_err(format!("labels '{name}': use {}", Attribute::choices())))?;
+            if values.dim() != (d.x as usize, d.y as usize, d.z as usize) {
+                return Err(PyValueError::new_err(format!(
+                    "labels '{name}' of shape {:?} do not fit the grid",
+                    values.dim()
+                )));
+            }
+            Ok((attribute, grid.iter_set().map(|v| values[[v.x as usize, v.y as usize, v.z as usize]]).collect()))
+        })
+        .collect::<PyResult<_>>()?;
+    Ok(Labels { columns })
+}
+
+/// Writes `grid` as `format` to `path` (and, for `.npy`, the colour and label arrays beside it first), each
+/// through the library's atomic writer, as the CLI writes them. Labels go where the format holds them.
 pub(super) fn write(
     path: &Path,
     format: VoxelFormat,
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
+    labels: Option<&Labels>,
     merge: bool,
 ) -> Result<(), FormatError> {
     if let (Some(c), VoxelFormat::Npy) = (colours, format) {
         write_atomically(&formats::colours_npy_path(path), |out| formats::write_colours_npy(grid, c, out))?;
     }
-    write_atomically(path, |out| formats::write_coloured(grid, colours, format, merge, out)).map(|_| ())
+    if let (Some(l), VoxelFormat::Npy) = (labels, format) {
+        write_atomically(&formats::labels_npy_path(path), |out| formats::write_labels_npy(grid, l, out))?;
+    }
+    let options = WriteOptions { merge, labels, ..Default::default() };
+    write_atomically(path, |out| formats::write_grid(&Grid::Dense(grid.clone()), colours, format, &options, out))
+        .map(|_| ())
 }

@@ -10,6 +10,7 @@ mod process;
 use crate::engine::{Backend, Engine, EngineError, Job, Request, Voxelized};
 use crate::mesh::{self, Aabb, Mesh, MeshError};
 use crate::voxel::formats::VoxelFormat;
+use crate::voxel::labels::AttributeSet;
 use crate::voxel::{Axis, GridError, Mode, Resolution};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
@@ -151,6 +152,7 @@ fn options(
     colour: Option<bool>,
     bounds: Option<([f64; 3], [f64; 3])>,
     band: &str,
+    attributes: &str,
 ) -> PyResult<Options> {
     let resolution = match (resolution, pitch) {
         (Some(n), None) => Resolution::Count(n),
@@ -166,9 +168,11 @@ fn options(
     let backend = Backend::from_name(backend)
         .ok_or_else(|| PyValueError::new_err(format!("backend '{backend}': use {}", Backend::choices())))?;
     let bounds = bounds.map(|(min, max)| Aabb { min: DVec3::from(min), max: DVec3::from(max) });
+    let attributes = AttributeSet::parse(attributes).map_err(PyValueError::new_err)?;
     let request = Request {
         axis,
         colour,
+        attributes,
         bounds,
         // The package's VoxelGrid holds the dense bits (`.matrix`).
         grid: crate::voxel::GridKind::Dense,
@@ -199,7 +203,7 @@ fn voxelize_one(
 
 /// The dictionary `meshvox.VoxelGrid` is made from: `words` (the bit grid as it is, uint32, x-rows z-major: `.matrix`
 /// is unpacked from it when first asked for, in numpy), `shape`, `rgba` (uint8 (N, 4), one per set voxel in the
-/// grid's storage order, or None), `origin`, `pitch`, `stats` (the `--stats-json` line) and `notices`. The words
+/// grid's storage order, or None), `labels` (None, or a dict of int32 (N,) arrays in that order), `origin`, `pitch`, `stats` (the `--stats-json` line) and `notices`. The words
 /// move into numpy without a copy, so the call costs the engine's time and little more.
 fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDict>> {
     // Requested dense (`.matrix` is the package's grid).
@@ -218,6 +222,14 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
         c.rgba.into_iter().flatten().collect::<Vec<u8>>().into_pyarray(py).reshape([n, 4])
     });
     dict.set_item("rgba", rgba.transpose()?)?;
+    let labels = result.labels.map(|labels| {
+        let dict = PyDict::new(py);
+        for (attribute, values) in labels.columns {
+            dict.set_item(attribute.name(), values.into_pyarray(py))?;
+        }
+        Ok::<_, PyErr>(dict)
+    });
+    dict.set_item("labels", labels.transpose()?)?;
     dict.set_item("words", grid.words.into_pyarray(py))?;
     // A distance field as float32 [x, y, z] over the whole grid, and its background.
     let distances = result.field.as_ref().map(|field| {
@@ -239,7 +251,7 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
@@ -253,8 +265,9 @@ fn voxelize<'py>(
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
     band: &str,
+    attributes: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes)?;
     let input = input(source)?;
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
@@ -265,7 +278,7 @@ fn voxelize<'py>(
 /// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
 /// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
-#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band))]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize_many<'py>(
     py: Python<'py>,
@@ -280,8 +293,9 @@ fn voxelize_many<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     workers: Option<usize>,
     band: &str,
+    attributes: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();
@@ -350,11 +364,12 @@ fn headless_vulkan_setting() -> Option<(&'static str, &'static str)> {
     crate::gpu::headless_vulkan_setting()
 }
 
-/// `VoxelGrid.save`: writes a grid (from its `.matrix`, origin, pitch and colours) in the format its extension
-/// names, atomically (a temporary file beside it, renamed into place); for `.npy` with colours the
-/// `.colors.npy` beside it, as the CLI writes them.
+/// `VoxelGrid.save`: writes a grid (from its `.matrix`, origin, pitch, colours and labels) in the format its
+/// extension names, atomically (a temporary file beside it, renamed into place); for `.npy` the `.colors.npy` and
+/// `.labels.npy` beside it, as the CLI writes them. Labels go only where the format holds them.
 #[pyfunction]
-#[pyo3(signature = (path, matrix, origin, pitch, colors, merge))]
+#[pyo3(signature = (path, matrix, origin, pitch, colors, merge, labels))]
+#[allow(clippy::too_many_arguments)]
 fn save(
     py: Python<'_>,
     path: PathBuf,
@@ -363,13 +378,18 @@ fn save(
     pitch: f64,
     colors: Option<numpy::PyReadonlyArray4<'_, u8>>,
     merge: bool,
+    labels: Vec<(String, numpy::PyReadonlyArray3<'_, i32>)>,
 ) -> PyResult<()> {
     let format = VoxelFormat::from_extension(&path).ok_or_else(|| {
         PyValueError::new_err(format!("{}: unknown output format (use {})", path.display(), VoxelFormat::choices()))
     })?;
     let grid = from_matrix::grid(&matrix.as_array(), origin, pitch)?;
     let colours = colors.map(|c| from_matrix::colours(&grid, &c.as_array())).transpose()?;
-    let written = process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), merge))?;
+    let views: Vec<_> = labels.iter().map(|(name, values)| (name.clone(), values.as_array())).collect();
+    let labels = (!views.is_empty()).then(|| from_matrix::labels(&grid, &views)).transpose()?;
+    let labels = labels.filter(|_| format.holds_labels());
+    let written =
+        process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), labels.as_ref(), merge))?;
     written.map_err(|e| save_err(&path, e))
 }
 

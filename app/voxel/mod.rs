@@ -23,6 +23,7 @@ pub mod cpu;
 pub mod distance;
 pub mod formats;
 mod grid;
+pub mod labels;
 mod lattice;
 pub mod query;
 pub mod sample;

@@ -16,6 +16,7 @@ mod gpu;
 mod grid_convention;
 mod hostile;
 mod inside;
+mod labels;
 mod layers;
 mod mesh_export;
 mod mesh_loading;

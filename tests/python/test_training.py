@@ -228,3 +228,50 @@ def test_a_prepared_mesh_is_taken_wherever_a_mesh_is(meshes):
     many = meshvox.voxelize_many([teapot, path], 24, backend="cpu")
     assert many[0] == many[1]
     assert meshvox.Mesh(teapot).triangles == teapot.triangles and "teapot" in repr(teapot)
+
+
+def test_labels_are_the_cli_files_and_float64_near(meshes, cli, tmp_path):
+    """Per-voxel labels (`attributes=`): each surface voxel's triangle within half a voxel's diagonal of its centre
+    and each inside voxel's the nearest of all (numpy float64 over every triangle); material and node from the
+    triangle's part; the same labels in the CLI's .npz arrays and .labels.npy, after pickling and after save()."""
+    import pickle
+
+    path = str(meshes / "spot.obj")
+    attributes = ("triangle", "material", "node")
+    grid = meshvox.voxelize(path, 23, mode="solid", backend="cpu", attributes=attributes)
+    labels = grid.labels
+    assert set(labels) == set(attributes) and all(a.dtype == np.int32 for a in labels.values())
+    assert np.array_equal(labels["triangle"] >= 0, grid.matrix)
+    assert (labels["material"][grid.matrix] == -1).all() and (labels["node"][grid.matrix] == 0).all()
+    vertices, faces = meshvox.load(path)
+    surface = meshvox.voxelize(path, 23, mode="surface", backend="cpu").matrix
+    coords = grid.coords()
+    centres = grid.origin + (coords + 0.5) * grid.pitch
+    tri = labels["triangle"][tuple(coords.T)]
+    d = distances(vertices, faces, centres)
+    own = d[np.arange(len(tri)), tri]
+    on_surface = surface[tuple(coords.T)]
+    assert (own[on_surface] <= np.sqrt(0.75) * grid.pitch * (1 + 1e-6)).all()
+    inside = ~on_surface
+    assert inside.sum() > 100
+    assert (own[inside] <= d[inside].min(axis=1) + 1e-6 * grid.pitch).all()
+    # The CLI's files hold the same labels.
+    run_cli(cli, "voxelize", path, "-r", "23", "--mode", "solid", "--backend", "cpu", "-o", str(tmp_path / "g.npz"),
+            "--attributes", "triangle,material,node")
+    run_cli(cli, "voxelize", path, "-r", "23", "--mode", "solid", "--backend", "cpu", "-o", str(tmp_path / "g.npy"),
+            "--attributes", "triangle,node")
+    z = np.load(tmp_path / "g.npz")
+    assert np.array_equal(z["coords"], coords)
+    for a in attributes:
+        assert np.array_equal(z[a], labels[a][tuple(coords.T)]), a
+    beside = np.load(tmp_path / "g.labels.npy")
+    assert beside.dtype.names == ("triangle", "node") and beside.shape == grid.shape
+    assert np.array_equal(beside["triangle"], labels["triangle"]) and np.array_equal(beside["node"], labels["node"])
+    # Pickled and saved, the labels travel.
+    again = pickle.loads(pickle.dumps(grid))
+    assert again == grid and np.array_equal(again.labels["triangle"], labels["triangle"])
+    grid.save(tmp_path / "p.npz")
+    p = np.load(tmp_path / "p.npz")
+    assert all(np.array_equal(p[a], z[a]) for a in attributes)
+    with pytest.raises(ValueError, match="triangle, material or node"):
+        meshvox.voxelize(path, 8, attributes=("colour",))

@@ -79,6 +79,8 @@ class VoxelGrid:
         self.distances: np.ndarray | None = None
         self.background: float | None = None
         self.signed: bool | None = None
+        self._labels: dict[str, np.ndarray] | None = None
+        self._label_values: dict[str, np.ndarray] | None = None
 
     @classmethod
     def _packed(cls, words, shape, pitch, origin, rgba, stats) -> "VoxelGrid":
@@ -91,6 +93,7 @@ class VoxelGrid:
         grid.pitch, grid.origin = float(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
         grid.stats = dict(stats or {})
         grid.distances, grid.background, grid.signed = None, None, None
+        grid._labels, grid._label_values = None, None
         return grid
 
     def _bits_zyx(self) -> np.ndarray:
@@ -116,9 +119,25 @@ class VoxelGrid:
             self._colors = colors
         return self._colors
 
+    @property
+    def labels(self) -> dict[str, np.ndarray] | None:
+        """Per-voxel labels asked for with ``attributes=``: a dict from ``"triangle"``, ``"material"`` and ``"node"``
+        to int32 (X, Y, Z) arrays, -1 where no voxel is set; or None. ``triangle`` indexes :func:`load`'s faces."""
+        if self._labels is None and self._label_values is not None:
+            zyx = self._bits_zyx()
+            z, y, x = np.nonzero(zyx)
+            labels = {}
+            for name, values in self._label_values.items():
+                dense = np.full(self._shape, -1, dtype=np.int32)
+                dense[x, y, z] = values
+                labels[name] = dense
+            self._labels = labels
+        return self._labels
+
     def __getstate__(self) -> dict[str, Any]:
         # Once unpacked, the matrix is the truth (it may have been edited); before, the bits travel.
-        field = {"distances": self.distances, "background": self.background, "signed": self.signed}
+        field = {"distances": self.distances, "background": self.background, "signed": self.signed,
+                 "labels": self._labels, "label_values": self._label_values}
         if self._matrix is None and self._words is not None:
             return {"words": self._words, "rgba": self._rgba, "shape": self._shape, "pitch": self.pitch,
                     "origin": self.origin, "stats": self.stats, **field}
@@ -133,6 +152,7 @@ class VoxelGrid:
             other = VoxelGrid(state["matrix"], state["pitch"], state["origin"], state["colors"], state["stats"])
         other.distances = state.get("distances")
         other.background, other.signed = state.get("background"), state.get("signed")
+        other._labels, other._label_values = state.get("labels"), state.get("label_values")
         self.__dict__.update(other.__dict__)
 
     @property
@@ -166,7 +186,8 @@ class VoxelGrid:
     def save(self, path: str | os.PathLike[str], *, merge: bool = False) -> None:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
         ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``) with the CLI's writers, atomically; a coloured
-        ``.npy`` gets ``.colors.npy`` beside it.
+        ``.npy`` gets ``.colors.npy`` beside it, a labelled one ``.labels.npy``; labels also go into ``.npz``
+        arrays and ``.vdb`` Int32Grids (the other formats hold none).
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
         as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) or ``.vdb`` (a level set),
         as the CLI writes it."""
@@ -177,7 +198,8 @@ class VoxelGrid:
             return
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
-        _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge)
+        labels = [(name, np.ascontiguousarray(a, dtype=np.int32)) for name, a in (self.labels or {}).items()]
+        _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge, labels)
 
     def to_trimesh(self) -> Any:
         """The grid as a ``trimesh.voxel.VoxelGrid`` (needs trimesh): the same voxels at the same places."""
@@ -197,6 +219,10 @@ class VoxelGrid:
         a, b = self.colors, other.colors
         da, db = self.distances, other.distances
         if (da is None) != (db is None) or (da is not None and not np.array_equal(da, db)):
+            return False
+        la, lb = self.labels, other.labels
+        if (la is None) != (lb is None) or (la is not None and (la.keys() != lb.keys() or not all(
+                np.array_equal(la[k], lb[k]) for k in la))):
             return False
         return same_voxels and ((a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b)))
 
@@ -252,12 +278,19 @@ def _bounds(bounds: Any) -> tuple[tuple[float, float, float], tuple[float, float
     return (tuple(lo), tuple(hi))  # type: ignore[return-value]
 
 
+def _attributes(attributes: Sequence[str]) -> str:
+    if isinstance(attributes, str):
+        attributes = attributes.split(",")
+    return ",".join(attributes)
+
+
 def _grid(out: dict[str, Any]) -> VoxelGrid:
     for notice in out["notices"]:
         warnings.warn(f"meshvox: {notice}", RuntimeWarning, stacklevel=3)
     stats = json.loads(out["stats"])
     grid = VoxelGrid._packed(out["words"], out["shape"], out["pitch"], out["origin"], out["rgba"], stats)
     grid.distances, grid.background, grid.signed = out["distances"], out["background"], out["signed"]
+    grid._label_values = out["labels"]
     return grid
 
 
@@ -273,6 +306,7 @@ def voxelize(
     bounds: Any = None,
     progress: Progress | None = None,
     band: float | str = 3,
+    attributes: Sequence[str] = (),
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
@@ -284,11 +318,14 @@ def voxelize(
     surface's voxels in ``.matrix``. ``backend``: ``"auto"`` (the GPU
     where it pays, else the CPU), ``"gpu"`` or ``"cpu"``. ``colour``: ``None`` colours the voxels when the mesh
     has colours, ``False`` never. ``bounds=(min, max)`` fixes the grid's world box, so that a dataset shares one
-    frame. ``progress(done, total)`` is called from this thread now and then. The GIL is released meanwhile, and
+    frame. ``attributes`` (any of ``"triangle"``, ``"material"``, ``"node"``) adds per-voxel labels in
+    ``.labels``: each voxel's nearest triangle among those touching it, that triangle's material and its glTF node
+    or OBJ object. ``progress(done, total)`` is called from this thread now and then. The GIL is released meanwhile, and
     Ctrl-C stops the work.
     """
     out = _native.voxelize(
-        _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band)
+        _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
+        _attributes(attributes),
     )
     return _grid(out)
 
@@ -306,12 +343,14 @@ def voxelize_many(
     bounds: Any = None,
     progress: Progress | None = None,
     band: float | str = 3,
+    attributes: Sequence[str] = (),
 ) -> list[VoxelGrid]:
     """Voxelizes many meshes with one engine on ``workers`` threads (default: one per core), as ``meshvox batch``
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
-        sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band)
+        sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band),
+        _attributes(attributes),
     )
     return [_grid(o) for o in outs]
 

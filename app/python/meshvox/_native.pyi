@@ -21,6 +21,7 @@ def voxelize(
     bounds: _Bounds,
     progress: Callable[[int, int], Any] | None,
     band: str,
+    attributes: str,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
@@ -34,6 +35,7 @@ def voxelize_many(
     progress: Callable[[int, int], Any] | None,
     workers: int | None,
     band: str,
+    attributes: str,
 ) -> list[dict[str, Any]]: ...
 def load(path: str) -> tuple[np.ndarray, np.ndarray]: ...
 def backends() -> dict[str, Any]: ...
@@ -46,6 +48,7 @@ def save(
     pitch: float,
     colors: np.ndarray | None,
     merge: bool,
+    labels: list[tuple[str, np.ndarray]],
 ) -> None: ...
 def save_field(
     path: str,

@@ -20,13 +20,14 @@ pub mod vox;
 pub use binvox::{read_binvox, write_binvox};
 pub use error::FormatError;
 pub use mesh::MeshFormat;
-pub use npy::{read_npy, write_colours_npy, write_npy};
+pub use npy::{read_npy, write_colours_npy, write_labels_npy, write_npy};
 pub use npz::write_npz;
 pub use vdb::{VdbOptions, write_vdb};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
 use super::colour::VoxelColours;
 use super::distance::DistanceField;
+use super::labels::Labels;
 use super::{Grid, SparseGrid, VoxelGrid};
 use glam::UVec3;
 use std::io::{Seek, Write};
@@ -73,6 +74,11 @@ impl VoxelFormat {
         crate::names::choices(
             &VoxelFormat::ALL.map(|f| f.extension()).map(|e| format!(".{e}")).each_ref().map(String::as_str),
         )
+    }
+
+    /// Whether the format holds per-voxel labels (`.npy` as a second file beside the grid).
+    pub fn holds_labels(self) -> bool {
+        matches!(self, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb)
     }
 
     /// Whether the format is written from a sparse grid, in space that grows with the set voxels (the others
@@ -123,11 +129,14 @@ pub fn write_coloured<W: Write + Seek>(
 
 /// How [`write_grid`] writes, beyond the format.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct WriteOptions {
+pub struct WriteOptions<'a> {
     /// Mesh formats: join coplanar faces into rectangles.
     pub merge: bool,
     /// `.vdb`: a float `density` grid instead of the bool `occupancy` one.
     pub vdb_float: bool,
+    /// Per-voxel labels of a dense grid: `.npz` arrays and `.vdb` `Int32Grid`s named by their attributes (an
+    /// `.npy` grid's go beside it, [`write_labels_npy`]).
+    pub labels: Option<&'a Labels>,
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse
@@ -149,25 +158,37 @@ pub fn write_grid<W: Write + Seek>(
         (Grid::Sparse(sparse), true) => std::borrow::Cow::Borrowed(sparse),
         (Grid::Dense(dense), true) => std::borrow::Cow::Owned(SparseGrid::from_dense(dense)),
     };
-    // Colours are kept in the dense grid's storage order (see `colour`): looked up by each voxel's rank.
-    let ranked = match (grid, colours) {
-        (Grid::Dense(dense), Some(c)) => Some((dense, super::colour::word_ranks(dense), c)),
+    // Colours and labels are kept in the dense grid's storage order (see `colour`): looked up by each voxel's
+    // rank.
+    let ranked = match grid {
+        Grid::Dense(dense) if colours.is_some() || options.labels.is_some() => {
+            Some((dense, super::colour::word_ranks(dense)))
+        }
         _ => None,
     };
-    let lookup = ranked.as_ref().map(|(dense, ranks, c)| {
-        move |v: UVec3| match super::cpu::colour::voxel_rank(dense, ranks, v) {
-            Some(r) => c.rgba[r as usize],
-            None => [0; 4],
-        }
-    });
+    let rank = |v: UVec3| ranked.as_ref().and_then(|(dense, ranks)| super::cpu::colour::voxel_rank(dense, ranks, v));
+    let colour = |v: UVec3| rank(v).zip(colours).map_or([0; 4], |(r, c)| c.rgba[r as usize]);
+    let colour = colours.is_some().then_some(&colour as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
+    let columns = options.labels.filter(|_| ranked.is_some()).map_or(&[][..], |l| l.columns.as_slice());
+    let label_fns: Vec<(&str, Box<Label>)> = columns
+        .iter()
+        .map(|(a, values)| {
+            let f = move |v: UVec3| rank(v).map_or(-1, |r| values[r as usize]);
+            (a.name(), Box::new(f) as Box<Label>)
+        })
+        .collect();
+    let labels: Vec<IntColumn> = label_fns.iter().map(|(name, f)| (*name, f.as_ref())).collect();
     match format {
-        VoxelFormat::Npz => write_npz(&sparse, lookup.as_ref().map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), None, out),
-        _ => {
-            let colour = lookup.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
-            write_vdb(&sparse, VdbOptions { float: options.vdb_float }, colour, out)
-        }
+        VoxelFormat::Npz => write_npz(&sparse, colour.map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), &labels, None, out),
+        _ => write_vdb(&sparse, VdbOptions { float: options.vdb_float }, colour, &labels, out),
     }
 }
+
+/// An int32 value per set voxel.
+pub type Label<'a> = dyn Fn(UVec3) -> i32 + Sync + 'a;
+
+/// A named int32 value per set voxel: a label column as the sparse writers take it.
+pub type IntColumn<'a> = (&'a str, &'a Label<'a>);
 
 /// Writes a distance field in `format`: `.npy` float32 over the whole grid, `.npz` the band's coordinates and
 /// `values`, `.vdb` a level set. Other formats hold occupancy only (the engine refuses them before voxelizing).
@@ -180,7 +201,7 @@ pub fn write_field<W: Write + Seek>(
         VoxelFormat::Npy => npy::write_field_npy(field, out),
         VoxelFormat::Npz => {
             let value = |v: UVec3| field.value(v);
-            write_npz(&field.band_grid(), None, Some(&value), out)
+            write_npz(&field.band_grid(), None, &[], Some(&value), out)
         }
         VoxelFormat::Vdb => vdb::write_level_set(field, out),
         other => Err(std::io::Error::other(format!(
@@ -189,6 +210,11 @@ pub fn write_field<W: Write + Seek>(
         ))
         .into()),
     }
+}
+
+/// The path of the labels written beside an `.npy` grid: `grid.npy` → `grid.labels.npy`.
+pub fn labels_npy_path(grid_path: &std::path::Path) -> std::path::PathBuf {
+    grid_path.with_extension("labels.npy")
 }
 
 /// The path of the colour array written beside an `.npy` grid: `grid.npy` → `grid.colors.npy`.

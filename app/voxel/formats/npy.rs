@@ -5,6 +5,7 @@
 use super::error::{FormatError, invalid};
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
+use crate::voxel::labels::Labels;
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::{Read, Write};
@@ -32,10 +33,45 @@ pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut imp
     Ok(())
 }
 
+/// Writes the labels as an `.npy` of a structured dtype, one int32 field per attribute in the labels' order
+/// (`[('triangle', '<i4'), ('material', '<i4')]`), shape `(dims_x, dims_y, dims_z)`, C order: `a['triangle'][x,
+/// y, z]` is voxel `(x, y, z)`'s label, -1 in every field where no voxel is set.
+pub fn write_labels_npy(grid: &VoxelGrid, labels: &Labels, out: &mut impl Write) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    let fields: Vec<String> = labels.columns.iter().map(|(a, _)| format!("('{}', '<i4')", a.name())).collect();
+    write_header(&format!("[{}]", fields.join(", ")), &format!("({}, {}, {})", d.x, d.y, d.z), out)?;
+    let (nx, ny, nz, k) = (d.x as usize, d.y as usize, d.z as usize, labels.columns.len());
+    let mut by_x: Vec<Vec<(u32, u32, usize)>> = vec![Vec::new(); nx];
+    for (rank, v) in grid.iter_set().enumerate() {
+        by_x[v.x as usize].push((v.y, v.z, rank));
+    }
+    // One x-slice (y × z records) at a time, as the colours.
+    let unset: Vec<u8> = (0..k).flat_map(|_| (-1i32).to_le_bytes()).collect();
+    let mut slice = vec![0u8; ny * nz * k * 4];
+    for column in by_x {
+        for record in slice.chunks_exact_mut(k * 4) {
+            record.copy_from_slice(&unset);
+        }
+        for (y, z, rank) in column {
+            let at = (y as usize * nz + z as usize) * k * 4;
+            for (i, (_, values)) in labels.columns.iter().enumerate() {
+                slice[at + 4 * i..at + 4 * i + 4].copy_from_slice(&values[rank].to_le_bytes());
+            }
+        }
+        out.write_all(&slice)?;
+    }
+    Ok(())
+}
+
 /// The `.npy` header of a C-order array of dtype `descr` (numpy's `'|u1'`, `'<i4'`, ...) and shape `shape` (a
 /// Python tuple, as `"(3,)"`).
 pub fn write_npy_header(descr: &str, shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    write_header(&format!("'{descr}'"), shape, out)
+}
+
+/// The `.npy` header with `descr` as a Python literal: a quoted type, or a structured dtype's list of fields.
+fn write_header(descr: &str, shape: &str, out: &mut impl Write) -> Result<(), FormatError> {
+    let mut header = format!("{{'descr': {descr}, 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + header must be a multiple of 64, the header ending in a newline.
     let unpadded = NPY_MAGIC.len() + 4 + header.len() + 1;
     header.push_str(&" ".repeat(unpadded.next_multiple_of(64) - unpadded));

@@ -9,11 +9,13 @@
 //! | `voxel_size` | float64 () | the voxels' edge length |
 //! | `dims` | int64 (3,) | the grid's size in voxels |
 //! | `colors` | uint8 (N, 4) | sRGB RGBA of each voxel in `coords`' order, when coloured |
+//! | `triangle`, `material`, `node` | int32 (N,) | each voxel's labels in `coords`' order, when asked for (`--attributes`, see `voxel::labels`) |
 //! | `values` | float32 (N,) | a distance field's value at each voxel in `coords`' order (`sdf`, `udf`) |
 //!
 //! Written in a stream from the sparse grid, one x-slab of leaves at a time (the zip crate patches each entry's
 //! sizes and checksum afterwards, hence `Seek`).
 
+use super::IntColumn;
 use super::error::FormatError;
 use super::npy::write_npy_header;
 use crate::voxel::SparseGrid;
@@ -26,10 +28,12 @@ fn zip_error(e: zip::result::ZipError) -> FormatError {
     FormatError::Io(std::io::Error::other(e.to_string()))
 }
 
-/// Writes `grid` (and `colour(v)`, `value(v)` for each set voxel `v`, when given) as an `.npz`.
+/// Writes `grid` (and `colour(v)`, each label column's value and `value(v)` for each set voxel `v`, when given) as
+/// an `.npz`.
 pub fn write_npz<W: Write + Seek>(
     grid: &SparseGrid,
     colour: Option<&dyn Fn(UVec3) -> [u8; 4]>,
+    labels: &[IntColumn],
     value: Option<&dyn Fn(UVec3) -> f32>,
     out: W,
 ) -> Result<(), FormatError> {
@@ -51,6 +55,11 @@ pub fn write_npz<W: Write + Seek>(
         zip.start_file("colors.npy", options(n * 4)).map_err(zip_error)?;
         write_npy_header("|u1", &format!("({n}, 4)"), &mut zip)?;
         write_sorted(grid, &mut zip, |v, bytes| bytes.extend_from_slice(&colour(v)))?;
+    }
+    for (name, label) in labels {
+        zip.start_file(format!("{name}.npy"), options(n * 4)).map_err(zip_error)?;
+        write_npy_header("<i4", &format!("({n},)"), &mut zip)?;
+        write_sorted(grid, &mut zip, |v, bytes| bytes.extend_from_slice(&label(v).to_le_bytes()))?;
     }
     if let Some(value) = value {
         zip.start_file("values.npy", options(n * 4)).map_err(zip_error)?;

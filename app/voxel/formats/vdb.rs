@@ -7,8 +7,10 @@
 //! true), or with [`VdbOptions::float`] a `FloatGrid` named `density` of class fog volume (1.0 where set,
 //! background 0.0) for tools that only read floats. Beside it, when the voxels have colours, a `Vec3SGrid`
 //! named `Cd` with the same active voxels and each voxel's colour as linear RGB in 0..1 (Houdini's and
-//! Blender's convention for `Cd`). The sparse grid's tiles (a solid's interior) stay tiles: active tile values
-//! in the 5-4-3 tree's internal nodes and root.
+//! Blender's convention for `Cd`). Per-voxel labels (`--attributes`) come as `Int32Grid`s named `triangle`,
+//! `material` and `node`, the same active voxels, background -1 (written from dense grids, so all leaves). The
+//! sparse grid's tiles (a solid's interior) stay tiles: active tile values in the 5-4-3 tree's internal nodes
+//! and root.
 //!
 //! The transform is a uniform scale and translation that puts the centre of index voxel `(i, j, k)`, at integer
 //! index coordinates in OpenVDB, at meshvox's centre of voxel `(i, j, k)`: `origin + voxel_size * (i + ½, …)`.
@@ -21,6 +23,7 @@
 //! streamed from the sparse grid. The three stream positions of each grid's descriptor are patched in once the
 //! grid is written, hence `Seek`.
 
+use super::IntColumn;
 use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::parallel;
@@ -56,6 +59,8 @@ enum Values<'a> {
     Density,
     /// Linear RGB per voxel.
     Colour(&'a (dyn Fn(UVec3) -> [f32; 3] + Sync)),
+    /// An int32 label per voxel (background -1).
+    Int(&'a (dyn Fn(UVec3) -> i32 + Sync)),
     /// A level set: each voxel's signed distance, `±background` beyond the band.
     LevelSet {
         value: &'a (dyn Fn(UVec3) -> f32 + Sync),
@@ -69,6 +74,7 @@ impl Values<'_> {
             Values::Bool => "Tree_bool_5_4_3",
             Values::Density | Values::LevelSet { .. } => "Tree_float_5_4_3",
             Values::Colour(_) => "Tree_vec3s_5_4_3",
+            Values::Int(_) => "Tree_int32_5_4_3",
         }
     }
 
@@ -77,6 +83,7 @@ impl Values<'_> {
             Values::Bool => out.push(0),
             Values::Density => out.extend_from_slice(&0f32.to_le_bytes()),
             Values::Colour(_) => out.extend_from_slice(&[0; 12]),
+            Values::Int(_) => out.extend_from_slice(&(-1i32).to_le_bytes()),
             Values::LevelSet { background, .. } => out.extend_from_slice(&background.to_le_bytes()),
         }
     }
@@ -92,6 +99,7 @@ impl Values<'_> {
                 }
             }
             Values::LevelSet { value, .. } => out.extend_from_slice(&value(v).to_le_bytes()),
+            Values::Int(value) => out.extend_from_slice(&value(v).to_le_bytes()),
         }
     }
 
@@ -280,11 +288,12 @@ fn file_head(grid: &SparseGrid, grids: usize) -> Vec<u8> {
 }
 
 /// Writes `grid` as a `.vdb` (see the module documentation); `colour(v)` gives the sRGB colour of each set voxel
-/// for a `Cd` grid.
+/// for a `Cd` grid, and each label column an `Int32Grid` of its name.
 pub fn write_vdb<W: Write + Seek>(
     grid: &SparseGrid,
     options: VdbOptions,
     colour: Option<&(dyn Fn(UVec3) -> [u8; 4] + Sync)>,
+    labels: &[IntColumn],
     mut out: W,
 ) -> Result<(), FormatError> {
     let to_rgb = colour.map(|colour| {
@@ -302,6 +311,7 @@ pub fn write_vdb<W: Write + Seek>(
     ]
     .into_iter()
     .flatten()
+    .chain(labels.iter().map(|&(name, f)| (name, Values::Int(f))))
     .collect();
     out.write_all(&file_head(grid, grids.len()))?;
     let nodes = tree_nodes(grid);
@@ -390,7 +400,7 @@ fn write_grid<W: Write + Seek>(
     let class = match values {
         Values::Density => "fog volume",
         Values::LevelSet { .. } => "level set",
-        Values::Bool | Values::Colour(_) => "unknown",
+        Values::Bool | Values::Colour(_) | Values::Int(_) => "unknown",
     };
     let mut meta = vec![
         ("name", Meta::Str(name.to_string())),
@@ -546,7 +556,7 @@ fn write_buffers(
                             coord(&mut b, origin);
                             Mask(mask.to_vec()).write(&mut b);
                         }
-                        Values::Density | Values::Colour(_) | Values::LevelSet { .. } => {
+                        Values::Density | Values::Colour(_) | Values::Int(_) | Values::LevelSet { .. } => {
                             let at = |n: usize| origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
                             values.inactive(512, at, &mut b);
                             for (x, &word) in mask.iter().enumerate() {
