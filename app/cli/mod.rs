@@ -100,8 +100,8 @@ struct ColourArgs {
     /// Per-voxel labels, comma-separated: triangle (the nearest triangle touching the voxel), material, node
     /// (glTF node, OBJ object or group). Written as int32 arrays in .npz, Int32Grids in .vdb, and
     /// NAME.labels.npy beside an .npy; -1 where unset.
-    #[arg(long, value_name = "LIST", value_parser = AttributeSet::parse, default_value = "")]
-    attributes: AttributeSet,
+    #[arg(long, value_name = "LIST", value_parser = AttributeSet::parse)]
+    attributes: Option<AttributeSet>,
 }
 
 impl ColourArgs {
@@ -147,7 +147,7 @@ impl LimitArgs {
         Ok(Request {
             axis,
             colour: colour.no_colour.then_some(false),
-            attributes: colour.attributes,
+            attributes: colour.attributes.unwrap_or_default(),
             max_memory: self.max_memory,
             band: band.band(mode)?,
             ..Request::new(resolution, mode)
