@@ -11,8 +11,9 @@ use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The mesh formats a directory is searched for.
-const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb", "stl", "ply"];
+/// The mesh formats a directory is searched for, point cloud text included. `.npy` and `.npz` point clouds are
+/// read when named or matched by a pattern, not found in folders, where they are more often grids and samples.
+const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb", "stl", "ply", "xyz", "pts"];
 
 #[derive(clap::Args)]
 #[command(group(clap::ArgGroup::new("size").args(["resolution", "voxel_size"])))]
@@ -97,6 +98,11 @@ fn is_mesh(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| MESH_EXTENSIONS.contains(&e.to_lowercase().as_str()))
 }
 
+/// An `.npy` or `.npz`: a point cloud when named or matched by a pattern.
+fn is_array(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| matches!(e.to_lowercase().as_str(), "npy" | "npz"))
+}
+
 /// A directory argument being walked: the folders its symbolic links may lead into (its own real path, then the
 /// resource roots), and the real paths of the folders walked so far (a link back up must not loop).
 struct Walk {
@@ -179,7 +185,7 @@ fn discover(inputs: &[String], resource_roots: &[PathBuf]) -> Result<Vec<Item>> 
             let mut found = false;
             for m in matches {
                 let m = m.with_context(|| input.clone())?;
-                if m.is_file() && is_mesh(&m) {
+                if m.is_file() && (is_mesh(&m) || is_array(&m)) {
                     let name = m.file_name().map(PathBuf::from).ok_or_else(|| anyhow!("{}: no name", m.display()))?;
                     items.push(Item { source: m, relative: name, refused: None });
                     found = true;

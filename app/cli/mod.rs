@@ -107,12 +107,12 @@ struct ColourArgs {
 impl ColourArgs {
     /// Whether to colour this mesh's voxels.
     fn wanted(&self, mesh: &mesh::Mesh) -> bool {
-        !self.no_colour && mesh.shading.is_some()
+        !self.no_colour && mesh.has_colour()
     }
 
     /// Says so when --colour meets a mesh without colour.
     fn note_if_colourless(&self, name: &str, mesh: &mesh::Mesh) {
-        if self.colour && !self.no_colour && mesh.shading.is_none() {
+        if self.colour && !self.no_colour && !mesh.has_colour() {
             eprintln!(
                 "note: {name} has no colours (materials, textures or vertex colours); the voxels stay uncoloured"
             );

@@ -76,9 +76,12 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let report = voxelize_loaded(args, &request, None, &mesh, load_ms, true)?;
     let [x, y, z] = report.dims;
     eprintln!(
-        "{}: {} triangles -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {} on {}; wrote {} ({} bytes)",
+        "{}: {} -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {} on {}; wrote {} ({} bytes)",
         args.mesh,
-        report.triangles,
+        match report.points {
+            Some(n) => format!("{n} points"),
+            None => format!("{} triangles", report.triangles),
+        },
         report.voxel_size,
         report.voxels,
         args.mode,

@@ -119,11 +119,21 @@ impl<'a> Job<'a> {
                 return Err(EngineError::FullBandSparse);
             }
         }
+        if mesh.points.is_some() {
+            let what = match (request.mode, request.attributes.is_empty()) {
+                (Mode::Surface, true) => None,
+                (Mode::Surface, false) => Some("--attributes".to_string()),
+                (mode, _) => Some(format!("--mode {mode}")),
+            };
+            if let Some(what) = what {
+                return Err(EngineError::PointCloud { mesh: name.to_string(), what });
+            }
+        }
         let labelled = !request.attributes.is_empty();
         if labelled && let Some(f) = format.filter(|f| !f.holds_labels()) {
             return Err(EngineError::LabelsFormat { extension: f.extension() });
         }
-        let coloured = request.colour != Some(false) && mesh.shading.is_some();
+        let coloured = request.colour != Some(false) && mesh.has_colour();
         let sparse = match request.grid {
             GridKind::Dense => false,
             GridKind::Sparse => true,

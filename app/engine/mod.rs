@@ -88,6 +88,9 @@ pub enum EngineError {
     /// The labels' nearest triangles could not be found.
     #[error("labels: {0}")]
     Labels(#[from] crate::voxel::query::QueryError),
+    /// A point cloud asked for something only triangles give.
+    #[error("{mesh} is a point cloud: each point sets its voxel in --mode surface; {what} needs triangles")]
+    PointCloud { mesh: String, what: String },
     /// `--band full` with a sparse grid or output.
     #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
     FullBandSparse,
@@ -276,6 +279,9 @@ impl Engine {
     pub async fn run_async(&self, job: &Job<'_>) -> Result<Voxelized, EngineError> {
         let (request, mesh, spec) = (&job.request, job.mesh, job.spec);
         request.cancelled()?;
+        if let Some(cloud) = &mesh.points {
+            return self.run_points(job, cloud);
+        }
         let t = Instant::now();
         // Grid-space triangles once, for the voxels and their colours.
         let tris = grid_space(mesh, &spec)?;
@@ -297,7 +303,7 @@ impl Engine {
         let field_ms = field.as_ref().map(|_| ms(t));
         request.cancelled()?;
         let t = Instant::now();
-        let colours = match (request.colour != Some(false) && mesh.shading.is_some(), &made.grid) {
+        let colours = match (request.colour != Some(false) && mesh.has_colour(), &made.grid) {
             (true, Grid::Dense(grid)) => Some(self.colour(mesh, &tris, grid, &mut notices).await?),
             (true, Grid::Sparse(_)) => {
                 notices.push(Notice {
@@ -326,26 +332,12 @@ impl Engine {
             (true, _) => None,
         };
         let labels_ms = labels.as_ref().map(|_| ms(t));
-        let d = spec.dims;
         let report = Report {
-            mesh: job.name.to_string(),
-            triangles: mesh.triangles.len(),
-            dims: [d.x, d.y, d.z],
-            origin: spec.origin.to_array(),
-            voxel_size: spec.voxel_size,
-            grid: GridKind::of(job.sparse).name().to_string(),
-            leaves: made.grid.sparse().map(|g| g.leaves.len() as u64),
-            tiles: made.grid.sparse().map(|g| g.tiles.len() as u64),
-            voxels: made.grid.count(),
-            mode: request.mode.name().to_string(),
             backend: made.backend,
-            threads: parallel::threads(),
             gpu_ms: made.gpu_ms,
             exact_tests: made.exact_tests,
-            setup_ms: self.setup_ms,
             colour: colours.as_ref().map(|c| c.backend.clone()),
             colour_ms,
-            warnings: mesh.warnings.clone(),
             voxelize_ms,
             band: request.mode.is_field().then(|| request.band.name()),
             band_voxels: field.as_ref().map(|f| f.band_voxels),
@@ -360,10 +352,67 @@ impl Engine {
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
             meshes_in_submission: made.group,
-            ..Report::default()
+            ..self.grid_report(job, &made.grid)
         };
         let colours = colours.map(|c| c.colours);
         Ok(Voxelized { grid: made.grid, field, colours, labels, instances: made.instances, report, notices })
+    }
+
+    /// The report's fields every run fills the same way: the job's mesh, grid and mode, and the engine's set-up.
+    fn grid_report(&self, job: &Job, grid: &Grid) -> Report {
+        let (spec, mesh) = (job.spec, job.mesh);
+        Report {
+            mesh: job.name.to_string(),
+            triangles: mesh.triangles.len(),
+            points: mesh.points.as_ref().map(|c| c.points.len() as u64),
+            dims: spec.dims.to_array(),
+            origin: spec.origin.to_array(),
+            voxel_size: spec.voxel_size,
+            grid: GridKind::of(job.sparse).name().to_string(),
+            leaves: grid.sparse().map(|g| g.leaves.len() as u64),
+            tiles: grid.sparse().map(|g| g.tiles.len() as u64),
+            voxels: grid.count(),
+            mode: job.request.mode.name().to_string(),
+            threads: parallel::threads(),
+            setup_ms: self.setup_ms,
+            warnings: mesh.warnings.clone(),
+            ..Report::default()
+        }
+    }
+
+    /// A point cloud's run: each point sets its voxel, coloured by the mean of its points' colours
+    /// ([`voxel::points`]), on the CPU whatever the backend (a pass per point has nothing to gain from a GPU).
+    fn run_points(&self, job: &Job, cloud: &crate::mesh::cloud::PointCloud) -> Result<Voxelized, EngineError> {
+        let t = Instant::now();
+        let colour = job.request.colour != Some(false) && !cloud.colours.is_empty();
+        let mut notices = Vec::new();
+        let (grid, colours) = match job.sparse {
+            true => {
+                if colour {
+                    notices.push(Notice {
+                        warning: true,
+                        message: "colours are made on dense grids only for now: the sparse grid is uncoloured".into(),
+                    });
+                }
+                (Grid::Sparse(voxel::points::voxelize_points_sparse(cloud, job.spec, &job.bounds)), None)
+            }
+            false => {
+                let (grid, colours) = voxel::points::voxelize_points(cloud, job.spec, &job.bounds, colour)
+                    .map_err(|e| job.grid_error(e))?;
+                (Grid::Dense(grid), colours)
+            }
+        };
+        let voxelize_ms = ms(t);
+        let backend = format!("cpu ({} threads)", parallel::threads());
+        let report = Report {
+            backend: backend.clone(),
+            colour: colours.as_ref().map(|_| backend),
+            voxelize_ms,
+            host_ms: voxelize_ms,
+            total_ms: voxelize_ms,
+            ..self.grid_report(job, &grid)
+        };
+        Ok(Voxelized { grid, field: None, colours, labels: None, instances: None, report, notices })
     }
 
     /// The job's grid (in its mode's grid mode: the surface for the fields) on the GPU, with the CPU standing in

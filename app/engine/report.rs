@@ -71,6 +71,8 @@ pub struct Report {
     /// The grid's world minimum corner.
     pub origin: [f64; 3],
     pub output: String,
+    /// Points of a point cloud (which has no triangles); `None` for a mesh.
+    pub points: Option<u64>,
     /// Bytes the grid's GPU passes read back (the grid or its leaves, counters, timings); `None` on the CPU.
     pub readback_bytes: Option<u64>,
     /// Adapter, device and pipeline creation, once per engine.

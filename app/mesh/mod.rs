@@ -4,14 +4,17 @@
 //! This is the bottom layer: it knows nothing about grids or GPUs.
 
 pub mod builtin;
+pub mod cloud;
 mod files;
 mod gltf_data;
 mod gltf_scene;
 pub mod material;
+pub mod npy;
 mod obj;
 mod ply;
 mod stl;
 
+use cloud::{CloudFormat, PointCloud};
 use files::{Access, Budget, Externals};
 use glam::{DVec3, Vec3, Vec4};
 pub use material::Shading;
@@ -66,9 +69,24 @@ pub struct Mesh {
     /// Materials, textures and per-triangle texture coordinates and vertex colours, when the file has any
     /// colour (see [`Shading::has_colour`]); `None` otherwise.
     pub shading: Option<Shading>,
+    /// A point cloud instead of triangles (a PLY without faces, `.xyz`, `.pts`, `.npy`, `.npz`): then `triangles`
+    /// is empty and each point sets its voxel.
+    pub points: Option<PointCloud>,
 }
 
 impl Mesh {
+    /// A mesh that is the point cloud `cloud`, named `name`.
+    pub(crate) fn of_cloud(name: &str, cloud: PointCloud) -> Mesh {
+        let b = points_bounds(&cloud.points);
+        let anchor = b.map_or(DVec3::ZERO, |b| b.min + b.extent() * 0.5);
+        Mesh { name: name.to_string(), anchor, points: Some(cloud), ..Mesh::default() }
+    }
+
+    /// Whether the mesh has colours: materials, textures or vertex colours, or a point cloud's colours.
+    pub fn has_colour(&self) -> bool {
+        self.shading.is_some() || self.points.as_ref().is_some_and(|c| !c.colours.is_empty())
+    }
+
     /// Which axis is probably up in this mesh's file (only the view uses it; grids and outputs do not change).
     /// glTF is Y-up by its specification, and the bundled meshes are Y-up. STL files come from CAD and 3D
     /// printing, which are Z-up. OBJ and PLY carry no convention: a flat model (its extent along Z under half
@@ -76,7 +94,7 @@ impl Mesh {
     pub fn guess_up(&self) -> UpAxis {
         match Format::detect(Path::new(&self.name), &[]) {
             Some(Format::Stl) => UpAxis::Z,
-            Some(Format::Obj | Format::Ply) => {
+            Some(Format::Obj | Format::Ply | Format::Points(_)) => {
                 let Some(b) = self.bounds() else { return UpAxis::Y };
                 let e = b.extent();
                 if e.z < 0.5 * e.x.min(e.y) { UpAxis::Z } else { UpAxis::Y }
@@ -85,9 +103,12 @@ impl Mesh {
         }
     }
 
-    /// The world-space bounding box of all triangles, or `None` for an empty mesh.
+    /// The world-space bounding box of all triangles (or points), or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
         use rayon::prelude::*;
+        if let Some(cloud) = &self.points {
+            return points_bounds(&cloud.points);
+        }
         let first = self.triangles.first()?[0];
         // In parallel over large meshes: the engine asks for this before every grid (see `local_triangles`).
         let (min, max) = crate::parallel::install(|| {
@@ -149,6 +170,14 @@ impl Mesh {
 
     /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
     fn validate(self, path: &Path) -> Result<Self, MeshError> {
+        if let Some(cloud) = &self.points {
+            return match cloud.points.iter().position(|p| !p.is_finite()) {
+                Some(i) => {
+                    Err(MeshError::Points { path: path.to_path_buf(), message: format!("point {i} is not finite") })
+                }
+                None => Ok(self),
+            };
+        }
         if self.triangles.is_empty() {
             return Err(MeshError::Empty { path: path.to_path_buf() });
         }
@@ -158,6 +187,13 @@ impl Mesh {
         }
         Ok(self)
     }
+}
+
+/// The box of `points` (exact, f64), or `None` for none.
+fn points_bounds(points: &[DVec3]) -> Option<Aabb> {
+    let first = *points.first()?;
+    let (min, max) = points.iter().fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    Some(Aabb { min, max })
 }
 
 /// Which of `count` positions the triangles use.
@@ -218,7 +254,7 @@ pub(crate) struct Piece {
 pub enum MeshError {
     #[error("{}: cannot read: {source}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
-    #[error("{}: unsupported mesh format (expected .obj, .gltf, .glb, .stl or .ply)", path.display())]
+    #[error("{}: unsupported mesh format (expected .obj, .gltf, .glb, .stl or .ply; point clouds: .ply, .xyz, .pts, .npy or .npz)", path.display())]
     UnsupportedFormat { path: PathBuf },
     #[error("{}: invalid OBJ: {message}", path.display())]
     Obj { path: PathBuf, message: String },
@@ -231,6 +267,8 @@ pub enum MeshError {
     Stl { path: PathBuf, message: String },
     #[error("{}: invalid PLY: {message}", path.display())]
     Ply { path: PathBuf, message: String },
+    #[error("{}: invalid point cloud: {message}", path.display())]
+    Points { path: PathBuf, message: String },
     #[error("{}: contains no triangles", path.display())]
     Empty { path: PathBuf },
     /// Arrays handed over by a program ([`from_indexed`]) that do not make a mesh.
@@ -316,6 +354,8 @@ pub enum Format {
     Gltf,
     Stl,
     Ply,
+    /// A point cloud's own formats (`.xyz`, `.pts`, `.npy`, `.npz`; a PLY cloud is `Ply`).
+    Points(CloudFormat),
 }
 
 impl Format {
@@ -327,6 +367,9 @@ impl Format {
             Some("gltf" | "glb") => Some(Format::Gltf),
             Some("stl") => Some(Format::Stl),
             Some("ply") => Some(Format::Ply),
+            Some("xyz" | "pts") => Some(Format::Points(CloudFormat::Text)),
+            Some("npy") => Some(Format::Points(CloudFormat::Npy)),
+            Some("npz") => Some(Format::Points(CloudFormat::Npz)),
             _ if bytes.starts_with(b"glTF") => Some(Format::Gltf),
             _ if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") => Some(Format::Ply),
             _ => None,
@@ -446,6 +489,7 @@ fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
         Some(Format::Gltf) => gltf_scene::load(path, bytes, base, limits)?,
         Some(Format::Stl) => stl::load(path, bytes, limits)?,
         Some(Format::Ply) => ply::load(path, bytes, limits)?,
+        Some(Format::Points(format)) => cloud::load(path, bytes, format, limits)?,
         None => {
             return Err(MeshError::UnsupportedFormat { path: path.to_path_buf() });
         }

@@ -1,11 +1,14 @@
 //! PLY (Stanford polygon files), ASCII and binary, through ply-rs: the `vertex` element's `x y z` and, when
 //! present, its `red green blue` (bytes, or floats in 0..1; sRGB as scanners and MeshLab write them), and the
 //! `face` element's `vertex_indices` (or `vertex_index`) lists, polygons fan-triangulated. Other elements and
-//! properties are read past and ignored.
+//! properties are read past and ignored. A PLY without faces (or with none declared) is a point cloud: its
+//! vertices, with their colours.
 //!
 //! Vertices and faces go into small structs of our own (ply-rs's default element is a hash map per vertex, about
 //! ten times the memory). Coordinates keep the precision the file declares: `double` properties stay f64.
 
+use super::cloud::PointCloud;
+use super::npy::unit_byte;
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::DVec3;
 use ply_rs::ply::{Property, PropertyAccess};
@@ -98,8 +101,11 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
     let Some(vertex_def) = header.elements.get("vertex") else {
         return Err(err("no vertex element".into()));
     };
-    let Some(face_def) = header.elements.get("face") else {
-        return Err(err("no face element (a point cloud has no surface to voxelize)".into()));
+    let Some(face_def) = header.elements.get("face").filter(|f| f.count > 0) else {
+        // No faces: a point cloud (scanners and Open3D write these), its points counted against the limit.
+        limits.check_triangles(path, vertex_def.count as u64)?;
+        let (vertices, _) = read_elements(&mut reader, &header, path)?;
+        return cloud(vertices, vertex_def).map_err(err);
     };
     // Every face makes at least one triangle: a file declaring more faces than the limit is refused before its
     // body is read. (Polygons are counted exactly once read.)
@@ -132,6 +138,24 @@ pub(super) fn load(path: &Path, bytes: &[u8], limits: &LoadLimits) -> Result<Mes
     let part = Part { name, mesh: 0, primitive: 0, material: None, node: 0 };
     mesh.push_pieces(vec![Piece { part, positions, triangles, uvs: Vec::new(), colors, material: 0 }]);
     Ok(mesh)
+}
+
+/// The mesh of a PLY without faces: its vertices as points, with their colours as sRGB bytes when it has any.
+fn cloud(vertices: Vec<Vertex>, def: &ply_rs::ply::ElementDef) -> Result<Mesh, String> {
+    if !["x", "y", "z"].iter().all(|k| def.properties.contains_key(*k)) {
+        return Err("the vertex element lacks x, y or z".into());
+    }
+    if vertices.is_empty() {
+        return Err("no faces and no vertices".into());
+    }
+    let colours = match vertices.iter().any(|v| v.coloured) {
+        true => {
+            vertices.iter().map(|v| v.rgb.map(|c| unit_byte(f64::from(c)))).map(|[r, g, b]| [r, g, b, 255]).collect()
+        }
+        false => Vec::new(),
+    };
+    let points = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
+    Ok(Mesh::of_cloud("", PointCloud { points, colours }))
 }
 
 /// The vertex and face elements' entries, reading the elements in the header's order: each one before the faces

@@ -29,7 +29,7 @@ use exceptions::MeshError as PyMeshError;
 /// A mesh as the package hands it over: a path (loaded later, without the GIL), or one already made from arrays.
 enum Input {
     Path(PathBuf),
-    Mesh(Mesh),
+    Mesh(Box<Mesh>),
 }
 
 /// What a call asks for, from the keyword arguments of `meshvox.voxelize`: where, and the library's request
@@ -59,6 +59,7 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::Empty { .. }
             | EngineError::Bounds { .. }
             | EngineError::FieldFormat { .. }
+            | EngineError::PointCloud { .. }
             | EngineError::FullBandSparse),
         ) => PyValueError::new_err(worded(e)),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
@@ -69,13 +70,14 @@ fn into_py_err(failure: Failure) -> PyErr {
 }
 
 /// The library's messages name its settings as the command line spells them; a Python caller passes keywords.
-const KEYWORDS: [(&str, &str); 6] = [
+const KEYWORDS: [(&str, &str); 7] = [
     ("--voxel-size", "pitch="),
     ("--band full", "band=\"full\""),
     ("--band ", "band="),
     ("--axis", "axis="),
     ("--backend cpu", "backend=\"cpu\""),
     ("--mode ", "mode="),
+    ("--attributes", "attributes="),
 ];
 
 /// A library message in the package's words ([`KEYWORDS`]).
@@ -125,7 +127,7 @@ fn input(source: &Bound<'_, PyAny>) -> PyResult<Input> {
     // Its parallel copy runs on the library's pool, made per process (rayon's global pool does not survive a fork).
     let mesh = mesh::from_indexed("arrays", positions, faces);
     let mesh = mesh.map_err(|e| into_py_err(Failure::Mesh(e)))?;
-    Ok(Input::Mesh(mesh))
+    Ok(Input::Mesh(Box::new(mesh)))
 }
 
 impl Input {
@@ -137,7 +139,7 @@ impl Input {
                 let mesh = mesh::load(&name).map_err(Failure::Mesh)?;
                 Ok((name, mesh))
             }
-            Input::Mesh(mesh) => Ok(("arrays".to_string(), mesh)),
+            Input::Mesh(mesh) => Ok(("arrays".to_string(), *mesh)),
         }
     }
 }
@@ -271,6 +273,41 @@ fn voxelize<'py>(
     let input = input(source)?;
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
+    })?;
+    to_dict(py, result.map_err(into_py_err)?)
+}
+
+/// `meshvox._native.voxelize_points`: see `meshvox.voxelize_points` (points float64 (N, 3), colours uint8 (N, 4)
+/// or None, already checked and converted there).
+#[pyfunction]
+#[pyo3(signature = (points, colors, resolution, pitch, axis, backend, bounds, progress))]
+#[allow(clippy::too_many_arguments)]
+fn voxelize_points<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    colors: Option<PyReadonlyArray2<'py, u8>>,
+    resolution: Option<u32>,
+    pitch: Option<f64>,
+    axis: &str,
+    backend: &str,
+    bounds: Option<([f64; 3], [f64; 3])>,
+    progress: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "")?;
+    let (points, colors) = (points.as_array(), colors.as_ref().map(|c| c.as_array()));
+    if points.ncols() != 3 || colors.is_some_and(|c| c.ncols() != 4) {
+        return Err(PyValueError::new_err("points must be (N, 3) and colours (N, 4)"));
+    }
+    let cloud: Vec<DVec3> = points.rows().into_iter().map(|r| DVec3::new(r[0], r[1], r[2])).collect();
+    let colours = colors.map_or_else(Vec::new, |c| c.rows().into_iter().map(|r| [r[0], r[1], r[2], r[3]]).collect());
+    let mesh = mesh::cloud::from_points("points", cloud, colours).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let result = process::run(py, progress, |control| {
+        voxelize_one(
+            Input::Mesh(Box::new(mesh)),
+            &options,
+            &|done, total| control.progress(done, total),
+            &control.cancel,
+        )
     })?;
     to_dict(py, result.map_err(into_py_err)?)
 }
@@ -429,6 +466,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MeshError", m.py().get_type::<PyMeshError>())?;
     m.add_function(wrap_pyfunction!(voxelize, m)?)?;
     m.add_function(wrap_pyfunction!(voxelize_many, m)?)?;
+    m.add_function(wrap_pyfunction!(voxelize_points, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(backends, m)?)?;
     m.add_function(wrap_pyfunction!(devices_opened, m)?)?;

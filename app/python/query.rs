@@ -58,7 +58,7 @@ impl PyPrepared {
 impl PyPrepared {
     /// The mesh for a voxelization.
     pub(super) fn input(&self) -> Input {
-        Input::Mesh(self.prepared.mesh().clone())
+        Input::Mesh(Box::new(self.prepared.mesh().clone()))
     }
 }
 

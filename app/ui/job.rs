@@ -75,7 +75,7 @@ impl ViewerApp {
                 grid: crate::voxel::GridKind::Dense,
                 // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list
                 // (a field is drawn from its slice, made on the host).
-                instances: self.showing().from_gpu_list(mesh.shading.is_some()) && !self.mode.is_field(),
+                instances: self.showing().from_gpu_list(mesh.has_colour()) && !self.mode.is_field(),
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
             };
             let mesh = mesh.clone();

@@ -25,6 +25,7 @@ pub mod formats;
 mod grid;
 pub mod labels;
 mod lattice;
+pub mod points;
 pub mod query;
 pub mod sample;
 pub mod solid;

@@ -23,6 +23,7 @@ mod mesh_loading;
 mod mirror;
 mod modes;
 mod optimized_gltf;
+mod points;
 mod query;
 mod render_snapshots;
 mod seed_and_real_meshes;

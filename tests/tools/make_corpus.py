@@ -121,7 +121,7 @@ w(bad, "ascii-bad-number.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 
 w(bad, "ascii-cut-short.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n")
 ply_head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
 w(bad, "face-index-out-of-range.ply", ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n")
-w(bad, "points-only.ply", ply_head + "end_header\n0 0 0\n1 0 0\n0 1 0\n")
+w(odd, "points-only.ply", ply_head + "end_header\n0 0 0\n1 0 0\n0 1 0\n")
 w(bad, "fewer-vertices-than-declared.ply", ply_head.replace("vertex 3", "vertex 5") + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
 w(bad, "binary-truncated.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n".encode() + struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + b"\x03\x00\x00")
 w(bad, "not-a-ply-header.ply", "ply\nformat ascii 1.0\nelement vertex three\nend_header\n")

@@ -32,6 +32,7 @@ __all__ = [
     "Query",
     "voxelize",
     "voxelize_many",
+    "voxelize_points",
     "query",
     "Samples",
     "sample",
@@ -353,6 +354,42 @@ def voxelize_many(
         _attributes(attributes),
     )
     return [_grid(o) for o in outs]
+
+
+def voxelize_points(
+    points: Any,
+    resolution: int | None = None,
+    *,
+    pitch: float | None = None,
+    colors: Any = None,
+    axis: str = "longest",
+    backend: str = "auto",
+    bounds: Any = None,
+    progress: Progress | None = None,
+) -> VoxelGrid:
+    """Voxelizes a point cloud (array-like (N, 3), world coordinates): each point sets the voxel it falls in,
+    ``floor((p - origin) / pitch)`` (Open3D's ``VoxelGrid.create_from_point_cloud`` rule) on meshvox's grid
+    convention, ``resolution`` voxels along ``axis`` of the points' box (or of ``bounds``), or voxels of edge
+    ``pitch``. ``colors`` (N, 3) or (N, 4), uint8 sRGB or floats in 0..1, colour each voxel by the mean of its
+    points'. Files (``.ply`` without faces, ``.xyz``, ``.pts``, ``.npy``, ``.npz``) go through :func:`voxelize`."""
+    p = np.asarray(points)
+    if p.ndim != 2 or p.shape[1] != 3 or p.dtype.kind not in "fiu":
+        raise ValueError(f"points must be numbers of shape (N, 3), not {p.dtype} {p.shape}")
+    c = None
+    if colors is not None:
+        c = np.asarray(colors)
+        if c.ndim != 2 or c.shape[0] != len(p) or c.shape[1] not in (3, 4):
+            raise ValueError(f"colors must have shape ({len(p)}, 3) or ({len(p)}, 4), not {c.shape}")
+        if c.dtype.kind == "f":
+            c = np.round(np.clip(np.nan_to_num(c), 0, 1) * 255)
+        c = c.astype(np.uint8)
+        if c.shape[1] == 3:
+            c = np.concatenate([c, np.full((len(c), 1), 255, np.uint8)], axis=1)
+        c = np.ascontiguousarray(c)
+    out = _native.voxelize_points(
+        np.ascontiguousarray(p, dtype=np.float64), c, resolution, pitch, axis, backend, _bounds(bounds), progress
+    )
+    return _grid(out)
 
 
 class Mesh:

@@ -37,6 +37,16 @@ def voxelize_many(
     band: str,
     attributes: str,
 ) -> list[dict[str, Any]]: ...
+def voxelize_points(
+    points: np.ndarray,
+    colors: np.ndarray | None,
+    resolution: int | None,
+    pitch: float | None,
+    axis: str,
+    backend: str,
+    bounds: _Bounds,
+    progress: Callable[[int, int], Any] | None,
+) -> dict[str, Any]: ...
 def load(path: str) -> tuple[np.ndarray, np.ndarray]: ...
 def backends() -> dict[str, Any]: ...
 def devices_opened() -> int: ...

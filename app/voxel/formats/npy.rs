@@ -3,6 +3,7 @@
 //! header plus raw bytes, and the crates for it pull in a whole Python-literal parser.
 
 use super::error::{FormatError, invalid};
+use crate::mesh::npy::NpyError;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::labels::Labels;
@@ -129,46 +130,12 @@ pub fn write_field_npy(field: &DistanceField, out: &mut impl Write) -> Result<()
 }
 
 /// Reads an `.npy` header (`format` names the file kind in errors): the dtype's descr without quotes (`<f4`),
-/// and the shape. C order only.
+/// and the shape. C order only. (The reader is the mesh layer's, which reads point clouds from `.npy`.)
 pub fn read_npy_header(input: &mut impl Read, format: &'static str) -> Result<(String, Vec<u64>), FormatError> {
-    let mut pre = [0u8; 10];
-    input.read_exact(&mut pre)?;
-    if &pre[..6] != NPY_MAGIC {
-        return Err(invalid(format, "missing magic"));
-    }
-    let len = match pre[6] {
-        1 => u16::from_le_bytes([pre[8], pre[9]]) as usize,
-        2 | 3 => {
-            let mut more = [0u8; 2];
-            input.read_exact(&mut more)?;
-            u32::from_le_bytes([pre[8], pre[9], more[0], more[1]]) as usize
-        }
-        v => return Err(invalid(format, format!("unsupported version {v}"))),
-    };
-    if len > 1 << 20 {
-        return Err(invalid(format, format!("a header of {len} bytes")));
-    }
-    let mut header = vec![0u8; len];
-    input.read_exact(&mut header)?;
-    let header = String::from_utf8_lossy(&header);
-    let field = |key: &str| -> Option<String> {
-        let start = header.find(&format!("'{key}'"))? + key.len() + 2;
-        let rest = header[start..].trim_start().strip_prefix(':')?.trim_start();
-        let end = if rest.starts_with('(') { rest.find(')')? + 1 } else { rest.find(',')? };
-        Some(rest[..end].trim().to_string())
-    };
-    let descr = field("descr").ok_or_else(|| invalid(format, "no descr"))?;
-    if field("fortran_order").as_deref() != Some("False") {
-        return Err(invalid(format, "Fortran order is not supported"));
-    }
-    let shape = field("shape").ok_or_else(|| invalid(format, "no shape"))?;
-    let dims: Vec<u64> = shape
-        .trim_matches(|c| c == '(' || c == ')')
-        .split(',')
-        .filter(|s| !s.trim().is_empty())
-        .map(|s| s.trim().parse::<u64>().map_err(|_| invalid(format, format!("bad shape {shape}"))))
-        .collect::<Result<_, _>>()?;
-    Ok((descr.trim_matches(|c| c == '\'' || c == '"').to_string(), dims))
+    crate::mesh::npy::read_header(input).map_err(|e| match e {
+        NpyError::Io(e) => FormatError::Io(e),
+        NpyError::Invalid(message) => invalid(format, message),
+    })
 }
 
 /// Reads an `.npy` file of dtype `uint8`/`bool`, C order, three dimensions. Origin 0 and voxel size 1, since

@@ -3,7 +3,8 @@
 //! package's fields.
 
 use super::error::{FormatError, invalid};
-use super::npy::{read_npy_header, write_npy_header};
+use super::npy::write_npy_header;
+use crate::mesh::npy::NpyError;
 use crate::voxel::query::Answers;
 use crate::voxel::sample::Samples;
 use glam::DVec3;
@@ -11,34 +12,12 @@ use std::io::{Read, Seek, Write};
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
 
-/// Reads `(N, 3)` points from an `.npy` of dtype `<f4` or `<f8`, C order.
+/// Reads `(N, 3)` points from an `.npy` of dtype `<f4` or `<f8`, C order (the mesh layer's reader).
 pub fn read_points_npy(input: &mut impl Read) -> Result<Vec<DVec3>, FormatError> {
-    const F: &str = "npy";
-    let (descr, shape) = read_npy_header(input, F)?;
-    let n = match shape[..] {
-        [n, 3] => n,
-        _ => return Err(invalid(F, format!("points must have shape (N, 3), not {shape:?}"))),
-    };
-    let width = match descr.as_str() {
-        "<f4" => 4,
-        "<f8" => 8,
-        _ => return Err(invalid(F, format!("points must be float32 or float64 (little-endian), not '{descr}'"))),
-    };
-    let bytes = n.checked_mul(3 * width).ok_or_else(|| invalid(F, format!("{n} points")))?;
-    let mut data = Vec::new();
-    // Read what is there rather than trusting the header's count for the allocation.
-    input.take(bytes).read_to_end(&mut data)?;
-    if (data.len() as u64) < bytes {
-        return Err(invalid(F, format!("the file ends after {} of its {n} points", data.len() as u64 / (3 * width))));
-    }
-    let value = |c: &[u8]| match width {
-        4 => f64::from(f32::from_le_bytes([c[0], c[1], c[2], c[3]])),
-        _ => f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
-    };
-    Ok(data
-        .chunks_exact(3 * width as usize)
-        .map(|p| DVec3::new(value(&p[..width as usize]), value(&p[width as usize..]), value(&p[2 * width as usize..])))
-        .collect())
+    crate::mesh::npy::read_points(input).map_err(|e| match e {
+        NpyError::Io(e) => FormatError::Io(e),
+        NpyError::Invalid(message) => invalid("npy", message),
+    })
 }
 
 /// One array of an `.npz`: its name (without `.npy`), numpy's descr, its shape as a Python tuple, its bytes.
