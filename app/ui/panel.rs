@@ -50,15 +50,19 @@ impl ViewerApp {
             self.open(spec);
         }
         #[cfg(not(target_arch = "wasm32"))]
-        if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY; or drop a file on the window").clicked()
-            && let Some(path) =
-                rfd::FileDialog::new().add_filter("meshes", &["obj", "gltf", "glb", "stl", "ply"]).pick_file()
         {
-            let loaded = crate::mesh::load_path(&path);
-            self.set_mesh(path.display().to_string(), loaded);
+            let hover = "OBJ, glTF, GLB, STL or PLY, or a point cloud (PLY, XYZ, PTS, NPY, NPZ); or drop a file on \
+                         the window";
+            let kinds = ["obj", "gltf", "glb", "stl", "ply", "xyz", "pts", "npy", "npz"];
+            if ui.button("Open…").on_hover_text(hover).clicked()
+                && let Some(path) = rfd::FileDialog::new().add_filter("meshes and point clouds", &kinds).pick_file()
+            {
+                let loaded = crate::mesh::load_path(&path);
+                self.set_mesh(path.display().to_string(), loaded);
+            }
         }
         #[cfg(target_arch = "wasm32")]
-        if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY (pick a .gltf or .obj together with the files it refers to); or drop files on the page").clicked() {
+        if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY, or a point cloud (PLY, XYZ, PTS, NPY, NPZ) (pick a .gltf or .obj together with the files it refers to); or drop files on the page").clicked() {
             web::open_file_picker();
         }
         ui.label(egui::RichText::new("Drop an .obj, .gltf, .glb, .stl or .ply file anywhere.").small().weak());
