@@ -1,18 +1,18 @@
 //! A bounding-volume hierarchy over a mesh's grid-space triangles, for nearest-triangle queries (what makes a
 //! field whose band is the whole grid, `--band full`, cost what its voxels need instead of triangles × voxels) and
 //! for the triangles a ray along -x may cross (the winding number at a point, [`super::query`]).
-//! Built by median splits along each node's longest axis; a query walks it nearer child first and prunes every
+//! Built by binned surface-area splits (median splits where those cannot separate a node's triangles); a query walks it nearer child first and prunes every
 //! node whose box is no nearer than the best distance so far, so the distances it evaluates are those of the
 //! triangles whose boxes come within that distance. Written here (about a hundred lines) rather than taken from a
 //! crate because the query must evaluate the distance field's own arithmetic ([`point_distance2`]) with its own
 //! pruning rule, so that its minimum is bit for bit the minimum over every triangle.
 
 use super::cpu::common::dot3;
-use super::cpu::distance::{box_distance2, cannot_lower, point_distance2};
-use glam::Vec3;
+use super::cpu::distance::point_distance2;
+use glam::{Vec3, Vec4};
 
 /// Triangles per leaf.
-const LEAF: usize = 4;
+const LEAF: usize = 8;
 
 /// The deepest a tree of median splits can be for `u32::MAX` triangles.
 const DEPTH: usize = 64;
@@ -31,71 +31,134 @@ struct Node {
 /// (a leaf's are side by side in memory) with their indices in the mesh.
 pub struct Bvh {
     nodes: Vec<Node>,
+    /// The same tree with every two levels made one, for the nearest-point walk: four boxes tested at once.
+    wide: Vec<Wide>,
     order: Vec<u32>,
     triangles: Vec<[Vec3; 3]>,
-    /// Per triangle in leaf order, what [`cannot_lower`] takes besides the point: made once, not per visit.
-    prune: Vec<Prune>,
+    /// Per triangle in leaf order, what [`super::cpu::distance::cannot_lower`] takes besides the point, by coordinate: made once, not
+    /// per visit, and laid out so that a leaf's triangles are tested four at a time.
+    lanes: Lanes,
 }
 
-/// A triangle's normal, its squared length and its bounding box.
+/// Four children of the 4-wide tree: their boxes by coordinate (lanes are children; an empty lane's box is
+/// inverted, so no point is ever within it), and each a wide node (`count` 0) or a leaf's range in `order`.
 #[derive(Clone, Copy, Debug)]
-struct Prune {
-    n: Vec3,
-    n2: f32,
-    lo: Vec3,
-    hi: Vec3,
+struct Wide {
+    lo: [Vec4; 3],
+    hi: [Vec4; 3],
+    first: [u32; 4],
+    count: [u32; 4],
+}
+
+impl Wide {
+    const EMPTY: Wide = Wide { lo: [Vec4::INFINITY; 3], hi: [Vec4::NEG_INFINITY; 3], first: [0; 4], count: [0; 4] };
+
+    /// The squared distances from `p` to the four boxes (infinite for an empty lane).
+    #[inline]
+    fn distances2(&self, p: Vec3) -> Vec4 {
+        let gap = |k: usize| {
+            let c = Vec4::splat(p[k]);
+            (self.lo[k] - c).max(c - self.hi[k]).max(Vec4::ZERO)
+        };
+        let (x, y, z) = (gap(0), gap(1), gap(2));
+        x * x + y * y + z * z
+    }
+}
+
+/// Each triangle's first vertex, normal, the normal's squared length and its bounding box, one array per
+/// coordinate (`A`, `N`, `N2`, `LO`, `HI` name the first of each), three lanes of padding at the end.
+struct Lanes([Vec<f32>; 13]);
+
+const A: usize = 0;
+const N: usize = 3;
+const N2: usize = 6;
+const LO: usize = 7;
+const HI: usize = 10;
+
+impl Lanes {
+    fn new(triangles: &[[Vec3; 3]]) -> Lanes {
+        let mut lanes: [Vec<f32>; 13] = std::array::from_fn(|_| Vec::with_capacity(triangles.len() + 3));
+        for t in triangles {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            let values = [t[0].x, t[0].y, t[0].z, n.x, n.y, n.z, dot3(n, n), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z];
+            for (lane, v) in lanes.iter_mut().zip(values) {
+                lane.push(v);
+            }
+        }
+        for lane in &mut lanes {
+            lane.extend([0.0; 3]);
+        }
+        Lanes(lanes)
+    }
+
+    /// Triangle `j`'s vector starting at coordinate array `k`.
+    fn vec3(&self, k: usize, j: usize) -> Vec3 {
+        Vec3::new(self.0[k][j], self.0[k + 1][j], self.0[k + 2][j])
+    }
+
+    /// Which of triangles `i..i + 4` (in leaf order; those past `end` never) `cannot_lower` would not skip at
+    /// `p` for `current`, as a bit mask: its arithmetic, four lanes at once.
+    #[inline]
+    fn may_lower(&self, i: usize, end: usize, p: Vec3, current: f32) -> u32 {
+        let at = |k: usize| Vec4::from_slice(&self.0[k][i..i + 4]);
+        let d = |k: usize| at(A + k) - Vec4::splat(p[k]);
+        let (n, n2) = ([at(N), at(N + 1), at(N + 2)], at(N2));
+        let plane = n[0] * d(0) + n[1] * d(1) + n[2] * d(2);
+        let margin = Vec4::splat(1.0001);
+        let by_plane = (plane * plane).cmpge(Vec4::splat(current) * n2 * margin) & n2.cmpgt(Vec4::ZERO);
+        let gap = |k: usize| {
+            let c = Vec4::splat(p[k]);
+            (at(LO + k) - c).max(c - at(HI + k)).max(Vec4::ZERO)
+        };
+        let (gx, gy, gz) = (gap(0), gap(1), gap(2));
+        let by_box = (gx * gx + gy * gy + gz * gz).cmpge(Vec4::splat(current * 1.0001));
+        let valid = (1u32 << (end - i).min(4)) - 1;
+        !(by_plane | by_box).bitmask() & valid
+    }
 }
 
 impl Bvh {
-    /// The hierarchy over `triangles`.
+    /// The hierarchy over `triangles`: binned surface-area splits (16 bins along the longest axis of the node's
+    /// triangle centres), which give tighter boxes than median splits and so prune more of a nearest-point walk;
+    /// a median split where the bins cannot separate the centres.
     pub fn build(triangles: &[[Vec3; 3]]) -> Bvh {
+        let boxes: Vec<(Vec3, Vec3)> =
+            triangles.iter().map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
+        let centre = |i: u32| {
+            let (lo, hi) = boxes[i as usize];
+            lo + hi
+        };
         let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
         let bounds = |ids: &[u32]| {
             ids.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &i| {
-                let t = triangles[i as usize];
-                (lo.min(t[0].min(t[1]).min(t[2])), hi.max(t[0].max(t[1]).max(t[2])))
+                let (a, b) = boxes[i as usize];
+                (lo.min(a), hi.max(b))
             })
         };
         let (lo, hi) = bounds(&order);
         let mut nodes = vec![Node { lo, hi, first: 0, count: triangles.len() as u32 }];
-        // (node, its range in `order`) still to split.
-        let mut todo = vec![(0usize, 0usize, triangles.len())];
-        while let Some((at, start, end)) = todo.pop() {
+        // (node, its range in `order`, its depth) still to split.
+        let mut todo = vec![(0usize, 0usize, triangles.len(), 0usize)];
+        while let Some((at, start, end, depth)) = todo.pop() {
             if end - start <= LEAF {
                 continue;
             }
-            let extent = nodes[at].hi - nodes[at].lo;
-            let axis = if extent.x >= extent.y && extent.x >= extent.z {
-                0
-            } else if extent.y >= extent.z {
-                1
-            } else {
-                2
-            };
-            let centre = |i: &u32| {
-                let t = triangles[*i as usize];
-                t[0][axis] + t[1][axis] + t[2][axis]
-            };
-            let mid = start + (end - start) / 2;
-            order[start..end].select_nth_unstable_by(mid - start, |a, b| centre(a).total_cmp(&centre(b)));
+            let ids = &mut order[start..end];
+            let mid = start + split(ids, &boxes, &centre, depth);
             let first = nodes.len();
             for (s, e) in [(start, mid), (mid, end)] {
                 let (lo, hi) = bounds(&order[s..e]);
                 nodes.push(Node { lo, hi, first: s as u32, count: (e - s) as u32 });
-                todo.push((nodes.len() - 1, s, e));
+                todo.push((nodes.len() - 1, s, e, depth + 1));
             }
             nodes[at].first = first as u32;
             nodes[at].count = 0;
         }
         let triangles: Vec<[Vec3; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
-        let prune = triangles
-            .iter()
-            .map(|t| {
-                let n = (t[1] - t[0]).cross(t[2] - t[0]);
-                Prune { n, n2: dot3(n, n), lo: t[0].min(t[1]).min(t[2]), hi: t[0].max(t[1]).max(t[2]) }
-            })
-            .collect();
-        Bvh { nodes, order, triangles, prune }
+        let lanes = Lanes::new(&triangles);
+        let wide = widen(&nodes);
+        Bvh { nodes, wide, order, triangles, lanes }
     }
 
     /// The least squared distance from `p` to the triangles where one is below `bound` (`None` where none is), and
@@ -109,42 +172,59 @@ impl Bvh {
     /// mesh) of the first triangle in the walk's order that gives it, and how many distances it evaluated;
     /// `start` may name a triangle at that distance (a neighbour's nearest: a tight bound to prune from), which is
     /// the answer where none is nearer. A node is skipped where its box is no nearer than the best so far, a
-    /// triangle by the distance pass's own rule ([`cannot_lower`]), each by a margin above their rounding: the
+    /// triangle by the distance pass's own rule ([`super::cpu::distance::cannot_lower`]), each by a margin above their rounding: the
     /// triangle that gives the minimum is never skipped.
     pub fn nearest_triangle(&self, p: Vec3, start: (f32, Option<u32>)) -> (Option<(f32, u32)>, u32) {
         let ((mut best, mut found), mut evaluated) = (start, 0);
-        // Each node with its box's squared distance, found when its parent was opened.
-        let mut stack = [(0u32, 0.0f32); DEPTH];
-        let mut len = usize::from(!self.nodes.is_empty());
+        // Entries (first, count, the box's squared distance): a wide node (count 0) or a leaf, found when its
+        // parent was opened. Each opening adds at most three entries, and the wide tree is no deeper than the
+        // binary one.
+        let mut stack = [(0u32, 0u32, 0.0f32); 3 * DEPTH + 1];
+        let mut len = usize::from(!self.wide.is_empty());
         while len > 0 {
             len -= 1;
-            let (at, d2) = stack[len];
+            let (first, count, d2) = stack[len];
             if d2 >= best * 1.0001 {
                 continue;
             }
-            let node = self.nodes[at as usize];
-            if node.count > 0 {
-                let range = node.first as usize..(node.first + node.count) as usize;
-                let leaf = self.triangles[range.clone()].iter().zip(&self.prune[range.clone()]);
-                for ((t, c), &i) in leaf.zip(&self.order[range]) {
-                    if cannot_lower(p, t[0], c.n, c.n2, (c.lo, c.hi), best) {
-                        continue;
-                    }
-                    evaluated += 1;
-                    let d2 = point_distance2(p, *t);
-                    if d2 < best {
-                        (best, found) = (d2, Some(i));
+            if count > 0 {
+                // Four triangles tested at a time against the best when their group began (a larger bound than
+                // the best so far skips no more than the one-by-one rule would).
+                let end = (first + count) as usize;
+                for i in (first as usize..end).step_by(4) {
+                    let mut lanes = self.lanes.may_lower(i, end, p, best);
+                    while lanes != 0 {
+                        let j = i + lanes.trailing_zeros() as usize;
+                        lanes &= lanes - 1;
+                        evaluated += 1;
+                        let d2 = point_distance2(p, self.triangles[j]);
+                        if d2 < best {
+                            (best, found) = (d2, Some(self.order[j]));
+                        }
                     }
                 }
                 continue;
             }
-            // The nearer child on top, so it is walked first and the farther one is more often pruned.
-            let (a, b) = (node.first, node.first + 1);
-            let (da, db) = (self.box_distance2_of(a, p), self.box_distance2_of(b, p));
-            let (near, far) = if da <= db { ((a, da), (b, db)) } else { ((b, db), (a, da)) };
-            stack[len] = far;
-            stack[len + 1] = near;
-            len += 2;
+            let node = &self.wide[first as usize];
+            let d = node.distances2(p).to_array();
+            // The children within reach, nearest last so it is walked first and the farther ones more often
+            // pruned.
+            let mut open = [(0u32, 0u32, 0.0f32); 4];
+            let mut n = 0;
+            for (k, &dk) in d.iter().enumerate() {
+                if dk < best * 1.0001 {
+                    let entry = (node.first[k], node.count[k], dk);
+                    let mut at = n;
+                    while at > 0 && open[at - 1].2 < entry.2 {
+                        open[at] = open[at - 1];
+                        at -= 1;
+                    }
+                    open[at] = entry;
+                    n += 1;
+                }
+            }
+            stack[len..len + n].copy_from_slice(&open[..n]);
+            len += n;
         }
         (found.map(|i| (best, i)), evaluated)
     }
@@ -164,11 +244,10 @@ impl Bvh {
                 continue;
             }
             if node.count > 0 {
-                let range = node.first as usize..(node.first + node.count) as usize;
-                let leaf = self.triangles[range.clone()].iter().zip(&self.prune[range.clone()]);
-                for ((t, c), &i) in leaf.zip(&self.order[range]) {
-                    if meets(c.lo, c.hi) {
-                        visit(i, *t);
+                for j in node.first as usize..(node.first + node.count) as usize {
+                    let (lo, hi) = (self.lanes.vec3(LO, j), self.lanes.vec3(HI, j));
+                    if meets(lo, hi) {
+                        visit(self.order[j], self.triangles[j]);
                     }
                 }
                 continue;
@@ -178,9 +257,130 @@ impl Bvh {
             len += 2;
         }
     }
+}
 
-    fn box_distance2_of(&self, node: u32, p: Vec3) -> f32 {
-        let n = &self.nodes[node as usize];
-        box_distance2(p, n.lo, n.hi)
+/// Bins along a node's longest axis of triangle centres.
+const BINS: usize = 16;
+
+/// Below this depth a node is split by area; deeper (a pathological spread of centres), at the median, so that
+/// the walks' fixed stacks of [`DEPTH`] always suffice (median splits add at most 32 more levels).
+const AREA_DEPTH: usize = 24;
+
+/// An empty box, for unions.
+const EMPTY: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+
+fn union(a: (Vec3, Vec3), b: (Vec3, Vec3)) -> (Vec3, Vec3) {
+    (a.0.min(b.0), a.1.max(b.1))
+}
+
+/// Half the surface area of a box (0 for an empty one).
+fn area((lo, hi): (Vec3, Vec3)) -> f32 {
+    let e = (hi - lo).max(Vec3::ZERO);
+    e.x * e.y + e.y * e.z + e.z * e.x
+}
+
+/// Reorders `ids` so that the first `k` make the left child, and returns `k` (between 1 and `len - 1`): the
+/// binned surface-area split of their centres at `depth` below [`AREA_DEPTH`] where the bins separate them, else
+/// the median along the longest axis of the centres.
+fn split(ids: &mut [u32], boxes: &[(Vec3, Vec3)], centre: &impl Fn(u32) -> Vec3, depth: usize) -> usize {
+    let (clo, chi) = ids.iter().fold(EMPTY, |b, &i| union(b, (centre(i), centre(i))));
+    let extent = chi - clo;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let n = ids.len();
+    if extent[axis] > 0.0 && depth < AREA_DEPTH {
+        let scale = BINS as f32 / extent[axis];
+        let bin = |i: u32| (((centre(i)[axis] - clo[axis]) * scale) as usize).min(BINS - 1);
+        let mut count = [0usize; BINS];
+        let mut bbox = [EMPTY; BINS];
+        for &i in ids.iter() {
+            let b = bin(i);
+            count[b] += 1;
+            bbox[b] = union(bbox[b], boxes[i as usize]);
+        }
+        // The right side of each cut (bins k..), then the left side swept up to each cut.
+        let mut right = [(0.0f32, 0usize); BINS];
+        let (mut acc, mut c) = (EMPTY, 0);
+        for k in (1..BINS).rev() {
+            acc = union(acc, bbox[k]);
+            c += count[k];
+            right[k] = (area(acc), c);
+        }
+        let (mut best, mut cut) = (f32::INFINITY, None);
+        let (mut acc, mut c) = (EMPTY, 0);
+        for k in 0..BINS - 1 {
+            acc = union(acc, bbox[k]);
+            c += count[k];
+            let (ra, rc) = right[k + 1];
+            let cost = area(acc) * c as f32 + ra * rc as f32;
+            if c > 0 && rc > 0 && cost < best {
+                (best, cut) = (cost, Some(k));
+            }
+        }
+        if let Some(k) = cut {
+            // In-place partition: bins up to `k` first.
+            let mut left = 0;
+            for j in 0..n {
+                if bin(ids[j]) <= k {
+                    ids.swap(left, j);
+                    left += 1;
+                }
+            }
+            return left;
+        }
     }
+    let mid = n / 2;
+    ids.select_nth_unstable_by(mid, |a, b| centre(*a)[axis].total_cmp(&centre(*b)[axis]));
+    mid
+}
+
+/// The 4-wide tree of a binary one: each wide node holds up to four of the binary nodes below one, found by
+/// opening the largest inner one until there are four (or only leaves).
+fn widen(nodes: &[Node]) -> Vec<Wide> {
+    if nodes.is_empty() {
+        return Vec::new();
+    }
+    let mut wide = vec![Wide::EMPTY];
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((b, w)) = todo.pop() {
+        let mut entries = match nodes[b].count {
+            0 => vec![nodes[b].first as usize, nodes[b].first as usize + 1],
+            _ => vec![b],
+        };
+        while entries.len() < 4 {
+            let inner = entries.iter().enumerate().filter(|(_, e)| nodes[**e].count == 0);
+            let Some((k, _)) = inner.max_by(|a, b| node_area(&nodes[*a.1]).total_cmp(&node_area(&nodes[*b.1]))) else {
+                break;
+            };
+            let e = entries.swap_remove(k);
+            entries.extend([nodes[e].first as usize, nodes[e].first as usize + 1]);
+        }
+        let mut out = Wide::EMPTY;
+        for (k, &e) in entries.iter().enumerate() {
+            let node = nodes[e];
+            for axis in 0..3 {
+                out.lo[axis][k] = node.lo[axis];
+                out.hi[axis][k] = node.hi[axis];
+            }
+            (out.first[k], out.count[k]) = match node.count {
+                0 => {
+                    wide.push(Wide::EMPTY);
+                    todo.push((e, wide.len() - 1));
+                    (wide.len() as u32 - 1, 0)
+                }
+                count => (node.first, count),
+            };
+        }
+        wide[w] = out;
+    }
+    wide
+}
+
+fn node_area(node: &Node) -> f32 {
+    area((node.lo, node.hi))
 }
