@@ -1,11 +1,14 @@
 //! A bounding-volume hierarchy over a mesh's grid-space triangles, for nearest-triangle queries (what makes a
-//! field whose band is the whole grid, `--band full`, cost what its voxels need instead of triangles × voxels) and
-//! for the triangles a ray along -x may cross (the winding number at a point, [`super::query`]).
-//! Built by binned surface-area splits (median splits where those cannot separate a node's triangles); a query walks it nearer child first and prunes every
-//! node whose box is no nearer than the best distance so far, so the distances it evaluates are those of the
-//! triangles whose boxes come within that distance. Written here (about a hundred lines) rather than taken from a
-//! crate because the query must evaluate the distance field's own arithmetic ([`point_distance2`]) with its own
-//! pruning rule, so that its minimum is bit for bit the minimum over every triangle.
+//! field whose band is the whole grid, `--band full`, cost what its voxels need instead of triangles × voxels, and
+//! every answer of [`super::query`]) and for the triangles a ray along -x may cross (the winding number at a point).
+//!
+//! Built by binned surface-area splits (median splits where those cannot separate a node's triangles, or past a
+//! depth), then made 4-wide: each node holds four child boxes by coordinate, tested at once. A query walks it
+//! nearest child first and prunes every node whose box is no nearer than the best distance so far, and tests a
+//! leaf's triangles four at a time against the field's pruning rule (plane and box), so the distances it evaluates
+//! are those of the triangles that rule cannot skip. Written here rather than taken from a crate because the query
+//! must evaluate the distance field's own arithmetic ([`point_distance2`]) with its own pruning rule, so that its
+//! minimum is bit for bit the minimum over every triangle.
 
 use super::cpu::common::dot3;
 use super::cpu::distance::point_distance2;
@@ -14,9 +17,11 @@ use glam::{Vec3, Vec4};
 /// Triangles per leaf.
 const LEAF: usize = 8;
 
-/// The deepest a tree of median splits can be for `u32::MAX` triangles.
+/// A bound on the tree's depth: [`AREA_DEPTH`] levels of area splits, then at most 32 of median splits
+/// (`u32::MAX` triangles).
 const DEPTH: usize = 64;
 
+/// A node of the binary tree the build makes (and [`widen`] turns into the 4-wide one).
 #[derive(Clone, Copy, Debug)]
 struct Node {
     lo: Vec3,
@@ -27,16 +32,14 @@ struct Node {
     count: u32,
 }
 
-/// The hierarchy: nodes in depth-first order of creation, children side by side, and the triangles in leaf order
-/// (a leaf's are side by side in memory) with their indices in the mesh.
+/// The hierarchy: 4-wide nodes (the root first), and the triangles in leaf order (a leaf's are side by side in
+/// memory) with their indices in the mesh.
 pub struct Bvh {
-    nodes: Vec<Node>,
-    /// The same tree with every two levels made one, for the nearest-point walk: four boxes tested at once.
     wide: Vec<Wide>,
     order: Vec<u32>,
     triangles: Vec<[Vec3; 3]>,
-    /// Per triangle in leaf order, what [`super::cpu::distance::cannot_lower`] takes besides the point, by coordinate: made once, not
-    /// per visit, and laid out so that a leaf's triangles are tested four at a time.
+    /// Per triangle in leaf order, what [`super::cpu::distance::cannot_lower`] takes besides the point, by
+    /// coordinate: made once, not per visit, and laid out so that a leaf's triangles are tested four at a time.
     lanes: Lanes,
 }
 
@@ -158,7 +161,7 @@ impl Bvh {
         let triangles: Vec<[Vec3; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
         let lanes = Lanes::new(&triangles);
         let wide = widen(&nodes);
-        Bvh { nodes, wide, order, triangles, lanes }
+        Bvh { wide, order, triangles, lanes }
     }
 
     /// The least squared distance from `p` to the triangles where one is below `bound` (`None` where none is), and
@@ -235,26 +238,33 @@ impl Bvh {
     /// test to decide.
     pub fn along_ray(&self, p: Vec3, mut visit: impl FnMut(u32, [Vec3; 3])) {
         let meets = |lo: Vec3, hi: Vec3| lo.y <= p.y && p.y <= hi.y && lo.z <= p.z && p.z <= hi.z && lo.x <= p.x;
-        let mut stack = [0u32; DEPTH];
-        let mut len = usize::from(!self.nodes.is_empty());
+        let (x, y, z) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
+        let mut stack = [0u32; 3 * DEPTH + 1];
+        let mut len = usize::from(!self.wide.is_empty());
         while len > 0 {
             len -= 1;
-            let node = self.nodes[stack[len] as usize];
-            if !meets(node.lo, node.hi) {
-                continue;
-            }
-            if node.count > 0 {
-                for j in node.first as usize..(node.first + node.count) as usize {
-                    let (lo, hi) = (self.lanes.vec3(LO, j), self.lanes.vec3(HI, j));
-                    if meets(lo, hi) {
+            let node = &self.wide[stack[len] as usize];
+            // The four boxes at once (an empty lane's inverted box meets nothing).
+            let mut lanes = (node.lo[1].cmple(y)
+                & y.cmple(node.hi[1])
+                & node.lo[2].cmple(z)
+                & z.cmple(node.hi[2])
+                & node.lo[0].cmple(x))
+            .bitmask();
+            while lanes != 0 {
+                let k = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                if node.count[k] == 0 {
+                    stack[len] = node.first[k];
+                    len += 1;
+                    continue;
+                }
+                for j in node.first[k] as usize..(node.first[k] + node.count[k]) as usize {
+                    if meets(self.lanes.vec3(LO, j), self.lanes.vec3(HI, j)) {
                         visit(self.order[j], self.triangles[j]);
                     }
                 }
-                continue;
             }
-            stack[len] = node.first;
-            stack[len + 1] = node.first + 1;
-            len += 2;
         }
     }
 }
