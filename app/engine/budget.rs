@@ -109,6 +109,26 @@ pub fn estimate(
     Estimate { grid, triangles: triangle_bytes, readback: dense.min(SPARSE_SLAB_BYTES), writer }
 }
 
+/// Per-voxel labels of `count` attributes (0: none) on `spec`'s grid: per set voxel the labelling pass's minimum
+/// (8 bytes) and each attribute's value (4), and for a solid's inside, where each voxel is a nearest-triangle query,
+/// that query's point and answers (about 100 bytes). Set voxels are bounded by the grid for a solid, else by three
+/// per voxel² of surface plus one per triangle.
+pub fn labels_bytes(spec: &GridSpec, mode: Mode, count: usize, area: f64, triangles: u64) -> u64 {
+    if count == 0 {
+        return 0;
+    }
+    let d = spec.dims.as_u64vec3();
+    let all = d.x.saturating_mul(d.y).saturating_mul(d.z);
+    let per_voxel = 8 + 4 * count as u64;
+    match mode {
+        Mode::Solid => all.saturating_mul(per_voxel + 100),
+        _ => {
+            let surface = (3.0 * area / (spec.voxel_size * spec.voxel_size)) as u64 + triangles;
+            surface.min(all).saturating_mul(per_voxel)
+        }
+    }
+}
+
 /// A distance field's leaves (values, and their atomics while computed: 4 KiB each) and slots: the surface's
 /// leaves widened by the band on both sides, or every leaf for `Band::Full`. A dense `.npy` of it is written
 /// a slice at a time ([`writer`]).

@@ -260,3 +260,17 @@ fn vdb_print(path: &std::path::Path) -> Option<HashMap<String, HashMap<String, S
     }
     Some(grids)
 }
+
+#[test]
+fn the_budget_counts_the_labels() {
+    let m = mesh::load("builtin:knot").expect("knot");
+    let plain = Request { max_memory: Some(100 << 20), ..Request::new(Resolution::Count(200), Mode::Solid) };
+    assert!(meshvox::engine::Job::plan("knot", &m, &plain).is_ok(), "200³ bits fit 100 MiB");
+    let labelled = Request { attributes: AttributeSet::of(&Attribute::ALL), ..plain };
+    let e = meshvox::engine::Job::plan("knot", &m, &labelled).err().expect("labels over the budget").to_string();
+    let fits: u32 =
+        e.split("-r ").nth(1).and_then(|r| r.split_whitespace().next()).and_then(|n| n.parse().ok()).expect(&e);
+    assert!((50..200).contains(&fits), "{e}");
+    let smaller = Request { resolution: Resolution::Count(fits), ..labelled };
+    assert!(meshvox::engine::Job::plan("knot", &m, &smaller).is_ok(), "-r {fits} fits: {e}");
+}
