@@ -174,22 +174,17 @@ pub(super) fn voxelize_loaded(
     let t_write = Instant::now();
     // The colour and label arrays beside an .npy grid are written first (atomically too), so a grid never
     // appears without the colours or labels it was asked for.
-    let colours_file = match (&voxelized.colours, voxelized.grid.dense(), format) {
-        (Some(colours), Some(grid), VoxelFormat::Npy) => {
-            let path = voxel::formats::colours_npy_path(&args.output);
-            let temp = temp_beside(&path)?;
-            write_atomically(temp, &path, |out| Ok(voxel::formats::write_colours_npy(grid, colours, out)?))?;
-            Some(path)
-        }
+    let npy_grid = voxelized.grid.dense().filter(|_| format == VoxelFormat::Npy);
+    let colours_file = match (&voxelized.colours, npy_grid) {
+        (Some(colours), Some(grid)) => Some(write_beside(voxel::formats::colours_npy_path(&args.output), |out| {
+            voxel::formats::write_colours_npy(grid, colours, out)
+        })?),
         _ => None,
     };
-    let labels_file = match (&voxelized.labels, voxelized.grid.dense(), format) {
-        (Some(labels), Some(grid), VoxelFormat::Npy) => {
-            let path = voxel::formats::labels_npy_path(&args.output);
-            let temp = temp_beside(&path)?;
-            write_atomically(temp, &path, |out| Ok(voxel::formats::write_labels_npy(grid, labels, out)?))?;
-            Some(path)
-        }
+    let labels_file = match (&voxelized.labels, npy_grid) {
+        (Some(labels), Some(grid)) => Some(write_beside(voxel::formats::labels_npy_path(&args.output), |out| {
+            voxel::formats::write_labels_npy(grid, labels, out)
+        })?),
         _ => None,
     };
     let options =
@@ -206,6 +201,16 @@ pub(super) fn voxelize_loaded(
         total_ms: load_ms + ms(t_job),
         ..voxelized.report
     })
+}
+
+/// Writes an array that goes beside an `.npy` grid to `path`, atomically; returns the path.
+fn write_beside(
+    path: PathBuf,
+    write: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<(), voxel::formats::FormatError>,
+) -> Result<PathBuf> {
+    let temp = temp_beside(&path)?;
+    write_atomically(temp, &path, |out| Ok(write(out)?))?;
+    Ok(path)
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).

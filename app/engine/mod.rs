@@ -161,6 +161,11 @@ pub fn auto_probes_always() -> bool {
     std::env::var("MESHVOX_AUTO_PROBE").is_ok_and(|v| v == "1")
 }
 
+/// The warning that `what` (colours, labels) were asked of a sparse grid, which is then `left`.
+fn dense_only(what: &str, left: &str) -> Notice {
+    Notice { warning: true, message: format!("{what} are made on dense grids only for now: the sparse grid is {left}") }
+}
+
 fn ms(since: Instant) -> f64 {
     (since.elapsed().as_secs_f64() * 1e3 * 1000.0).round() / 1000.0
 }
@@ -306,10 +311,7 @@ impl Engine {
         let colours = match (request.colour != Some(false) && mesh.has_colour(), &made.grid) {
             (true, Grid::Dense(grid)) => Some(self.colour(mesh, &tris, grid, &mut notices).await?),
             (true, Grid::Sparse(_)) => {
-                notices.push(Notice {
-                    warning: true,
-                    message: "colours are made on dense grids only for now: the sparse grid is uncoloured".into(),
-                });
+                notices.push(dense_only("colours", "uncoloured"));
                 None
             }
             (false, _) => None,
@@ -323,10 +325,7 @@ impl Engine {
                 Some(voxel::labels::Labels::from_triangles(mesh, &triangles, request.attributes))
             }
             (false, Grid::Sparse(_)) => {
-                notices.push(Notice {
-                    warning: true,
-                    message: "labels are made on dense grids only for now: the sparse grid has none".into(),
-                });
+                notices.push(dense_only("labels", "unlabelled"));
                 None
             }
             (true, _) => None,
@@ -389,10 +388,7 @@ impl Engine {
         let (grid, colours) = match job.sparse {
             true => {
                 if colour {
-                    notices.push(Notice {
-                        warning: true,
-                        message: "colours are made on dense grids only for now: the sparse grid is uncoloured".into(),
-                    });
+                    notices.push(dense_only("colours", "uncoloured"));
                 }
                 (Grid::Sparse(voxel::points::voxelize_points_sparse(cloud, job.spec, &job.bounds)), None)
             }

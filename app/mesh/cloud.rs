@@ -1,6 +1,6 @@
 //! Point clouds as input: lidar and scan users voxelize points, not triangles. A [`PointCloud`] is world points
 //! in f64 with optional sRGB colours; it comes from a PLY without faces (`ply.rs`), `.xyz`/`.pts` text, an `.npy`
-//! of `(N, 3)` floats or an `.npz` holding one ([`load`]), or a program's arrays ([`from_points`]). A mesh made
+//! of `(N, 3)` floats or an `.npz` holding one (`load`), or a program's arrays ([`from_points`]). A mesh made
 //! of points has no triangles; the voxel layer sets each point's voxel (`voxel::points`).
 //!
 //! Text files: one point per line, numbers separated by spaces, tabs, commas or semicolons; empty lines and lines
