@@ -36,6 +36,8 @@ struct Node {
 /// memory) with their indices in the mesh.
 pub struct Bvh {
     wide: Vec<Wide>,
+    /// The largest coordinate magnitude of any triangle.
+    reach: f32,
     order: Vec<u32>,
     triangles: Vec<[Vec3; 3]>,
     /// Per triangle in leaf order, what [`super::cpu::distance::cannot_lower`] takes besides the point, by
@@ -68,23 +70,61 @@ impl Wide {
     }
 }
 
-/// Each triangle's first vertex, normal, the normal's squared length and its bounding box, one array per
-/// coordinate (`A`, `N`, `N2`, `LO`, `HI` name the first of each), three lanes of padding at the end.
-struct Lanes([Vec<f32>; 13]);
+/// Each triangle's vertices, normal, the normal's squared length and its bounding box, one array per coordinate
+/// (`A`, `B`, `C`, `N`, `N2`, `LO`, `HI` name the first of each), three lanes of padding at the end.
+struct Lanes([Vec<f32>; 19]);
 
 const A: usize = 0;
-const N: usize = 3;
-const N2: usize = 6;
-const LO: usize = 7;
-const HI: usize = 10;
+const B: usize = 3;
+const C: usize = 6;
+const N: usize = 9;
+const N2: usize = 12;
+const LO: usize = 13;
+const HI: usize = 16;
+
+/// Three coordinates of four lanes.
+type V4 = [Vec4; 3];
+
+fn sub4(x: V4, y: V4) -> V4 {
+    [x[0] - y[0], x[1] - y[1], x[2] - y[2]]
+}
+
+fn dot4(x: V4, y: V4) -> Vec4 {
+    x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+}
+
+fn cross4(x: V4, y: V4) -> V4 {
+    [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]]
+}
 
 impl Lanes {
     fn new(triangles: &[[Vec3; 3]]) -> Lanes {
-        let mut lanes: [Vec<f32>; 13] = std::array::from_fn(|_| Vec::with_capacity(triangles.len() + 3));
+        let mut lanes: [Vec<f32>; 19] = std::array::from_fn(|_| Vec::with_capacity(triangles.len() + 3));
         for t in triangles {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
             let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-            let values = [t[0].x, t[0].y, t[0].z, n.x, n.y, n.z, dot3(n, n), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z];
+            let [a, b, c] = *t;
+            let values = [
+                a.x,
+                a.y,
+                a.z,
+                b.x,
+                b.y,
+                b.z,
+                c.x,
+                c.y,
+                c.z,
+                n.x,
+                n.y,
+                n.z,
+                dot3(n, n),
+                lo.x,
+                lo.y,
+                lo.z,
+                hi.x,
+                hi.y,
+                hi.z,
+            ];
             for (lane, v) in lanes.iter_mut().zip(values) {
                 lane.push(v);
             }
@@ -93,6 +133,35 @@ impl Lanes {
             lane.extend([0.0; 3]);
         }
         Lanes(lanes)
+    }
+
+    /// Lower bounds on the squared distances from `p` to triangles `i..i + 4`: each distance computed four lanes at
+    /// once (to the plane where `p` projects inside the triangle, else to the nearest edge), less `margin`. The
+    /// margin covers this arithmetic's rounding and that of [`point_distance2`] (each well under 16 ulps of the
+    /// largest coordinate, which `margin` is twice), so a triangle whose bound is above another's
+    /// `point_distance2` cannot be the one with the least: it is skipped without the exact evaluation.
+    #[inline]
+    fn distance_bounds(&self, i: usize, p: Vec3, margin: f32) -> Vec4 {
+        let at = |k: usize| Vec4::from_slice(&self.0[k][i..i + 4]);
+        let v = |k: usize| [at(k), at(k + 1), at(k + 2)];
+        let (a, b, c, n, n2) = (v(A), v(B), v(C), v(N), at(N2));
+        let q = [Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z)];
+        // Inside the triangle's prism: on the inner side of each edge's plane through the normal.
+        let side = |u: V4, w: V4| dot4(cross4(sub4(w, u), sub4(q, u)), n).cmpge(Vec4::ZERO);
+        let inside = side(a, b) & side(b, c) & side(c, a) & n2.cmpgt(Vec4::ZERO);
+        let plane = dot4(n, sub4(q, a));
+        let segment = |u: V4, w: V4| {
+            let (e, d) = (sub4(w, u), sub4(q, u));
+            let ee = dot4(e, e);
+            let t = Vec4::select(ee.cmpgt(Vec4::ZERO), (dot4(d, e) / ee).clamp(Vec4::ZERO, Vec4::ONE), Vec4::ZERO);
+            let r = [d[0] - e[0] * t, d[1] - e[1] * t, d[2] - e[2] * t];
+            dot4(r, r)
+        };
+        let edges = segment(a, b).min(segment(b, c)).min(segment(c, a));
+        // Inside, the plane's distance, but never more than the edges' (a sliver's rounded normal can tilt).
+        let d2 = Vec4::select(inside, (plane * plane / n2).min(edges), edges);
+        let d = (d2.sqrt() - Vec4::splat(margin)).max(Vec4::ZERO);
+        d * d
     }
 
     /// Triangle `j`'s vector starting at coordinate array `k`.
@@ -161,7 +230,8 @@ impl Bvh {
         let triangles: Vec<[Vec3; 3]> = order.iter().map(|&i| triangles[i as usize]).collect();
         let lanes = Lanes::new(&triangles);
         let wide = widen(&nodes);
-        Bvh { wide, order, triangles, lanes }
+        let reach = triangles.iter().flatten().fold(0.0f32, |r, v| r.max(v.abs().max_element()));
+        Bvh { wide, reach, order, triangles, lanes }
     }
 
     /// The least squared distance from `p` to the triangles where one is below `bound` (`None` where none is), and
@@ -179,6 +249,8 @@ impl Bvh {
     /// triangle that gives the minimum is never skipped.
     pub fn nearest_triangle(&self, p: Vec3, start: (f32, Option<u32>)) -> (Option<(f32, u32)>, u32) {
         let ((mut best, mut found), mut evaluated) = (start, 0);
+        // 32 ulps of the largest coordinate in play (see [`Lanes::distance_bounds`]).
+        let margin = 32.0 * f32::EPSILON * p.abs().max_element().max(self.reach);
         // Entries (first, count, the box's squared distance): a wide node (count 0) or a leaf, found when its
         // parent was opened. Each opening adds at most three entries, and the wide tree is no deeper than the
         // binary one.
@@ -196,9 +268,17 @@ impl Bvh {
                 let end = (first + count) as usize;
                 for i in (first as usize..end).step_by(4) {
                     let mut lanes = self.lanes.may_lower(i, end, p, best);
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let bounds = self.lanes.distance_bounds(i, p, margin).to_array();
                     while lanes != 0 {
-                        let j = i + lanes.trailing_zeros() as usize;
+                        let k = lanes.trailing_zeros() as usize;
                         lanes &= lanes - 1;
+                        if bounds[k] >= best * 1.0001 {
+                            continue;
+                        }
+                        let j = i + k;
                         evaluated += 1;
                         let d2 = point_distance2(p, self.triangles[j]);
                         if d2 < best {
