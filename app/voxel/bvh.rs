@@ -5,8 +5,9 @@
 //! Built by binned surface-area splits (median splits where those cannot separate a node's triangles, or past a
 //! depth), then made 4-wide: each node holds four child boxes by coordinate, tested at once. A query walks it
 //! nearest child first and prunes every node whose box is no nearer than the best distance so far, and tests a
-//! leaf's triangles four at a time against the field's pruning rule (plane and box), so the distances it evaluates
-//! are those of the triangles that rule cannot skip. Written here rather than taken from a crate because the query
+//! leaf's triangles four at a time against the field's pruning rule (plane and box) and then a four-lane lower
+//! bound on their distances, so the exact distances it evaluates are those of the triangles neither can skip
+//! (about five per point on a mesh's padded box). Written here rather than taken from a crate because the query
 //! must evaluate the distance field's own arithmetic ([`point_distance2`]) with its own pruning rule, so that its
 //! minimum is bit for bit the minimum over every triangle.
 
