@@ -156,7 +156,7 @@ impl<'a> Job<'a> {
     /// The grid's memory against `limit` bytes ([`budget::check`]): sparse for a surface of `area` when given.
     fn check_budget(&self, area: Option<f64>, limit: u64) -> Result<budget::Estimate, GridError> {
         let (r, triangles) = (&self.request, self.triangles());
-        let labels = r.attributes.list().len();
+        let labels = r.attributes.len();
         let estimate = |spec: &GridSpec| {
             let e = budget::estimate(spec, r.mode, r.band, r.format, triangles, area);
             let labels = budget::labels_bytes(spec, r.mode, labels, self.area, triangles);

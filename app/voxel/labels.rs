@@ -75,6 +75,11 @@ impl AttributeSet {
         self.0 == 0
     }
 
+    /// How many attributes the set holds.
+    pub fn len(self) -> usize {
+        self.0.count_ones() as usize
+    }
+
     pub fn contains(self, attribute: Attribute) -> bool {
         self.0 >> attribute as u8 & 1 != 0
     }
@@ -119,17 +124,6 @@ impl Labels {
             .collect();
         Labels { columns }
     }
-
-    /// Values of `attribute` over the whole grid, x fastest, -1 where no voxel is set.
-    pub fn dense(&self, grid: &VoxelGrid, attribute: Attribute) -> Option<Vec<i32>> {
-        let values = self.get(attribute)?;
-        let d = grid.spec.dims;
-        let mut out = vec![-1i32; d.x as usize * d.y as usize * d.z as usize];
-        for (v, &value) in grid.iter_set().zip(values) {
-            out[(v.z as usize * d.y as usize + v.y as usize) * d.x as usize + v.x as usize] = value;
-        }
-        Some(out)
-    }
 }
 
 /// Each set voxel's labelling triangle (see the module docs), in storage order: `tris` are the grid-space
@@ -156,12 +150,15 @@ pub fn label_triangles(grid: &VoxelGrid, tris: &[[Vec3; 3]], mesh: &Mesh) -> Res
         best.into_iter().map(AtomicU64::into_inner).collect::<Vec<u64>>()
     });
     let mut triangles: Vec<u32> = nearest.iter().map(|&k| k as u32).collect();
-    let inside: Vec<usize> = (0..nearest.len()).filter(|&r| nearest[r] == u64::MAX).collect();
+    // The voxels no triangle touched, by rank, with their world centres.
+    let spec = grid.spec;
+    let (inside, points): (Vec<usize>, Vec<DVec3>) = grid
+        .iter_set()
+        .enumerate()
+        .filter(|&(r, _)| nearest[r] == u64::MAX)
+        .map(|(r, v)| (r, spec.origin + (v.as_dvec3() + 0.5) * spec.voxel_size))
+        .unzip();
     if !inside.is_empty() {
-        let spec = grid.spec;
-        let voxels: Vec<UVec3> = grid.iter_set().collect();
-        let points: Vec<DVec3> =
-            inside.iter().map(|&r| spec.origin + (voxels[r].as_dvec3() + 0.5) * spec.voxel_size).collect();
         let answers = Prepared::new(Arc::new(mesh.clone()))?.query(&points, Sign::Unsigned, false)?;
         for (&r, &t) in inside.iter().zip(&answers.triangle) {
             triangles[r] = t;

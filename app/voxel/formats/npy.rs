@@ -16,22 +16,7 @@ use std::io::{Read, Write};
 pub fn write_colours_npy(grid: &VoxelGrid, colours: &VoxelColours, out: &mut impl Write) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     write_npy_header("|u1", &format!("({}, {}, {}, 4)", d.x, d.y, d.z), out)?;
-    let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
-    // The dense array is x-major here and z-fastest in the file: one x-slice (y × z × 4 bytes) at a time.
-    let mut slice = vec![0u8; ny * nz * 4];
-    let mut by_x: Vec<Vec<(u32, u32, [u8; 4])>> = vec![Vec::new(); nx];
-    for (v, c) in grid.iter_set().zip(&colours.rgba) {
-        by_x[v.x as usize].push((v.y, v.z, *c));
-    }
-    for column in by_x {
-        slice.fill(0);
-        for (y, z, c) in column {
-            let at = (y as usize * nz + z as usize) * 4;
-            slice[at..at + 4].copy_from_slice(&c);
-        }
-        out.write_all(&slice)?;
-    }
-    Ok(())
+    write_records(grid, &[0; 4], |rank, record| record.copy_from_slice(&colours.rgba[rank]), out)
 }
 
 /// Writes the labels as an `.npy` of a structured dtype, one int32 field per attribute in the labels' order
@@ -41,23 +26,42 @@ pub fn write_labels_npy(grid: &VoxelGrid, labels: &Labels, out: &mut impl Write)
     let d = grid.spec.dims;
     let fields: Vec<String> = labels.columns.iter().map(|(a, _)| format!("('{}', '<i4')", a.name())).collect();
     write_header(&format!("[{}]", fields.join(", ")), &format!("({}, {}, {})", d.x, d.y, d.z), out)?;
-    let (nx, ny, nz, k) = (d.x as usize, d.y as usize, d.z as usize, labels.columns.len());
+    let unset: Vec<u8> = labels.columns.iter().flat_map(|_| (-1i32).to_le_bytes()).collect();
+    write_records(
+        grid,
+        &unset,
+        |rank, record| {
+            for ((_, values), field) in labels.columns.iter().zip(record.chunks_exact_mut(4)) {
+                field.copy_from_slice(&values[rank].to_le_bytes());
+            }
+        },
+        out,
+    )
+}
+
+/// Writes one record per voxel of the whole grid, C order over `(x, y, z)`: `record(rank, bytes)` fills a set
+/// voxel's (its rank among the set voxels in storage order), `unset` is every other's. The dense array is x-major
+/// here and z-fastest in the file, so it goes one x-slice (y × z records) at a time.
+fn write_records(
+    grid: &VoxelGrid,
+    unset: &[u8],
+    record: impl Fn(usize, &mut [u8]),
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    let (nx, ny, nz, size) = (d.x as usize, d.y as usize, d.z as usize, unset.len());
     let mut by_x: Vec<Vec<(u32, u32, usize)>> = vec![Vec::new(); nx];
     for (rank, v) in grid.iter_set().enumerate() {
         by_x[v.x as usize].push((v.y, v.z, rank));
     }
-    // One x-slice (y × z records) at a time, as the colours.
-    let unset: Vec<u8> = (0..k).flat_map(|_| (-1i32).to_le_bytes()).collect();
-    let mut slice = vec![0u8; ny * nz * k * 4];
+    let mut slice = vec![0u8; ny * nz * size];
     for column in by_x {
-        for record in slice.chunks_exact_mut(k * 4) {
-            record.copy_from_slice(&unset);
+        for r in slice.chunks_exact_mut(size) {
+            r.copy_from_slice(unset);
         }
         for (y, z, rank) in column {
-            let at = (y as usize * nz + z as usize) * k * 4;
-            for (i, (_, values)) in labels.columns.iter().enumerate() {
-                slice[at + 4 * i..at + 4 * i + 4].copy_from_slice(&values[rank].to_le_bytes());
-            }
+            let at = (y as usize * nz + z as usize) * size;
+            record(rank, &mut slice[at..at + size]);
         }
         out.write_all(&slice)?;
     }
