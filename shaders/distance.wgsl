@@ -42,14 +42,6 @@ fn band_hi(t: array<vec3<f32>, 3>) -> vec3<i32> {
     return clamp(vec3<i32>(floor(hi)), vec3<i32>(-1), vec3<i32>(params.dims) - 1);
 }
 
-// The offset to the closest point is (a - p) + v ab + w ac: exact differences of lattice points, so rounding is
-// relative to the distance and the edges, not to the coordinates.
-fn point_distance2(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
-    let w = closest_barycentric(p, t[0], t[1], t[2]);
-    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
-    return dot3(d, d);
-}
-
 fn leaf_slot(l: vec3<u32>) -> u32 {
     return (l.z * params.leaf_dims.y + l.y) * params.leaf_dims.x + l.x;
 }

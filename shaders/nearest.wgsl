@@ -1,7 +1,7 @@
 // The nearest point of a triangle, shared by the passes that search for it: colour.wgsl (the colour of the
-// nearest surface point) and distance.wgsl (distance fields). Joined before each of them; it declares no bindings
-// and reads `triangles` (nine f32 per triangle, grid space), which both declare. The CPU reference is
-// app/voxel/cpu/nearest.rs (`closest_barycentric`).
+// nearest surface point), distance.wgsl (distance fields) and query.wgsl (queries at points). Joined before each
+// of them; it declares no bindings and reads `triangles` (nine f32 per triangle, grid space), which each declares.
+// The CPU reference is app/voxel/cpu/nearest.rs (`closest_barycentric`, `point_distance2`).
 
 fn triangle(t: u32) -> array<vec3<f32>, 3> {
     let b = 9u * t;
@@ -70,3 +70,11 @@ fn closest_barycentric(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
     return vec3<f32>(1.0 - v - w, v, w);
 }
 
+// The squared distance from p to triangle t (distance fields and queries). The offset to the closest point is
+// (a - p) + v ab + w ac: exact differences of lattice points, so rounding is relative to the distance and the
+// edges, not to the coordinates.
+fn point_distance2(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
+    let w = closest_barycentric(p, t[0], t[1], t[2]);
+    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
+    return dot3(d, d);
+}

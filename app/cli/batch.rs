@@ -235,8 +235,11 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         )),
         None => None,
     };
-    // Samples are made on the CPU's threads: no device to open for them.
-    let engine = open_engine(if sampling { Backend::Cpu } else { args.backend })?;
+    // Samples open a device only where their count is worth it (`auto`'s rule for queries).
+    let engine = match &task {
+        Task::Sample(request) => super::query::sample_engine(args.backend, request)?,
+        Task::Voxelize(_) => open_engine(args.backend)?,
+    };
     let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);
     let total = items.len();
     let mut tally = Tally { work: if sampling { "sample" } else { "voxelize" }, ..Tally::default() };
@@ -321,7 +324,7 @@ impl Work<'_> {
             (None, false) => match &self.task {
                 Task::Sample(sampling) => {
                     let mesh = item.source.display().to_string();
-                    match super::query::sample_file(&mesh, &self.args.limits, sampling, output) {
+                    match super::query::sample_file(&mesh, &self.args.limits, sampling, self.engine, output) {
                         Ok(sampled) => Outcome::Sampled(Box::new(sampled)),
                         Err(e) => Outcome::Failed(e),
                     }

@@ -2,12 +2,13 @@
 //! of an `.npy`; `meshvox sample MESH -o out.npz`: training samples (uniform, surface and near-surface points with
 //! their signed distance and occupancy). docs/training.md.
 
-use super::{LimitArgs, ms};
+use super::{LimitArgs, ms, open_engine};
 use anyhow::{Context, Result, bail};
+use meshvox::engine::{Backend, Engine, query_backend};
 use meshvox::voxel::formats::atomic::write_atomically;
 use meshvox::voxel::formats::points::{read_points_npy, write_query_npz, write_samples_npz};
 use meshvox::voxel::query::{Prepared, Sign};
-use meshvox::voxel::sample::{Normalize, SampleRequest, sample as make_samples};
+use meshvox::voxel::sample::{Normalize, SampleRequest};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -32,6 +33,10 @@ pub(super) struct QueryArgs {
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     stats_json: bool,
+    /// Where the nearest triangles are found: the GPU when there is an adapter and at least 100,000 points
+    /// (auto), only the GPU, or only the CPU. The signs are decided on the CPU on every backend.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -49,17 +54,23 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     let start = Instant::now();
     let prepared = Prepared::new(mesh).with_context(|| args.mesh.clone())?;
     let prepare_ms = ms(start);
+    let engine = open_engine(query_backend(args.backend, points.len()))?;
     let start = Instant::now();
-    let answers = prepared.query(&points, args.sign, args.winding)?;
+    let queried = engine.query(&prepared, &points, args.sign, args.winding)?;
     let query_ms = ms(start);
-    let bytes = write_atomically(&args.output, |out| write_query_npz(&answers, out))
+    for notice in &queried.notices {
+        eprintln!("{notice}");
+    }
+    let answers = &queried.answers;
+    let bytes = write_atomically(&args.output, |out| write_query_npz(answers, out))
         .with_context(|| format!("writing {}", args.output.display()))?;
     let inside = answers.inside.as_ref().map(|i| i.iter().filter(|&&b| b).count());
     eprintln!(
-        "{}: {} triangles, {} points answered in {query_ms:.1} ms (prepared in {prepare_ms:.1} ms){}; wrote {} ({bytes} bytes)",
+        "{}: {} triangles, {} points answered in {query_ms:.1} ms on {} (prepared in {prepare_ms:.1} ms){}; wrote {} ({bytes} bytes)",
         args.mesh,
         prepared.triangle_count(),
         points.len(),
+        queried.backend,
         inside.map_or(String::new(), |n| format!(", {n} inside")),
         args.output.display(),
     );
@@ -76,7 +87,8 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
             "query_ms": query_ms,
             "distance_evaluations": answers.evaluations,
             "points_per_second": points.len() as f64 / (query_ms / 1e3).max(1e-9),
-            "backend": format!("cpu ({} threads)", meshvox::parallel::threads()),
+            "backend": queried.backend,
+            "gpu_ms": queried.gpu_ms,
             "output": args.output,
             "bytes": bytes,
         });
@@ -143,6 +155,10 @@ pub(super) struct SampleArgs {
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     stats_json: bool,
+    /// Where the samples' nearest triangles are found (as `meshvox query --backend`); the points are the same on
+    /// every backend.
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    backend: Backend,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -153,15 +169,29 @@ pub(super) struct Sampled {
     pub(super) stage_ms: [f64; 3],
 }
 
-/// Samples `mesh` as `request` says and writes `output` (an .npz; its folder made first).
-pub(super) fn sample_file(mesh: &str, limits: &LimitArgs, request: &SampleRequest, output: &Path) -> Result<Sampled> {
+/// The engine that answers the samples of `request` (`auto` by [`query_backend`]'s rule).
+pub(super) fn sample_engine(backend: Backend, request: &SampleRequest) -> Result<Engine> {
+    open_engine(query_backend(backend, request.uniform + request.surface + request.near))
+}
+
+/// Samples `mesh` as `request` says on `engine` and writes `output` (an .npz; its folder made first).
+pub(super) fn sample_file(
+    mesh: &str,
+    limits: &LimitArgs,
+    request: &SampleRequest,
+    engine: &Engine,
+    output: &Path,
+) -> Result<Sampled> {
     let start = Instant::now();
     let loaded = limits.load(mesh)?;
     let load_ms = ms(start);
     let start = Instant::now();
     let prepared = Prepared::new(loaded).with_context(|| mesh.to_string())?;
-    let samples = make_samples(&prepared, request).with_context(|| mesh.to_string())?;
+    let (samples, queried) = engine.sample(&prepared, request).with_context(|| mesh.to_string())?;
     let sample_ms = ms(start);
+    for notice in &queried.notices {
+        eprintln!("{mesh}: {notice}");
+    }
     if let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
     }
@@ -181,6 +211,8 @@ pub(super) fn sample_file(mesh: &str, limits: &LimitArgs, request: &SampleReques
         "seed": request.seed,
         "load_ms": load_ms,
         "sample_ms": sample_ms,
+        "backend": queried.backend,
+        "gpu_ms": queried.gpu_ms,
         "write_ms": write_ms,
         "output": output,
         "bytes": bytes,
@@ -193,7 +225,8 @@ pub(super) fn sample(args: &SampleArgs) -> Result<()> {
         bail!("the output of sample is an .npz, not '{}'", args.output.display());
     }
     let request = args.spec.request()?;
-    let Sampled { stats, .. } = sample_file(&args.mesh, &args.limits, &request, &args.output)?;
+    let engine = sample_engine(args.backend, &request)?;
+    let Sampled { stats, .. } = sample_file(&args.mesh, &args.limits, &request, &engine, &args.output)?;
     eprintln!(
         "{}: {} samples ({} inside) in {} ms; wrote {} ({} bytes)",
         args.mesh,

@@ -17,10 +17,13 @@ use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice, s
 use crate::gpu::colour::GpuColourer;
 use crate::gpu::distance::GpuDistance;
 use crate::gpu::group::{GROUP_BYTES, GROUP_JOBS, GroupJob};
+use crate::gpu::query::GpuQuery;
 use crate::gpu::voxelize::{GpuOutput, GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
+use crate::voxel::cpu::query::NearestTables;
 use crate::voxel::distance::{Band, DistanceField};
+use crate::voxel::query::Placed;
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -45,6 +48,8 @@ pub(super) struct OnDevice {
     /// Compiled the first time a coloured mesh is voxelized.
     colourer: OnceLock<GpuColourer>,
     distance: OnceLock<GpuDistance>,
+    /// Compiled the first time a query runs here.
+    query: OnceLock<GpuQuery>,
     /// Taken around each voxelization and colouring, so that threads sharing the device (`batch`, the engines
     /// of one device) take turns on it. An async lock, since it is held across the awaits of the device's work.
     turn: async_lock::Mutex<()>,
@@ -140,12 +145,12 @@ impl Engine {
     /// [`Engine::warm_up`]).
     fn gpu(gpu: Gpu, fallback: bool, shared: bool, since: Instant, eager: bool) -> Engine {
         let voxelizer = OnceLock::new();
-        let (colourer, distance) = (OnceLock::new(), OnceLock::new());
+        let (colourer, distance, query) = (OnceLock::new(), OnceLock::new(), OnceLock::new());
         let (turn, busy_ns, waiting) = (async_lock::Mutex::new(()), AtomicU64::new(0), Mutex::new(Vec::new()));
         // Shared by the engines `with_backend` makes. In the browser wgpu's handles are neither `Send` nor `Sync`
         // (the page has one thread), so there the `Arc` is only a shared owner.
         #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
-        let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, turn, busy_ns, waiting });
+        let device = Arc::new(OnDevice { gpu, voxelizer, colourer, distance, query, turn, busy_ns, waiting });
         let on_gpu = OnGpu { device, fallback, shared };
         let engine = Engine { gpu: Some(on_gpu), ..Engine::cpu(None) };
         if eager {
@@ -202,6 +207,7 @@ enum Stage {
     Grid,
     Field,
     Colour,
+    Query,
 }
 
 impl Stage {
@@ -214,6 +220,8 @@ impl Stage {
             (Stage::Field, false) => "distances on the CPU instead",
             (Stage::Colour, true) => "colouring on the CPU",
             (Stage::Colour, false) => "colouring on the CPU instead",
+            (Stage::Query, true) => "answering on the CPU",
+            (Stage::Query, false) => "answering on the CPU instead",
         }
     }
 }
@@ -425,6 +433,22 @@ impl OnGpu {
             return Ok(None);
         }
         Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
+    }
+
+    /// The nearest triangles of the placed points on the GPU (its pass compiled on first use), or `None` where the
+    /// CPU is to find them: [`crate::gpu::query::GpuQuery::nearest`] in this device's turn.
+    pub(super) async fn nearest(
+        &self,
+        tables: &NearestTables,
+        placed: &Placed,
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<Vec<(f32, u32)>>, EngineError> {
+        let found = {
+            let _turn = self.turn().await;
+            let pass = self.query.get_or_init(|| GpuQuery::new(&self.gpu));
+            pass.nearest(&self.gpu, tables, &placed.frame, &placed.order).await
+        };
+        self.stand_in(Stage::Query, found, notices)
     }
 
     /// Whether the CPU takes over after `e`: a device failure, where the engine falls back, on a device that

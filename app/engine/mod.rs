@@ -24,10 +24,12 @@ mod device;
 mod device;
 mod job;
 #[cfg(not(target_arch = "wasm32"))]
+mod query;
 mod queue;
 mod report;
 
 pub use job::{Job, Request};
+pub use query::{AUTO_GPU_POINTS, Queried, query_backend};
 #[cfg(not(target_arch = "wasm32"))]
 pub use queue::{default_workers, work_queue};
 pub use report::{Instances, Notice, Report, Voxelized};
@@ -91,6 +93,12 @@ pub enum EngineError {
     /// A point cloud asked for something only triangles give.
     #[error("{mesh} is a point cloud: each point sets its voxel in --mode surface; {what} needs triangles")]
     PointCloud { mesh: String, what: String },
+    /// A query's points cannot be answered.
+    #[error(transparent)]
+    Query(crate::voxel::query::QueryError),
+    /// Samples cannot be drawn.
+    #[error(transparent)]
+    Sample(#[from] crate::voxel::sample::SampleError),
     /// `--band full` with a sparse grid or output.
     #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
     FullBandSparse,

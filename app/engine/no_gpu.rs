@@ -3,7 +3,9 @@
 
 use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice};
 use crate::mesh::Shading;
+use crate::voxel::cpu::query::NearestTables;
 use crate::voxel::distance::{Band, DistanceField};
+use crate::voxel::query::Placed;
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 
@@ -70,6 +72,15 @@ impl OnGpu {
         _: &Shading,
         _: &mut Vec<Notice>,
     ) -> Result<Option<ColourStage>, EngineError> {
+        match *self {}
+    }
+
+    pub(super) async fn nearest(
+        &self,
+        _: &NearestTables,
+        _: &Placed,
+        _: &mut Vec<Notice>,
+    ) -> Result<Option<Vec<(f32, u32)>>, EngineError> {
         match *self {}
     }
 }

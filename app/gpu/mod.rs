@@ -7,6 +7,7 @@ pub mod distance;
 pub mod group;
 mod groups;
 mod plan;
+pub mod query;
 mod readback;
 mod run;
 pub mod solid;

@@ -41,7 +41,6 @@ enum Failure {
     Mesh(MeshError),
     Engine(EngineError),
     Query(crate::voxel::query::QueryError),
-    Sample(crate::voxel::sample::SampleError),
 }
 
 fn into_py_err(failure: Failure) -> PyErr {
@@ -60,12 +59,13 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::Bounds { .. }
             | EngineError::FieldFormat { .. }
             | EngineError::PointCloud { .. }
+            | EngineError::Query(_)
+            | EngineError::Sample(_)
             | EngineError::FullBandSparse),
         ) => PyValueError::new_err(worded(e)),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
         Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
         Failure::Query(e) => PyValueError::new_err(e.to_string()),
-        Failure::Sample(e) => PyValueError::new_err(e.to_string()),
     }
 }
 

@@ -3,8 +3,9 @@
 //! training samples, computed off the GIL on the library's pool.
 
 use super::{Failure, Input, input, into_py_err, process};
+use crate::engine::{Backend, Engine, EngineError, query_backend};
 use crate::voxel::query::{Prepared, QueryError, Sign};
-use crate::voxel::sample::{Normalize, SampleRequest, Samples, sample as make_samples};
+use crate::voxel::sample::{Normalize, SampleRequest, Samples};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::PyValueError;
@@ -93,22 +94,36 @@ pub(super) fn winding<'py>(
     Ok(values.into_pyarray(py))
 }
 
-/// `meshvox._native.query(mesh, points float64 (N, 3), sign)`: a dict of numpy arrays (`distance`, `inside`,
-/// `closest`, `triangle`, `barycentric`; `inside` None when unsigned). The winding numbers' values are
-/// [`winding`]'s, asked for when wanted.
+/// The engine for `points` points on `backend` (a name), shared with the other calls of this process
+/// (`auto` by [`query_backend`]'s rule).
+fn query_engine(backend: &str, points: usize) -> Result<std::sync::Arc<Engine>, Failure> {
+    let backend = Backend::from_name(backend).ok_or_else(|| {
+        Failure::Engine(EngineError::Query(crate::voxel::query::QueryError::Backend(backend.to_string())))
+    })?;
+    process::engine(query_backend(backend, points)).map_err(Failure::Engine)
+}
+
+/// `meshvox._native.query(mesh, points float64 (N, 3), sign, backend)`: a dict of numpy arrays (`distance`,
+/// `inside`, `closest`, `triangle`, `barycentric`; `inside` None when unsigned) and `backend`, where the nearest
+/// triangles were found. The winding numbers' values are [`winding`]'s, asked for when wanted.
 #[pyfunction]
-#[pyo3(signature = (mesh, points, sign))]
+#[pyo3(signature = (mesh, points, sign, backend))]
 pub(super) fn query<'py>(
     py: Python<'py>,
     mesh: &Bound<'py, PyPrepared>,
     points: PyReadonlyArray2<'py, f64>,
     sign: &str,
+    backend: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     let sign = Sign::from_name(sign)
         .ok_or_else(|| PyValueError::new_err(format!("sign '{sign}': use {}", Sign::choices())))?;
     let points = points_of(&points)?;
     let prepared = mesh.get().prepared.clone();
-    let answers = process::run(py, None, |_| prepared.query(&points, sign, false))?.map_err(query_err)?;
+    let queried = process::run(py, None, |_| {
+        query_engine(backend, points.len())?.query(&prepared, &points, sign, false).map_err(Failure::Engine)
+    })?
+    .map_err(into_py_err)?;
+    let answers = queried.answers;
     let n = points.len();
     let dict = PyDict::new(py);
     dict.set_item("distance", answers.distance.into_pyarray(py))?;
@@ -123,6 +138,7 @@ pub(super) fn query<'py>(
     let barycentric: Vec<f32> = answers.barycentric.iter().flatten().copied().collect();
     dict.set_item("barycentric", barycentric.into_pyarray(py).reshape([n, 3])?)?;
     dict.set_item("evaluations", answers.evaluations)?;
+    dict.set_item("backend", queried.backend)?;
     Ok(dict)
 }
 
@@ -147,7 +163,7 @@ fn sample_request(
 }
 
 /// The dictionary `meshvox.Samples` is made from.
-fn samples_dict(py: Python<'_>, s: Samples) -> PyResult<Bound<'_, PyDict>> {
+fn samples_dict(py: Python<'_>, (s, backend): (Samples, String)) -> PyResult<Bound<'_, PyDict>> {
     let m = s.points.len();
     let dict = PyDict::new(py);
     let points: Vec<f32> = s.points.iter().flatten().copied().collect();
@@ -160,14 +176,15 @@ fn samples_dict(py: Python<'_>, s: Samples) -> PyResult<Bound<'_, PyDict>> {
     dict.set_item("kind", s.kind.into_pyarray(py))?;
     dict.set_item("scale", s.scale)?;
     dict.set_item("offset", s.offset.to_array())?;
+    dict.set_item("backend", backend)?;
     Ok(dict)
 }
 
-/// `meshvox._native.sample_many(meshes, ..., workers, progress)`: each mesh (a prepared one, a path or arrays)
-/// prepared and sampled on `workers` threads at a time, in input order; `progress(done, total)` counts meshes.
-/// `meshvox.sample` is this with one mesh.
+/// `meshvox._native.sample_many(meshes, ..., workers, progress, backend)`: each mesh (a prepared one, a path or
+/// arrays) prepared and sampled on `workers` threads at a time, in input order, the samples' nearest triangles on
+/// `backend`; `progress(done, total)` counts meshes. `meshvox.sample` is this with one mesh.
 #[pyfunction]
-#[pyo3(signature = (meshes, uniform, surface, near, sigma, padding, normalize, seed, workers, progress))]
+#[pyo3(signature = (meshes, uniform, surface, near, sigma, padding, normalize, seed, workers, progress, backend))]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn sample_many<'py>(
     py: Python<'py>,
@@ -181,8 +198,10 @@ pub(super) fn sample_many<'py>(
     seed: u64,
     workers: Option<usize>,
     progress: Option<&Bound<'py, PyAny>>,
+    backend: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
+    let engine = query_engine(backend, request.uniform + request.surface + request.near).map_err(into_py_err)?;
     // A prepared mesh is shared as it is; the others are loaded and prepared by the worker that takes them.
     enum Item {
         Ready(Arc<Prepared>),
@@ -210,7 +229,8 @@ pub(super) fn sample_many<'py>(
                     Err(e) => return Some(Err(e)),
                 },
             };
-            Some(make_samples(&prepared, &request).map_err(Failure::Sample))
+            let sampled = engine.sample(&prepared, &request).map_err(Failure::Engine);
+            Some(sampled.map(|(samples, queried)| (samples, queried.backend)))
         })
     })?;
     let mut out = Vec::with_capacity(total);

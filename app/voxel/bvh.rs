@@ -12,7 +12,8 @@
 //! minimum is bit for bit the minimum over every triangle.
 
 use super::cpu::common::dot3;
-use super::cpu::distance::point_distance2;
+use super::cpu::nearest::point_distance2;
+use super::cpu::query::{EMPTY_LANE, NearestTables, WideNode};
 use glam::{Vec3, Vec4};
 
 /// Triangles per leaf.
@@ -171,7 +172,8 @@ impl Lanes {
     }
 
     /// Which of triangles `i..i + 4` (in leaf order; those past `end` never) `cannot_lower` would not skip at
-    /// `p` for `current`, as a bit mask: its arithmetic, four lanes at once.
+    /// `p` for `current`, as a bit mask: its arithmetic, four lanes at once, with `>` for its `>=` so that a
+    /// triangle at exactly `current` is kept (the tie rule of [`Bvh::nearest_triangle`]).
     #[inline]
     fn may_lower(&self, i: usize, end: usize, p: Vec3, current: f32) -> u32 {
         let at = |k: usize| Vec4::from_slice(&self.0[k][i..i + 4]);
@@ -179,13 +181,13 @@ impl Lanes {
         let (n, n2) = ([at(N), at(N + 1), at(N + 2)], at(N2));
         let plane = n[0] * d(0) + n[1] * d(1) + n[2] * d(2);
         let margin = Vec4::splat(1.0001);
-        let by_plane = (plane * plane).cmpge(Vec4::splat(current) * n2 * margin) & n2.cmpgt(Vec4::ZERO);
+        let by_plane = (plane * plane).cmpgt(Vec4::splat(current) * n2 * margin) & n2.cmpgt(Vec4::ZERO);
         let gap = |k: usize| {
             let c = Vec4::splat(p[k]);
             (at(LO + k) - c).max(c - at(HI + k)).max(Vec4::ZERO)
         };
         let (gx, gy, gz) = (gap(0), gap(1), gap(2));
-        let by_box = (gx * gx + gy * gy + gz * gz).cmpge(Vec4::splat(current * 1.0001));
+        let by_box = (gx * gx + gy * gy + gz * gz).cmpgt(Vec4::splat(current * 1.0001));
         let valid = (1u32 << (end - i).min(4)) - 1;
         !(by_plane | by_box).bitmask() & valid
     }
@@ -243,11 +245,12 @@ impl Bvh {
     }
 
     /// The least squared distance from `p` to the triangles where one is below `start`'s, with the index (in the
-    /// mesh) of the first triangle in the walk's order that gives it, and how many distances it evaluated;
+    /// mesh) of the first triangle in the mesh's order that gives it, and how many distances it evaluated;
     /// `start` may name a triangle at that distance (a neighbour's nearest: a tight bound to prune from), which is
-    /// the answer where none is nearer. A node is skipped where its box is no nearer than the best so far, a
-    /// triangle by the distance pass's own rule ([`super::cpu::distance::cannot_lower`]), each by a margin above their rounding: the
-    /// triangle that gives the minimum is never skipped.
+    /// the answer where none is nearer or as near and before it. A node is skipped where its box is farther than
+    /// the best so far, a triangle by the distance pass's own rule ([`super::cpu::distance::cannot_lower`]), each
+    /// by a margin above their rounding: no triangle at the minimum is skipped (where it is not 0), so the answer
+    /// is the GPU walk's ([`super::cpu::query::walk_nearest`]) whatever the order of either walk.
     pub fn nearest_triangle(&self, p: Vec3, start: (f32, Option<u32>)) -> (Option<(f32, u32)>, u32) {
         let ((mut best, mut found), mut evaluated) = (start, 0);
         // 32 ulps of the largest coordinate in play (see [`Lanes::distance_bounds`]).
@@ -260,7 +263,7 @@ impl Bvh {
         while len > 0 {
             len -= 1;
             let (first, count, d2) = stack[len];
-            if d2 >= best * 1.0001 {
+            if d2 > best * 1.0001 {
                 continue;
             }
             if count > 0 {
@@ -276,14 +279,15 @@ impl Bvh {
                     while lanes != 0 {
                         let k = lanes.trailing_zeros() as usize;
                         lanes &= lanes - 1;
-                        if bounds[k] >= best * 1.0001 {
+                        if bounds[k] > best * 1.0001 {
                             continue;
                         }
                         let j = i + k;
                         evaluated += 1;
                         let d2 = point_distance2(p, self.triangles[j]);
-                        if d2 < best {
-                            (best, found) = (d2, Some(self.order[j]));
+                        let id = self.order[j];
+                        if d2 < best || (d2 == best && found.is_some_and(|f| id < f)) {
+                            (best, found) = (d2, Some(id));
                         }
                     }
                 }
@@ -296,7 +300,8 @@ impl Bvh {
             let mut open = [(0u32, 0u32, 0.0f32); 4];
             let mut n = 0;
             for (k, &dk) in d.iter().enumerate() {
-                if dk < best * 1.0001 {
+                // (An empty lane's box is infinitely far, and so is never within reach.)
+                if dk <= best * 1.0001 && dk < f32::INFINITY {
                     let entry = (node.first[k], node.count[k], dk);
                     let mut at = n;
                     while at > 0 && open[at - 1].2 < entry.2 {
@@ -311,6 +316,46 @@ impl Bvh {
             len += n;
         }
         (found.map(|i| (best, i)), evaluated)
+    }
+
+    /// The hierarchy as the GPU's walk reads it (`shaders/query.wgsl`, mirrored by
+    /// [`super::cpu::query::walk_nearest`]): the same 4-wide tree, triangles and leaf order, an empty lane
+    /// marked by its `first` instead of an inverted box (a GPU need not keep infinities).
+    pub fn tables(&self) -> NearestTables {
+        let nodes: Vec<WideNode> = self
+            .wide
+            .iter()
+            .map(|w| {
+                let mut node = WideNode::default();
+                for k in 0..4 {
+                    let empty = w.lo[0][k] > w.hi[0][k];
+                    for axis in 0..3 {
+                        node.lo[axis][k] = if empty { 0.0 } else { w.lo[axis][k] };
+                        node.hi[axis][k] = if empty { 0.0 } else { w.hi[axis][k] };
+                    }
+                    node.first[k] = if empty { EMPTY_LANE } else { w.first[k] };
+                    node.count[k] = w.count[k];
+                }
+                node
+            })
+            .collect();
+        NearestTables { nodes, triangles: self.triangles.clone(), order: self.order.clone(), depth: self.depth() }
+    }
+
+    /// Levels of the 4-wide tree (0 without triangles).
+    fn depth(&self) -> usize {
+        let mut deepest = 0;
+        let mut todo = if self.wide.is_empty() { vec![] } else { vec![(0usize, 1usize)] };
+        while let Some((at, level)) = todo.pop() {
+            deepest = deepest.max(level);
+            let node = &self.wide[at];
+            for k in 0..4 {
+                if node.count[k] == 0 && node.lo[0][k] <= node.hi[0][k] {
+                    todo.push((node.first[k] as usize, level + 1));
+                }
+            }
+        }
+        deepest
     }
 
     /// Calls `visit(i, t)` for each triangle `t` (mesh index `i`) whose bounding box meets the ray from `p`

@@ -14,7 +14,8 @@
 //!    by its error bounds or else summed in f64 ([`winding_exact`]), as the solid fill decides a voxel centre.
 
 use super::bvh::Bvh;
-use super::cpu::distance::point_distance2;
+use super::cpu::nearest::point_distance2;
+use super::cpu::query::{FAR, NONE, NearestTables};
 use super::cpu::solid::{
     ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
 };
@@ -112,6 +113,8 @@ pub enum QueryError {
     NonFinite { index: usize, point: [f64; 3] },
     #[error(transparent)]
     Grid(#[from] GridError),
+    #[error("backend '{0}': use auto, gpu or cpu")]
+    Backend(String),
 }
 
 impl Prepared {
@@ -145,64 +148,76 @@ impl Prepared {
     /// The answers at `points` (world space), on the library's threads; the winding numbers' values only where
     /// `winding` asks for them (the inside, which a signed query has, costs far less on a mesh with holes).
     pub fn query(&self, points: &[DVec3], sign: Sign, winding: bool) -> Result<Answers, QueryError> {
-        all_finite(points)?;
-        let frame: Vec<Vec3> = points.iter().map(|&p| self.to_frame(p)).collect();
-        let order = morton_order(&frame, self.spec.dims);
-        let chunks: Vec<Vec<(Near, Option<Side>)>> = crate::parallel::install(|| {
-            order
-                .par_chunks(CHUNK)
-                .map(|chunk| {
-                    // Along the curve each point starts from its predecessor's nearest triangle, a bound that is
-                    // often the answer, so the hierarchy prunes from its first node.
-                    let mut last: Option<u32> = None;
-                    chunk
-                        .iter()
-                        .map(|&i| {
-                            let q = frame[i as usize];
-                            let near = self.nearest(points[i as usize], q, last);
-                            last = Some(near.triangle);
-                            let side = match (sign, winding) {
-                                (Sign::Unsigned, _) => None,
-                                (Sign::Winding, true) => Some(Side::Value(self.winding(q))),
-                                (Sign::Winding, false) => Some(Side::Inside(self.inside(q))),
-                            };
-                            (near, side)
-                        })
-                        .collect()
-                })
-                .collect()
+        let Placed { frame, order } = self.place(points)?;
+        // Along the curve each point starts from its predecessor's nearest triangle, a bound that is often the
+        // answer, so the hierarchy prunes from its first node.
+        let answers = along_curve(&order, |i, last| {
+            let q = frame[i];
+            let near = self.nearest(points[i], q, *last);
+            *last = Some(near.triangle);
+            (near, self.side(q, sign, winding))
         });
-        let mut answers: Vec<Option<(Near, Option<Side>)>> = (0..points.len()).map(|_| None).collect();
-        for (&i, answer) in order.iter().zip(chunks.into_iter().flatten()) {
-            answers[i as usize] = Some(answer);
-        }
-        let signed = sign == Sign::Winding;
-        let mut out = Answers {
-            winding: (signed && winding).then(|| Vec::with_capacity(points.len())),
-            inside: signed.then(|| Vec::with_capacity(points.len())),
-            ..Answers::default()
-        };
-        for (near, side) in answers.into_iter().flatten() {
-            let inside = match side {
-                Some(Side::Value(w)) => {
-                    if let Some(values) = out.winding.as_mut() {
-                        values.push(w as f32);
-                    }
-                    w >= 0.5
+        Ok(assemble(answers, sign, winding))
+    }
+
+    /// The points in the frame, and their order along a Morton curve: what [`Prepared::query`] walks them in, and
+    /// the order a GPU's invocations take them in, so that neighbours walk alike.
+    pub fn place(&self, points: &[DVec3]) -> Result<Placed, QueryError> {
+        all_finite(points)?;
+        let frame = self.frame_points(points);
+        let order = morton_order(&frame, self.spec.dims);
+        Ok(Placed { frame, order })
+    }
+
+    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]).
+    pub fn nearest_tables(&self) -> NearestTables {
+        self.bvh.tables()
+    }
+
+    /// The sides ([`Prepared::query`]'s sign, and winding numbers where asked) at the placed points: what the CPU
+    /// computes while a GPU finds the nearest triangles.
+    pub fn sides(&self, placed: &Placed, sign: Sign, winding: bool) -> Sides {
+        Sides(along_curve(&placed.order, |i, _| self.side(placed.frame[i], sign, winding)))
+    }
+
+    /// [`Prepared::query`]'s answers where the nearest triangles were found elsewhere: `found[i]`, `(squared
+    /// distance in the frame, triangle)` as [`super::cpu::query::walk_nearest`] gives it, for point `i`. A
+    /// point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
+    /// may overflow) is walked here.
+    pub fn query_found(
+        &self,
+        points: &[DVec3],
+        placed: &Placed,
+        found: &[(f32, u32)],
+        sides: Sides,
+        sign: Sign,
+        winding: bool,
+    ) -> Answers {
+        let nears = along_curve(&placed.order, |i, last| {
+            let q = placed.frame[i];
+            let near = match found.get(i) {
+                Some(&(_, triangle)) if triangle != NONE && q.abs().max_element() <= FAR => {
+                    self.near_of(points[i], triangle, 0)
                 }
-                Some(Side::Inside(inside)) => inside,
-                None => false,
+                _ => self.nearest(points[i], q, *last),
             };
-            if let Some(sides) = out.inside.as_mut() {
-                sides.push(inside);
-            }
-            out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
-            out.evaluations += u64::from(near.evaluations);
-            out.closest.push(near.closest);
-            out.triangle.push(near.triangle);
-            out.barycentric.push(near.barycentric.as_vec3().to_array());
+            *last = Some(near.triangle);
+            near
+        });
+        assemble(nears.into_iter().zip(sides.0).collect(), sign, winding)
+    }
+
+    /// What a signed query says of frame point `q`: the winding number's value, or only its side of ½.
+    fn side(&self, q: Vec3, sign: Sign, winding: bool) -> Option<Side> {
+        match (sign, winding) {
+            (Sign::Unsigned, _) => None,
+            (Sign::Winding, true) => Some(Side::Value(self.winding(q))),
+            (Sign::Winding, false) => Some(Side::Inside(self.inside(q))),
         }
-        Ok(out)
+    }
+
+    fn frame_points(&self, points: &[DVec3]) -> Vec<Vec3> {
+        points.iter().map(|&p| self.to_frame(p)).collect()
     }
 
     /// The winding numbers at `points` alone (world space), within [`WINDING_TOLERANCE`], on the library's threads.
@@ -225,7 +240,11 @@ impl Prepared {
         let (best, evaluations) = self.bvh.nearest_triangle(q, start);
         // Every mesh has a nearest triangle to a finite point; a non-finite distance in the frame (a point beyond
         // f32's range) falls back to the first.
-        let triangle = best.map_or(0, |(_, i)| i);
+        self.near_of(p, best.map_or(0, |(_, i)| i), evaluations)
+    }
+
+    /// Triangle `triangle`'s nearest point to `p`, in world space and f64.
+    fn near_of(&self, p: DVec3, triangle: u32, evaluations: u32) -> Near {
         let t = self.mesh.world_triangle(triangle as usize);
         let barycentric = closest_barycentric_f64(p, t[0], t[1], t[2]);
         let closest = t[0] * barycentric.x + t[1] * barycentric.y + t[2] * barycentric.z;
@@ -277,6 +296,68 @@ fn all_finite(points: &[DVec3]) -> Result<(), QueryError> {
         Some(index) => Err(QueryError::NonFinite { index, point: points[index].to_array() }),
         None => Ok(()),
     }
+}
+
+/// `answer(i, last)` for every point `i` of `order` (a Morton order), in chunks of [`CHUNK`] consecutive points
+/// on the library's threads, `last` carried along each chunk (the previous point's nearest triangle); the results
+/// in the points' own order.
+fn along_curve<T: Send>(order: &[u32], answer: impl Fn(usize, &mut Option<u32>) -> T + Sync) -> Vec<T> {
+    let chunks: Vec<Vec<T>> = crate::parallel::install(|| {
+        order
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let mut last: Option<u32> = None;
+                chunk.iter().map(|&i| answer(i as usize, &mut last)).collect()
+            })
+            .collect()
+    });
+    let mut out: Vec<Option<T>> = (0..order.len()).map(|_| None).collect();
+    for (&i, answer) in order.iter().zip(chunks.into_iter().flatten()) {
+        out[i as usize] = Some(answer);
+    }
+    out.into_iter().flatten().collect()
+}
+
+/// The answers of each point's nearest triangle and side.
+fn assemble(answers: Vec<(Near, Option<Side>)>, sign: Sign, winding: bool) -> Answers {
+    let signed = sign == Sign::Winding;
+    let mut out = Answers {
+        winding: (signed && winding).then(|| Vec::with_capacity(answers.len())),
+        inside: signed.then(|| Vec::with_capacity(answers.len())),
+        ..Answers::default()
+    };
+    for (near, side) in answers {
+        let inside = match side {
+            Some(Side::Value(w)) => {
+                if let Some(values) = out.winding.as_mut() {
+                    values.push(w as f32);
+                }
+                w >= 0.5
+            }
+            Some(Side::Inside(inside)) => inside,
+            None => false,
+        };
+        if let Some(sides) = out.inside.as_mut() {
+            sides.push(inside);
+        }
+        out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
+        out.evaluations += u64::from(near.evaluations);
+        out.closest.push(near.closest);
+        out.triangle.push(near.triangle);
+        out.barycentric.push(near.barycentric.as_vec3().to_array());
+    }
+    out
+}
+
+/// The sides of a list of points ([`Prepared::sides`]), kept for [`Prepared::query_found`].
+pub struct Sides(Vec<Option<Side>>);
+
+/// Points placed in a prepared mesh's frame ([`Prepared::place`]).
+pub struct Placed {
+    /// The points in the frame, rounded to f32.
+    pub frame: Vec<Vec3>,
+    /// Their indices along a Morton curve.
+    pub order: Vec<u32>,
 }
 
 /// What a signed query found at a point: the winding number's value, or only its side of ½.

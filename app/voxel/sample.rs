@@ -8,7 +8,7 @@
 //! backend and any version of a random-number crate (why it is written here: ten lines of SplitMix64, where a
 //! crate's distributions may change between releases).
 
-use super::query::{Prepared, QueryError, Sign};
+use super::query::{Answers, Prepared, QueryError, Sign};
 use crate::mesh::{Aabb, Mesh};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -134,8 +134,44 @@ pub fn frame(mesh: &Mesh, b: Aabb, normalize: Normalize) -> (f64, DVec3) {
     }
 }
 
-/// The samples of `request` around the prepared mesh, on the library's threads.
+/// The samples of `request` around the prepared mesh, on the library's threads: [`draw`], then their answers
+/// from [`Prepared::query`].
 pub fn sample(prepared: &Prepared, request: &SampleRequest) -> Result<Samples, SampleError> {
+    let drawn = draw(prepared, request)?;
+    let answers = prepared.query(&drawn.points, Sign::Winding, false)?;
+    Ok(drawn.finish(answers))
+}
+
+/// The points of a request, drawn and waiting for their signed distances (from whichever backend answers).
+pub struct Drawn {
+    /// World coordinates.
+    pub points: Vec<DVec3>,
+    jobs: Vec<(u8, u64)>,
+    made: Vec<(DVec3, i64, [f32; 3])>,
+    scale: f64,
+    offset: DVec3,
+}
+
+impl Drawn {
+    /// The samples, given the answers of a signed query at [`Drawn::points`].
+    pub fn finish(self, answers: Answers) -> Samples {
+        let Drawn { points, jobs, made, scale, offset } = self;
+        Samples {
+            points: points.iter().map(|&p| ((p - offset) * scale).as_vec3().to_array()).collect(),
+            sdf: answers.distance.iter().map(|&d| (f64::from(d) * scale) as f32).collect(),
+            occupancy: answers.inside.unwrap_or_default(),
+            triangle: made.iter().map(|m| m.1).collect(),
+            normal: made.iter().map(|m| m.2).collect(),
+            kind: jobs.iter().map(|j| j.0).collect(),
+            scale,
+            offset,
+        }
+    }
+}
+
+/// The points of `request` around the prepared mesh (uniform, surface and near), deterministic for its seed, on
+/// the library's threads.
+pub fn draw(prepared: &Prepared, request: &SampleRequest) -> Result<Drawn, SampleError> {
     let mesh = prepared.mesh();
     if request.sigma.is_empty() && request.near > 0 || request.sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(SampleError::Sigma(request.sigma.clone()));
@@ -198,16 +234,5 @@ pub fn sample(prepared: &Prepared, request: &SampleRequest) -> Result<Samples, S
             .collect()
     });
     let points: Vec<DVec3> = made.iter().map(|m| m.0).collect();
-    let answers = prepared.query(&points, Sign::Winding, false)?;
-    let occupancy = answers.inside.unwrap_or_default();
-    Ok(Samples {
-        points: points.iter().map(|&p| ((p - offset) * scale).as_vec3().to_array()).collect(),
-        sdf: answers.distance.iter().map(|&d| (f64::from(d) * scale) as f32).collect(),
-        occupancy,
-        triangle: made.iter().map(|m| m.1).collect(),
-        normal: made.iter().map(|m| m.2).collect(),
-        kind: jobs.iter().map(|j| j.0).collect(),
-        scale,
-        offset,
-    })
+    Ok(Drawn { points, jobs, made, scale, offset })
 }

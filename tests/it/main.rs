@@ -25,6 +25,7 @@ mod modes;
 mod optimized_gltf;
 mod points;
 mod query;
+mod query_gpu;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;

@@ -14,7 +14,7 @@ use meshvox::voxel::{Mode, Resolution};
 
 /// Points a training set would ask about: uniform in the box padded by a fifth, jittered around the surface
 /// (at a thousandth to a tenth of the size), every vertex and edge midpoint (on the surface), and a few far away.
-fn points_for(mesh: &Mesh, rng: &mut Rng, uniform: usize, near: usize) -> Vec<DVec3> {
+pub(crate) fn points_for(mesh: &Mesh, rng: &mut Rng, uniform: usize, near: usize) -> Vec<DVec3> {
     let b = mesh.bounds().expect("bounds");
     let (lo, size) = (b.min - b.extent() * 0.2, b.extent() * 1.4);
     let scale = b.extent().max_element();

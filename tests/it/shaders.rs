@@ -21,6 +21,7 @@ fn modules() -> Vec<(&'static str, &'static str)> {
         ("solid", meshvox::gpu::solid::SOLID_WGSL),
         ("colour", meshvox::gpu::colour::COLOUR_WGSL),
         ("distance", meshvox::gpu::distance::DISTANCE_WGSL),
+        ("query", meshvox::gpu::query::QUERY_WGSL),
         ("compact", meshvox::gpu::compact::COMPACT_WGSL),
         ("cubes.wgsl", meshvox::render::CUBES_WGSL),
     ]
@@ -33,6 +34,7 @@ fn joined_modules() -> Vec<(&'static str, &'static [&'static str])> {
         (meshvox::gpu::solid::SOLID_WGSL, &meshvox::gpu::solid::SOLID_PARTS[..]),
         (meshvox::gpu::colour::COLOUR_WGSL, &meshvox::gpu::colour::COLOUR_PARTS[..]),
         (meshvox::gpu::distance::DISTANCE_WGSL, &meshvox::gpu::distance::DISTANCE_PARTS[..]),
+        (meshvox::gpu::query::QUERY_WGSL, &meshvox::gpu::query::QUERY_PARTS[..]),
         (meshvox::gpu::compact::COMPACT_WGSL, &meshvox::gpu::compact::COMPACT_PARTS[..]),
     ]
 }
@@ -156,4 +158,20 @@ fn colour_structs_match_the_host() {
     // The per-triangle shading records are uploaded as the host's bytes, 56 per triangle.
     assert_eq!(size("TriangleShading"), std::mem::size_of::<meshvox::mesh::material::TriangleShading>());
     assert_eq!(size("Params"), 48);
+}
+
+#[test]
+fn query_structs_match_the_host() {
+    let (module, _) = parse(meshvox::gpu::query::QUERY_WGSL).expect("valid");
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).expect("layout");
+    let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("WideNode")).expect("WideNode");
+    // The 4-wide tree's nodes are uploaded as the host's bytes.
+    assert_eq!(layouter[handle].size as usize, std::mem::size_of::<meshvox::voxel::cpu::query::WideNode>());
+    // The walk's stack and sentinels are the mirror's.
+    let source = meshvox::gpu::query::QUERY_WGSL;
+    let stack = meshvox::voxel::cpu::query::STACK;
+    assert!(source.contains(&format!("const STACK: u32 = {stack}u;")), "STACK is {stack} on both sides");
+    assert_eq!(meshvox::voxel::cpu::query::START, 1e38);
+    assert!(source.contains("const START: f32 = 1e38;"));
 }

@@ -437,11 +437,14 @@ class Query:
     closest: np.ndarray
     triangle: np.ndarray
     barycentric: np.ndarray
+    #: Where the nearest triangles were found ("cpu (N threads)" or "gpu: ADAPTER").
+    backend: str
 
     def __init__(self, out: dict[str, Any], mesh: Mesh, points: np.ndarray) -> None:
         for name in ("distance", "inside", "closest", "triangle", "barycentric"):
             setattr(self, name, out[name])
         self.evaluations = int(out["evaluations"])
+        self.backend = str(out["backend"])
         self._mesh, self._points = mesh, points
         self._winding: np.ndarray | None = None
 
@@ -470,19 +473,19 @@ def query(mesh: Any, points: Any, *, sign: str = "winding", backend: str = "auto
     inside; right on open, cracked and self-intersecting meshes), the winding number, the nearest point, its
     triangle and barycentric coordinates. See :class:`Query` and docs/training.md for what "exact" means here.
 
-    ``backend``: ``"auto"`` or ``"cpu"``; queries run on the CPU's threads (``"gpu"`` is refused until the GPU
-    answers them). The GIL is released meanwhile.
+    ``backend``: where the nearest triangles are found: ``"gpu"``, ``"cpu"``, or ``"auto"`` (the GPU where
+    there is a hardware adapter and at least 100,000 points). The signs are decided on the CPU with exact
+    predicates on every backend, and every backend gives the same answers; ``.backend`` says where they were
+    made. The GIL is released meanwhile.
     """
     if backend not in ("auto", "cpu", "gpu"):
         raise ValueError(f"backend '{backend}': use auto, gpu or cpu")
-    if backend == "gpu":
-        raise ValueError('queries run on the CPU for now: use backend="auto" or "cpu"')
     prepared = mesh if isinstance(mesh, Mesh) else Mesh(mesh)
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ValueError(f"points must have shape (N, 3), not {p.shape}")
     p = np.ascontiguousarray(p)
-    return Query(_native.query(prepared._native, p, sign), prepared, p)
+    return Query(_native.query(prepared._native, p, sign, backend), prepared, p)
 
 
 class Samples:
@@ -503,12 +506,15 @@ class Samples:
     kind: np.ndarray
     scale: float
     offset: np.ndarray
+    #: Where the distances' nearest triangles were found, as :attr:`Query.backend`.
+    backend: str
 
     def __init__(self, out: dict[str, Any]) -> None:
         for name in ("points", "sdf", "occupancy", "triangle", "normal", "kind"):
             setattr(self, name, out[name])
         self.scale = float(out["scale"])
         self.offset = np.asarray(out["offset"], dtype=np.float64)
+        self.backend = str(out["backend"])
 
     def to_world(self, points: np.ndarray | None = None) -> np.ndarray:
         """``points`` (default: the samples') mapped back to the mesh's coordinates, float64."""
@@ -544,6 +550,7 @@ def sample(
     padding: float = 0.1,
     normalize: str | None = "unit-cube",
     seed: int = 0,
+    backend: str = "auto",
 ) -> Samples:
     """Training samples for DeepSDF / Occupancy-Networks style learning: ``uniform`` points in the cube around
     the mesh (side ``1 + padding`` times its longest side), ``surface`` points on it (area-weighted, with their
@@ -553,11 +560,12 @@ def sample(
 
     ``normalize``: ``"unit-cube"`` (the bounding box centred, its longest side 1), ``"unit-sphere"`` (centred,
     the farthest vertex at 1) or ``None`` (world coordinates); see :class:`Samples` for mapping back. The same
-    ``seed`` gives the same samples on every machine, backend and thread count.
+    ``seed`` gives the same samples on every machine, backend and thread count. ``backend``: where the
+    distances' nearest triangles are found, as in :func:`query`.
     """
     prepared = mesh if isinstance(mesh, Mesh) else Mesh(mesh)
     args = _sample_args(uniform, surface, near, sigma, padding, normalize, seed)
-    return Samples(_native.sample_many([prepared._native], *args, 1, None)[0])
+    return Samples(_native.sample_many([prepared._native], *args, 1, None, backend)[0])
 
 
 def sample_many(
@@ -572,13 +580,14 @@ def sample_many(
     padding: float = 0.1,
     normalize: str | None = "unit-cube",
     seed: int = 0,
+    backend: str = "auto",
 ) -> list[Samples]:
     """:func:`sample` for a dataset: each mesh (path, arrays, trimesh or :class:`Mesh`) loaded, prepared and
     sampled on ``workers`` threads at a time (default 2; each mesh's points already use every core), the same
     ``seed`` for each, in input order. ``progress(done, total)`` counts meshes."""
     sources = [m._native if isinstance(m, Mesh) else _source(m) for m in meshes]
     args = _sample_args(uniform, surface, near, sigma, padding, normalize, seed)
-    return [Samples(out) for out in _native.sample_many(sources, *args, workers, progress)]
+    return [Samples(out) for out in _native.sample_many(sources, *args, workers, progress, backend)]
 
 
 def batched_coords(grids: Sequence[VoxelGrid], order: str = "xyz") -> np.ndarray:

@@ -5,7 +5,7 @@
 
 use super::common::dot3;
 use super::exact::{ceil, floor};
-use super::nearest::{closest_barycentric, reach_range};
+use super::nearest::{point_distance2, reach_range};
 use glam::{IVec3, UVec3, Vec3};
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -13,15 +13,6 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// box, `lo..=hi` per axis, clamped to the grid (empty where `lo > hi`).
 pub fn band_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
     reach_range(t, dims, reach)
-}
-
-/// Squared distance from `p` to triangle `t`, in voxels². The offset to the closest point is `(a - p) + v ab + w
-/// ac`: with `p` and the vertices on the lattice, `a - p`, `ab` and `ac` are exact, so rounding is relative to
-/// the distance and the edges rather than to the coordinates.
-pub fn point_distance2(p: Vec3, t: [Vec3; 3]) -> f32 {
-    let w = closest_barycentric(p, t[0], t[1], t[2]);
-    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
-    dot3(d, d)
 }
 
 /// The leaf slot of leaf coordinates `l`.

@@ -19,6 +19,7 @@ pub mod exact;
 pub mod groups;
 pub mod leaves;
 pub mod nearest;
+pub mod query;
 pub mod solid;
 pub mod surface;
 pub mod thin;

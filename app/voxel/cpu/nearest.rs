@@ -1,5 +1,6 @@
 //! The mirror of `shaders/nearest.wgsl`: the nearest point of a triangle, as barycentric coordinates
-//! ([`closest_barycentric`]), shared by the colour and the distance passes; and the voxels whose centres a triangle
+//! ([`closest_barycentric`]), and its squared distance ([`point_distance2`]), shared by the colour, distance and
+//! query passes; and the voxels whose centres a triangle
 //! may come within a reach of ([`reach_range`]), the CPU's form of the ranges both shaders compute inline.
 
 use super::common::dot3;
@@ -74,4 +75,13 @@ fn nearest_vertex(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     } else {
         Vec3::Z
     }
+}
+
+/// Squared distance from `p` to triangle `t`, in voxels². The offset to the closest point is `(a - p) + v ab + w
+/// ac`: with `p` and the vertices on the lattice, `a - p`, `ab` and `ac` are exact, so rounding is relative to
+/// the distance and the edges rather than to the coordinates.
+pub fn point_distance2(p: Vec3, t: [Vec3; 3]) -> f32 {
+    let w = closest_barycentric(p, t[0], t[1], t[2]);
+    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
+    dot3(d, d)
 }

@@ -1,0 +1,84 @@
+//! Queries and training samples through the engine (`meshvox query`, `meshvox sample`, `batch --sample`, Python's
+//! `query`, `sample` and `sample_many`): on a GPU engine the nearest triangles come from the GPU
+//! (`shaders/query.wgsl`) while the CPU decides the signs with exact predicates; on the CPU engine both are the
+//! CPU's ([`Prepared::query`]). The answers are the same either way (docs/training.md): the nearest triangle is
+//! the first in the mesh at the least distance, and the sign is the CPU's on every backend.
+
+use super::{Backend, Engine, EngineError, Notice, ms};
+use crate::voxel::query::{Answers, Prepared, Sign};
+use crate::voxel::sample::{SampleRequest, Samples, draw};
+use glam::DVec3;
+use web_time::Instant;
+
+/// Under `auto`, fewer points than this are answered on the CPU: the GPU's upload of the hierarchy and its
+/// round trip cost more than the CPU's walk of them (about 10 ms per 10,000 points on two cores).
+pub const AUTO_GPU_POINTS: usize = 100_000;
+
+/// The backend a query of `points` points opens: `auto` stays on the CPU below [`AUTO_GPU_POINTS`] (a
+/// client asks before opening, so that a small query opens no device).
+pub fn query_backend(backend: Backend, points: usize) -> Backend {
+    match backend {
+        Backend::Auto if points < AUTO_GPU_POINTS => Backend::Cpu,
+        other => other,
+    }
+}
+
+/// A query's answers, and where they were made.
+pub struct Queried {
+    pub answers: Answers,
+    /// Where the nearest triangles were found, as a report's `backend` says it.
+    pub backend: String,
+    /// Milliseconds the GPU's search took (its turn included), where it ran.
+    pub gpu_ms: Option<f64>,
+    /// What happened on the way (the CPU standing in for the GPU).
+    pub notices: Vec<Notice>,
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+impl Engine {
+    /// The answers at `points` (world space), as [`Prepared::query`] gives them, on this engine's backend.
+    pub fn query(
+        &self,
+        prepared: &Prepared,
+        points: &[DVec3],
+        sign: Sign,
+        winding: bool,
+    ) -> Result<Queried, EngineError> {
+        let Some(on) = &self.gpu else {
+            let answers = prepared.query(points, sign, winding).map_err(EngineError::Query)?;
+            return Ok(Queried { answers, backend: self.cpu_label(), gpu_ms: None, notices: Vec::new() });
+        };
+        self.blocking(|| {
+            let placed = prepared.place(points).map_err(EngineError::Query)?;
+            let tables = prepared.nearest_tables();
+            let mut notices = Vec::new();
+            // The GPU searches on a thread of its own while this one decides the signs on the library's pool.
+            let (found, sides, gpu_ms) = std::thread::scope(|scope| {
+                let search = scope.spawn(|| {
+                    let t = Instant::now();
+                    let found = pollster::block_on(on.nearest(&tables, &placed, &mut notices));
+                    (found, ms(t))
+                });
+                let sides = prepared.sides(&placed, sign, winding);
+                let (found, gpu_ms) = search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                (found, sides, gpu_ms)
+            });
+            let found = found?;
+            let backend = match &found {
+                Some(_) => self.label(),
+                None => self.cpu_label(),
+            };
+            let answers = prepared.query_found(points, &placed, found.as_deref().unwrap_or(&[]), sides, sign, winding);
+            Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), notices })
+        })
+    }
+
+    /// The samples of `request` around the prepared mesh: drawn on the CPU (the same points for a seed on every
+    /// backend), their signed distances from [`Engine::query`].
+    pub fn sample(&self, prepared: &Prepared, request: &SampleRequest) -> Result<(Samples, Queried), EngineError> {
+        let drawn = draw(prepared, request)?;
+        let mut queried = self.query(prepared, &drawn.points, Sign::Winding, false)?;
+        let answers = std::mem::take(&mut queried.answers);
+        Ok((drawn.finish(answers), queried))
+    }
+}

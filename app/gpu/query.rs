@@ -1,0 +1,140 @@
+//! The query pass of `shaders/query.wgsl` on a [`Gpu`]: each point's nearest triangle (the least squared distance
+//! over every triangle in the query frame, and the first triangle in the mesh at it) by a walk of the query
+//! hierarchy, one invocation per point. The CPU mirror is [`crate::voxel::cpu::query`]; what the host makes of the
+//! answers (nearest points and barycentric coordinates in f64, the sign) is [`crate::voxel::query`]'s.
+//!
+//! The points go up in the Morton order the CPU walks them in, so that the invocations of one workgroup walk
+//! nearly the same nodes; the answers come back in the caller's order.
+
+use super::readback::read_buffer;
+use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
+use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::cpu::query::{NearestTables, STACK_DEPTH};
+use glam::Vec3;
+
+pub const QUERY_WGSL: &str = concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/nearest.wgsl"),
+    include_str!("../../shaders/query.wgsl"),
+);
+/// The files joined into [`QUERY_WGSL`], in order, relative to `shaders/`.
+pub const QUERY_PARTS: [&str; 3] = ["shared/common.wgsl", "nearest.wgsl", "query.wgsl"];
+const WG: u32 = 64;
+/// Stack entries pack a node's or a leaf's index in 28 bits.
+const INDEX_LIMIT: u64 = 1 << 28;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    points: u32,
+    row_threads: u32,
+    _pad: [u32; 2],
+}
+
+/// The compiled pass, reusable on one device.
+pub struct GpuQuery {
+    layout: wgpu::BindGroupLayout,
+    nearest: wgpu::ComputePipeline,
+}
+
+impl GpuQuery {
+    pub fn new(gpu: &Gpu) -> GpuQuery {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("query.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(QUERY_WGSL.into()),
+        });
+        let entries = [
+            uniform_entry(0),
+            storage_entry(1, true),
+            storage_entry(2, true),
+            storage_entry(3, true),
+            storage_entry(4, true),
+            storage_entry(5, false),
+        ];
+        let layout = device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("query"), entries: &entries });
+        GpuQuery { nearest: pipeline(device, &module, &[Some(&layout)], "nearest_points"), layout }
+    }
+
+    /// The nearest triangle of each point of `frame` (the query frame's coordinates): `(squared distance, mesh
+    /// index)` as [`crate::voxel::cpu::query::walk_nearest`] answers, taking the points in `order`.
+    pub async fn nearest(
+        &self,
+        gpu: &Gpu,
+        tables: &NearestTables,
+        frame: &[Vec3],
+        order: &[u32],
+    ) -> Result<Vec<(f32, u32)>, GpuError> {
+        gpu.check()?;
+        if tables.depth > STACK_DEPTH {
+            return Err(GpuError::TooLarge {
+                what: "the query hierarchy's depth".into(),
+                needed: tables.depth as u64,
+                limit: STACK_DEPTH as u64,
+            });
+        }
+        let max = gpu.max_binding_bytes();
+        let counts = [tables.nodes.len() as u64, tables.triangles.len() as u64];
+        if let Some(&big) = counts.iter().find(|&&n| n >= INDEX_LIMIT) {
+            return Err(GpuError::TooLarge { what: "the query hierarchy".into(), needed: big, limit: INDEX_LIMIT });
+        }
+        let bytes = [tables.nodes.len() as u64 * 128, tables.triangles.len() as u64 * 36];
+        if let Some(&big) = bytes.iter().find(|&&b| b > max) {
+            return Err(GpuError::TooLarge { what: "the query hierarchy".into(), needed: big, limit: max });
+        }
+        let sorted: Vec<Vec3> = order.iter().map(|&i| frame[i as usize]).collect();
+        let mut found = vec![(0.0f32, 0u32); frame.len()];
+        let per_chunk = (max / 12).clamp(1, u64::from(u32::MAX / 2)) as usize;
+        let device = &gpu.device;
+        let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let (nodes, triangles, mesh_order) = (
+            init("query nodes", bytemuck::cast_slice(&tables.nodes), storage),
+            init("query triangles", bytemuck::cast_slice(&tables.triangles), storage),
+            init("query order", bytemuck::cast_slice(&tables.order), storage),
+        );
+        for (c, chunk) in sorted.chunks(per_chunk).enumerate() {
+            let buffer = scoped(device, || {
+                let (x, y) = dispatch_2d((chunk.len() as u32).div_ceil(WG));
+                let params = Params { points: chunk.len() as u32, row_threads: x * WG, _pad: [0; 2] };
+                let params = init("query params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
+                let points = init("query points", bytemuck::cast_slice(chunk), storage);
+                let answers = super::util::storage_buffer(
+                    device,
+                    "query answers",
+                    chunk.len() as u64 * 8,
+                    wgpu::BufferUsages::COPY_SRC,
+                );
+                let buffers = [&params, &nodes, &triangles, &mesh_order, &points, &answers];
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .iter()
+                    .enumerate()
+                    .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+                    .collect();
+                let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("query"),
+                    layout: &self.layout,
+                    entries: &entries,
+                });
+                let mut encoder = device.create_command_encoder(&Default::default());
+                {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                    pass.set_pipeline(&self.nearest);
+                    pass.set_bind_group(0, &bind, &[]);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+                gpu.queue.submit([encoder.finish()]);
+                Ok(answers)
+            })
+            .await?;
+            let data = read_buffer(device, &gpu.queue, &buffer, 0, chunk.len() as u64 * 8).await?;
+            let words: &[u32] = bytemuck::cast_slice(&data);
+            for (k, pair) in words.chunks_exact(2).enumerate() {
+                found[order[c * per_chunk + k] as usize] = (f32::from_bits(pair[0]), pair[1]);
+            }
+        }
+        gpu.check()?;
+        Ok(found)
+    }
+}

@@ -1,0 +1,136 @@
+//! The mirror of `shaders/query.wgsl`, function by function with the same names: a point's nearest triangle by a
+//! walk of the query hierarchy's 4-wide tree as the GPU holds it ([`NearestTables`]), one point per invocation.
+//! The CPU's own walk ([`crate::voxel::bvh::Bvh::walk_nearest`]) tests four triangles at a time with more
+//! bounds; this one is the shader's scalar walk, for the tests to compare with the GPU's answers bit for bit.
+//!
+//! Both walks answer the same: the least squared distance over every triangle by [`point_distance2`], and of the
+//! triangles at that distance the one first in the mesh's order. Nothing is pruned that could equal the least
+//! (the box and plane rules skip only what is farther by a margin above their rounding), so the answer does not
+//! depend on the order of the walk, the point's neighbours or the backend.
+
+use super::common::dot3;
+use super::nearest::point_distance2;
+use glam::Vec3;
+
+/// Entries of a walk's stack: [`STACK_DEPTH`] levels of the 4-wide tree, each opening adding at most three.
+pub const STACK: usize = 64;
+
+/// The deepest 4-wide tree whose walk fits [`STACK`] (`3 * depth + 1` entries); a deeper one (a pathological
+/// spread of triangles) is walked on the CPU.
+pub const STACK_DEPTH: usize = (STACK - 1) / 3;
+
+/// A lane of a [`WideNode`] with no child.
+pub const EMPTY_LANE: u32 = u32::MAX;
+
+/// The best distance a walk starts from: finite (GPUs need not keep infinities), and above any squared distance
+/// of a point within [`FAR`] of the frame.
+pub const START: f32 = 1e38;
+
+/// Points farther than this from the frame's origin (in voxels, on any axis) are answered on the CPU: beyond it
+/// the squared distances could leave f32's finite range, which a GPU need not keep.
+pub const FAR: f32 = 1048576.0;
+
+/// What a walk found where no triangle is nearer than [`START`] (no triangle, or every distance overflowed).
+pub const NONE: u32 = u32::MAX;
+
+/// One node of the 4-wide tree as the shader reads it: the four children's boxes by coordinate, and each child a
+/// node (`count` 0, `first` its index), a leaf (`count` triangles from `first` in leaf order), or no child
+/// (`first` [`EMPTY_LANE`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct WideNode {
+    pub lo: [[f32; 4]; 3],
+    pub hi: [[f32; 4]; 3],
+    pub first: [u32; 4],
+    pub count: [u32; 4],
+}
+
+/// The hierarchy as the shader's bindings hold it.
+pub struct NearestTables {
+    /// The 4-wide tree, its root first.
+    pub nodes: Vec<WideNode>,
+    /// The triangles in leaf order, grid space of the query frame.
+    pub triangles: Vec<[Vec3; 3]>,
+    /// Each leaf-order triangle's index in the mesh.
+    pub order: Vec<u32>,
+    /// Levels of the 4-wide tree.
+    pub depth: usize,
+}
+
+/// The squared distance from `p` to child `k`'s box.
+pub fn child_distance2(node: &WideNode, k: usize, p: Vec3) -> f32 {
+    let lo = Vec3::new(node.lo[0][k], node.lo[1][k], node.lo[2][k]);
+    let hi = Vec3::new(node.hi[0][k], node.hi[1][k], node.hi[2][k]);
+    let gap = (lo - p).max(p - hi).max(Vec3::ZERO);
+    dot3(gap, gap)
+}
+
+/// Whether triangle `t` cannot come nearer `p` than `current` less a margin above rounding: its plane is farther
+/// (where it has one), or its bounding box is. The distance field's rule, with `>` so that a triangle at exactly
+/// the best distance is still visited (the tie goes to the first in the mesh).
+pub fn may_skip(p: Vec3, t: [Vec3; 3], current: f32) -> bool {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let n2 = dot3(n, n);
+    let plane = dot3(n, t[0] - p);
+    let lo = t[0].min(t[1]).min(t[2]);
+    let hi = t[0].max(t[1]).max(t[2]);
+    let gap = (lo - p).max(p - hi).max(Vec3::ZERO);
+    (plane * plane > current * n2 * 1.0001 && n2 > 0.0) || dot3(gap, gap) > current * 1.0001
+}
+
+/// A stack entry's first word: a node's index (`count` 0) or a leaf's first triangle and count.
+pub fn pack_entry(first: u32, count: u32) -> u32 {
+    first << 4 | count
+}
+
+/// `p`'s nearest triangle: `(squared distance, mesh index)`, or `(START, NONE)` where none is nearer than
+/// [`START`]. Children are pushed nearest last, so the nearest is walked first.
+pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32) {
+    let (mut best, mut found) = (START, NONE);
+    let mut stack = [(0u32, 0.0f32); STACK];
+    let mut len = usize::from(!tables.nodes.is_empty());
+    while len > 0 {
+        len -= 1;
+        let (entry, d) = stack[len];
+        if d > best * 1.0001 {
+            continue;
+        }
+        let (first, count) = (entry >> 4, entry & 15);
+        if count > 0 {
+            for j in first..first + count {
+                let t = tables.triangles[j as usize];
+                if may_skip(p, t, best) {
+                    continue;
+                }
+                let d2 = point_distance2(p, t);
+                let id = tables.order[j as usize];
+                if d2 < best || (d2 == best && id < found) {
+                    (best, found) = (d2, id);
+                }
+            }
+            continue;
+        }
+        let node = &tables.nodes[first as usize];
+        let mut open = [(0u32, 0.0f32); 4];
+        let mut n = 0;
+        for k in 0..4 {
+            if node.first[k] == EMPTY_LANE {
+                continue;
+            }
+            let dk = child_distance2(node, k, p);
+            if dk > best * 1.0001 {
+                continue;
+            }
+            let mut at = n;
+            while at > 0 && open[at - 1].1 < dk {
+                open[at] = open[at - 1];
+                at -= 1;
+            }
+            open[at] = (pack_entry(node.first[k], node.count[k]), dk);
+            n += 1;
+        }
+        stack[len..len + n].copy_from_slice(&open[..n]);
+        len += n;
+    }
+    (best, found)
+}

@@ -1,0 +1,155 @@
+//! Queries on the GPU (`shaders/query.wgsl`, `gpu/query.rs`, the engine's `query` and `sample`): the GPU's walk
+//! equals its CPU mirror bit for bit, and both equal the least over every triangle (brute force) with the first
+//! triangle at it; through the engine, a GPU query's answers equal the CPU's, and so do the samples.
+
+use crate::common::{Rng, hard_cases, shared_meshes};
+use crate::gpu::gpu;
+use crate::query::points_for;
+use glam::{DVec3, Vec3};
+use meshvox::engine::{Backend, Engine};
+use meshvox::gpu::query::GpuQuery;
+use meshvox::mesh::{self, Mesh};
+use meshvox::voxel::bvh::Bvh;
+use meshvox::voxel::cpu::nearest::point_distance2;
+use meshvox::voxel::cpu::query::{NONE, walk_nearest};
+use meshvox::voxel::query::{Prepared, Sign};
+use meshvox::voxel::sample::SampleRequest;
+
+/// Frame points about `tris`: uniform in the padded box, on every vertex and edge midpoint, on lattice points
+/// (voxel corners and centres, where ties are likeliest) and far away.
+fn frame_points(tris: &[[Vec3; 3]], rng: &mut Rng, uniform: usize) -> Vec<Vec3> {
+    let (lo, hi) = tris.iter().flatten().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    let (lo, size) = (lo - (hi - lo) * 0.2 - 1.0, (hi - lo) * 1.4 + 2.0);
+    let mut points: Vec<Vec3> =
+        (0..uniform).map(|_| lo + size * Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32)).collect();
+    points.extend(points.clone().iter().take(uniform / 4).map(|p| p.round()));
+    points.extend(points.clone().iter().take(uniform / 4).map(|p| p.floor() + 0.5));
+    for t in tris.iter().take(500) {
+        points.extend([t[0], (t[0] + t[1]) * 0.5, (t[0] + t[1] + t[2]) / 3.0]);
+    }
+    points.extend([lo - size * 20.0, hi + Vec3::new(300.0, -200.0, 500.0)]);
+    points
+}
+
+/// The least squared distance over every triangle and the first triangle at it.
+fn brute_force(tris: &[[Vec3; 3]], p: Vec3) -> (f32, u32) {
+    let mut best = (f32::INFINITY, NONE);
+    for (i, &t) in tris.iter().enumerate() {
+        let d2 = point_distance2(p, t);
+        if d2 < best.0 {
+            best = (d2, i as u32);
+        }
+    }
+    best
+}
+
+/// Checks the GPU's walk over `tris` at `points` against the mirror (bit for bit, both words), brute force (the
+/// least distance bit for bit, and its first triangle wherever the least is not 0) and the CPU's own walk.
+fn assert_walks_agree(tris: &[[Vec3; 3]], points: &[Vec3], what: &str) {
+    let Some((g, _)) = gpu() else { return };
+    let bvh = Bvh::build(tris);
+    let tables = bvh.tables();
+    let order: Vec<u32> = (0..points.len() as u32).collect();
+    let found = pollster::block_on(GpuQuery::new(g).nearest(g, &tables, points, &order)).expect("the GPU's walk");
+    for (i, (&p, &(d2, tri))) in points.iter().zip(&found).enumerate() {
+        let mirror = walk_nearest(&tables, p);
+        assert_eq!((d2.to_bits(), tri), (mirror.0.to_bits(), mirror.1), "{what}: point {i} {p:?}: GPU against mirror");
+        let (least, first) = brute_force(tris, p);
+        assert_eq!(d2.to_bits(), least.to_bits(), "{what}: point {i} {p:?}: the least distance");
+        let (cpu, _) = bvh.nearest_triangle(p, (f32::INFINITY, None));
+        let (cpu_d2, cpu_tri) = cpu.expect("a nearest triangle");
+        assert_eq!(cpu_d2.to_bits(), least.to_bits(), "{what}: point {i} {p:?}: the CPU walk's least distance");
+        if least > 0.0 {
+            assert_eq!(tri, first, "{what}: point {i} {p:?}: the first triangle at the least distance");
+            assert_eq!(cpu_tri, first, "{what}: point {i} {p:?}: the CPU walk's triangle");
+        } else {
+            assert_eq!(point_distance2(p, tris[tri as usize]), 0.0, "{what}: point {i}: a triangle through it");
+        }
+    }
+}
+
+#[test]
+fn the_gpu_walk_equals_its_mirror_and_brute_force_on_the_hard_cases() {
+    let mut rng = Rng::new(4801);
+    for (name, tris, _) in hard_cases() {
+        let points = frame_points(&tris, &mut rng, 400);
+        assert_walks_agree(&tris, &points, name);
+    }
+}
+
+#[test]
+fn the_gpu_walk_equals_its_mirror_and_brute_force_on_a_shared_mesh() {
+    let Some(shared) = shared_meshes() else { return };
+    let mesh = mesh::load(&shared.join("spot.obj").to_string_lossy()).expect("spot");
+    let prepared = Prepared::new(mesh.clone()).expect("prepare");
+    let tables = prepared.nearest_tables();
+    // The frame's triangles in the mesh's order, from the tables' leaf order.
+    let mut tris = vec![[Vec3::ZERO; 3]; tables.order.len()];
+    for (t, &i) in tables.triangles.iter().zip(&tables.order) {
+        tris[i as usize] = *t;
+    }
+    let mut rng = Rng::new(4802);
+    let points = frame_points(&tris, &mut rng, 1500);
+    assert_walks_agree(&tris, &points, "spot");
+}
+
+/// Where the nearest distance in the query frame is not 0 (there two triangles through the point may both be
+/// first for their walk), every answer of `gpu` equals `cpu`'s; elsewhere both are at the same distance.
+fn assert_same_answers(mesh: &Mesh, points: &[DVec3], gpu: &Engine, cpu: &Engine, what: &str) {
+    let prepared = Prepared::new(mesh.clone()).expect("prepare");
+    let on_gpu = gpu.query(&prepared, points, Sign::Winding, false).expect("gpu query");
+    let on_cpu = cpu.query(&prepared, points, Sign::Winding, false).expect("cpu query");
+    assert!(on_gpu.backend.starts_with("gpu"), "{what}: answered on {}", on_gpu.backend);
+    assert!(on_gpu.notices.is_empty(), "{what}: {:?}", on_gpu.notices);
+    let (g, c) = (&on_gpu.answers, &on_cpu.answers);
+    assert_eq!(g.inside, c.inside, "{what}: the sides are the CPU's on both");
+    let size = mesh.bounds().expect("bounds").extent().max_element();
+    for i in 0..points.len() {
+        if c.distance[i].abs() as f64 > 1e-6 * size {
+            assert_eq!(
+                (g.distance[i], g.triangle[i], g.closest[i], g.barycentric[i]),
+                (c.distance[i], c.triangle[i], c.closest[i], c.barycentric[i]),
+                "{what}: point {i} {:?}",
+                points[i]
+            );
+        } else {
+            assert!((g.distance[i] - c.distance[i]).abs() as f64 <= 2e-7 * size, "{what}: point {i} on the surface");
+        }
+    }
+}
+
+#[test]
+fn gpu_queries_and_samples_equal_the_cpus() {
+    if gpu().is_none() {
+        return;
+    }
+    let engine = Engine::open(Backend::Gpu).expect("the GPU engine");
+    let cpu = Engine::open(Backend::Cpu).expect("the CPU engine");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut rng = Rng::new(4803);
+    let mut meshes: Vec<(String, Mesh)> = crate::inside::open_meshes(dir.path())
+        .into_iter()
+        .map(|(name, path, _)| (name, mesh::load(&path).expect("load")))
+        .collect();
+    if let Some(shared) = shared_meshes() {
+        for name in ["stanford-bunny.obj", "suzanne.obj"] {
+            meshes.push((name.into(), mesh::load(&shared.join(name).to_string_lossy()).expect("load")));
+        }
+    }
+    for (name, mesh) in &meshes {
+        let points = points_for(mesh, &mut rng, 3000, 3000);
+        assert_same_answers(mesh, &points, &engine, &cpu, name);
+    }
+    // Samples: the same points on both, and the same distances and occupancy.
+    let (name, mesh) = meshes.last().expect("a mesh");
+    let prepared = Prepared::new(mesh.clone()).expect("prepare");
+    let request = SampleRequest { uniform: 4000, surface: 2000, near: 4000, seed: 9, ..SampleRequest::default() };
+    let (on_gpu, queried) = engine.sample(&prepared, &request).expect("gpu samples");
+    let (on_cpu, _) = cpu.sample(&prepared, &request).expect("cpu samples");
+    assert!(queried.backend.starts_with("gpu"), "{name}: sampled on {}", queried.backend);
+    assert_eq!(on_gpu.points, on_cpu.points, "{name}: the points are drawn alike");
+    assert_eq!(on_gpu.occupancy, on_cpu.occupancy, "{name}: occupancy");
+    for (i, (g, c)) in on_gpu.sdf.iter().zip(&on_cpu.sdf).enumerate() {
+        assert!((g - c).abs() <= 2e-7, "{name}: sample {i}: {g} against {c}");
+    }
+}
