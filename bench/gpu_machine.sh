@@ -9,7 +9,9 @@
 #   identity  every shared mesh in every mode at three resolutions: GPU and CPU outputs compared byte for byte
 #   tests     the integration tests that run the GPU passes against the CPU reference, on this adapter
 #   seed | scale | sparse | sdf   `meshvox bench --suite STEP` on both backends
-#   all       smoke, tests, seed, scale, sparse and sdf in one command, each under its own time limit so that
+#   query     `meshvox query` at 1M uniform points on the bunny and Spot, --backend cpu and gpu: their times and
+#             the two outputs compared byte for byte
+#   all       smoke, tests, query, seed, scale, sparse and sdf in one command, each under its own time limit so that
 #             the whole run fits the device tool's 10 minutes per command (a suite cut short keeps its log)
 # The test binary has the paths of the machine it was built on compiled in (/work/main, /work/shared), so the
 # tests step links those names to DIR's copies.
@@ -29,10 +31,10 @@ meshes=(../shared/meshes/stanford-bunny.obj ../shared/meshes/suzanne.obj ../shar
     ../shared/meshes/spot.obj ../shared/meshes/gltf/Duck.glb builtin:rotated-cube)
 
 # Seconds each step of `all` may take (600 in all, a little under the device tool's per-command limit).
-declare -A limit=([smoke]=45 [tests]=120 [seed]=45 [scale]=150 [sparse]=150 [sdf]=75)
+declare -A limit=([smoke]=40 [tests]=110 [query]=40 [seed]=40 [scale]=140 [sparse]=140 [sdf]=70)
 
 steps=("$@")
-[ "${steps[*]}" = all ] && steps=(smoke tests seed scale sparse sdf)
+[ "${steps[*]}" = all ] && steps=(smoke tests query seed scale sparse sdf)
 for step in "${steps[@]}"; do
     echo "=== $step $(date +%T)"
     if [ "$*" = all ] && [ -z "${MESHVOX_STEP:-}" ]; then
@@ -97,7 +99,27 @@ for step in "${steps[@]}"; do
         [ -e /work/main ] || ln -s "$PWD" /work/main
         [ -e /work/shared ] || { mkdir -p /work/shared && ln -s "$dir/meshes" /work/shared/meshes; }
         (cd /work/main && "$dir/it" --test-threads 4 gpu:: modes::gpu distance::gpu colour::gpu far::far_meshes_on_the_gpu \
-            exactness sparse engine::threads cli::auto 2>&1 | tee "$out/tests.log" | grep -E "GPU tests on|^test result|FAILED|panicked" )
+            exactness sparse engine::threads cli::auto query_gpu 2>&1 | tee "$out/tests.log" | grep -E "GPU tests on|^test result|FAILED|panicked" )
+        ;;
+    query)
+        # 1M points uniform in the box [-0.1, 0.2]³ around the bunny (no numpy here: the .npy written by hand).
+        python3 - /tmp/points.npy <<'PY'
+import array, random, sys
+random.seed(0)
+header = "{'descr': '<f8', 'fortran_order': False, 'shape': (1000000, 3), }"
+header += " " * (117 - len(header)) + "\n"
+values = array.array("d", (random.uniform(-0.1, 0.2) for _ in range(3000000)))
+with open(sys.argv[1], "wb") as f:
+    f.write(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header.encode() + values.tobytes())
+PY
+        for m in ../shared/meshes/stanford-bunny.obj ../shared/meshes/spot.obj; do
+            for b in cpu gpu; do
+                "$bin" query "$m" /tmp/points.npy -o "/tmp/query-$b.npz" --backend "$b" --stats-json 2>&1 |
+                    tail -n 1 | tee -a "$out/query.json"
+            done
+            cmp -s /tmp/query-cpu.npz /tmp/query-gpu.npz && echo "same answers on $(basename "$m")" ||
+                echo "DIFFERENT answers on $(basename "$m")"
+        done
         ;;
     seed | scale | sparse | sdf)
         # One run per case: on a lent machine the time is the budget (the medians of three are for this box).

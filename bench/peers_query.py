@@ -9,8 +9,11 @@ Usage (from the repository root; environments as bench/peers.py makes them, unde
         [--markdown bench/RESULTS.md]
 
 Peers (each in a worker process, the call alone timed, after the mesh is loaded and indexed):
-  meshvox  `meshvox query MESH POINTS.npy -o OUT.npz --stats-json`: `query_ms` (the BVH built outside it, as the
-           peers' indices are); sign by the generalized winding number.
+  meshvox  `meshvox query MESH POINTS.npy -o OUT.npz --backend cpu --stats-json`: `query_ms` (the BVH built outside
+           it, as the peers' indices are); sign by the generalized winding number. Where the machine has a hardware
+           GPU, also `--backend gpu` (the nearest triangles found on the GPU, the signs on the CPU meanwhile; its
+           time includes the hierarchy's upload), checked equal to the CPU's answers. A software adapter
+           (lavapipe) is skipped: it runs on the same cores as the CPU walk, slower.
   Open3D   RaycastingScene.compute_signed_distance (Embree; sign by the parity of one ray's crossings).
   pysdf    SDF(vertices, faces)(points) (sign by a vote of rays; positive inside, negated here).
   libigl   igl.signed_distance(..., SIGNED_DISTANCE_TYPE_FAST_WINDING_NUMBER) (sign by an approximate winding
@@ -149,11 +152,25 @@ def run(args):
         p = lo - pad + rng.random((args.points, 3)) * (hi - lo + 2 * pad)
         np.save(tmp / "points.npy", p)
         out = tmp / "meshvox.npz"
-        r = subprocess.run([args.binary, "query", str(mesh), str(tmp / "points.npy"), "-o", str(out), "--stats-json"],
-                           capture_output=True, text=True, check=True)
+        r = subprocess.run([args.binary, "query", str(mesh), str(tmp / "points.npy"), "-o", str(out), "--backend", "cpu",
+                            "--stats-json"], capture_output=True, text=True, check=True)
         stats = json.loads(r.stdout.strip().splitlines()[-1])
         ours = np.load(out)["distance"]
         results = {"meshvox": {"seconds": stats["query_ms"] / 1e3, "inside": int((ours < 0).sum())}}
+        g = subprocess.run([args.binary, "query", str(mesh), str(tmp / "points.npy"), "-o", str(tmp / "gpu.npz"),
+                            "--backend", "gpu", "--stats-json"], capture_output=True, text=True)
+        gstats = json.loads(g.stdout.strip().splitlines()[-1]) if g.returncode == 0 else {}
+        if g.returncode:
+            print(f"(no GPU row: {(g.stderr.strip().splitlines() or ['?'])[-1]})", file=sys.stderr)
+        elif any(s in gstats["backend"] for s in ("llvmpipe", "SwiftShader", "lavapipe")):
+            print(f"(no GPU row: the adapter is software: {gstats['backend']})", file=sys.stderr)
+        else:
+            theirs = np.load(tmp / "gpu.npz")["distance"]
+            NAMES["meshvox-gpu"] = f"meshvox (GPU: {gstats['backend'].removeprefix('gpu: ')})"
+            results["meshvox-gpu"] = {"seconds": gstats["query_ms"] / 1e3, "differ": int(((theirs < 0) != (ours < 0)).sum()),
+                                      "judged": 0, "meshvox_right": 0, "peer_right": 0,
+                                      "max_abs_difference": float(np.abs(theirs - ours).max())}
+            print(f"{mesh.name} meshvox-gpu: {results['meshvox-gpu']}", file=sys.stderr, flush=True)
         for peer in PEERS[1:]:
             dest = tmp / f"{peer}.npy"
             w = subprocess.run([str(vpython()), __file__, "--worker", peer, str(mesh), str(tmp / "points.npy"), str(dest)],
@@ -180,7 +197,7 @@ def run(args):
     md = ["| mesh (triangles) | tool | 1M points, s | points/s | largest \\|distance\\| difference from meshvox | inside differs from meshvox | of those, the float64 winding number agrees with meshvox / the peer |",
           "|---|---|---:|---:|---:|---:|---|"]
     for name, tris, results in rows:
-        for peer in PEERS:
+        for peer in PEERS[:1] + ["meshvox-gpu"] * ("meshvox-gpu" in results) + PEERS[1:]:
             r = results.get(peer, {})
             if "error" in r:
                 md.append(f"| {name} ({tris:,}) | {NAMES[peer]} | failed: {r['error']} | | | | |")

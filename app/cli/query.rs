@@ -85,7 +85,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
             "load_ms": load_ms,
             "prepare_ms": prepare_ms,
             "query_ms": query_ms,
-            "distance_evaluations": answers.evaluations,
+            "distance_evaluations": queried.gpu_ms.is_none().then_some(answers.evaluations),
             "points_per_second": points.len() as f64 / (query_ms / 1e3).max(1e-9),
             "backend": queried.backend,
             "gpu_ms": queried.gpu_ms,

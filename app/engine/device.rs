@@ -436,7 +436,9 @@ impl OnGpu {
     }
 
     /// The nearest triangles of the placed points on the GPU (its pass compiled on first use), or `None` where the
-    /// CPU is to find them: [`crate::gpu::query::GpuQuery::nearest`] in this device's turn.
+    /// CPU is to find them: [`crate::gpu::query::GpuQuery::nearest`] in this device's turn. (Native clients only:
+    /// the page asks no queries.)
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(super) async fn nearest(
         &self,
         tables: &NearestTables,

@@ -25,10 +25,12 @@ mod device;
 mod job;
 #[cfg(not(target_arch = "wasm32"))]
 mod query;
+#[cfg(not(target_arch = "wasm32"))]
 mod queue;
 mod report;
 
 pub use job::{Job, Request};
+#[cfg(not(target_arch = "wasm32"))]
 pub use query::{AUTO_GPU_POINTS, Queried, query_backend};
 #[cfg(not(target_arch = "wasm32"))]
 pub use queue::{default_workers, work_queue};

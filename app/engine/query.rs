@@ -2,7 +2,8 @@
 //! `query`, `sample` and `sample_many`): on a GPU engine the nearest triangles come from the GPU
 //! (`shaders/query.wgsl`) while the CPU decides the signs with exact predicates; on the CPU engine both are the
 //! CPU's ([`Prepared::query`]). The answers are the same either way (docs/training.md): the nearest triangle is
-//! the first in the mesh at the least distance, and the sign is the CPU's on every backend.
+//! the first in the mesh at the least distance, and the sign is the CPU's on every backend. Native only: the page
+//! asks no queries.
 
 use super::{Backend, Engine, EngineError, Notice, ms};
 use crate::voxel::query::{Answers, Prepared, Sign};
@@ -34,7 +35,6 @@ pub struct Queried {
     pub notices: Vec<Notice>,
 }
 
-#[cfg(not(target_arch = "wasm32"))]
 impl Engine {
     /// The answers at `points` (world space), as [`Prepared::query`] gives them, on this engine's backend.
     pub fn query(

@@ -20,7 +20,7 @@
 //!    CPU the triangles are binned by [`BRICK`]³ bricks and one thread lowers one brick in its cache
 //!    ([`BrickCells`]). A voxel's value is then the minimum over every triangle within `K` of it, whatever the
 //!    order: exact up to f32 rounding, because the vector from the centre to the closest point is formed from
-//!    exact differences of lattice points ([`point_distance2`]), so its error is a few ulps of the distance and the
+//!    exact differences of lattice points ([`point_distance2`](super::cpu::nearest::point_distance2)), so its error is a few ulps of the distance and the
 //!    triangle's size, not of the grid coordinates.
 //! 3. `finish_values`: squared distance in voxels → signed world distance (`√d² · h`, negative inside).
 //!

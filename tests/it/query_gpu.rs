@@ -104,13 +104,12 @@ fn assert_same_answers(mesh: &Mesh, points: &[DVec3], gpu: &Engine, cpu: &Engine
     let (g, c) = (&on_gpu.answers, &on_cpu.answers);
     assert_eq!(g.inside, c.inside, "{what}: the sides are the CPU's on both");
     let size = mesh.bounds().expect("bounds").extent().max_element();
-    for i in 0..points.len() {
+    for (i, p) in points.iter().enumerate() {
         if c.distance[i].abs() as f64 > 1e-6 * size {
             assert_eq!(
                 (g.distance[i], g.triangle[i], g.closest[i], g.barycentric[i]),
                 (c.distance[i], c.triangle[i], c.closest[i], c.barycentric[i]),
-                "{what}: point {i} {:?}",
-                points[i]
+                "{what}: point {i} {p:?}"
             );
         } else {
             assert!((g.distance[i] - c.distance[i]).abs() as f64 <= 2e-7 * size, "{what}: point {i} on the surface");

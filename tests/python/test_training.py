@@ -115,8 +115,37 @@ def test_query_errors_are_clear(meshes):
         meshvox.query(bunny, np.array([[0.0, np.nan, 0.0]]))
     with pytest.raises(ValueError, match="sign"):
         meshvox.query(bunny, np.zeros((1, 3)), sign="parity")
-    with pytest.raises(ValueError, match="CPU"):
-        meshvox.query(bunny, np.zeros((1, 3)), backend="gpu")
+    with pytest.raises(ValueError, match="backend 'tpu'"):
+        meshvox.query(bunny, np.zeros((1, 3)), backend="tpu")
+    with pytest.raises(ValueError, match="backend 'tpu'"):
+        meshvox.sample(bunny, uniform=10, backend="tpu")
+
+
+def test_the_gpu_answers_as_the_cpu_does(meshes):
+    # backend="gpu" finds the nearest triangles on the GPU (lavapipe here) and decides the signs on the CPU: every
+    # answer equals the CPU's wherever the point is off the surface (on it, two triangles through the point may
+    # each be first for their walk, at the same distance).
+    bunny = meshvox.Mesh(meshes / "stanford-bunny.obj")
+    vertices, _ = meshvox.load(meshes / "stanford-bunny.obj")
+    size = np.ptp(vertices, axis=0).max()
+    rng = np.random.default_rng(48)
+    lo, hi = vertices.min(0), vertices.max(0)
+    points = np.concatenate([rng.uniform(lo - 0.1 * size, hi + 0.1 * size, (20000, 3)), vertices[:2000]])
+    gpu = meshvox.query(bunny, points, backend="gpu")
+    cpu = meshvox.query(bunny, points, backend="cpu")
+    assert gpu.backend.startswith("gpu") and cpu.backend.startswith("cpu"), (gpu.backend, cpu.backend)
+    assert np.array_equal(gpu.inside, cpu.inside)
+    off = np.abs(cpu.distance) > 1e-6 * size
+    assert off[:20000].all()
+    for name in ("distance", "closest", "triangle", "barycentric"):
+        assert np.array_equal(getattr(gpu, name)[off], getattr(cpu, name)[off]), name
+    assert np.abs(gpu.distance - cpu.distance).max() <= 2e-7 * size
+    s_gpu = meshvox.sample(bunny, uniform=3000, surface=1000, near=3000, seed=2, backend="gpu")
+    s_cpu = meshvox.sample(bunny, uniform=3000, surface=1000, near=3000, seed=2, backend="cpu")
+    assert s_gpu.backend.startswith("gpu")
+    for name in ("points", "occupancy", "triangle", "normal", "kind"):
+        assert np.array_equal(getattr(s_gpu, name), getattr(s_cpu, name)), name
+    assert np.abs(s_gpu.sdf - s_cpu.sdf).max() <= 2e-7
 
 
 def test_samples_are_counted_deterministic_and_in_their_frame(meshes):

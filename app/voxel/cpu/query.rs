@@ -1,6 +1,6 @@
 //! The mirror of `shaders/query.wgsl`, function by function with the same names: a point's nearest triangle by a
 //! walk of the query hierarchy's 4-wide tree as the GPU holds it ([`NearestTables`]), one point per invocation.
-//! The CPU's own walk ([`crate::voxel::bvh::Bvh::walk_nearest`]) tests four triangles at a time with more
+//! The CPU's own walk ([`crate::voxel::bvh::Bvh::nearest_triangle`]) tests four triangles at a time with more
 //! bounds; this one is the shader's scalar walk, for the tests to compare with the GPU's answers bit for bit.
 //!
 //! Both walks answer the same: the least squared distance over every triangle by [`point_distance2`], and of the
