@@ -128,6 +128,7 @@ impl ViewerApp {
         self.stats = Some(Stats {
             mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
             triangles: p.mesh.triangles.len(),
+            points: p.mesh.points.as_ref().map(|cloud| cloud.points.len()),
             dims: done.report.dims,
             voxels: done.report.voxels,
             resolution: p.resolution,

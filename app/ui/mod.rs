@@ -40,6 +40,8 @@ use viewport::View;
 pub struct Stats {
     pub mesh: String,
     pub triangles: usize,
+    /// A point cloud's points (its triangles are 0).
+    pub points: Option<usize>,
     pub dims: [u32; 3],
     pub voxels: u64,
     pub resolution: u32,

@@ -214,8 +214,16 @@ impl ViewerApp {
         }
         if let Some(s) = &self.stats {
             egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
-                ui.label("triangles");
-                ui.label(s.triangles.to_string());
+                match s.points {
+                    Some(points) => {
+                        ui.label("points");
+                        ui.label(points.to_string());
+                    }
+                    None => {
+                        ui.label("triangles");
+                        ui.label(s.triangles.to_string());
+                    }
+                }
                 ui.end_row();
                 ui.label("grid");
                 ui.label(format!("{}×{}×{}", s.dims[0], s.dims[1], s.dims[2]));

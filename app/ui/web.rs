@@ -138,8 +138,9 @@ pub(crate) fn publish_hover(hover: Option<glam::UVec3>) {
 }
 
 /// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, voxelizer, mesh, resolution, mode, voxels,
-/// voxelize_ms, gpu_ms, triangles, dims, voxel_size, coloured, hover, error }`. `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the
-/// WebGL2 fallback), `voxelizer` `gpu` or `cpu`. `ready` turns true with the first finished voxelization.
+/// voxelize_ms, gpu_ms, triangles, points, dims, voxel_size, coloured, hover, error }` (`points`: a point
+/// cloud's, else null). `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the WebGL2 fallback), `voxelizer` `gpu`
+/// or `cpu`. `ready` turns true with the first finished voxelization.
 pub(crate) fn publish_status(
     stats: Option<&Stats>,
     adapter: &AdapterSummary,
@@ -163,6 +164,7 @@ pub(crate) fn publish_status(
         // Counts stay below 2^53, so a JS number holds them exactly.
         set("voxels", (s.voxels as f64).into());
         set("triangles", (s.triangles as f64).into());
+        set("points", s.points.map_or(JsValue::NULL, |n| (n as f64).into()));
         set("voxelize_ms", s.voxelize_ms.into());
         set("gpu_ms", s.gpu_ms.map_or(JsValue::NULL, JsValue::from));
         let dims = js_sys::Array::of3(&s.dims[0].into(), &s.dims[1].into(), &s.dims[2].into());

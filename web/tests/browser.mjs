@@ -10,6 +10,7 @@
 //    ../shared/meshes/gltf/Duck.gltf through the page's file input, and
 //    drops gltf/box01.glb on the canvas, and checks their counts against the CLI,
 //  - opens gltf/cube-external (a .gltf with its .bin and PNGs) picked as several files, and STL and PLY files,
+//    and drops a coloured point cloud (a PLY without faces) on the canvas: its points in the status, the CLI's voxels,
 //  - downloads the coloured Duck in each export format (.vox, .binvox, .npy with .colors.npy, .glb) and compares
 //    each file byte for byte with the CLI's for the same input,
 //  - loads a decimal OBJ box with tessellated faces on the grid's boundaries at 99 and checks page == CLI == shell,
@@ -374,6 +375,34 @@ async function webgpuPath(browser) {
     const cli = cliVoxels(file, s.resolution);
     check(s.voxels === cli && s.coloured === name.endsWith(".ply"),
       `${name} @${s.resolution}: page ${s.voxels} == CLI ${cli}, coloured ${s.coloured}`);
+  }
+
+  // A point cloud (a PLY without faces, as scanners write them): 5,000 points with decimals and colours on a
+  // sphere far from the origin, dropped on the canvas. Each point sets its voxel; the status names the points.
+  {
+    const work = await mkdtemp(path.join(tmpdir(), "meshvox-cloud-"));
+    const cloud = path.join(work, "scan.ply");
+    const n = 5000;
+    const lines = ["ply", "format ascii 1.0", `element vertex ${n}`, "property float x", "property float y",
+      "property float z", "property uchar red", "property uchar green", "property uchar blue", "end_header"];
+    for (let i = 0; i < n; i++) {
+      // A Fibonacci sphere: deterministic, evenly spread.
+      const z = 1 - (2 * i + 1) / n, r = Math.sqrt(1 - z * z), a = i * 2.399963229728653;
+      const p = [1000.25 + r * Math.cos(a), -20.5 + r * Math.sin(a), 3.125 + z];
+      lines.push(`${p.map((v) => v.toFixed(6)).join(" ")} ${i % 256} ${(7 * i) % 256} 128`);
+    }
+    await writeFile(cloud, lines.join("\n") + "\n");
+    const dropped = await page.evaluateHandle(({ name, text }) => {
+      const dt = new DataTransfer();
+      dt.items.add(new File([text], name));
+      return dt;
+    }, { name: "scan.ply", text: await readFile(cloud, "utf8") });
+    await page.dispatchEvent("#meshvox_canvas", "drop", { dataTransfer: dropped });
+    const s = await status({ ready: true, mesh: "scan.ply" }, "dropping a point cloud");
+    const cli = cliVoxels(cloud, s.resolution);
+    check(s.points === n && s.triangles === 0 && s.voxels === cli && s.coloured,
+      `a ${n}-point cloud dropped on the canvas @${s.resolution}: ${s.points} points, page ${s.voxels} == CLI ${cli} voxels, coloured ${s.coloured}`);
+    await rm(work, { recursive: true, force: true });
   }
 
   // A user's file: a unit box centred on the origin whose faces are jittered 7x7 grids of decimal points,
