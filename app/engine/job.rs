@@ -41,8 +41,8 @@ pub struct Request<'a> {
     pub bounds: Option<Aabb>,
     /// `Mode::Sdf`/`Mode::Udf`: how far from the surface distances are computed.
     pub band: Band,
-    /// Per-voxel labels to make ([`crate::voxel::labels`]): on dense grids, written in `.npy` (beside),
-    /// `.npz` and `.vdb`.
+    /// Per-voxel labels to make ([`crate::voxel::labels`]): on dense and sparse grids, written in `.npy` (beside
+    /// a dense grid), `.npz` and `.vdb`.
     pub attributes: AttributeSet,
 }
 
@@ -96,7 +96,7 @@ impl<'a> Job<'a> {
     ///
     /// `GridKind::Auto` is sparse when the output format is (`.vdb`, `.npz`) or when the dense grid would not fit
     /// the budget and a sparse one would; a dense format past the budget is refused, pointing at the sparse
-    /// formats. Colours and labels are made on dense grids, so `Auto` keeps such a request dense wherever that fits.
+    /// formats. Colours are made on dense grids, so `Auto` keeps a coloured request dense wherever that fits.
     pub fn plan(name: &'a str, mesh: &'a Mesh, request: &Request<'a>) -> Result<Job<'a>, EngineError> {
         let grid_error = |error, sparse| EngineError::Grid { mesh: name.to_string(), error, sparse };
         let mesh_bounds = mesh.bounds().ok_or_else(|| EngineError::Empty { mesh: name.to_string() })?;
@@ -137,7 +137,7 @@ impl<'a> Job<'a> {
         let sparse = match request.grid {
             GridKind::Dense => false,
             GridKind::Sparse => true,
-            GridKind::Auto => sparse_format && !coloured && !labelled,
+            GridKind::Auto => sparse_format && !coloured,
         };
         let area = budget::surface_area(mesh);
         let mut job = Job { name, mesh, request: *request, bounds, spec, sparse, area };

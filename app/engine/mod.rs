@@ -171,7 +171,7 @@ pub fn auto_probes_always() -> bool {
     std::env::var("MESHVOX_AUTO_PROBE").is_ok_and(|v| v == "1")
 }
 
-/// The warning that `what` (colours, labels) were asked of a sparse grid, which is then `left`.
+/// The warning that `what` (colours) were asked of a sparse grid, which is then `left`.
 fn dense_only(what: &str, left: &str) -> Notice {
     Notice { warning: true, message: format!("{what} are made on dense grids only for now: the sparse grid is {left}") }
 }
@@ -329,16 +329,24 @@ impl Engine {
         let colour_ms = colours.as_ref().map(|_| ms(t));
         request.cancelled()?;
         let t = Instant::now();
-        let labels = match (request.attributes.is_empty(), &made.grid) {
-            (false, Grid::Dense(grid)) => {
+        let labels = match (request.attributes.is_empty(), &made.grid, request.format) {
+            (true, ..) => None,
+            // The labels beside an .npy are laid out over the dense grid; a sparse one written as .npy has none.
+            (false, Grid::Sparse(_), Some(format)) if !format.is_sparse() => {
+                notices.push(Notice {
+                    warning: true,
+                    message: format!(
+                        "labels of a sparse grid are written in .npz and .vdb: the .{} is unlabelled (--grid dense \
+                         labels it)",
+                        format.extension()
+                    ),
+                });
+                None
+            }
+            (false, grid, _) => {
                 let triangles = voxel::labels::label_triangles(grid, &tris, mesh)?;
                 Some(voxel::labels::Labels::from_triangles(mesh, &triangles, request.attributes))
             }
-            (false, Grid::Sparse(_)) => {
-                notices.push(dense_only("labels", "unlabelled"));
-                None
-            }
-            (true, _) => None,
         };
         let labels_ms = labels.as_ref().map(|_| ms(t));
         let report = Report {

@@ -1,4 +1,4 @@
-//! Per-voxel labels for segmentation datasets: for every set voxel of a dense grid, the triangle that labels it
+//! Per-voxel labels for segmentation datasets: for every set voxel of a grid (dense or sparse), the triangle that labels it
 //! and, through that triangle, its material and its scene node (`--attributes triangle,material,node`).
 //!
 //! # The rule
@@ -16,19 +16,19 @@
 //! node, or its OBJ object or group (see [`crate::mesh::Part::node`]). Unset voxels have no label; written as
 //! arrays over the grid they are -1.
 //!
-//! Values are kept per set voxel in the grid's storage order, as colours are ([`super::colour::word_ranks`]).
+//! Values are kept per set voxel in the grid's storage order ([`super::ranks`]), as colours are.
 //! Labels are made on the CPU (on every backend): one walk of each triangle's voxels, the grid's own walk.
 
-use super::colour::word_ranks;
-use super::cpu::colour::{squared_distance, voxel_centre, voxel_rank};
+use super::cpu::colour::{squared_distance, voxel_centre};
 use super::cpu::nearest::closest_barycentric;
 use super::cpu::surface::{setup_triangle, work_items};
 use super::query::{Prepared, QueryError, Sign};
+use super::ranks::Ranked;
 use super::voxelize::voxelize_items;
-use super::{VoxelGrid, on_lattice};
+use super::{Grid, on_lattice};
 use crate::mesh::Mesh;
 use crate::parallel;
-use glam::{DVec3, UVec3, Vec3};
+use glam::{UVec3, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -126,19 +126,22 @@ impl Labels {
     }
 }
 
-/// Each set voxel's labelling triangle (see the module docs), in storage order: `tris` are the grid-space
-/// triangles the grid was voxelized from, `mesh` the mesh they came from (for the inside's nearest triangles).
-pub fn label_triangles(grid: &VoxelGrid, tris: &[[Vec3; 3]], mesh: &Mesh) -> Result<Vec<u32>, QueryError> {
-    let (tris, lattice) = on_lattice(tris, grid.spec.dims)?;
+/// Each set voxel's labelling triangle (see the module docs), in storage order ([`super::ranks`]): `tris` are the
+/// grid-space triangles the grid was voxelized from, `mesh` the mesh they came from (for the inside's nearest
+/// triangles). Dense and sparse grids alike: the walk visits each triangle's voxels, and a voxel's slot is its
+/// rank.
+pub fn label_triangles(grid: &Grid, tris: &[[Vec3; 3]], mesh: &Mesh) -> Result<Vec<u32>, QueryError> {
+    let spec = *grid.spec();
+    let (tris, lattice) = on_lattice(tris, spec.dims)?;
+    let ranked = Ranked::of(grid);
     let nearest = parallel::install(|| {
-        let ranks = word_ranks(grid);
         let best: Vec<AtomicU64> = (0..grid.count()).map(|_| AtomicU64::new(u64::MAX)).collect();
         tris.par_iter().enumerate().for_each(|(t, &tri)| {
-            let s = setup_triangle(tri, grid.spec.dims, lattice);
+            let s = setup_triangle(tri, spec.dims, lattice);
             voxelize_items(&s, None, 0..work_items(&s), |x0, x1, y, z| {
                 for x in x0..=x1 {
                     let v = UVec3::new(x, y, z);
-                    let Some(rank) = voxel_rank(grid, &ranks, v) else { continue };
+                    let Some(rank) = ranked.rank(v) else { continue };
                     let p = voxel_centre(v);
                     let d = squared_distance(p, tri, closest_barycentric(p, tri[0], tri[1], tri[2]));
                     // Distance bits order like the distances (non-negative), so one minimum picks the nearest
@@ -151,13 +154,15 @@ pub fn label_triangles(grid: &VoxelGrid, tris: &[[Vec3; 3]], mesh: &Mesh) -> Res
     });
     let mut triangles: Vec<u32> = nearest.iter().map(|&k| k as u32).collect();
     // The voxels no triangle touched, by rank, with their world centres.
-    let spec = grid.spec;
-    let (inside, points): (Vec<usize>, Vec<DVec3>) = grid
-        .iter_set()
-        .enumerate()
-        .filter(|&(r, _)| nearest[r] == u64::MAX)
-        .map(|(r, v)| (r, spec.origin + (v.as_dvec3() + 0.5) * spec.voxel_size))
-        .unzip();
+    let (mut inside, mut points) = (Vec::new(), Vec::new());
+    let mut r = 0usize;
+    ranked.for_each(|v| {
+        if nearest[r] == u64::MAX {
+            inside.push(r);
+            points.push(spec.origin + (v.as_dvec3() + 0.5) * spec.voxel_size);
+        }
+        r += 1;
+    });
     if !inside.is_empty() {
         let answers = Prepared::new(Arc::new(mesh.clone()))?.query(&points, Sign::Unsigned, false)?;
         for (&r, &t) in inside.iter().zip(&answers.triangle) {

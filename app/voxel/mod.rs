@@ -27,6 +27,7 @@ pub mod labels;
 mod lattice;
 pub mod points;
 pub mod query;
+pub mod ranks;
 pub mod sample;
 pub mod solid;
 pub mod solid_sparse;

@@ -63,7 +63,8 @@ impl Tile {
         1u64 << (3 * self.log2)
     }
 
-    fn sort_key(&self) -> (u32, u64) {
+    /// Tiles are sorted by this: size, then origin.
+    pub(super) fn sort_key(&self) -> (u32, u64) {
         (self.log2, leaf_key(self.origin.x, self.origin.y, self.origin.z))
     }
 }
@@ -144,6 +145,24 @@ impl SparseGrid {
             }
         });
         Ok(grid)
+    }
+
+    /// The same voxels with every tile as the full leaves it covers (for values that differ voxel by voxel).
+    pub fn tiles_as_leaves(&self) -> SparseGrid {
+        let mut leaves = self.leaves.clone();
+        for tile in &self.tiles {
+            let n = 1u32 << (tile.log2 - 3);
+            for i in 0..n {
+                for j in 0..n {
+                    for k in 0..n {
+                        let o = tile.origin + UVec3::new(i, j, k) * LEAF_DIM;
+                        leaves.push((leaf_key(o.x, o.y, o.z), FULL_LEAF));
+                    }
+                }
+            }
+        }
+        crate::parallel::install(|| leaves.par_sort_unstable_by_key(|(key, _)| *key));
+        SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }
     }
 
     /// Calls `f(origin, mask)` for every leaf and every leaf-sized block of every tile (as a full mask), in no

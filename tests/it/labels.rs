@@ -94,8 +94,10 @@ fn labels_touch_their_voxel_and_are_nearest_on_the_hard_cases() {
             if grid.count() == 0 {
                 continue;
             }
+            let grid = meshvox::voxel::Grid::Dense(grid);
             let triangles = label_triangles(&grid, &exact.snapped, &mesh_of(&exact.snapped)).expect("labels");
-            let (s, i) = assert_labels(&grid, &exact.snapped, &triangles, &format!("{name} {mode}"));
+            let grid = grid.dense().expect("dense");
+            let (s, i) = assert_labels(grid, &exact.snapped, &triangles, &format!("{name} {mode}"));
             assert!(mode == Mode::Solid || i == 0, "{name}: a surface voxel without a touching triangle");
             eprintln!("{name} {mode}: {s} surface and {i} inside voxels");
         }
@@ -273,4 +275,73 @@ fn the_budget_counts_the_labels() {
     assert!((50..200).contains(&fits), "{e}");
     let smaller = Request { resolution: Resolution::Count(fits), ..labelled };
     assert!(meshvox::engine::Job::plan("knot", &m, &smaller).is_ok(), "-r {fits} fits: {e}");
+}
+
+/// Labels on a sparse grid are the dense grid's, voxel for voxel, and written alike: the same `.npz` and `.vdb`
+/// bytes. The sparse grid's ranks (leaves, then tiles) number its voxels in the order they are listed, and an
+/// unset voxel has none. A solid sphere at 70 has 8³ tiles inside; the bunny's surface has holes.
+#[test]
+fn sparse_grids_are_labelled_as_dense_ones() {
+    use meshvox::voxel::formats::{VoxelFormat, WriteOptions, write_grid};
+    use meshvox::voxel::ranks::Ranked;
+    use meshvox::voxel::{Grid, GridKind};
+    let mut cases =
+        vec![("builtin:sphere".to_string(), Mode::Solid, 70), ("builtin:knot".to_string(), Mode::Surface, 61)];
+    if let Some(shared) = shared_meshes() {
+        cases.push((shared.join("stanford-bunny.obj").to_string_lossy().into_owned(), Mode::Surface, 97));
+    }
+    let engine = Engine::open(Backend::Cpu).expect("cpu");
+    let all = AttributeSet::of(&Attribute::ALL);
+    for (path, mode, n) in cases {
+        let m = mesh::load(&path).expect("load");
+        let what = format!("{path} {mode} -r {n}");
+        let request = |grid| Request { attributes: all, grid, ..Request::new(Resolution::Count(n), mode) };
+        let dense = engine.voxelize(&path, &m, &request(GridKind::Dense)).expect("dense");
+        let sparse = engine.voxelize(&path, &m, &request(GridKind::Sparse)).expect("sparse");
+        let Grid::Sparse(grid) = &sparse.grid else { panic!("{what}: a sparse grid") };
+        assert!(sparse.notices.is_empty(), "{what}: {:?}", sparse.notices);
+        if mode == Mode::Solid {
+            assert!(!grid.tiles.is_empty(), "{what}: tiles inside");
+        }
+        let (d, s) = (Ranked::of(&dense.grid), Ranked::of(&sparse.grid));
+        let (dl, sl) = (dense.labels.as_ref().expect("dense labels"), sparse.labels.as_ref().expect("sparse labels"));
+        let mut at = 0u64;
+        s.for_each(|v| {
+            assert_eq!(s.rank(v), Some(at), "{what}: voxel {v}'s rank is its place in the list");
+            at += 1;
+            let r = d.rank(v).expect("set in the dense grid too") as usize;
+            for ((a, dv), (b, sv)) in dl.columns.iter().zip(&sl.columns) {
+                assert_eq!((a, dv[r]), (b, sv[at as usize - 1]), "{what}: voxel {v}");
+            }
+        });
+        assert_eq!(at, dense.grid.count(), "{what}: the same voxels");
+        for v in [UVec3::ZERO, grid.spec.dims - 1, grid.spec.dims / 2 + UVec3::new(0, 0, 1)] {
+            assert_eq!(s.rank(v).is_some(), dense.grid.get(v.x, v.y, v.z), "{what}: voxel {v} set or not");
+        }
+        // The .npz: the same bytes. The .vdb: the sparse grid's occupancy keeps its tiles where the dense grid's has
+        // full leaves, but the labels' Int32Grids hold leaves in both, so OpenVDB reads the same values.
+        let bytes = |made: &meshvox::engine::Voxelized, format| {
+            let mut out = std::io::Cursor::new(Vec::new());
+            let options = WriteOptions { labels: made.labels.as_ref(), ..Default::default() };
+            write_grid(&made.grid, None, format, &options, &mut out).expect("write");
+            out.into_inner()
+        };
+        assert!(bytes(&dense, VoxelFormat::Npz) == bytes(&sparse, VoxelFormat::Npz), "{what}: the .npz files differ");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let printed = |made: &meshvox::engine::Voxelized| {
+            let path = dir.path().join("g.vdb");
+            std::fs::write(&path, bytes(made, VoxelFormat::Vdb)).expect("write");
+            vdb_print(&path)
+        };
+        if let (Some(a), Some(b)) = (printed(&dense), printed(&sparse)) {
+            let active =
+                |p: &HashMap<String, HashMap<String, String>>, g: &str| p[g]["Number of active voxels"].clone();
+            assert_eq!(active(&a, "occupancy"), active(&b, "occupancy"), "{what}: occupancy");
+            for attribute in Attribute::ALL {
+                assert_eq!(a[attribute.name()], b[attribute.name()], "{what}: OpenVDB reads the same {attribute} grid");
+                assert_eq!(active(&b, attribute.name()), active(&b, "occupancy"), "{what}: every voxel labelled");
+            }
+        }
+        eprintln!("{what}: {at} voxels labelled alike, {} tiles", grid.tiles.len());
+    }
 }

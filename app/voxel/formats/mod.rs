@@ -28,6 +28,7 @@ pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 use super::colour::VoxelColours;
 use super::distance::DistanceField;
 use super::labels::Labels;
+use super::ranks::Ranked;
 use super::{Grid, SparseGrid, VoxelGrid};
 use glam::UVec3;
 use std::io::{Seek, Write};
@@ -134,8 +135,8 @@ pub struct WriteOptions<'a> {
     pub merge: bool,
     /// `.vdb`: a float `density` grid instead of the bool `occupancy` one.
     pub vdb_float: bool,
-    /// Per-voxel labels of a dense grid: `.npz` arrays and `.vdb` `Int32Grid`s named by their attributes (an
-    /// `.npy` grid's go beside it, [`write_labels_npy`]).
+    /// Per-voxel labels: `.npz` arrays and `.vdb` `Int32Grid`s named by their attributes (a dense `.npy` grid's
+    /// go beside it, [`write_labels_npy`]).
     pub labels: Option<&'a Labels>,
 }
 
@@ -158,18 +159,13 @@ pub fn write_grid<W: Write + Seek>(
         (Grid::Sparse(sparse), true) => std::borrow::Cow::Borrowed(sparse),
         (Grid::Dense(dense), true) => std::borrow::Cow::Owned(SparseGrid::from_dense(dense)),
     };
-    // Colours and labels are kept in the dense grid's storage order (see `colour`): looked up by each voxel's
-    // rank.
-    let ranked = match grid {
-        Grid::Dense(dense) if colours.is_some() || options.labels.is_some() => {
-            Some((dense, super::colour::word_ranks(dense)))
-        }
-        _ => None,
-    };
-    let rank = |v: UVec3| ranked.as_ref().and_then(|(dense, ranks)| super::cpu::colour::voxel_rank(dense, ranks, v));
+    // Colours (of a dense grid) and labels (of either) are kept in the grid's storage order (see `ranks`): looked
+    // up by each voxel's rank.
+    let ranked = (colours.is_some() || options.labels.is_some()).then(|| Ranked::of(grid));
+    let rank = |v: UVec3| ranked.as_ref().and_then(|ranked| ranked.rank(v));
     let colour = |v: UVec3| rank(v).zip(colours).map_or([0; 4], |(r, c)| c.rgba[r as usize]);
-    let colour = colours.is_some().then_some(&colour as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
-    let columns = options.labels.filter(|_| ranked.is_some()).map_or(&[][..], |l| l.columns.as_slice());
+    let colour = colours.filter(|_| grid.dense().is_some()).map(|_| &colour as &(dyn Fn(UVec3) -> [u8; 4] + Sync));
+    let columns = options.labels.map_or(&[][..], |l| l.columns.as_slice());
     let label_fns: Vec<(&str, Box<Label>)> = columns
         .iter()
         .map(|(a, values)| {

@@ -288,7 +288,7 @@ fn file_head(grid: &SparseGrid, grids: usize) -> Vec<u8> {
 }
 
 /// Writes `grid` as a `.vdb` (see the module documentation); `colour(v)` gives the sRGB colour of each set voxel
-/// for a `Cd` grid, and each label column an `Int32Grid` of its name.
+/// for a `Cd` grid, and each label column an `Int32Grid` of its name (those two without tiles: see below).
 pub fn write_vdb<W: Write + Seek>(
     grid: &SparseGrid,
     options: VdbOptions,
@@ -316,8 +316,20 @@ pub fn write_vdb<W: Write + Seek>(
     out.write_all(&file_head(grid, grids.len()))?;
     let nodes = tree_nodes(grid);
     let bounds = active_bounds(grid);
+    // A tile has one value, so the grids of per-voxel values (colours, labels) hold a solid's interior as full
+    // leaves instead, each voxel with its own.
+    let leaves = (grids.len() > 1 && !grid.tiles.is_empty()).then(|| {
+        let leaves = grid.tiles_as_leaves();
+        let nodes = tree_nodes(&leaves);
+        (leaves, nodes)
+    });
     for (name, values) in grids {
-        write_grid(grid, &nodes, bounds, name, values, &mut out)?;
+        match (&leaves, &values) {
+            (Some((leaves, nodes)), Values::Colour(_) | Values::Int(_)) => {
+                write_grid(leaves, nodes, bounds, name, values, &mut out)?
+            }
+            _ => write_grid(grid, &nodes, bounds, name, values, &mut out)?,
+        }
     }
     out.flush()?;
     Ok(())
