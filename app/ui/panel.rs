@@ -65,7 +65,7 @@ impl ViewerApp {
         if ui.button("Open…").on_hover_text("OBJ, glTF, GLB, STL or PLY, or a point cloud (PLY, XYZ, PTS, NPY, NPZ) (pick a .gltf or .obj together with the files it refers to); or drop files on the page").clicked() {
             web::open_file_picker();
         }
-        ui.label(egui::RichText::new("Drop an .obj, .gltf, .glb, .stl or .ply file anywhere.").small().weak());
+        ui.label(egui::RichText::new("Drop a mesh or point-cloud file anywhere.").small().weak());
         if let Some(notice) = &self.notice {
             ui.add(
                 egui::Label::new(egui::RichText::new(notice).small().color(egui::Color32::from_rgb(240, 160, 64)))
