@@ -10,7 +10,7 @@
 //! walking only its layers of every triangle's box.
 
 use super::readback::read_buffer;
-use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
+use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::cpu::distance::triangle_layers;
 use crate::voxel::distance::{Band, mark_leaves};
@@ -51,11 +51,6 @@ pub struct GpuDistance {
 
 impl GpuDistance {
     pub fn new(gpu: &Gpu) -> GpuDistance {
-        let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("distance.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(DISTANCE_WGSL.into()),
-        });
         let entries = [
             uniform_entry(0),
             storage_entry(1, true),
@@ -63,9 +58,8 @@ impl GpuDistance {
             storage_entry(3, false),
             storage_entry(4, true),
         ];
-        let layout = device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("distance"), entries: &entries });
-        GpuDistance { band: pipeline(device, &module, &[Some(&layout)], "band_distance"), layout }
+        let (layout, band) = single_pipeline(&gpu.device, "distance.wgsl", DISTANCE_WGSL, &entries, "band_distance");
+        GpuDistance { layout, band }
     }
 
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
@@ -163,24 +157,8 @@ impl GpuDistance {
                 init("distance best", bytemuck::cast_slice(&start), storage | wgpu::BufferUsages::COPY_SRC),
                 init("distance items", bytemuck::cast_slice(&items), storage),
             ];
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-                .collect();
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("distance"),
-                layout: &self.layout,
-                entries: &entries,
-            });
-            let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-                pass.set_pipeline(&self.band);
-                pass.set_bind_group(0, &bind, &[]);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
+            let bound: Vec<&wgpu::Buffer> = buffers.iter().collect();
+            submit_dispatch(device, &gpu.queue, (&self.layout, &self.band), &bound, (x, y));
             let [_, _, _, best, _] = buffers;
             Ok(best)
         })

@@ -7,7 +7,7 @@
 //! nearly the same nodes; the answers come back in the caller's order.
 
 use super::readback::read_buffer;
-use super::util::{buffer_init, pipeline, scoped, storage_entry, uniform_entry};
+use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::cpu::query::{NearestTables, STACK_DEPTH};
 use glam::Vec3;
@@ -39,11 +39,6 @@ pub struct GpuQuery {
 
 impl GpuQuery {
     pub fn new(gpu: &Gpu) -> GpuQuery {
-        let device = &gpu.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("query.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(QUERY_WGSL.into()),
-        });
         let entries = [
             uniform_entry(0),
             storage_entry(1, true),
@@ -52,9 +47,8 @@ impl GpuQuery {
             storage_entry(4, true),
             storage_entry(5, false),
         ];
-        let layout = device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("query"), entries: &entries });
-        GpuQuery { nearest: pipeline(device, &module, &[Some(&layout)], "nearest_points"), layout }
+        let (layout, nearest) = single_pipeline(&gpu.device, "query.wgsl", QUERY_WGSL, &entries, "nearest_points");
+        GpuQuery { layout, nearest }
     }
 
     /// The nearest triangle of each point of `frame` (the query frame's coordinates): `(squared distance, mesh
@@ -107,24 +101,7 @@ impl GpuQuery {
                     wgpu::BufferUsages::COPY_SRC,
                 );
                 let buffers = [&params, &nodes, &triangles, &mesh_order, &points, &answers];
-                let entries: Vec<wgpu::BindGroupEntry> = buffers
-                    .iter()
-                    .enumerate()
-                    .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-                    .collect();
-                let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("query"),
-                    layout: &self.layout,
-                    entries: &entries,
-                });
-                let mut encoder = device.create_command_encoder(&Default::default());
-                {
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-                    pass.set_pipeline(&self.nearest);
-                    pass.set_bind_group(0, &bind, &[]);
-                    pass.dispatch_workgroups(x, y, 1);
-                }
-                gpu.queue.submit([encoder.finish()]);
+                submit_dispatch(device, &gpu.queue, (&self.layout, &self.nearest), &buffers, (x, y));
                 Ok(answers)
             })
             .await?;

@@ -1,6 +1,6 @@
 //! Generic wgpu helpers every compute pass uses (bind group layout entries, pipelines, storage buffers, error
-//! scopes), so that the passes (`voxelize`, `solid`, `compact`, `colour`) depend on this module and not on each
-//! other.
+//! scopes, one-pipeline modules and their dispatch), so that the passes (`voxelize`, `solid`, `compact`, `colour`,
+//! `distance`, `query`) depend on this module and not on each other.
 
 use super::GpuError;
 
@@ -60,6 +60,48 @@ pub(crate) fn pipeline_with(
         compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
+}
+
+/// A one-pipeline compute module: `source` compiled, one bind group layout of `entries`, and the pipeline of
+/// `entry` on it (the distance and query passes).
+pub(crate) fn single_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+    entry: &str,
+) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
+    let pipeline = pipeline(device, &module, &[Some(&layout)], entry);
+    (layout, pipeline)
+}
+
+/// Binds `buffers` to bindings 0, 1, … of `layout` and submits one dispatch of `pipeline` over `groups` (x, y).
+pub(crate) fn submit_dispatch(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    (layout, pipeline): (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
+    buffers: &[&wgpu::Buffer],
+    groups: (u32, u32),
+) {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+        .collect();
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups.0, groups.1, 1);
+    }
+    queue.submit([encoder.finish()]);
 }
 
 pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
