@@ -150,6 +150,7 @@ impl LimitArgs {
             attributes: colour.attributes.unwrap_or_default(),
             max_memory: self.max_memory,
             band: band.band(mode)?,
+            level: band.level(mode)?,
             ..Request::new(resolution, mode)
         })
     }
@@ -213,6 +214,10 @@ pub(super) struct BandArgs {
     /// background, as in OpenVDB level sets); `full` computes every voxel (dense outputs only).
     #[arg(long, value_name = "K|full", allow_negative_numbers = true)]
     pub(super) band: Option<String>,
+    /// sdf/udf written as a mesh (.ply, .obj, .glb, .stl): the level set's value in world units (default 0, the
+    /// surface; udf: above 0, the thickness of the shell around open sheets). The band widens to hold it.
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
+    pub(super) level: Option<f64>,
 }
 
 impl BandArgs {
@@ -223,6 +228,14 @@ impl BandArgs {
             (Some(_), false) => anyhow::bail!("--band sets the distance field's width: use it with --mode sdf or udf"),
             (Some(band), true) => meshvox::voxel::distance::Band::parse(band).map_err(anyhow::Error::msg),
             (None, _) => Ok(Default::default()),
+        }
+    }
+
+    /// `--level`, which only means something for the distance modes.
+    pub(super) fn level(&self, mode: Mode) -> Result<f64> {
+        match (self.level, mode.is_field()) {
+            (Some(_), false) => anyhow::bail!("--level is a distance field's level set: use it with --mode sdf or udf"),
+            (level, _) => Ok(level.unwrap_or(0.0)),
         }
     }
 }

@@ -187,8 +187,12 @@ pub(super) fn voxelize_loaded(
         })?),
         _ => None,
     };
-    let options =
-        voxel::formats::WriteOptions { merge: args.merge, vdb_float: args.grid.vdb_float, ..Default::default() };
+    let options = voxel::formats::WriteOptions {
+        merge: args.merge,
+        vdb_float: args.grid.vdb_float,
+        level: args.band.level.unwrap_or(0.0),
+        ..Default::default()
+    };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;
     Ok(meshvox::Report {
         output: args.output.display().to_string(),

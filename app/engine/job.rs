@@ -5,10 +5,11 @@
 
 use super::{EngineError, budget};
 use crate::mesh::{Aabb, Mesh};
-use crate::voxel::distance::Band;
+use crate::voxel::distance::{Band, MAX_BAND};
 use crate::voxel::formats::VoxelFormat;
 use crate::voxel::labels::AttributeSet;
-use crate::voxel::{Axis, GridError, GridKind, GridSpec, Mode, Resolution};
+use crate::voxel::{Axis, GridError, GridKind, GridSpec, MAX_DIM, Mode, Resolution};
+use glam::DVec3;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// What to voxelize, and within which limits: what a client asks for, in the library's words. Each client (the
@@ -44,6 +45,9 @@ pub struct Request<'a> {
     /// Per-voxel labels to make ([`crate::voxel::labels`]): on dense and sparse grids, written in `.npy` (beside
     /// a dense grid), `.npz` and `.vdb`.
     pub attributes: AttributeSet,
+    /// `Mode::Sdf`/`Mode::Udf` written as a mesh: the level set's value, world units (the band is widened to hold
+    /// it).
+    pub level: f64,
 }
 
 impl Request<'_> {
@@ -63,6 +67,7 @@ impl Request<'_> {
             bounds: None,
             band: Band::default(),
             attributes: AttributeSet::NONE,
+            level: 0.0,
         }
     }
 
@@ -105,12 +110,22 @@ impl<'a> Job<'a> {
             Some(b) => return Err(EngineError::Bounds { min: b.min.to_array(), max: b.max.to_array() }),
             None => mesh_bounds,
         };
-        let spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
+        let mut spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
         let format = request.format;
+        let field_mesh = request.mode.is_field() && matches!(format, Some(VoxelFormat::Mesh(_)));
+        if field_mesh && request.level > 0.0 && request.bounds.is_none() {
+            // A level set above 0 lies outside the mesh, up to the level away: the grid grows by it and two voxels
+            // on every side (the voxel size stays the mesh's), so the surface is not cut by the grid's boundary.
+            let pad = (request.level / spec.voxel_size).ceil().min(f64::from(MAX_DIM)) as u32 + 2;
+            spec.origin -= DVec3::splat(f64::from(pad) * spec.voxel_size);
+            spec.dims += 2 * pad;
+        }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
+        let mut request = *request;
         if request.mode.is_field() {
             match format {
                 Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb) | None => {}
+                Some(VoxelFormat::Mesh(_)) => request.band = Job::level_band(&request, &spec)?,
                 Some(f) => {
                     return Err(EngineError::FieldFormat { mode: request.mode.name(), extension: f.extension() });
                 }
@@ -137,10 +152,11 @@ impl<'a> Job<'a> {
         let sparse = match request.grid {
             GridKind::Dense => false,
             GridKind::Sparse => true,
-            GridKind::Auto => sparse_format && !coloured,
+            // A field's level set comes from its band's leaves: its sign grid need not be dense either.
+            GridKind::Auto => (sparse_format || field_mesh) && !coloured,
         };
         let area = budget::surface_area(mesh);
-        let mut job = Job { name, mesh, request: *request, bounds, spec, sparse, area };
+        let mut job = Job { name, mesh, request, bounds, spec, sparse, area };
         let Some(limit) = request.max_memory.or_else(crate::memory::default_budget) else { return Ok(job) };
         let dense_fits = job.check_budget(None, limit).is_ok();
         if request.grid == GridKind::Auto && !sparse && !dense_fits && format.is_none_or(VoxelFormat::is_sparse) {
@@ -163,6 +179,31 @@ impl<'a> Job<'a> {
             budget::Estimate { writer: e.writer.saturating_add(labels), ..e }
         };
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
+    }
+
+    /// The band a level set needs: the request's, widened to hold the level with two voxels to spare.
+    fn level_band(request: &Request, spec: &GridSpec) -> Result<Band, EngineError> {
+        let level = request.level;
+        if !level.is_finite() || (request.mode == Mode::Udf && level <= 0.0) {
+            return Err(EngineError::Level(format!(
+                "--level {level}: {}",
+                match request.mode {
+                    Mode::Udf => "an unsigned field's level set needs a level above 0 (the distance of the shell)",
+                    _ => "a finite number of world units",
+                }
+            )));
+        }
+        let need = (level.abs() / spec.voxel_size) as f32 + 2.0;
+        match request.band {
+            Band::Voxels(k) if k >= need => Ok(request.band),
+            Band::Full => Ok(Band::Full),
+            Band::Voxels(_) if need <= MAX_BAND => Ok(Band::Voxels(need.ceil())),
+            Band::Voxels(_) => Err(EngineError::Level(format!(
+                "--level {level} is {:.0} voxels from the surface; a band reaches at most {MAX_BAND}: a coarser grid \
+                 or a level nearer 0",
+                need - 2.0
+            ))),
+        }
     }
 
     /// A failure of the run on this job's grid (a lattice or allocation error), named by the grid's size.

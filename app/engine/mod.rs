@@ -84,7 +84,10 @@ pub enum EngineError {
     #[error("bounds {min:?} to {max:?}: the minimum must be below the maximum on every axis, and both finite")]
     Bounds { min: [f64; 3], max: [f64; 3] },
     /// A distance field asked for in a format that holds occupancy only.
-    #[error("--mode {mode} writes a distance field: use a .npy, .npz or .vdb output, not .{extension}")]
+    #[error(
+        "--mode {mode} writes a distance field: use a .npy, .npz or .vdb output, or .ply, .obj, .glb or .stl for its \
+         level set as a mesh, not .{extension}"
+    )]
     FieldFormat { mode: &'static str, extension: &'static str },
     /// `--attributes` with an output that holds no labels.
     #[error("--attributes: labels are written in .npy (as NAME.labels.npy beside it), .npz and .vdb, not .{extension}")]
@@ -101,6 +104,9 @@ pub enum EngineError {
     /// Samples cannot be drawn.
     #[error(transparent)]
     Sample(#[from] crate::voxel::sample::SampleError),
+    /// A level set's `--level` that cannot be meshed.
+    #[error("{0}")]
+    Level(String),
     /// `--band full` with a sparse grid or output.
     #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
     FullBandSparse,

@@ -131,7 +131,7 @@ impl Voxelized {
         out: &mut W,
     ) -> Result<(), FormatError> {
         match &self.field {
-            Some(field) => formats::write_field(field, format, out),
+            Some(field) => formats::write_field(field, format, options.level, out),
             None => {
                 let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
                 formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)

@@ -452,7 +452,7 @@ fn save_field(
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::voxel::formats::atomic::write_atomically(&path, |out| {
-            crate::voxel::formats::write_field(&field, format, out)
+            crate::voxel::formats::write_field(&field, format, 0.0, out)
         })
     })?;
     written.map(|_| ()).map_err(|e| save_err(&path, e))

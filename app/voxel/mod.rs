@@ -19,6 +19,7 @@
 
 pub mod bvh;
 pub mod colour;
+pub mod contour;
 pub mod cpu;
 pub mod distance;
 pub mod formats;

@@ -5,6 +5,7 @@ mod bounded;
 mod cli;
 mod colour;
 mod common;
+mod contour;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;
 mod distance;

@@ -1,5 +1,5 @@
 //! The voxel model as a mesh: the outer faces of the set voxels (a face between two set voxels is left out),
-//! written as binary glTF (`.glb`), binary PLY or OBJ, in world space at the source mesh's position and scale, with
+//! written as binary glTF (`.glb`), binary PLY, OBJ or binary STL, in world space at the source mesh's position and scale, with
 //! the voxel colours as vertex colours.
 //!
 //! * **Faces.** Every face of a set voxel whose neighbour across it is empty or outside the grid, as a quad wound
@@ -30,12 +30,25 @@ use std::io::Write;
 /// How far a vertex is pulled toward its voxels where sheets of faces meet (in voxels).
 pub const SEPARATION: f64 = 1e-3;
 
-/// The mesh formats the voxel model is written in.
+/// The mesh formats the voxel model (and a field's level set) is written in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeshFormat {
     Glb,
     Ply,
     Obj,
+    Stl,
+}
+
+impl MeshFormat {
+    /// The file extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            MeshFormat::Glb => "glb",
+            MeshFormat::Ply => "ply",
+            MeshFormat::Obj => "obj",
+            MeshFormat::Stl => "stl",
+        }
+    }
 }
 
 /// One exposed face: its corners in grid units from the grid origin (counter-clockwise seen from outside) and the
@@ -356,7 +369,44 @@ pub fn write_mesh(
         MeshFormat::Glb => write_glb(&faces, grid.spec, colours.is_some(), out),
         MeshFormat::Ply => write_ply(&faces, grid.spec, out),
         MeshFormat::Obj => write_obj(&faces, grid.spec, out),
+        MeshFormat::Stl => write_stl(&faces, grid.spec, out),
     }
+}
+
+/// Binary STL: each face as two triangles in f32 world coordinates with its normal (no colours: STL has none).
+fn write_stl(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), FormatError> {
+    let (quads, _, _) = survey(faces);
+    if quads == 0 {
+        return Err(no_faces("stl"));
+    }
+    let triangles = u32::try_from(quads * 2).map_err(|_| FormatError::Invalid {
+        format: "stl",
+        message: format!("{quads} faces are more triangles than STL counts; use .ply or --merge"),
+    })?;
+    let mut header = [0u8; 80];
+    header[..19].copy_from_slice(b"meshvox voxel model");
+    out.write_all(&header)?;
+    out.write_all(&triangles.to_le_bytes())?;
+    let mut result = Ok(());
+    faces.for_each(&mut |q| {
+        if result.is_err() {
+            return;
+        }
+        let p = q.corners.map(|c| spec.origin + c * spec.voxel_size);
+        let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        let mut bytes = Vec::with_capacity(100);
+        for tri in [[p[0], p[1], p[2]], [p[0], p[2], p[3]]] {
+            for v in [n, tri[0], tri[1], tri[2]] {
+                for x in v.as_vec3().to_array() {
+                    bytes.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+            bytes.extend_from_slice(&[0, 0]);
+        }
+        result = out.write_all(&bytes);
+    });
+    result?;
+    Ok(())
 }
 
 fn no_faces(format: &'static str) -> FormatError {

@@ -14,6 +14,7 @@ pub mod npy;
 pub mod npz;
 pub mod palette;
 pub mod points;
+pub mod surface;
 pub mod vdb;
 pub mod vox;
 
@@ -49,7 +50,7 @@ pub enum VoxelFormat {
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 8] = [
+    pub const ALL: [VoxelFormat; 9] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -58,6 +59,7 @@ impl VoxelFormat {
         VoxelFormat::Mesh(MeshFormat::Glb),
         VoxelFormat::Mesh(MeshFormat::Ply),
         VoxelFormat::Mesh(MeshFormat::Obj),
+        VoxelFormat::Mesh(MeshFormat::Stl),
     ];
 
     /// The format named by a file's extension.
@@ -95,9 +97,7 @@ impl VoxelFormat {
             VoxelFormat::Vox => "vox",
             VoxelFormat::Npz => "npz",
             VoxelFormat::Vdb => "vdb",
-            VoxelFormat::Mesh(MeshFormat::Glb) => "glb",
-            VoxelFormat::Mesh(MeshFormat::Ply) => "ply",
-            VoxelFormat::Mesh(MeshFormat::Obj) => "obj",
+            VoxelFormat::Mesh(mesh) => mesh.extension(),
         }
     }
 }
@@ -138,6 +138,8 @@ pub struct WriteOptions<'a> {
     /// Per-voxel labels: `.npz` arrays and `.vdb` `Int32Grid`s named by their attributes (a dense `.npy` grid's
     /// go beside it, [`write_labels_npy`]).
     pub labels: Option<&'a Labels>,
+    /// A distance field written as a mesh: the level set's value, world units.
+    pub level: f64,
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse
@@ -191,9 +193,14 @@ pub type IntColumn<'a> = (&'a str, &'a Label<'a>);
 pub fn write_field<W: Write + Seek>(
     field: &DistanceField,
     format: VoxelFormat,
+    level: f64,
     out: &mut W,
 ) -> Result<(), FormatError> {
     match format {
+        VoxelFormat::Mesh(mesh) => {
+            let surface = super::contour::level_mesh(field, level).map_err(std::io::Error::other)?;
+            surface::write_surface(&surface, mesh, out)
+        }
         VoxelFormat::Npy => npy::write_field_npy(field, out),
         VoxelFormat::Npz => {
             let value = |v: UVec3| field.value(v);
@@ -201,7 +208,7 @@ pub fn write_field<W: Write + Seek>(
         }
         VoxelFormat::Vdb => vdb::write_level_set(field, out),
         other => Err(std::io::Error::other(format!(
-            "a distance field is written as .npy, .npz or .vdb, not .{}",
+            "a distance field is written as .npy, .npz, .vdb or a mesh of its level set, not .{}",
             other.extension()
         ))
         .into()),

@@ -1,0 +1,146 @@
+//! A triangle mesh (a field's level set, [`crate::voxel::contour`]) written as binary PLY, OBJ, binary glTF or
+//! binary STL, in world space, its vertices shared between faces (except in STL, which has none to share).
+//!
+//! * PLY: `double` coordinates and `uint` indices, so a mesh far from the origin keeps its precision.
+//! * OBJ: coordinates as the shortest decimal that reads back to the same f64.
+//! * GLB: positions in f32 relative to the mesh's lowest corner, under a node translated there (f64 in the JSON),
+//!   and u32 indices; one mesh, one primitive, no material.
+//! * STL: f32 world coordinates (the format has nothing else) with each face's unit normal; every reader welds
+//!   its corners by position.
+
+use super::error::FormatError;
+use super::mesh::MeshFormat;
+use crate::voxel::contour::TriangleMesh;
+use glam::DVec3;
+use std::io::Write;
+
+/// Writes `mesh` in `format`.
+pub fn write_surface(mesh: &TriangleMesh, format: MeshFormat, out: &mut impl Write) -> Result<(), FormatError> {
+    if mesh.faces.is_empty() {
+        return Err(FormatError::Invalid {
+            format: format.extension(),
+            message: "the level set is empty: no voxel centre is on each side of the level".into(),
+        });
+    }
+    match format {
+        MeshFormat::Ply => write_ply(mesh, out),
+        MeshFormat::Obj => write_obj(mesh, out),
+        MeshFormat::Glb => write_glb(mesh, out),
+        MeshFormat::Stl => write_stl(mesh, out),
+    }
+}
+
+fn write_ply(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatError> {
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\ncomment meshvox level set\nelement vertex {}\n\
+         property double x\nproperty double y\nproperty double z\nelement face {}\n\
+         property list uchar uint vertex_indices\nend_header\n",
+        mesh.vertices.len(),
+        mesh.faces.len()
+    )?;
+    let mut bytes = Vec::with_capacity(mesh.vertices.len() * 24);
+    for v in &mesh.vertices {
+        for x in v.to_array() {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    out.write_all(&bytes)?;
+    bytes.clear();
+    for f in &mesh.faces {
+        bytes.push(3);
+        for i in f {
+            bytes.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    out.write_all(&bytes)?;
+    Ok(())
+}
+
+fn write_obj(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatError> {
+    let mut out = std::io::BufWriter::new(out);
+    writeln!(out, "# meshvox level set: {} vertices, {} triangles", mesh.vertices.len(), mesh.faces.len())?;
+    for v in &mesh.vertices {
+        writeln!(out, "v {} {} {}", v.x, v.y, v.z)?;
+    }
+    for f in &mesh.faces {
+        writeln!(out, "f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1)?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+fn write_stl(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatError> {
+    let count = u32::try_from(mesh.faces.len()).map_err(|_| FormatError::Invalid {
+        format: "stl",
+        message: format!("{} triangles are more than STL counts", mesh.faces.len()),
+    })?;
+    let mut header = [0u8; 80];
+    header[..18].copy_from_slice(b"meshvox level set ");
+    out.write_all(&header)?;
+    out.write_all(&count.to_le_bytes())?;
+    let mut bytes = Vec::with_capacity(mesh.faces.len() * 50);
+    for f in &mesh.faces {
+        let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        for v in [n, a, b, c] {
+            for x in v.as_vec3().to_array() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        bytes.extend_from_slice(&[0, 0]);
+    }
+    out.write_all(&bytes)?;
+    Ok(())
+}
+
+fn write_glb(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatError> {
+    let lo = mesh.vertices.iter().fold(DVec3::INFINITY, |a, &v| a.min(v));
+    let hi = mesh.vertices.iter().fold(DVec3::NEG_INFINITY, |a, &v| a.max(v));
+    let (n, f) = (mesh.vertices.len(), mesh.faces.len());
+    let (vertex_bytes, index_bytes) = (n as u64 * 12, f as u64 * 12);
+    let size = (hi - lo).as_vec3();
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0","generator":"meshvox level set"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0,"translation":[{},{},{}]}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],"buffers":[{{"byteLength":{}}}],"bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{vertex_bytes},"target":34962}},{{"buffer":0,"byteOffset":{vertex_bytes},"byteLength":{index_bytes},"target":34963}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":{n},"type":"VEC3","min":[0,0,0],"max":[{},{},{}]}},{{"bufferView":1,"componentType":5125,"count":{},"type":"SCALAR"}}]}}"#,
+        lo.x,
+        lo.y,
+        lo.z,
+        vertex_bytes + index_bytes,
+        size.x,
+        size.y,
+        size.z,
+        f * 3,
+    );
+    let mut text = json.into_bytes();
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    let bin_len = vertex_bytes + index_bytes;
+    let total = u32::try_from(12 + 8 + text.len() as u64 + 8 + bin_len).map_err(|_| FormatError::Invalid {
+        format: "glb",
+        message: "more than a GLB holds (4 GiB); use .ply".into(),
+    })?;
+    out.write_all(b"glTF")?;
+    out.write_all(&2u32.to_le_bytes())?;
+    out.write_all(&total.to_le_bytes())?;
+    out.write_all(&(text.len() as u32).to_le_bytes())?;
+    out.write_all(b"JSON")?;
+    out.write_all(&text)?;
+    out.write_all(&(bin_len as u32).to_le_bytes())?;
+    out.write_all(b"BIN\0")?;
+    let mut bytes = Vec::with_capacity(bin_len as usize);
+    for v in &mesh.vertices {
+        // Relative to the lowest corner, clamped into the accessor's bounds against f32's rounding.
+        let p = (*v - lo).as_vec3().clamp(glam::Vec3::ZERO, size);
+        for x in p.to_array() {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for face in &mesh.faces {
+        for i in face {
+            bytes.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    out.write_all(&bytes)?;
+    Ok(())
+}
