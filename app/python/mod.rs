@@ -431,9 +431,10 @@ fn save(
 }
 
 /// `VoxelGrid.save` of a distance field: its float32 `[x, y, z]` values (background `background` world units)
-/// written as `.npy`, `.npz` (the band) or `.vdb` (a level set) with the CLI's writers, atomically.
+/// written as `.npy`, `.npz` (the band), `.vdb` (a level set), or its level set at `level` as a mesh, with the
+/// CLI's writers, atomically.
 #[pyfunction]
-#[pyo3(signature = (path, distances, origin, pitch, background, signed))]
+#[pyo3(signature = (path, distances, origin, pitch, background, signed, level))]
 fn save_field(
     py: Python<'_>,
     path: PathBuf,
@@ -442,20 +443,50 @@ fn save_field(
     pitch: f64,
     background: f32,
     signed: bool,
+    level: f64,
 ) -> PyResult<()> {
     let format = VoxelFormat::from_extension(&path)
-        .filter(|f| matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb))
+        .filter(|f| matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Mesh(_)))
         .ok_or_else(|| {
-            PyValueError::new_err(format!("{}: a distance field is saved as .npy, .npz or .vdb", path.display()))
+            PyValueError::new_err(format!(
+                "{}: a distance field is saved as .npy, .npz or .vdb, or its level set as .ply, .obj, .glb or .stl",
+                path.display()
+            ))
         })?;
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::voxel::formats::atomic::write_atomically(&path, |out| {
-            crate::voxel::formats::write_field(&field, format, 0.0, out)
+            crate::voxel::formats::write_field(&field, format, level, out)
         })
     })?;
     written.map(|_| ()).map_err(|e| save_err(&path, e))
+}
+
+/// `meshvox._native.level_mesh(distances, origin, pitch, background, signed, level)`: the field's level set
+/// ([`crate::voxel::contour`]) as (vertices float64 (V, 3), faces int64 (F, 3)).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn level_mesh<'py>(
+    py: Python<'py>,
+    distances: numpy::PyReadonlyArray3<'py, f32>,
+    origin: [f64; 3],
+    pitch: f64,
+    background: f32,
+    signed: bool,
+    level: f64,
+) -> PyResult<(Bound<'py, numpy::PyArray2<f64>>, Bound<'py, numpy::PyArray2<i64>>)> {
+    use numpy::IntoPyArray;
+    let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
+    let mesh = process::run(py, None, |_| {
+        let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
+        crate::voxel::contour::level_mesh(&field, level)
+    })?
+    .map_err(|e| PyValueError::new_err(worded(e)))?;
+    let (v, f) = (mesh.vertices.len(), mesh.faces.len());
+    let vertices: Vec<f64> = mesh.vertices.iter().flat_map(|p| p.to_array()).collect();
+    let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
+    Ok((vertices.into_pyarray(py).reshape([v, 3])?, faces.into_pyarray(py).reshape([f, 3])?))
 }
 
 mod from_matrix;
@@ -473,6 +504,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(headless_vulkan_setting, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(save_field, m)?)?;
+    m.add_function(wrap_pyfunction!(level_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(query::query, m)?)?;
     m.add_function(wrap_pyfunction!(query::winding, m)?)?;
     m.add_function(wrap_pyfunction!(query::sample_many, m)?)?;

@@ -92,7 +92,7 @@ pub fn level_mesh(field: &DistanceField, level: f64) -> Result<TriangleMesh, Con
         .flat_map(|z| (-1..ld.y).flat_map(move |y| (-1..ld.x).map(move |x| IVec3::new(x, y, z))))
         .filter(|&p| block_may_cross(&states, ld, p))
         .collect();
-    let pieces: Vec<(Vec<(u64, DVec3)>, Vec<[u64; 3]>)> =
+    let pieces: Vec<Piece> =
         parallel::install(|| blocks.par_iter().map(|&p| block_triangles(field, level, p)).collect());
     // Weld by edge key: every block computes a shared edge's vertex from the same two samples, so duplicates agree.
     let mut keyed: Vec<(u64, DVec3)> = pieces.iter().flat_map(|(v, _)| v.iter().copied()).collect();
@@ -172,8 +172,11 @@ fn sample_key(spec: &GridSpec, i: IVec3) -> u64 {
     ((q.z * d.y + q.y) * d.x + q.x) * 8
 }
 
-/// The vertices (by edge key) and triangles (by their vertices' keys) of the cubes of block `p`.
-fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> (Vec<(u64, DVec3)>, Vec<[u64; 3]>) {
+/// A block's vertices (each with its edge's key) and triangles (by their vertices' keys).
+type Piece = (Vec<(u64, DVec3)>, Vec<[u64; 3]>);
+
+/// The vertices and triangles of the cubes of block `p`.
+fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> Piece {
     let spec = field.spec;
     let dims = spec.dims.as_ivec3();
     let lo = (p * LEAF_DIM as i32).max(IVec3::splat(-1));

@@ -184,23 +184,45 @@ class VoxelGrid:
         """World positions of the set voxels' centres, float64 (N, 3), in ``coords()`` order."""
         return self.origin + (self.coords().astype(np.float64) + 0.5) * self.pitch
 
-    def save(self, path: str | os.PathLike[str], *, merge: bool = False) -> None:
+    def save(self, path: str | os.PathLike[str], *, merge: bool = False, level: float = 0.0) -> None:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
         ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``) with the CLI's writers, atomically; a coloured
         ``.npy`` gets ``.colors.npy`` beside it, a labelled one ``.labels.npy``; labels also go into ``.npz``
         arrays and ``.vdb`` Int32Grids (the other formats hold none).
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
         as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) or ``.vdb`` (a level set),
-        as the CLI writes it."""
+        as the CLI writes it, or its level set at ``level`` (world units) as a closed mesh (``.ply``, ``.obj``,
+        ``.glb``, ``.stl``; see :meth:`to_mesh`)."""
         if self.distances is not None:
             distances = np.ascontiguousarray(self.distances, dtype=np.float32)
             background = float(self.background if self.background is not None else np.abs(distances).max())
-            _native.save_field(os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed))
+            _native.save_field(
+                os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level)
+            )
             return
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
         labels = [(name, np.ascontiguousarray(a, dtype=np.int32)) for name, a in (self.labels or {}).items()]
         _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge, labels)
+
+    def to_mesh(self, level: float = 0.0, *, trimesh: bool = False) -> Any:
+        """A distance field's level set at ``level`` (world units; 0 the surface) as a closed, edge-manifold,
+        outward-wound triangle mesh: ``(vertices float64 (V, 3), faces int64 (F, 3))``, or a ``trimesh.Trimesh``
+        with ``trimesh=True`` (needs trimesh). Marching tetrahedra over the voxel centres (docs/watertight.md); the
+        band must hold the level (voxelize with ``band=`` wider than it), and an unsigned field needs a level above
+        0 (the shell around open sheets)."""
+        if self.distances is None:
+            raise ValueError('to_mesh needs a distance field: voxelize with mode="sdf" or "udf"')
+        distances = np.ascontiguousarray(self.distances, dtype=np.float32)
+        background = float(self.background if self.background is not None else np.abs(distances).max())
+        vertices, faces = _native.level_mesh(
+            distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level)
+        )
+        if trimesh:
+            import trimesh as _trimesh
+
+            return _trimesh.Trimesh(vertices, faces, process=False)
+        return vertices, faces
 
     def to_trimesh(self) -> Any:
         """The grid as a ``trimesh.voxel.VoxelGrid`` (needs trimesh): the same voxels at the same places."""

@@ -67,7 +67,16 @@ def save_field(
     pitch: float,
     background: float,
     signed: bool,
+    level: float,
 ) -> None: ...
+def level_mesh(
+    distances: np.ndarray,
+    origin: tuple[float, float, float],
+    pitch: float,
+    background: float,
+    signed: bool,
+    level: float,
+) -> tuple[np.ndarray, np.ndarray]: ...
 
 class PreparedMesh:
     def __init__(self, source: _Source | PreparedMesh) -> None: ...
