@@ -173,10 +173,12 @@ impl<'a> Job<'a> {
     fn check_budget(&self, area: Option<f64>, limit: u64) -> Result<budget::Estimate, GridError> {
         let (r, triangles) = (&self.request, self.triangles());
         let labels = r.attributes.len();
+        let level_mesh = r.mode.is_field() && matches!(r.format, Some(VoxelFormat::Mesh(_)));
         let estimate = |spec: &GridSpec| {
             let e = budget::estimate(spec, r.mode, r.band, r.format, triangles, area);
             let labels = budget::labels_bytes(spec, r.mode, labels, self.area, triangles);
-            budget::Estimate { writer: e.writer.saturating_add(labels), ..e }
+            let mesh = if level_mesh { budget::level_mesh_bytes(spec, self.area) } else { 0 };
+            budget::Estimate { writer: e.writer.saturating_add(labels).saturating_add(mesh), ..e }
         };
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
     }

@@ -435,6 +435,7 @@ fn save(
 /// CLI's writers, atomically.
 #[pyfunction]
 #[pyo3(signature = (path, distances, origin, pitch, background, signed, level))]
+#[allow(clippy::too_many_arguments)]
 fn save_field(
     py: Python<'_>,
     path: PathBuf,
@@ -475,7 +476,7 @@ fn level_mesh<'py>(
     background: f32,
     signed: bool,
     level: f64,
-) -> PyResult<(Bound<'py, numpy::PyArray2<f64>>, Bound<'py, numpy::PyArray2<i64>>)> {
+) -> PyResult<IndexedArrays<'py>> {
     use numpy::IntoPyArray;
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let mesh = process::run(py, None, |_| {

@@ -262,5 +262,8 @@ fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> Piece {
             }
         }
     }
+    // Each vertex was made by every tetrahedron around its edge (up to six): keep one.
+    vertices.sort_unstable_by_key(|(k, _)| *k);
+    vertices.dedup_by_key(|(k, _)| *k);
     (vertices, triangles)
 }

@@ -426,20 +426,7 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
     }
     let layout = GlbLayout { quads, coloured, h: spec.voxel_size };
     let text = glb_json(&layout, spec, lo, hi);
-    let bin_len = layout.bin_len();
-    let total = 12 + 8 + text.len() as u64 + 8 + bin_len;
-    let total = u32::try_from(total).map_err(|_| FormatError::Invalid {
-        format: "glb",
-        message: format!("{total} bytes is more than a GLB holds (4 GiB); use .ply or --merge"),
-    })?;
-    out.write_all(b"glTF")?;
-    out.write_all(&2u32.to_le_bytes())?;
-    out.write_all(&total.to_le_bytes())?;
-    out.write_all(&(text.len() as u32).to_le_bytes())?;
-    out.write_all(b"JSON")?;
-    out.write_all(&text)?;
-    out.write_all(&(bin_len as u32).to_le_bytes())?;
-    out.write_all(b"BIN\0")?;
+    write_glb_head(&text, layout.bin_len(), "use .ply or --merge", out)?;
     write_glb_vertices(faces, &layout, out)?;
     for i in 0..quads as u32 {
         let b = 4 * i;
@@ -447,6 +434,30 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
             out.write_all(&x.to_le_bytes())?;
         }
     }
+    Ok(())
+}
+
+/// A GLB's header, its JSON chunk (`text`, padded to 4 bytes) and its binary chunk's header (`bin_len` bytes to
+/// follow); refused past the format's 4 GiB, with `instead` saying what to write.
+pub(super) fn write_glb_head(
+    text: &[u8],
+    bin_len: u64,
+    instead: &str,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
+    let total = 12 + 8 + text.len() as u64 + 8 + bin_len;
+    let total = u32::try_from(total).map_err(|_| FormatError::Invalid {
+        format: "glb",
+        message: format!("{total} bytes is more than a GLB holds (4 GiB); {instead}"),
+    })?;
+    out.write_all(b"glTF")?;
+    out.write_all(&2u32.to_le_bytes())?;
+    out.write_all(&total.to_le_bytes())?;
+    out.write_all(&(text.len() as u32).to_le_bytes())?;
+    out.write_all(b"JSON")?;
+    out.write_all(text)?;
+    out.write_all(&(bin_len as u32).to_le_bytes())?;
+    out.write_all(b"BIN\0")?;
     Ok(())
 }
 

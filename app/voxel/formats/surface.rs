@@ -14,6 +14,9 @@ use crate::voxel::contour::TriangleMesh;
 use glam::DVec3;
 use std::io::Write;
 
+/// Vertices or faces written at a time: the bytes in memory stay a few MiB whatever the mesh's size.
+const CHUNK: usize = 1 << 16;
+
 /// Writes `mesh` in `format`.
 pub fn write_surface(mesh: &TriangleMesh, format: MeshFormat, out: &mut impl Write) -> Result<(), FormatError> {
     if mesh.faces.is_empty() {
@@ -39,21 +42,25 @@ fn write_ply(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatErro
         mesh.vertices.len(),
         mesh.faces.len()
     )?;
-    let mut bytes = Vec::with_capacity(mesh.vertices.len() * 24);
-    for v in &mesh.vertices {
-        for x in v.to_array() {
-            bytes.extend_from_slice(&x.to_le_bytes());
+    for chunk in mesh.vertices.chunks(CHUNK) {
+        let mut bytes = Vec::with_capacity(chunk.len() * 24);
+        for v in chunk {
+            for x in v.to_array() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
         }
+        out.write_all(&bytes)?;
     }
-    out.write_all(&bytes)?;
-    bytes.clear();
-    for f in &mesh.faces {
-        bytes.push(3);
-        for i in f {
-            bytes.extend_from_slice(&i.to_le_bytes());
+    for chunk in mesh.faces.chunks(CHUNK) {
+        let mut bytes = Vec::with_capacity(chunk.len() * 13);
+        for f in chunk {
+            bytes.push(3);
+            for i in f {
+                bytes.extend_from_slice(&i.to_le_bytes());
+            }
         }
+        out.write_all(&bytes)?;
     }
-    out.write_all(&bytes)?;
     Ok(())
 }
 
@@ -79,18 +86,20 @@ fn write_stl(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatErro
     header[..18].copy_from_slice(b"meshvox level set ");
     out.write_all(&header)?;
     out.write_all(&count.to_le_bytes())?;
-    let mut bytes = Vec::with_capacity(mesh.faces.len() * 50);
-    for f in &mesh.faces {
-        let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
-        let n = (b - a).cross(c - a).normalize_or_zero();
-        for v in [n, a, b, c] {
-            for x in v.as_vec3().to_array() {
-                bytes.extend_from_slice(&x.to_le_bytes());
+    for chunk in mesh.faces.chunks(CHUNK) {
+        let mut bytes = Vec::with_capacity(chunk.len() * 50);
+        for f in chunk {
+            let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            for v in [n, a, b, c] {
+                for x in v.as_vec3().to_array() {
+                    bytes.extend_from_slice(&x.to_le_bytes());
+                }
             }
+            bytes.extend_from_slice(&[0, 0]);
         }
-        bytes.extend_from_slice(&[0, 0]);
+        out.write_all(&bytes)?;
     }
-    out.write_all(&bytes)?;
     Ok(())
 }
 
@@ -115,32 +124,21 @@ fn write_glb(mesh: &TriangleMesh, out: &mut impl Write) -> Result<(), FormatErro
     while text.len() % 4 != 0 {
         text.push(b' ');
     }
-    let bin_len = vertex_bytes + index_bytes;
-    let total = u32::try_from(12 + 8 + text.len() as u64 + 8 + bin_len).map_err(|_| FormatError::Invalid {
-        format: "glb",
-        message: "more than a GLB holds (4 GiB); use .ply".into(),
-    })?;
-    out.write_all(b"glTF")?;
-    out.write_all(&2u32.to_le_bytes())?;
-    out.write_all(&total.to_le_bytes())?;
-    out.write_all(&(text.len() as u32).to_le_bytes())?;
-    out.write_all(b"JSON")?;
-    out.write_all(&text)?;
-    out.write_all(&(bin_len as u32).to_le_bytes())?;
-    out.write_all(b"BIN\0")?;
-    let mut bytes = Vec::with_capacity(bin_len as usize);
-    for v in &mesh.vertices {
-        // Relative to the lowest corner, clamped into the accessor's bounds against f32's rounding.
-        let p = (*v - lo).as_vec3().clamp(glam::Vec3::ZERO, size);
-        for x in p.to_array() {
-            bytes.extend_from_slice(&x.to_le_bytes());
+    super::mesh::write_glb_head(&text, vertex_bytes + index_bytes, "use .ply", out)?;
+    for chunk in mesh.vertices.chunks(CHUNK) {
+        let mut bytes = Vec::with_capacity(chunk.len() * 12);
+        for v in chunk {
+            // Relative to the lowest corner, clamped into the accessor's bounds against f32's rounding.
+            let p = (*v - lo).as_vec3().clamp(glam::Vec3::ZERO, size);
+            for x in p.to_array() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
         }
+        out.write_all(&bytes)?;
     }
-    for face in &mesh.faces {
-        for i in face {
-            bytes.extend_from_slice(&i.to_le_bytes());
-        }
+    for chunk in mesh.faces.chunks(CHUNK) {
+        let bytes: Vec<u8> = chunk.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+        out.write_all(&bytes)?;
     }
-    out.write_all(&bytes)?;
     Ok(())
 }
