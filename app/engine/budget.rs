@@ -82,7 +82,7 @@ pub fn estimate(
         _ => 0,
     };
     // A field written as a mesh is made from its band's leaves (the mesh itself: [`level_mesh_bytes`]).
-    let level_mesh = mode.is_field() && matches!(format, Some(VoxelFormat::Mesh(_)));
+    let level_mesh = writes_level_set(mode, format);
     let Some(area) = area.filter(|_| !mode.is_field() || level_mesh || format.is_some_and(VoxelFormat::is_sparse))
     else {
         let grid = dense.saturating_add(field);
@@ -111,6 +111,11 @@ pub fn estimate(
         None => 0,
     };
     Estimate { grid, triangles: triangle_bytes, readback: dense.min(SPARSE_SLAB_BYTES), writer }
+}
+
+/// Whether `mode` written as `format` is a distance field's level set as a mesh ([`crate::voxel::contour`]).
+pub fn writes_level_set(mode: Mode, format: Option<VoxelFormat>) -> bool {
+    mode.is_field() && matches!(format, Some(VoxelFormat::Mesh(_)))
 }
 
 /// A field's level set written as a mesh ([`crate::voxel::contour`]): marching tetrahedra make about 9

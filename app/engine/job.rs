@@ -112,7 +112,7 @@ impl<'a> Job<'a> {
         };
         let mut spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
         let format = request.format;
-        let field_mesh = request.mode.is_field() && matches!(format, Some(VoxelFormat::Mesh(_)));
+        let field_mesh = budget::writes_level_set(request.mode, format);
         if field_mesh && request.level > 0.0 && request.bounds.is_none() {
             // A level set above 0 lies outside the mesh, up to the level away: the grid grows by it and two voxels
             // on every side (the voxel size stays the mesh's), so the surface is not cut by the grid's boundary.
@@ -173,7 +173,7 @@ impl<'a> Job<'a> {
     fn check_budget(&self, area: Option<f64>, limit: u64) -> Result<budget::Estimate, GridError> {
         let (r, triangles) = (&self.request, self.triangles());
         let labels = r.attributes.len();
-        let level_mesh = r.mode.is_field() && matches!(r.format, Some(VoxelFormat::Mesh(_)));
+        let level_mesh = budget::writes_level_set(r.mode, r.format);
         let estimate = |spec: &GridSpec| {
             let e = budget::estimate(spec, r.mode, r.band, r.format, triangles, area);
             let labels = budget::labels_bytes(spec, r.mode, labels, self.area, triangles);

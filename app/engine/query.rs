@@ -56,7 +56,7 @@ impl Engine {
             let (found, sides, gpu_ms) = std::thread::scope(|scope| {
                 let search = scope.spawn(|| {
                     let t = Instant::now();
-                    let found = pollster::block_on(on.nearest(&tables, &placed, &mut notices));
+                    let found = pollster::block_on(on.nearest(tables, &placed, &mut notices));
                     (found, ms(t))
                 });
                 let sides = prepared.sides(&placed, sign, winding);

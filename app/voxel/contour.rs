@@ -212,11 +212,14 @@ fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> Piece {
                 // Values kept `clearance` from the level on their side.
                 let v = v.map(|x| if x < level { x.min(level - clearance) } else { x.max(level + clearance) });
                 for tet in TETRAHEDRA {
-                    let inside: Vec<u8> = tet.iter().copied().filter(|&k| below[k as usize]).collect();
-                    let outside: Vec<u8> = tet.iter().copied().filter(|&k| !below[k as usize]).collect();
-                    if inside.is_empty() || outside.is_empty() {
+                    // The corners below the level first, each side in the tetrahedron's order (a stable sort).
+                    let mut corners = tet;
+                    corners.sort_by_key(|&k| !below[k as usize]);
+                    let n = corners.iter().filter(|&&k| below[k as usize]).count();
+                    if n == 0 || n == 4 {
                         continue;
                     }
+                    let (inside, outside) = corners.split_at(n);
                     // The vertex on edge (a inside, b outside): keyed by the edge's lower corner and direction.
                     let mut vertex = |a: u8, b: u8| {
                         let (low, high) = if a < b { (a, b) } else { (b, a) };
@@ -226,27 +229,29 @@ fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> Piece {
                         vertices.push((key, at));
                         (key, at)
                     };
-                    let polygon: Vec<(u64, DVec3)> = match (inside.len(), outside.len()) {
-                        (1, 3) => outside.iter().map(|&b| vertex(inside[0], b)).collect(),
-                        (3, 1) => inside.iter().map(|&a| vertex(a, outside[0])).collect(),
-                        _ => {
-                            let (a0, a1, b0, b1) = (inside[0], inside[1], outside[0], outside[1]);
-                            vec![vertex(a0, b0), vertex(a0, b1), vertex(a1, b1), vertex(a1, b0)]
-                        }
-                    };
                     // Outward: from the inside corners towards the outside ones.
                     let centre = |ks: &[u8]| ks.iter().map(|&k| position(corner(k))).sum::<DVec3>() / ks.len() as f64;
-                    let out = centre(&outside) - centre(&inside);
+                    let out = centre(outside) - centre(inside);
                     let mut emit = |a: (u64, DVec3), b: (u64, DVec3), c: (u64, DVec3)| {
                         let n = (b.1 - a.1).cross(c.1 - a.1);
                         triangles.push(if n.dot(out) >= 0.0 { [a.0, b.0, c.0] } else { [a.0, c.0, b.0] });
                     };
-                    match polygon.len() {
-                        3 => emit(polygon[0], polygon[1], polygon[2]),
+                    match n {
+                        1 => emit(
+                            vertex(inside[0], outside[0]),
+                            vertex(inside[0], outside[1]),
+                            vertex(inside[0], outside[2]),
+                        ),
+                        3 => emit(
+                            vertex(inside[0], outside[0]),
+                            vertex(inside[1], outside[0]),
+                            vertex(inside[2], outside[0]),
+                        ),
                         _ => {
+                            let (a0, a1, b0, b1) = (inside[0], inside[1], outside[0], outside[1]);
+                            let [q0, q1, q2, q3] = [vertex(a0, b0), vertex(a0, b1), vertex(a1, b1), vertex(a1, b0)];
                             // The diagonal that leaves the larger smallest triangle.
                             let area = |a: DVec3, b: DVec3, c: DVec3| (b - a).cross(c - a).length();
-                            let [q0, q1, q2, q3] = [polygon[0], polygon[1], polygon[2], polygon[3]];
                             let first = area(q0.1, q1.1, q2.1).min(area(q0.1, q2.1, q3.1));
                             let second = area(q1.1, q2.1, q3.1).min(area(q1.1, q3.1, q0.1));
                             if first >= second {

@@ -83,6 +83,8 @@ pub struct Prepared {
     mesh: Arc<Mesh>,
     bvh: Bvh,
     boundary: Boundary,
+    /// The hierarchy as the GPU reads it, made at the first GPU query and kept for the next.
+    tables: std::sync::OnceLock<NearestTables>,
 }
 
 /// The answers for a list of points, one entry per point in each.
@@ -127,7 +129,7 @@ impl Prepared {
         let lattice = Lattice::fit(&frame, spec.dims)?;
         let (bvh, boundary) =
             crate::parallel::install(|| rayon::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
-        Ok(Prepared { spec, frame, mesh, bvh, boundary })
+        Ok(Prepared { spec, frame, mesh, bvh, boundary, tables: std::sync::OnceLock::new() })
     }
 
     /// The mesh as loaded.
@@ -169,9 +171,9 @@ impl Prepared {
         Ok(Placed { frame, order })
     }
 
-    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]).
-    pub fn nearest_tables(&self) -> NearestTables {
-        self.bvh.tables()
+    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]), made once per prepared mesh.
+    pub fn nearest_tables(&self) -> &NearestTables {
+        self.tables.get_or_init(|| self.bvh.tables())
     }
 
     /// The sides ([`Prepared::query`]'s sign, and winding numbers where asked) at the placed points: what the CPU
