@@ -28,6 +28,7 @@ pub mod memory;
 pub mod mesh;
 mod names;
 pub mod parallel;
+pub mod trace;
 // PyO3's macros expand to `unsafe` FFI glue (the module's own code has none).
 #[cfg(feature = "python")]
 #[allow(unsafe_code)]

@@ -9,6 +9,8 @@
 #   identity  every shared mesh in every mode at three resolutions: GPU and CPU outputs compared byte for byte
 #   tests     the integration tests that run the GPU passes against the CPU reference, on this adapter
 #   seed | scale | sparse | sdf   `meshvox bench --suite STEP` on both backends
+#   targets   issue 45's and 46's H100 targets (the bunny's dense surface, field and sparse surface and solid) with
+#             MESHVOX_TRACE's spans of host work
 #   query     `meshvox query` at 1M uniform points on the bunny and Spot, --backend cpu and gpu: their times and
 #             the two outputs compared byte for byte
 #   all       smoke, tests, query, seed, scale, sparse and sdf in one command, each under its own time limit so that
@@ -119,6 +121,25 @@ PY
             done
             cmp -s /tmp/query-cpu.npz /tmp/query-gpu.npz && echo "same answers on $(basename "$m")" ||
                 echo "DIFFERENT answers on $(basename "$m")"
+        done
+        ;;
+    targets)
+        # Issue 45's and 46's H100 targets, with MESHVOX_TRACE's spans of host work after each job: the bunny's
+        # dense surface at 512 / 1024 / 2048 (voxelize_ms, median of 5 after set-up), its field at 1024 and its
+        # sparse surface at 16384 (voxelize_ms before the file is written), on both backends.
+        export MESHVOX_TRACE=1
+        bunny=../shared/meshes/stanford-bunny.obj
+        "$bin" bench --meshes "$bunny" -r 512,1024,2048 --modes surface --runs 5 --out "$out/targets.json" \
+            > "$out/targets.md" 2> "$out/targets.log"
+        grep -v "^trace" "$out/targets.md" | grep "stanford"
+        grep "^trace" "$out/targets.log" | sort | uniq -c | sort -rn | head -n 12
+        # (The sparse solid at 8192, 34 s on an H200's machine, is bounded by the open bunny's host fill: issue 46.)
+        for job in "-r 1024 --mode sdf -o /tmp/t.vdb" "-r 16384 --grid sparse -o /tmp/t.vdb"; do
+            for b in gpu cpu; do
+                # shellcheck disable=SC2086
+                timeout 60 "$bin" voxelize "$bunny" $job --backend $b --stats-json 2>&1 | tee -a "$out/targets.log" |
+                    grep -E "^trace|voxels set|^\{" | sed -E 's/"(origin|warnings|labels|colours_output|labels_output)":[^,]*,//g' | cut -c1-900
+            done
         done
         ;;
     seed | scale | sparse | sdf)

@@ -305,7 +305,9 @@ impl Engine {
         }
         let t = Instant::now();
         // Grid-space triangles once, for the voxels and their colours.
+        let span = crate::trace::span("grid space");
         let tris = grid_space(mesh, &spec)?;
+        drop(span);
         let mut notices = Vec::new();
         let mut made = self.grid(job, &tris, &mut notices).await?;
         if let (Some(reason), true) = (&self.reason, made.backend.starts_with("gpu")) {
@@ -378,6 +380,9 @@ impl Engine {
             ..self.grid_report(job, &made.grid)
         };
         let colours = colours.map(|c| c.colours);
+        if let Some(spans) = crate::trace::take() {
+            eprintln!("trace: {} {} at {:?}: {spans}", job.name, request.mode.name(), spec.dims.to_array());
+        }
         Ok(Voxelized { grid: made.grid, field, colours, labels, instances: made.instances, report, notices })
     }
 
@@ -482,7 +487,9 @@ impl Engine {
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
         let (mut inside, sign_on_gpu) = match job.request.mode {
             Mode::Sdf => {
+                let span = crate::trace::span("field: inside");
                 let (grid, on_gpu) = self.inside(job, &tris, lattice, notices).await?;
+                drop(span);
                 (Some(grid), on_gpu)
             }
             _ => (None, false),

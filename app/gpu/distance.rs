@@ -76,7 +76,9 @@ impl GpuDistance {
         gpu.check()?;
         let dims = spec.dims;
         let reach = band.reach(dims);
+        let span = crate::trace::span("field: mark leaves");
         let (slots, leaves) = mark_leaves(triangles, dims, reach);
+        drop(span);
         let max = gpu.max_binding_bytes();
         let needed = [triangles.len() as u64 * 36, slots.len() as u64 * 4];
         if let Some(&big) = needed.iter().find(|&&b| b > max) {
@@ -92,6 +94,7 @@ impl GpuDistance {
             best.extend(range);
         }
         gpu.check()?;
+        let _span = crate::trace::span("field: finish values");
         Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take()))
     }
 
@@ -111,6 +114,7 @@ impl GpuDistance {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
         // Each triangle's first work item: a prefix sum over its layers in this chunk.
+        let span = crate::trace::span("field: work items");
         let layers: Vec<u64> = crate::parallel::install(|| {
             triangles
                 .par_iter()
@@ -134,6 +138,7 @@ impl GpuDistance {
             });
         }
         items.push(total as u32);
+        drop(span);
         let buffer = scoped(device, || {
             let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
             let (x, y) = dispatch_2d((total as u32).div_ceil(WG));

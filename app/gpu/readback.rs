@@ -27,6 +27,7 @@ pub fn watchdog() -> Duration {
 /// happened to finish first, and `MESHVOX_GPU_TIMEOUT=0` is how the fallback path is tried on purpose.
 pub(crate) fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
     let timeout = watchdog();
+    let _span = crate::trace::span("gpu wait");
     if timeout.is_zero() {
         return Err(GpuError::Timeout(0.0));
     }
@@ -191,6 +192,7 @@ async fn map_range(
     rx.await
         .map_err(|_| GpuError::DeviceLost("the device was lost before a readback finished".into()))?
         .map_err(|e| GpuError::Device(format!("cannot map a readback buffer: {e}")))?;
+    let _span = crate::trace::span("map and take");
     take(&slice.get_mapped_range().map_err(|e| GpuError::Device(e.to_string()))?);
     staging.unmap();
     Ok(())

@@ -246,6 +246,7 @@ impl<'a> Run<'a> {
 
     /// Uploads one batch of triangles and runs the set-up and prefix-sum passes over it.
     pub(super) async fn set_up_batch(&mut self, chunk: &[[Vec3; 3]]) -> Result<Batch, GpuError> {
+        let _span = crate::trace::span("set up batch");
         let tri_count = chunk.len() as u32;
         let batch = Batch { tri_count, block_count: tri_count.div_ceil(SCAN_WG) };
         let (gpu, v) = (self.gpu, self.v);
@@ -555,11 +556,15 @@ impl GpuVoxelizer {
         options: &Options,
     ) -> Result<Attempt, GpuError> {
         // The same lattice rounding as the CPU reference (a no-op for `grid_space_triangles` output).
+        let span = crate::trace::span("on lattice");
         let (triangles, lattice) = on_lattice(triangles, spec.dims)?;
+        drop(span);
         if options.sparse && options.mode == Mode::Solid {
             return self.sparse_solid(gpu, &triangles, spec, lattice, options).await;
         }
+        let span = crate::trace::span("allocate");
         let mut run = Run::allocate(self, gpu, &triangles, spec, lattice, options).await?;
+        drop(span);
         if run.sparse.is_some() {
             return run.voxelize_bricks(&triangles).await;
         }

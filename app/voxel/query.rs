@@ -182,10 +182,15 @@ impl Prepared {
         Sides(along_curve(&placed.order, |i, _| self.side(placed.frame[i], sign, winding)))
     }
 
-    /// [`Prepared::query`]'s answers where the nearest triangles were found elsewhere: `found[i]`, `(squared
-    /// distance in the frame, triangle)` as [`super::cpu::query::walk_nearest`] gives it, for point `i`. A
-    /// point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
-    /// may overflow) is walked here.
+    /// [`Prepared::query`]'s answers where the nearest triangles were proposed elsewhere: `found[i]`, `(squared
+    /// distance in the frame, triangle)` as [`super::cpu::query::walk_nearest`] gives it, for point `i`. Each
+    /// proposal seeds this CPU's own walk, which confirms it or finds the triangle the tie rule names (the first in
+    /// the mesh at the least distance in this CPU's f32 arithmetic). Why not take the proposal as it is: a GPU's
+    /// f32 is not the CPU's (fused multiply-adds, WGSL's 2.5-ulp division), so where two triangles are nearly or
+    /// exactly as near (a point nearest a shared vertex or edge) it can name the other one, as an H200 did on 1M
+    /// points around the bunny. Seeded with the nearest triangle, the walk opens only the nodes at that distance.
+    /// A point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
+    /// may overflow) is walked from its neighbour's triangle, as [`Prepared::query`] does.
     pub fn query_found(
         &self,
         points: &[DVec3],
@@ -198,8 +203,10 @@ impl Prepared {
         let nears = along_curve(&placed.order, |i, last| {
             let q = placed.frame[i];
             let near = match found.get(i) {
-                Some(&(_, triangle)) if triangle != NONE && q.abs().max_element() <= FAR => {
-                    self.near_of(points[i], triangle, 0)
+                Some(&(_, triangle))
+                    if triangle != NONE && (triangle as usize) < self.frame.len() && q.abs().max_element() <= FAR =>
+                {
+                    self.nearest(points[i], q, Some(triangle))
                 }
                 _ => self.nearest(points[i], q, *last),
             };

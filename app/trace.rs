@@ -1,0 +1,64 @@
+//! Where a job's wall time goes, for machines with no profiler at hand (a lent GPU machine has no perf and no
+//! Nsight Systems): with `MESHVOX_TRACE=1` in the environment, named spans of host work (waits for the device,
+//! copies out of mapped memory, binning, scattering) add up their time, and [`take`] hands the totals of a job to
+//! the engine, which prints them to stderr after the job. Without the variable a span costs one relaxed load.
+//! (This module sits at the bottom with `parallel`: every layer may use it.)
+
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU8, Ordering};
+use web_time::Instant;
+
+/// 0: not read yet, 1: off, 2: on.
+static STATE: AtomicU8 = AtomicU8::new(0);
+
+/// The totals so far: name → (spans, nanoseconds).
+static TOTALS: Mutex<BTreeMap<&'static str, (u64, u128)>> = Mutex::new(BTreeMap::new());
+
+/// Whether `MESHVOX_TRACE=1` asked for spans (read once per process).
+pub fn enabled() -> bool {
+    match STATE.load(Ordering::Relaxed) {
+        0 => {
+            let on = !cfg!(target_arch = "wasm32") && std::env::var("MESHVOX_TRACE").is_ok_and(|v| v == "1");
+            STATE.store(if on { 2 } else { 1 }, Ordering::Relaxed);
+            on
+        }
+        state => state == 2,
+    }
+}
+
+/// A span of host work, timed from here until it is dropped.
+pub struct Span {
+    name: &'static str,
+    since: Instant,
+}
+
+/// Starts a span named `name` (nothing when tracing is off).
+pub fn span(name: &'static str) -> Option<Span> {
+    enabled().then(|| Span { name, since: Instant::now() })
+}
+
+impl Drop for Span {
+    fn drop(&mut self) {
+        let ns = self.since.elapsed().as_nanos();
+        if let Ok(mut totals) = TOTALS.lock() {
+            let entry = totals.entry(self.name).or_default();
+            entry.0 += 1;
+            entry.1 += ns;
+        }
+    }
+}
+
+/// The totals since the last call, as one line ("gpu wait 12×3.1 ms, …"), and empties them; `None` when tracing is
+/// off or nothing was timed.
+pub fn take() -> Option<String> {
+    if !enabled() {
+        return None;
+    }
+    let totals = std::mem::take(&mut *TOTALS.lock().ok()?);
+    (!totals.is_empty()).then(|| {
+        let parts: Vec<String> =
+            totals.iter().map(|(name, (count, ns))| format!("{name} {count}x {:.3} ms", *ns as f64 / 1e6)).collect();
+        parts.join(", ")
+    })
+}
