@@ -119,8 +119,14 @@ PY
                 "$bin" query "$m" /tmp/points.npy -o "/tmp/query-$b.npz" --backend "$b" --stats-json 2>&1 |
                     tail -n 1 | tee -a "$out/query.json"
             done
-            cmp -s /tmp/query-cpu.npz /tmp/query-gpu.npz && echo "same answers on $(basename "$m")" ||
+            if cmp -s /tmp/query-cpu.npz /tmp/query-gpu.npz; then
+                echo "same answers on $(basename "$m")"
+            else
                 echo "DIFFERENT answers on $(basename "$m")"
+                # What differs, array by array (numpy is on the lent machines' python3).
+                python3 -c 'import numpy as np, sys; a, b = np.load(sys.argv[1]), np.load(sys.argv[2]); [print(k, int((a[k] != b[k]).reshape(len(a[k]), -1).any(axis=1).sum()), "of", len(a[k]), "differ") for k in a.files]' \
+                    /tmp/query-cpu.npz /tmp/query-gpu.npz || true
+            fi
         done
         ;;
     targets)

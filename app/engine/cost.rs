@@ -5,8 +5,9 @@
 //! The model is two sums of measured rates (bench/RESULTS.md, "auto"), both on the host clock:
 //! - the CPU: per triangle set up and walked, per surface voxel written, per grid byte cleared and filled,
 //!   divided among the threads; distance fields and solids as multiples of the surface;
-//! - the GPU: opening it, then reading the grid back to the host (what bounds a whole GPU run today: on an H100
-//!   the bunny's compute passes take 0.3 ms at 1024, its readback and host assembly 0.3 s).
+//! - the GPU: opening it, then reading the grid back to the host (what bounds a whole GPU run: on an H200 the
+//!   bunny's compute passes take 0.6 ms at 1024, the whole run 10.7 ms, nearly all of it the host grid's first
+//!   touch; a solid still reads its dense slabs back).
 //!
 //! `auto` takes the CPU when its estimate is the smaller, without probing, and says so in `backend`.
 
@@ -25,10 +26,15 @@ const CPU_NS_PER_SOLID_VOXEL: f64 = 0.5;
 const VOXELS_PER_AREA: f64 = 1.5;
 /// Opening a GPU: adapter, device and pipelines, with the driver's shader cache warm.
 const GPU_OPEN_MS: f64 = 150.0;
-/// Reading the grid back and assembling it on the host, per byte: ~1.9 ns on lavapipe since the grid is streamed
-/// through two reused staging buffers (0.2 s for the bunny's 103 MB at 1024; it was 2.9 ns there and on the H100
-/// with a staging buffer and a copy of the grid's size), mostly the first touch of the host grid's pages.
+/// Reading a dense solid's or field's slabs back and assembling them on the host, per byte: ~1.9 ns on lavapipe
+/// since the grid is streamed through two reused staging buffers (0.2 s for the bunny's 103 MB at 1024; it was
+/// 2.9 ns there and on the H100 with a staging buffer and a copy of the grid's size), mostly the first touch of the
+/// host grid's pages.
 const GPU_NS_PER_GRID_BYTE: f64 = 2.0;
+/// A surface grid made from leaves on a hardware GPU, per byte of the grid: only the leaves cross the bus, and the
+/// host scatters them on all its threads (the bunny on an H200's machine: 10.7 ms for 99 MB at 1024, 69 ms for 788
+/// MB at 2048). `auto` prices only hardware adapters: it declines a software one, whose grids keep the slab path.
+const GPU_NS_PER_SURFACE_BYTE: f64 = 0.1;
 
 /// The two estimates, in milliseconds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,7 +60,11 @@ impl Job<'_> {
             Mode::Sdf | Mode::Udf => 20.0 * surface,
         };
         let cpu_ms = (work / threads.max(1) as f64 + bytes * CPU_NS_PER_GRID_BYTE) / 1e6;
-        let gpu_ms = GPU_OPEN_MS + bytes * GPU_NS_PER_GRID_BYTE / 1e6;
+        let per_byte = match self.request.mode {
+            Mode::Surface | Mode::Surface6 => GPU_NS_PER_SURFACE_BYTE,
+            _ => GPU_NS_PER_GRID_BYTE,
+        };
+        let gpu_ms = GPU_OPEN_MS + bytes * per_byte / 1e6;
         Costs { cpu_ms, gpu_ms, threads }
     }
 }

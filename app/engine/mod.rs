@@ -31,7 +31,7 @@ mod report;
 
 pub use job::{Job, Request};
 #[cfg(not(target_arch = "wasm32"))]
-pub use query::{AUTO_GPU_POINTS, Queried, query_backend};
+pub use query::{Queried, query_backend};
 #[cfg(not(target_arch = "wasm32"))]
 pub use queue::{default_workers, work_queue};
 pub use report::{Instances, Notice, Report, Voxelized};

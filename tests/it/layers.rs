@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 
 /// The top-level modules from the bottom layer up (`names`, the vocabulary macro, under everything); `cli` stands
 /// for the binary (`main.rs` and `cli/`). The Python binding is a client like the viewer, and uses no drawing.
-const LAYERS: [&str; 11] =
-    ["names", "memory", "parallel", "mesh", "voxel", "gpu", "engine", "render", "ui", "python", "cli"];
+const LAYERS: [&str; 12] =
+    ["names", "memory", "parallel", "trace", "mesh", "voxel", "gpu", "engine", "render", "ui", "python", "cli"];
 
 type Module = Vec<String>;
 

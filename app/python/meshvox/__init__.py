@@ -495,8 +495,8 @@ def query(mesh: Any, points: Any, *, sign: str = "winding", backend: str = "auto
     inside; right on open, cracked and self-intersecting meshes), the winding number, the nearest point, its
     triangle and barycentric coordinates. See :class:`Query` and docs/training.md for what "exact" means here.
 
-    ``backend``: where the nearest triangles are found: ``"gpu"``, ``"cpu"``, or ``"auto"`` (the GPU where
-    there is a hardware adapter and at least 100,000 points). The signs are decided on the CPU with exact
+    ``backend``: where the nearest triangles are found: ``"gpu"``, ``"cpu"``, or ``"auto"`` (the CPU: on an
+    H200 the GPU's search did not beat it, docs/training.md). The signs are decided on the CPU with exact
     predicates on every backend, and every backend gives the same answers; ``.backend`` says where they were
     made. The GIL is released meanwhile.
     """

@@ -18,9 +18,64 @@ pub fn reach_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
     (lo, hi)
 }
 
-/// Barycentric weights of the point of triangle `abc` nearest `p` (Ericson, Real-Time Collision Detection §5.1.5,
-/// by Voronoi regions). A degenerate triangle, whose regions are not defined, answers with its nearest vertex.
+/// Below this squared sine of the angle at `a` (`|ab × ac|²` against `|ab|²|ac|²`: an angle under 1.8°) a triangle
+/// is thin, and [`closest_barycentric`] measures its edges too.
+pub const THIN: f32 = 1.0 / 1024.0;
+
+/// Barycentric weights of the point of triangle `abc` nearest `p`: by Voronoi regions ([`voronoi_barycentric`]),
+/// and for a thin triangle the nearer of that point (where it is one of the triangle's) and the nearest point of
+/// its edges ([`nearest_on_edges`]). Why: a thin triangle's regions hang on products that rounding decides (exactly
+/// 0 for a segment), and a GPU's f32 (fused multiply-adds, WGSL's 2.5-ulp division) decides them otherwise than
+/// the CPU's; an H200 then measured a segment 6% too far. Every candidate is a point of the triangle, so the nearer
+/// is never nearer than the truth, and for a segment (a degenerate triangle) the edges are the truth.
 pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let w = voronoi_barycentric(p, a, b, c);
+    let (ab, ac) = (b - a, c - a);
+    let n = Vec3::new(ab.y * ac.z - ab.z * ac.y, ab.z * ac.x - ab.x * ac.z, ab.x * ac.y - ab.y * ac.x);
+    if dot3(n, n) > THIN * dot3(ab, ab) * dot3(ac, ac) {
+        return w;
+    }
+    let edges = nearest_on_edges(p, a, b, c);
+    match w.x >= 0.0 && w.y >= 0.0 && w.z >= 0.0 && offset2(p, a, b, c, w) <= offset2(p, a, b, c, edges) {
+        true => w,
+        false => edges,
+    }
+}
+
+/// The squared offset from `p` to the point of weights `w` of triangle `abc`, as [`point_distance2`] takes it.
+pub fn offset2(p: Vec3, a: Vec3, b: Vec3, c: Vec3, w: Vec3) -> f32 {
+    let d = (a - p) + (b - a) * w.y + (c - a) * w.z;
+    dot3(d, d)
+}
+
+/// The weight along segment `a`→`b` of its point nearest `p` (0 for a segment of no length).
+pub fn segment_weight(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let length2 = dot3(ab, ab);
+    match length2 > 0.0 {
+        true => (dot3(p - a, ab) / length2).clamp(0.0, 1.0),
+        false => 0.0,
+    }
+}
+
+/// Weights of the nearest point to `p` on the edges of triangle `abc` (the first edge of the least offset: ab, ac,
+/// bc).
+pub fn nearest_on_edges(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let (s, t, u) = (segment_weight(p, a, b), segment_weight(p, a, c), segment_weight(p, b, c));
+    let mut best = Vec3::new(1.0 - s, s, 0.0);
+    let mut least = offset2(p, a, b, c, best);
+    for w in [Vec3::new(1.0 - t, 0.0, t), Vec3::new(0.0, 1.0 - u, u)] {
+        let d2 = offset2(p, a, b, c, w);
+        if d2 < least {
+            (best, least) = (w, d2);
+        }
+    }
+    best
+}
+
+/// Barycentric weights of the point of triangle `abc` nearest `p` by Voronoi regions (Ericson, Real-Time Collision
+/// Detection §5.1.5). A degenerate triangle, whose regions are not defined, answers with its nearest vertex.
+pub fn voronoi_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     let ab = b - a;
     let ac = c - a;
     let ap = p - a;
@@ -82,6 +137,5 @@ fn nearest_vertex(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 /// the distance and the edges rather than to the coordinates.
 pub fn point_distance2(p: Vec3, t: [Vec3; 3]) -> f32 {
     let w = closest_barycentric(p, t[0], t[1], t[2]);
-    let d = (t[0] - p) + (t[1] - t[0]) * w.y + (t[2] - t[0]) * w.z;
-    dot3(d, d)
+    offset2(p, t[0], t[1], t[2], w)
 }
