@@ -294,6 +294,7 @@ impl OnGpu {
             true => self.grid_in_group(tris, spec, options).await,
             false => {
                 let _turn = self.turn().await;
+                let _span = crate::trace::span("gpu voxelize");
                 self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await
             }
         };
@@ -321,7 +322,9 @@ impl OnGpu {
         // In the browser wgpu's handles are not `Send` and the page has one thread: the `Arc` is only shared there.
         #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
         let result = Arc::new(Mutex::new(None));
+        let span = crate::trace::span("join a group");
         let mine = Waiting { triangles: tris.to_vec(), spec, options, result: result.clone() };
+        drop(span);
         lock(&self.waiting).push(mine);
         let _turn = self.turn().await;
         if let Some(made) = lock(&result).take() {
@@ -333,7 +336,9 @@ impl OnGpu {
             .iter()
             .map(|w| GroupJob { triangles: &w.triangles, spec: w.spec, options: w.options.clone() })
             .collect();
+        let span = crate::trace::span("gpu voxelize");
         let outputs = self.voxelizer().voxelize_group_async(&self.gpu, &jobs).await;
+        drop(span);
         for (waiting, output) in group.iter().zip(outputs) {
             *lock(&waiting.result) = Some(output);
         }

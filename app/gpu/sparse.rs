@@ -16,7 +16,7 @@ use super::util::scoped;
 use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
 use super::{Gpu, GpuError};
 use crate::voxel::cpu::groups::GroupOutput;
-use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaves};
+use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaf};
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::solid_sparse::{fill_sparse, solid_from_groups};
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
@@ -55,6 +55,9 @@ pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Bric
     }
     bins
 }
+
+/// The key of an empty slot's entry in a sparse run's list of leaves: above every leaf's, so it sorts last.
+const EMPTY: u64 = u64::MAX;
 
 /// Whether a solid's inside is made by the groups on the GPU: as `asked`, else on hardware adapters (on a software
 /// one the groups' barriers cost more than the host's fill, docs/gpu.md).
@@ -167,7 +170,16 @@ impl Run<'_> {
         let mut queue: VecDeque<(Brick, Vec<u32>)> =
             plan.bricks.iter().copied().zip(bins).filter(|(_, bin)| !bin.is_empty()).collect();
         self.sparse = Some(plan);
+        // Room for the leaves, reserved once (address space: pages are touched only as leaves arrive): a surface
+        // has about one leaf per 44 voxels² of its area (the bunny at 1024 and at 16384), so a 32nd leaves margin.
         let mut leaves: Vec<(u64, LeafMask)> = Vec::new();
+        if self.options.sparse {
+            let area: f64 = crate::parallel::install(|| {
+                use rayon::prelude::*;
+                triangles.par_iter().map(|t| f64::from((t[1] - t[0]).cross(t[2] - t[0]).length()) / 2.0).sum()
+            });
+            leaves.reserve((area / 32.0) as usize + 4096);
+        }
         // A dense grid takes the slots' rows as they come; a sparse one their masks.
         let span = crate::trace::span("host grid");
         let mut dense = match self.options.sparse {
@@ -216,6 +228,7 @@ impl Run<'_> {
                     use rayon::slice::ParallelSliceMut;
                     leaves.par_sort_unstable_by_key(|(key, _)| *key)
                 });
+                leaves.truncate(leaves.partition_point(|(key, _)| *key != EMPTY));
                 Some(Box::new(SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }.prune()))
             }
         };
@@ -250,6 +263,7 @@ impl Run<'_> {
         let mut set_up = None;
         for (i, part) in batches.iter().enumerate() {
             let batch = self.set_up_batch(part).await?;
+            let _span = crate::trace::span("mark brick");
             self.mark_brick(pipelines, batch, i == 0).await?;
             set_up = Some(batch);
         }
@@ -260,7 +274,9 @@ impl Run<'_> {
                 _ => self.set_up_batch(part).await?,
             };
             let last = i + 1 == batches.len();
+            let span = crate::trace::span("write brick");
             self.write_brick(pipelines, batch, last).await?;
+            drop(span);
             if !last && self.brick_counts(false).await?.0 {
                 return Ok(BrickEnd::Overflow);
             }
@@ -284,15 +300,17 @@ impl Run<'_> {
         stream_buffer(&gpu.device, &gpu.queue, &self.v.streams, &self.buffers.slab, start, bytes, slot, |_, part| {
             match dense.as_deref_mut() {
                 Some(grid) => scatter_rows(&brick, bytemuck::cast_slice(part), grid),
-                // In parallel: at 16384 the bunny's 14 million leaves took 0.84 s on one thread of an H200's host.
+                // In parallel, one entry per slot (an empty one keyed EMPTY, dropped after the sort), straight into
+                // the room reserved for them: at 16384 the bunny's 14 million leaves took 0.9 s on one thread of an
+                // H200's host, most of it the list's growth (copies and first touches).
                 None => crate::parallel::install(|| {
                     use rayon::prelude::*;
                     let slots: &[u32] = bytemuck::cast_slice(part);
-                    leaves.par_extend(slots.par_chunks(SLOT_WORDS as usize * 1024).flat_map_iter(|slots| {
-                        let mut some = Vec::with_capacity(1024);
-                        slot_leaves(&brick, slots, |key, mask| some.push((key, mask)));
-                        some
-                    }))
+                    leaves.par_extend(
+                        slots
+                            .par_chunks_exact(SLOT_WORDS as usize)
+                            .map(|slot| slot_leaf(&brick, slot).unwrap_or((EMPTY, [0; 8]))),
+                    )
                 }),
             }
         })

@@ -101,17 +101,25 @@ pub fn finish_leaves(table: &mut [u32], slots: &mut [u32], count: u32) {
 /// The leaves of finished slots as the sparse grid holds them (`(leaf_key, mask)`), the empty ones (marked for an
 /// unsure voxel the exact test then left clear) dropped. The host reads the GPU's slots with this too.
 pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafMask)) {
-    let size = (brick.hi - brick.lo) / 8;
     for slot in slots.chunks_exact(SLOT_WORDS as usize) {
-        let mask: LeafMask = std::array::from_fn(|x| u64::from(slot[2 * x]) | u64::from(slot[2 * x + 1]) << 32);
-        if mask == [0; 8] {
-            continue;
+        if let Some((key, mask)) = slot_leaf(brick, slot) {
+            push(key, mask);
         }
-        let i = slot[16];
-        let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
-        let origin = brick.lo + l * 8;
-        push(leaf_key(origin.x, origin.y, origin.z), mask);
     }
+}
+
+/// One finished slot of `brick` as a leaf (its key and mask), or `None` where its mask is empty (a leaf marked for
+/// an unsure voxel the exact test left clear).
+pub fn slot_leaf(brick: &Brick, slot: &[u32]) -> Option<(u64, LeafMask)> {
+    let size = (brick.hi - brick.lo) / 8;
+    let mask: LeafMask = std::array::from_fn(|x| u64::from(slot[2 * x]) | u64::from(slot[2 * x + 1]) << 32);
+    if mask == [0; 8] {
+        return None;
+    }
+    let i = slot[16];
+    let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
+    let origin = brick.lo + l * 8;
+    Some((leaf_key(origin.x, origin.y, origin.z), mask))
 }
 
 /// Scatters finished slots whose rows were left as bytes (a dense grid's: `ROW_BYTES` in the shader) into `grid`:
