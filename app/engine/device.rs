@@ -312,7 +312,8 @@ impl OnGpu {
         let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.instances);
         let traffic = Some((out.traffic.upload, out.traffic.readback));
         let group = Some(out.group).filter(|&n| n > 0);
-        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group }))
+        let voxels = out.voxels;
+        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group, voxels }))
     }
 
     /// A small grid made in a group with the others waiting for the device (`gpu/group.rs`): it waits in line for

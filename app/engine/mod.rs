@@ -156,6 +156,8 @@ struct GridStage {
     instances: Option<Instances>,
     /// Grids made in the same GPU submission, this one's included.
     group: Option<u32>,
+    /// The set voxels, where they were counted as the grid was made (else the report counts the grid).
+    voxels: Option<u64>,
 }
 
 /// The colour stage's result, from the GPU or the CPU.
@@ -377,7 +379,7 @@ impl Engine {
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
             meshes_in_submission: made.group,
-            ..self.grid_report(job, &made.grid)
+            ..self.grid_report(job, &made.grid, made.voxels)
         };
         let colours = colours.map(|c| c.colours);
         if let Some(spans) = crate::trace::take() {
@@ -387,7 +389,7 @@ impl Engine {
     }
 
     /// The report's fields every run fills the same way: the job's mesh, grid and mode, and the engine's set-up.
-    fn grid_report(&self, job: &Job, grid: &Grid) -> Report {
+    fn grid_report(&self, job: &Job, grid: &Grid, voxels: Option<u64>) -> Report {
         let (spec, mesh) = (job.spec, job.mesh);
         Report {
             mesh: job.name.to_string(),
@@ -399,7 +401,7 @@ impl Engine {
             grid: GridKind::of(job.sparse).name().to_string(),
             leaves: grid.sparse().map(|g| g.leaves.len() as u64),
             tiles: grid.sparse().map(|g| g.tiles.len() as u64),
-            voxels: grid.count(),
+            voxels: voxels.unwrap_or_else(|| grid.count()),
             mode: job.request.mode.name().to_string(),
             threads: parallel::threads(),
             setup_ms: self.setup_ms,
@@ -435,7 +437,7 @@ impl Engine {
             voxelize_ms,
             host_ms: voxelize_ms,
             total_ms: voxelize_ms,
-            ..self.grid_report(job, &grid)
+            ..self.grid_report(job, &grid, None)
         };
         Ok(Voxelized { grid, field: None, colours, labels: None, instances: None, report, notices })
     }
@@ -469,7 +471,16 @@ impl Engine {
         };
         let exact_tests = Some(stats.exact_tests);
         let backend = self.cpu_label();
-        Ok(GridStage { grid, backend, gpu_ms: None, exact_tests, traffic: None, instances: None, group: None })
+        Ok(GridStage {
+            grid,
+            backend,
+            gpu_ms: None,
+            exact_tests,
+            traffic: None,
+            instances: None,
+            group: None,
+            voxels: None,
+        })
     }
 
     /// The distance field of the job's mode (`Sdf` or `Udf`) and band, from the mesh's grid-space triangles,

@@ -172,6 +172,7 @@ async fn read_back_group(gpu: &Gpu, runs: &mut [Run<'_>], timed: &[u64]) -> Resu
             inside_on_host: false,
             traffic: run.traffic,
             group: members as u32,
+            voxels: None,
         }));
     }
     Ok(attempts)

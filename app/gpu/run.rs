@@ -487,6 +487,7 @@ impl<'a> Run<'a> {
             inside_on_host: false,
             traffic: self.traffic,
             group: 1,
+            voxels: None,
         }))
     }
 }

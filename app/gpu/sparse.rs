@@ -187,7 +187,7 @@ impl Run<'_> {
             true => None,
         };
         drop(span);
-        let mut bricks = 0;
+        let (mut bricks, mut voxels) = (0, 0);
         while let Some((brick, bin)) = queue.pop_front() {
             bricks += 1;
             // Every triangle in the brick (one brick over the whole grid): no copy.
@@ -195,7 +195,7 @@ impl Run<'_> {
                 true => triangles.into(),
                 false => bin.iter().map(|&t| triangles[t as usize]).collect(),
             };
-            match self.brick(pipelines, brick, &chunk, &mut leaves, dense.as_mut()).await? {
+            match self.brick(pipelines, brick, &chunk, &mut leaves, dense.as_mut(), &mut voxels).await? {
                 BrickEnd::Done => {}
                 BrickEnd::Overflow => return Ok(Attempt::Overflow),
                 BrickEnd::Split => {
@@ -232,9 +232,9 @@ impl Run<'_> {
                 Some(Box::new(SparseGrid { spec: self.spec, leaves, tiles: Vec::new() }.prune()))
             }
         };
-        let grid = dense;
+        let counted = dense.is_some().then_some(voxels);
         Ok(Attempt::Done(GpuOutput {
-            grid,
+            grid: dense,
             sparse,
             instances: None,
             gpu_ms: self.gpu.timestamps.then_some(self.gpu_ms),
@@ -246,10 +246,12 @@ impl Run<'_> {
             inside_on_host: false,
             traffic: self.traffic,
             group: 1,
+            voxels: counted,
         }))
     }
 
-    /// One brick's chain: mark (every batch), walk and exact (every batch), finish, read back.
+    /// One brick's chain: mark (every batch), walk and exact (every batch), finish, read back (a dense grid's
+    /// scattered voxels counted into `voxels`).
     async fn brick(
         &mut self,
         pipelines: &LeafPipelines,
@@ -257,6 +259,7 @@ impl Run<'_> {
         chunk: &[[Vec3; 3]],
         leaves: &mut Vec<(u64, LeafMask)>,
         mut dense: Option<&mut VoxelGrid>,
+        voxels: &mut u64,
     ) -> Result<BrickEnd, GpuError> {
         self.brick = Some(brick);
         let batches: Vec<&[[Vec3; 3]]> = chunk.chunks(self.batch).collect();
@@ -299,7 +302,7 @@ impl Run<'_> {
         let _span = crate::trace::span("stream slots");
         stream_buffer(&gpu.device, &gpu.queue, &self.v.streams, &self.buffers.slab, start, bytes, slot, |_, part| {
             match dense.as_deref_mut() {
-                Some(grid) => scatter_rows(&brick, bytemuck::cast_slice(part), grid),
+                Some(grid) => *voxels += scatter_rows(&brick, bytemuck::cast_slice(part), grid),
                 // In parallel, one entry per slot (an empty one keyed EMPTY, dropped after the sort), straight into
                 // the room reserved for them: at 16384 the bunny's 14 million leaves took 0.9 s on one thread of an
                 // H200's host, most of it the list's growth (copies and first touches).

@@ -376,7 +376,9 @@ fn small_device_limits_refuse_cleanly_or_work_in_slabs() {
     let leaves = Options { dense_from_leaves: Some(true), ..options.clone() };
     let out = v.voxelize(&small, &tris, too_big, &leaves).expect("a surface from leaves");
     assert!(out.slabs > 100, "{} bricks", out.slabs);
-    assert_same_grid(&out.grid.expect("grid"), &cpu_grid(&tris, too_big), "knot@1200 on 64 KiB buffers");
+    let want = cpu_grid(&tris, too_big);
+    assert_eq!(out.voxels, Some(want.count()), "knot@1200: the voxels counted in {} bricks", out.slabs);
+    assert_same_grid(&out.grid.expect("grid"), &want, "knot@1200 on 64 KiB buffers");
     let e = v.voxelize(&small, &tris, too_big, &solid).err().expect("one layer cannot fit");
     assert!(matches!(e, meshvox::gpu::GpuError::TooLarge { .. }), "{e}");
     assert!(e.to_string().contains("one z-layer") && e.to_string().contains("at most 64.0 KiB"), "{e}");
@@ -511,8 +513,11 @@ fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_t
                     continue;
                 }
                 let dense = Options { sparse: false, dense_from_leaves: Some(true), ..options };
-                let grid = v.voxelize(gpu, tris, *s, &dense).unwrap_or_else(|e| panic!("{name}: {e}")).grid;
-                assert!(grid == Some(cpu.to_dense().expect("dense")), "{what}: the dense grid from leaves differs");
+                let out = v.voxelize(gpu, tris, *s, &dense).unwrap_or_else(|e| panic!("{name}: {e}"));
+                let want = cpu.to_dense().expect("dense");
+                // The voxels counted as the leaves were scattered (the report's count, without reading the grid).
+                assert_eq!(out.voxels, Some(want.count()), "{what}: the voxels counted on the way in");
+                assert!(out.grid == Some(want), "{what}: the dense grid from leaves differs");
                 let tiling = meshvox::voxel::sparse::Brick::tiling(s.dims, 64).1.len() as u32;
                 split |= limits == "tiny" && out.slabs > tiling;
             }

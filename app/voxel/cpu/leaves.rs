@@ -126,11 +126,13 @@ pub fn slot_leaf(brick: &Brick, slot: &[u32]) -> Option<(u64, LeafMask)> {
 /// row byte `y * 8 + z` of a leaf holds its voxels `x0..x0 + 8` of row `(y, z)`, which is one byte of the grid's
 /// row (`x0` is a multiple of 8), so each is one OR.
 ///
+/// Returns the voxels it set (each row byte lands on bits no other slot's does, in a grid that was clear).
+///
 /// In parallel, by bands of eight z-layers: a leaf lies in one band, so each band's words are written by one
 /// thread. Why: on a real GPU this scatter is the dense run's host work, and its cost is the first touch of the
 /// grid's pages (one fault per 4 KiB), which one thread paid alone (59 ms of the bunny's 67 ms at 1024 on an
 /// H200) where the CPU backend spreads it over all of them.
-pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::VoxelGrid) {
+pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::VoxelGrid) -> u64 {
     use rayon::prelude::*;
     let size = (brick.hi - brick.lo) / 8;
     let (dims, wpr) = (grid.spec.dims, grid.spec.words_per_row());
@@ -153,25 +155,34 @@ pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::Voxel
         next[b] += 1;
     }
     let first = brick.lo.z as usize / 8 * band_words;
-    let Some(words) = grid.words.get_mut(first..) else { return };
+    let Some(words) = grid.words.get_mut(first..) else { return 0 };
     crate::parallel::install(|| {
-        words.par_chunks_mut(band_words).take(size.z as usize).enumerate().for_each(|(b, band)| {
-            for &i in &order[starts[b]..starts[b + 1]] {
-                let slot = slots[i as usize];
-                let i = slot[16];
-                let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
-                let origin = brick.lo + l * 8;
-                for r in 0..64u32 {
-                    let byte = slot[(r / 4) as usize] >> (r % 4 * 8) & 0xff;
-                    let (y, z) = (origin.y + r / 8, origin.z + r % 8);
-                    if byte != 0 && y < dims.y && z < dims.z {
-                        let word = ((z % 8) as usize * dims.y as usize + y as usize) * wpr + (origin.x / 32) as usize;
-                        band[word] |= byte << (origin.x % 32);
+        words
+            .par_chunks_mut(band_words)
+            .take(size.z as usize)
+            .enumerate()
+            .map(|(b, band)| {
+                let mut set = 0u64;
+                for &i in &order[starts[b]..starts[b + 1]] {
+                    let slot = slots[i as usize];
+                    let i = slot[16];
+                    let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
+                    let origin = brick.lo + l * 8;
+                    for r in 0..64u32 {
+                        let byte = slot[(r / 4) as usize] >> (r % 4 * 8) & 0xff;
+                        let (y, z) = (origin.y + r / 8, origin.z + r % 8);
+                        if byte != 0 && y < dims.y && z < dims.z {
+                            let word =
+                                ((z % 8) as usize * dims.y as usize + y as usize) * wpr + (origin.x / 32) as usize;
+                            band[word] |= byte << (origin.x % 32);
+                            set += u64::from(byte.count_ones());
+                        }
                     }
                 }
-            }
-        })
-    });
+                set
+            })
+            .sum()
+    })
 }
 
 /// The GPU's chain for one brick (with a slot for every leaf), on the host, in the shader's order: `walk(mark, sink)` runs the brick's surface
