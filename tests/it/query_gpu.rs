@@ -14,7 +14,7 @@ use meshvox::mesh::{self, Mesh};
 use meshvox::voxel::bvh::Bvh;
 use meshvox::voxel::cpu::nearest::point_distance2;
 use meshvox::voxel::cpu::query::{NONE, walk_nearest};
-use meshvox::voxel::query::{Prepared, Sign};
+use meshvox::voxel::query::{Answers, Prepared, Sign};
 use meshvox::voxel::sample::SampleRequest;
 
 /// Frame points about `tris`: uniform in the padded box, on every vertex and edge midpoint, on lattice points
@@ -133,16 +133,24 @@ fn assert_same_answers(mesh: &Mesh, points: &[DVec3], gpu: &Engine, cpu: &Engine
     assert!(on_gpu.notices.is_empty(), "{what}: {:?}", on_gpu.notices);
     let (g, c) = (&on_gpu.answers, &on_cpu.answers);
     assert_eq!(g.inside, c.inside, "{what}: the sides are the CPU's on both");
+    assert_answers_agree(mesh, points, g, c, |i| format!("{what}: point {i}"));
+}
+
+/// Where the nearest distance in the query frame is not 0, every answer of `a` (distance, triangle, nearest point,
+/// barycentric) equals `c`'s; on the surface two triangles through the point are both first for their walk, and
+/// the distances agree within 2e-7 of the mesh's size.
+fn assert_answers_agree(mesh: &Mesh, points: &[DVec3], a: &Answers, c: &Answers, what: impl Fn(usize) -> String) {
     let size = mesh.bounds().expect("bounds").extent().max_element();
     for (i, p) in points.iter().enumerate() {
         if c.distance[i].abs() as f64 > 1e-6 * size {
             assert_eq!(
-                (g.distance[i], g.triangle[i], g.closest[i], g.barycentric[i]),
+                (a.distance[i], a.triangle[i], a.closest[i], a.barycentric[i]),
                 (c.distance[i], c.triangle[i], c.closest[i], c.barycentric[i]),
-                "{what}: point {i} {p:?}"
+                "{} {p:?}",
+                what(i)
             );
         } else {
-            assert!((g.distance[i] - c.distance[i]).abs() as f64 <= 2e-7 * size, "{what}: point {i} on the surface");
+            assert!((a.distance[i] - c.distance[i]).abs() as f64 <= 2e-7 * size, "{} on the surface", what(i));
         }
     }
 }
@@ -229,23 +237,8 @@ fn a_proposed_triangle_is_confirmed_by_the_cpus_walk() {
         let sides = prepared.sides(&placed, Sign::Winding, false);
         let answers = prepared.query_found(&points, &placed, &found, sides, Sign::Winding, false);
         assert_eq!(answers.inside, cpu.inside, "{name}: sides");
-        // On the surface (distance 0 in the frame) two triangles through the point are both first for their walk,
-        // as in the engine's test above; there the distances agree.
-        let size = mesh.bounds().expect("bounds").extent().max_element();
-        for (i, (p, &(_, proposed))) in points.iter().zip(&found).enumerate() {
-            let (a, c) = (&answers, &cpu);
-            if c.distance[i].abs() as f64 > 1e-6 * size {
-                assert_eq!(
-                    (a.distance[i], a.triangle[i], a.closest[i], a.barycentric[i]),
-                    (c.distance[i], c.triangle[i], c.closest[i], c.barycentric[i]),
-                    "{name}: point {i} {p:?}, triangle {proposed} proposed"
-                );
-            } else {
-                assert!(
-                    (a.distance[i] - c.distance[i]).abs() as f64 <= 2e-7 * size,
-                    "{name}: point {i} on the surface"
-                );
-            }
-        }
+        assert_answers_agree(mesh, &points, &answers, &cpu, |i| {
+            format!("{name}: point {i}, triangle {} proposed", found[i].1)
+        });
     }
 }
