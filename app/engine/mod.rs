@@ -217,12 +217,25 @@ impl Engine {
 
     /// Under `auto`, the CPU engine for a job the CPU finishes before a GPU could open and read back ([`cost`]),
     /// with `backend` saying why; `None` where a GPU may pay for itself (or `backend` is not `auto`). Nothing is
-    /// probed: a client that keeps its engines open (Python) asks this first for every job.
+    /// probed: a client that keeps its engines open (Python) asks this first for every job, and
+    /// [`Engine::priced_out_open`] once its GPU is open.
     pub fn priced_out(backend: Backend, job: &Job) -> Option<Engine> {
+        Engine::priced(backend, job, false)
+    }
+
+    /// [`Engine::priced_out`] for a client whose GPU engine is open already: the job is priced without the
+    /// opening, which is paid.
+    pub fn priced_out_open(backend: Backend, job: &Job) -> Option<Engine> {
+        Engine::priced(backend, job, true)
+    }
+
+    fn priced(backend: Backend, job: &Job, open: bool) -> Option<Engine> {
         if backend != Backend::Auto || auto_probes_always() {
             return None;
         }
-        job.costs(parallel::threads()).cpu_reason().map(|reason| Engine::cpu(Some(reason)))
+        let costs = job.costs(parallel::threads());
+        let costs = if open { costs.opened() } else { costs };
+        costs.cpu_reason().map(|reason| Engine::cpu(Some(reason)))
     }
 
     /// What opening noticed, for the client to show once.

@@ -134,7 +134,7 @@ impl<'a> Run<'a> {
             let setups = storage_buffer(device, "setups", batch as u64 * SETUP_BYTES, none);
             let offsets = storage_buffer(device, "offsets", batch as u64 * 4, none);
             let block_sums = storage_buffer(device, "block sums", (blocks_max + 1) * 4, none);
-            let kept = sparse.as_ref().and_then(|_| v.take_slab(slab_bytes));
+            let kept = sparse.as_ref().and_then(|plan| v.take_slab(slab_bytes, plan.slot_base));
             let slab =
                 kept.unwrap_or_else(|| storage_buffer(device, "grid slab", slab_bytes, wgpu::BufferUsages::COPY_SRC));
             let dispatch = storage_buffer(device, "dispatch", 48, wgpu::BufferUsages::INDIRECT);

@@ -178,7 +178,8 @@ impl Run<'_> {
                 use rayon::prelude::*;
                 triangles.par_iter().map(|t| f64::from((t[1] - t[0]).cross(t[2] - t[0]).length()) / 2.0).sum()
             });
-            leaves.reserve((area / 32.0) as usize + 4096);
+            // Tried: where the system refuses the address space (strict overcommit), the list grows as it did.
+            let _ = leaves.try_reserve((area / 32.0) as usize + 4096);
         }
         // A dense grid takes the slots' rows as they come; a sparse one their masks.
         let span = crate::trace::span("host grid");
@@ -217,8 +218,8 @@ impl Run<'_> {
         }
         self.slabs = bricks;
         // Every brick finished, so the table is clean for the next run.
-        if !self.sparse.as_ref().is_some_and(|plan| plan.dirty) {
-            v.keep_slab(&self.buffers.slab);
+        if let Some(plan) = self.sparse.as_ref().filter(|plan| !plan.dirty) {
+            v.keep_slab(&self.buffers.slab, plan.slot_base);
         }
         let sparse = match dense {
             Some(_) => None,

@@ -172,8 +172,9 @@ pub struct GpuVoxelizer {
     pub(super) leaves: [OnceLock<LeafPipelines>; 2],
     /// The staging buffers dense grids are read back through, kept between runs.
     pub(super) streams: super::readback::StreamPool,
-    /// The last sparse run's leaf table and slots, kept for the next run of the same size ([`GpuVoxelizer::take_slab`]).
-    pub(super) kept_slab: std::sync::Mutex<Option<wgpu::Buffer>>,
+    /// The last sparse run's leaf table and slots, and where its slots begin, kept for the next run of the same
+    /// layout ([`GpuVoxelizer::take_slab`]).
+    pub(super) kept_slab: std::sync::Mutex<Option<(wgpu::Buffer, u32)>>,
 }
 
 impl GpuVoxelizer {
@@ -263,19 +264,21 @@ impl GpuVoxelizer {
         self.compactor.get_or_init(|| Compactor::new(gpu))
     }
 
-    /// The leaf table and slots a finished sparse run kept ([`GpuVoxelizer::keep_slab`]), if it is `bytes` long.
-    /// Why keep one: a dense grid at 2048 on a real GPU takes a 200 MB buffer, whose allocation took 6 ms of the
-    /// bunny's 69 ms on an H200 (and its release more), for every run of a batch or a Python loop. A kept table
-    /// is clean: `finish_leaves` set every entry it used back to 0.
-    pub(super) fn take_slab(&self, bytes: u64) -> Option<wgpu::Buffer> {
+    /// The leaf table and slots a finished sparse run kept ([`GpuVoxelizer::keep_slab`]), if it is `bytes` long
+    /// with its slots from word `slot_base`. Why keep one: a dense grid at 2048 on a real GPU takes a 200 MB buffer,
+    /// whose allocation took 6 ms of the bunny's 69 ms on an H200, for every run of a batch or a Python loop. A kept
+    /// table is clean (`finish_leaves` set every entry it used back to 0; a claimed slot is cleared when claimed),
+    /// but only for a table of the same length: a longer one would take old slots for entries.
+    pub(super) fn take_slab(&self, bytes: u64, slot_base: u32) -> Option<wgpu::Buffer> {
         let mut kept = self.kept_slab.lock().ok()?;
-        kept.take_if(|buffer| buffer.size() == bytes)
+        kept.take_if(|(buffer, base)| buffer.size() == bytes && *base == slot_base).map(|(buffer, _)| buffer)
     }
 
-    /// Keeps `buffer`, a finished sparse run's table and slots (its table clean), for the next run.
-    pub(super) fn keep_slab(&self, buffer: &wgpu::Buffer) {
+    /// Keeps `buffer`, a finished sparse run's table and slots (its table clean, its slots from `slot_base`), for
+    /// the next run.
+    pub(super) fn keep_slab(&self, buffer: &wgpu::Buffer, slot_base: u32) {
         if let Ok(mut kept) = self.kept_slab.lock() {
-            *kept = Some(buffer.clone());
+            *kept = Some((buffer.clone(), slot_base));
         }
     }
 

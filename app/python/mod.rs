@@ -195,8 +195,13 @@ fn voxelize_one(
     let (name, mesh) = input.load()?;
     let request = Request { progress: Some(progress), cancel: Some(cancel), ..request };
     let job = Job::plan(&name, &mesh, &request).map_err(Failure::Engine)?;
-    // Priced first, as the CLI does: a job the CPU finishes sooner opens (or probes) no GPU.
-    let voxelized = match Engine::priced_out(backend, &job) {
+    // Priced first, as the CLI does: a job the CPU finishes sooner opens (or probes) no GPU. Once this process's
+    // engine has a GPU open, its opening is paid and no longer in the price.
+    let priced = match process::gpu_open(backend) {
+        true => Engine::priced_out_open(backend, &job),
+        false => Engine::priced_out(backend, &job),
+    };
+    let voxelized = match priced {
         Some(cpu) => cpu.run(&job),
         None => process::engine(backend).map_err(Failure::Engine)?.run(&job),
     };

@@ -64,6 +64,14 @@ pub(super) fn engine(backend: Backend) -> Result<Arc<Engine>, EngineError> {
     Ok(engine)
 }
 
+/// Whether this process has a GPU open where `backend`'s engine would use it (`auto` shares `gpu`'s device), so that
+/// a job on it pays no opening. Nothing is opened here.
+pub(super) fn gpu_open(backend: Backend) -> bool {
+    let slot = slot(backend);
+    let engines = slot.lock().unwrap_or_else(PoisonError::into_inner);
+    engines.iter().any(|(_, engine)| engine.uses_gpu())
+}
+
 /// What the calling thread and the working thread share during [`run`].
 #[derive(Default)]
 pub(super) struct Control {

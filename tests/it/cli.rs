@@ -289,6 +289,37 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
     }
 }
 
+/// A client that keeps its GPU open (Python) prices each job without the opening: a job the CPU wins against a GPU
+/// still to open is the GPU's once it is open, and a job under the open GPU's fixed cost stays the CPU's.
+#[test]
+fn an_open_gpu_is_priced_without_its_opening() {
+    use meshvox::voxel::{Mode, Resolution};
+    use meshvox::{Backend, Engine, Job, Request};
+    let knot = meshvox::mesh::load("builtin:knot").expect("knot");
+    let threads = meshvox::parallel::threads();
+    let plan = |n| Job::plan("builtin:knot", &knot, &Request::new(Resolution::Count(n), Mode::Surface)).ok();
+    // The first size (in steps of 16) whose CPU estimate lies between the open GPU's and the closed one's.
+    let n = (4..=400)
+        .map(|k| k * 16)
+        .find(|&n| {
+            plan(n).is_some_and(|job| {
+                let costs = job.costs(threads);
+                costs.cpu_ms <= costs.gpu_ms && costs.cpu_ms > costs.opened().gpu_ms
+            })
+        })
+        .expect("a size the opening decides");
+    let job = plan(n).expect("plan");
+    let closed = Engine::priced_out(Backend::Auto, &job).expect("the CPU, against a GPU still to open");
+    assert!(closed.label().contains("a GPU takes to open and read back"), "{}", closed.label());
+    assert!(Engine::priced_out_open(Backend::Auto, &job).is_none(), "the open GPU at {n}: {:?}", job.costs(threads));
+    assert!(Engine::priced_out_open(Backend::Gpu, &job).is_none(), "only auto is priced");
+    // A tiny job (12 triangles at 16) is the CPU's even with the GPU open: a run's fixed cost outweighs it.
+    let cube = meshvox::mesh::load("builtin:rotated-cube").expect("cube");
+    let tiny = Job::plan("cube", &cube, &Request::new(Resolution::Count(16), Mode::Surface)).expect("plan");
+    let cpu = Engine::priced_out_open(Backend::Auto, &tiny).expect("the CPU for a tiny job");
+    assert!(cpu.label().contains("to read back (open already)"), "{}", cpu.label());
+}
+
 #[test]
 fn without_an_adapter_gpu_fails_clearly_and_auto_falls_back() {
     // No Metal on Linux: an instance limited to it finds no adapter.

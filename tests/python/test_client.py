@@ -40,6 +40,25 @@ def test_auto_prices_a_small_job_onto_the_cpu_without_opening_a_gpu():
     assert report["backend"].startswith("cpu (") and "auto: ~" in report["backend"], report
 
 
+def test_auto_prices_a_job_without_the_opening_once_a_gpu_is_open():
+    # Once the process has a GPU open (here lavapipe, told to count as one), `auto` leaves the opening out of the
+    # price: a tiny job is still the CPU's, and says that the GPU was open already.
+    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1")
+    env.pop("MESHVOX_AUTO_PROBE", None)
+    code = (
+        "import json, numpy as np, meshvox\n"
+        "v = np.array([[0,0,0],[1,0,0],[0,1,0],[0,0,1]], float); f = np.array([[0,2,1],[0,1,3],[0,3,2],[1,2,3]])\n"
+        "closed = meshvox.voxelize((v, f), 16, backend='auto').stats['backend']\n"
+        "meshvox.voxelize((v, f), 16, backend='gpu')\n"
+        "opened = meshvox.voxelize((v, f), 16, backend='auto').stats['backend']\n"
+        "print(json.dumps({'closed': closed, 'opened': opened, 'devices': meshvox._native.devices_opened()}))\n"
+    )
+    report = json.loads(_python(code, env).stdout.strip().splitlines()[-1])
+    assert "a GPU takes to open and read back" in report["closed"], report
+    assert report["opened"].startswith("cpu (") and "(open already)" in report["opened"], report
+    assert report["devices"] == 1, report
+
+
 def test_probing_a_gpu_prints_nothing_without_a_runtime_directory():
     env = {k: v for k, v in os.environ.items() if k not in ("XDG_RUNTIME_DIR", "NODEVICE_SELECT")}
     code = (
