@@ -269,6 +269,14 @@ fn gpu_bound_voxels(n: u32) -> f64 {
 fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     let pass = meshvox::gpu::distance::GpuDistance::new(gpu);
+    // The field of `tris` (grid space) in `band` on both, signed by the CPU's inside: how far apart, and the bound.
+    let compare = |tris: &[[Vec3; 3]], spec: GridSpec, band: Band| {
+        let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
+        let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
+        let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
+        let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
+        (field_difference(&cpu, &on_gpu), gpu_bound_voxels(spec.dims.max_element()))
+    };
     let mut worst = 0f64;
     for name in crate::common::all_meshes() {
         let mesh = meshvox::mesh::load(&name).expect("mesh");
@@ -277,12 +285,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
                 GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
                     .expect("spec");
             let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
-            let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
-            let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
-            let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
-            let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
-            let d = field_difference(&cpu, &on_gpu);
-            let bound = gpu_bound_voxels(spec.dims.max_element());
+            let (d, bound) = compare(&tris, spec, band);
             assert!(d <= bound, "{name} at {n}: GPU and CPU differ by {d} voxels (bound {bound:.2e})");
             worst = worst.max(d);
         }
@@ -291,13 +294,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     // otherwise than the CPU's (`closest_barycentric` measures a thin triangle's edges as well).
     for (name, tris, dims) in hard_cases() {
         let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
-        let (tris, lattice) = on_lattice(&tris, dims).expect("lattice");
-        let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
-        let band = Band::Voxels(3.0);
-        let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
-        let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
-        let d = field_difference(&cpu, &on_gpu);
-        let bound = gpu_bound_voxels(spec.dims.max_element());
+        let (d, bound) = compare(&tris, spec, Band::Voxels(3.0));
         assert!(d <= bound, "{name}: GPU and CPU differ by {d} voxels (bound {bound:.2e})");
         worst = worst.max(d);
     }

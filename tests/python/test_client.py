@@ -24,18 +24,25 @@ def _python(code: str, env: dict) -> subprocess.CompletedProcess:
     return out
 
 
+def _auto_pricing(code: str) -> dict:
+    """The last JSON line `code` prints in a fresh process told to take lavapipe as it would a hardware GPU, with
+    `auto` pricing its jobs (no `MESHVOX_AUTO_PROBE`); `v` and `f` are a tetrahedron there."""
+    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1")
+    env.pop("MESHVOX_AUTO_PROBE", None)
+    prelude = (
+        "import json, numpy as np, meshvox\n"
+        "v = np.array([[0,0,0],[1,0,0],[0,1,0],[0,0,1]], float); f = np.array([[0,2,1],[0,1,3],[0,3,2],[1,2,3]])\n"
+    )
+    return json.loads(_python(prelude + code, env).stdout.strip().splitlines()[-1])
+
+
 def test_auto_prices_a_small_job_onto_the_cpu_without_opening_a_gpu():
     # Told to use a software adapter as it would a hardware one, `auto` would open lavapipe for every job if it
     # probed first; a 16³ tetrahedron costs the CPU far less than opening any GPU.
-    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1")
-    env.pop("MESHVOX_AUTO_PROBE", None)
-    code = (
-        "import json, numpy as np, meshvox\n"
-        "v = np.array([[0,0,0],[1,0,0],[0,1,0],[0,0,1]], float); f = np.array([[0,2,1],[0,1,3],[0,3,2],[1,2,3]])\n"
+    report = _auto_pricing(
         "g = meshvox.voxelize((v, f), 16, backend='auto')\n"
         "print(json.dumps({'backend': g.stats['backend'], 'devices': meshvox._native.devices_opened()}))\n"
     )
-    report = json.loads(_python(code, env).stdout.strip().splitlines()[-1])
     assert report["devices"] == 0, report
     assert report["backend"].startswith("cpu (") and "auto: ~" in report["backend"], report
 
@@ -43,17 +50,12 @@ def test_auto_prices_a_small_job_onto_the_cpu_without_opening_a_gpu():
 def test_auto_prices_a_job_without_the_opening_once_a_gpu_is_open():
     # Once the process has a GPU open (here lavapipe, told to count as one), `auto` leaves the opening out of the
     # price: a tiny job is still the CPU's, and says that the GPU was open already.
-    env = dict(os.environ, MESHVOX_SOFTWARE_GPU="1")
-    env.pop("MESHVOX_AUTO_PROBE", None)
-    code = (
-        "import json, numpy as np, meshvox\n"
-        "v = np.array([[0,0,0],[1,0,0],[0,1,0],[0,0,1]], float); f = np.array([[0,2,1],[0,1,3],[0,3,2],[1,2,3]])\n"
+    report = _auto_pricing(
         "closed = meshvox.voxelize((v, f), 16, backend='auto').stats['backend']\n"
         "meshvox.voxelize((v, f), 16, backend='gpu')\n"
         "opened = meshvox.voxelize((v, f), 16, backend='auto').stats['backend']\n"
         "print(json.dumps({'closed': closed, 'opened': opened, 'devices': meshvox._native.devices_opened()}))\n"
     )
-    report = json.loads(_python(code, env).stdout.strip().splitlines()[-1])
     assert "a GPU takes to open and read back" in report["closed"], report
     assert report["opened"].startswith("cpu (") and "(open already)" in report["opened"], report
     assert report["devices"] == 1, report
