@@ -237,7 +237,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     };
     // Samples open a device only where their count is worth it (`auto`'s rule for queries).
     let engine = match &task {
-        Task::Sample(request) => super::query::sample_engine(args.backend, request)?,
+        Task::Sample(_) => super::query::sample_engine(args.backend)?,
         Task::Voxelize(_) => open_engine(args.backend)?,
     };
     let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);

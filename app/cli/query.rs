@@ -54,7 +54,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     let start = Instant::now();
     let prepared = Prepared::new(mesh).with_context(|| args.mesh.clone())?;
     let prepare_ms = ms(start);
-    let engine = open_engine(query_backend(args.backend, points.len()))?;
+    let engine = open_engine(query_backend(args.backend))?;
     let start = Instant::now();
     let queried = engine.query(&prepared, &points, args.sign, args.winding)?;
     let query_ms = ms(start);
@@ -169,9 +169,9 @@ pub(super) struct Sampled {
     pub(super) stage_ms: [f64; 3],
 }
 
-/// The engine that answers the samples of `request` (`auto` by [`query_backend`]'s rule).
-pub(super) fn sample_engine(backend: Backend, request: &SampleRequest) -> Result<Engine> {
-    open_engine(query_backend(backend, request.uniform + request.surface + request.near))
+/// The engine that answers samples (`auto` by [`query_backend`]'s rule).
+pub(super) fn sample_engine(backend: Backend) -> Result<Engine> {
+    open_engine(query_backend(backend))
 }
 
 /// Samples `mesh` as `request` says on `engine` and writes `output` (an .npz; its folder made first).
@@ -225,7 +225,7 @@ pub(super) fn sample(args: &SampleArgs) -> Result<()> {
         bail!("the output of sample is an .npz, not '{}'", args.output.display());
     }
     let request = args.spec.request()?;
-    let engine = sample_engine(args.backend, &request)?;
+    let engine = sample_engine(args.backend)?;
     let Sampled { stats, .. } = sample_file(&args.mesh, &args.limits, &request, &engine, &args.output)?;
     eprintln!(
         "{}: {} samples ({} inside) in {} ms; wrote {} ({} bytes)",

@@ -11,12 +11,12 @@ use crate::voxel::sample::{SampleRequest, Samples, draw};
 use glam::DVec3;
 use web_time::Instant;
 
-/// The backend a query of `points` points opens: `auto` is the CPU, whatever the count (a client asks before
-/// opening, so that `auto` opens no device). Why: the CPU confirms every triangle the GPU proposes with its own
+/// The backend a query opens: `auto` is the CPU, whatever the count of points (a client asks before opening, so that
+/// `auto` opens no device). Why: the CPU confirms every triangle the GPU proposes with its own
 /// walk, and decides the signs and the f64 answers, so a GPU adds its search to the CPU's work rather than taking
 /// it away. Measured on an H200 with 16 host threads, 1M points: the bunny at 1.32M points/s through the GPU against
 /// 1.76M on the CPU, Spot at 2.14M against 2.71M (bench/RESULTS.md). `gpu` stays for those who ask.
-pub fn query_backend(backend: Backend, _points: usize) -> Backend {
+pub fn query_backend(backend: Backend) -> Backend {
     match backend {
         Backend::Auto => Backend::Cpu,
         other => other,

@@ -94,13 +94,13 @@ pub(super) fn winding<'py>(
     Ok(values.into_pyarray(py))
 }
 
-/// The engine for `points` points on `backend` (a name), shared with the other calls of this process
-/// (`auto` by [`query_backend`]'s rule).
-fn query_engine(backend: &str, points: usize) -> Result<std::sync::Arc<Engine>, Failure> {
+/// The engine for a query on `backend` (a name), shared with the other calls of this process (`auto` by
+/// [`query_backend`]'s rule).
+fn query_engine(backend: &str) -> Result<std::sync::Arc<Engine>, Failure> {
     let backend = Backend::from_name(backend).ok_or_else(|| {
         Failure::Engine(EngineError::Query(crate::voxel::query::QueryError::Backend(backend.to_string())))
     })?;
-    process::engine(query_backend(backend, points)).map_err(Failure::Engine)
+    process::engine(query_backend(backend)).map_err(Failure::Engine)
 }
 
 /// `meshvox._native.query(mesh, points float64 (N, 3), sign, backend)`: a dict of numpy arrays (`distance`,
@@ -120,7 +120,7 @@ pub(super) fn query<'py>(
     let points = points_of(&points)?;
     let prepared = mesh.get().prepared.clone();
     let queried = process::run(py, None, |_| {
-        query_engine(backend, points.len())?.query(&prepared, &points, sign, false).map_err(Failure::Engine)
+        query_engine(backend)?.query(&prepared, &points, sign, false).map_err(Failure::Engine)
     })?
     .map_err(into_py_err)?;
     let answers = queried.answers;
@@ -201,7 +201,7 @@ pub(super) fn sample_many<'py>(
     backend: &str,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let request = sample_request(uniform, surface, near, sigma, padding, normalize, seed)?;
-    let engine = query_engine(backend, request.uniform + request.surface + request.near).map_err(into_py_err)?;
+    let engine = query_engine(backend).map_err(into_py_err)?;
     // A prepared mesh is shared as it is; the others are loaded and prepared by the worker that takes them.
     enum Item {
         Ready(Arc<Prepared>),

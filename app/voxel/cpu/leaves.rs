@@ -111,15 +111,19 @@ pub fn slot_leaves(brick: &Brick, slots: &[u32], mut push: impl FnMut(u64, LeafM
 /// One finished slot of `brick` as a leaf (its key and mask), or `None` where its mask is empty (a leaf marked for
 /// an unsure voxel the exact test left clear).
 pub fn slot_leaf(brick: &Brick, slot: &[u32]) -> Option<(u64, LeafMask)> {
-    let size = (brick.hi - brick.lo) / 8;
     let mask: LeafMask = std::array::from_fn(|x| u64::from(slot[2 * x]) | u64::from(slot[2 * x + 1]) << 32);
     if mask == [0; 8] {
         return None;
     }
-    let i = slot[16];
-    let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
-    let origin = brick.lo + l * 8;
+    let origin = slot_origin(brick, slot);
     Some((leaf_key(origin.x, origin.y, origin.z), mask))
+}
+
+/// The minimum corner of the leaf a finished slot of `brick` holds (its table index, [`leaf_index`]'s, is word 16).
+pub fn slot_origin(brick: &Brick, slot: &[u32]) -> UVec3 {
+    let size = (brick.hi - brick.lo) / 8;
+    let i = slot[16];
+    brick.lo + UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z) * 8
 }
 
 /// Scatters finished slots whose rows were left as bytes (a dense grid's: `ROW_BYTES` in the shader) into `grid`:
@@ -165,9 +169,7 @@ pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::Voxel
                 let mut set = 0u64;
                 for &i in &order[starts[b]..starts[b + 1]] {
                     let slot = slots[i as usize];
-                    let i = slot[16];
-                    let l = UVec3::new(i / (size.y * size.z), i / size.z % size.y, i % size.z);
-                    let origin = brick.lo + l * 8;
+                    let origin = slot_origin(brick, slot);
                     for r in 0..64u32 {
                         let byte = slot[(r / 4) as usize] >> (r % 4 * 8) & 0xff;
                         let (y, z) = (origin.y + r / 8, origin.z + r % 8);
