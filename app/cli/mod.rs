@@ -151,6 +151,7 @@ impl LimitArgs {
             max_memory: self.max_memory,
             band: band.band(mode)?,
             level: band.level(mode)?,
+            thickness: band.thickness(mode)?,
             ..Request::new(resolution, mode)
         })
     }
@@ -218,6 +219,10 @@ pub(super) struct BandArgs {
     /// surface; udf: above 0, the thickness of the shell around open sheets). The band widens to hold it.
     #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub(super) level: Option<f64>,
+    /// shell: the shell's thickness in voxels (default 1): the voxels inside the mesh within T voxels of its
+    /// surface. 1 or more holds water: no face-connected path from the hollow to the outside.
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub(super) thickness: Option<f32>,
 }
 
 impl BandArgs {
@@ -225,6 +230,9 @@ impl BandArgs {
     fn band(&self, mode: Mode) -> Result<meshvox::voxel::distance::Band> {
         // Parsed here rather than by clap, so a bad value is one line like every other error.
         match (&self.band, mode.is_field()) {
+            (Some(_), false) if mode == Mode::Shell => {
+                anyhow::bail!("--band sets the distance field's width: a shell's band follows --thickness")
+            }
             (Some(_), false) => anyhow::bail!("--band sets the distance field's width: use it with --mode sdf or udf"),
             (Some(band), true) => meshvox::voxel::distance::Band::parse(band).map_err(anyhow::Error::msg),
             (None, _) => Ok(Default::default()),
@@ -234,8 +242,19 @@ impl BandArgs {
     /// `--level`, which only means something for the distance modes.
     pub(super) fn level(&self, mode: Mode) -> Result<f64> {
         match (self.level, mode.is_field()) {
+            (Some(_), false) if mode == Mode::Shell => {
+                anyhow::bail!("--level is a distance field's level set: a shell's walls are at 0 and --thickness")
+            }
             (Some(_), false) => anyhow::bail!("--level is a distance field's level set: use it with --mode sdf or udf"),
             (level, _) => Ok(level.unwrap_or(0.0)),
+        }
+    }
+
+    /// `--thickness`, which only means something for `--mode shell`.
+    pub(super) fn thickness(&self, mode: Mode) -> Result<f32> {
+        match (self.thickness, mode == Mode::Shell) {
+            (Some(_), false) => anyhow::bail!("--thickness is a shell's: use it with --mode shell"),
+            (thickness, _) => Ok(thickness.unwrap_or(1.0)),
         }
     }
 }

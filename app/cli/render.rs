@@ -107,7 +107,7 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         bail!("--slice draws a distance field: use it with --mode sdf or udf (--cut cuts the others)");
     }
     let request = Request {
-        instances: showing.from_gpu_list(args.colour.wanted(&mesh)) && !mode.is_field(),
+        instances: showing.from_gpu_list(args.colour.wanted(&mesh)) && !mode.needs_field(),
         // Drawn from the dense grid.
         grid: meshvox::voxel::GridKind::Dense,
         ..request
@@ -116,7 +116,8 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     result.notices.iter().for_each(|n| eprintln!("{n}"));
     let grid = result.grid.dense().ok_or_else(|| anyhow!("render needs a dense grid"))?;
     // A field is drawn as its slice beside the surface's voxels, coloured by value.
-    let sliced = result.field.as_ref().map(|field| {
+    // A shell's field is what it was cut from: the shell is drawn as voxels.
+    let sliced = result.field.as_ref().filter(|_| result.shell.is_none()).map(|field| {
         let slice = args.slice.unwrap_or(meshvox::render::Cut { axis: 2, fraction: 0.5 });
         meshvox::render::slice::field_slice(field, grid, slice)
     });

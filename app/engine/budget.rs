@@ -77,13 +77,13 @@ pub fn estimate(
 ) -> Estimate {
     let dense = spec.byte_size();
     let triangle_bytes = triangles.saturating_mul(2 * TRIANGLE_BYTES);
-    let field = match (mode.is_field(), area) {
+    let field = match (mode.needs_field(), area) {
         (true, Some(area)) => field_bytes(spec, band, triangles, area),
         _ => 0,
     };
     // A field written as a mesh is made from its band's leaves (the mesh itself: [`level_mesh_bytes`]).
     let level_mesh = writes_level_set(mode, format);
-    let Some(area) = area.filter(|_| !mode.is_field() || level_mesh || format.is_some_and(VoxelFormat::is_sparse))
+    let Some(area) = area.filter(|_| !mode.needs_field() || level_mesh || format.is_some_and(VoxelFormat::is_sparse))
     else {
         let grid = dense.saturating_add(field);
         let (readback, writer) = (dense.min(MAX_READBACK), writer(spec, format));
@@ -91,7 +91,7 @@ pub fn estimate(
     };
     let leaves = sparse_leaves(spec, area, triangles);
     let mut grid = leaves.saturating_mul(LEAF_BYTES).saturating_add(field);
-    if matches!(mode, Mode::Solid | Mode::Sdf) {
+    if matches!(mode, Mode::Solid | Mode::Sdf | Mode::Shell) {
         // Row crossings (at most one per voxel² of surface, 4 bytes, sorted with a copy), the rows' offsets (4
         // bytes per row of the grid, with a copy) and the interior's tiles along the surface (16 bytes each; the
         // bunny at 8192 has 8 per leaf). Measured peaks are 0.40–0.70 of this (bench/RESULTS.md).
@@ -113,9 +113,10 @@ pub fn estimate(
     Estimate { grid, triangles: triangle_bytes, readback: dense.min(SPARSE_SLAB_BYTES), writer }
 }
 
-/// Whether `mode` written as `format` is a distance field's level set as a mesh ([`crate::voxel::contour`]).
+/// Whether `mode` written as `format` is a distance field's level set as a mesh ([`crate::voxel::contour`]): a
+/// field's, or a shell's two walls ([`crate::voxel::shell::shell_mesh`]).
 pub fn writes_level_set(mode: Mode, format: Option<VoxelFormat>) -> bool {
-    mode.is_field() && matches!(format, Some(VoxelFormat::Mesh(_)))
+    mode.needs_field() && matches!(format, Some(VoxelFormat::Mesh(_)))
 }
 
 /// A field's level set written as a mesh ([`crate::voxel::contour`]): marching tetrahedra make about 9

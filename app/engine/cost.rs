@@ -62,7 +62,8 @@ impl Job<'_> {
             Mode::Solid => 3.0 * surface + bytes * 8.0 * CPU_NS_PER_SOLID_VOXEL,
             // Distance fields: 15–25x the surface as whole jobs (the bunny, the teapot and the knot at 512, sign
             // and values included, on the 2-core box; bench/RESULTS.md "auto").
-            Mode::Sdf | Mode::Udf => 20.0 * surface,
+            // A shell is the signed field's work, cut afterwards.
+            Mode::Sdf | Mode::Udf | Mode::Shell => 20.0 * surface,
         };
         let cpu_ms = (work / threads.max(1) as f64 + bytes * CPU_NS_PER_GRID_BYTE) / 1e6;
         let per_byte = match self.request.mode {

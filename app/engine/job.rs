@@ -48,6 +48,8 @@ pub struct Request<'a> {
     /// `Mode::Sdf`/`Mode::Udf` written as a mesh: the level set's value, world units (the band is widened to hold
     /// it).
     pub level: f64,
+    /// `Mode::Shell`: the shell's thickness in voxels (the band is set to hold it).
+    pub thickness: f32,
 }
 
 impl Request<'_> {
@@ -68,6 +70,7 @@ impl Request<'_> {
             band: Band::default(),
             attributes: AttributeSet::NONE,
             level: 0.0,
+            thickness: 1.0,
         }
     }
 
@@ -122,6 +125,9 @@ impl<'a> Job<'a> {
         }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
         let mut request = *request;
+        if request.mode == Mode::Shell {
+            request.band = Job::shell_band(request.thickness)?;
+        }
         if request.mode.is_field() {
             match format {
                 Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb) | None => {}
@@ -164,7 +170,7 @@ impl<'a> Job<'a> {
             job.sparse = true;
         }
         // The area counts where a sparse estimate or a field is made.
-        let area = (job.sparse || request.mode.is_field()).then_some(area);
+        let area = (job.sparse || request.mode.needs_field()).then_some(area);
         job.check_budget(area, limit).map_err(|e| grid_error(e, job.sparse))?;
         Ok(job)
     }
@@ -177,10 +183,24 @@ impl<'a> Job<'a> {
         let estimate = |spec: &GridSpec| {
             let e = budget::estimate(spec, r.mode, r.band, r.format, triangles, area);
             let labels = budget::labels_bytes(spec, r.mode, labels, self.area, triangles);
-            let mesh = if level_mesh { budget::level_mesh_bytes(spec, self.area) } else { 0 };
+            // A shell's mesh is two walls, the inner no larger than the outer.
+            let walls = if r.mode == Mode::Shell { 2 } else { 1 };
+            let mesh = if level_mesh { budget::level_mesh_bytes(spec, self.area).saturating_mul(walls) } else { 0 };
             budget::Estimate { writer: e.writer.saturating_add(labels).saturating_add(mesh), ..e }
         };
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
+    }
+
+    /// The band a shell of `thickness` voxels is cut from ([`crate::voxel::shell::shell_band`]).
+    fn shell_band(thickness: f32) -> Result<Band, EngineError> {
+        let band = crate::voxel::shell::shell_band(thickness);
+        match thickness > 0.0 && band <= MAX_BAND {
+            true => Ok(Band::Voxels(band)),
+            false => Err(EngineError::Level(format!(
+                "--thickness {thickness}: a shell's thickness is a number of voxels above 0 and at most {}",
+                MAX_BAND - 2.0
+            ))),
+        }
     }
 
     /// The band a level set needs: the request's, widened to hold the level with two voxels to spare.

@@ -331,13 +331,24 @@ impl Engine {
         request.cancelled()?;
         let voxelize_ms = ms(t);
         let t = Instant::now();
-        let (field, field_backend) = match request.mode.is_field() {
+        let (field, field_backend) = match request.mode.needs_field() {
             true => {
                 let (field, backend) = self.field(job, &tris, &mut notices).await?;
                 (Some(field), Some(backend))
             }
             false => (None, None),
         };
+        let shell = (request.mode == Mode::Shell).then_some(request.thickness);
+        if let (Some(thickness), Some(field)) = (shell, &field) {
+            // The shell replaces the surface the grid stage made: its own voxels, counted again, drawn from the host.
+            let cut = voxel::shell::shell_grid(field, thickness);
+            made.grid = match job.sparse {
+                true => Grid::Sparse(cut),
+                false => Grid::Dense(cut.to_dense().map_err(|e| job.grid_error(e))?),
+            };
+            made.voxels = None;
+            made.instances = None;
+        }
         let field_ms = field.as_ref().map(|_| ms(t));
         request.cancelled()?;
         let t = Instant::now();
@@ -379,7 +390,7 @@ impl Engine {
             colour: colours.as_ref().map(|c| c.backend.clone()),
             colour_ms,
             voxelize_ms,
-            band: request.mode.is_field().then(|| request.band.name()),
+            band: request.mode.needs_field().then(|| request.band.name()),
             band_voxels: field.as_ref().map(|f| f.band_voxels),
             distance_evaluations: field.as_ref().map(|f| f.evaluations).filter(|&n| n > 0),
             field_ms,
@@ -398,7 +409,7 @@ impl Engine {
         if let Some(spans) = crate::trace::take() {
             eprintln!("trace: {} {} at {:?}: {spans}", job.name, request.mode.name(), spec.dims.to_array());
         }
-        Ok(Voxelized { grid: made.grid, field, colours, labels, instances: made.instances, report, notices })
+        Ok(Voxelized { grid: made.grid, field, shell, colours, labels, instances: made.instances, report, notices })
     }
 
     /// The report's fields every run fills the same way: the job's mesh, grid and mode, and the engine's set-up.
@@ -452,7 +463,7 @@ impl Engine {
             total_ms: voxelize_ms,
             ..self.grid_report(job, &grid, None)
         };
-        Ok(Voxelized { grid, field: None, colours, labels: None, instances: None, report, notices })
+        Ok(Voxelized { grid, field: None, shell: None, colours, labels: None, instances: None, report, notices })
     }
 
     /// The job's grid (in its mode's grid mode: the surface for the fields) on the GPU, with the CPU standing in
@@ -509,14 +520,14 @@ impl Engine {
         let (spec, band) = (job.spec, job.request.band);
         let grid_error = |error| job.grid_error(error);
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
-        let (mut inside, sign_on_gpu) = match job.request.mode {
-            Mode::Sdf => {
+        let (mut inside, sign_on_gpu) = match job.request.mode.signed() {
+            true => {
                 let span = crate::trace::span("field: inside");
                 let (grid, on_gpu) = self.inside(job, &tris, lattice, notices).await?;
                 drop(span);
                 (Some(grid), on_gpu)
             }
-            _ => (None, false),
+            false => (None, false),
         };
         job.request.cancelled()?;
         // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would

@@ -106,10 +106,12 @@ pub enum Instances {}
 
 /// A finished voxelization.
 pub struct Voxelized {
-    /// The voxels: for `sdf`/`udf`, the surface (the voxels of the zero crossing).
+    /// The voxels: for `sdf`/`udf`, the surface (the voxels of the zero crossing); for `shell`, the shell.
     pub grid: Grid,
-    /// `sdf`/`udf`: the distance field.
+    /// `sdf`/`udf`: the distance field; `shell`: the signed field it was cut from (for its walls).
     pub field: Option<DistanceField>,
+    /// `shell`: its thickness in voxels. Its grid is then the result and its field is written only as walls.
+    pub shell: Option<f32>,
     pub colours: Option<VoxelColours>,
     /// The per-voxel labels asked for (`Request::attributes`), on dense grids.
     pub labels: Option<Labels>,
@@ -130,9 +132,12 @@ impl Voxelized {
         options: &WriteOptions,
         out: &mut W,
     ) -> Result<(), FormatError> {
-        match &self.field {
-            Some(field) => formats::write_field(field, format, options.level, out),
-            None => {
+        match (&self.field, self.shell) {
+            (Some(field), Some(thickness)) if matches!(format, VoxelFormat::Mesh(_)) => {
+                formats::write_shell(field, thickness, format, out)
+            }
+            (Some(field), None) => formats::write_field(field, format, options.level, out),
+            _ => {
                 let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
                 formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)
             }

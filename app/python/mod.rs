@@ -155,6 +155,7 @@ fn options(
     bounds: Option<([f64; 3], [f64; 3])>,
     band: &str,
     attributes: &str,
+    thickness: f32,
 ) -> PyResult<Options> {
     let resolution = match (resolution, pitch) {
         (Some(n), None) => Resolution::Count(n),
@@ -179,6 +180,7 @@ fn options(
         // The package's VoxelGrid holds the dense bits (`.matrix`).
         grid: crate::voxel::GridKind::Dense,
         band,
+        thickness,
         ..Request::new(resolution, mode)
     };
     Ok((backend, request))
@@ -253,12 +255,14 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     dict.set_item("distances", distances.transpose()?)?;
     dict.set_item("background", result.field.as_ref().map(|f| f.background()))?;
     dict.set_item("signed", result.field.as_ref().map(|f| f.signed))?;
+    // A shell's thickness in voxels: its `distances` are the signed field it was cut from, for its walls.
+    dict.set_item("thickness", result.shell)?;
     Ok(dict)
 }
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
@@ -273,8 +277,9 @@ fn voxelize<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     band: &str,
     attributes: &str,
+    thickness: f32,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
     let input = input(source)?;
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
@@ -298,7 +303,7 @@ fn voxelize_points<'py>(
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "")?;
+    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", 1.0)?;
     let (points, colors) = (points.as_array(), colors.as_ref().map(|c| c.as_array()));
     if points.ncols() != 3 || colors.is_some_and(|c| c.ncols() != 4) {
         return Err(PyValueError::new_err("points must be (N, 3) and colours (N, 4)"));
@@ -320,7 +325,7 @@ fn voxelize_points<'py>(
 /// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
 /// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
-#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes))]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes, thickness))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize_many<'py>(
     py: Python<'py>,
@@ -336,8 +341,9 @@ fn voxelize_many<'py>(
     workers: Option<usize>,
     band: &str,
     attributes: &str,
+    thickness: f32,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();
@@ -437,9 +443,9 @@ fn save(
 
 /// `VoxelGrid.save` of a distance field: its float32 `[x, y, z]` values (background `background` world units)
 /// written as `.npy`, `.npz` (the band), `.vdb` (a level set), or its level set at `level` as a mesh, with the
-/// CLI's writers, atomically.
+/// CLI's writers, atomically; with `thickness` (voxels), the walls of the shell cut from it as a mesh.
 #[pyfunction]
-#[pyo3(signature = (path, distances, origin, pitch, background, signed, level))]
+#[pyo3(signature = (path, distances, origin, pitch, background, signed, level, thickness=None))]
 #[allow(clippy::too_many_arguments)]
 fn save_field(
     py: Python<'_>,
@@ -450,6 +456,7 @@ fn save_field(
     background: f32,
     signed: bool,
     level: f64,
+    thickness: Option<f32>,
 ) -> PyResult<()> {
     let format = VoxelFormat::from_extension(&path)
         .filter(|f| matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Mesh(_)))
@@ -462,16 +469,19 @@ fn save_field(
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
-        crate::voxel::formats::atomic::write_atomically(&path, |out| {
-            crate::voxel::formats::write_field(&field, format, level, out)
+        crate::voxel::formats::atomic::write_atomically(&path, |out| match thickness {
+            Some(thickness) => crate::voxel::formats::write_shell(&field, thickness, format, out),
+            None => crate::voxel::formats::write_field(&field, format, level, out),
         })
     })?;
     written.map(|_| ()).map_err(|e| save_err(&path, e))
 }
 
-/// `meshvox._native.level_mesh(distances, origin, pitch, background, signed, level)`: the field's level set
-/// ([`crate::voxel::contour`]) as (vertices float64 (V, 3), faces int64 (F, 3)).
+/// `meshvox._native.level_mesh(distances, origin, pitch, background, signed, level, thickness=None)`: the field's
+/// level set ([`crate::voxel::contour`]), or with `thickness` (voxels) the walls of the shell cut from it
+/// ([`crate::voxel::shell::shell_mesh`]), as (vertices float64 (V, 3), faces int64 (F, 3)).
 #[pyfunction]
+#[pyo3(signature = (distances, origin, pitch, background, signed, level, thickness=None))]
 #[allow(clippy::too_many_arguments)]
 fn level_mesh<'py>(
     py: Python<'py>,
@@ -481,12 +491,16 @@ fn level_mesh<'py>(
     background: f32,
     signed: bool,
     level: f64,
+    thickness: Option<f32>,
 ) -> PyResult<IndexedArrays<'py>> {
     use numpy::IntoPyArray;
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let mesh = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
-        crate::voxel::contour::level_mesh(&field, level)
+        match thickness {
+            Some(thickness) => crate::voxel::shell::shell_mesh(&field, thickness),
+            None => crate::voxel::contour::level_mesh(&field, level),
+        }
     })?
     .map_err(|e| PyValueError::new_err(worded(e)))?;
     let (v, f) = (mesh.vertices.len(), mesh.faces.len());

@@ -75,7 +75,8 @@ impl ViewerApp {
                 grid: crate::voxel::GridKind::Dense,
                 // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list
                 // (a field is drawn from its slice, made on the host).
-                instances: self.showing().from_gpu_list(mesh.has_colour()) && !self.mode.is_field(),
+                instances: self.showing().from_gpu_list(mesh.has_colour()) && !self.mode.needs_field(),
+                thickness: self.thickness,
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
             };
             let mesh = mesh.clone();
@@ -140,7 +141,8 @@ impl ViewerApp {
             coloured: done.colours.is_some(),
         });
         self.colours = done.colours;
-        self.field = done.field;
+        // A shell's field is what it was cut from: the shell is shown as voxels, cut away like the others.
+        self.field = done.field.filter(|_| done.shell.is_none());
         self.grid = Some(grid);
         let Some(scene) = self.build_scene(done.instances, Some(&p.mesh)) else { return };
         if p.frame {

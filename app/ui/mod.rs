@@ -72,6 +72,8 @@ pub struct ViewerApp {
     resolution: u32,
     axis: Axis,
     mode: Mode,
+    /// A shell's thickness in voxels (`Mode::Shell`).
+    thickness: f32,
     /// The cut-away plane (axis and fraction), and whether it is on.
     cut: render::Cut,
     cut_on: bool,
@@ -111,6 +113,10 @@ pub struct ViewerApp {
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
 pub const DEFAULT_RESOLUTION: u32 = 64;
 
+/// The thickness slider's range, in voxels: a shell's band is at most 64 voxels (`MAX_BAND`), thickness + 2.
+pub const MIN_THICKNESS: f32 = 0.5;
+pub const MAX_THICKNESS: f32 = 16.0;
+
 impl ViewerApp {
     /// Creates the app on eframe's wgpu device, showing `mesh_spec` (a path or `builtin:NAME`).
     pub fn new(cc: &eframe::CreationContext<'_>, mesh_spec: &str, resolution: u32) -> Result<ViewerApp, String> {
@@ -136,6 +142,7 @@ impl ViewerApp {
             resolution,
             axis: Axis::Longest,
             mode: Mode::Surface,
+            thickness: 1.0,
             cut: render::Cut { axis: 0, fraction: 0.5 },
             cut_on: false,
             style: Style { floor: true, ..Style::default() },
@@ -176,6 +183,9 @@ impl ViewerApp {
         }
         if let Some(mode) = state.mode {
             self.mode = mode;
+        }
+        if let Some(thickness) = state.thickness {
+            self.thickness = thickness.clamp(MIN_THICKNESS, MAX_THICKNESS);
         }
         if let Some(up) = state.up {
             self.set_up(up);
@@ -220,6 +230,7 @@ impl ViewerApp {
             resolution: Some(self.resolution),
             axis: Some(self.axis),
             mode: Some(self.mode),
+            thickness: Some(self.thickness),
             up: Some(self.up),
             camera: self.stats.as_ref().map(|_| self.camera),
         }
@@ -245,6 +256,15 @@ impl ViewerApp {
 
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
+    }
+
+    /// A shell's thickness in voxels (voxelizes again where the mode is `shell`).
+    pub fn set_thickness(&mut self, thickness: f32) {
+        let thickness = thickness.clamp(MIN_THICKNESS, MAX_THICKNESS);
+        if thickness != self.thickness {
+            self.thickness = thickness;
+            self.needs_voxelize |= self.mode == Mode::Shell;
+        }
     }
 
     pub fn set_mode(&mut self, mode: Mode) {

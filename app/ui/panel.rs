@@ -103,12 +103,22 @@ impl ViewerApp {
                     Mode::Surface6 => "the thin surface: no face-connected leak from inside a closed mesh",
                     Mode::Sdf => "signed distances near the surface, negative inside, shown as a slice",
                     Mode::Udf => "unsigned distances near the surface, shown as a slice",
+                    Mode::Shell => "a hollow shell: the voxels inside within the thickness of the surface",
                 };
                 if ui.radio(self.mode == mode, mode.name()).on_hover_text(hint).clicked() {
                     self.set_mode(mode);
                 }
             }
         });
+        if self.mode == Mode::Shell {
+            let mut t = self.thickness;
+            let slider =
+                egui::Slider::new(&mut t, super::MIN_THICKNESS..=super::MAX_THICKNESS).step_by(0.5).text("thickness");
+            let hint = "the shell's wall in voxels; 1 or more holds water (no face-connected leak)";
+            if ui.add(slider).on_hover_text(hint).changed() {
+                self.set_thickness(t);
+            }
+        }
     }
 
     /// Cut-away or slice, colours, up axis, preset views, overlays, reset and screenshot: how to show it.

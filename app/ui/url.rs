@@ -1,6 +1,6 @@
 //! The viewer's state as a URL query, so a view in the web page can be shared by copying the address bar:
 //! `?mesh=NAME` (a bundled mesh) or `?file=NAME` (a file opened from the visitor's computer: its name is kept, its
-//! contents are not), `r=N`, `axis=longest|x|y|z`, `mode=surface|solid|surface6|sdf|udf` and
+//! contents are not), `r=N`, `axis=longest|x|y|z`, `mode=surface|solid|surface6|sdf|udf|shell`, `thickness=T` (a shell's, voxels) and
 //! `up=y|z` (the axis the camera orbits around) and `cam=yaw,pitch,distance,x,y,z` (the orbit camera, its target in
 //! the drawing frame of the grid). Plain Rust, so
 //! it is tested natively; the page reads it at start and the app rewrites it as the user changes the view.
@@ -19,6 +19,8 @@ pub struct UrlState {
     pub resolution: Option<u32>,
     pub axis: Option<Axis>,
     pub mode: Option<Mode>,
+    /// A shell's thickness in voxels (written with `mode=shell` only).
+    pub thickness: Option<f32>,
     pub up: Option<UpAxis>,
     /// Its `up` is the link's `up` (Y when the link has none).
     pub camera: Option<OrbitCamera>,
@@ -65,6 +67,9 @@ impl UrlState {
                 "r" => state.resolution = value.parse().ok().filter(|&r| (1..=4096).contains(&r)),
                 "axis" => state.axis = Axis::from_name(&value),
                 "mode" => state.mode = Mode::from_name(&value),
+                "thickness" => {
+                    state.thickness = value.parse().ok().filter(|t: &f32| *t > 0.0 && *t <= super::MAX_THICKNESS)
+                }
                 "up" => state.up = UpAxis::from_name(&value),
                 "cam" => state.camera = parse_camera(&value),
                 _ => {}
@@ -93,6 +98,9 @@ impl UrlState {
         }
         if let Some(m) = self.mode {
             parts.push(format!("mode={}", m.name()));
+        }
+        if let (Some(Mode::Shell), Some(t)) = (self.mode, self.thickness) {
+            parts.push(format!("thickness={}", short(t.into(), 2)));
         }
         if let Some(u) = self.up {
             parts.push(format!("up={}", u.name()));

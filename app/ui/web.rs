@@ -186,7 +186,7 @@ impl ViewerApp {
                 Command::SetResolution(r) => self.set_resolution(r.clamp(1, 4096)),
                 Command::SetMode(name) => match Mode::from_name(&name) {
                     Some(mode) => self.set_mode(mode),
-                    None => self.fail(format!("unknown mode '{name}': use surface, solid, surface6, sdf or udf")),
+                    None => self.fail(format!("unknown mode '{name}': use {}", Mode::choices())),
                 },
                 Command::SetCut(cut) => self.set_cut(render::Cut::parse(&cut)),
                 Command::SetSlice(slice) => match render::Cut::parse(&slice) {

@@ -30,6 +30,7 @@ pub mod points;
 pub mod query;
 pub mod ranks;
 pub mod sample;
+pub mod shell;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
@@ -55,6 +56,9 @@ pub enum Mode {
     Sdf,
     /// The unsigned distance field: `Sdf` without the sign, for open surfaces.
     Udf,
+    /// A hollow shell ([`shell`]): the voxels whose centre is inside (as `Solid` decides it) and within the
+    /// thickness of the surface, cut from the `Sdf` field.
+    Shell,
 }
 
 crate::names::names!(Mode {
@@ -63,6 +67,7 @@ crate::names::names!(Mode {
     Surface6 => "surface6": "The thin surface (6-separating): no face-connected leak from inside a closed mesh",
     Sdf => "sdf": "Signed distances near the surface (--band), negative inside (winding number >= 1/2): .npy, .vdb, .npz",
     Udf => "udf": "Unsigned distances near the surface (--band), for open surfaces: .npy, .vdb, .npz",
+    Shell => "shell": "A hollow shell: voxels inside the mesh within --thickness voxels of its surface (a mesh output: its walls)",
 });
 
 impl Mode {
@@ -71,14 +76,25 @@ impl Mode {
     /// The distance-field modes.
     pub const FIELDS: [Mode; 2] = [Mode::Sdf, Mode::Udf];
 
-    /// Whether the mode makes a distance field (beside the surface grid).
+    /// Whether the mode's result is a distance field (beside the surface grid).
     pub fn is_field(self) -> bool {
         matches!(self, Mode::Sdf | Mode::Udf)
     }
 
-    /// The occupancy mode whose grid comes with the result: the surface (the zero crossing) for the fields.
+    /// Whether the mode is made from a distance field: the fields, and the shell cut from the signed one.
+    pub fn needs_field(self) -> bool {
+        self.is_field() || self == Mode::Shell
+    }
+
+    /// Whether the mode's field is signed (needs the inside).
+    pub fn signed(self) -> bool {
+        matches!(self, Mode::Sdf | Mode::Shell)
+    }
+
+    /// The occupancy mode whose grid the voxelizer makes first: the surface (the zero crossing) for the modes
+    /// made from a field (a shell's grid is cut from the field afterwards).
     pub fn grid_mode(self) -> Mode {
-        if self.is_field() { Mode::Surface } else { self }
+        if self.needs_field() { Mode::Surface } else { self }
     }
 }
 

@@ -30,6 +30,7 @@ mod query_gpu;
 mod render_snapshots;
 mod seed_and_real_meshes;
 mod shaders;
+mod shell;
 mod sparse;
 mod ui_snapshot;
 mod untrusted;

@@ -80,6 +80,9 @@ class VoxelGrid:
         self.distances: np.ndarray | None = None
         self.background: float | None = None
         self.signed: bool | None = None
+        #: A shell's thickness in voxels (``mode="shell"``; else None): ``distances`` is then the field it was cut
+        #: from, and ``to_mesh`` gives its walls.
+        self.thickness: float | None = None
         self._labels: dict[str, np.ndarray] | None = None
         self._label_values: dict[str, np.ndarray] | None = None
 
@@ -94,6 +97,7 @@ class VoxelGrid:
         grid.pitch, grid.origin = float(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
         grid.stats = dict(stats or {})
         grid.distances, grid.background, grid.signed = None, None, None
+        grid.thickness = None
         grid._labels, grid._label_values = None, None
         return grid
 
@@ -138,7 +142,7 @@ class VoxelGrid:
     def __getstate__(self) -> dict[str, Any]:
         # Once unpacked, the matrix is the truth (it may have been edited); before, the bits travel.
         field = {"distances": self.distances, "background": self.background, "signed": self.signed,
-                 "labels": self._labels, "label_values": self._label_values}
+                 "thickness": self.thickness, "labels": self._labels, "label_values": self._label_values}
         if self._matrix is None and self._words is not None:
             return {"words": self._words, "rgba": self._rgba, "shape": self._shape, "pitch": self.pitch,
                     "origin": self.origin, "stats": self.stats, **field}
@@ -153,6 +157,7 @@ class VoxelGrid:
             other = VoxelGrid(state["matrix"], state["pitch"], state["origin"], state["colors"], state["stats"])
         other.distances = state.get("distances")
         other.background, other.signed = state.get("background"), state.get("signed")
+        other.thickness = state.get("thickness")
         other._labels, other._label_values = state.get("labels"), state.get("label_values")
         self.__dict__.update(other.__dict__)
 
@@ -192,12 +197,15 @@ class VoxelGrid:
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
         as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) or ``.vdb`` (a level set),
         as the CLI writes it, or its level set at ``level`` (world units) as a closed mesh (``.ply``, ``.obj``,
-        ``.glb``, ``.stl``; see :meth:`to_mesh`)."""
-        if self.distances is not None:
+        ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
+        in the mesh formats."""
+        walls = self.thickness is not None and os.fspath(path).lower().endswith((".ply", ".obj", ".glb", ".stl"))
+        if self.distances is not None and (self.thickness is None or walls):
             distances = np.ascontiguousarray(self.distances, dtype=np.float32)
             background = float(self.background if self.background is not None else np.abs(distances).max())
             _native.save_field(
-                os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level)
+                os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level),
+                self.thickness,
             )
             return
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
@@ -210,13 +218,14 @@ class VoxelGrid:
         outward-wound triangle mesh: ``(vertices float64 (V, 3), faces int64 (F, 3))``, or a ``trimesh.Trimesh``
         with ``trimesh=True`` (needs trimesh). Marching tetrahedra over the voxel centres (docs/watertight.md); the
         band must hold the level (voxelize with ``band=`` wider than it), and an unsigned field needs a level above
-        0 (the shell around open sheets)."""
+        0 (the shell around open sheets). A shell's (``mode="shell"``) are its two walls in one closed mesh: the
+        surface outward and the level ``-thickness`` voxels inward (``level`` is not used)."""
         if self.distances is None:
-            raise ValueError('to_mesh needs a distance field: voxelize with mode="sdf" or "udf"')
+            raise ValueError('to_mesh needs a distance field: voxelize with mode="sdf", "udf" or "shell"')
         distances = np.ascontiguousarray(self.distances, dtype=np.float32)
         background = float(self.background if self.background is not None else np.abs(distances).max())
         vertices, faces = _native.level_mesh(
-            distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level)
+            distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level), self.thickness
         )
         if trimesh:
             import trimesh as _trimesh
@@ -313,6 +322,7 @@ def _grid(out: dict[str, Any]) -> VoxelGrid:
     stats = json.loads(out["stats"])
     grid = VoxelGrid._packed(out["words"], out["shape"], out["pitch"], out["origin"], out["rgba"], stats)
     grid.distances, grid.background, grid.signed = out["distances"], out["background"], out["signed"]
+    grid.thickness = out["thickness"]
     grid._label_values = out["labels"]
     return grid
 
@@ -330,6 +340,7 @@ def voxelize(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
+    thickness: float = 1.0,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
@@ -338,7 +349,9 @@ def voxelize(
     winding number: right on open meshes), ``"surface6"`` (the thin surface), or a distance field: ``"sdf"``
     (signed, negative inside) or ``"udf"`` (unsigned), exact within ``band`` voxels of the surface (``"full"``:
     every voxel) and ``±band`` voxels beyond, in ``.distances`` (float32 (X, Y, Z), world units) beside the
-    surface's voxels in ``.matrix``. ``backend``: ``"auto"`` (the GPU
+    surface's voxels in ``.matrix``; or ``"shell"``: the voxels whose centre is inside within ``thickness`` voxels
+    of the surface (1 or more holds water), with the signed field it was cut from in ``.distances`` and its walls
+    from :meth:`VoxelGrid.to_mesh`. ``backend``: ``"auto"`` (the GPU
     where it pays, else the CPU), ``"gpu"`` or ``"cpu"``. ``colour``: ``None`` colours the voxels when the mesh
     has colours, ``False`` never. ``bounds=(min, max)`` fixes the grid's world box, so that a dataset shares one
     frame. ``attributes`` (any of ``"triangle"``, ``"material"``, ``"node"``) adds per-voxel labels in
@@ -348,7 +361,7 @@ def voxelize(
     """
     out = _native.voxelize(
         _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
-        _attributes(attributes),
+        _attributes(attributes), float(thickness),
     )
     return _grid(out)
 
@@ -367,13 +380,14 @@ def voxelize_many(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
+    thickness: float = 1.0,
 ) -> list[VoxelGrid]:
     """Voxelizes many meshes with one engine on ``workers`` threads (default: one per core), as ``meshvox batch``
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
         sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band),
-        _attributes(attributes),
+        _attributes(attributes), float(thickness),
     )
     return [_grid(o) for o in outs]
 

@@ -22,6 +22,7 @@ def voxelize(
     progress: Callable[[int, int], Any] | None,
     band: str,
     attributes: str,
+    thickness: float,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
@@ -36,6 +37,7 @@ def voxelize_many(
     workers: int | None,
     band: str,
     attributes: str,
+    thickness: float,
 ) -> list[dict[str, Any]]: ...
 def voxelize_points(
     points: np.ndarray,
@@ -68,6 +70,7 @@ def save_field(
     background: float,
     signed: bool,
     level: float,
+    thickness: float | None = None,
 ) -> None: ...
 def level_mesh(
     distances: np.ndarray,
@@ -76,6 +79,7 @@ def level_mesh(
     background: float,
     signed: bool,
     level: float,
+    thickness: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]: ...
 
 class PreparedMesh:

@@ -215,6 +215,21 @@ pub fn write_field<W: Write + Seek>(
     }
 }
 
+/// Writes the walls of a shell of `thickness` voxels cut from `field` ([`super::shell::shell_mesh`]) as the mesh
+/// `format`.
+pub fn write_shell<W: Write + Seek>(
+    field: &DistanceField,
+    thickness: f32,
+    format: VoxelFormat,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    let VoxelFormat::Mesh(mesh) = format else {
+        return Err(std::io::Error::other("a shell's walls are written as .ply, .obj, .glb or .stl").into());
+    };
+    let walls = super::shell::shell_mesh(field, thickness).map_err(std::io::Error::other)?;
+    surface::write_surface(&walls, mesh, out)
+}
+
 /// The path of the labels written beside an `.npy` grid: `grid.npy` → `grid.labels.npy`.
 pub fn labels_npy_path(grid_path: &std::path::Path) -> std::path::PathBuf {
     grid_path.with_extension("labels.npy")
