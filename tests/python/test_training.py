@@ -333,3 +333,37 @@ def test_level_sets_are_watertight_for_trimesh(meshes, cli, tmp_path):
     run_cli(cli, "voxelize", bunny, "-r", "40", "--mode", "udf", "--level", "0.004", "--backend", "cpu", "-o", str(shell))
     read = trimesh.load(shell, force="mesh")
     assert read.is_watertight and read.is_winding_consistent and read.volume > 0
+
+
+def test_a_shell_is_the_inside_within_its_thickness_and_its_walls_are_watertight(meshes, cli, tmp_path):
+    # A hollow shell (issue 48), from Python and the CLI: its voxels are those the signed field (computed apart,
+    # mode="sdf") puts inside within the thickness, on the open bunny and on Spot; its walls are watertight for
+    # trimesh from to_mesh and from save and the CLI; it survives pickling.
+    trimesh = pytest.importorskip("trimesh")
+    import pickle
+
+    for name, thickness in (("stanford-bunny.obj", 1.0), ("spot.obj", 2.5)):
+        path = meshes / name
+        shell = meshvox.voxelize(path, 50, mode="shell", thickness=thickness, backend="cpu")
+        field = meshvox.voxelize(path, 50, mode="sdf", band=thickness + 2, backend="cpu")
+        d, h = field.distances, field.pitch
+        expected = (d < 0) & (d >= -np.float32(thickness) * np.float32(h))
+        assert shell.matrix.shape == expected.shape and shell.thickness == thickness
+        assert np.array_equal(shell.matrix, expected), (name, int((shell.matrix ^ expected).sum()))
+        assert shell.stats["mode"] == "shell" and shell.stats["voxels"] == int(expected.sum())
+        walls = shell.to_mesh(trimesh=True)
+        assert walls.is_watertight and walls.is_winding_consistent and walls.volume > 0, name
+        # The walls enclose about the shell's voxels: within 5% at 50 voxels.
+        assert abs(walls.volume / (expected.sum() * h**3) - 1) < 0.05, (name, walls.volume, expected.sum() * h**3)
+        saved = tmp_path / f"{name}.ply"
+        shell.save(saved)
+        assert len(trimesh.load(saved, force="mesh").faces) == len(walls.faces)
+        npy = tmp_path / f"{name}.npy"
+        shell.save(npy)
+        assert np.array_equal(np.load(npy).astype(bool), expected)
+        again = pickle.loads(pickle.dumps(shell))
+        assert again == shell and again.thickness == thickness
+        out = tmp_path / f"{name}-cli.npy"
+        run_cli(cli, "voxelize", path, "-r", "50", "--mode", "shell", "--thickness", str(thickness), "--backend",
+                "cpu", "-o", str(out))
+        assert np.array_equal(np.load(out).astype(bool), expected), name
