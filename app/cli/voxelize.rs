@@ -147,7 +147,7 @@ pub(super) fn voxelize_loaded(
     let format = request.format.ok_or_else(|| anyhow!("no output format"))?;
     args.colour.note_if_colourless(&args.mesh, mesh);
     let bar = match bars {
-        true => progress_bar(mesh.triangles.len() as u64, "voxelizing"),
+        true => progress_bar(mesh.triangles.len() as u64, "voxelizing", "triangles"),
         false => ProgressBar::hidden(),
     };
     // The surface and then a field each count their triangles (the bar starts again for the field).
@@ -187,13 +187,24 @@ pub(super) fn voxelize_loaded(
         })?),
         _ => None,
     };
+    // A level set or a shell's walls can take seconds to mesh at 1024 and more: a bar of its 8³ blocks.
+    let meshing = match bars && meshvox::engine::budget::writes_level_set(request.mode, Some(format)) {
+        true => progress_bar(0, "meshing", "blocks"),
+        false => ProgressBar::hidden(),
+    };
+    let mesh_progress = |done: usize, total: usize| {
+        meshing.set_length(total as u64);
+        meshing.set_position(done as u64);
+    };
     let options = voxel::formats::WriteOptions {
         merge: args.merge,
         vdb_float: args.grid.vdb_float,
         level: args.band.level.unwrap_or(0.0),
+        progress: Some(&mesh_progress),
         ..Default::default()
     };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;
+    meshing.finish_and_clear();
     Ok(meshvox::Report {
         output: args.output.display().to_string(),
         format: format.extension().to_string(),
@@ -218,12 +229,12 @@ fn write_beside(
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal (scripts and logs get none).
-pub(super) fn progress_bar(len: u64, message: &'static str) -> ProgressBar {
+pub(super) fn progress_bar(len: u64, message: &'static str, unit: &str) -> ProgressBar {
     if !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} triangles ({eta})") {
+    if let Ok(style) = ProgressStyle::with_template(&format!("{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit} ({{eta}})")) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_message(message);

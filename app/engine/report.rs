@@ -134,9 +134,9 @@ impl Voxelized {
     ) -> Result<(), FormatError> {
         match (&self.field, self.shell) {
             (Some(field), Some(thickness)) if matches!(format, VoxelFormat::Mesh(_)) => {
-                formats::write_shell(field, thickness, format, out)
+                formats::write_shell(field, thickness, format, options, out)
             }
-            (Some(field), None) => formats::write_field(field, format, options.level, out),
+            (Some(field), None) => formats::write_field(field, format, options, out),
             _ => {
                 let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
                 formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)

@@ -470,8 +470,11 @@ fn save_field(
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::voxel::formats::atomic::write_atomically(&path, |out| match thickness {
-            Some(thickness) => crate::voxel::formats::write_shell(&field, thickness, format, out),
-            None => crate::voxel::formats::write_field(&field, format, level, out),
+            Some(thickness) => crate::voxel::formats::write_shell(&field, thickness, format, &Default::default(), out),
+            None => {
+                let options = crate::voxel::formats::WriteOptions { level, ..Default::default() };
+                crate::voxel::formats::write_field(&field, format, &options, out)
+            }
         })
     })?;
     written.map(|_| ()).map_err(|e| save_err(&path, e))

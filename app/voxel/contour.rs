@@ -35,6 +35,7 @@ use super::{Grid, GridSpec};
 use crate::parallel;
 use glam::{DVec3, IVec3, UVec3};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// How close to the level (in voxels) a sample may be: closer ones are moved this far from it.
 const CLEARANCE: f64 = 0.01;
@@ -75,8 +76,21 @@ const OUTSIDE: u8 = 0;
 const INSIDE: u8 = 1;
 const MIXED: u8 = 2;
 
+/// About how many progress calls [`level_mesh_with_progress`] makes.
+const PROGRESS_CALLS: usize = 200;
+
 /// The level set of `field` at `level` (world units) as a closed, edge-manifold, outward-wound triangle mesh.
 pub fn level_mesh(field: &DistanceField, level: f64) -> Result<TriangleMesh, ContourError> {
+    level_mesh_with_progress(field, level, &|_, _| {})
+}
+
+/// [`level_mesh`], calling `progress(done, blocks)` as the 8³ blocks of cubes are meshed (from any thread, a few
+/// hundred times; the weld after the last block is not counted).
+pub fn level_mesh_with_progress(
+    field: &DistanceField,
+    level: f64,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TriangleMesh, ContourError> {
     let reach = f64::from(field.background());
     if !field.signed && level <= 0.0 {
         return Err(ContourError::UnsignedLevel(level));
@@ -92,8 +106,21 @@ pub fn level_mesh(field: &DistanceField, level: f64) -> Result<TriangleMesh, Con
         .flat_map(|z| (-1..ld.y).flat_map(move |y| (-1..ld.x).map(move |x| IVec3::new(x, y, z))))
         .filter(|&p| block_may_cross(&states, ld, p))
         .collect();
-    let pieces: Vec<Piece> =
-        parallel::install(|| blocks.par_iter().map(|&p| block_triangles(field, level, p)).collect());
+    let (done, every) = (AtomicUsize::new(0), blocks.len().div_ceil(PROGRESS_CALLS).max(1));
+    progress(0, blocks.len());
+    let pieces: Vec<Piece> = parallel::install(|| {
+        blocks
+            .par_iter()
+            .map(|&p| {
+                let piece = block_triangles(field, level, p);
+                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if n % every == 0 || n == blocks.len() {
+                    progress(n, blocks.len());
+                }
+                piece
+            })
+            .collect()
+    });
     // Weld by edge key: every block computes a shared edge's vertex from the same two samples, so duplicates agree.
     let mut keyed: Vec<(u64, DVec3)> = pieces.iter().flat_map(|(v, _)| v.iter().copied()).collect();
     parallel::install(|| keyed.par_sort_unstable_by_key(|(k, _)| *k));

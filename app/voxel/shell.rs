@@ -18,7 +18,7 @@
 //! 0 and the inner wall at `-T·h`, wound inward, so the whole is closed, edge-manifold and encloses the shell's
 //! volume (the two level sets of a continuous field at different levels never meet).
 
-use super::contour::{ContourError, TriangleMesh, level_mesh};
+use super::contour::{ContourError, TriangleMesh, level_mesh_with_progress};
 use super::distance::DistanceField;
 use super::sparse::{LeafMask, leaf_key};
 use super::{GridSpec, SparseGrid};
@@ -68,8 +68,17 @@ pub fn shell_grid(field: &DistanceField, thickness: f32) -> SparseGrid {
 /// The walls of the shell of `thickness` voxels in `field`: the level set at 0 (outward) and the one at `-T·h`
 /// (wound inward, into the hollow), as one closed mesh.
 pub fn shell_mesh(field: &DistanceField, thickness: f32) -> Result<TriangleMesh, ContourError> {
-    let mut outer = level_mesh(field, 0.0)?;
-    let inner = level_mesh(field, -f64::from(shell_reach(&field.spec, thickness)))?;
+    shell_mesh_with_progress(field, thickness, &|_, _| {})
+}
+
+/// [`shell_mesh`], calling `progress(done, blocks)` for each wall in turn (as [`level_mesh_with_progress`]).
+pub fn shell_mesh_with_progress(
+    field: &DistanceField,
+    thickness: f32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TriangleMesh, ContourError> {
+    let mut outer = level_mesh_with_progress(field, 0.0, progress)?;
+    let inner = level_mesh_with_progress(field, -f64::from(shell_reach(&field.spec, thickness)), progress)?;
     let base = outer.vertices.len() as u32;
     outer.vertices.extend(inner.vertices);
     // Reversed: the inner wall faces the hollow, so the pair bounds the shell.

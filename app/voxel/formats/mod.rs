@@ -129,7 +129,7 @@ pub fn write_coloured<W: Write + Seek>(
 }
 
 /// How [`write_grid`] writes, beyond the format.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Default)]
 pub struct WriteOptions<'a> {
     /// Mesh formats: join coplanar faces into rectangles.
     pub merge: bool,
@@ -140,6 +140,8 @@ pub struct WriteOptions<'a> {
     pub labels: Option<&'a Labels>,
     /// A distance field written as a mesh: the level set's value, world units.
     pub level: f64,
+    /// Called now and then with (blocks done, blocks) while a level set or a shell's walls are meshed.
+    pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse
@@ -193,12 +195,14 @@ pub type IntColumn<'a> = (&'a str, &'a Label<'a>);
 pub fn write_field<W: Write + Seek>(
     field: &DistanceField,
     format: VoxelFormat,
-    level: f64,
+    options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Mesh(mesh) => {
-            let surface = super::contour::level_mesh(field, level).map_err(std::io::Error::other)?;
+            let progress = options.progress.unwrap_or(&|_, _| {});
+            let surface = super::contour::level_mesh_with_progress(field, options.level, progress)
+                .map_err(std::io::Error::other)?;
             surface::write_surface(&surface, mesh, out)
         }
         VoxelFormat::Npy => npy::write_field_npy(field, out),
@@ -221,12 +225,14 @@ pub fn write_shell<W: Write + Seek>(
     field: &DistanceField,
     thickness: f32,
     format: VoxelFormat,
+    options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
     let VoxelFormat::Mesh(mesh) = format else {
         return Err(std::io::Error::other("a shell's walls are written as .ply, .obj, .glb or .stl").into());
     };
-    let walls = super::shell::shell_mesh(field, thickness).map_err(std::io::Error::other)?;
+    let progress = options.progress.unwrap_or(&|_, _| {});
+    let walls = super::shell::shell_mesh_with_progress(field, thickness, progress).map_err(std::io::Error::other)?;
     surface::write_surface(&walls, mesh, out)
 }
 
