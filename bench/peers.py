@@ -3,7 +3,8 @@
 where they differ, and meshvox's speed-up over each peer.
 
 Usage (from the repository root, with the system python; it sets up its own virtual environments; `--query` runs
-bench/peers_query.py instead, the query table against Open3D, pysdf, libigl and mesh_to_sdf):
+bench/peers_query.py instead, the query table against Open3D, pysdf, libigl and mesh_to_sdf; `--watertight` runs
+bench/peers_watertight.py, meshvox's watertight meshes beside mesh2sdf's fix=True):
 
     python3 bench/peers.py [--resolutions 128,256,512] [--runs 3] [--meshes A.obj,B.obj] \\
         [--binary target/release/meshvox] [--markdown bench/RESULTS.md] [--plot bench/peers.png]
@@ -804,6 +805,10 @@ def main():
     if "--setup-only" in sys.argv[1:]:
         setup_envs(False)
         return
+    if "--watertight" in sys.argv[1:]:
+        # The watertight-mesh table (bench/peers_watertight.py, beside mesh2sdf's fix=True): its own options.
+        argv = [a for a in sys.argv[1:] if a != "--watertight"]
+        os.execv(sys.executable, [sys.executable, str(ROOT / "bench" / "peers_watertight.py"), *argv])
     if "--query" in sys.argv[1:]:
         # The query table (bench/peers_query.py): its own options after --query.
         argv = [a for a in sys.argv[1:] if a != "--query"]

@@ -99,6 +99,11 @@ fn level_sets_of_the_shared_meshes_are_closed_and_hold_the_input() {
                 * h
                 * h;
             eprintln!("{what}: {} triangles, volume {volume:.6e} against {inside:.6e} inside", surface.faces.len());
+            // Open or not, the level set bounds the voxels the winding number puts inside: a hole's cap lies where
+            // it says inside (at 57 all four within 1.2%; at 24 the thin parts lose more).
+            if n == 57 {
+                assert!((volume / inside - 1.0).abs() < 0.02, "{what}: volume {volume:.6e}, {inside:.6e} inside");
+            }
             if closed {
                 assert_within_a_voxel(&m, &surface, h, &what);
             }

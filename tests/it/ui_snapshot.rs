@@ -165,3 +165,38 @@ fn a_textured_mesh_shows_its_colours_and_the_flat_colour_on_request() {
     let (yellow, orange) = count(&harness.render().expect("render"));
     assert!(orange > 2000 && orange > yellow * 4, "flat: {yellow} yellow, {orange} orange pixels");
 }
+
+#[test]
+fn the_shell_mode_shows_its_thickness_slider_and_voxels_of_each_thickness() {
+    let mut harness = small_viewer("builtin:sphere", 40);
+    harness.run();
+    assert!(harness.query_all_by_label("thickness").next().is_none(), "the slider shows for shells only");
+    harness.get_by_label("shell").click();
+    harness.run();
+    let (mesh, _) = fitted("builtin:sphere", 40);
+    let engine = meshvox::Engine::open(meshvox::Backend::Cpu).expect("cpu");
+    let shell = |thickness: f32| {
+        let request = meshvox::Request {
+            thickness,
+            grid: meshvox::voxel::GridKind::Dense,
+            ..meshvox::Request::new(meshvox::voxel::Resolution::Count(40), meshvox::voxel::Mode::Shell)
+        };
+        engine.voxelize("sphere", &mesh, &request).expect("shell").grid.count()
+    };
+    let stats = harness.state().stats().expect("voxelized").clone();
+    assert_eq!(stats.mode, meshvox::voxel::Mode::Shell);
+    assert_eq!(stats.voxels, shell(1.0), "the default thickness is one voxel");
+    assert!(harness.query_all_by_label("thickness").next().is_some(), "the thickness slider shows");
+    // A thicker shell voxelizes again, and the link carries the thickness.
+    harness.state_mut().set_thickness(3.0);
+    harness.run();
+    let thicker = harness.state().stats().expect("stats").voxels;
+    assert_eq!(thicker, shell(3.0));
+    assert!(thicker > stats.voxels);
+    assert!(harness.state().url_state().query().contains("mode=shell&thickness=3"));
+    // Cut away, the hollow shows.
+    harness.state_mut().set_cut(Some(meshvox::render::Cut { axis: 0, fraction: 0.6 }));
+    harness.run();
+    assert_eq!(harness.state().error(), None);
+    snapshot(&mut harness, "ui-shell-cut");
+}

@@ -24,6 +24,14 @@ fn a_query_reads_what_it_can_and_writes_back_the_same() {
     assert_eq!(UrlState::parse("cam=0,0,-1,0,0,0").camera, None, "a negative distance");
     assert_eq!(UrlState::parse("cam=0,0,1,NaN,0,0").camera, None, "not finite");
 
+    // A shell's thickness travels with mode=shell only; out of range, it is dropped.
+    let shell = UrlState::parse("mode=shell&thickness=2.5");
+    assert_eq!((shell.mode, shell.thickness), (Some(Mode::Shell), Some(2.5)));
+    assert_eq!(shell.query(), "mode=shell&thickness=2.5");
+    assert_eq!(UrlState { mode: Some(Mode::Solid), ..shell.clone() }.query(), "mode=solid");
+    assert_eq!(UrlState::parse("mode=shell&thickness=0").thickness, None);
+    assert_eq!(UrlState::parse("mode=shell&thickness=99").thickness, None);
+
     // A file's name with spaces, an ampersand and non-ASCII letters survives the trip.
     let file = UrlState { file: Some("my scan & co — v2.obj".into()), ..Default::default() };
     assert_eq!(UrlState::parse(&file.query()), file);

@@ -238,10 +238,10 @@ async function webgpuPath(browser) {
   const typedCli = cliVoxels(`builtin:${typed.mesh}`, 128);
   check(typed.voxels === typedCli, `resolution 128 typed into the panel: page ${typed.voxels} == CLI ${typedCli}`);
 
-  // The modes: solid (the surface plus the inside) and the thin surface, each the CLI's count; the cut-away
-  // only changes the view. Then back to the surface for the rest.
+  // The modes: solid (the surface plus the inside), the thin surface, the field and the shell (one voxel thick),
+  // each the CLI's count; the cut-away only changes the view. Then back to the surface for the rest.
   check(typed.mode === "surface", `the page starts in surface mode (${typed.mode})`);
-  for (const mode of ["solid", "surface6", "sdf", "surface"]) {
+  for (const mode of ["solid", "surface6", "sdf", "shell", "surface"]) {
     await page.evaluate((m) => window.meshvoxSetMode(m), mode);
     const m = await status({ ready: true, mode }, `mode ${mode}`);
     const cli = cliVoxels(`builtin:${m.mesh}`, m.resolution, mode);
