@@ -71,10 +71,12 @@ crate::names::names!(Mode {
 });
 
 impl Mode {
-    /// The occupancy modes: a grid of voxels and nothing else.
+    /// The voxelizer's occupancy modes: a grid of voxels and nothing else.
     pub const OCCUPANCY: [Mode; 3] = [Mode::Surface, Mode::Solid, Mode::Surface6];
     /// The distance-field modes.
     pub const FIELDS: [Mode; 2] = [Mode::Sdf, Mode::Udf];
+    /// The occupancy modes cut from a distance field (not the voxelizer's own: [`Mode::grid_mode`] is the surface).
+    pub const FROM_FIELD: [Mode; 1] = [Mode::Shell];
 
     /// Whether the mode's result is a distance field (beside the surface grid).
     pub fn is_field(self) -> bool {

@@ -395,8 +395,8 @@ fn every_setting_has_one_spelling_that_every_client_takes() {
     check(&Backend::ALL, Backend::name, Backend::from_name);
     check(&GridKind::ALL, GridKind::name, GridKind::from_name);
     check(&Mode::ALL, Mode::name, Mode::from_name);
-    assert_eq!(Mode::ALL.len(), Mode::OCCUPANCY.len() + Mode::FIELDS.len());
-    assert!(Mode::OCCUPANCY.iter().chain(&Mode::FIELDS).all(|m| Mode::ALL.contains(m)));
+    assert_eq!(Mode::ALL.len(), Mode::OCCUPANCY.len() + Mode::FIELDS.len() + Mode::FROM_FIELD.len());
+    assert!(Mode::OCCUPANCY.iter().chain(&Mode::FIELDS).chain(&Mode::FROM_FIELD).all(|m| Mode::ALL.contains(m)));
     assert_eq!(Backend::choices(), "auto, gpu or cpu");
     for format in VoxelFormat::ALL {
         assert_eq!(VoxelFormat::from_name(&format.extension().to_uppercase()), Some(format));
