@@ -381,13 +381,19 @@ impl DistanceField {
     /// The voxels in the band (every voxel for `Band::Full`), as a sparse grid: what `.vdb` and `.npz` outputs
     /// hold values for.
     pub fn band_grid(&self) -> SparseGrid {
+        self.leaf_grid(|origin, leaf| self.band_mask(origin, leaf))
+    }
+
+    /// The sparse grid of the voxels `mask` picks in each leaf (from its origin and its 512 values): the band's
+    /// ([`DistanceField::band_grid`]), or a shell's ([`super::shell::shell_grid`]).
+    pub fn leaf_grid(&self, mask: impl Fn(UVec3, &[f32]) -> LeafMask + Sync) -> SparseGrid {
         parallel::install(|| {
             let mut leaves: Vec<(u64, LeafMask)> = self
                 .leaves
                 .par_iter()
                 .zip(self.values.par_chunks(512))
                 .filter_map(|(&origin, leaf)| {
-                    let mask = self.band_mask(origin, leaf);
+                    let mask = mask(origin, leaf);
                     (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
                 })
                 .collect();

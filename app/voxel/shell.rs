@@ -20,11 +20,9 @@
 
 use super::contour::{ContourError, TriangleMesh, level_mesh_with_progress};
 use super::distance::DistanceField;
-use super::sparse::{LeafMask, leaf_key};
+use super::sparse::LeafMask;
 use super::{GridSpec, SparseGrid};
-use crate::parallel;
 use glam::UVec3;
-use rayon::prelude::*;
 
 /// The band (in voxels) a shell of `thickness` voxels is cut from: every voxel within the thickness gets its
 /// exact distance, with room for the inner wall's level set (which needs the samples around it).
@@ -41,27 +39,18 @@ pub fn shell_reach(spec: &GridSpec, thickness: f32) -> f32 {
 pub fn shell_grid(field: &DistanceField, thickness: f32) -> SparseGrid {
     let reach = shell_reach(&field.spec, thickness);
     let dims = field.spec.dims;
-    parallel::install(|| {
-        let mut leaves: Vec<(u64, LeafMask)> = field
-            .leaves
-            .par_iter()
-            .zip(field.values.par_chunks(512))
-            .filter_map(|(&origin, leaf)| {
-                let mut mask: LeafMask = [0; 8];
-                for (i, &value) in leaf.iter().enumerate() {
-                    let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
-                    let v = origin + l;
-                    // A centre on the surface (value 0) is inside where the fill says so: rare, so looked up alone.
-                    let inside = value < 0.0 || (value == 0.0 && field.is_inside(v));
-                    if inside && -value <= reach && v.cmplt(dims).all() {
-                        mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
-                    }
-                }
-                (mask != [0; 8]).then(|| (leaf_key(origin.x, origin.y, origin.z), mask))
-            })
-            .collect();
-        leaves.par_sort_unstable_by_key(|(key, _)| *key);
-        SparseGrid { spec: field.spec, leaves, tiles: Vec::new() }
+    field.leaf_grid(|origin, leaf| {
+        let mut mask: LeafMask = [0; 8];
+        for (i, &value) in leaf.iter().enumerate() {
+            let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+            let v = origin + l;
+            // A centre on the surface (value 0) is inside where the fill says so: rare, so looked up alone.
+            let inside = value < 0.0 || (value == 0.0 && field.is_inside(v));
+            if inside && -value <= reach && v.cmplt(dims).all() {
+                mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
+            }
+        }
+        mask
     })
 }
 
