@@ -46,6 +46,8 @@ pub struct BatchArgs {
     mode: Mode,
     #[command(flatten)]
     band: super::BandArgs,
+    #[command(flatten)]
+    blocks: super::BlockArgs,
     /// Where to voxelize (one engine for the whole run).
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
     backend: Backend,
@@ -351,6 +353,7 @@ impl Work<'_> {
             merge: args.merge,
             mode: args.mode,
             band: args.band.clone(),
+            blocks: args.blocks.clone(),
             stats_json: false,
             backend: args.backend,
             grid: args.grid,

@@ -208,6 +208,47 @@ impl GridArgs {
     }
 }
 
+/// The blocks of a Minecraft output (`.schem`).
+#[derive(clap::Args, Clone, Default)]
+pub(super) struct BlockArgs {
+    /// Minecraft outputs: the blocks colours map to, by the nearest colour in OKLab: `default` (concrete, wool,
+    /// terracotta and planks with their textures' average colours, assets/minecraft-blocks.csv) or a file of
+    /// `id,r,g,b` lines.
+    #[arg(long, value_name = "default|FILE")]
+    pub(super) blocks: Option<String>,
+    /// Minecraft outputs: one block for every voxel (what an uncoloured mesh gets: the set's first block without
+    /// it), e.g. minecraft:stone.
+    #[arg(long, value_name = "ID")]
+    pub(super) block: Option<String>,
+    /// Minecraft outputs: Floyd-Steinberg dithering of the colours along each horizontal layer (off: each voxel
+    /// takes its nearest block).
+    #[arg(long)]
+    pub(super) dither: bool,
+}
+
+impl BlockArgs {
+    /// The block set these arguments name for `format` (`None`: the default set), refused for other formats.
+    pub(super) fn set(&self, format: VoxelFormat) -> Result<Option<meshvox::voxel::blocks::BlockSet>> {
+        use meshvox::voxel::blocks::BlockSet;
+        let any = self.blocks.is_some() || self.block.is_some() || self.dither;
+        if format != VoxelFormat::Schem {
+            if any {
+                anyhow::bail!("--blocks, --block and --dither are for Minecraft outputs: use a .schem output");
+            }
+            return Ok(None);
+        }
+        Ok(match (&self.block, self.blocks.as_deref()) {
+            (Some(_), Some(_)) => anyhow::bail!("--block puts one block everywhere: leave out --blocks"),
+            (Some(id), None) => Some(BlockSet::single(id)?),
+            (None, None | Some("default")) => None,
+            (None, Some(file)) => {
+                let text = anyhow::Context::with_context(std::fs::read_to_string(file), || format!("--blocks {file}"))?;
+                Some(BlockSet::parse(&text, &format!("--blocks {file}"))?)
+            }
+        })
+    }
+}
+
 /// How far from the surface `--mode sdf|udf` computes distances.
 #[derive(clap::Args, Clone)]
 pub(super) struct BandArgs {

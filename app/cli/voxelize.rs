@@ -27,7 +27,8 @@ pub(super) struct VoxelizeArgs {
     #[arg(long, value_enum, default_value_t = Axis::Longest)]
     pub(super) axis: Axis,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB) or .npz (sorted
-    /// coordinates); or .glb, .ply or .obj for the voxel model's outer faces as a mesh in world space.
+    /// coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
+    /// .schem for a Minecraft schematic (Sponge v3, blocks by colour: --blocks, --block, --dither).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(super) output: PathBuf,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
@@ -50,6 +51,8 @@ pub(super) struct VoxelizeArgs {
     #[command(flatten)]
     pub(super) colour: ColourArgs,
     #[command(flatten)]
+    pub(super) blocks: super::BlockArgs,
+    #[command(flatten)]
     pub(super) limits: LimitArgs,
 }
 
@@ -67,6 +70,7 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
     let request = args.request(format)?;
+    args.blocks.set(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
@@ -145,6 +149,7 @@ pub(super) fn voxelize_loaded(
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
     let format = request.format.ok_or_else(|| anyhow!("no output format"))?;
+    let blocks = args.blocks.set(format)?;
     args.colour.note_if_colourless(&args.mesh, mesh);
     let bar = match bars {
         true => progress_bar(mesh.triangles.len() as u64, "voxelizing", "triangles"),
@@ -201,6 +206,8 @@ pub(super) fn voxelize_loaded(
         vdb_float: args.grid.vdb_float,
         level: args.band.level.unwrap_or(0.0),
         progress: Some(&mesh_progress),
+        blocks: blocks.as_ref(),
+        dither: args.blocks.dither,
         ..Default::default()
     };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;

@@ -95,7 +95,7 @@ fn save_err(path: &std::path::Path, e: crate::voxel::formats::FormatError) -> Py
         FormatError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
         FormatError::Io(io) if io.kind() == std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
         FormatError::Io(_) => PyOSError::new_err(message),
-        FormatError::Invalid { .. } => PyValueError::new_err(message),
+        FormatError::Invalid { .. } | FormatError::TooLarge(_) => PyValueError::new_err(message),
     }
 }
 

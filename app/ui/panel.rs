@@ -283,8 +283,8 @@ impl ViewerApp {
         let field = self.field.is_some();
         ui.horizontal_wrapped(|ui| {
             ui.label("Export");
-            use formats::VoxelFormat::{Binvox, Mesh, Npy, Npz, Vdb, Vox};
-            for format in [Vox, Binvox, Npy, Vdb, Npz, Mesh(formats::MeshFormat::Glb)] {
+            use formats::VoxelFormat::{Binvox, Mesh, Npy, Npz, Schem, Vdb, Vox};
+            for format in [Vox, Binvox, Npy, Vdb, Npz, Mesh(formats::MeshFormat::Glb), Schem] {
                 let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Npz));
                 let hint = match (format, field) {
                     (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
@@ -296,6 +296,7 @@ impl ViewerApp {
                     (Binvox, false) => "binvox, occupancy only",
                     (Vdb, false) => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
                     (Npz, false) => "numpy .npz of sorted int32 coordinates (and their colours)",
+                    (Schem, false) => "a Minecraft schematic (Sponge v3): blocks by the nearest colour in OKLab",
                     _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
                 };
                 let button = egui::Button::new(format!(".{}", format.extension()));

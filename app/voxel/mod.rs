@@ -17,6 +17,7 @@
 //! (bit 0 is the least significant). Padding bits at the end of a row are always zero. Rows being word-aligned
 //! lets the GPU process the grid in z-slabs that are whole word ranges.
 
+pub mod blocks;
 pub mod bvh;
 pub mod colour;
 pub mod contour;

@@ -10,6 +10,9 @@ pub enum FormatError {
     Io(#[from] io::Error),
     #[error("not a valid {format} file: {message}")]
     Invalid { format: &'static str, message: String },
+    /// The grid does not fit the format (a schematic's sides are unsigned Shorts).
+    #[error("{0}")]
+    TooLarge(String),
 }
 
 pub(crate) fn invalid(format: &'static str, message: impl Into<String>) -> FormatError {

@@ -14,6 +14,7 @@ pub mod npy;
 pub mod npz;
 pub mod palette;
 pub mod points;
+pub mod schem;
 pub mod surface;
 pub mod vdb;
 pub mod vox;
@@ -26,6 +27,7 @@ pub use npz::write_npz;
 pub use vdb::{VdbOptions, write_vdb};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
+use super::blocks::BlockSet;
 use super::colour::VoxelColours;
 use super::distance::DistanceField;
 use super::labels::Labels;
@@ -46,11 +48,13 @@ pub enum VoxelFormat {
     Vdb,
     /// The voxel model as a mesh (see [`mesh`]).
     Mesh(MeshFormat),
+    /// A Sponge v3 Minecraft schematic (see [`schem`]).
+    Schem,
 }
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 9] = [
+    pub const ALL: [VoxelFormat; 10] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -60,6 +64,7 @@ impl VoxelFormat {
         VoxelFormat::Mesh(MeshFormat::Ply),
         VoxelFormat::Mesh(MeshFormat::Obj),
         VoxelFormat::Mesh(MeshFormat::Stl),
+        VoxelFormat::Schem,
     ];
 
     /// The format named by a file's extension.
@@ -98,6 +103,7 @@ impl VoxelFormat {
             VoxelFormat::Npz => "npz",
             VoxelFormat::Vdb => "vdb",
             VoxelFormat::Mesh(mesh) => mesh.extension(),
+            VoxelFormat::Schem => "schem",
         }
     }
 }
@@ -122,6 +128,7 @@ pub fn write_coloured<W: Write + Seek>(
         VoxelFormat::Binvox => write_binvox(grid, out),
         VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
         VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, merge, m, out),
+        VoxelFormat::Schem => write_minecraft(grid, colours, &WriteOptions::default(), out),
         VoxelFormat::Npz | VoxelFormat::Vdb => {
             write_grid(&Grid::Dense(grid.clone()), colours, format, &WriteOptions { merge, ..Default::default() }, out)
         }
@@ -142,6 +149,30 @@ pub struct WriteOptions<'a> {
     pub level: f64,
     /// Called now and then with (blocks done, blocks) while a level set or a shell's walls are meshed.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// The Minecraft formats: the blocks to map colours to (`None`: [`BlockSet::default_set`]), and whether to
+    /// dither.
+    pub blocks: Option<&'a BlockSet>,
+    pub dither: bool,
+}
+
+/// Writes a Minecraft schematic of `grid`: each voxel's block the nearest in `options.blocks` to its colour
+/// (dithered on request), or the set's first block without colours ([`BlockSet::assign`]).
+fn write_minecraft<W: Write>(
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    options: &WriteOptions,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    let default;
+    let set = match options.blocks {
+        Some(set) => set,
+        None => {
+            default = BlockSet::default_set();
+            &default
+        }
+    };
+    let blocks = set.assign(grid, colours, options.dither);
+    schem::write_schem(grid, &blocks, set, "meshvox", out)
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse
@@ -154,6 +185,15 @@ pub fn write_grid<W: Write + Seek>(
     options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
+    if format == VoxelFormat::Schem {
+        let dense = match grid {
+            Grid::Dense(dense) => std::borrow::Cow::Borrowed(dense),
+            Grid::Sparse(sparse) => {
+                std::borrow::Cow::Owned(sparse.to_dense().map_err(|e| std::io::Error::other(e.to_string()))?)
+            }
+        };
+        return write_minecraft(&dense, colours.filter(|_| grid.dense().is_some()), options, out);
+    }
     let sparse = match (grid, format.is_sparse()) {
         (Grid::Dense(dense), false) => return write_coloured(dense, colours, format, options.merge, out),
         (Grid::Sparse(sparse), false) => {

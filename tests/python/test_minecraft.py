@@ -1,0 +1,119 @@
+"""Minecraft schematics (`-o x.schem`, issue 49), read by nbtlib (PyPI), never by meshvox: the Sponge v3 layout,
+the grid convention (Width, Height, Length are x, y, z; index x + z*W + y*W*L), one block per voxel and air
+elsewhere, every block from the chosen set, each voxel's block the nearest in OKLab to its colour (numpy), dithering
+keeping every voxel, `--block` and a user's `--blocks` file, and clear errors."""
+import pathlib
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+
+nbtlib = pytest.importorskip("nbtlib")
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def default_set():
+    rows = [line.split(",") for line in (ROOT / "assets" / "minecraft-blocks.csv").read_text().splitlines()
+            if line and not line.startswith("#") and line != "id,r,g,b"]
+    return [r[0] for r in rows], np.array([[int(c) for c in r[1:]] for r in rows], dtype=np.uint8)
+
+
+def oklab(rgb):
+    """OKLab (Ottosson) of sRGB bytes (N, 3), in float64."""
+    c = rgb.astype(np.float64) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    m1 = np.array([[0.4122214708, 0.5363325363, 0.0514459929],
+                   [0.2119034982, 0.6806995451, 0.1073969566],
+                   [0.0883024619, 0.2817188376, 0.6299787005]])
+    m2 = np.array([[0.2104542553, 0.7936177850, -0.0040720468],
+                   [1.9779984951, -2.4285922050, 0.4505937099],
+                   [0.0259040371, 0.7827717662, -0.8086757660]])
+    return np.cbrt(lin @ m1.T) @ m2.T
+
+
+def read_schem(path):
+    """(block ids [x, y, z] as an object array, the palette's ids, the root) of a .schem, by nbtlib."""
+    root = nbtlib.load(path)
+    s = root["Schematic"]
+    assert int(s["Version"]) == 3 and int(s["DataVersion"]) > 0
+    w, h, l = (int(s[k]) & 0xFFFF for k in ("Width", "Height", "Length"))
+    palette = {int(v): str(k) for k, v in s["Blocks"]["Palette"].items()}
+    data = bytes(np.asarray(s["Blocks"]["Data"], dtype=np.int8).view(np.uint8))
+    values, shift, value = [], 0, 0
+    for byte in data:
+        value |= (byte & 0x7F) << shift
+        shift += 7
+        if byte < 0x80:
+            values.append(value)
+            value, shift = 0, 0
+    assert len(values) == w * h * l
+    names = np.array([palette[v] for v in values], dtype=object).reshape(h, l, w)  # [y, z, x]
+    return names.transpose(2, 0, 1), set(palette.values()), s
+
+
+def test_a_coloured_mesh_becomes_the_nearest_blocks_in_oklab(meshes, cli, tmp_path):
+    duck = str(meshes / "gltf" / "Duck.glb")
+    run_cli(cli, "voxelize", duck, "-r", "40", "-o", str(tmp_path / "duck.schem"), "--backend", "cpu")
+    run_cli(cli, "voxelize", duck, "-r", "40", "-o", str(tmp_path / "duck.npy"), "--backend", "cpu")
+    occupied = np.load(tmp_path / "duck.npy").astype(bool)
+    colours = np.load(tmp_path / "duck.colors.npy")
+    names, palette, root = read_schem(tmp_path / "duck.schem")
+    assert names.shape == occupied.shape
+    assert np.array_equal(names != "minecraft:air", occupied), "one block per voxel, air elsewhere"
+    ids, rgb = default_set()
+    assert palette <= set(ids) | {"minecraft:air"}
+    # Each voxel's block is the nearest in OKLab to its colour: its distance is the least, within 1e-5 (f32).
+    lab, entries = oklab(colours[occupied][:, :3]), oklab(rgb)
+    d2 = ((lab[:, None, :] - entries[None, :, :]) ** 2).sum(-1)
+    chosen = d2[np.arange(len(lab)), [ids.index(n) for n in names[occupied]]]
+    assert np.all(chosen <= d2.min(1) + 1e-5), float((chosen - d2.min(1)).max())
+    assert len(palette) > 3, "a coloured duck uses several blocks"
+
+    # Dithered: every voxel still one block of the set, and the same voxels.
+    run_cli(cli, "voxelize", duck, "-r", "40", "-o", str(tmp_path / "dither.schem"), "--backend", "cpu",
+            "--dither")
+    dithered, palette, _ = read_schem(tmp_path / "dither.schem")
+    assert np.array_equal(dithered != "minecraft:air", occupied)
+    assert palette <= set(ids) | {"minecraft:air"}
+    assert (dithered[occupied] != names[occupied]).any(), "dithering changes some blocks"
+
+
+def test_one_block_a_users_set_and_an_uncoloured_mesh(meshes, cli, tmp_path):
+    bunny = str(meshes / "stanford-bunny.obj")
+    run_cli(cli, "voxelize", bunny, "-r", "33", "-o", str(tmp_path / "b.npy"), "--backend", "cpu")
+    occupied = np.load(tmp_path / "b.npy").astype(bool)
+    run_cli(cli, "voxelize", bunny, "-r", "33", "-o", str(tmp_path / "stone.schem"), "--backend", "cpu",
+            "--block", "minecraft:stone")
+    names, palette, root = read_schem(tmp_path / "stone.schem")
+    assert palette == {"minecraft:air", "minecraft:stone"}
+    assert np.array_equal(names == "minecraft:stone", occupied)
+    assert [int(root[k]) for k in ("Width", "Height", "Length")] == list(occupied.shape)
+    # Uncoloured, the set's first block.
+    run_cli(cli, "voxelize", bunny, "-r", "33", "-o", str(tmp_path / "plain.schem"), "--backend", "cpu")
+    names, palette, _ = read_schem(tmp_path / "plain.schem")
+    assert palette == {"minecraft:air", default_set()[0][0]}
+    assert np.array_equal(names != "minecraft:air", occupied)
+    # A user's set: every block from it.
+    mine = tmp_path / "mine.csv"
+    mine.write_text("id,r,g,b\nminecraft:red_wool,160,39,34\n# a comment\nblue_wool,53,57,157\n")
+    duck = str(meshes / "gltf" / "Duck.glb")
+    run_cli(cli, "voxelize", duck, "-r", "30", "-o", str(tmp_path / "mine.schem"), "--backend", "cpu",
+            "--blocks", str(mine))
+    _, palette, _ = read_schem(tmp_path / "mine.schem")
+    assert palette <= {"minecraft:air", "minecraft:red_wool", "minecraft:blue_wool"} and len(palette) >= 2
+
+
+@pytest.mark.parametrize("args, says", [
+    (["-o", "x.npy", "--dither"], "Minecraft outputs"),
+    (["-o", "x.schem", "--blocks", "missing.csv"], "missing.csv"),
+    (["-o", "x.schem", "--block", "Not A Block"], "block id"),
+    (["-o", "x.schem", "--block", "stone", "--blocks", "default"], "--block"),
+])
+def test_block_options_fail_in_one_line(cli, tmp_path, args, says):
+    import subprocess
+    out = subprocess.run([str(cli), "voxelize", "builtin:torus", "-r", "16", "--backend", "cpu", *args],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert out.returncode != 0 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert not (tmp_path / "x.schem").exists() and not (tmp_path / "x.npy").exists()
