@@ -117,3 +117,12 @@ def test_block_options_fail_in_one_line(cli, tmp_path, args, says):
                          capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode != 0 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert not (tmp_path / "x.schem").exists() and not (tmp_path / "x.npy").exists()
+
+
+def test_python_saves_the_clis_schematic(meshes, cli, tmp_path):
+    import meshvox
+
+    duck = meshes / "gltf" / "Duck.glb"
+    meshvox.voxelize(duck, 36, backend="cpu").save(tmp_path / "py.schem")
+    run_cli(cli, "voxelize", str(duck), "-r", "36", "-o", str(tmp_path / "cli.schem"), "--backend", "cpu")
+    assert (tmp_path / "py.schem").read_bytes() == (tmp_path / "cli.schem").read_bytes()
