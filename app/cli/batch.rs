@@ -219,6 +219,8 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
+    // A block set that cannot be read fails the run once, before any file.
+    args.blocks.set(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
     let task = match args.sample {
         true => Task::Sample(args.samples.request()?),

@@ -4,6 +4,7 @@ use super::output::{temp_beside, write_atomically};
 use super::{ColourArgs, LimitArgs, parse_up, parse_view};
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
+use meshvox::voxel::blocks::BlockSet;
 use meshvox::voxel::{Axis, Mode, Resolution};
 use meshvox::{Engine, Request};
 use std::path::PathBuf;
@@ -70,6 +71,13 @@ pub(super) struct RenderArgs {
     backend: Backend,
     #[command(flatten)]
     colour: ColourArgs,
+    /// Draw each voxel in the colour of the Minecraft block a .schem would give it: `default` or a file of
+    /// id,r,g,b lines (with --dither as .schem dithers).
+    #[arg(long, value_name = "default|FILE")]
+    blocks: Option<String>,
+    /// With --blocks: dither as a .schem output does.
+    #[arg(long, requires = "blocks")]
+    dither: bool,
     #[command(flatten)]
     limits: LimitArgs,
 }
@@ -121,9 +129,20 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         let slice = args.slice.unwrap_or(meshvox::render::Cut { axis: 2, fraction: 0.5 });
         meshvox::render::slice::field_slice(field, grid, slice)
     });
+    // A schematic's look: each voxel in its block's colour.
+    let blocks = match &args.blocks {
+        Some(blocks) => {
+            let args = super::BlockArgs { blocks: Some(blocks.clone()), block: None, dither: args.dither };
+            let set = args.set(meshvox::voxel::formats::VoxelFormat::Schem)?.unwrap_or_else(BlockSet::default_set);
+            let assigned = set.assign(grid, result.colours.as_ref(), args.dither);
+            let rgba = assigned.iter().map(|&b| set.colours[b as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
+            Some(meshvox::voxel::colour::VoxelColours { rgba })
+        }
+        None => None,
+    };
     let (grid, colours) = match &sliced {
         Some((grid, colours)) => (grid, Some(colours)),
-        None => (grid, result.colours.as_ref()),
+        None => (grid, blocks.as_ref().or(result.colours.as_ref())),
     };
     let (spec, backend, voxelize_ms) = (grid.spec, &result.report.backend, result.report.voxelize_ms);
     let offscreen = Offscreen::new(&gpu);
