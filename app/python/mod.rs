@@ -61,7 +61,8 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::PointCloud { .. }
             | EngineError::Query(_)
             | EngineError::Sample(_)
-            | EngineError::FullBandSparse),
+            | EngineError::FullBandSparse
+            | EngineError::Level(_)),
         ) => PyValueError::new_err(worded(e)),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
         Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
@@ -70,7 +71,7 @@ fn into_py_err(failure: Failure) -> PyErr {
 }
 
 /// The library's messages name its settings as the command line spells them; a Python caller passes keywords.
-const KEYWORDS: [(&str, &str); 7] = [
+const KEYWORDS: [(&str, &str); 8] = [
     ("--voxel-size", "pitch="),
     ("--band full", "band=\"full\""),
     ("--band ", "band="),
@@ -78,6 +79,7 @@ const KEYWORDS: [(&str, &str); 7] = [
     ("--backend cpu", "backend=\"cpu\""),
     ("--mode ", "mode="),
     ("--attributes", "attributes="),
+    ("--thickness ", "thickness="),
 ];
 
 /// A library message in the package's words ([`KEYWORDS`]).
@@ -155,7 +157,7 @@ fn options(
     bounds: Option<([f64; 3], [f64; 3])>,
     band: &str,
     attributes: &str,
-    thickness: f32,
+    thickness: Option<f32>,
 ) -> PyResult<Options> {
     let resolution = match (resolution, pitch) {
         (Some(n), None) => Resolution::Count(n),
@@ -167,6 +169,10 @@ fn options(
         .ok_or_else(|| PyValueError::new_err(format!("axis '{axis}': use {}", Axis::choices())))?;
     let mode = Mode::from_name(mode)
         .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use {}", Mode::choices())))?;
+    let thickness = match (thickness, mode == Mode::Shell) {
+        (Some(_), false) => return Err(PyValueError::new_err("thickness= is a shell's: use it with mode=\"shell\"")),
+        (thickness, _) => thickness.unwrap_or(1.0),
+    };
     let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(worded(e)))?;
     let backend = Backend::from_name(backend)
         .ok_or_else(|| PyValueError::new_err(format!("backend '{backend}': use {}", Backend::choices())))?;
@@ -277,7 +283,7 @@ fn voxelize<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     band: &str,
     attributes: &str,
-    thickness: f32,
+    thickness: Option<f32>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
     let input = input(source)?;
@@ -303,7 +309,7 @@ fn voxelize_points<'py>(
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", 1.0)?;
+    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", None)?;
     let (points, colors) = (points.as_array(), colors.as_ref().map(|c| c.as_array()));
     if points.ncols() != 3 || colors.is_some_and(|c| c.ncols() != 4) {
         return Err(PyValueError::new_err("points must be (N, 3) and colours (N, 4)"));
@@ -341,7 +347,7 @@ fn voxelize_many<'py>(
     workers: Option<usize>,
     band: &str,
     attributes: &str,
-    thickness: f32,
+    thickness: Option<f32>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
     let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =

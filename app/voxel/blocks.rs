@@ -27,9 +27,14 @@ pub enum BlockError {
     Line { what: String, line: usize, why: String },
     #[error("{0}: no blocks")]
     Empty(String),
-    #[error("--block {0}: a block id is a namespaced name such as minecraft:stone")]
+    #[error("--block {0}: a block id is a namespaced name such as minecraft:stone (not air)")]
     Id(String),
+    #[error("{0}: more than {MAX_BLOCKS} blocks")]
+    TooMany(String),
 }
+
+/// The most blocks a set may hold (a voxel's block is a `u16`).
+pub const MAX_BLOCKS: usize = u16::MAX as usize;
 
 /// A set of blocks and their colours.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,8 +64,12 @@ fn distance2(a: [f32; 3], b: [f32; 3]) -> f32 {
     (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
 }
 
-/// Whether `id` looks like a namespaced block id: `namespace:name`, lower-case letters, digits and `_-./`.
+/// Whether `id` looks like a namespaced block id (`namespace:name`, lower-case letters, digits and `_-./`) of a
+/// block to build with: not air, which is what a schematic's empty cells are.
 fn valid_id(id: &str) -> bool {
+    if matches!(id, "minecraft:air" | "minecraft:cave_air" | "minecraft:void_air") {
+        return false;
+    }
     let ok = |s: &str| {
         !s.is_empty() && s.bytes().all(|b| matches!(b, b'a'..=b'z' | b'0'..=b'9' | b'_' | b'-' | b'.' | b'/'))
     };
@@ -75,10 +84,11 @@ impl BlockSet {
 
     /// One block for every voxel (an uncoloured mesh's `--block ID`).
     pub fn single(id: &str) -> Result<BlockSet, BlockError> {
-        let id = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
-        if !valid_id(&id) {
-            return Err(BlockError::Id(id));
+        let named = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
+        if !valid_id(&named) {
+            return Err(BlockError::Id(id.to_string()));
         }
+        let id = named;
         Ok(BlockSet { ids: vec![id], colours: vec![[255; 3]], lab: vec![oklab([255; 3])] })
     }
 
@@ -96,7 +106,7 @@ impl BlockSet {
             let [id, r, g, b] = parts[..] else { return Err(error(format!("{} fields, not 4", parts.len()))) };
             let id = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
             if !valid_id(&id) {
-                return Err(error(format!("'{id}' is not a block id")));
+                return Err(error(format!("'{id}' is not a block id to build with")));
             }
             let channel = |s: &str| s.parse::<u8>().map_err(|_| error(format!("'{s}' is not a value 0..255")));
             colours.push([channel(r)?, channel(g)?, channel(b)?]);
@@ -104,6 +114,9 @@ impl BlockSet {
         }
         if ids.is_empty() {
             return Err(BlockError::Empty(what.to_string()));
+        }
+        if ids.len() > MAX_BLOCKS {
+            return Err(BlockError::TooMany(what.to_string()));
         }
         let lab = colours.iter().map(|&c| oklab(c)).collect();
         Ok(BlockSet { ids, colours, lab })

@@ -126,3 +126,29 @@ def test_python_saves_the_clis_schematic(meshes, cli, tmp_path):
     meshvox.voxelize(duck, 36, backend="cpu").save(tmp_path / "py.schem")
     run_cli(cli, "voxelize", str(duck), "-r", "36", "-o", str(tmp_path / "cli.schem"), "--backend", "cpu")
     assert (tmp_path / "py.schem").read_bytes() == (tmp_path / "cli.schem").read_bytes()
+
+
+def test_a_set_naming_a_block_twice_keeps_one_palette_entry_and_air_is_refused(meshes, cli, tmp_path):
+    mine = tmp_path / "twice.csv"
+    mine.write_text("minecraft:red_wool,160,39,34\nred_wool,250,250,250\nminecraft:blue_wool,53,57,157\n")
+    duck = str(meshes / "gltf" / "Duck.glb")
+    run_cli(cli, "voxelize", duck, "-r", "24", "-o", str(tmp_path / "t.schem"), "--backend", "cpu",
+            "--blocks", str(mine))
+    names, palette, root = read_schem(tmp_path / "t.schem")  # every Data value has its palette entry
+    values = sorted(int(v) for v in root["Blocks"]["Palette"].values())
+    assert values == list(range(len(values))) and int(root["Blocks"]["Palette"]["minecraft:air"]) == 0
+    air = tmp_path / "air.csv"
+    air.write_text("minecraft:air,0,0,0\nminecraft:stone,125,125,125\n")
+    import subprocess
+    out = subprocess.run([str(cli), "voxelize", duck, "-r", "24", "-o", str(tmp_path / "a.schem"), "--blocks",
+                          str(air)], capture_output=True, text=True)
+    assert out.returncode != 0 and "minecraft:air" in out.stderr, out.stderr
+
+
+def test_python_refuses_a_thickness_without_a_shell(meshes):
+    import meshvox
+
+    with pytest.raises(ValueError, match="thickness="):
+        meshvox.voxelize(meshes / "spot.obj", 16, mode="solid", thickness=2.0)
+    with pytest.raises(ValueError, match="thickness=0"):
+        meshvox.voxelize(meshes / "spot.obj", 16, mode="shell", thickness=0.0)

@@ -341,7 +341,7 @@ def voxelize(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
-    thickness: float = 1.0,
+    thickness: float | None = None,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
@@ -351,7 +351,7 @@ def voxelize(
     (signed, negative inside) or ``"udf"`` (unsigned), exact within ``band`` voxels of the surface (``"full"``:
     every voxel) and ``±band`` voxels beyond, in ``.distances`` (float32 (X, Y, Z), world units) beside the
     surface's voxels in ``.matrix``; or ``"shell"``: the voxels whose centre is inside within ``thickness`` voxels
-    of the surface (1 or more holds water), with the signed field it was cut from in ``.distances`` and its walls
+    of the surface (default 1; 1 or more holds water), with the signed field it was cut from in ``.distances`` and its walls
     from :meth:`VoxelGrid.to_mesh`. ``backend``: ``"auto"`` (the GPU
     where it pays, else the CPU), ``"gpu"`` or ``"cpu"``. ``colour``: ``None`` colours the voxels when the mesh
     has colours, ``False`` never. ``bounds=(min, max)`` fixes the grid's world box, so that a dataset shares one
@@ -362,7 +362,7 @@ def voxelize(
     """
     out = _native.voxelize(
         _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
-        _attributes(attributes), float(thickness),
+        _attributes(attributes), None if thickness is None else float(thickness),
     )
     return _grid(out)
 
@@ -381,14 +381,14 @@ def voxelize_many(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
-    thickness: float = 1.0,
+    thickness: float | None = None,
 ) -> list[VoxelGrid]:
     """Voxelizes many meshes with one engine on ``workers`` threads (default: one per core), as ``meshvox batch``
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
         sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band),
-        _attributes(attributes), float(thickness),
+        _attributes(attributes), None if thickness is None else float(thickness),
     )
     return [_grid(o) for o in outs]
 

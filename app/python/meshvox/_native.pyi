@@ -22,7 +22,7 @@ def voxelize(
     progress: Callable[[int, int], Any] | None,
     band: str,
     attributes: str,
-    thickness: float,
+    thickness: float | None,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
@@ -37,7 +37,7 @@ def voxelize_many(
     workers: int | None,
     band: str,
     attributes: str,
-    thickness: float,
+    thickness: float | None,
 ) -> list[dict[str, Any]]: ...
 def voxelize_points(
     points: np.ndarray,

@@ -90,14 +90,25 @@ pub fn write_schem<W: Write>(
 ) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     let (width, height, length) = (side(d.x, "x")?, side(d.y, "y")?, side(d.z, "z")?);
+    // NBT arrays count their elements in an Int.
+    if d.as_u64vec3().element_product() > i32::MAX as u64 {
+        return Err(FormatError::TooLarge(format!(
+            "a schematic holds at most {} blocks; this grid has {}×{}×{}",
+            i32::MAX,
+            d.x,
+            d.y,
+            d.z
+        )));
+    }
     // Palette indices: air 0, then the blocks in use in the set's order.
     let mut used = vec![false; set.ids.len()];
     blocks.iter().for_each(|&b| used[b as usize] = true);
     let mut index = vec![0u32; set.ids.len()];
     let mut palette = BTreeMap::from([("minecraft:air".to_string(), 0)]);
     for (i, id) in set.ids.iter().enumerate().filter(|(i, _)| used[*i]) {
-        index[i] = palette.len() as u32;
-        palette.insert(id.clone(), index[i] as i32);
+        // A state named twice shares its index (and `minecraft:air` in a set stays 0).
+        let next = palette.len() as i32;
+        index[i] = *palette.entry(id.clone()).or_insert(next) as u32;
     }
     let (nx, nz) = (d.x as usize, d.z as usize);
     let mut cells = vec![0u32; nx * d.y as usize * nz];
