@@ -219,15 +219,15 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
-    // A block set that cannot be read fails the run once, before any file.
-    args.blocks.set(format)?;
+    // The block set is read once, before any file: one that cannot be read fails the run.
+    let blocks = args.blocks.set(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
     let task = match args.sample {
         true => Task::Sample(args.samples.request()?),
         false => {
             let resolution = super::resolution(args.resolution, args.voxel_size)?;
             let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
-            Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request })
+            Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, blocks)
         }
     };
     let sampling = matches!(task, Task::Sample(_));
@@ -242,7 +242,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     // Samples open a device only where their count is worth it (`auto`'s rule for queries).
     let engine = match &task {
         Task::Sample(_) => super::query::sample_engine(args.backend)?,
-        Task::Voxelize(_) => open_engine(args.backend)?,
+        Task::Voxelize(..) => open_engine(args.backend)?,
     };
     let jobs = args.jobs.unwrap_or_else(|| meshvox::engine::default_workers(engine.uses_gpu())).max(1);
     let total = items.len();
@@ -304,7 +304,8 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec
 
 /// What a batch makes of each input: a grid (the request, the output format's included) or training samples.
 enum Task {
-    Voxelize(Request<'static>),
+    /// The request, and a Minecraft output's block set.
+    Voxelize(Request<'static>, Option<meshvox::voxel::blocks::BlockSet>),
     Sample(meshvox::voxel::sample::SampleRequest),
 }
 
@@ -333,8 +334,8 @@ impl Work<'_> {
                         Err(e) => Outcome::Failed(e),
                     }
                 }
-                Task::Voxelize(request) => {
-                    match voxelize_one(&self.voxelize_args(item, output), request, self.engine) {
+                Task::Voxelize(request, blocks) => {
+                    match voxelize_one(&self.voxelize_args(item, output), request, blocks.as_ref(), self.engine) {
                         Ok(report) => Outcome::Done(Box::new(report)),
                         Err(e) => Outcome::Failed(e),
                     }
@@ -463,14 +464,19 @@ impl Tally {
 }
 
 /// One input parsed, voxelized and written into `args.output` (its folder created first).
-fn voxelize_one(args: &VoxelizeArgs, request: &Request, engine: &Engine) -> Result<meshvox::Report> {
+fn voxelize_one(
+    args: &VoxelizeArgs,
+    request: &Request,
+    blocks: Option<&meshvox::voxel::blocks::BlockSet>,
+    engine: &Engine,
+) -> Result<meshvox::Report> {
     let t = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t);
     if let Some(parent) = args.output.parent() {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;
     }
-    voxelize_loaded(args, request, Some(engine), &mesh, load_ms, false)
+    voxelize_loaded(args, request, blocks, Some(engine), &mesh, load_ms, false)
 }
 
 /// What became of one input.

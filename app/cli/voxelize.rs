@@ -70,14 +70,14 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
     let request = args.request(format)?;
-    args.blocks.set(format)?;
+    let blocks = args.blocks.set(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
     // One job: under `auto` its cost decides whether a GPU is worth opening (see meshvox::engine::cost).
-    let report = voxelize_loaded(args, &request, None, &mesh, load_ms, true)?;
+    let report = voxelize_loaded(args, &request, blocks.as_ref(), None, &mesh, load_ms, true)?;
     let [x, y, z] = report.dims;
     eprintln!(
         "{}: {} -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {} on {}; wrote {} ({} bytes)",
@@ -135,11 +135,13 @@ pub(super) fn check_merge(format: VoxelFormat, merge: bool) -> Result<()> {
 }
 
 /// Voxelizes a loaded mesh as `request` (made from `args`) asks, on `engine` (`None`: one opened for this job by
-/// `args.backend`), and writes the output atomically; returns the report with its output fields filled in. Shared
-/// by `voxelize` and `batch`, so both write the same bytes.
+/// `args.backend`), and writes the output atomically, a Minecraft output in `blocks` (`args.blocks`' set, read
+/// once by the caller); returns the report with its output fields filled in. Shared by `voxelize` and `batch`, so
+/// both write the same bytes.
 pub(super) fn voxelize_loaded(
     args: &VoxelizeArgs,
     request: &Request,
+    blocks: Option<&meshvox::voxel::blocks::BlockSet>,
     engine: Option<&Engine>,
     mesh: &mesh::Mesh,
     load_ms: f64,
@@ -149,7 +151,6 @@ pub(super) fn voxelize_loaded(
     // Create the temporary file first: an unwritable destination should fail before minutes of voxelizing.
     let temp = temp_beside(&args.output)?;
     let format = request.format.ok_or_else(|| anyhow!("no output format"))?;
-    let blocks = args.blocks.set(format)?;
     args.colour.note_if_colourless(&args.mesh, mesh);
     let bar = match bars {
         true => progress_bar(mesh.triangles.len() as u64, "voxelizing", "triangles"),
@@ -206,7 +207,7 @@ pub(super) fn voxelize_loaded(
         vdb_float: args.grid.vdb_float,
         level: args.band.level.unwrap_or(0.0),
         progress: Some(&mesh_progress),
-        blocks: blocks.as_ref(),
+        blocks,
         dither: args.blocks.dither,
         ..Default::default()
     };

@@ -123,15 +123,25 @@ pub fn write_coloured<W: Write + Seek>(
     merge: bool,
     out: &mut W,
 ) -> Result<(), FormatError> {
+    write_dense(grid, colours, format, &WriteOptions { merge, ..Default::default() }, out)
+}
+
+/// [`write_coloured`] with every option: the dense grid's writer, which [`write_grid`] also takes for the dense
+/// formats.
+fn write_dense<W: Write + Seek>(
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    format: VoxelFormat,
+    options: &WriteOptions,
+    out: &mut W,
+) -> Result<(), FormatError> {
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
         VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
-        VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, merge, m, out),
-        VoxelFormat::Schem => write_minecraft(grid, colours, &WriteOptions::default(), out),
-        VoxelFormat::Npz | VoxelFormat::Vdb => {
-            write_grid(&Grid::Dense(grid.clone()), colours, format, &WriteOptions { merge, ..Default::default() }, out)
-        }
+        VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, options.merge, m, out),
+        VoxelFormat::Schem => write_minecraft(grid, colours, options, out),
+        VoxelFormat::Npz | VoxelFormat::Vdb => write_grid(&Grid::Dense(grid.clone()), colours, format, options, out),
     }
 }
 
@@ -185,20 +195,11 @@ pub fn write_grid<W: Write + Seek>(
     options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
-    if format == VoxelFormat::Schem {
-        let dense = match grid {
-            Grid::Dense(dense) => std::borrow::Cow::Borrowed(dense),
-            Grid::Sparse(sparse) => {
-                std::borrow::Cow::Owned(sparse.to_dense().map_err(|e| std::io::Error::other(e.to_string()))?)
-            }
-        };
-        return write_minecraft(&dense, colours.filter(|_| grid.dense().is_some()), options, out);
-    }
     let sparse = match (grid, format.is_sparse()) {
-        (Grid::Dense(dense), false) => return write_coloured(dense, colours, format, options.merge, out),
+        (Grid::Dense(dense), false) => return write_dense(dense, colours, format, options, out),
         (Grid::Sparse(sparse), false) => {
             let dense = sparse.to_dense().map_err(|e| std::io::Error::other(e.to_string()))?;
-            return write_coloured(&dense, colours, format, options.merge, out);
+            return write_dense(&dense, colours, format, options, out);
         }
         (Grid::Sparse(sparse), true) => std::borrow::Cow::Borrowed(sparse),
         (Grid::Dense(dense), true) => std::borrow::Cow::Owned(SparseGrid::from_dense(dense)),
