@@ -208,7 +208,7 @@ impl GridArgs {
     }
 }
 
-/// The blocks of a Minecraft output (`.schem`).
+/// The blocks of a Minecraft output (`.schem`, `.litematic`, `.nbt`).
 #[derive(clap::Args, Clone, Default)]
 pub(super) struct BlockArgs {
     /// Minecraft outputs: the blocks colours map to, by the nearest colour in OKLab: `default` (concrete, wool,
@@ -231,9 +231,11 @@ impl BlockArgs {
     pub(super) fn set(&self, format: VoxelFormat) -> Result<Option<meshvox::voxel::blocks::BlockSet>> {
         use meshvox::voxel::blocks::BlockSet;
         let any = self.blocks.is_some() || self.block.is_some() || self.dither;
-        if format != VoxelFormat::Schem {
+        if !matches!(format, VoxelFormat::Minecraft(_)) {
             if any {
-                anyhow::bail!("--blocks, --block and --dither are for Minecraft outputs: use a .schem output");
+                anyhow::bail!(
+                    "--blocks, --block and --dither are for Minecraft outputs: use a .schem, .litematic or .nbt output"
+                );
             }
             return Ok(None);
         }

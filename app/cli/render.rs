@@ -133,7 +133,9 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let blocks = match &args.blocks {
         Some(blocks) => {
             let args = super::BlockArgs { blocks: Some(blocks.clone()), block: None, dither: args.dither };
-            let set = args.set(meshvox::voxel::formats::VoxelFormat::Schem)?.unwrap_or_else(BlockSet::default_set);
+            let set = args
+                .set(meshvox::voxel::formats::VoxelFormat::Minecraft(meshvox::voxel::formats::MinecraftFormat::Schem))?
+                .unwrap_or_else(BlockSet::default_set);
             let assigned = set.assign(grid, result.colours.as_ref(), args.dither);
             let rgba = assigned.iter().map(|&b| set.colours[b as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
             Some(meshvox::voxel::colour::VoxelColours { rgba })

@@ -28,7 +28,8 @@ pub(super) struct VoxelizeArgs {
     pub(super) axis: Axis,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB) or .npz (sorted
     /// coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
-    /// .schem for a Minecraft schematic (Sponge v3, blocks by colour: --blocks, --block, --dither).
+    /// .schem, .litematic or .nbt for Minecraft (Sponge v3, Litematica, a structure file up to 48³; blocks
+    /// by colour: --blocks, --block, --dither).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(super) output: PathBuf,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).

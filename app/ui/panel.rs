@@ -283,8 +283,12 @@ impl ViewerApp {
         let field = self.field.is_some();
         ui.horizontal_wrapped(|ui| {
             ui.label("Export");
-            use formats::VoxelFormat::{Binvox, Mesh, Npy, Npz, Schem, Vdb, Vox};
-            for format in [Vox, Binvox, Npy, Vdb, Npz, Mesh(formats::MeshFormat::Glb), Schem] {
+            use formats::MinecraftFormat::{Litematic, Schem, Structure};
+            use formats::VoxelFormat::{Binvox, Mesh, Minecraft, Npy, Npz, Vdb, Vox};
+            let glb = Mesh(formats::MeshFormat::Glb);
+            for format in
+                [Vox, Binvox, Npy, Vdb, Npz, glb, Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)]
+            {
                 let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Npz));
                 let hint = match (format, field) {
                     (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
@@ -296,7 +300,9 @@ impl ViewerApp {
                     (Binvox, false) => "binvox, occupancy only",
                     (Vdb, false) => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
                     (Npz, false) => "numpy .npz of sorted int32 coordinates (and their colours)",
-                    (Schem, false) => "a Minecraft schematic (Sponge v3): blocks by the nearest colour in OKLab",
+                    (Minecraft(Schem), false) => "a Minecraft schematic (Sponge v3, WorldEdit): blocks by colour",
+                    (Minecraft(Litematic), false) => "a Litematica schematic: blocks by the nearest colour in OKLab",
+                    (Minecraft(Structure), false) => "a Minecraft structure-block file: at most 48 blocks a side",
                     _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
                 };
                 let button = egui::Button::new(format!(".{}", format.extension()));

@@ -1,7 +1,9 @@
-"""Minecraft schematics (`-o x.schem`, issue 49), read by nbtlib (PyPI), never by meshvox: the Sponge v3 layout,
+"""Minecraft schematics (`-o x.schem`, `.litematic`, `.nbt`, issue 49), read by nbtlib and litemapy (PyPI), never by
+meshvox: the Sponge v3 layout,
 the grid convention (Width, Height, Length are x, y, z; index x + z*W + y*W*L), one block per voxel and air
 elsewhere, every block from the chosen set, each voxel's block the nearest in OKLab to its colour (numpy), dithering
-keeping every voxel, `--block` and a user's `--blocks` file, and clear errors."""
+keeping every voxel, `--block` and a user's `--blocks` file, the same blocks in the three formats, the structure
+file's 48³ limit, and clear errors."""
 import pathlib
 
 import numpy as np
@@ -10,6 +12,7 @@ import pytest
 from conftest import run_cli
 
 nbtlib = pytest.importorskip("nbtlib")
+litemapy = pytest.importorskip("litemapy")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -80,6 +83,79 @@ def test_a_coloured_mesh_becomes_the_nearest_blocks_in_oklab(meshes, cli, tmp_pa
     assert (dithered[occupied] != names[occupied]).any(), "dithering changes some blocks"
 
 
+def read_litematic(path):
+    """(block ids [x, y, z], the palette's ids, the schematic) of a .litematic, by litemapy."""
+    schematic = litemapy.Schematic.load(str(path))
+    (region,) = schematic.regions.values()
+    assert (region.x, region.y, region.z) == (0, 0, 0)
+    w, h, l = region.width, region.height, region.length
+    names = np.empty((w, h, l), dtype=object)
+    for x in range(w):
+        for y in range(h):
+            for z in range(l):
+                names[x, y, z] = region[x, y, z].id
+    return names, {b.id for b in region.palette}, schematic
+
+
+def read_structure(path):
+    """(block ids [x, y, z] with air where no block is listed, the palette's ids, the root) of an .nbt, by nbtlib."""
+    root = nbtlib.load(path)
+    assert root.root_name == "" and int(root["DataVersion"]) > 0
+    size = [int(v) for v in root["size"]]
+    palette = [str(p["Name"]) for p in root["palette"]]
+    names = np.full(size, "minecraft:air", dtype=object)
+    seen = set()
+    for block in root["blocks"]:
+        pos = tuple(int(v) for v in block["pos"])
+        assert pos not in seen, f"{pos} listed twice"
+        seen.add(pos)
+        names[pos] = palette[int(block["state"])]
+    return names, set(palette), root
+
+
+def test_litematic_and_structure_files_hold_the_schematics_blocks(meshes, cli, tmp_path):
+    duck = str(meshes / "gltf" / "Duck.glb")
+    for ext in ("schem", "litematic", "nbt"):
+        run_cli(cli, "voxelize", duck, "-r", "37", "-o", str(tmp_path / f"duck.{ext}"), "--backend", "cpu",
+                "--dither")
+    schem, _, _ = read_schem(tmp_path / "duck.schem")
+    litematic, palette, schematic = read_litematic(tmp_path / "duck.litematic")
+    ids, _ = default_set()
+    assert litematic.shape == schem.shape and np.array_equal(litematic, schem)
+    assert palette <= set(ids) | {"minecraft:air"} and len(palette) > 3
+    nbt = nbtlib.load(tmp_path / "duck.litematic")
+    assert int(nbt["Version"]) == 6 and int(nbt["Metadata"]["TotalBlocks"]) == int((schem != "minecraft:air").sum())
+    structure, palette, root = read_structure(tmp_path / "duck.nbt")
+    assert np.array_equal(structure, schem) and len(root["blocks"]) == int((schem != "minecraft:air").sum())
+    assert palette <= set(ids), "no air entries: the model's empty cells keep what is there"
+    # A palette of 2..65 entries crosses each packing width (2 to 7 bits): litemapy unpacks the same blocks.
+    many = tmp_path / "many.csv"
+    # 64 shades around the Duck's yellows and oranges, so that dithering uses a good share of them.
+    many.write_text("".join(f"minecraft:block_{i},{255 - 20 * (i % 4)},{230 - 30 * (i // 4 % 4)},{30 * (i // 16)}\n"
+                            for i in range(64)))
+    for name, args in [("one", ["--block", "stone"]), ("many", ["--blocks", str(many), "--dither"])]:
+        for ext in ("schem", "litematic"):
+            run_cli(cli, "voxelize", duck, "-r", "29", "-o", str(tmp_path / f"{name}.{ext}"), "--backend", "cpu",
+                    *args)
+        schem, _, _ = read_schem(tmp_path / f"{name}.schem")
+        litematic, palette, _ = read_litematic(tmp_path / f"{name}.litematic")
+        assert np.array_equal(litematic, schem), name
+    assert len(palette) > 17, "the many-block set needs 5 bits or more"
+
+
+def test_a_structure_file_over_48_blocks_is_refused_naming_the_others(cli, tmp_path):
+    import subprocess
+
+    run_cli(cli, "voxelize", "builtin:torus", "-r", "48", "-o", str(tmp_path / "fits.nbt"), "--backend", "cpu")
+    names, _, root = read_structure(tmp_path / "fits.nbt")
+    assert max(int(v) for v in root["size"]) == 48 and (names != "minecraft:air").any()
+    out = subprocess.run([str(cli), "voxelize", "builtin:torus", "-r", "49", "-o", str(tmp_path / "big.nbt"),
+                          "--backend", "cpu"], capture_output=True, text=True)
+    assert out.returncode != 0 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "48" in out.stderr and ".schem" in out.stderr and ".litematic" in out.stderr, out.stderr
+    assert not (tmp_path / "big.nbt").exists()
+
+
 def test_one_block_a_users_set_and_an_uncoloured_mesh(meshes, cli, tmp_path):
     bunny = str(meshes / "stanford-bunny.obj")
     run_cli(cli, "voxelize", bunny, "-r", "33", "-o", str(tmp_path / "b.npy"), "--backend", "cpu")
@@ -123,9 +199,10 @@ def test_python_saves_the_clis_schematic(meshes, cli, tmp_path):
     import meshvox
 
     duck = meshes / "gltf" / "Duck.glb"
-    meshvox.voxelize(duck, 36, backend="cpu").save(tmp_path / "py.schem")
-    run_cli(cli, "voxelize", str(duck), "-r", "36", "-o", str(tmp_path / "cli.schem"), "--backend", "cpu")
-    assert (tmp_path / "py.schem").read_bytes() == (tmp_path / "cli.schem").read_bytes()
+    for ext in ("schem", "litematic", "nbt"):
+        meshvox.voxelize(duck, 36, backend="cpu").save(tmp_path / f"py.{ext}")
+        run_cli(cli, "voxelize", str(duck), "-r", "36", "-o", str(tmp_path / f"cli.{ext}"), "--backend", "cpu")
+        assert (tmp_path / f"py.{ext}").read_bytes() == (tmp_path / f"cli.{ext}").read_bytes(), ext
 
 
 def test_a_set_naming_a_block_twice_keeps_one_palette_entry_and_air_is_refused(meshes, cli, tmp_path):

@@ -191,8 +191,8 @@ class VoxelGrid:
 
     def save(self, path: str | os.PathLike[str], *, merge: bool = False, level: float = 0.0) -> None:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
-        ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem`` (a Minecraft schematic in
-        the default blocks)) with the CLI's writers, atomically; a coloured
+        ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``, ``.litematic`` or ``.nbt``
+        (Minecraft: Sponge v3, Litematica, a structure file up to 48³, in the default blocks)) with the CLI's writers, atomically; a coloured
         ``.npy`` gets ``.colors.npy`` beside it, a labelled one ``.labels.npy``; labels also go into ``.npz``
         arrays and ``.vdb`` Int32Grids (the other formats hold none).
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved

@@ -10,11 +10,11 @@ pub mod atomic;
 pub mod binvox;
 mod error;
 pub mod mesh;
+pub mod minecraft;
 pub mod npy;
 pub mod npz;
 pub mod palette;
 pub mod points;
-pub mod schem;
 pub mod surface;
 pub mod vdb;
 pub mod vox;
@@ -22,6 +22,7 @@ pub mod vox;
 pub use binvox::{read_binvox, write_binvox};
 pub use error::FormatError;
 pub use mesh::MeshFormat;
+pub use minecraft::MinecraftFormat;
 pub use npy::{read_npy, write_colours_npy, write_labels_npy, write_npy};
 pub use npz::write_npz;
 pub use vdb::{VdbOptions, write_vdb};
@@ -48,13 +49,13 @@ pub enum VoxelFormat {
     Vdb,
     /// The voxel model as a mesh (see [`mesh`]).
     Mesh(MeshFormat),
-    /// A Sponge v3 Minecraft schematic (see [`schem`]).
-    Schem,
+    /// A Minecraft schematic: Sponge v3, Litematica or a structure file (see [`minecraft`]).
+    Minecraft(MinecraftFormat),
 }
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 10] = [
+    pub const ALL: [VoxelFormat; 12] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -64,7 +65,9 @@ impl VoxelFormat {
         VoxelFormat::Mesh(MeshFormat::Ply),
         VoxelFormat::Mesh(MeshFormat::Obj),
         VoxelFormat::Mesh(MeshFormat::Stl),
-        VoxelFormat::Schem,
+        VoxelFormat::Minecraft(MinecraftFormat::Schem),
+        VoxelFormat::Minecraft(MinecraftFormat::Litematic),
+        VoxelFormat::Minecraft(MinecraftFormat::Structure),
     ];
 
     /// The format named by a file's extension.
@@ -103,7 +106,7 @@ impl VoxelFormat {
             VoxelFormat::Npz => "npz",
             VoxelFormat::Vdb => "vdb",
             VoxelFormat::Mesh(mesh) => mesh.extension(),
-            VoxelFormat::Schem => "schem",
+            VoxelFormat::Minecraft(minecraft) => minecraft.extension(),
         }
     }
 }
@@ -140,7 +143,7 @@ fn write_dense<W: Write + Seek>(
         VoxelFormat::Binvox => write_binvox(grid, out),
         VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
         VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, options.merge, m, out),
-        VoxelFormat::Schem => write_minecraft(grid, colours, options, out),
+        VoxelFormat::Minecraft(m) => write_minecraft(grid, colours, m, options, out),
         VoxelFormat::Npz | VoxelFormat::Vdb => write_grid(&Grid::Dense(grid.clone()), colours, format, options, out),
     }
 }
@@ -170,6 +173,7 @@ pub struct WriteOptions<'a> {
 fn write_minecraft<W: Write>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
+    format: MinecraftFormat,
     options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
@@ -182,7 +186,7 @@ fn write_minecraft<W: Write>(
         }
     };
     let blocks = set.assign(grid, colours, options.dither);
-    schem::write_schem(grid, &blocks, set, "meshvox", out)
+    minecraft::write(grid, &blocks, set, format, "meshvox", out)
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse

@@ -3,22 +3,20 @@
 //!
 //! # Layout (github.com/SpongePowered/Schematic-Specification, versions/schematic-3.md)
 //! An unnamed root compound holding one compound, `Schematic`: `Version` (Int 3), `DataVersion` (Int:
-//! [`DATA_VERSION`]), `Metadata` (`Name`; no `Date`, so the same grid gives
+//! [`DATA_VERSION`](super::DATA_VERSION)), `Metadata` (`Name`; no `Date`, so the same grid gives
 //! the same bytes on the page and the command line), `Width`/`Height`/`Length` (unsigned Shorts: the grid's
 //! x, y and z; y is Minecraft's up), `Offset` (IntArray, zeros) and `Blocks`: `Palette` (block state → index, air
 //! 0), `Data` (a ByteArray of one varint per block, index `x + z·Width + y·Width·Length`) and an empty
 //! `BlockEntities` list. Written with `fastnbt` (serde) and gzipped with `flate2`.
 
-use super::FormatError;
+use super::{DATA_VERSION, Palette, check_cells, write_nbt};
 use crate::voxel::VoxelGrid;
 use crate::voxel::blocks::BlockSet;
+use crate::voxel::formats::FormatError;
 use fastnbt::{ByteArray, IntArray};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;
-
-/// Minecraft Java 1.20.1's data version: the default set's newest block (mangrove planks) needs 1.19 or later.
-pub const DATA_VERSION: i32 = 3465;
 
 /// The largest side a schematic holds (its sizes are unsigned Shorts).
 pub const MAX_SIDE: u32 = u16::MAX as u32;
@@ -90,33 +88,10 @@ pub fn write_schem<W: Write>(
 ) -> Result<(), FormatError> {
     let d = grid.spec.dims;
     let (width, height, length) = (side(d.x, "x")?, side(d.y, "y")?, side(d.z, "z")?);
-    // NBT arrays count their elements in an Int.
-    if d.as_u64vec3().element_product() > i32::MAX as u64 {
-        return Err(FormatError::TooLarge(format!(
-            "a schematic holds at most {} blocks; this grid has {}×{}×{}",
-            i32::MAX,
-            d.x,
-            d.y,
-            d.z
-        )));
-    }
-    // Palette indices: air 0, then the blocks in use in the set's order.
-    let mut used = vec![false; set.ids.len()];
-    blocks.iter().for_each(|&b| used[b as usize] = true);
-    let mut index = vec![0u32; set.ids.len()];
-    let mut palette = BTreeMap::from([("minecraft:air".to_string(), 0)]);
-    for (i, id) in set.ids.iter().enumerate().filter(|(i, _)| used[*i]) {
-        // A state named twice shares its index (and `minecraft:air` in a set stays 0).
-        let next = palette.len() as i32;
-        index[i] = *palette.entry(id.clone()).or_insert(next) as u32;
-    }
-    let (nx, nz) = (d.x as usize, d.z as usize);
-    let mut cells = vec![0u32; nx * d.y as usize * nz];
-    for (v, &b) in grid.iter_set().zip(blocks) {
-        cells[v.x as usize + v.z as usize * nx + v.y as usize * nx * nz] = index[b as usize];
-    }
-    let mut data = Vec::with_capacity(cells.len());
-    cells.iter().for_each(|&c| varint(c, &mut data));
+    check_cells(grid, "a schematic")?;
+    let palette = Palette::of(blocks, set);
+    let mut data = Vec::new();
+    palette.cells(grid, blocks).iter().for_each(|&c| varint(c, &mut data));
     let root = Root {
         schematic: Schematic {
             version: 3,
@@ -126,11 +101,12 @@ pub fn write_schem<W: Write>(
             height,
             length,
             offset: IntArray::new(vec![0, 0, 0]),
-            blocks: Blocks { palette, data: ByteArray::new(data), block_entities: Vec::new() },
+            blocks: Blocks {
+                palette: palette.names.into_iter().zip(0..).collect(),
+                data: ByteArray::new(data),
+                block_entities: Vec::new(),
+            },
         },
     };
-    let mut gz = flate2::write::GzEncoder::new(out, flate2::Compression::default());
-    fastnbt::to_writer(&mut gz, &root).map_err(|e| std::io::Error::other(e.to_string()))?;
-    gz.finish()?;
-    Ok(())
+    write_nbt(&root, out)
 }

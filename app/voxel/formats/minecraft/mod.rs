@@ -1,0 +1,123 @@
+//! The three Minecraft formats, each a gzipped NBT file of blocks: WorldEdit's Sponge v3 schematic ([`schem`]),
+//! Litematica's `.litematic` ([`litematic`]) and the game's own structure-block file ([`structure`], `.nbt`,
+//! at most [`structure::MAX_SIDE`] along each axis). One set voxel is one block of a [`BlockSet`], picked by
+//! [`BlockSet::assign`]; the grid's y is Minecraft's up, and its voxel `(x, y, z)` is the block at `(x, y, z)`
+//! from the schematic's origin. The layouts and their sources are in `docs/minecraft-formats.md`.
+
+pub mod litematic;
+pub mod schem;
+pub mod structure;
+
+use super::FormatError;
+use crate::voxel::VoxelGrid;
+use crate::voxel::blocks::BlockSet;
+use serde::Serialize;
+use std::io::Write;
+
+/// Minecraft Java 1.20.1's data version: the default set's newest block (mangrove planks) needs 1.19 or later.
+pub const DATA_VERSION: i32 = 3465;
+
+/// The air block: palette index 0 in the schematic formats, the empty cells.
+pub const AIR: &str = "minecraft:air";
+
+/// Which Minecraft format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MinecraftFormat {
+    /// Sponge Schematic v3 (`.schem`).
+    Schem,
+    /// Litematica (`.litematic`).
+    Litematic,
+    /// A structure-block file (`.nbt`).
+    Structure,
+}
+
+impl MinecraftFormat {
+    pub fn extension(self) -> &'static str {
+        match self {
+            MinecraftFormat::Schem => "schem",
+            MinecraftFormat::Litematic => "litematic",
+            MinecraftFormat::Structure => "nbt",
+        }
+    }
+}
+
+/// The block states a file names, air first, and each set block's index among them.
+pub(super) struct Palette {
+    /// Block states: air, then the set's blocks in use, in the set's order, each once.
+    pub names: Vec<String>,
+    /// Per entry of the set, its index in `names` (0 for blocks not in use).
+    pub index: Vec<u32>,
+}
+
+impl Palette {
+    /// The palette of the blocks `blocks` uses (indices into `set`).
+    pub fn of(blocks: &[u16], set: &BlockSet) -> Palette {
+        let mut used = vec![false; set.ids.len()];
+        blocks.iter().for_each(|&b| used[b as usize] = true);
+        let mut names = vec![AIR.to_string()];
+        let mut index = vec![0u32; set.ids.len()];
+        for (i, id) in set.ids.iter().enumerate().filter(|(i, _)| used[*i]) {
+            // A state named twice (`red_wool` and `minecraft:red_wool`) shares its index.
+            index[i] = match names.iter().position(|n| n == id) {
+                Some(at) => at as u32,
+                None => {
+                    names.push(id.clone());
+                    names.len() as u32 - 1
+                }
+            };
+        }
+        Palette { names, index }
+    }
+
+    /// Each cell's palette index over the whole box, `x + z·sx + y·sx·sz` (x fastest, then z, then y: the
+    /// order the schematic formats share), air where no voxel is set.
+    pub fn cells(&self, grid: &VoxelGrid, blocks: &[u16]) -> Vec<u32> {
+        let d = grid.spec.dims;
+        let (nx, nz) = (d.x as usize, d.z as usize);
+        let mut cells = vec![0u32; nx * d.y as usize * nz];
+        for (v, &b) in grid.iter_set().zip(blocks) {
+            cells[v.x as usize + v.z as usize * nx + v.y as usize * nx * nz] = self.index[b as usize];
+        }
+        cells
+    }
+}
+
+/// Refuses grids whose box holds more cells than an NBT array counts (an Int).
+pub(super) fn check_cells(grid: &VoxelGrid, what: &str) -> Result<(), FormatError> {
+    let d = grid.spec.dims;
+    match d.as_u64vec3().element_product() <= i32::MAX as u64 {
+        true => Ok(()),
+        false => Err(FormatError::TooLarge(format!(
+            "{what} holds at most {} blocks; this grid has {}×{}×{}",
+            i32::MAX,
+            d.x,
+            d.y,
+            d.z
+        ))),
+    }
+}
+
+/// Writes `root` as gzipped NBT with an unnamed root compound.
+pub(super) fn write_nbt<W: Write, T: Serialize>(root: &T, out: &mut W) -> Result<(), FormatError> {
+    let mut gz = flate2::write::GzEncoder::new(out, flate2::Compression::default());
+    fastnbt::to_writer(&mut gz, root).map_err(|e| std::io::Error::other(e.to_string()))?;
+    gz.finish()?;
+    Ok(())
+}
+
+/// Writes `grid` in `format`, set voxel `i` (in [`VoxelGrid::iter_set`]'s order) as block `set.ids[blocks[i]]`,
+/// named `name` where the format keeps a name.
+pub fn write<W: Write>(
+    grid: &VoxelGrid,
+    blocks: &[u16],
+    set: &BlockSet,
+    format: MinecraftFormat,
+    name: &str,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    match format {
+        MinecraftFormat::Schem => schem::write_schem(grid, blocks, set, name, out),
+        MinecraftFormat::Litematic => litematic::write_litematic(grid, blocks, set, name, out),
+        MinecraftFormat::Structure => structure::write_structure(grid, blocks, set, out),
+    }
+}
