@@ -219,8 +219,8 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
-    // The block set is read once, before any file: one that cannot be read fails the run.
-    let blocks = args.blocks.set(format)?;
+    // The block set and palette are read once, before any file: one that cannot be read fails the run.
+    let blocks = args.blocks.read(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
     let task = match args.sample {
         true => Task::Sample(args.samples.request()?),
@@ -305,7 +305,7 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec
 /// What a batch makes of each input: a grid (the request, the output format's included) or training samples.
 enum Task {
     /// The request, and a Minecraft output's block set.
-    Voxelize(Request<'static>, Option<meshvox::voxel::blocks::BlockSet>),
+    Voxelize(Request<'static>, super::ColourMap),
     Sample(meshvox::voxel::sample::SampleRequest),
 }
 
@@ -335,7 +335,7 @@ impl Work<'_> {
                     }
                 }
                 Task::Voxelize(request, blocks) => {
-                    match voxelize_one(&self.voxelize_args(item, output), request, blocks.as_ref(), self.engine) {
+                    match voxelize_one(&self.voxelize_args(item, output), request, blocks, self.engine) {
                         Ok(report) => Outcome::Done(Box::new(report)),
                         Err(e) => Outcome::Failed(e),
                     }
@@ -467,7 +467,7 @@ impl Tally {
 fn voxelize_one(
     args: &VoxelizeArgs,
     request: &Request,
-    blocks: Option<&meshvox::voxel::blocks::BlockSet>,
+    blocks: &super::ColourMap,
     engine: &Engine,
 ) -> Result<meshvox::Report> {
     let t = Instant::now();

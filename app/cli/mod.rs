@@ -208,7 +208,7 @@ impl GridArgs {
     }
 }
 
-/// The blocks of a Minecraft output (`.schem`, `.litematic`, `.nbt`).
+/// The colours of a Minecraft output (`.schem`, `.litematic`, `.nbt`: blocks) and of a `.vox` (a fixed palette).
 #[derive(clap::Args, Clone, Default)]
 pub(super) struct BlockArgs {
     /// Minecraft outputs: the blocks colours map to, by the nearest colour in OKLab: `default` (concrete, wool,
@@ -220,26 +220,60 @@ pub(super) struct BlockArgs {
     /// it), e.g. minecraft:stone.
     #[arg(long, value_name = "ID")]
     pub(super) block: Option<String>,
-    /// Minecraft outputs: Floyd-Steinberg dithering of the colours along each horizontal layer (off: each voxel
-    /// takes its nearest block).
+    /// .vox and Minecraft outputs: the only colours voxels may take, each voxel the nearest entry in OKLab (no
+    /// new colours are made): a .vox file's palette, a PNG strip (its distinct pixels), or a text list of colours
+    /// (#rrggbb, r,g,b or GIMP .gpl lines). A Minecraft output then maps those colours to blocks.
+    #[arg(long, value_name = "FILE")]
+    pub(super) palette: Option<PathBuf>,
+    /// Minecraft outputs, and .vox with --palette: Floyd-Steinberg dithering of the colours along each
+    /// horizontal layer (off: each voxel takes its nearest entry).
     #[arg(long)]
     pub(super) dither: bool,
 }
 
+/// What [`BlockArgs`] name, read once: the block set (`None`: the default) and the palette.
+#[derive(Clone, Default)]
+pub(super) struct ColourMap {
+    pub(super) blocks: Option<meshvox::voxel::blocks::BlockSet>,
+    pub(super) palette: Option<meshvox::voxel::swatches::Swatches>,
+}
+
 impl BlockArgs {
-    /// The block set these arguments name for `format` (`None`: the default set), refused for other formats.
-    pub(super) fn set(&self, format: VoxelFormat) -> Result<Option<meshvox::voxel::blocks::BlockSet>> {
+    /// The block set and palette these arguments name for `format`, refused for formats that take neither.
+    pub(super) fn read(&self, format: VoxelFormat) -> Result<ColourMap> {
         use meshvox::voxel::blocks::BlockSet;
-        let any = self.blocks.is_some() || self.block.is_some() || self.dither;
-        if !matches!(format, VoxelFormat::Minecraft(_)) {
-            if any {
+        let minecraft = matches!(format, VoxelFormat::Minecraft(_));
+        let palette = match &self.palette {
+            Some(_) if !minecraft && format != VoxelFormat::Vox => {
+                anyhow::bail!("--palette is for .vox and Minecraft outputs (.schem, .litematic, .nbt)")
+            }
+            Some(_) if self.block.is_some() => anyhow::bail!("--block puts one block everywhere: leave out --palette"),
+            Some(file) => {
+                let what = format!("--palette {}", file.display());
+                let bytes = anyhow::Context::with_context(std::fs::read(file), || what.clone())?;
+                let palette = meshvox::voxel::swatches::Swatches::read_palette(&bytes, &what)?;
+                if format == VoxelFormat::Vox && palette.colours.len() > 255 {
+                    anyhow::bail!(
+                        "{what}: a .vox palette holds at most 255 colours; this one has {}",
+                        palette.colours.len()
+                    );
+                }
+                Some(palette)
+            }
+            None => None,
+        };
+        if !minecraft {
+            if self.blocks.is_some() || self.block.is_some() {
                 anyhow::bail!(
-                    "--blocks, --block and --dither are for Minecraft outputs: use a .schem, .litematic or .nbt output"
+                    "--blocks and --block are for Minecraft outputs: use a .schem, .litematic or .nbt output"
                 );
             }
-            return Ok(None);
+            if self.dither && palette.is_none() {
+                anyhow::bail!("--dither is for Minecraft outputs and for .vox with --palette");
+            }
+            return Ok(ColourMap { blocks: None, palette });
         }
-        Ok(match (&self.block, self.blocks.as_deref()) {
+        let blocks = match (&self.block, self.blocks.as_deref()) {
             (Some(_), Some(_)) => anyhow::bail!("--block puts one block everywhere: leave out --blocks"),
             (Some(id), None) => Some(BlockSet::single(id)?),
             (None, None | Some("default")) => None,
@@ -247,7 +281,8 @@ impl BlockArgs {
                 let text = anyhow::Context::with_context(std::fs::read_to_string(file), || format!("--blocks {file}"))?;
                 Some(BlockSet::parse(&text, &format!("--blocks {file}"))?)
             }
-        })
+        };
+        Ok(ColourMap { blocks, palette })
     }
 }
 

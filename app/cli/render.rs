@@ -132,10 +132,10 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     // A schematic's look: each voxel in its block's colour.
     let blocks = match &args.blocks {
         Some(blocks) => {
-            let args = super::BlockArgs { blocks: Some(blocks.clone()), block: None, dither: args.dither };
-            let set = args
-                .set(meshvox::voxel::formats::VoxelFormat::Minecraft(meshvox::voxel::formats::MinecraftFormat::Schem))?
-                .unwrap_or_else(BlockSet::default_set);
+            let args = super::BlockArgs { blocks: Some(blocks.clone()), dither: args.dither, ..Default::default() };
+            let schem =
+                meshvox::voxel::formats::VoxelFormat::Minecraft(meshvox::voxel::formats::MinecraftFormat::Schem);
+            let set = args.read(schem)?.blocks.unwrap_or_else(BlockSet::default_set);
             let assigned = set.assign(grid, result.colours.as_ref(), args.dither);
             let rgba = assigned.iter().map(|&b| set.colours[b as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
             Some(meshvox::voxel::colour::VoxelColours { rgba })

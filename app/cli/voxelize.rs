@@ -71,14 +71,14 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
     let request = args.request(format)?;
-    let blocks = args.blocks.set(format)?;
+    let colour_map = args.blocks.read(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(t_load);
     // One job: under `auto` its cost decides whether a GPU is worth opening (see meshvox::engine::cost).
-    let report = voxelize_loaded(args, &request, blocks.as_ref(), None, &mesh, load_ms, true)?;
+    let report = voxelize_loaded(args, &request, &colour_map, None, &mesh, load_ms, true)?;
     let [x, y, z] = report.dims;
     eprintln!(
         "{}: {} -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {} on {}; wrote {} ({} bytes)",
@@ -136,13 +136,13 @@ pub(super) fn check_merge(format: VoxelFormat, merge: bool) -> Result<()> {
 }
 
 /// Voxelizes a loaded mesh as `request` (made from `args`) asks, on `engine` (`None`: one opened for this job by
-/// `args.backend`), and writes the output atomically, a Minecraft output in `blocks` (`args.blocks`' set, read
-/// once by the caller); returns the report with its output fields filled in. Shared by `voxelize` and `batch`, so
+/// `args.backend`), and writes the output atomically, a Minecraft or `.vox` output in `colour_map` (what
+/// `args.blocks` names, read once by the caller); returns the report with its output fields filled in. Shared by `voxelize` and `batch`, so
 /// both write the same bytes.
 pub(super) fn voxelize_loaded(
     args: &VoxelizeArgs,
     request: &Request,
-    blocks: Option<&meshvox::voxel::blocks::BlockSet>,
+    colour_map: &super::ColourMap,
     engine: Option<&Engine>,
     mesh: &mesh::Mesh,
     load_ms: f64,
@@ -208,7 +208,8 @@ pub(super) fn voxelize_loaded(
         vdb_float: args.grid.vdb_float,
         level: args.band.level.unwrap_or(0.0),
         progress: Some(&mesh_progress),
-        blocks,
+        blocks: colour_map.blocks.as_ref(),
+        palette: colour_map.palette.as_ref(),
         dither: args.blocks.dither,
         ..Default::default()
     };

@@ -35,6 +35,7 @@ pub mod shell;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
+pub mod swatches;
 pub mod voxelize;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};

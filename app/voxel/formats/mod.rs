@@ -33,6 +33,7 @@ use super::colour::VoxelColours;
 use super::distance::DistanceField;
 use super::labels::Labels;
 use super::ranks::Ranked;
+use super::swatches::Swatches;
 use super::{Grid, SparseGrid, VoxelGrid};
 use glam::UVec3;
 use std::io::{Seek, Write};
@@ -141,7 +142,10 @@ fn write_dense<W: Write + Seek>(
     match format {
         VoxelFormat::Npy => write_npy(grid, out),
         VoxelFormat::Binvox => write_binvox(grid, out),
-        VoxelFormat::Vox => write_vox_coloured(grid, colours, out),
+        VoxelFormat::Vox => match options.palette {
+            Some(palette) => vox::write_vox_fixed(grid, colours, palette, options.dither, out),
+            None => write_vox_coloured(grid, colours, out),
+        },
         VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, options.merge, m, out),
         VoxelFormat::Minecraft(m) => write_minecraft(grid, colours, m, options, out),
         VoxelFormat::Npz | VoxelFormat::Vdb => write_grid(&Grid::Dense(grid.clone()), colours, format, options, out),
@@ -165,11 +169,16 @@ pub struct WriteOptions<'a> {
     /// The Minecraft formats: the blocks to map colours to (`None`: [`BlockSet::default_set`]), and whether to
     /// dither.
     pub blocks: Option<&'a BlockSet>,
+    /// `.vox` and the Minecraft formats: the only colours the voxels may take (each the nearest entry, dithered
+    /// on request); a Minecraft output then maps those colours to blocks.
+    pub palette: Option<&'a Swatches>,
+    /// Dither the colours to the palette when there is one, else to the blocks.
     pub dither: bool,
 }
 
 /// Writes a Minecraft schematic of `grid`: each voxel's block the nearest in `options.blocks` to its colour
-/// (dithered on request), or the set's first block without colours ([`BlockSet::assign`]).
+/// (dithered on request), or the set's first block without colours ([`BlockSet::assign`]); with
+/// `options.palette`, to its colour's nearest palette entry.
 fn write_minecraft<W: Write>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
@@ -185,7 +194,13 @@ fn write_minecraft<W: Write>(
             &default
         }
     };
-    let blocks = set.assign(grid, colours, options.dither);
+    let blocks = match (options.palette, colours) {
+        // The palette's colours first (dithered there), then each to its nearest block.
+        (Some(palette), Some(colours)) => {
+            set.assign(grid, Some(&palette.recolour(grid, colours, options.dither)), false)
+        }
+        _ => set.assign(grid, colours, options.dither),
+    };
     minecraft::write(grid, &blocks, set, format, "meshvox", out)
 }
 

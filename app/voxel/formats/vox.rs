@@ -4,7 +4,9 @@
 //! object. The grid is centred on MagicaVoxel's origin.
 
 use super::error::{FormatError, invalid};
+use super::palette::Quantized;
 use crate::voxel::colour::VoxelColours;
+use crate::voxel::swatches::Swatches;
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::Write;
@@ -30,6 +32,34 @@ pub fn write_vox_coloured(
     colours: Option<&VoxelColours>,
     out: &mut impl Write,
 ) -> Result<(), FormatError> {
+    let quantized = colours.map(|c| super::palette::quantize(&c.rgba, 255));
+    write_vox_indexed(grid, quantized.as_ref(), out)
+}
+
+/// [`write_vox`] in a fixed palette: its colours are the file's, entry `i` at colour index `i + 1` (so a `.vox`
+/// file's palette keeps its slots), and each voxel takes the entry nearest its colour ([`Swatches::assign`],
+/// dithered on request), the first without colours. A palette holds at most 255 colours.
+pub fn write_vox_fixed(
+    grid: &VoxelGrid,
+    colours: Option<&VoxelColours>,
+    palette: &Swatches,
+    dither: bool,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
+    if palette.colours.len() > 255 {
+        return Err(FormatError::TooLarge(format!(
+            "a .vox palette holds at most 255 colours; this one has {}",
+            palette.colours.len()
+        )));
+    }
+    let index = palette.assign(grid, colours, dither).into_iter().map(|e| e as u8).collect();
+    let palette = palette.colours.iter().map(|c| [c[0], c[1], c[2], 255]).collect();
+    write_vox_indexed(grid, Some(&Quantized { palette, index }), out)
+}
+
+/// Writes the `.vox` file, set voxel `n` in colour `quantized.index[n]` of `quantized.palette` (or every voxel
+/// in one colour).
+fn write_vox_indexed(grid: &VoxelGrid, quantized: Option<&Quantized>, out: &mut impl Write) -> Result<(), FormatError> {
     use dot_vox::{Dict, DotVoxData, Frame, Model, SceneNode, ShapeModel, Size, Voxel};
     let d = grid.spec.dims;
     let vd = UVec3::new(d.x, d.z, d.y);
@@ -42,12 +72,11 @@ pub fn write_vox_coloured(
             Model { size: Size { x: size.x, y: size.y, z: size.z }, voxels: Vec::new() }
         })
         .collect();
-    let quantized = colours.map(|c| super::palette::quantize(&c.rgba, 255));
     for (n, v) in grid.iter_set().enumerate() {
         let p = to_vox(v, d);
         let c = p / VOX_MODEL_MAX;
         let l = p % VOX_MODEL_MAX;
-        let i = quantized.as_ref().and_then(|q| q.index.get(n).copied()).unwrap_or(0);
+        let i = quantized.and_then(|q| q.index.get(n).copied()).unwrap_or(0);
         models[chunk_index(c)].voxels.push(Voxel { x: l.x as u8, y: l.y as u8, z: l.z as u8, i });
     }
 
@@ -77,7 +106,7 @@ pub fn write_vox_coloured(
     scenes[1] = SceneNode::Group { attributes: Dict::new(), children };
 
     let mut palette = dot_vox::DEFAULT_PALETTE.clone();
-    match &quantized {
+    match quantized {
         Some(q) => {
             for (slot, c) in palette.iter_mut().zip(&q.palette) {
                 *slot = dot_vox::Color { r: c[0], g: c[1], b: c[2], a: 255 };
