@@ -227,7 +227,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         false => {
             let resolution = super::resolution(args.resolution, args.voxel_size)?;
             let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
-            Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, blocks)
+            Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, Box::new(blocks))
         }
     };
     let sampling = matches!(task, Task::Sample(_));
@@ -304,8 +304,8 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec
 
 /// What a batch makes of each input: a grid (the request, the output format's included) or training samples.
 enum Task {
-    /// The request, and a Minecraft output's block set.
-    Voxelize(Request<'static>, super::ColourMap),
+    /// The request, and the block set and palette of a Minecraft or .vox output.
+    Voxelize(Request<'static>, Box<super::ColourMap>),
     Sample(meshvox::voxel::sample::SampleRequest),
 }
 
