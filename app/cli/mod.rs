@@ -201,8 +201,8 @@ pub(super) struct GridArgs {
 impl GridArgs {
     /// `--vdb-float` only means something for a .vdb output.
     pub(super) fn check(&self, format: VoxelFormat) -> Result<()> {
-        if self.vdb_float && format != VoxelFormat::Vdb {
-            anyhow::bail!("--vdb-float writes a .vdb: use a .vdb output");
+        if self.vdb_float && !matches!(format, VoxelFormat::Vdb | VoxelFormat::Nvdb) {
+            anyhow::bail!("--vdb-float writes a .vdb or .nvdb: use a .vdb or .nvdb output");
         }
         Ok(())
     }

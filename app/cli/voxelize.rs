@@ -119,7 +119,7 @@ fn stage_times(report: &meshvox::Report) -> String {
 pub(super) fn output_format(output: &Path, merge: bool) -> Result<VoxelFormat> {
     let format = VoxelFormat::from_extension(output).ok_or_else(|| {
         anyhow!(
-            "{}: unknown output format (use .npy, .binvox or .vox, .vdb or .npz for a sparse grid, or .glb, .ply or .obj for a mesh)",
+            "{}: unknown output format (use .npy, .binvox or .vox, .vdb, .nvdb or .npz for a sparse grid, or .glb, .ply or .obj for a mesh)",
             output.display()
         )
     })?;

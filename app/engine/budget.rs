@@ -183,7 +183,7 @@ fn writer(spec: &GridSpec, format: Option<VoxelFormat>) -> u64 {
         }
         // The sparse grid of the dense one's voxels: bounded by the dense grid (a leaf holds 512 voxels in 72
         // bytes, at most 9/8 of the dense grid's bits), and the writer's order.
-        Some(VoxelFormat::Npz | VoxelFormat::Vdb) => grid + grid / 2,
+        Some(VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb) => grid + grid / 2,
         // A schematic: each cell's palette index (4 bytes), its varint or packed bits (1–2) and each set voxel's
         // block (2, bounded by the grid); a structure file's list is at most 48³ entries.
         Some(VoxelFormat::Minecraft(_)) => d.x.saturating_mul(d.y).saturating_mul(d.z).saturating_mul(8),

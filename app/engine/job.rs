@@ -130,7 +130,7 @@ impl<'a> Job<'a> {
         }
         if request.mode.is_field() {
             match format {
-                Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb) | None => {}
+                Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb) | None => {}
                 Some(VoxelFormat::Mesh(_)) => request.band = Job::level_band(&request, &spec)?,
                 Some(f) => {
                     return Err(EngineError::FieldFormat { mode: request.mode.name(), extension: f.extension() });

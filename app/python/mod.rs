@@ -465,10 +465,12 @@ fn save_field(
     thickness: Option<f32>,
 ) -> PyResult<()> {
     let format = VoxelFormat::from_extension(&path)
-        .filter(|f| matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Mesh(_)))
+        .filter(|f| {
+            matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb | VoxelFormat::Mesh(_))
+        })
         .ok_or_else(|| {
             PyValueError::new_err(format!(
-                "{}: a distance field is saved as .npy, .npz or .vdb, or its level set as .ply, .obj, .glb or .stl",
+                "{}: a distance field is saved as .npy, .npz, .vdb or .nvdb, or its level set as .ply, .obj, .glb or .stl",
                 path.display()
             ))
         })?;

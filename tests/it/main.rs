@@ -23,6 +23,7 @@ mod mesh_export;
 mod mesh_loading;
 mod mirror;
 mod modes;
+mod nanovdb;
 mod optimized_gltf;
 mod points;
 mod query;

@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod minecraft;
 pub mod npy;
 pub mod npz;
+pub mod nvdb;
 pub mod palette;
 pub mod points;
 pub mod surface;
@@ -48,6 +49,8 @@ pub enum VoxelFormat {
     Npz,
     /// OpenVDB (see [`vdb`]).
     Vdb,
+    /// NanoVDB (see [`nvdb`]).
+    Nvdb,
     /// The voxel model as a mesh (see [`mesh`]).
     Mesh(MeshFormat),
     /// A Minecraft schematic: Sponge v3, Litematica or a structure file (see [`minecraft`]).
@@ -56,12 +59,13 @@ pub enum VoxelFormat {
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 12] = [
+    pub const ALL: [VoxelFormat; 13] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
         VoxelFormat::Npz,
         VoxelFormat::Vdb,
+        VoxelFormat::Nvdb,
         VoxelFormat::Mesh(MeshFormat::Glb),
         VoxelFormat::Mesh(MeshFormat::Ply),
         VoxelFormat::Mesh(MeshFormat::Obj),
@@ -90,13 +94,13 @@ impl VoxelFormat {
 
     /// Whether the format holds per-voxel labels (`.npy` as a second file beside the grid).
     pub fn holds_labels(self) -> bool {
-        matches!(self, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb)
+        matches!(self, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb)
     }
 
     /// Whether the format is written from a sparse grid, in space that grows with the set voxels (the others
     /// take the dense grid).
     pub fn is_sparse(self) -> bool {
-        matches!(self, VoxelFormat::Npz | VoxelFormat::Vdb)
+        matches!(self, VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb)
     }
 
     pub fn extension(self) -> &'static str {
@@ -106,6 +110,7 @@ impl VoxelFormat {
             VoxelFormat::Vox => "vox",
             VoxelFormat::Npz => "npz",
             VoxelFormat::Vdb => "vdb",
+            VoxelFormat::Nvdb => "nvdb",
             VoxelFormat::Mesh(mesh) => mesh.extension(),
             VoxelFormat::Minecraft(minecraft) => minecraft.extension(),
         }
@@ -148,7 +153,9 @@ fn write_dense<W: Write + Seek>(
         },
         VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, options.merge, m, out),
         VoxelFormat::Minecraft(m) => write_minecraft(grid, colours, m, options, out),
-        VoxelFormat::Npz | VoxelFormat::Vdb => write_grid(&Grid::Dense(grid.clone()), colours, format, options, out),
+        VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb => {
+            write_grid(&Grid::Dense(grid.clone()), colours, format, options, out)
+        }
     }
 }
 
@@ -240,6 +247,7 @@ pub fn write_grid<W: Write + Seek>(
     let labels: Vec<IntColumn> = label_fns.iter().map(|(name, f)| (*name, f.as_ref())).collect();
     match format {
         VoxelFormat::Npz => write_npz(&sparse, colour.map(|f| f as &dyn Fn(UVec3) -> [u8; 4]), &labels, None, out),
+        VoxelFormat::Nvdb => nvdb::write_nvdb(&sparse, VdbOptions { float: options.vdb_float }, colour, &labels, out),
         _ => write_vdb(&sparse, VdbOptions { float: options.vdb_float }, colour, &labels, out),
     }
 }
@@ -271,6 +279,7 @@ pub fn write_field<W: Write + Seek>(
             write_npz(&field.band_grid(), None, &[], Some(&value), out)
         }
         VoxelFormat::Vdb => vdb::write_level_set(field, out),
+        VoxelFormat::Nvdb => nvdb::write_level_set_nvdb(field, out),
         other => Err(std::io::Error::other(format!(
             "a distance field is written as .npy, .npz, .vdb or a mesh of its level set, not .{}",
             other.extension()

@@ -54,7 +54,7 @@ pub struct VdbOptions {
 
 /// The value type of one grid, and how it writes values.
 #[derive(Clone, Copy)]
-enum Values<'a> {
+pub(super) enum Values<'a> {
     Bool,
     Density,
     /// Linear RGB per voxel.
@@ -78,7 +78,7 @@ impl Values<'_> {
         }
     }
 
-    fn background(&self, out: &mut Vec<u8>) {
+    pub(super) fn background(&self, out: &mut Vec<u8>) {
         match self {
             Values::Bool => out.push(0),
             Values::Density => out.extend_from_slice(&0f32.to_le_bytes()),
@@ -89,7 +89,7 @@ impl Values<'_> {
     }
 
     /// The value of the set voxel `v` (tiles take their first voxel's).
-    fn value(&self, v: UVec3, out: &mut Vec<u8>) {
+    pub(super) fn value(&self, v: UVec3, out: &mut Vec<u8>) {
         match self {
             Values::Bool => out.push(1),
             Values::Density => out.extend_from_slice(&1f32.to_le_bytes()),
@@ -104,10 +104,20 @@ impl Values<'_> {
     }
 
     /// Whether an inactive value at `v` is `+background` (outside), for a level set's selection masks.
-    fn outside(&self, v: UVec3) -> bool {
+    pub(super) fn outside(&self, v: UVec3) -> bool {
         match self {
             Values::LevelSet { value, .. } => value(v) > 0.0,
             _ => true,
+        }
+    }
+
+    /// The value of an inactive voxel or slot at `v`: the background, and for a level set `-background` inside.
+    pub(super) fn inactive_value(&self, v: UVec3, out: &mut Vec<u8>) {
+        match self {
+            Values::LevelSet { background, .. } if !self.outside(v) => {
+                out.extend_from_slice(&(-background).to_le_bytes())
+            }
+            _ => self.background(out),
         }
     }
 
@@ -130,7 +140,7 @@ impl Values<'_> {
 
 /// One entry of the tree below the root: a leaf (index into the grid's leaves) or a tile of 8³ or 128³ voxels.
 #[derive(Clone, Copy)]
-enum Node {
+pub(super) enum Node {
     Leaf(u32),
     Tile { log2: u32, origin: UVec3 },
 }
@@ -145,15 +155,15 @@ fn tree_order(origin: UVec3) -> u64 {
     upper << 27 | slot5 << 12 | slot4
 }
 
-fn upper_of(order: u64) -> u64 {
+pub(super) fn upper_of(order: u64) -> u64 {
     order >> 27
 }
 
-fn slot5_of(order: u64) -> usize {
+pub(super) fn slot5_of(order: u64) -> usize {
     ((order >> 12) & 0x7fff) as usize
 }
 
-fn slot4_of(order: u64) -> usize {
+pub(super) fn slot4_of(order: u64) -> usize {
     (order & 0xfff) as usize
 }
 
@@ -229,7 +239,7 @@ fn write_meta(out: &mut Vec<u8>, entries: &[(&str, Meta)]) {
 }
 
 /// The grid's set voxels' inclusive index bounding box, or `None` when empty.
-fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
+pub(super) fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
     let leaf = |(key, mask): &(u64, LeafMask)| {
         let o = key_origin(*key);
         let (mut lo, mut hi) = (UVec3::MAX, UVec3::ZERO);
@@ -296,23 +306,8 @@ pub fn write_vdb<W: Write + Seek>(
     labels: &[IntColumn],
     mut out: W,
 ) -> Result<(), FormatError> {
-    let to_rgb = colour.map(|colour| {
-        move |v: UVec3| {
-            let [r, g, b, _] = colour(v);
-            [r, g, b].map(|c| SRGB_TO_LINEAR[c as usize])
-        }
-    });
-    let grids: Vec<(&str, Values)> = [
-        Some(match options.float {
-            true => ("density", Values::Density),
-            false => ("occupancy", Values::Bool),
-        }),
-        to_rgb.as_ref().map(|f| ("Cd", Values::Colour(f as &(dyn Fn(UVec3) -> [f32; 3] + Sync)))),
-    ]
-    .into_iter()
-    .flatten()
-    .chain(labels.iter().map(|&(name, f)| (name, Values::Int(f))))
-    .collect();
+    let to_rgb = colour.map(|colour| move |v: UVec3| linear_rgb(colour(v)));
+    let grids = grids_of(options, to_rgb.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [f32; 3] + Sync)), labels);
     out.write_all(&file_head(grid, grids.len()))?;
     let nodes = tree_nodes(grid);
     let bounds = active_bounds(grid);
@@ -335,6 +330,31 @@ pub fn write_vdb<W: Write + Seek>(
     Ok(())
 }
 
+/// A voxel's sRGB colour as the linear RGB a `Cd` grid holds.
+pub(super) fn linear_rgb([r, g, b, _]: [u8; 4]) -> [f32; 3] {
+    [r, g, b].map(|c| SRGB_TO_LINEAR[c as usize])
+}
+
+/// The grids of a file of occupancy, in the order they are written: `occupancy` (or `density`), `Cd` with
+/// colours, then one per label column.
+pub(super) fn grids_of<'a>(
+    options: VdbOptions,
+    rgb: Option<&'a (dyn Fn(UVec3) -> [f32; 3] + Sync)>,
+    labels: &'a [IntColumn],
+) -> Vec<(&'a str, Values<'a>)> {
+    [
+        Some(match options.float {
+            true => ("density", Values::Density),
+            false => ("occupancy", Values::Bool),
+        }),
+        rgb.map(|f| ("Cd", Values::Colour(f))),
+    ]
+    .into_iter()
+    .flatten()
+    .chain(labels.iter().map(|&(name, f)| (name, Values::Int(f))))
+    .collect()
+}
+
 /// Writes a distance field as an OpenVDB level set: one `FloatGrid` named `surface` of class level set, its
 /// background the band's half-width in world units, the band's voxels active with their signed distances, and
 /// every inactive value (in leaves and in the internal nodes' empty slots) `±background` as the voxel is outside
@@ -351,12 +371,12 @@ pub fn write_level_set<W: Write + Seek>(field: &DistanceField, mut out: W) -> Re
 
 /// The leaves and the 8³ and 128³ tiles in the order the tree visits them, with their order keys; and the 4096³
 /// tiles, which the root holds.
-struct TreeNodes {
-    below_root: Vec<(u64, Node)>,
-    root_tiles: Vec<UVec3>,
+pub(super) struct TreeNodes {
+    pub(super) below_root: Vec<(u64, Node)>,
+    pub(super) root_tiles: Vec<UVec3>,
 }
 
-fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
+pub(super) fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
     parallel::install(|| {
         let mut below_root: Vec<(u64, Node)> = grid
             .leaves
@@ -378,7 +398,7 @@ fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
 }
 
 /// The origin of the tree node of edge `1 << log2` holding `order`'s first voxel.
-fn node_origin(order: u64, log2: u32) -> UVec3 {
+pub(super) fn node_origin(order: u64, log2: u32) -> UVec3 {
     let u = upper_of(order) as u32;
     let m = slot5_of(order) as u32;
     let l = slot4_of(order) as u32;
