@@ -62,12 +62,12 @@ cargo test --locked --doc
 # dependency it shares with the build above is reused, not compiled again (Cargo.toml lines the features up);
 # installed into its own virtual environment, then pytest against the CLI built above.
 pyvenv=target/pytest-venv
-if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL' 2>/dev/null \
+if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL, warp' 2>/dev/null \
   || [ ! -x "$pyvenv/bin/maturin" ]; then
   python3 -m venv "$pyvenv"
   "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 pytest==9.2.0 \
     dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0 nbtlib==2.0.4 \
-    litemapy==0.11.0b0 voxypy==0.2.3 imageio==2.37.2 pillow==12.1.1
+    litemapy==0.11.0b0 voxypy==0.2.3 imageio==2.37.2 pillow==12.1.1 warp-lang==1.19.0
 fi
 rm -rf target/wheels
 "$pyvenv/bin/maturin" build --quiet --profile dev --features python,gpu,viewer,cli --interpreter "$pyvenv/bin/python" --out target/wheels

@@ -190,13 +190,13 @@ class VoxelGrid:
         return self.origin + (self.coords().astype(np.float64) + 0.5) * self.pitch
 
     def save(self, path: str | os.PathLike[str], *, merge: bool = False, level: float = 0.0) -> None:
-        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
+        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB), ``.nvdb`` (NanoVDB),
         ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``, ``.litematic`` or ``.nbt``
         (Minecraft: Sponge v3, Litematica, a structure file up to 48³, in the default blocks)) with the CLI's writers, atomically; a coloured
         ``.npy`` gets ``.colors.npy`` beside it, a labelled one ``.labels.npy``; labels also go into ``.npz``
-        arrays and ``.vdb`` Int32Grids (the other formats hold none).
+        arrays and ``.vdb``/``.nvdb`` int32 grids (the other formats hold none).
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
-        as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) or ``.vdb`` (a level set),
+        as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) ``.vdb`` or ``.nvdb`` (a level set),
         as the CLI writes it, or its level set at ``level`` (world units) as a closed mesh (``.ply``, ``.obj``,
         ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
         in the mesh formats."""
