@@ -277,28 +277,29 @@ impl ViewerApp {
         }
     }
 
-    /// The export buttons, in rows as wide as the panel: a distance field exports as .npy, .vdb or .npz.
+    /// The export buttons, in rows as wide as the panel: a distance field exports as .npy, .vdb, .nvdb or .npz.
     fn export_section(&mut self, ui: &mut egui::Ui) {
         ui.separator();
         let field = self.field.is_some();
         ui.horizontal_wrapped(|ui| {
             ui.label("Export");
             use formats::MinecraftFormat::{Litematic, Schem, Structure};
-            use formats::VoxelFormat::{Binvox, Mesh, Minecraft, Npy, Npz, Vdb, Vox};
+            use formats::VoxelFormat::{Binvox, Mesh, Minecraft, Npy, Npz, Nvdb, Vdb, Vox};
             let glb = Mesh(formats::MeshFormat::Glb);
-            for format in
-                [Vox, Binvox, Npy, Vdb, Npz, glb, Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)]
-            {
-                let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Npz));
+            let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)];
+            for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb].into_iter().chain(minecraft) {
+                let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Nvdb | Npz));
                 let hint = match (format, field) {
                     (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
                     (Vdb, true) => "OpenVDB level set: a FloatGrid 'surface' over the band",
+                    (Nvdb, true) => "NanoVDB level set (for Warp, fVDB): a float grid 'surface'",
                     (Npz, true) => "numpy .npz of the band's coordinates and values",
-                    (_, true) => "a distance field exports as .npy, .vdb or .npz",
+                    (_, true) => "a distance field exports as .npy, .vdb, .nvdb or .npz",
                     (Npy, false) => "numpy uint8 grid (and .colors.npy beside it when coloured)",
                     (Vox, false) => "MagicaVoxel, with a palette of the voxel colours",
                     (Binvox, false) => "binvox, occupancy only",
                     (Vdb, false) => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
+                    (Nvdb, false) => "NanoVDB (for Warp, fVDB): the .vdb's grids",
                     (Npz, false) => "numpy .npz of sorted int32 coordinates (and their colours)",
                     (Minecraft(Schem), false) => "a Minecraft schematic (Sponge v3, WorldEdit): blocks by colour",
                     (Minecraft(Litematic), false) => "a Litematica schematic: blocks by the nearest colour in OKLab",

@@ -342,7 +342,7 @@ async function webgpuPath(browser) {
     await page.evaluate(() => window.meshvoxSetResolution(48));
     await status({ ready: true, mesh: "Duck.glb", resolution: 48, coloured: true }, "Duck.glb at 48");
     const work = await mkdtemp(path.join(scratch, "export-"));
-    for (const format of ["vox", "binvox", "npy", "vdb", "npz", "glb", "schem"]) {
+    for (const format of ["vox", "binvox", "npy", "vdb", "nvdb", "npz", "glb", "schem", "litematic", "nbt"]) {
       const expected = format === "npy" ? ["Duck-48.npy", "Duck-48.colors.npy"] : [`Duck-48.${format}`];
       const downloads = [];
       const onDownload = (d) => downloads.push(d);
