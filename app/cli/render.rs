@@ -75,8 +75,12 @@ pub(super) struct RenderArgs {
     /// id,r,g,b lines (with --dither as .schem dithers).
     #[arg(long, value_name = "default|FILE")]
     blocks: Option<String>,
-    /// With --blocks: dither as a .schem output does.
-    #[arg(long, requires = "blocks")]
+    /// Draw each voxel in its nearest colour of a fixed palette, as a .vox with --palette gets it (a .vox file's
+    /// palette, a PNG strip or a text list); with --blocks, the palette's colours then go to blocks.
+    #[arg(long, value_name = "FILE")]
+    palette: Option<PathBuf>,
+    /// With --blocks or --palette: dither as those outputs do.
+    #[arg(long)]
     dither: bool,
     #[command(flatten)]
     limits: LimitArgs,
@@ -129,18 +133,40 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         let slice = args.slice.unwrap_or(meshvox::render::Cut { axis: 2, fraction: 0.5 });
         meshvox::render::slice::field_slice(field, grid, slice)
     });
-    // A schematic's look: each voxel in its block's colour.
-    let blocks = match &args.blocks {
-        Some(blocks) => {
-            let args = super::BlockArgs { blocks: Some(blocks.clone()), dither: args.dither, ..Default::default() };
-            let schem =
-                meshvox::voxel::formats::VoxelFormat::Minecraft(meshvox::voxel::formats::MinecraftFormat::Schem);
-            let set = args.read(schem)?.blocks.unwrap_or_else(BlockSet::default_set);
-            let assigned = set.assign(grid, result.colours.as_ref(), args.dither);
-            let rgba = assigned.iter().map(|&b| set.colours[b as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
-            Some(meshvox::voxel::colour::VoxelColours { rgba })
+    // A schematic's or a fixed palette's look: each voxel in its block's or its entry's colour, as the writers
+    // pick them (the palette first, then the blocks).
+    let blocks = match (&args.blocks, &args.palette) {
+        (None, None) => None,
+        (blocks, palette) => {
+            use meshvox::voxel::formats::{MinecraftFormat, VoxelFormat};
+            let format =
+                if blocks.is_some() { VoxelFormat::Minecraft(MinecraftFormat::Schem) } else { VoxelFormat::Vox };
+            let choice = super::BlockArgs {
+                blocks: blocks.clone(),
+                palette: palette.clone(),
+                dither: args.dither,
+                ..Default::default()
+            };
+            let map = choice.read(format)?;
+            let to_rgba = |c: &[[u8; 3]], entries: Vec<u16>| {
+                let rgba = entries.iter().map(|&e| c[e as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
+                meshvox::voxel::colour::VoxelColours { rgba }
+            };
+            // An uncoloured mesh: a .vox takes the palette's first entry, a schematic the set's first block.
+            let colours = match (&map.palette, &result.colours) {
+                (Some(p), Some(_)) => Some(to_rgba(&p.colours, p.assign(grid, result.colours.as_ref(), args.dither))),
+                (Some(p), None) if blocks.is_none() => Some(to_rgba(&p.colours, p.assign(grid, None, args.dither))),
+                _ => result.colours.clone(),
+            };
+            match blocks {
+                Some(_) => {
+                    let set = map.blocks.unwrap_or_else(BlockSet::default_set);
+                    let dither = args.dither && map.palette.is_none();
+                    Some(to_rgba(&set.colours, set.assign(grid, colours.as_ref(), dither)))
+                }
+                None => colours,
+            }
         }
-        None => None,
     };
     let (grid, colours) = match &sliced {
         Some((grid, colours)) => (grid, Some(colours)),

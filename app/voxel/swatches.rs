@@ -12,7 +12,9 @@
 //! Dithering diffuses each voxel's error (its OKLab colour less its entry's) to the set voxels after it in the
 //! grid's order, within its y-layer (Minecraft's horizontal plane): 7/16 to x+1, and 3/16, 5/16, 1/16 to x-1, x,
 //! x+1 of the next z row, as Floyd and Steinberg spread it across an image. A share aimed at an empty voxel is
-//! dropped. Every set voxel still gets exactly one entry.
+//! dropped. The colour a voxel asks for (its own plus the error carried to it) is held within the box the entries
+//! span in OKLab, so colours far outside the set do not pile up error that streaks across a layer. Every set voxel
+//! still gets exactly one entry.
 
 use super::VoxelGrid;
 use super::colour::VoxelColours;
@@ -137,6 +139,11 @@ impl Swatches {
             rank[at(v.x as usize, v.y as usize, v.z as usize)] = i as u32;
         }
         let mut out = vec![0u16; colours.rgba.len()];
+        // The box the entries span in OKLab, which a voxel's wanted colour is held within.
+        let (mut low, mut high) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for entry in &self.lab {
+            (0..3).for_each(|k| (low[k], high[k]) = (low[k].min(entry[k]), high[k].max(entry[k])));
+        }
         // The error carried into this z row and the next, per x.
         let (mut this, mut next) = (vec![[0f32; 3]; nx + 2], vec![[0f32; 3]; nx + 2]);
         for y in 0..d.y as usize {
@@ -150,7 +157,7 @@ impl Swatches {
                     }
                     let c = colours.rgba[r as usize];
                     let lab = oklab([c[0], c[1], c[2]]);
-                    let want = std::array::from_fn(|k| lab[k] + this[x + 1][k]);
+                    let want = std::array::from_fn(|k| (lab[k] + this[x + 1][k]).clamp(low[k], high[k]));
                     let entry = self.nearest(want);
                     out[r as usize] = entry as u16;
                     let error: [f32; 3] = std::array::from_fn(|k| want[k] - self.lab[entry][k]);
