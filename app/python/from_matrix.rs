@@ -99,16 +99,15 @@ pub(super) fn write(
     format: VoxelFormat,
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
-    labels: Option<&Labels>,
-    merge: bool,
+    options: &WriteOptions,
 ) -> Result<(), FormatError> {
+    let labels = options.labels;
     if let (Some(c), VoxelFormat::Npy) = (colours, format) {
         write_atomically(&formats::colours_npy_path(path), |out| formats::write_colours_npy(grid, c, out))?;
     }
     if let (Some(l), VoxelFormat::Npy) = (labels, format) {
         write_atomically(&formats::labels_npy_path(path), |out| formats::write_labels_npy(grid, l, out))?;
     }
-    let options = WriteOptions { merge, labels, ..Default::default() };
-    write_atomically(path, |out| formats::write_grid(&Grid::Dense(grid.clone()), colours, format, &options, out))
+    write_atomically(path, |out| formats::write_grid(&Grid::Dense(grid.clone()), colours, format, options, out))
         .map(|_| ())
 }

@@ -10,7 +10,9 @@ mod process;
 use crate::engine::{Backend, Engine, EngineError, Job, Request, Voxelized};
 use crate::mesh::{self, Aabb, Mesh, MeshError};
 use crate::voxel::formats::VoxelFormat;
+use crate::voxel::blocks::BlockSet;
 use crate::voxel::labels::AttributeSet;
+use crate::voxel::swatches::Swatches;
 use crate::voxel::{Axis, GridError, Mode, Resolution};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
@@ -422,7 +424,7 @@ fn headless_vulkan_setting() -> Option<(&'static str, &'static str)> {
 /// extension names, atomically (a temporary file beside it, renamed into place); for `.npy` the `.colors.npy` and
 /// `.labels.npy` beside it, as the CLI writes them. Labels go only where the format holds them.
 #[pyfunction]
-#[pyo3(signature = (path, matrix, origin, pitch, colors, merge, labels))]
+#[pyo3(signature = (path, matrix, origin, pitch, colors, merge, labels, colour_map))]
 #[allow(clippy::too_many_arguments)]
 fn save(
     py: Python<'_>,
@@ -433,7 +435,26 @@ fn save(
     colors: Option<numpy::PyReadonlyArray4<'_, u8>>,
     merge: bool,
     labels: Vec<(String, numpy::PyReadonlyArray3<'_, i32>)>,
+    colour_map: (Option<PathBuf>, Option<String>, Option<PathBuf>, bool),
 ) -> PyResult<()> {
+    let (blocks, block, palette, dither) = colour_map;
+    let blocks = match (block, blocks) {
+        (Some(id), _) => Some(BlockSet::single(&id).map_err(|e| PyValueError::new_err(e.to_string()))?),
+        (None, Some(file)) => {
+            let what = format!("blocks='{}'", file.display());
+            let text = std::fs::read_to_string(&file).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+            Some(BlockSet::parse(&text, &what).map_err(|e| PyValueError::new_err(e.to_string()))?)
+        }
+        (None, None) => None,
+    };
+    let palette = match palette {
+        Some(file) => {
+            let what = format!("palette='{}'", file.display());
+            let bytes = std::fs::read(&file).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+            Some(Swatches::read_palette(&bytes, &what).map_err(|e| PyValueError::new_err(e.to_string()))?)
+        }
+        None => None,
+    };
     let format = VoxelFormat::from_extension(&path).ok_or_else(|| {
         PyValueError::new_err(format!("{}: unknown output format (use {})", path.display(), VoxelFormat::choices()))
     })?;
@@ -442,8 +463,15 @@ fn save(
     let views: Vec<_> = labels.iter().map(|(name, values)| (name.clone(), values.as_array())).collect();
     let labels = (!views.is_empty()).then(|| from_matrix::labels(&grid, &views)).transpose()?;
     let labels = labels.filter(|_| format.holds_labels());
-    let written =
-        process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), labels.as_ref(), merge))?;
+    let options = crate::voxel::formats::WriteOptions {
+        merge,
+        labels: labels.as_ref(),
+        blocks: blocks.as_ref(),
+        palette: palette.as_ref(),
+        dither,
+        ..Default::default()
+    };
+    let written = process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), &options))?;
     written.map_err(|e| save_err(&path, e))
 }
 

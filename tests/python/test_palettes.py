@@ -129,3 +129,42 @@ def test_palette_options_fail_in_one_line(cli, tmp_path, args, says):
                          capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode != 0 and says in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert not any((tmp_path / f"x.{e}").exists() for e in ("npy", "vox", "schem"))
+
+
+def test_python_and_batch_write_the_clis_files_with_blocks_and_palettes(duck, meshes, cli, tmp_path):
+    import meshvox
+
+    path, _, _ = duck
+    listing = tmp_path / "p.txt"
+    listing.write_text("#fad228\n#e67814\n#14100c\n#fafafa\n")
+    mine = tmp_path / "mine.csv"
+    mine.write_text("minecraft:red_wool,160,39,34\nminecraft:yellow_wool,248,197,39\nminecraft:black_wool,20,21,25\n")
+    grid = meshvox.voxelize(path, 40, backend="cpu")
+    cases = [
+        ("a.vox", {"palette": listing}, ["--palette", str(listing)]),
+        ("b.vox", {"palette": listing, "dither": True}, ["--palette", str(listing), "--dither"]),
+        ("c.schem", {"blocks": mine, "dither": True}, ["--blocks", str(mine), "--dither"]),
+        ("d.litematic", {"palette": listing, "blocks": mine}, ["--palette", str(listing), "--blocks", str(mine)]),
+        ("e.nbt", {"block": "stone"}, ["--block", "stone"]),
+    ]
+    for name, kwargs, flags in cases:
+        grid.save(tmp_path / f"py-{name}", **kwargs)
+        run_cli(cli, "voxelize", path, "-r", "40", "-o", str(tmp_path / f"cli-{name}"), "--backend", "cpu", *flags)
+        assert (tmp_path / f"py-{name}").read_bytes() == (tmp_path / f"cli-{name}").read_bytes(), name
+    # Batch: the same bytes as voxelize for a palette.
+    (tmp_path / "in").mkdir()
+    (tmp_path / "in" / "Duck.glb").write_bytes((meshes / "gltf" / "Duck.glb").read_bytes())
+    run_cli(cli, "batch", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "-r", "40", "--format", "vox",
+            "--palette", str(listing), "--dither", "--backend", "cpu")
+    assert (tmp_path / "out" / "Duck.vox").read_bytes() == (tmp_path / "cli-b.vox").read_bytes()
+    # Python's errors, in its own words.
+    for name, kwargs, says in [
+        ("x.npy", {"palette": listing}, "palette="),
+        ("x.vox", {"dither": True}, "dither="),
+        ("x.vox", {"blocks": mine}, "blocks="),
+        ("x.schem", {"block": "stone", "palette": listing}, "block="),
+        ("x.vox", {"palette": tmp_path / "missing.txt"}, "missing.txt"),
+    ]:
+        with pytest.raises(ValueError, match=says):
+            grid.save(tmp_path / name, **kwargs)
+        assert not (tmp_path / name).exists()

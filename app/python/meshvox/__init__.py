@@ -189,10 +189,24 @@ class VoxelGrid:
         """World positions of the set voxels' centres, float64 (N, 3), in ``coords()`` order."""
         return self.origin + (self.coords().astype(np.float64) + 0.5) * self.pitch
 
-    def save(self, path: str | os.PathLike[str], *, merge: bool = False, level: float = 0.0) -> None:
-        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB), ``.nvdb`` (NanoVDB),
-        ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``, ``.litematic`` or ``.nbt``
-        (Minecraft: Sponge v3, Litematica, a structure file up to 48³, in the default blocks)) with the CLI's writers, atomically; a coloured
+    def save(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        merge: bool = False,
+        level: float = 0.0,
+        blocks: str | os.PathLike[str] | None = None,
+        block: str | None = None,
+        palette: str | os.PathLike[str] | None = None,
+        dither: bool = False,
+    ) -> None:
+        """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
+        ``.nvdb`` (NanoVDB), ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``,
+        ``.litematic`` or ``.nbt`` (Minecraft: Sponge v3, Litematica, a structure file up to 48³)) with the CLI's
+        writers, atomically. The Minecraft formats take ``blocks`` (``"default"`` or a file of ``id,r,g,b`` lines),
+        ``block`` (one block everywhere) and ``dither``; ``.vox`` and the Minecraft formats take ``palette`` (a
+        ``.vox`` file, a PNG strip or a text list of colours: each voxel its nearest entry), as the CLI's
+        ``--blocks``, ``--block``, ``--palette`` and ``--dither`` do (docs/formats.md). A coloured
         ``.npy`` gets ``.colors.npy`` beside it, a labelled one ``.labels.npy``; labels also go into ``.npz``
         arrays and ``.vdb``/``.nvdb`` int32 grids (the other formats hold none).
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
@@ -209,10 +223,26 @@ class VoxelGrid:
                 self.thickness,
             )
             return
+        suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
+        minecraft = suffix in ("schem", "litematic", "nbt")
+        if (blocks is not None or block is not None) and not minecraft:
+            raise ValueError("blocks= and block= are for Minecraft files: save as .schem, .litematic or .nbt")
+        if palette is not None and not (minecraft or suffix == "vox"):
+            raise ValueError("palette= is for .vox and Minecraft files (.schem, .litematic, .nbt)")
+        if dither and not (minecraft or palette is not None):
+            raise ValueError("dither= is for Minecraft files, and for .vox with palette=")
+        if block is not None and (blocks is not None or palette is not None):
+            raise ValueError("block= puts one block everywhere: leave out blocks= and palette=")
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
         labels = [(name, np.ascontiguousarray(a, dtype=np.int32)) for name, a in (self.labels or {}).items()]
-        _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge, labels)
+        colour_map = (
+            None if blocks is None or blocks == "default" else os.fspath(blocks),
+            block,
+            None if palette is None else os.fspath(palette),
+            bool(dither),
+        )
+        _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge, labels, colour_map)
 
     def to_mesh(self, level: float = 0.0, *, trimesh: bool = False) -> Any:
         """A distance field's level set at ``level`` (world units; 0 the surface) as a closed, edge-manifold,
