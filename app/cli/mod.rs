@@ -189,10 +189,10 @@ fn told(engine: Engine) -> Engine {
 #[derive(clap::Args, Clone, Copy)]
 pub(super) struct GridArgs {
     /// The grid: dense bits, sparse 8³ leaves and tiles (memory grows with the surface), or auto: sparse for a
-    /// .vdb or .npz output or where the dense grid would not fit the memory budget.
+    /// .vdb, .nvdb or .npz output or where the dense grid would not fit the memory budget.
     #[arg(long, value_enum, default_value_t = GridKind::Auto)]
     pub(super) grid: GridKind,
-    /// For .vdb outputs, a float `density` grid (1 where set) instead of the bool `occupancy` grid, for tools
+    /// For .vdb and .nvdb outputs, a float `density` grid (1 where set) instead of the bool `occupancy` grid, for tools
     /// that read only float grids.
     #[arg(long)]
     pub(super) vdb_float: bool,

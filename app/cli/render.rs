@@ -136,11 +136,14 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     // A schematic's or a fixed palette's look: each voxel in its block's or its entry's colour, as the writers
     // pick them (the palette first, then the blocks).
     let blocks = match (&args.blocks, &args.palette) {
+        (None, None) if args.dither => {
+            anyhow::bail!("--dither draws dithered blocks or palette colours: add --blocks or --palette")
+        }
         (None, None) => None,
         (blocks, palette) => {
             use meshvox::voxel::formats::{MinecraftFormat, VoxelFormat};
-            let format =
-                if blocks.is_some() { VoxelFormat::Minecraft(MinecraftFormat::Schem) } else { VoxelFormat::Vox };
+            // Read as for a schematic, which takes a palette of any size (a .vox holds 255 colours).
+            let format = VoxelFormat::Minecraft(MinecraftFormat::Schem);
             let choice = super::BlockArgs {
                 blocks: blocks.clone(),
                 palette: palette.clone(),
@@ -162,7 +165,7 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
                 Some(_) => {
                     let set = map.blocks.unwrap_or_else(BlockSet::default_set);
                     let dither = args.dither && map.palette.is_none();
-                    Some(to_rgba(&set.colours, set.assign(grid, colours.as_ref(), dither)))
+                    Some(to_rgba(&set.swatches.colours, set.assign(grid, colours.as_ref(), dither)))
                 }
                 None => colours,
             }

@@ -26,8 +26,8 @@ pub(super) struct VoxelizeArgs {
     /// Axis along which -r counts voxels.
     #[arg(long, value_enum, default_value_t = Axis::Longest)]
     pub(super) axis: Axis,
-    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB) or .npz (sorted
-    /// coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
+    /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB), .nvdb (NanoVDB)
+    /// or .npz (sorted coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
     /// .schem, .litematic or .nbt for Minecraft (Sponge v3, Litematica, a structure file up to 48³; blocks
     /// by colour: --blocks, --block, --dither).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
@@ -117,12 +117,8 @@ fn stage_times(report: &meshvox::Report) -> String {
 
 /// The output format `-o` names, checked against `--merge`.
 pub(super) fn output_format(output: &Path, merge: bool) -> Result<VoxelFormat> {
-    let format = VoxelFormat::from_extension(output).ok_or_else(|| {
-        anyhow!(
-            "{}: unknown output format (use .npy, .binvox or .vox, .vdb, .nvdb or .npz for a sparse grid, or .glb, .ply or .obj for a mesh)",
-            output.display()
-        )
-    })?;
+    let format = VoxelFormat::from_extension(output)
+        .ok_or_else(|| anyhow!("{}: unknown output format (use {})", output.display(), VoxelFormat::choices()))?;
     check_merge(format, merge)?;
     Ok(format)
 }

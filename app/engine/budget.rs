@@ -187,7 +187,10 @@ fn writer(spec: &GridSpec, format: Option<VoxelFormat>) -> u64 {
         // A schematic: each cell's palette index (4 bytes), its varint or packed bits (1–2) and each set voxel's
         // block (2, bounded by the grid); a structure file's list is at most 48³ entries.
         Some(VoxelFormat::Minecraft(_)) => d.x.saturating_mul(d.y).saturating_mul(d.z).saturating_mul(8),
-        Some(VoxelFormat::Vox) | None => 0,
+        // A fixed palette's dithering ranks every cell (4 bytes); dot_vox's voxel list (4 bytes a set voxel) fits
+        // in the same.
+        Some(VoxelFormat::Vox) => d.x.saturating_mul(d.y).saturating_mul(d.z).saturating_mul(4),
+        None => 0,
     }
 }
 

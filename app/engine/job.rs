@@ -6,7 +6,7 @@
 use super::{EngineError, budget};
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::distance::{Band, MAX_BAND};
-use crate::voxel::formats::VoxelFormat;
+use crate::voxel::formats::{MinecraftFormat, VoxelFormat};
 use crate::voxel::labels::AttributeSet;
 use crate::voxel::{Axis, GridError, GridKind, GridSpec, MAX_DIM, Mode, Resolution};
 use glam::DVec3;
@@ -122,6 +122,11 @@ impl<'a> Job<'a> {
             let pad = (request.level / spec.voxel_size).ceil().min(f64::from(MAX_DIM)) as u32 + 2;
             spec.origin -= DVec3::splat(f64::from(pad) * spec.voxel_size);
             spec.dims += 2 * pad;
+        }
+        // A structure file's size is known now: refused before anything is voxelized.
+        let max = crate::voxel::formats::minecraft::structure::MAX_SIDE;
+        if format == Some(VoxelFormat::Minecraft(MinecraftFormat::Structure)) && spec.dims.max_element() > max {
+            return Err(EngineError::StructureSize { dims: spec.dims.to_array(), max });
         }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
         let mut request = *request;

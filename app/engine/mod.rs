@@ -85,12 +85,14 @@ pub enum EngineError {
     Bounds { min: [f64; 3], max: [f64; 3] },
     /// A distance field asked for in a format that holds occupancy only.
     #[error(
-        "--mode {mode} writes a distance field: use a .npy, .npz or .vdb output, or .ply, .obj, .glb or .stl for its \
-         level set as a mesh, not .{extension}"
+        "--mode {mode} writes a distance field: use a .npy, .npz, .vdb or .nvdb output, or .ply, .obj, .glb or .stl \
+         for its level set as a mesh, not .{extension}"
     )]
     FieldFormat { mode: &'static str, extension: &'static str },
     /// `--attributes` with an output that holds no labels.
-    #[error("--attributes: labels are written in .npy (as NAME.labels.npy beside it), .npz and .vdb, not .{extension}")]
+    #[error(
+        "--attributes: labels are written in .npy (as NAME.labels.npy beside it), .npz, .vdb and .nvdb, not .{extension}"
+    )]
     LabelsFormat { extension: &'static str },
     /// The labels' nearest triangles could not be found.
     #[error("labels: {0}")]
@@ -108,8 +110,16 @@ pub enum EngineError {
     #[error("{0}")]
     Level(String),
     /// `--band full` with a sparse grid or output.
-    #[error("--band full computes every voxel of the grid: write it as .npy (.vdb and .npz hold a band, --band K)")]
+    #[error(
+        "--band full computes every voxel of the grid: write it as .npy (.vdb, .nvdb and .npz hold a band, --band K)"
+    )]
     FullBandSparse,
+    /// A structure file over the structure block's size.
+    #[error(
+        "a structure file (.nbt) is at most {max}×{max}×{max} blocks (the structure block's limit); this grid is \
+         {}×{}×{}: write a .schem or .litematic instead", dims[0], dims[1], dims[2]
+    )]
+    StructureSize { dims: [u32; 3], max: u32 },
 }
 
 /// What to add to a grid error: where it is over the budget, what would fit.

@@ -9,8 +9,8 @@ mod process;
 
 use crate::engine::{Backend, Engine, EngineError, Job, Request, Voxelized};
 use crate::mesh::{self, Aabb, Mesh, MeshError};
-use crate::voxel::formats::VoxelFormat;
 use crate::voxel::blocks::BlockSet;
+use crate::voxel::formats::VoxelFormat;
 use crate::voxel::labels::AttributeSet;
 use crate::voxel::swatches::Swatches;
 use crate::voxel::{Axis, GridError, Mode, Resolution};

@@ -288,21 +288,28 @@ impl ViewerApp {
             let glb = Mesh(formats::MeshFormat::Glb);
             let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)];
             for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb].into_iter().chain(minecraft) {
-                let usable = self.grid.is_some() && (!field || matches!(format, Npy | Vdb | Nvdb | Npz));
+                // A structure file holds at most 48 blocks a side.
+                let max = formats::minecraft::structure::MAX_SIDE;
+                let too_big = self.grid.as_ref().is_some_and(|g| g.spec.dims.max_element() > max);
+                let fits = !(format == Minecraft(Structure) && too_big);
+                let usable = self.grid.is_some() && fits && (!field || matches!(format, Npy | Vdb | Nvdb | Npz));
                 let hint = match (format, field) {
                     (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
                     (Vdb, true) => "OpenVDB level set: a FloatGrid 'surface' over the band",
-                    (Nvdb, true) => "NanoVDB level set (for Warp, fVDB): a float grid 'surface'",
+                    (Nvdb, true) => "NanoVDB level set (for Warp): a float grid 'surface'",
                     (Npz, true) => "numpy .npz of the band's coordinates and values",
                     (_, true) => "a distance field exports as .npy, .vdb, .nvdb or .npz",
                     (Npy, false) => "numpy uint8 grid (and .colors.npy beside it when coloured)",
                     (Vox, false) => "MagicaVoxel, with a palette of the voxel colours",
                     (Binvox, false) => "binvox, occupancy only",
                     (Vdb, false) => "OpenVDB: a bool occupancy grid, and a Cd colour grid when coloured",
-                    (Nvdb, false) => "NanoVDB (for Warp, fVDB): the .vdb's grids",
+                    (Nvdb, false) => "NanoVDB (for Warp): the .vdb's grids",
                     (Npz, false) => "numpy .npz of sorted int32 coordinates (and their colours)",
                     (Minecraft(Schem), false) => "a Minecraft schematic (Sponge v3, WorldEdit): blocks by colour",
                     (Minecraft(Litematic), false) => "a Litematica schematic: blocks by the nearest colour in OKLab",
+                    (Minecraft(Structure), false) if too_big => {
+                        "a structure-block file holds at most 48 blocks a side: lower the resolution, or use .schem"
+                    }
                     (Minecraft(Structure), false) => "a Minecraft structure-block file: at most 48 blocks a side",
                     _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
                 };

@@ -24,16 +24,15 @@ pub enum BlockError {
 }
 
 /// The most blocks a set may hold (a voxel's block is a `u16`).
-pub const MAX_BLOCKS: usize = u16::MAX as usize;
+pub const MAX_BLOCKS: usize = super::swatches::MAX_ENTRIES;
 
 /// A set of blocks and their colours.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockSet {
     /// Namespaced ids (`minecraft:white_concrete`), in the file's order.
     pub ids: Vec<String>,
-    /// sRGB colours.
-    pub colours: Vec<[u8; 3]>,
-    swatches: Swatches,
+    /// Their colours (sRGB), by which voxels pick them.
+    pub swatches: Swatches,
 }
 
 /// Whether `id` looks like a namespaced block id (`namespace:name`, lower-case letters, digits and `_-./`) of a
@@ -61,7 +60,7 @@ impl BlockSet {
             return Err(BlockError::Id(id.to_string()));
         }
         let id = named;
-        Ok(BlockSet { ids: vec![id], colours: vec![[255; 3]], swatches: Swatches::new(vec![[255; 3]]) })
+        Ok(BlockSet { ids: vec![id], swatches: Swatches::new(vec![[255; 3]]) })
     }
 
     /// A set from `id,r,g,b` lines (a header line `id,r,g,b`, blank lines and `#` comments are skipped); `what`
@@ -90,8 +89,7 @@ impl BlockSet {
         if ids.len() > MAX_BLOCKS {
             return Err(BlockError::TooMany(what.to_string()));
         }
-        let swatches = Swatches::new(colours.clone());
-        Ok(BlockSet { ids, colours, swatches })
+        Ok(BlockSet { ids, swatches: Swatches::new(colours) })
     }
 
     /// The block nearest to OKLab colour `lab` (the first of equals).

@@ -80,6 +80,10 @@ impl Swatches {
         let file = |why: String| PaletteError::File { what: what.to_string(), why };
         let colours = if bytes.starts_with(b"VOX ") {
             let data = dot_vox::load_bytes(bytes).map_err(|e| file(format!("not a readable .vox file ({e})")))?;
+            // Without an RGBA chunk dot_vox gives MagicaVoxel's default palette, which is not the file's.
+            if !bytes.windows(4).any(|w| w == b"RGBA") {
+                return Err(file("a .vox file without a palette (no RGBA chunk)".into()));
+            }
             // Colour index i (1..=255) is the palette's entry i - 1; index 256 does not exist.
             data.palette.iter().take(255).map(|c| [c.r, c.g, c.b]).collect()
         } else if bytes.starts_with(b"\x89PNG") {
@@ -117,14 +121,22 @@ impl Swatches {
     pub fn assign(&self, grid: &VoxelGrid, colours: Option<&VoxelColours>, dither: bool) -> Vec<u16> {
         let Some(colours) = colours else { return vec![0; grid.count() as usize] };
         if !dither {
-            return colours.rgba.iter().map(|c| self.nearest(oklab([c[0], c[1], c[2]])) as u16).collect();
+            // Each distinct colour searched once: a palette may hold thousands of entries (a PNG's pixels).
+            let mut nearest = std::collections::HashMap::new();
+            return colours
+                .rgba
+                .iter()
+                .map(|c| {
+                    *nearest.entry([c[0], c[1], c[2]]).or_insert_with(|| self.nearest(oklab([c[0], c[1], c[2]])) as u16)
+                })
+                .collect();
         }
         self.dithered(grid, colours)
     }
 
-    /// The voxels' colours replaced by their entries' ([`Swatches::assign`]).
-    pub fn recolour(&self, grid: &VoxelGrid, colours: &VoxelColours, dither: bool) -> VoxelColours {
-        let entries = self.assign(grid, Some(colours), dither);
+    /// The voxels' colours replaced by their entries' ([`Swatches::assign`]; the first entry's without colours).
+    pub fn recolour(&self, grid: &VoxelGrid, colours: Option<&VoxelColours>, dither: bool) -> VoxelColours {
+        let entries = self.assign(grid, colours, dither);
         let rgba = entries.iter().map(|&e| self.colours[e as usize]).map(|[r, g, b]| [r, g, b, 255]).collect();
         VoxelColours { rgba }
     }
@@ -182,30 +194,42 @@ impl Swatches {
     }
 }
 
+/// A colour written in hex digits: `rrggbb`, `rgb` (each digit doubled), and with eight digits `rrggbbaa` after
+/// a `#` (CSS) or `aarrggbb` without one (Paint.NET); alpha is dropped.
+fn hex(token: &str, hash: bool) -> Option<[u8; 3]> {
+    if !token.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return None;
+    }
+    // All ASCII from here, so slicing by bytes is slicing by characters.
+    let digits = match (token.len(), hash) {
+        (3, true) => token.chars().flat_map(|c| [c, c]).collect(),
+        (6, _) => token.to_string(),
+        (8, true) => token[..6].to_string(),
+        (8, false) => token[2..].to_string(),
+        _ => return None,
+    };
+    let v = u32::from_str_radix(&digits, 16).ok()?;
+    Some([(v >> 16) as u8, (v >> 8) as u8, v as u8])
+}
+
 /// The colours of a text palette (see [`Swatches::read_palette`]).
 fn parse_text(text: &str, what: &str) -> Result<Vec<[u8; 3]>, PaletteError> {
-    let hex = |s: &str| -> Option<[u8; 3]> {
-        let s = match s.len() {
-            6 => s,
-            8 => &s[2..], // AARRGGBB
-            _ => return None,
-        };
-        let v = u32::from_str_radix(s, 16).ok().filter(|_| s.bytes().all(|b| b.is_ascii_hexdigit()))?;
-        Some([(v >> 16) as u8, (v >> 8) as u8, v as u8])
-    };
     let mut colours = Vec::new();
-    for (i, line) in text.lines().enumerate() {
+    let error =
+        |i: usize, line: &str| PaletteError::Line { what: what.to_string(), line: i + 1, text: line.to_string() };
+    for (i, line) in text.trim_start_matches('\u{feff}').lines().enumerate() {
         let line = line.trim();
         let header = ["GIMP Palette", "Name:", "Columns:", ";"].iter().any(|h| line.starts_with(h));
         if line.is_empty() || header {
             continue;
         }
         if let Some(rest) = line.strip_prefix('#') {
-            // `#rrggbb` is a colour; `# text` (or `#` then anything not six hex digits) a comment.
-            match hex(rest.split(char::is_whitespace).next().unwrap_or("")) {
-                Some(c) => colours.push(c),
-                None => continue, // a comment
+            // `#` then hex digits is a colour (a wrong count of them an error); `# text` or `#text` a comment.
+            let token = rest.split(char::is_whitespace).next().unwrap_or("");
+            if token.is_empty() || !token.bytes().all(|b| b.is_ascii_hexdigit()) {
+                continue;
             }
+            colours.push(hex(token, true).ok_or_else(|| error(i, line))?);
             continue;
         }
         let fields: Vec<&str> = line.split(|c: char| c == ',' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
@@ -213,9 +237,9 @@ fn parse_text(text: &str, what: &str) -> Result<Vec<[u8; 3]>, PaletteError> {
             let v: Vec<u8> = f.iter().filter_map(|s| s.parse().ok()).collect();
             <[u8; 3]>::try_from(v).ok()
         });
-        match rgb.or_else(|| (fields.len() == 1).then(|| hex(fields[0])).flatten()) {
+        match rgb.or_else(|| (fields.len() == 1).then(|| hex(fields[0], false)).flatten()) {
             Some(c) => colours.push(c),
-            None => return Err(PaletteError::Line { what: what.to_string(), line: i + 1, text: line.to_string() }),
+            None => return Err(error(i, line)),
         }
     }
     Ok(colours)
@@ -227,10 +251,17 @@ mod tests {
 
     #[test]
     fn text_palettes_in_the_usual_spellings() {
-        let text = "GIMP Palette\nName: test\nColumns: 4\n# a comment\n# beaded\n  255   0   0\tRed\n#00ff00\n0000FF\n\
-                    ; Paint.NET\nFF102030\n1,2,3\n";
+        let text = "\u{feff}GIMP Palette\r\nName: test\nColumns: 4\n# a comment\n#note\n  255   0   0\tRed\n#00ff00\n\
+                    0000FF\n; Paint.NET\nFF102030\n1,2,3\n#f80\n#10203040\n";
         let s = Swatches::read_palette(text.as_bytes(), "t").expect("a palette");
-        assert_eq!(s.colours, vec![[255, 0, 0], [0, 255, 0], [0, 0, 255], [16, 32, 48], [1, 2, 3]]);
+        let want = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [16, 32, 48], [1, 2, 3], [255, 136, 0], [16, 32, 48]];
+        assert_eq!(s.colours, want);
+        // `#aé1234` is a comment, so that file has no colours.
+        assert!(Swatches::read_palette("#aé1234\n".as_bytes(), "c").is_err());
+        for bad in ["#ff00001\n", "aé12345\n", "12,34\n"] {
+            let e = Swatches::read_palette(bad.as_bytes(), "p.txt").expect_err(bad).to_string();
+            assert!(e.contains("p.txt, line 1"), "{bad}: {e}");
+        }
         let e = Swatches::read_palette(b"12,34\n", "p.txt").expect_err("two fields").to_string();
         assert!(e.contains("p.txt, line 1") && e.contains("12,34"), "{e}");
         assert!(Swatches::read_palette(b"# nothing\n", "e").is_err());

@@ -153,7 +153,9 @@ fn nanovdbs_tools_pass_and_list_every_grid_and_the_converter_writes_the_same_byt
     std::fs::write(d.join("far.obj"), box_obj(100_000.37, 2.6)).expect("far box");
     // A box on the grid's first and last boundaries, 16 voxels a side: its solid is only 8³ tiles, no leaves.
     std::fs::write(d.join("block.obj"), box_obj(0.0, 16.0)).expect("block");
-    let cases: [(&str, &[&str]); 8] = [
+    // One 4096³ block, all set: a single active tile in the root.
+    std::fs::write(d.join("root.obj"), box_obj(0.0, 4096.0)).expect("root");
+    let cases: [(&str, &[&str]); 9] = [
         ("surface", &["voxelize", &bunny, "-r", "61"]),
         ("solid", &["voxelize", "builtin:sphere", "-r", "390", "--mode", "solid"]),
         ("labelled", &["voxelize", &duck, "-r", "40", "--attributes", "triangle,material"]),
@@ -162,6 +164,7 @@ fn nanovdbs_tools_pass_and_list_every_grid_and_the_converter_writes_the_same_byt
         ("far", &["voxelize", "far.obj", "-r", "37", "--mode", "sdf"]),
         ("far-solid", &["voxelize", "far.obj", "-r", "37", "--mode", "solid"]),
         ("block", &["voxelize", "block.obj", "-r", "16", "--mode", "solid", "--grid", "sparse"]),
+        ("root", &["voxelize", "root.obj", "-r", "4096", "--mode", "solid", "--grid", "sparse", "--vdb-float"]),
     ];
     for (name, args) in cases {
         let Some(grids) = check(name, args, d) else { return };
@@ -169,7 +172,7 @@ fn nanovdbs_tools_pass_and_list_every_grid_and_the_converter_writes_the_same_byt
         let want: &[&str] = match name {
             "labelled" if meshes.is_some() => &["occupancy", "Cd", "triangle", "material"],
             "labelled" => &["occupancy", "triangle", "material"],
-            "density" => &["density"],
+            "density" | "root" => &["density"],
             "sdf" | "far" => &["surface"],
             _ => &["occupancy"],
         };
@@ -193,4 +196,6 @@ fn nanovdbs_tools_pass_and_list_every_grid_and_the_converter_writes_the_same_byt
     assert!(u32_at(&solid, 156) > 0 && u32_at(&solid, 160) > 0, "8³ and 128³ tiles");
     let block = record("block");
     assert_eq!((u32_at(&block, 140), u32_at(&block, 156)), (0, 8), "no leaves, eight 8³ tiles");
+    let root = record("root");
+    assert_eq!((u32_at(&root, 140), u32_at(&root, 148), u32_at(&root, 164)), (0, 0, 1), "one root tile, no nodes");
 }

@@ -12,7 +12,6 @@ import pytest
 from conftest import run_cli
 
 nbtlib = pytest.importorskip("nbtlib")
-litemapy = pytest.importorskip("litemapy")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -85,6 +84,7 @@ def test_a_coloured_mesh_becomes_the_nearest_blocks_in_oklab(meshes, cli, tmp_pa
 
 def read_litematic(path):
     """(block ids [x, y, z], the palette's ids, the schematic) of a .litematic, by litemapy."""
+    litemapy = pytest.importorskip("litemapy")
     schematic = litemapy.Schematic.load(str(path))
     (region,) = schematic.regions.values()
     assert (region.x, region.y, region.z) == (0, 0, 0)
@@ -128,19 +128,24 @@ def test_litematic_and_structure_files_hold_the_schematics_blocks(meshes, cli, t
     structure, palette, root = read_structure(tmp_path / "duck.nbt")
     assert np.array_equal(structure, schem) and len(root["blocks"]) == int((schem != "minecraft:air").sum())
     assert palette <= set(ids), "no air entries: the model's empty cells keep what is there"
-    # A palette of 2..65 entries crosses each packing width (2 to 7 bits): litemapy unpacks the same blocks.
-    many = tmp_path / "many.csv"
-    # 64 shades around the Duck's yellows and oranges, so that dithering uses a good share of them.
-    many.write_text("".join(f"minecraft:block_{i},{255 - 20 * (i % 4)},{230 - 30 * (i // 4 % 4)},{30 * (i // 16)}\n"
-                            for i in range(64)))
-    for name, args in [("one", ["--block", "stone"]), ("many", ["--blocks", str(many), "--dither"])]:
+    # Sets of 1 to 64 of the Duck's own colours (so that most are used): the files' palettes need 2 to 6 bits an
+    # entry, and litemapy unpacks the .schem's blocks from each.
+    run_cli(cli, "voxelize", duck, "-r", "29", "-o", str(tmp_path / "s.npy"), "--backend", "cpu")
+    rgba = np.load(tmp_path / "s.colors.npy")
+    own = np.unique(rgba[rgba[..., 3] > 0][:, :3], axis=0)
+    own = own[np.linspace(0, len(own) - 1, min(64, len(own))).astype(int)]
+    widths = set()
+    for n in (1, 3, 6, 12, 24, 64):
+        shades = tmp_path / f"shades-{n}.csv"
+        shades.write_text("".join(f"minecraft:block_{i},{r},{g},{b}\n" for i, (r, g, b) in enumerate(own[:n])))
         for ext in ("schem", "litematic"):
-            run_cli(cli, "voxelize", duck, "-r", "29", "-o", str(tmp_path / f"{name}.{ext}"), "--backend", "cpu",
-                    *args)
-        schem, _, _ = read_schem(tmp_path / f"{name}.schem")
-        litematic, palette, _ = read_litematic(tmp_path / f"{name}.litematic")
-        assert np.array_equal(litematic, schem), name
-    assert len(palette) > 17, "the many-block set needs 5 bits or more"
+            run_cli(cli, "voxelize", duck, "-r", "29", "-o", str(tmp_path / f"s{n}.{ext}"), "--backend", "cpu",
+                    "--blocks", str(shades), "--dither")
+        schem, _, _ = read_schem(tmp_path / f"s{n}.schem")
+        litematic, palette, _ = read_litematic(tmp_path / f"s{n}.litematic")
+        assert np.array_equal(litematic, schem), f"{n} shades"
+        widths.add(max(2, (len(palette) - 1).bit_length()))
+    assert widths == {2, 3, 4, 5, 6}, widths
 
 
 def test_a_structure_file_over_48_blocks_is_refused_naming_the_others(cli, tmp_path):

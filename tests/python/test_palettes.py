@@ -168,3 +168,19 @@ def test_python_and_batch_write_the_clis_files_with_blocks_and_palettes(duck, me
         with pytest.raises(ValueError, match=says):
             grid.save(tmp_path / name, **kwargs)
         assert not (tmp_path / name).exists()
+
+
+def test_an_uncoloured_mesh_takes_the_palettes_first_colour(cli, tmp_path):
+    listing = tmp_path / "p.txt"
+    listing.write_text("#3c44aa\n#fafafa\n")
+    for ext in ("vox", "schem", "npy"):
+        args = [] if ext == "npy" else ["--palette", str(listing)]
+        run_cli(cli, "voxelize", "builtin:torus", "-r", "20", "-o", str(tmp_path / f"t.{ext}"), "--backend", "cpu", *args)
+    occupied = np.load(tmp_path / "t.npy").astype(bool)
+    index, palette = read_vox(tmp_path / "t.vox")
+    assert np.array_equal(index > 0, occupied) and set(np.unique(index[occupied])) == {1}
+    assert list(palette[1, :3]) == [0x3c, 0x44, 0xaa]
+    names, _, _ = read_schem(tmp_path / "t.schem")
+    ids, rgb = default_set()
+    want = ids[int(nearest(np.array([[0x3c, 0x44, 0xaa]]), rgb).argmin())]
+    assert set(names[occupied]) == {want}, "the palette's first colour, to its nearest block"

@@ -214,15 +214,6 @@ class VoxelGrid:
         as the CLI writes it, or its level set at ``level`` (world units) as a closed mesh (``.ply``, ``.obj``,
         ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
         in the mesh formats."""
-        walls = self.thickness is not None and os.fspath(path).lower().endswith((".ply", ".obj", ".glb", ".stl"))
-        if self.distances is not None and (self.thickness is None or walls):
-            distances = np.ascontiguousarray(self.distances, dtype=np.float32)
-            background = float(self.background if self.background is not None else np.abs(distances).max())
-            _native.save_field(
-                os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level),
-                self.thickness,
-            )
-            return
         suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
         minecraft = suffix in ("schem", "litematic", "nbt")
         if (blocks is not None or block is not None) and not minecraft:
@@ -233,6 +224,15 @@ class VoxelGrid:
             raise ValueError("dither= is for Minecraft files, and for .vox with palette=")
         if block is not None and (blocks is not None or palette is not None):
             raise ValueError("block= puts one block everywhere: leave out blocks= and palette=")
+        walls = self.thickness is not None and os.fspath(path).lower().endswith((".ply", ".obj", ".glb", ".stl"))
+        if self.distances is not None and (self.thickness is None or walls):
+            distances = np.ascontiguousarray(self.distances, dtype=np.float32)
+            background = float(self.background if self.background is not None else np.abs(distances).max())
+            _native.save_field(
+                os.fspath(path), distances, tuple(self.origin), self.pitch, background, bool(self.signed), float(level),
+                self.thickness,
+            )
+            return
         matrix = np.ascontiguousarray(self.matrix, dtype=np.uint8)
         colors = None if self.colors is None else np.ascontiguousarray(self.colors, dtype=np.uint8)
         labels = [(name, np.ascontiguousarray(a, dtype=np.int32)) for name, a in (self.labels or {}).items()]

@@ -201,12 +201,11 @@ fn write_minecraft<W: Write>(
             &default
         }
     };
-    let blocks = match (options.palette, colours) {
-        // The palette's colours first (dithered there), then each to its nearest block.
-        (Some(palette), Some(colours)) => {
-            set.assign(grid, Some(&palette.recolour(grid, colours, options.dither)), false)
-        }
-        _ => set.assign(grid, colours, options.dither),
+    let blocks = match options.palette {
+        // The palette's colours first (dithered there; an uncoloured mesh takes its first), then each to its
+        // nearest block.
+        Some(palette) => set.assign(grid, Some(&palette.recolour(grid, colours, options.dither)), false),
+        None => set.assign(grid, colours, options.dither),
     };
     minecraft::write(grid, &blocks, set, format, "meshvox", out)
 }

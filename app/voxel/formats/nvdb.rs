@@ -16,12 +16,14 @@
 //! the lower ones (16³) and the leaves (8³), each level one array in the tree's breadth-first order, as Warp
 //! requires. Node bounding boxes are written (as `nanovdb_convert -s bbox` does) and no other statistics; the
 //! checksum is NanoVDB's full CRC-32 (head and nodes), or the head only for a grid without leaves, where NanoVDB
-//! 10's own tools cannot check more. Nodes are streamed: only one at a time (a batch of leaves) is in memory.
+//! 10's own tools cannot check more. Nodes are streamed, one (or a batch of leaves) at a time; beside them only
+//! each leaf's bounding box and each node's CRC are kept.
 
 use super::IntColumn;
 use super::error::FormatError;
 use super::vdb::{
-    Node, TreeNodes, Values, VdbOptions, grids_of, linear_rgb, node_origin, slot4_of, slot5_of, tree_nodes, upper_of,
+    Node, TreeNodes, Values, VdbOptions, grids_of, leaf_bounds, linear_rgb, node_origin, slot4_of, slot5_of,
+    tree_nodes, upper_of,
 };
 use crate::parallel;
 use crate::voxel::SparseGrid;
@@ -102,12 +104,15 @@ fn name_key(name: &str) -> u64 {
     name.bytes().fold(0u64, |h, c| h.wrapping_mul(67).wrapping_add(u64::from(c)).wrapping_add(h >> 56))
 }
 
+/// The entries of one slot of a node: a tile, or a child's entries.
+type Entries<'a> = &'a [(u64, Node)];
+
 /// The tree below the root, by level, in the order the buffer holds it.
 struct Levels<'a> {
-    /// Per upper node: its origin and its entries (lower children and 128³ tiles).
-    uppers: Vec<(UVec3, &'a [(u64, Node)])>,
+    /// Per upper node: its origin and its occupied slots, each a 128³ tile or a lower child's entries.
+    uppers: Vec<(UVec3, Vec<Entries<'a>>)>,
     /// Per lower node: its origin and its entries (leaves and 8³ tiles).
-    lowers: Vec<(UVec3, &'a [(u64, Node)])>,
+    lowers: Vec<(UVec3, Entries<'a>)>,
     /// The leaves (indices into the grid's) in order.
     leaves: Vec<u32>,
 }
@@ -116,11 +121,11 @@ fn levels(nodes: &TreeNodes) -> Levels<'_> {
     let uppers: Vec<_> = nodes
         .below_root
         .chunk_by(|a, b| upper_of(a.0) == upper_of(b.0))
-        .map(|u| (node_origin(u[0].0, 12), u))
+        .map(|u| (node_origin(u[0].0, 12), u.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)).collect()))
         .collect();
     let lowers: Vec<_> = uppers
         .iter()
-        .flat_map(|(_, u)| u.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)))
+        .flat_map(|(_, slots): &(UVec3, Vec<Entries>)| slots.iter().copied())
         .filter(|l| !matches!(l[0].1, Node::Tile { log2: 7, .. }))
         .map(|l| (node_origin(l[0].0, 7), l))
         .collect();
@@ -157,14 +162,8 @@ fn layout(kind: &Kind, table: usize, levels: &Levels) -> Layout {
 
 /// A leaf's bounding box of its set voxels.
 fn leaf_bbox(origin: UVec3, mask: &[u64; 8]) -> BBox {
-    let (mut lo, mut hi) = (UVec3::splat(7), UVec3::ZERO);
-    for (x, &w) in mask.iter().enumerate().filter(|(_, w)| **w != 0) {
-        let (y_lo, y_hi) = (w.trailing_zeros() / 8, 7 - w.leading_zeros() / 8);
-        let bytes = (0..8).map(|y| (w >> (y * 8)) as u8).fold(0u8, |a, b| a | b);
-        lo = lo.min(UVec3::new(x as u32, y_lo, bytes.trailing_zeros()));
-        hi = hi.max(UVec3::new(x as u32, y_hi, 7 - bytes.leading_zeros()));
-    }
-    (lo.x <= hi.x).then(|| ((origin + lo).as_ivec3(), (origin + hi).as_ivec3()))
+    let (lo, hi) = leaf_bounds(origin, mask);
+    (lo.x <= hi.x).then(|| (lo.as_ivec3(), hi.as_ivec3()))
 }
 
 fn put_bbox(b: &mut Vec<u8>, bbox: BBox) {
@@ -280,7 +279,7 @@ fn write_segment<W: Write + Seek>(
     let levels = levels(nodes);
     // Root tiles: a child per upper node and the active 4096³ tiles, by origin.
     let mut table: Vec<(UVec3, Option<usize>)> =
-        levels.uppers.iter().enumerate().map(|(i, u)| (u.0, Some(i))).collect();
+        levels.uppers.iter().enumerate().map(|(i, (origin, _))| (*origin, Some(i))).collect();
     table.extend(nodes.root_tiles.iter().map(|&o| (o, None)));
     table.sort_unstable_by_key(|(o, _)| (o.x, o.y, o.z));
     let layout = layout(&kind, table.len(), &levels);
@@ -311,9 +310,9 @@ fn write_segment<W: Write + Seek>(
     let upper_boxes: Vec<BBox> = levels
         .uppers
         .iter()
-        .map(|(_, entries)| {
+        .map(|(_, slots)| {
             let mut bbox = None;
-            for lower in entries.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)) {
+            for lower in slots {
                 bbox = match lower[0].1 {
                     Node::Tile { log2: 7, origin } => join(bbox, cube(origin, 7)),
                     _ => {
@@ -349,10 +348,10 @@ fn write_segment<W: Write + Seek>(
     // The nodes, each level in order, with each node's CRC for the checksum's tail.
     let mut crcs = Vec::with_capacity(levels.uppers.len() + levels.lowers.len() + levels.leaves.len());
     let mut lower_index = 0;
-    for (i, &(origin, entries)) in levels.uppers.iter().enumerate() {
+    for (i, (origin, slots)) in levels.uppers.iter().enumerate() {
         let at = layout.uppers + i * kind.upper();
         let mut children = Vec::new();
-        for lower in entries.chunk_by(|a, b| slot5_of(a.0) == slot5_of(b.0)) {
+        for lower in slots {
             let slot = slot5_of(lower[0].0);
             children.push(match lower[0].1 {
                 Node::Tile { log2: 7, .. } => (slot, None),
@@ -362,7 +361,7 @@ fn write_segment<W: Write + Seek>(
                 }
             });
         }
-        let b = internal(&values, &kind, (origin, 5, 7), upper_boxes[i], &children);
+        let b = internal(&values, &kind, (*origin, 5, 7), upper_boxes[i], &children);
         crcs.push(crc32fast::hash(&b));
         out.write_all(&b)?;
     }

@@ -238,21 +238,23 @@ fn write_meta(out: &mut Vec<u8>, entries: &[(&str, Meta)]) {
     }
 }
 
+/// The inclusive bounding box of a leaf's set voxels (`(UVec3::MAX, UVec3::ZERO)` when none is).
+pub(super) fn leaf_bounds(origin: UVec3, mask: &LeafMask) -> (UVec3, UVec3) {
+    let (mut lo, mut hi) = (UVec3::MAX, UVec3::ZERO);
+    for (x, &w) in mask.iter().enumerate().filter(|(_, w)| **w != 0) {
+        let (y_lo, y_hi) = (w.trailing_zeros() / 8, 7 - w.leading_zeros() / 8);
+        // z: the lowest and highest bit within any byte.
+        let bytes = (0..8).map(|y| (w >> (y * 8)) as u8).fold(0u8, |a, b| a | b);
+        let (z_lo, z_hi) = (bytes.trailing_zeros(), 7 - bytes.leading_zeros());
+        lo = lo.min(origin + UVec3::new(x as u32, y_lo, z_lo));
+        hi = hi.max(origin + UVec3::new(x as u32, y_hi, z_hi));
+    }
+    (lo, hi)
+}
+
 /// The grid's set voxels' inclusive index bounding box, or `None` when empty.
 pub(super) fn active_bounds(grid: &SparseGrid) -> Option<(UVec3, UVec3)> {
-    let leaf = |(key, mask): &(u64, LeafMask)| {
-        let o = key_origin(*key);
-        let (mut lo, mut hi) = (UVec3::MAX, UVec3::ZERO);
-        for (x, &w) in mask.iter().enumerate().filter(|(_, w)| **w != 0) {
-            let (y_lo, y_hi) = (w.trailing_zeros() / 8, 7 - w.leading_zeros() / 8);
-            // z: the lowest and highest bit within any byte.
-            let bytes = (0..8).map(|y| (w >> (y * 8)) as u8).fold(0u8, |a, b| a | b);
-            let (z_lo, z_hi) = (bytes.trailing_zeros(), 7 - bytes.leading_zeros());
-            lo = lo.min(o + UVec3::new(x as u32, y_lo, z_lo));
-            hi = hi.max(o + UVec3::new(x as u32, y_hi, z_hi));
-        }
-        (lo, hi)
-    };
+    let leaf = |(key, mask): &(u64, LeafMask)| leaf_bounds(key_origin(*key), mask);
     let join = |a: (UVec3, UVec3), b: (UVec3, UVec3)| (a.0.min(b.0), a.1.max(b.1));
     let leaves = parallel::install(|| grid.leaves.par_iter().map(leaf).reduce(|| (UVec3::MAX, UVec3::ZERO), join));
     let all = grid.tiles.iter().fold(leaves, |acc, t| join(acc, (t.origin, t.origin + (1u32 << t.log2) - 1)));

@@ -4,13 +4,13 @@
 //! # Layout (maruohon/litematica `LitematicaSchematic`, `LitematicaBitArray`; docs/minecraft-formats.md)
 //! An unnamed root compound: `MinecraftDataVersion` (Int: [`DATA_VERSION`]), `Version` 6, `SubVersion` 1,
 //! `Metadata` (name, author, counts, `EnclosingSize`; the times are 0, so the same grid gives the same bytes
-//! everywhere) and `Regions` with one region named like the file: `Position` (0, 0, 0), `Size` (the grid's x,
+//! everywhere) and `Regions` with one region named `meshvox`: `Position` (0, 0, 0), `Size` (the grid's x,
 //! y, z), `BlockStatePalette` (air at 0), `BlockStates` and empty entity and tick lists. Cell `x + z·sx +
 //! y·sx·sz` is entry `i` of `BlockStates`: `bits = max(2, ⌈log2 palette⌉)` bits at bit `i·bits`, least
 //! significant first in each long, an entry spanning two longs where it crosses one (Litematica's reader
 //! takes `bits` from the palette's length, so it must be exactly this).
 
-use super::{DATA_VERSION, Palette, check_cells, write_nbt};
+use super::{DATA_VERSION, Palette, State, check_cells, write_nbt};
 use crate::voxel::VoxelGrid;
 use crate::voxel::blocks::BlockSet;
 use crate::voxel::formats::FormatError;
@@ -61,12 +61,6 @@ struct Region {
     entities: Vec<BTreeMap<String, i32>>,
     pending_block_ticks: Vec<BTreeMap<String, i32>>,
     pending_fluid_ticks: Vec<BTreeMap<String, i32>>,
-}
-
-#[derive(Serialize)]
-#[serde(rename_all = "PascalCase")]
-struct State {
-    name: String,
 }
 
 /// The bits per entry Litematica's reader expects for a palette of `n` states.

@@ -20,6 +20,13 @@ pub const DATA_VERSION: i32 = 3465;
 /// The air block: palette index 0 in the schematic formats, the empty cells.
 pub const AIR: &str = "minecraft:air";
 
+/// A block state in the list formats (`.litematic`, `.nbt`): its namespaced id (the sets hold no properties).
+#[derive(Serialize)]
+#[serde(rename_all = "PascalCase")]
+pub(super) struct State {
+    pub name: String,
+}
+
 /// Which Minecraft format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MinecraftFormat {

@@ -90,8 +90,9 @@ pub fn write_schem<W: Write>(
     let (width, height, length) = (side(d.x, "x")?, side(d.y, "y")?, side(d.z, "z")?);
     check_cells(grid, "a schematic")?;
     let palette = Palette::of(blocks, set);
-    let mut data = Vec::new();
-    palette.cells(grid, blocks).iter().for_each(|&c| varint(c, &mut data));
+    let cells = palette.cells(grid, blocks);
+    let mut data = Vec::with_capacity(cells.len());
+    cells.iter().for_each(|&c| varint(c, &mut data));
     let root = Root {
         schematic: Schematic {
             version: 3,

@@ -8,7 +8,7 @@
 //! pos}`, one per set voxel, `pos` its x, y, z) and an empty `entities` list. Air is not written: where the
 //! model has no block, placing the structure leaves what is there (as a structure void does).
 
-use super::{DATA_VERSION, Palette};
+use super::{DATA_VERSION, Palette, State};
 use crate::voxel::VoxelGrid;
 use crate::voxel::blocks::BlockSet;
 use crate::voxel::formats::FormatError;
@@ -28,12 +28,6 @@ struct Root {
     palette: Vec<State>,
     blocks: Vec<Block>,
     entities: Vec<BTreeMap<String, i32>>,
-}
-
-#[derive(Serialize)]
-#[serde(rename_all = "PascalCase")]
-struct State {
-    name: String,
 }
 
 #[derive(Serialize)]
