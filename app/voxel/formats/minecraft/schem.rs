@@ -3,7 +3,7 @@
 //!
 //! # Layout (github.com/SpongePowered/Schematic-Specification, versions/schematic-3.md)
 //! An unnamed root compound holding one compound, `Schematic`: `Version` (Int 3), `DataVersion` (Int:
-//! [`DATA_VERSION`](super::DATA_VERSION)), `Metadata` (`Name`; no `Date`, so the same grid gives
+//! [`DATA_VERSION`]), `Metadata` (`Name`; no `Date`, so the same grid gives
 //! the same bytes on the page and the command line), `Width`/`Height`/`Length` (unsigned Shorts: the grid's
 //! x, y and z; y is Minecraft's up), `Offset` (IntArray, zeros) and `Blocks`: `Palette` (block state → index, air
 //! 0), `Data` (a ByteArray of one varint per block, index `x + z·Width + y·Width·Length`) and an empty
