@@ -22,8 +22,8 @@
 use super::IntColumn;
 use super::error::FormatError;
 use super::vdb::{
-    Node, TreeNodes, Values, VdbOptions, grids_of, leaf_bounds, linear_rgb, node_origin, slot4_of, slot5_of,
-    tree_nodes, upper_of,
+    Node, TreeNodes, Values, VdbOptions, for_each_grid, grids_of, leaf_bounds, linear_rgb, node_origin, slot4_of,
+    slot5_of, tree_nodes, upper_of,
 };
 use crate::parallel;
 use crate::voxel::SparseGrid;
@@ -238,21 +238,7 @@ pub fn write_nvdb<W: Write + Seek>(
 ) -> Result<(), FormatError> {
     let to_rgb = colour.map(|colour| move |v: UVec3| linear_rgb(colour(v)));
     let grids = grids_of(options, to_rgb.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [f32; 3] + Sync)), labels);
-    let nodes = tree_nodes(grid);
-    // As in the `.vdb`: the grids of per-voxel values hold a solid's interior as full leaves.
-    let leaves = (grids.len() > 1 && !grid.tiles.is_empty()).then(|| {
-        let leaves = grid.tiles_as_leaves();
-        let nodes = tree_nodes(&leaves);
-        (leaves, nodes)
-    });
-    for (name, values) in grids {
-        match (&leaves, &values) {
-            (Some((leaves, nodes)), Values::Colour(_) | Values::Int(_)) => {
-                write_segment(leaves, nodes, name, values, &mut out)?
-            }
-            _ => write_segment(grid, &nodes, name, values, &mut out)?,
-        }
-    }
+    for_each_grid(grid, grids, |grid, nodes, name, values| write_segment(grid, nodes, name, values, &mut out))?;
     out.flush()?;
     Ok(())
 }

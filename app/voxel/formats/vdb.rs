@@ -311,10 +311,21 @@ pub fn write_vdb<W: Write + Seek>(
     let to_rgb = colour.map(|colour| move |v: UVec3| linear_rgb(colour(v)));
     let grids = grids_of(options, to_rgb.as_ref().map(|f| f as &(dyn Fn(UVec3) -> [f32; 3] + Sync)), labels);
     out.write_all(&file_head(grid, grids.len()))?;
-    let nodes = tree_nodes(grid);
     let bounds = active_bounds(grid);
-    // A tile has one value, so the grids of per-voxel values (colours, labels) hold a solid's interior as full
-    // leaves instead, each voxel with its own.
+    for_each_grid(grid, grids, |grid, nodes, name, values| write_grid(grid, nodes, bounds, name, values, &mut out))?;
+    out.flush()?;
+    Ok(())
+}
+
+/// Calls `write` for each of `grids` with the sparse grid and tree it is written from: `grid`'s, except that a
+/// tile has one value, so the grids of per-voxel values (colours, labels) hold a solid's interior as full leaves
+/// instead, each voxel with its own.
+pub(super) fn for_each_grid(
+    grid: &SparseGrid,
+    grids: Vec<(&str, Values)>,
+    mut write: impl FnMut(&SparseGrid, &TreeNodes, &str, Values) -> Result<(), FormatError>,
+) -> Result<(), FormatError> {
+    let nodes = tree_nodes(grid);
     let leaves = (grids.len() > 1 && !grid.tiles.is_empty()).then(|| {
         let leaves = grid.tiles_as_leaves();
         let nodes = tree_nodes(&leaves);
@@ -322,13 +333,10 @@ pub fn write_vdb<W: Write + Seek>(
     });
     for (name, values) in grids {
         match (&leaves, &values) {
-            (Some((leaves, nodes)), Values::Colour(_) | Values::Int(_)) => {
-                write_grid(leaves, nodes, bounds, name, values, &mut out)?
-            }
-            _ => write_grid(grid, &nodes, bounds, name, values, &mut out)?,
+            (Some((leaves, nodes)), Values::Colour(_) | Values::Int(_)) => write(leaves, nodes, name, values)?,
+            _ => write(grid, &nodes, name, values)?,
         }
     }
-    out.flush()?;
     Ok(())
 }
 
