@@ -369,7 +369,10 @@ impl eframe::App for ViewerApp {
             // Natively the voxelization has already finished: show it in this frame.
             self.finish_voxelize();
         }
-        egui::Panel::left("panel").resizable(false).exact_size(260.0).show(ui, |ui| self.panel(ui));
+        // The panel scrolls when the window is shorter than it (the export buttons come last).
+        egui::Panel::left("panel").resizable(false).exact_size(260.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().auto_shrink([false; 2]).show(ui, |ui| self.panel(ui));
+        });
         egui::CentralPanel::default().frame(egui::Frame::NONE).show(ui, |ui| self.viewport(ui, frame));
         if self.needs_voxelize {
             ui.ctx().request_repaint();
