@@ -108,8 +108,9 @@ async function openPage(browser, what) {
   return page;
 }
 
-/** The sdf mode on the page: the slice moves without an error or a new voxelization, and the exported .npy
- * holds the CLI's distances (the CPU reference) within 1e-5 of the band, with the same signs. */
+/** The sdf mode on the page: the slice moves without an error or a new voxelization, the exported .npy
+ * holds the CLI's distances (the CPU reference) within 1e-5 of the band, with the same signs, and the exported
+ * .nvdb is a level set NanoVDB's own tools pass (its values are the GPU's, so not the CLI's bytes). */
 async function checkField(page, m, cliVoxelCount) {
   await page.evaluate(() => window.meshvoxSetSlice("x:0.3"));
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
@@ -141,6 +142,33 @@ async function checkField(page, m, cliVoxelCount) {
   check(a.length === b.length && a.subarray(0, header).equals(b.subarray(0, header)) && worst <= 1e-5 * background &&
     signs === 0, `sdf: ${downloads[0].suggestedFilename()} from the page has the CLI's ${pb.length} distances ` +
     `(largest difference ${(worst / background).toExponential(2)} of the band, ${signs} signs differ)`);
+
+  const nvdb = [];
+  const onNvdb = (d) => nvdb.push(d);
+  page.on("download", onNvdb);
+  await page.evaluate(() => window.meshvoxExport("nvdb"));
+  const until = Date.now() + 60_000;
+  while (nvdb.length < 1 && Date.now() < until) await page.waitForTimeout(100);
+  page.off("download", onNvdb);
+  if (nvdb.length !== 1) return check(false, "sdf: export nvdb downloads one file");
+  const field = path.join(scratch, "page-sdf.nvdb");
+  await nvdb[0].saveAs(field);
+  const tool = (name, args) => {
+    try {
+      return execFileSync(name, args, { encoding: "utf8" });
+    } catch (e) {
+      // NanoVDB's tools come with libnanovdb-tools (tests/run.sh installs them); without them, say so loudly.
+      if (e.code === "ENOENT" && process.env.CI !== "true") return console.log(`*** SKIPPED ${name}: not installed ***`);
+      throw e;
+    }
+  };
+  const validated = tool("nanovdb_validate", ["-v", field]);
+  const printed = tool("nanovdb_print", [field]);
+  if (validated !== undefined) {
+    check(validated.includes('Grid named "surface": passed') && !validated.includes("failed") &&
+      /surface\s+float\s+SDF/.test(printed), `sdf: ${nvdb[0].suggestedFilename()} from the page is a level set ` +
+      "nanovdb_validate passes and nanovdb_print lists (float, SDF)");
+  }
 }
 
 /** A function that waits until meshvoxStatus on `page` satisfies `want` (a JSON-able partial status) and
