@@ -87,3 +87,56 @@ pub fn off_workers<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     });
     result.unwrap_or_else(|| unreachable!("the call is taken once, by the thread that runs it"))
 }
+
+/// Progress from a parallel loop, a few hundred calls at most: `progress(done, total)` once at the start, then
+/// whenever the units done cross a multiple of `total / calls` (from whichever thread crosses it), and once more
+/// with everything done at [`Ticker::finish`].
+pub struct Ticker<'a> {
+    done: std::sync::atomic::AtomicUsize,
+    every: usize,
+    total: usize,
+    progress: &'a (dyn Fn(usize, usize) + Sync),
+}
+
+impl<'a> Ticker<'a> {
+    /// Starts counting `total` units, about `calls` reports in all.
+    pub fn new(total: usize, calls: usize, progress: &'a (dyn Fn(usize, usize) + Sync)) -> Ticker<'a> {
+        progress(0, total);
+        let every = total.div_ceil(calls.max(1)).max(1);
+        Ticker { done: std::sync::atomic::AtomicUsize::new(0), every, total, progress }
+    }
+
+    /// Counts `n` more units done.
+    pub fn add(&self, n: usize) {
+        let before = self.done.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+        if (before + n) / self.every != before / self.every {
+            (self.progress)(before + n, self.total);
+        }
+    }
+
+    /// Says that everything is done, whatever `every` divides.
+    pub fn finish(&self) {
+        (self.progress)(self.total, self.total);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rayon::prelude::*;
+
+    #[test]
+    fn a_ticker_reports_the_start_each_crossing_once_and_the_end() {
+        let calls = Mutex::new(Vec::new());
+        let record =
+            |done: usize, total: usize| calls.lock().unwrap_or_else(PoisonError::into_inner).push((done, total));
+        let ticker = Ticker::new(1000, 10, &record);
+        install(|| (0..1000).into_par_iter().for_each(|_| ticker.add(1)));
+        ticker.finish();
+        let mut calls = calls.into_inner().unwrap_or_else(PoisonError::into_inner);
+        assert_eq!((calls[0], calls[calls.len() - 1]), ((0, 1000), (1000, 1000)));
+        calls.sort_unstable();
+        let crossings: Vec<usize> = calls[1..calls.len() - 1].iter().map(|c| c.0).collect();
+        assert_eq!(crossings, (1..=10).map(|k| k * 100).collect::<Vec<_>>(), "each multiple of 100 once");
+    }
+}

@@ -35,7 +35,6 @@ use super::{Grid, GridSpec};
 use crate::parallel;
 use glam::{DVec3, IVec3, UVec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// How close to the level (in voxels) a sample may be: closer ones are moved this far from it.
 const CLEARANCE: f64 = 0.01;
@@ -106,21 +105,18 @@ pub fn level_mesh_with_progress(
         .flat_map(|z| (-1..ld.y).flat_map(move |y| (-1..ld.x).map(move |x| IVec3::new(x, y, z))))
         .filter(|&p| block_may_cross(&states, ld, p))
         .collect();
-    let (done, every) = (AtomicUsize::new(0), blocks.len().div_ceil(PROGRESS_CALLS).max(1));
-    progress(0, blocks.len());
+    let ticker = parallel::Ticker::new(blocks.len(), PROGRESS_CALLS, progress);
     let pieces: Vec<Piece> = parallel::install(|| {
         blocks
             .par_iter()
             .map(|&p| {
                 let piece = block_triangles(field, level, p);
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                if n % every == 0 || n == blocks.len() {
-                    progress(n, blocks.len());
-                }
+                ticker.add(1);
                 piece
             })
             .collect()
     });
+    ticker.finish();
     // Weld by edge key: every block computes a shared edge's vertex from the same two samples, so duplicates agree.
     let mut keyed: Vec<(u64, DVec3)> = pieces.iter().flat_map(|(v, _)| v.iter().copied()).collect();
     parallel::install(|| keyed.par_sort_unstable_by_key(|(k, _)| *k));

@@ -36,7 +36,7 @@ use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
 use crate::parallel;
 use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 /// The widest band in voxels (`--band full` covers the whole grid).
 pub const MAX_BAND: f32 = 64.0;
@@ -213,21 +213,16 @@ impl DistanceField {
             let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start.to_bits())).collect();
             let bins = bin_bricks(triangles, dims, reach);
             let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
-            let (done, evaluations) = (AtomicUsize::new(0), AtomicU64::new(0));
-            let every = work.div_ceil(PROGRESS_CALLS).max(1);
-            progress(0, work);
+            let evaluations = AtomicU64::new(0);
+            let ticker = parallel::Ticker::new(work, PROGRESS_CALLS, progress);
             bins.par_iter().for_each(|(origin, bin)| {
                 let mut cells = BrickCells::new(*origin, dims, start);
                 let n: u64 = bin.iter().map(|&i| band_distance(triangles[i as usize], dims, reach, &mut cells)).sum();
                 evaluations.fetch_add(n, Ordering::Relaxed);
                 store_brick(&cells, dims, &slots, &best, start);
-                let before = done.fetch_add(bin.len(), Ordering::Relaxed);
-                if (before + bin.len()) / every != before / every {
-                    progress(before + bin.len(), work);
-                }
+                ticker.add(bin.len());
             });
-            // The last call says all of it, whatever `every` divides.
-            progress(work, work);
+            ticker.finish();
             let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
             let mut field = DistanceField::from_squared(spec, band, slots, leaves, best, inside);
             field.evaluations = evaluations.into_inner();
@@ -417,9 +412,8 @@ fn full_field(
 ) -> DistanceField {
     let (dims, reach) = (spec.dims, Band::Full.reach(spec.dims));
     let bvh = Bvh::build(triangles);
-    let (done, evaluations) = (AtomicUsize::new(0), AtomicU64::new(0));
-    let every = leaves.len().div_ceil(PROGRESS_CALLS).max(1);
-    progress(0, leaves.len());
+    let evaluations = AtomicU64::new(0);
+    let ticker = parallel::Ticker::new(leaves.len(), PROGRESS_CALLS, progress);
     let best: Vec<f32> = leaves
         .par_iter()
         .flat_map_iter(|&origin| {
@@ -452,14 +446,11 @@ fn full_field(
                 previous = Some((p, d2));
             }
             evaluations.fetch_add(evaluated, Ordering::Relaxed);
-            let before = done.fetch_add(1, Ordering::Relaxed);
-            if (before + 1) % every == 0 {
-                progress(before + 1, leaves.len());
-            }
+            ticker.add(1);
             values
         })
         .collect();
-    progress(leaves.len(), leaves.len());
+    ticker.finish();
     let mut field = DistanceField::from_squared(spec, Band::Full, slots, leaves, best, inside);
     field.evaluations = evaluations.into_inner();
     field
