@@ -108,6 +108,18 @@ async function openPage(browser, what) {
   return page;
 }
 
+/** The downloads the page's Export of `format` starts: `count` of them, or what came within a minute. */
+async function exported(page, format, count) {
+  const downloads = [];
+  const onDownload = (d) => downloads.push(d);
+  page.on("download", onDownload);
+  await page.evaluate((f) => window.meshvoxExport(f), format);
+  const deadline = Date.now() + 60_000;
+  while (downloads.length < count && Date.now() < deadline) await page.waitForTimeout(100);
+  page.off("download", onDownload);
+  return downloads;
+}
+
 /** The sdf mode on the page: the slice moves without an error or a new voxelization, the exported .npy
  * holds the CLI's distances (the CPU reference) within 1e-5 of the band, with the same signs, and the exported
  * .nvdb is a level set NanoVDB's own tools pass (its values are the GPU's, so not the CLI's bytes). */
@@ -116,13 +128,7 @@ async function checkField(page, m, cliVoxelCount) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
   const sliced = await page.evaluate(() => window.meshvoxStatus);
   check(!sliced.error && sliced.voxels === cliVoxelCount, `sdf: the slice at x:0.3 keeps the ${cliVoxelCount} voxels, no error`);
-  const downloads = [];
-  const onDownload = (d) => downloads.push(d);
-  page.on("download", onDownload);
-  await page.evaluate(() => window.meshvoxExport("npy"));
-  const deadline = Date.now() + 60_000;
-  while (downloads.length < 1 && Date.now() < deadline) await page.waitForTimeout(100);
-  page.off("download", onDownload);
+  const downloads = await exported(page, "npy", 1);
   if (downloads.length !== 1) return check(false, "sdf: export npy downloads one file");
   const saved = path.join(scratch, "page-sdf.npy");
   const reference = path.join(scratch, "cli-sdf.npy");
@@ -143,13 +149,7 @@ async function checkField(page, m, cliVoxelCount) {
     signs === 0, `sdf: ${downloads[0].suggestedFilename()} from the page has the CLI's ${pb.length} distances ` +
     `(largest difference ${(worst / background).toExponential(2)} of the band, ${signs} signs differ)`);
 
-  const nvdb = [];
-  const onNvdb = (d) => nvdb.push(d);
-  page.on("download", onNvdb);
-  await page.evaluate(() => window.meshvoxExport("nvdb"));
-  const until = Date.now() + 60_000;
-  while (nvdb.length < 1 && Date.now() < until) await page.waitForTimeout(100);
-  page.off("download", onNvdb);
+  const nvdb = await exported(page, "nvdb", 1);
   if (nvdb.length !== 1) return check(false, "sdf: export nvdb downloads one file");
   const field = path.join(scratch, "page-sdf.nvdb");
   await nvdb[0].saveAs(field);
@@ -372,13 +372,7 @@ async function webgpuPath(browser) {
     const work = await mkdtemp(path.join(scratch, "export-"));
     for (const format of ["vox", "binvox", "npy", "vdb", "nvdb", "npz", "glb", "schem", "litematic", "nbt"]) {
       const expected = format === "npy" ? ["Duck-48.npy", "Duck-48.colors.npy"] : [`Duck-48.${format}`];
-      const downloads = [];
-      const onDownload = (d) => downloads.push(d);
-      page.on("download", onDownload);
-      await page.evaluate((f) => window.meshvoxExport(f), format);
-      const deadline = Date.now() + 60_000;
-      while (downloads.length < expected.length && Date.now() < deadline) await page.waitForTimeout(100);
-      page.off("download", onDownload);
+      const downloads = await exported(page, format, expected.length);
       const names = downloads.map((d) => d.suggestedFilename());
       check(JSON.stringify(names) === JSON.stringify(expected), `export ${format}: downloads ${names.join(", ")}`);
       const reference = path.join(work, `reference.${format}`);
