@@ -35,16 +35,30 @@ pub struct BlockSet {
     pub swatches: Swatches,
 }
 
-/// Whether `id` looks like a namespaced block id (`namespace:name`, lower-case letters, digits and `_-./`) of a
-/// block to build with: not air, which is what a schematic's empty cells are.
-fn valid_id(id: &str) -> bool {
+/// A block state's id and properties: `minecraft:oak_log[axis=y]` is `minecraft:oak_log` with `axis` = `y`
+/// (the form every schematic format names states in); `None` where the brackets do not close or a property is not
+/// `key=value`.
+pub fn block_state(state: &str) -> Option<(&str, Vec<(&str, &str)>)> {
+    let Some((id, rest)) = state.split_once('[') else { return Some((state, Vec::new())) };
+    let properties = rest.strip_suffix(']')?;
+    let pairs = properties.split(',').map(|p| p.split_once('=')).collect::<Option<Vec<_>>>()?;
+    Some((id, pairs))
+}
+
+/// Whether `state` looks like a namespaced block id (`namespace:name`, lower-case letters, digits and `_-./`),
+/// with properties (`[key=value,…]`, lower-case letters, digits and `_`) or without, of a block to build with:
+/// not air, which is what a schematic's empty cells are.
+fn valid_id(state: &str) -> bool {
+    let Some((id, properties)) = block_state(state) else { return false };
     if matches!(id, "minecraft:air" | "minecraft:cave_air" | "minecraft:void_air") {
         return false;
     }
     let ok = |s: &str| {
         !s.is_empty() && s.bytes().all(|b| matches!(b, b'a'..=b'z' | b'0'..=b'9' | b'_' | b'-' | b'.' | b'/'))
     };
-    matches!(id.split_once(':'), Some((ns, name)) if ok(ns) && ok(name))
+    let word = |s: &str| !s.is_empty() && s.bytes().all(|b| matches!(b, b'a'..=b'z' | b'0'..=b'9' | b'_'));
+    properties.iter().all(|(k, v)| word(k) && word(v))
+        && matches!(id.split_once(':'), Some((ns, name)) if ok(ns) && ok(name))
 }
 
 impl BlockSet {
@@ -73,7 +87,9 @@ impl BlockSet {
                 continue;
             }
             let error = |why: String| BlockError::Line { what: what.to_string(), line: i + 1, why };
-            let parts: Vec<&str> = line.split(',').map(str::trim).collect();
+            // From the right: a state's properties hold commas of their own (`oak_log[axis=y,…],r,g,b`).
+            let mut parts: Vec<&str> = line.rsplitn(4, ',').map(str::trim).collect();
+            parts.reverse();
             let [id, r, g, b] = parts[..] else { return Err(error(format!("{} fields, not 4", parts.len()))) };
             let id = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
             if !valid_id(&id) {

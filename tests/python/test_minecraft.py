@@ -234,3 +234,38 @@ def test_python_refuses_a_thickness_without_a_shell(meshes):
         meshvox.voxelize(meshes / "spot.obj", 16, mode="solid", thickness=2.0)
     with pytest.raises(ValueError, match="thickness=0"):
         meshvox.voxelize(meshes / "spot.obj", 16, mode="shell", thickness=0.0)
+
+
+def test_block_states_with_properties_in_every_format(meshes, cli, tmp_path):
+    mine = tmp_path / "logs.csv"
+    mine.write_text("minecraft:oak_log[axis=y],109,85,50\nbirch_log[axis=z],216,215,210\n"
+                    "minecraft:orange_wool,240,118,19\nminecraft:yellow_wool,248,197,39\n")
+    duck = str(meshes / "gltf" / "Duck.glb")
+    for ext in ("schem", "litematic", "nbt"):
+        run_cli(cli, "voxelize", duck, "-r", "30", "-o", str(tmp_path / f"d.{ext}"), "--backend", "cpu",
+                "--blocks", str(mine), "--dither")
+    names, palette, _ = read_schem(tmp_path / "d.schem")
+    states = {"minecraft:oak_log[axis=y]", "minecraft:birch_log[axis=z]"}
+    assert palette & states, palette  # the Sponge palette's keys are the states, properties and all
+    assert palette <= states | {"minecraft:orange_wool", "minecraft:yellow_wool", "minecraft:air"}
+    # Litematica and structure files list {Name, Properties}: the same blocks, each with its axis.
+    litemapy = pytest.importorskip("litemapy")
+    (region,) = litemapy.Schematic.load(str(tmp_path / "d.litematic")).regions.values()
+    for x, y, z in zip(*np.nonzero(names != "minecraft:air")):
+        block = region[int(x), int(y), int(z)]
+        props = dict(block.properties())
+        state = block.id + ("[" + ",".join(f"{k}={v}" for k, v in sorted(props.items())) + "]" if props else "")
+        assert state == names[x, y, z], (x, y, z)
+    root = nbtlib.load(tmp_path / "d.nbt")
+    listed = {str(p["Name"]): {str(k): str(v) for k, v in p.get("Properties", {}).items()} for p in root["palette"]}
+    for state in palette & states:
+        name, prop = state[:-1].split("[")
+        key, value = prop.split("=")
+        assert listed[name] == {key: value}, (state, listed)
+    assert "Properties" not in next(p for p in root["palette"] if str(p["Name"]).endswith("_wool"))
+    import subprocess
+    bad = tmp_path / "bad.csv"
+    bad.write_text("minecraft:oak_log[axis=y,100,80,50\n")
+    out = subprocess.run([str(cli), "voxelize", duck, "-r", "16", "-o", str(tmp_path / "b.schem"), "--blocks",
+                          str(bad)], capture_output=True, text=True)
+    assert out.returncode != 0 and "line 1" in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr

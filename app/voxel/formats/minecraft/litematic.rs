@@ -100,7 +100,7 @@ pub fn write_litematic<W: Write>(
     let region = Region {
         position: Xyz { x: 0, y: 0, z: 0 },
         size,
-        block_state_palette: palette.names.into_iter().map(|name| State { name }).collect(),
+        block_state_palette: palette.names.iter().map(|name| State::of(name)).collect(),
         block_states: LongArray::new(pack(&cells, bits)),
         tile_entities: Vec::new(),
         entities: Vec::new(),

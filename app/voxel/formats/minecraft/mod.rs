@@ -10,8 +10,9 @@ pub mod structure;
 
 use super::FormatError;
 use crate::voxel::VoxelGrid;
-use crate::voxel::blocks::BlockSet;
+use crate::voxel::blocks::{BlockSet, block_state};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::io::Write;
 
 /// Minecraft Java 1.20.1's data version: the default set's newest block (mangrove planks) needs 1.19 or later.
@@ -20,11 +21,23 @@ pub const DATA_VERSION: i32 = 3465;
 /// The air block: palette index 0 in the schematic formats, the empty cells.
 pub const AIR: &str = "minecraft:air";
 
-/// A block state in the list formats (`.litematic`, `.nbt`): its namespaced id (the sets hold no properties).
+/// A block state in the list formats (`.litematic`, `.nbt`): its namespaced id, and its properties where it has
+/// any (`minecraft:oak_log[axis=y]` is `{Name: "minecraft:oak_log", Properties: {axis: "y"}}`).
 #[derive(Serialize)]
 #[serde(rename_all = "PascalCase")]
 pub(super) struct State {
-    pub name: String,
+    name: String,
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    properties: BTreeMap<String, String>,
+}
+
+impl State {
+    /// The state a block set names (checked when the set was read; one that does not parse keeps its whole text).
+    pub fn of(state: &str) -> State {
+        let (name, properties) = block_state(state).unwrap_or((state, Vec::new()));
+        let properties = properties.into_iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+        State { name: name.to_string(), properties }
+    }
 }
 
 /// Which Minecraft format.

@@ -65,7 +65,7 @@ pub fn write_structure<W: Write>(
     let root = Root {
         data_version: DATA_VERSION,
         size: vec![d.x as i32, d.y as i32, d.z as i32],
-        palette: palette.names.into_iter().skip(1).map(|name| State { name }).collect(),
+        palette: palette.names.iter().skip(1).map(|name| State::of(name)).collect(),
         blocks,
         entities: Vec::new(),
     };
