@@ -420,7 +420,7 @@ impl Tally {
             Outcome::Failed(e) => {
                 self.failed += 1;
                 // Loader errors name the file already.
-                let message = format!("{e:#}");
+                let message = super::one_line(&e);
                 let line = if message.contains(&name) { message.clone() } else { format!("{name}: {message}") };
                 bar.suspend(|| eprintln!("error: {line}"));
                 serde_json::json!({ "mesh": name, "output": output, "status": "failed", "error": message })

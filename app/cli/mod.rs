@@ -121,13 +121,18 @@ impl ColourArgs {
 }
 
 impl LimitArgs {
-    fn load(&self, spec: &str) -> Result<mesh::Mesh> {
-        let limits = mesh::LoadLimits {
+    /// The load limits these options set.
+    fn limits(&self) -> mesh::LoadLimits {
+        mesh::LoadLimits {
             max_triangles: self.max_triangles,
-            max_file_bytes: self.max_file_size.or(self.max_memory),
+            max_file_bytes: self.max_file_size,
+            max_memory: self.max_memory,
             resource_roots: self.resource_root.clone(),
-        };
-        let mesh = mesh::load_with(spec, &limits)?;
+        }
+    }
+
+    fn load(&self, spec: &str) -> Result<mesh::Mesh> {
+        let mesh = mesh::load_with(spec, &self.limits())?;
         for w in &mesh.warnings {
             eprintln!("warning: {w}");
         }
@@ -250,7 +255,7 @@ impl BlockArgs {
             Some(_) if self.block.is_some() => anyhow::bail!("--block puts one block everywhere: leave out --palette"),
             Some(file) => {
                 let what = format!("--palette {}", file.display());
-                let bytes = anyhow::Context::with_context(std::fs::read(file), || what.clone())?;
+                let bytes = meshvox::mesh::read_setting_file(file, &what)?;
                 let palette = meshvox::voxel::swatches::Swatches::read_palette(&bytes, &what)?;
                 if format == VoxelFormat::Vox && palette.colours.len() > 255 {
                     anyhow::bail!(
@@ -278,8 +283,10 @@ impl BlockArgs {
             (Some(id), None) => Some(BlockSet::single(id)?),
             (None, None | Some("default")) => None,
             (None, Some(file)) => {
-                let text = anyhow::Context::with_context(std::fs::read_to_string(file), || format!("--blocks {file}"))?;
-                Some(BlockSet::parse(&text, &format!("--blocks {file}"))?)
+                let what = format!("--blocks {file}");
+                let bytes = meshvox::mesh::read_setting_file(std::path::Path::new(file), &what)?;
+                let text = String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{what}: not UTF-8 text"))?;
+                Some(BlockSet::parse(&text, &what)?)
             }
         };
         Ok(ColourMap { blocks, palette })
@@ -387,10 +394,26 @@ pub fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", one_line(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// An error and its causes on one line, each cause said once: a library message often includes its source's
+/// text already (`x.npy: cannot read: No such file or directory`), and anyhow's `{:#}` would repeat it.
+pub(super) fn one_line(error: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        if !line.contains(&text) {
+            if !line.is_empty() {
+                line.push_str(": ");
+            }
+            line.push_str(&text);
+        }
+    }
+    line
 }
 
 /// Sets the variable [`meshvox::gpu::headless_vulkan_setting`] names, where it is needed, before anything else.

@@ -6,7 +6,7 @@ use super::{LimitArgs, ms, open_engine};
 use anyhow::{Context, Result, bail};
 use meshvox::engine::{Backend, Engine, query_backend};
 use meshvox::voxel::formats::atomic::write_atomically;
-use meshvox::voxel::formats::points::{read_points_npy, write_query_npz, write_samples_npz};
+use meshvox::voxel::formats::points::{write_query_npz, write_samples_npz};
 use meshvox::voxel::query::{Prepared, Sign};
 use meshvox::voxel::sample::{Normalize, SampleRequest};
 use std::path::{Path, PathBuf};
@@ -48,9 +48,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
     let start = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     let load_ms = ms(start);
-    let file = std::fs::File::open(&args.points).with_context(|| format!("{}", args.points.display()))?;
-    let points = read_points_npy(&mut std::io::BufReader::new(file))
-        .with_context(|| format!("reading points from {}", args.points.display()))?;
+    let points = meshvox::mesh::cloud::read_points_file(&args.points, &args.limits.limits())?;
     let start = Instant::now();
     let prepared = Prepared::new(mesh).with_context(|| args.mesh.clone())?;
     let prepare_ms = ms(start);

@@ -97,6 +97,9 @@ pub enum EngineError {
     /// The labels' nearest triangles could not be found.
     #[error("labels: {0}")]
     Labels(#[from] crate::voxel::query::QueryError),
+    /// A streamed point cloud's file could not be read again (it changed or went away).
+    #[error(transparent)]
+    Read(crate::mesh::MeshError),
     /// A point cloud asked for something only triangles give.
     #[error("{mesh} is a point cloud: each point sets its voxel in --mode surface; {what} needs triangles")]
     PointCloud { mesh: String, what: String },
@@ -428,7 +431,7 @@ impl Engine {
         Report {
             mesh: job.name.to_string(),
             triangles: mesh.triangles.len(),
-            points: mesh.points.as_ref().map(|c| c.points.len() as u64),
+            points: mesh.points.as_ref().map(|c| c.len()),
             dims: spec.dims.to_array(),
             origin: spec.origin.to_array(),
             voxel_size: spec.voxel_size,
@@ -448,18 +451,25 @@ impl Engine {
     /// ([`voxel::points`]), on the CPU whatever the backend (a pass per point has nothing to gain from a GPU).
     fn run_points(&self, job: &Job, cloud: &crate::mesh::cloud::PointCloud) -> Result<Voxelized, EngineError> {
         let t = Instant::now();
-        let colour = job.request.colour != Some(false) && !cloud.colours.is_empty();
+        let colour = job.request.colour != Some(false) && cloud.has_colours();
+        let failed = |e: voxel::points::PointsError| match e {
+            voxel::points::PointsError::Grid(e) => job.grid_error(e),
+            voxel::points::PointsError::Read(e) => EngineError::Read(e),
+        };
         let mut notices = Vec::new();
         let (grid, colours) = match job.sparse {
             true => {
                 if colour {
                     notices.push(dense_only("colours", "uncoloured"));
                 }
-                (Grid::Sparse(voxel::points::voxelize_points_sparse(cloud, job.spec, &job.bounds)), None)
+                (
+                    Grid::Sparse(voxel::points::voxelize_points_sparse(cloud, job.spec, &job.bounds).map_err(failed)?),
+                    None,
+                )
             }
             false => {
-                let (grid, colours) = voxel::points::voxelize_points(cloud, job.spec, &job.bounds, colour)
-                    .map_err(|e| job.grid_error(e))?;
+                let (grid, colours) =
+                    voxel::points::voxelize_points(cloud, job.spec, &job.bounds, colour).map_err(failed)?;
                 (Grid::Dense(grid), colours)
             }
         };

@@ -1,7 +1,8 @@
 //! Point clouds as input: lidar and scan users voxelize points, not triangles. A [`PointCloud`] is world points
-//! in f64 with optional sRGB colours; it comes from a PLY without faces (`ply.rs`), `.xyz`/`.pts` text, an `.npy`
-//! of `(N, 3)` floats or an `.npz` holding one (`load`), or a program's arrays ([`from_points`]). A mesh made
-//! of points has no triangles; the voxel layer sets each point's voxel (`voxel::points`).
+//! in f64 with optional sRGB colours; it comes from a PLY without faces (`ply.rs`), `.xyz`/`.pts` text or a
+//! program's arrays ([`from_points`]), held in memory, or from an `.npy` of `(N, 3)` floats or an `.npz` holding
+//! one, streamed from the file on every pass (`cloud_arrays.rs`). A mesh made of points has no triangles; the
+//! voxel layer sets each point's voxel (`voxel::points`), chunk by chunk.
 //!
 //! Text files: one point per line, numbers separated by spaces, tabs, commas or semicolons; empty lines and lines
 //! starting with `#` or `//` are skipped, and so is a first line holding one integer (the point count of Leica
@@ -9,18 +10,87 @@
 //! is an integer from 0 to 255 (else they are taken for normals and ignored); 7 `x y z intensity r g b`; any
 //! other count, `x y z` and the rest ignored.
 
-use super::npy::{read_colours, read_points};
-use super::{LoadLimits, Mesh, MeshError};
+use super::cloud_arrays::Arrays;
+use super::{Aabb, LoadLimits, Mesh, MeshError};
 use glam::DVec3;
-use std::io::{Cursor, Read};
 use std::path::Path;
 
-/// Points in world space, and their sRGB colours (one per point) or none.
-#[derive(Clone, Debug, Default, PartialEq)]
+pub use super::cloud_arrays::CHUNK;
+
+/// Points in world space with their sRGB colours (one per point) or none: decoded in memory (text, PLY, a
+/// program's arrays) or streamed from an `.npy`/`.npz` file on every pass ([`super::cloud_arrays`]), never held
+/// whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
+/// known from the start.
+#[derive(Clone, Debug, PartialEq)]
 pub struct PointCloud {
-    pub points: Vec<DVec3>,
-    /// sRGB RGBA per point; empty when the cloud has no colours.
-    pub colours: Vec<[u8; 4]>,
+    store: Store,
+    bounds: Aabb,
+    count: u64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Store {
+    Memory { points: Vec<DVec3>, colours: Vec<[u8; 4]> },
+    Arrays(Arrays),
+}
+
+impl PointCloud {
+    /// A cloud of `points` (finite, at least one) with `colours` (one per point, or none).
+    fn in_memory(points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<PointCloud, String> {
+        let Some(&first) = points.first() else { return Err("there are no points".into()) };
+        if let Some(i) = points.iter().position(|p| !p.is_finite()) {
+            return Err(format!("point {i} has a NaN or infinite coordinate"));
+        }
+        if !colours.is_empty() && colours.len() != points.len() {
+            return Err(format!("{} colours for {} points", colours.len(), points.len()));
+        }
+        let (min, max) = points.iter().fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        let count = points.len() as u64;
+        Ok(PointCloud { store: Store::Memory { points, colours }, bounds: Aabb { min, max }, count })
+    }
+
+    /// How many points.
+    pub fn len(&self) -> u64 {
+        self.count
+    }
+
+    /// Never: a cloud has at least one point.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// The points' box (exact, f64).
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    pub fn has_colours(&self) -> bool {
+        match &self.store {
+            Store::Memory { colours, .. } => !colours.is_empty(),
+            Store::Arrays(arrays) => arrays.has_colours(),
+        }
+    }
+
+    /// Whether the points are read from their file on each pass rather than held in memory.
+    pub fn is_streamed(&self) -> bool {
+        matches!(self.store, Store::Arrays(_))
+    }
+
+    /// One pass over the points in chunks of at most [`CHUNK`], each with its points' sRGB colours when `colours`
+    /// is asked for and the cloud has them (else an empty slice). A streamed cloud reads its file again; reading
+    /// it can fail (the file changed or went away).
+    pub fn for_each_chunk(&self, colours: bool, mut f: impl FnMut(&[DVec3], &[[u8; 4]])) -> Result<(), MeshError> {
+        match &self.store {
+            Store::Memory { points, colours: rgba } => {
+                for (i, chunk) in points.chunks(CHUNK).enumerate() {
+                    let c = if colours && !rgba.is_empty() { &rgba[i * CHUNK..i * CHUNK + chunk.len()] } else { &[] };
+                    f(chunk, c);
+                }
+                Ok(())
+            }
+            Store::Arrays(arrays) => arrays.for_each_chunk(colours, &mut f),
+        }
+    }
 }
 
 /// The file kinds a point cloud is read from (besides PLY, which `ply.rs` reads either way).
@@ -35,35 +105,61 @@ pub enum CloudFormat {
 /// A mesh that is the cloud `points` (world coordinates) with `colours` (sRGB, one per point, or empty), named
 /// `name` in messages. Fails on no points, a non-finite coordinate or a colour count that is not the points'.
 pub fn from_points(name: &str, points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<Mesh, MeshError> {
-    let invalid = |message: String| MeshError::Arrays { name: name.to_string(), message };
-    if points.is_empty() {
-        return Err(invalid("there are no points".into()));
-    }
-    if let Some(i) = points.iter().position(|p| !p.is_finite()) {
-        return Err(invalid(format!("point {i} has a NaN or infinite coordinate")));
-    }
-    if !colours.is_empty() && colours.len() != points.len() {
-        return Err(invalid(format!("{} colours for {} points", colours.len(), points.len())));
-    }
-    Ok(Mesh::of_cloud(name, PointCloud { points, colours }))
+    let cloud = PointCloud::in_memory(points, colours)
+        .map_err(|message| MeshError::Arrays { name: name.to_string(), message })?;
+    Ok(Mesh::of_cloud(name, cloud))
 }
 
-/// Reads a point cloud file of `format`, checking its point count against the triangle limit (which bounds
-/// points too).
+/// A mesh of the points a loader decoded (a PLY without faces), or why there is none.
+pub(super) fn decoded(points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<Mesh, String> {
+    Ok(Mesh::of_cloud("", PointCloud::in_memory(points, colours)?))
+}
+
+/// An `.npy` or `.npz` point cloud on disk, streamed (never read whole: see [`super::cloud_arrays`]). The
+/// triangle limit does not bound it, since its points are never held; an explicit `--max-file-size` bounds
+/// what its arrays may inflate to.
+pub(super) fn open_file(path: &Path, format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+    let (arrays, bounds, count) = Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?;
+    Ok(Mesh::of_cloud("", PointCloud { store: Store::Arrays(arrays), bounds, count }))
+}
+
+/// The points of an `.npz` (by its extension) or else `.npy` file on disk that a program asks about (`meshvox query`'s points), under the
+/// rules meshes follow (a regular file, sizes checked before reading) and held in memory only when they fit
+/// `limits`' byte limit (24 bytes a point).
+pub fn read_points_file(path: &Path, limits: &LoadLimits) -> Result<Vec<DVec3>, MeshError> {
+    let npz = super::Format::detect(path, &[]) == Some(super::Format::Points(CloudFormat::Npz));
+    let (arrays, _, count) = Arrays::open_file(path, npz, limits.max_file_bytes)?;
+    let bytes = count.saturating_mul(std::mem::size_of::<DVec3>() as u64);
+    if bytes > limits.byte_limit() {
+        let human = crate::memory::human;
+        let message = format!(
+            "{count} points take {} as f64, more than the limit of {} (--max-file-size); query them in parts",
+            human(bytes),
+            human(limits.byte_limit())
+        );
+        return Err(MeshError::Points { path: path.to_path_buf(), message });
+    }
+    let mut points = Vec::with_capacity(count as usize);
+    arrays.for_each_chunk(false, &mut |chunk, _| points.extend_from_slice(chunk))?;
+    Ok(points)
+}
+
+/// Reads a point cloud file of `format` from memory, checking a text file's point count against the triangle
+/// limit (which bounds points held in memory too).
 pub(super) fn load(path: &Path, bytes: &[u8], format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let err = |message: String| MeshError::Points { path: path.to_path_buf(), message };
     let cloud = match format {
-        CloudFormat::Text => read_text(bytes).map_err(err)?,
-        CloudFormat::Npy => {
-            let points = read_points(&mut Cursor::new(bytes)).map_err(|e| err(e.to_string()))?;
-            PointCloud { points, colours: Vec::new() }
+        CloudFormat::Text => {
+            let (points, colours) = read_text(bytes).map_err(err)?;
+            limits.check_triangles(path, points.len() as u64)?;
+            PointCloud::in_memory(points, colours).map_err(err)?
         }
-        CloudFormat::Npz => read_npz(bytes, limits.byte_limit()).map_err(err)?,
+        CloudFormat::Npy | CloudFormat::Npz => {
+            let npz = format == CloudFormat::Npz;
+            let (arrays, bounds, count) = Arrays::open_bytes(path, bytes, npz, limits.max_file_bytes)?;
+            PointCloud { store: Store::Arrays(arrays), bounds, count }
+        }
     };
-    limits.check_triangles(path, cloud.points.len() as u64)?;
-    if cloud.points.is_empty() {
-        return Err(err("no points".into()));
-    }
     Ok(Mesh::of_cloud("", cloud))
 }
 
@@ -72,8 +168,9 @@ fn fields(line: &str) -> impl Iterator<Item = &str> {
     line.split(|c: char| c.is_whitespace() || c == ',' || c == ';').filter(|f| !f.is_empty())
 }
 
-/// `.xyz` / `.pts` text (see the module documentation).
-fn read_text(bytes: &[u8]) -> Result<PointCloud, String> {
+/// `.xyz` / `.pts` text (see the module documentation): the points and their colours (or none).
+#[allow(clippy::type_complexity)]
+fn read_text(bytes: &[u8]) -> Result<(Vec<DVec3>, Vec<[u8; 4]>), String> {
     let text = std::str::from_utf8(bytes).map_err(|e| format!("not UTF-8 text ({e})"))?;
     let mut rows: Vec<(usize, Vec<f64>)> = Vec::new();
     for (i, line) in text.lines().enumerate() {
@@ -117,43 +214,5 @@ fn read_text(bytes: &[u8]) -> Result<PointCloud, String> {
         Some(at) => rows.iter().map(|(_, r)| [r[at] as u8, r[at + 1] as u8, r[at + 2] as u8, 255]).collect(),
         None => Vec::new(),
     };
-    Ok(PointCloud { points, colours })
-}
-
-/// An `.npz` (stored or deflated, as `np.savez` and `np.savez_compressed` write it): the array `points`, or
-/// else the first `(N, 3)` float array; colours from `colors` or `colours` when there. No array is inflated past
-/// `limit` bytes (a small file can hold a huge deflated one).
-fn read_npz(bytes: &[u8], limit: u64) -> Result<PointCloud, String> {
-    let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| format!("not an .npz (zip): {e}"))?;
-    let names: Vec<String> = zip
-        .file_names()
-        .map(|n| n.map(|n| n.into_owned()))
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("its file names: {e}"))?;
-    let mut read = |name: &str| -> Result<Vec<u8>, String> {
-        let entry = zip.by_name(name).map_err(|e| format!("{name}: {e}"))?;
-        let mut data = Vec::new();
-        entry.take(limit.saturating_add(1)).read_to_end(&mut data).map_err(|e| format!("{name}: {e}"))?;
-        if data.len() as u64 > limit {
-            return Err(format!("{name} inflates past {} (--max-file-size)", crate::memory::human(limit)));
-        }
-        Ok(data)
-    };
-    let mut points = None;
-    let preferred = names.iter().filter(|n| *n == "points.npy").chain(names.iter().filter(|n| *n != "points.npy"));
-    for name in preferred.filter(|n| n.ends_with(".npy")) {
-        if let Ok(p) = read_points(&mut Cursor::new(read(name)?)) {
-            points = Some(p);
-            break;
-        }
-    }
-    let points = points.ok_or_else(|| format!("no (N, 3) float array among {names:?} (name it 'points')"))?;
-    let colours = match names.iter().find(|n| *n == "colors.npy" || *n == "colours.npy") {
-        Some(name) => read_colours(&mut Cursor::new(read(name)?)).map_err(|e| format!("{name}: {e}"))?,
-        None => Vec::new(),
-    };
-    if !colours.is_empty() && colours.len() != points.len() {
-        return Err(format!("{} colours for {} points", colours.len(), points.len()));
-    }
-    Ok(PointCloud { points, colours })
+    Ok((points, colours))
 }

@@ -142,13 +142,7 @@ impl Access {
 
     /// The mesh file itself: a regular file within the limit. It was named by the user, so no folder rule applies.
     pub(crate) fn read_mesh(&self, path: &Path) -> Result<Vec<u8>, MeshError> {
-        self.read_regular(path, None).map_err(|e| match e {
-            Refusal::TooLarge { size, .. } => {
-                MeshError::FileTooLarge { path: path.to_path_buf(), size, limit: self.budget.limit() }
-            }
-            Refusal::Io(source) => MeshError::Io { path: path.to_path_buf(), source },
-            Refusal::Rule(message) => MeshError::Refused { path: path.to_path_buf(), message },
-        })
+        self.read_regular(path, None).map_err(|e| refusal_error(path, e, self.budget.limit()))
     }
 
     /// The file `reference` names, resolved against the folder `from` (canonical; the referencing file's folder),
@@ -211,24 +205,87 @@ impl Access {
     }
 
     /// Reads `path` if it is a regular file and fits the budget: `exact` bytes (or fewer if the file is shorter),
-    /// else the whole file. The checks come before opening, and the type is checked again on the opened handle
-    /// (opened non-blocking, so even a FIFO slipped in between cannot make the open wait).
+    /// else the whole file.
     fn read_regular(&self, path: &Path, exact: Option<u64>) -> Result<Vec<u8>, Refusal> {
-        let size = check_regular(&std::fs::metadata(path).map_err(Refusal::Io)?)?;
-        let want = exact.map_or(size, |n| n.min(size));
-        self.spend(want)?;
-        let file = open_nonblocking(path).map_err(Refusal::Io)?;
-        let size = check_regular(&file.metadata().map_err(Refusal::Io)?)?;
-        let want = want.min(size);
-        // Capacity from the checked size, and `take` so that a file growing meanwhile is still read only so far.
-        let mut bytes = Vec::with_capacity(usize::try_from(want).unwrap_or(0));
-        file.take(want).read_to_end(&mut bytes).map_err(Refusal::Io)?;
-        Ok(bytes)
+        read_checked(path, |size| {
+            let want = exact.map_or(size, |n| n.min(size));
+            self.spend(want)?;
+            Ok(want)
+        })
     }
 
     /// Counts `bytes` against the load's budget, or refuses them.
     fn spend(&self, bytes: u64) -> Result<(), Refusal> {
         self.budget.spend(bytes).map_err(|total| Refusal::TooLarge { size: bytes, total })
+    }
+}
+
+/// Reads `path` if it is a regular file, as many bytes as `admit` allows of its size (or refuses). The checks come
+/// before opening, and the type is checked again on the opened handle (opened non-blocking, so even a FIFO
+/// slipped in between cannot make the open wait).
+fn read_checked(path: &Path, admit: impl FnOnce(u64) -> Result<u64, Refusal>) -> Result<Vec<u8>, Refusal> {
+    let size = check_regular(&std::fs::metadata(path).map_err(Refusal::Io)?)?;
+    let want = admit(size)?;
+    let file = open_nonblocking(path).map_err(Refusal::Io)?;
+    let size = check_regular(&file.metadata().map_err(Refusal::Io)?)?;
+    let want = want.min(size);
+    // Capacity from the checked size, and `take` so that a file growing meanwhile is still read only so far.
+    let mut bytes = Vec::with_capacity(usize::try_from(want).unwrap_or(0));
+    file.take(want).read_to_end(&mut bytes).map_err(Refusal::Io)?;
+    Ok(bytes)
+}
+
+/// A file a user named that is streamed rather than read whole (an `.npy` or `.npz` point cloud): it must be a
+/// regular file, no larger than `limit` when one is given.
+pub(crate) fn check_named(path: &Path, meta: &std::fs::Metadata, limit: Option<u64>) -> Result<(), MeshError> {
+    let size = check_regular(meta).map_err(|e| refusal_error(path, e, limit.unwrap_or(u64::MAX)))?;
+    match limit {
+        Some(limit) if size > limit => Err(MeshError::FileTooLarge { path: path.to_path_buf(), size, limit }),
+        _ => Ok(()),
+    }
+}
+
+/// Reads a file that an option or an argument names (a palette, a block set, a query's points) under the rules
+/// mesh files follow: a regular file, at most `limit` bytes (checked before it is read), `what` naming the limit
+/// in the message (`--max-file-size`, or why a palette has one).
+pub fn read_named(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>, MeshError> {
+    read_checked(path, |size| match size > limit {
+        true => Err(Refusal::TooLarge { size, total: size }),
+        false => Ok(size),
+    })
+    .map_err(|e| match e {
+        Refusal::TooLarge { size, .. } => MeshError::Refused {
+            path: path.to_path_buf(),
+            message: format!(
+                "the file is {}, more than the limit of {} ({what}); it was not read",
+                crate::memory::human(size),
+                crate::memory::human(limit)
+            ),
+        },
+        e => refusal_error(path, e, limit),
+    })
+}
+
+/// The most bytes a settings file (a palette, a block set) may have: such files are kilobytes, and a device or a
+/// huge file named by mistake must not be read.
+pub const SETTING_FILE_LIMIT: u64 = 64 << 20;
+
+/// Reads a settings file an option names (a palette, a block set): [`read_named`] within [`SETTING_FILE_LIMIT`],
+/// its errors naming the file as `what` (`--palette x.png`, `palette='x.png'`).
+pub fn read_setting_file(path: &Path, what: &str) -> Result<Vec<u8>, MeshError> {
+    read_named(path, SETTING_FILE_LIMIT, "palettes and block sets are at most 64 MiB").map_err(|e| match e {
+        MeshError::Io { source, .. } => MeshError::Io { path: what.into(), source },
+        MeshError::Refused { message, .. } => MeshError::Refused { path: what.into(), message },
+        e => e,
+    })
+}
+
+/// A refusal as the error about the file `path`.
+fn refusal_error(path: &Path, refusal: Refusal, limit: u64) -> MeshError {
+    match refusal {
+        Refusal::TooLarge { size, .. } => MeshError::FileTooLarge { path: path.to_path_buf(), size, limit },
+        Refusal::Io(source) => MeshError::Io { path: path.to_path_buf(), source },
+        Refusal::Rule(message) => MeshError::Refused { path: path.to_path_buf(), message },
     }
 }
 
@@ -277,7 +334,7 @@ fn kind(meta: &std::fs::Metadata) -> &'static str {
 }
 
 /// Opens for reading without waiting on a FIFO's writer (regular files ignore the flag).
-fn open_nonblocking(path: &Path) -> std::io::Result<std::fs::File> {
+pub(crate) fn open_nonblocking(path: &Path) -> std::io::Result<std::fs::File> {
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]

@@ -5,7 +5,9 @@
 
 pub mod builtin;
 pub mod cloud;
+mod cloud_arrays;
 mod files;
+pub use files::{SETTING_FILE_LIMIT, read_named, read_setting_file};
 mod gltf_data;
 mod gltf_scene;
 pub mod material;
@@ -77,14 +79,14 @@ pub struct Mesh {
 impl Mesh {
     /// A mesh that is the point cloud `cloud`, named `name`.
     pub(crate) fn of_cloud(name: &str, cloud: PointCloud) -> Mesh {
-        let b = points_bounds(&cloud.points);
-        let anchor = b.map_or(DVec3::ZERO, |b| b.min + b.extent() * 0.5);
+        let b = cloud.bounds();
+        let anchor = b.min + b.extent() * 0.5;
         Mesh { name: name.to_string(), anchor, points: Some(cloud), ..Mesh::default() }
     }
 
     /// Whether the mesh has colours: materials, textures or vertex colours, or a point cloud's colours.
     pub fn has_colour(&self) -> bool {
-        self.shading.is_some() || self.points.as_ref().is_some_and(|c| !c.colours.is_empty())
+        self.shading.is_some() || self.points.as_ref().is_some_and(PointCloud::has_colours)
     }
 
     /// Which axis is probably up in this mesh's file (only the view uses it; grids and outputs do not change).
@@ -107,7 +109,7 @@ impl Mesh {
     pub fn bounds(&self) -> Option<Aabb> {
         use rayon::prelude::*;
         if let Some(cloud) = &self.points {
-            return points_bounds(&cloud.points);
+            return Some(cloud.bounds());
         }
         let first = self.triangles.first()?[0];
         // In parallel over large meshes: the engine asks for this before every grid (see `local_triangles`).
@@ -170,13 +172,9 @@ impl Mesh {
 
     /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
     fn validate(self, path: &Path) -> Result<Self, MeshError> {
-        if let Some(cloud) = &self.points {
-            return match cloud.points.iter().position(|p| !p.is_finite()) {
-                Some(i) => {
-                    Err(MeshError::Points { path: path.to_path_buf(), message: format!("point {i} is not finite") })
-                }
-                None => Ok(self),
-            };
+        // A cloud's points were checked as it was read (every point finite, at least one).
+        if self.points.is_some() {
+            return Ok(self);
         }
         if self.triangles.is_empty() {
             return Err(MeshError::Empty { path: path.to_path_buf() });
@@ -187,13 +185,6 @@ impl Mesh {
         }
         Ok(self)
     }
-}
-
-/// The box of `points` (exact, f64), or `None` for none.
-fn points_bounds(points: &[DVec3]) -> Option<Aabb> {
-    let first = *points.first()?;
-    let (min, max) = points.iter().fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-    Some(Aabb { min, max })
 }
 
 /// Which of `count` positions the triangles use.
@@ -296,6 +287,9 @@ pub struct LoadLimits {
     /// The most bytes the mesh file may have, and the mesh with every file it refers to together; by default the
     /// memory budget ([`crate::memory::default_budget`]) when the load starts.
     pub max_file_bytes: Option<u64>,
+    /// The memory budget (`--max-memory`): what a load holds in memory, when `max_file_bytes` is not given. A
+    /// streamed point cloud holds a chunk, whatever its file's size, so only `max_file_bytes` bounds it.
+    pub max_memory: Option<u64>,
     /// Folders besides the mesh's own that the files it refers to may lie in (a shared `textures/` beside a
     /// folder of models, say). References are still resolved against the referencing file's folder.
     pub resource_roots: Vec<PathBuf>,
@@ -309,7 +303,7 @@ impl LoadLimits {
     /// how much memory there is, the wasm32 heap's 2 GiB in the browser and no limit elsewhere.
     pub(crate) fn byte_limit(&self) -> u64 {
         let unknown = if cfg!(target_arch = "wasm32") { 2 << 30 } else { u64::MAX };
-        self.max_file_bytes.or_else(crate::memory::default_budget).unwrap_or(unknown)
+        self.max_file_bytes.or(self.max_memory).or_else(crate::memory::default_budget).unwrap_or(unknown)
     }
 
     pub(crate) fn check_triangles(&self, path: &Path, triangles: u64) -> Result<(), MeshError> {
@@ -322,7 +316,12 @@ impl LoadLimits {
 
 impl Default for LoadLimits {
     fn default() -> LoadLimits {
-        LoadLimits { max_triangles: Self::DEFAULT_MAX_TRIANGLES, max_file_bytes: None, resource_roots: Vec::new() }
+        LoadLimits {
+            max_triangles: Self::DEFAULT_MAX_TRIANGLES,
+            max_file_bytes: None,
+            max_memory: None,
+            resource_roots: Vec::new(),
+        }
     }
 }
 
@@ -458,6 +457,11 @@ pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
 /// checked against `max_file_bytes` before it is read, and the files it refers to must lie inside its folder
 /// or one of `resource_roots` (see `files.rs`).
 pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshError> {
+    // `.npy` and `.npz` clouds are streamed from the file, never read whole.
+    if let Some(Format::Points(format @ (CloudFormat::Npy | CloudFormat::Npz))) = Format::detect(path, &[]) {
+        let mesh = cloud::open_file(path, format, limits)?;
+        return Ok(Mesh { name: file_name(path), ..mesh });
+    }
     let access = Access::new(path, &limits.resource_roots, limits.byte_limit())?;
     let bytes = access.read_mesh(path)?;
     load_bytes_impl(path, &bytes, Externals::Dir(&access), limits)
@@ -496,6 +500,11 @@ fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     };
     // The counts before parsing are exact for both formats; this is the net under them.
     limits.check_triangles(path, mesh.triangles.len() as u64)?;
-    mesh.name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    mesh.name = file_name(path);
     mesh.validate(path)
+}
+
+/// A mesh's name in messages and stats: its file name.
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
 }

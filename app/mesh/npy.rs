@@ -20,19 +20,32 @@ fn invalid(message: impl Into<String>) -> NpyError {
     NpyError::Invalid(message.into())
 }
 
+/// An `.npy` header: the dtype's descr without quotes (`<f4`) and the shape.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NpyHeader {
+    pub descr: String,
+    pub shape: Vec<u64>,
+}
+
 /// Reads an `.npy` header: the dtype's descr without quotes (`<f4`), and the shape. C order only.
 pub fn read_header(input: &mut impl Read) -> Result<(String, Vec<u64>), NpyError> {
+    let (header, _) = read_header_sized(input)?;
+    Ok((header.descr, header.shape))
+}
+
+/// [`read_header`], and how many bytes it took (where the data starts).
+pub fn read_header_sized<R: Read + ?Sized>(input: &mut R) -> Result<(NpyHeader, u64), NpyError> {
     let mut pre = [0u8; 10];
     input.read_exact(&mut pre)?;
     if &pre[..6] != MAGIC {
-        return Err(invalid("missing magic"));
+        return Err(invalid("not an .npy array (no \\x93NUMPY magic)"));
     }
-    let len = match pre[6] {
-        1 => u16::from_le_bytes([pre[8], pre[9]]) as usize,
+    let (len, before) = match pre[6] {
+        1 => (u16::from_le_bytes([pre[8], pre[9]]) as usize, 10),
         2 | 3 => {
             let mut more = [0u8; 2];
             input.read_exact(&mut more)?;
-            u32::from_le_bytes([pre[8], pre[9], more[0], more[1]]) as usize
+            (u32::from_le_bytes([pre[8], pre[9], more[0], more[1]]) as usize, 12)
         }
         v => return Err(invalid(format!("unsupported version {v}"))),
     };
@@ -59,7 +72,11 @@ pub fn read_header(input: &mut impl Read) -> Result<(String, Vec<u64>), NpyError
         .filter(|s| !s.trim().is_empty())
         .map(|s| s.trim().parse::<u64>().map_err(|_| invalid(format!("bad shape {shape}"))))
         .collect::<Result<_, _>>()?;
-    Ok((descr.trim_matches(|c| c == '\'' || c == '"').to_string(), dims))
+    if dims.iter().try_fold(1u64, |n, &d| n.checked_mul(d)).is_none_or(|n| n > 1 << 62) {
+        return Err(invalid(format!("a shape of {shape} elements")));
+    }
+    let descr = descr.trim_matches(|c| c == '\'' || c == '"').to_string();
+    Ok((NpyHeader { descr, shape: dims }, (before + len) as u64))
 }
 
 /// The array's data after its header: exactly `count` values of `width` bytes, read as they come (the header's

@@ -7,7 +7,6 @@
 //! Vertices and faces go into small structs of our own (ply-rs's default element is a hash map per vertex, about
 //! ten times the memory). Coordinates keep the precision the file declares: `double` properties stay f64.
 
-use super::cloud::PointCloud;
 use super::npy::unit_byte;
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::DVec3;
@@ -155,7 +154,7 @@ fn cloud(vertices: Vec<Vertex>, def: &ply_rs::ply::ElementDef) -> Result<Mesh, S
         false => Vec::new(),
     };
     let points = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
-    Ok(Mesh::of_cloud("", PointCloud { points, colours }))
+    super::cloud::decoded(points, colours)
 }
 
 /// The vertex and face elements' entries, reading the elements in the header's order: each one before the faces

@@ -442,7 +442,10 @@ fn save(
         (Some(id), _) => Some(BlockSet::single(&id).map_err(|e| PyValueError::new_err(e.to_string()))?),
         (None, Some(file)) => {
             let what = format!("blocks='{}'", file.display());
-            let text = std::fs::read_to_string(&file).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+            let bytes =
+                crate::mesh::read_setting_file(&file, &what).map_err(|e| PyValueError::new_err(e.to_string()))?;
+            let text =
+                String::from_utf8(bytes).map_err(|_| PyValueError::new_err(format!("{what}: not UTF-8 text")))?;
             Some(BlockSet::parse(&text, &what).map_err(|e| PyValueError::new_err(e.to_string()))?)
         }
         (None, None) => None,
@@ -450,7 +453,8 @@ fn save(
     let palette = match palette {
         Some(file) => {
             let what = format!("palette='{}'", file.display());
-            let bytes = std::fs::read(&file).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+            let bytes =
+                crate::mesh::read_setting_file(&file, &what).map_err(|e| PyValueError::new_err(e.to_string()))?;
             Some(Swatches::read_palette(&bytes, &what).map_err(|e| PyValueError::new_err(e.to_string()))?)
         }
         None => None,

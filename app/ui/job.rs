@@ -129,7 +129,7 @@ impl ViewerApp {
         self.stats = Some(Stats {
             mesh: p.label.strip_prefix("builtin:").unwrap_or(&p.label).to_string(),
             triangles: p.mesh.triangles.len(),
-            points: p.mesh.points.as_ref().map(|cloud| cloud.points.len()),
+            points: p.mesh.points.as_ref().map(|cloud| cloud.len() as usize),
             dims: done.report.dims,
             voxels: done.report.voxels,
             resolution: p.resolution,

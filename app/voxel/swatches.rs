@@ -87,7 +87,7 @@ impl Swatches {
             // Colour index i (1..=255) is the palette's entry i - 1; index 256 does not exist.
             data.palette.iter().take(255).map(|c| [c.r, c.g, c.b]).collect()
         } else if bytes.starts_with(b"\x89PNG") {
-            let image = image::load_from_memory(bytes).map_err(|e| file(format!("not a readable PNG ({e})")))?;
+            let image = decode_palette_png(bytes).map_err(|e| file(format!("not a readable PNG ({e})")))?;
             let mut seen = std::collections::HashSet::new();
             let pixels = image.to_rgba8();
             pixels.pixels().filter(|p| p[3] > 0).map(|p| [p[0], p[1], p[2]]).filter(|c| seen.insert(*c)).collect()
@@ -244,6 +244,19 @@ fn parse_text(text: &str, what: &str) -> Result<Vec<[u8; 3]>, PaletteError> {
     }
     Ok(colours)
 }
+
+/// A palette image decoded within bounds: a PNG declares its size in its header, and a small file can declare
+/// gigapixels. A palette is a strip or a small swatch sheet; 16 MiB of decoded pixels is far more than any.
+fn decode_palette_png(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(PALETTE_IMAGE_BYTES);
+    reader.limits(limits);
+    reader.decode()
+}
+
+/// The most bytes a palette image may decode to.
+pub const PALETTE_IMAGE_BYTES: u64 = 16 << 20;
 
 #[cfg(test)]
 mod tests {

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs meshvox's fuzz targets (see docs/limits.md). `bash tests/fuzz/run.sh [SECONDS] [TARGET...]` runs
-# each target (default: obj, gltf, voxelize, stl_ply) for SECONDS (default 20) starting from its kept corpus in
+# each target (default: obj, gltf, voxelize, stl_ply, points) for SECONDS (default 20) starting from its kept corpus in
 # tests/fuzz/corpus/TARGET and the hostile corpus, on a scratch copy, so the kept corpus only changes when a
 # longer run is minimized into it on purpose. Installs a nightly toolchain and cargo-fuzz if they are missing.
 # Any crash fails the run and leaves the input in tests/fuzz/artifacts/TARGET/.
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 seconds="${1:-20}"
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply)
+[ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply points)
 
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 cargo fuzz --version >/dev/null 2>&1 || cargo install cargo-fuzz --version 0.13.2 --locked

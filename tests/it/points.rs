@@ -13,22 +13,36 @@ fn load(name: &str, text: &str) -> Result<mesh::Mesh, String> {
     mesh::load_bytes(name, text.as_bytes()).map_err(|e| e.to_string())
 }
 
+/// A cloud's points and colours, gathered from one pass over its chunks.
+fn gathered(cloud: &cloud::PointCloud) -> (Vec<DVec3>, Vec<[u8; 4]>) {
+    let (mut points, mut colours) = (Vec::new(), Vec::new());
+    cloud
+        .for_each_chunk(true, |p, c| {
+            assert!(p.len() <= cloud::CHUNK && (c.is_empty() || c.len() == p.len()));
+            points.extend_from_slice(p);
+            colours.extend_from_slice(c);
+        })
+        .expect("a pass");
+    assert_eq!(points.len() as u64, cloud.len());
+    (points, colours)
+}
+
 #[test]
 fn text_clouds_follow_their_column_rules() {
     let xyz = load("a.xyz", "# scan\n0 0 0 255 0 0\n1,2,3,0,128,255\n\n// end\n").expect("xyz");
-    let c = xyz.points.as_ref().expect("a cloud");
-    assert_eq!(c.points, [DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0)]);
-    assert_eq!(c.colours, [[255, 0, 0, 255], [0, 128, 255, 255]]);
+    let (points, colours) = gathered(xyz.points.as_ref().expect("a cloud"));
+    assert_eq!(points, [DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0)]);
+    assert_eq!(colours, [[255, 0, 0, 255], [0, 128, 255, 255]]);
     assert!(xyz.triangles.is_empty() && xyz.has_colour());
     // Six columns that are not all bytes are normals: no colour.
     let normals = load("n.xyz", "0 0 0 0.0 0.6 0.8\n1 1 1 1 0 0\n").expect("normals");
-    assert!(normals.points.as_ref().expect("cloud").colours.is_empty() && !normals.has_colour());
+    assert!(!normals.points.as_ref().expect("cloud").has_colours() && !normals.has_colour());
     let pts = load("b.pts", "2\n0.5 0.25 0 -1200 10 20 30\n1 1 1 7 40 50 60\n").expect("pts");
-    assert_eq!(pts.points.as_ref().expect("cloud").colours, [[10, 20, 30, 255], [40, 50, 60, 255]]);
+    assert_eq!(gathered(pts.points.as_ref().expect("cloud")).1, [[10, 20, 30, 255], [40, 50, 60, 255]]);
     let ply = load("c.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n0.1 0.2 0.3 1 2 3\n4 5 6 7 8 9\n").expect("ply");
-    let c = ply.points.as_ref().expect("cloud");
-    assert_eq!(c.points[0], DVec3::new(0.1, 0.2, 0.3));
-    assert_eq!(c.colours[1], [7, 8, 9, 255]);
+    let (points, colours) = gathered(ply.points.as_ref().expect("cloud"));
+    assert_eq!(points[0], DVec3::new(0.1, 0.2, 0.3));
+    assert_eq!(colours[1], [7, 8, 9, 255]);
     for (name, text, want) in [
         ("d.xyz", "1 2 3\n4 5\n", "line 2: 2 numbers, a point needs x y z"),
         ("e.xyz", "1 2 3\n4 5 6 7\n", "line 2: 4 numbers where the first point has 3"),
@@ -94,4 +108,155 @@ fn clouds_voxelize_by_floor_division_dense_and_sparse() {
         let e = engine.voxelize("scan.xyz", &m, &request).err().expect("refused").to_string();
         assert!(e.starts_with("scan.xyz is a point cloud") && e.ends_with("needs triangles"), "{e}");
     }
+}
+
+/// numpy's `.npy` bytes for `(rows, columns)` values of dtype `descr` (version 1, a 64-byte-aligned header).
+fn npy(descr: &str, shape: (u64, u64), data: &[u8]) -> Vec<u8> {
+    let mut text = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({}, {}), }}", shape.0, shape.1);
+    text.push_str(&" ".repeat(63 - (10 + text.len()) % 64));
+    text.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    out.extend_from_slice(text.as_bytes());
+    out.extend_from_slice(data);
+    out
+}
+
+/// An `.npz` of `members`, deflated as `np.savez_compressed` writes them.
+fn npz(members: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    use std::io::Write;
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    let options = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    for (name, bytes) in members {
+        zip.start_file(*name, options).expect("member");
+        zip.write_all(bytes).expect("write");
+    }
+    zip.finish().expect("zip").into_inner()
+}
+
+#[test]
+fn npy_and_npz_clouds_stream_the_same_points_as_memory_holds() {
+    // More than two chunks, decimal coordinates far from the origin, f32 and f64, with uint8 and float colours.
+    let mut rng = crate::common::Rng::new(64);
+    let n = 2 * cloud::CHUNK + 1234;
+    let points: Vec<DVec3> =
+        (0..n).map(|_| DVec3::new(rng.unit() * 7.0 + 1e6, rng.unit() * 3.0 - 52_000.0, rng.unit())).collect();
+    let f32s: Vec<DVec3> = points.iter().map(|p| p.as_vec3().as_dvec3()).collect();
+    let bytes32: Vec<u8> = f32s.iter().flat_map(|p| p.as_vec3().to_array()).flat_map(f32::to_le_bytes).collect();
+    let bytes64: Vec<u8> = points.iter().flat_map(|p| p.to_array()).flat_map(f64::to_le_bytes).collect();
+    let colours: Vec<[u8; 4]> = (0..n).map(|i| [(i % 251) as u8, (i % 13) as u8, (i % 256) as u8, 255]).collect();
+    let rgb: Vec<u8> = colours.iter().flat_map(|c| c[..3].to_vec()).collect();
+    let unit: Vec<u8> =
+        colours.iter().flat_map(|c| c.map(|v| f32::from(v) / 255.0)).flat_map(f32::to_le_bytes).collect();
+    let cases: Vec<(&str, Vec<u8>, &[DVec3], bool)> = vec![
+        ("a.npy", npy("<f4", (n as u64, 3), &bytes32), &f32s, false),
+        ("b.npy", npy("<f8", (n as u64, 3), &bytes64), &points, false),
+        (
+            "c.npz",
+            npz(&[
+                ("points.npy", npy("<f8", (n as u64, 3), &bytes64)),
+                ("colors.npy", npy("|u1", (n as u64, 3), &rgb)),
+            ]),
+            &points,
+            true,
+        ),
+        (
+            "d.npz",
+            npz(&[("colours.npy", npy("<f4", (n as u64, 4), &unit)), ("xyz.npy", npy("<f4", (n as u64, 3), &bytes32))]),
+            &f32s,
+            true,
+        ),
+    ];
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, bytes, want, coloured) in &cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        for m in [mesh::load_bytes(name, bytes).expect(name), mesh::load_path(&path).expect(name)] {
+            let c = m.points.as_ref().expect("a cloud");
+            assert!(c.is_streamed() && c.len() == n as u64 && c.has_colours() == *coloured, "{name}");
+            let (got, rgba) = gathered(c);
+            assert!(got == *want, "{name}: the streamed points differ");
+            assert!(!coloured || rgba == colours, "{name}: the colours differ");
+            let lo = want.iter().fold(DVec3::INFINITY, |a, p| a.min(*p));
+            let hi = want.iter().fold(DVec3::NEG_INFINITY, |a, p| a.max(*p));
+            assert_eq!((c.bounds().min, c.bounds().max), (lo, hi), "{name}");
+        }
+    }
+    // The streamed cloud's grid is the in-memory cloud's, colours included.
+    let engine = Engine::open(Backend::Cpu).expect("engine");
+    let streamed = mesh::load_bytes("c.npz", &cases[2].1).expect("c.npz");
+    let held = cloud::from_points("c", points.clone(), colours.clone()).expect("cloud");
+    let request = Request::new(Resolution::Count(40), Mode::Surface);
+    let (a, b) =
+        (engine.voxelize("c.npz", &streamed, &request).expect("a"), engine.voxelize("c", &held, &request).expect("b"));
+    assert_eq!(
+        a.grid.into_dense().expect("dense").iter_set().collect::<Vec<_>>(),
+        b.grid.into_dense().expect("dense").iter_set().collect::<Vec<_>>()
+    );
+    assert_eq!(a.colours.expect("colours").rgba, b.colours.expect("colours").rgba);
+}
+
+#[test]
+fn npz_members_are_checked_before_they_are_inflated() {
+    let ten = npy("<f4", (10, 3), &[0; 120]);
+    let liar = [ten.clone(), vec![0; 1 << 20]].concat();
+    let huge = npy("<f4", (400_000_000, 3), &[0; 120]);
+    let limits = mesh::LoadLimits { max_file_bytes: Some(1000), ..Default::default() };
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "liar.npz",
+            npz(&[("points.npy", liar.clone())]),
+            "points.npy: its header declares (10, 3) float32, 120 bytes, but the member holds 1.0 MiB after its header; refused before inflating it",
+        ),
+        (
+            "short.npz",
+            npz(&[("points.npy", huge.clone())]),
+            "points.npy: its header declares (400000000, 3) float32, 4.5 GiB, but the member holds 10 rows",
+        ),
+        ("short.npy", huge, "its header declares (400000000, 3) float32, 4.5 GiB, but the file holds 10 rows"),
+        (
+            "several.npz",
+            npz(&[("a.npy", npy("<f4", (5, 2), &[0; 40])), ("b.npy", npy("<i4", (5, 3), &[0; 60]))]),
+            "no (N, 3) float array among its members: a.npy: points must have shape (N, 3), not [5, 2]; b.npy: points must be float32 or float64 (little-endian), not '<i4'",
+        ),
+        (
+            "named.npz",
+            npz(&[("other.npy", ten.clone()), ("points.npy", npy("<f4", (10, 2), &[0; 80]))]),
+            "points.npy: points must have shape (N, 3), not [10, 2]",
+        ),
+        (
+            "colours.npz",
+            npz(&[("points.npy", ten.clone()), ("colors.npy", npy("|u1", (9, 3), &[0; 27]))]),
+            "9 colours for 10 points",
+        ),
+        (
+            "none.npz",
+            npz(&[("readme.txt", b"hi".to_vec())]),
+            "no .npy member holds points among [\"readme.txt\"] (name the (N, 3) float array 'points')",
+        ),
+        (
+            "nan.npy",
+            npy("<f8", (2, 3), &[0f64, 0.0, 0.0, 1.0, f64::NAN, 1.0].map(f64::to_le_bytes).concat()),
+            "point 1 is not finite",
+        ),
+    ];
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, bytes, want) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).expect("write");
+        for e in [mesh::load_bytes(name, &bytes).expect_err(name), mesh::load_path(&path).expect_err(name)] {
+            let e = e.to_string();
+            assert!(e.contains(name) && e.ends_with(want), "{name}: {e}");
+        }
+    }
+    // An explicit --max-file-size bounds what a member inflates to, from its header.
+    let path = dir.path().join("big.npz");
+    std::fs::write(&path, npz(&[("points.npy", npy("<f4", (100, 3), &[0; 1200]))])).expect("write");
+    let e = mesh::load_path_with(&path, &limits).expect_err("over the limit").to_string();
+    assert!(
+        e.ends_with(
+            "points.npy inflates past 1000 bytes (--max-file-size): its header declares (100, 3) float32, 1.2 KiB"
+        ),
+        "{e}"
+    );
 }

@@ -11,9 +11,14 @@ fuzz_target!(|data: &[u8]| {
     let name = names[selector as usize % names.len()];
     if let Ok(mesh) = meshvox::mesh::load_bytes(name, body) {
         if let Some(cloud) = &mesh.points {
-            assert!(mesh.triangles.is_empty() && !cloud.points.is_empty());
-            assert!(cloud.points.iter().all(|p| p.is_finite()));
-            assert!(cloud.colours.is_empty() || cloud.colours.len() == cloud.points.len());
+            assert!(mesh.triangles.is_empty() && !cloud.is_empty());
+            let mut count = 0;
+            let pass = cloud.for_each_chunk(true, |points, colours| {
+                assert!(points.iter().all(|p| p.is_finite()));
+                assert!(colours.is_empty() || colours.len() == points.len());
+                count += points.len() as u64;
+            });
+            assert!(pass.is_ok() && count == cloud.len());
             return;
         }
         assert!(!mesh.triangles.is_empty());

@@ -1,0 +1,217 @@
+"""Bounded reads (docs/untrusted-files.md): point clouds streamed from `.npy` and `.npz` files in the memory of a
+chunk, `.npz` members that lie about their size or inflate far past their file refused with their true reason
+before they are inflated, and files that options name (`--palette`, `--blocks`, `palette=`, `blocks=`) read under
+the rules mesh files follow: regular files only, sizes checked first. Memory is the kernel's figure for the child
+(`os.wait4`'s peak resident size), a bound on bytes, not a timer."""
+
+import json
+import os
+import pathlib
+import resource
+import subprocess
+import zipfile
+
+import numpy as np
+import pytest
+
+import meshvox
+
+MiB = 1 << 20
+# What a refusal or a streamed cloud may hold above a run on a tiny cloud: a chunk, buffers, the grid.
+ALLOWANCE = 100 * MiB
+
+
+class _Popen(subprocess.Popen):
+    """Popen that reaps its child with os.wait4, keeping that child's own peak resident size (Linux: KiB)."""
+
+    peak_rss = 0
+
+    def _try_wait(self, wait_flags):
+        try:
+            pid, status, usage = os.wait4(self.pid, wait_flags)
+        except ChildProcessError:
+            return (self.pid, 0)
+        if pid == self.pid:
+            self.peak_rss = usage.ru_maxrss * 1024
+        return (pid, status)
+
+
+def measured(cli: pathlib.Path, *args: str, timeout: float = 300) -> tuple[int, str, str, int]:
+    """Runs the CLI; its exit status, stdout, stderr and peak resident bytes, from `os.wait4` on that child."""
+    child = _Popen([str(cli), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+    try:
+        stdout, stderr = child.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        child.communicate()
+        pytest.fail(f"meshvox {' '.join(args)} still ran after {timeout} s (a hang)")
+    assert child.peak_rss > 0, "os.wait4 reported no peak"
+    return child.returncode, stdout.decode(), stderr.decode(), child.peak_rss
+
+
+def npy_header(shape: tuple, descr: str = "<f4") -> bytes:
+    """numpy's own header for an array of `shape` (version 1, padded to 64 bytes)."""
+    text = f"{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape!r}, }}"
+    pad = 64 - (10 + len(text) + 1) % 64
+    text = text + " " * pad + "\n"
+    return b"\x93NUMPY\x01\x00" + len(text).to_bytes(2, "little") + text.encode()
+
+
+def deflated_member(path: pathlib.Path, name: str, header: bytes, zeros: int, extra=()) -> None:
+    """An `.npz` with member `name`: `header` then `zeros` zero bytes, deflated as numpy's savez_compressed does,
+    written in pieces so the test itself stays small; `extra` members (name, bytes) are stored before it."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+        for member, data in extra:
+            z.writestr(member, data)
+        with z.open(name, "w", force_zip64=True) as f:
+            f.write(header)
+            block = bytes(16 * MiB)
+            left = zeros
+            while left > 0:
+                f.write(block[: min(left, len(block))])
+                left -= min(left, len(block))
+
+
+@pytest.fixture(scope="module")
+def baseline(cli, tmp_path_factory) -> int:
+    """The peak of a run on a tiny valid `.npz` cloud at the resolution the tests use."""
+    tmp = tmp_path_factory.mktemp("baseline")
+    np.savez_compressed(tmp / "tiny.npz", points=np.random.default_rng(1).uniform(0, 1, (100, 3)).astype(np.float32))
+    rc, _, err, peak = measured(cli, "voxelize", str(tmp / "tiny.npz"), "-r", "16", "-o", str(tmp / "o.npy"))
+    assert rc == 0, err
+    assert peak > 0
+    return peak
+
+
+def refused(cli, baseline: int, path: pathlib.Path, *extra: str) -> str:
+    """Runs voxelize on `path`; checks it fails with one line, within the allowance; returns the line."""
+    rc, _, err, peak = measured(cli, "voxelize", str(path), "-r", "16", "-o", str(path.with_suffix(".out.npy")), *extra)
+    lines = err.strip().splitlines()
+    assert rc != 0 and len(lines) == 1 and lines[0].startswith("error: "), err
+    assert peak < baseline + ALLOWANCE, f"{path.name}: peak {peak / MiB:.0f} MiB, baseline {baseline / MiB:.0f} MiB"
+    return lines[0]
+
+
+def test_npz_bombs_and_liars_are_refused_with_their_reason_in_bounded_memory(cli, tmp_path, baseline):
+    # 30 M points of zeros (360 MB) in a few hundred KB: streamed, it is what it is, a cloud of one point.
+    bomb = tmp_path / "bomb.npz"
+    deflated_member(bomb, "points.npy", npy_header((30_000_000, 3)), 30_000_000 * 12)
+    assert bomb.stat().st_size < 2 * MiB
+    assert "the mesh is a single point" in refused(cli, baseline, bomb)
+    # The same within --max-file-size: refused from the header, before inflating.
+    line = refused(cli, baseline, bomb, "--max-file-size", "100M")
+    assert "points.npy inflates past 100.0 MiB (--max-file-size)" in line and "(30000000, 3) float32" in line, line
+
+    # A member whose header says (10, 3) and which holds 256 MiB: refused before it is inflated.
+    liar = tmp_path / "liar.npz"
+    deflated_member(liar, "points.npy", npy_header((10, 3)), 256 * MiB)
+    line = refused(cli, baseline, liar)
+    assert "declares (10, 3) float32" in line and "refused before inflating it" in line, line
+
+    # A header that declares 400 M points over a member holding ten.
+    short = tmp_path / "short.npz"
+    with zipfile.ZipFile(short, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("points.npy", npy_header((400_000_000, 3)) + bytes(120))
+    line = refused(cli, baseline, short)
+    assert "declares (400000000, 3) float32" in line and "holds 10 rows" in line, line
+
+    # Several members, none of them points: each one's reason.
+    several = tmp_path / "several.npz"
+    np.savez_compressed(several, a=np.zeros((5, 2), np.float32), b=np.zeros((5, 3), np.int32))
+    line = refused(cli, baseline, several)
+    assert "a.npy: points must have shape (N, 3), not [5, 2]" in line, line
+    assert "b.npy: points must be float32 or float64 (little-endian), not '<i4'" in line, line
+
+
+def test_npy_that_declares_more_than_its_file_is_refused_before_reading(cli, tmp_path, baseline):
+    path = tmp_path / "huge.npy"
+    path.write_bytes(npy_header((400_000_000, 3)) + bytes(1200))
+    line = refused(cli, baseline, path)
+    assert "declares (400000000, 3) float32" in line and "holds 100 rows" in line, line
+    # A missing file: the OS's reason, once.
+    line = refused(cli, baseline, tmp_path / "missing.npy")
+    assert line.count("No such file or directory") == 1, line
+
+
+@pytest.mark.parametrize("suffix", [".npy", ".npz"])
+def test_a_cloud_larger_than_max_memory_is_streamed_to_numpys_grid(cli, tmp_path, baseline, suffix):
+    """12 M float32 points (144 MB) under --max-memory 48M: the grid is numpy's floor rule, the peak a chunk's."""
+    rng = np.random.default_rng(7)
+    n = 12_000_000
+    points = (rng.normal(0, 1, (n, 3)) * [3.0, 1.0, 0.5] + [1e5, -2e3, 7.0]).astype(np.float32)
+    path = tmp_path / f"big{suffix}"
+    if suffix == ".npy":
+        np.save(path, points)
+    else:
+        colours = rng.integers(0, 256, (n, 3), dtype=np.uint8)
+        np.savez(path, points=points, colors=colours)
+    out = tmp_path / "grid.npy"
+    args = ("voxelize", str(path), "-r", "64", "-o", str(out), "--max-memory", "48M", "--stats-json")
+    rc, stdout, err, peak = measured(cli, *args)
+    assert rc == 0, err
+    assert peak < baseline + ALLOWANCE, f"peak {peak / MiB:.0f} MiB for {points.nbytes / MiB:.0f} MiB of points"
+    stats = json.loads(stdout.strip().splitlines()[-1])
+    assert stats["points"] == n
+    p = points.astype(np.float64)
+    origin, pitch = np.array(stats["origin"]), stats["voxel_size"]
+    assert np.array_equal(origin, p.min(axis=0)) and pitch == (p.max(axis=0) - p.min(axis=0)).max() / 64
+    dims = np.array(stats["dims"])
+    index = np.clip(np.floor((p - origin) / pitch), 0, dims - 1).astype(np.int64)
+    want = np.zeros(dims, dtype=bool)
+    want[tuple(index.T)] = True
+    got = np.load(out).astype(bool)
+    assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def device_paths(tmp_path: pathlib.Path) -> list[pathlib.Path]:
+    """/dev/zero and /dev/urandom (where they exist), a FIFO nobody writes and a symlink to a device."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    link = tmp_path / "link.txt"
+    link.symlink_to("/dev/zero")
+    return [p for p in [pathlib.Path("/dev/zero"), pathlib.Path("/dev/urandom")] if p.exists()] + [fifo, link]
+
+
+def test_option_files_follow_the_untrusted_file_rules(cli, tmp_path, baseline):
+    for path in device_paths(tmp_path):
+        for option, output in [("--palette", "o.vox"), ("--blocks", "o.schem")]:
+            rc, _, err, peak = measured(
+                cli, "voxelize", "builtin:rotated-cube", "-r", "8", "-o", str(tmp_path / output), option, str(path),
+                timeout=20,
+            )
+            lines = err.strip().splitlines()
+            assert rc != 0 and len(lines) == 1, err
+            assert "not a regular file (meshvox reads only regular files)" in lines[0], lines[0]
+            assert peak < baseline + ALLOWANCE
+    big = tmp_path / "big.txt"
+    with open(big, "wb") as f:
+        f.truncate(65 * MiB)
+    rc, _, err, _ = measured(cli, "voxelize", "builtin:rotated-cube", "-r", "8", "-o", str(tmp_path / "o.vox"),
+                             "--palette", str(big))
+    assert rc != 0 and "palettes and block sets are at most 64 MiB" in err, err
+    # query's points follow the same rules.
+    rc, _, err, _ = measured(cli, "query", "builtin:rotated-cube", str(tmp_path / "fifo"), "-o", str(tmp_path / "q.npz"),
+                             timeout=20)
+    assert rc != 0 and "not a regular file" in err, err
+
+
+def test_python_raises_clear_errors_and_stays_usable(tmp_path):
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    liar = tmp_path / "liar.npz"
+    deflated_member(liar, "points.npy", npy_header((10, 3)), 64 * MiB)
+    with pytest.raises(ValueError, match="refused before inflating it"):
+        meshvox.voxelize(str(liar), 16)
+    with pytest.raises(ValueError, match="refused before inflating it"):
+        meshvox.Mesh(str(liar))
+    with pytest.raises(ValueError, match="holds 100 rows"):
+        (tmp_path / "huge.npy").write_bytes(npy_header((400_000_000, 3)) + bytes(1200))
+        meshvox.voxelize(str(tmp_path / "huge.npy"), 16)
+    grid = meshvox.voxelize_points(np.array([[0, 0, 0], [1, 1, 1]], float), 4)
+    for path in device_paths(tmp_path):
+        with pytest.raises(ValueError, match="not a regular file"):
+            grid.save(tmp_path / "o.vox", palette=path)
+        with pytest.raises(ValueError, match="not a regular file"):
+            grid.save(tmp_path / "o.schem", blocks=path)
+    # Usable afterwards, and nothing above grew this process by the members' size.
+    assert meshvox.voxelize_points(np.array([[0, 0, 0], [1, 1, 1]], float), 4).matrix.sum() == 2
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 100 * 1024
