@@ -1,14 +1,13 @@
 """Peak resident memory of `meshvox voxelize` on point clouds of 10^6 to 4*10^8 points, as `.npy` (random float32
 points) and `.npz` (np.savez_compressed-style deflated member, 4,096 distinct points repeated, as the issue's
 100 M cloud), each voxelized at -r 256 to a dense `.npy`. The peak is the kernel's figure for the child
-(`os.wait4`'s ru_maxrss). Files are written in pieces, so this script holds little itself; they go to a scratch
+(GNU time's `%M`: the kernel's ru_maxrss). Files are written in pieces, so this script holds little itself; they go to a scratch
 folder (several GB at 4*10^8) that is removed at the end.
 
     python3 bench/cloud_memory.py target/release/meshvox [COUNTS...]
 
 Prints a Markdown table for bench/RESULTS.md."""
 
-import os
 import pathlib
 import shutil
 import subprocess
@@ -51,11 +50,13 @@ def write_npz(path: pathlib.Path, n: int) -> None:
 
 
 def measured(args: list[str]) -> tuple[int, float, str]:
+    """Peak resident bytes, seconds and stderr of a run. The peak is GNU time's (wait4 from a small parent): a
+    child forked from this Python process would start as a copy of it, and the kernel's peak counts that copy."""
     start = time.perf_counter()
-    child = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    err = child.stderr.read().decode()
-    _, status, usage = os.wait4(child.pid, 0)
-    return usage.ru_maxrss * 1024, time.perf_counter() - start, err.strip()
+    with tempfile.NamedTemporaryFile("r") as peak:
+        out = subprocess.run(["/usr/bin/time", "-f", "%M", "-o", peak.name, *args], capture_output=True, text=True)
+        kib = int(peak.read().strip().splitlines()[-1])
+    return kib * 1024, time.perf_counter() - start, out.stderr.strip()
 
 
 def main() -> None:

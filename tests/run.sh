@@ -15,8 +15,9 @@ cd "$(dirname "$0")/.."
 # lavapipe for the GPU tests; Xvfb, ImageMagick and the X libraries winit loads for the desktop test.
 # Chromium (with SwiftShader's WebGPU) and Node.js for the browser test. OpenVDB 10 (pyopenvdb for the system
 # Python, and vdb_print) reads the .vdb files back; NanoVDB's tools (nanovdb_validate, _print, _convert) judge .nvdb.
+# GNU time measures a run's peak memory (the bounded-reads tests).
 packages="mesa-vulkan-drivers xvfb imagemagick libxkbcommon-x11-0 libxcursor1 libxi6 libxrandr2 libx11-xcb1 chromium
-  clang llvm python3-openvdb libopenvdb-tools libnanovdb-tools"
+  clang llvm python3-openvdb libopenvdb-tools libnanovdb-tools time"
 command -v node >/dev/null 2>&1 || packages="$packages nodejs npm"
 if [ "$(id -u)" = 0 ]; then
   missing=$(for p in $packages; do dpkg -s "$p" >/dev/null 2>&1 || echo "$p"; done)
