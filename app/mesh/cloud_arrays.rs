@@ -20,6 +20,9 @@ use std::sync::Arc;
 /// Points decoded per chunk of a pass (1.5 MiB of f64 points).
 pub const CHUNK: usize = 1 << 16;
 
+/// What a pass hands each chunk to: its points and their sRGB colours (or an empty slice).
+pub type ChunkFn<'a> = dyn FnMut(&[DVec3], &[[u8; 4]]) + 'a;
+
 /// Where the file's bytes are: on disk (read again on each pass) or in memory (a browser upload).
 #[derive(Clone, Debug, PartialEq)]
 enum Origin {
@@ -267,7 +270,7 @@ impl Arrays {
 
     /// One pass over the points in chunks of at most [`CHUNK`], with their sRGB colours when `colours` is asked
     /// for and the file has them (else an empty slice).
-    pub fn for_each_chunk(&self, colours: bool, f: &mut dyn FnMut(&[DVec3], &[[u8; 4]])) -> Result<(), MeshError> {
+    pub fn for_each_chunk(&self, colours: bool, f: &mut ChunkFn) -> Result<(), MeshError> {
         let path = self.path();
         let changed = |e: String| refuse(&path, e);
         let io = |source: std::io::Error| MeshError::Io { path: path.clone(), source };
@@ -327,7 +330,7 @@ fn stream(
     points: &mut dyn Read,
     layout: &Array,
     mut colours: Option<(&mut dyn Read, &Array)>,
-    f: &mut dyn FnMut(&[DVec3], &[[u8; 4]]),
+    f: &mut ChunkFn,
 ) -> Result<(), String> {
     let short = |e: std::io::Error, array: &Array| format!("{}: {e} (the file changed or ends early)", array.name());
     let mut bytes = vec![0u8; CHUNK * 3 * layout.dtype.width()];
