@@ -49,6 +49,11 @@ impl PointCloud {
         Ok(PointCloud { store: Store::Memory { points, colours }, bounds: Aabb { min, max }, count })
     }
 
+    /// A cloud streamed from the arrays an `.npy` or `.npz` opened as (with the box and count of the first pass).
+    fn streamed((arrays, bounds, count): (Arrays, Aabb, u64)) -> PointCloud {
+        PointCloud { store: Store::Arrays(arrays), bounds, count }
+    }
+
     /// How many points.
     pub fn len(&self) -> u64 {
         self.count
@@ -119,8 +124,8 @@ pub(super) fn decoded(points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<Mesh,
 /// triangle limit does not bound it, since its points are never held; an explicit `--max-file-size` bounds
 /// what its arrays may inflate to.
 pub(super) fn open_file(path: &Path, format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    let (arrays, bounds, count) = Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?;
-    Ok(Mesh::of_cloud("", PointCloud { store: Store::Arrays(arrays), bounds, count }))
+    let opened = Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?;
+    Ok(Mesh::of_cloud("", PointCloud::streamed(opened)))
 }
 
 /// The points of an `.npz` (by its extension) or else `.npy` file on disk that a program asks about (`meshvox query`'s points), under the
@@ -156,8 +161,7 @@ pub(super) fn load(path: &Path, bytes: &[u8], format: CloudFormat, limits: &Load
         }
         CloudFormat::Npy | CloudFormat::Npz => {
             let npz = format == CloudFormat::Npz;
-            let (arrays, bounds, count) = Arrays::open_bytes(path, bytes, npz, limits.max_file_bytes)?;
-            PointCloud { store: Store::Arrays(arrays), bounds, count }
+            PointCloud::streamed(Arrays::open_bytes(path, bytes, npz, limits.max_file_bytes)?)
         }
     };
     Ok(Mesh::of_cloud("", cloud))

@@ -1,8 +1,7 @@
-//! Reading NumPy `.npy` arrays: the header (dtype and shape), and `(N, 3)` float arrays of points with their
-//! optional `(N, 3|4)` colours, for point clouds given as `.npy`/`.npz` ([`super::cloud`]) and for `meshvox
-//! query`'s points. The writers are the voxel formats' (`voxel::formats::npy`), which reuse [`read_header`].
+//! Reading NumPy `.npy` headers (dtype and shape), for point clouds given as `.npy`/`.npz` and `meshvox query`'s
+//! points (their data is streamed by `cloud_arrays.rs`). The writers are the voxel formats'
+//! (`voxel::formats::npy`), which reuse [`read_header`].
 
-use glam::DVec3;
 use std::io::Read;
 
 const MAGIC: &[u8] = b"\x93NUMPY";
@@ -77,72 +76,6 @@ pub fn read_header_sized<R: Read + ?Sized>(input: &mut R) -> Result<(NpyHeader, 
     }
     let descr = descr.trim_matches(|c| c == '\'' || c == '"').to_string();
     Ok((NpyHeader { descr, shape: dims }, (before + len) as u64))
-}
-
-/// The array's data after its header: exactly `count` values of `width` bytes, read as they come (the header's
-/// count is not trusted for the allocation).
-fn read_values(input: &mut impl Read, count: u64, width: u64) -> Result<Vec<u8>, NpyError> {
-    let bytes = count.checked_mul(width).ok_or_else(|| invalid(format!("{count} values")))?;
-    let mut data = Vec::new();
-    input.take(bytes).read_to_end(&mut data)?;
-    if (data.len() as u64) < bytes {
-        return Err(invalid(format!("the file ends after {} of its {count} values", data.len() as u64 / width)));
-    }
-    Ok(data)
-}
-
-/// Reads `(N, 3)` points from an `.npy` of dtype `<f4` or `<f8`, C order.
-pub fn read_points(input: &mut impl Read) -> Result<Vec<DVec3>, NpyError> {
-    let (descr, shape) = read_header(input)?;
-    let n = match shape[..] {
-        [n, 3] => n,
-        _ => return Err(invalid(format!("points must have shape (N, 3), not {shape:?}"))),
-    };
-    let width = match descr.as_str() {
-        "<f4" => 4,
-        "<f8" => 8,
-        _ => return Err(invalid(format!("points must be float32 or float64 (little-endian), not '{descr}'"))),
-    };
-    let data = read_values(input, 3 * n, width)?;
-    let value = |c: &[u8]| match width {
-        4 => f64::from(f32::from_le_bytes([c[0], c[1], c[2], c[3]])),
-        _ => f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]),
-    };
-    let w = width as usize;
-    Ok(data.chunks_exact(3 * w).map(|p| DVec3::new(value(&p[..w]), value(&p[w..]), value(&p[2 * w..]))).collect())
-}
-
-/// Reads `(N, 3)` or `(N, 4)` colours: `uint8` as sRGB bytes, or `float32`/`float64` in 0..1 (Open3D's
-/// convention), each made an sRGB RGBA byte quadruple (alpha 255 where there is none).
-pub fn read_colours(input: &mut impl Read) -> Result<Vec<[u8; 4]>, NpyError> {
-    let (descr, shape) = read_header(input)?;
-    let (n, k) = match shape[..] {
-        [n, k @ (3 | 4)] => (n, k as usize),
-        _ => return Err(invalid(format!("colours must have shape (N, 3) or (N, 4), not {shape:?}"))),
-    };
-    let width: u64 = match descr.as_str() {
-        "|u1" | "<u1" | "u1" => 1,
-        "<f4" => 4,
-        "<f8" => 8,
-        _ => return Err(invalid(format!("colours must be uint8, float32 or float64, not '{descr}'"))),
-    };
-    let data = read_values(input, n * k as u64, width)?;
-    let w = width as usize;
-    let byte = |c: &[u8]| match w {
-        1 => c[0],
-        4 => unit_byte(f64::from(f32::from_le_bytes([c[0], c[1], c[2], c[3]]))),
-        _ => unit_byte(f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]])),
-    };
-    Ok(data
-        .chunks_exact(k * w)
-        .map(|c| {
-            let mut rgba = [255u8; 4];
-            for (i, v) in c.chunks_exact(w).enumerate() {
-                rgba[i] = byte(v);
-            }
-            rgba
-        })
-        .collect())
 }
 
 /// A colour channel in 0..1 as a byte, rounded (clamped; NaN is 0).

@@ -1,24 +1,14 @@
-//! Points in and answers out for `meshvox query` and `meshvox sample`: an `.npy` of float32 or float64 `(N, 3)`
-//! world points, and the `.npz` of the answers or samples (docs/training.md), arrays named as the Python
-//! package's fields.
+//! Answers out for `meshvox query` and `meshvox sample`: the `.npz` of the answers or samples
+//! (docs/training.md), arrays named as the Python package's fields. (The points in are read as a point cloud's
+//! arrays are, `mesh::cloud::read_points_file`.)
 
-use super::error::{FormatError, invalid};
+use super::error::FormatError;
 use super::npy::write_npy_header;
-use crate::mesh::npy::NpyError;
 use crate::voxel::query::Answers;
 use crate::voxel::sample::Samples;
-use glam::DVec3;
-use std::io::{Read, Seek, Write};
+use std::io::{Seek, Write};
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
-
-/// Reads `(N, 3)` points from an `.npy` of dtype `<f4` or `<f8`, C order (the mesh layer's reader).
-pub fn read_points_npy(input: &mut impl Read) -> Result<Vec<DVec3>, FormatError> {
-    crate::mesh::npy::read_points(input).map_err(|e| match e {
-        NpyError::Io(e) => FormatError::Io(e),
-        NpyError::Invalid(message) => invalid("npy", message),
-    })
-}
 
 /// One array of an `.npz`: its name (without `.npy`), numpy's descr, its shape as a Python tuple, its bytes.
 pub type NpzArray = (&'static str, &'static str, String, Vec<u8>);
