@@ -18,7 +18,7 @@ use std::path::Path;
 pub use super::cloud_arrays::CHUNK;
 
 /// Points in world space with their sRGB colours (one per point) or none: decoded in memory (text, PLY, a
-/// program's arrays) or streamed from an `.npy`/`.npz` file on every pass ([`super::cloud_arrays`]), never held
+/// program's arrays) or streamed from an `.npy`/`.npz` file on every pass (`cloud_arrays.rs`), never held
 /// whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
 /// known from the start.
 #[derive(Clone, Debug, PartialEq)]
