@@ -1,7 +1,8 @@
 //! `.npy` and `.npz` point clouds from memory (the first byte picks which), read as they are streamed: headers
 //! checked, the first pass over the points, then a second pass as the voxelizer makes it. An error or a cloud,
 //! never a panic, a hang or an allocation the file's own size does not bound; a cloud's passes agree with its
-//! count and box, and colours come one per point or not at all.
+//! count and box (a colours member, first read by the second pass, may fail it with an error), and colours come
+//! one per point or not at all.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -23,6 +24,8 @@ fuzz_target!(|data: &[u8]| {
         }
         count += points.len() as u64;
     });
-    assert!(pass.is_ok(), "a second pass over bytes in memory cannot fail: {pass:?}");
-    assert_eq!(count, cloud.len());
+    // The colours member is first read on this pass: a corrupt one (a bad CRC) is an error here, not a panic.
+    if pass.is_ok() {
+        assert_eq!(count, cloud.len());
+    }
 });
