@@ -179,6 +179,12 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let offscreen = Offscreen::new(&gpu);
     let scene = offscreen.renderer.voxel_scene(&gpu.device, grid, result.instances, colours, showing, Some(&mesh));
     let count = scene.voxels.count;
+    // Fault injection for the test of the check below: the draw gets an empty list while `count` voxels are
+    // reported (tests/it/render_snapshots.rs).
+    let mut scene = scene;
+    if std::env::var_os("MESHVOX_TEST_DRAW_NOTHING").is_some() {
+        scene.voxels.count = 0;
+    }
     let (lo, hi) = scene.bounds();
     let up = args.up.unwrap_or_else(|| mesh.guess_up());
     let mut camera = OrbitCamera::framing(lo, hi, args.yaw, args.pitch).with_up(up);
@@ -188,6 +194,13 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let style = Style { show_mesh: args.show_mesh, ao: showing.ao, floor: args.floor, ..Default::default() };
     let (w, h) = args.size;
     let image = offscreen.render(&gpu, &scene, &camera, &style, w, h)?;
+    meshvox::render::check_picture(&image, count, &gpu.summary).map_err(|e| {
+        anyhow!(
+            "{e}; {} not written. Try another adapter (WGPU_BACKEND=vulkan, or WGPU_ADAPTER_NAME=NAME), or install \
+             its Vulkan driver (Debian: apt install mesa-vulkan-drivers)",
+            args.output.display()
+        )
+    })?;
     write_atomically(temp, &args.output, |out| {
         image.write_to(out, image::ImageFormat::Png).map_err(|e| anyhow!("{e}"))?;
         Ok(())

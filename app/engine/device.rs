@@ -194,7 +194,8 @@ impl std::ops::Deref for OnGpu {
 }
 
 fn software_reason(software: &AdapterSummary) -> String {
-    format!("auto: the only adapter, {}, is software", software.name)
+    // The API too (Vulkan, Gl, ...): the same software renderer comes behind both on Mesa.
+    format!("auto: the only adapter, {} ({}), is software", software.name, software.backend)
 }
 
 fn no_compute_reason() -> String {

@@ -104,6 +104,8 @@ pub enum GpuError {
          MESHVOX_GPU_TIMEOUT sets the limit in seconds)"
     )]
     Timeout(f64),
+    #[error("{voxels} voxels were drawn on {adapter}, but the picture read back shows {what}")]
+    BlankPicture { voxels: u32, adapter: String, what: String },
     #[error(transparent)]
     Grid(#[from] crate::voxel::GridError),
 }

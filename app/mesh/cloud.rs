@@ -1,7 +1,8 @@
 //! Point clouds as input: lidar and scan users voxelize points, not triangles. A [`PointCloud`] is world points
-//! in f64 with optional sRGB colours; it comes from a PLY without faces (`ply.rs`), `.xyz`/`.pts` text or a
-//! program's arrays ([`from_points`]), held in memory, or from an `.npy` of `(N, 3)` floats or an `.npz` holding
-//! one, streamed from the file on every pass (`cloud_arrays.rs`). A mesh made of points has no triangles; the
+//! in f64 with optional sRGB colours; it comes from an ASCII PLY without faces (`ply.rs`), `.xyz`/`.pts` text or
+//! a program's arrays ([`from_points`]), held in memory, or from an `.npy` of `(N, 3)` floats, an `.npz` holding
+//! one (`cloud_arrays.rs`) or a binary PLY without faces on disk (`cloud_ply.rs`), streamed from the file on every
+//! pass. A mesh made of points has no triangles; the
 //! voxel layer sets each point's voxel (`voxel::points`), chunk by chunk.
 //!
 //! Text files: one point per line, numbers separated by spaces, tabs, commas or semicolons; empty lines and lines
@@ -11,15 +12,16 @@
 //! other count, `x y z` and the rest ignored.
 
 use super::cloud_arrays::Arrays;
+use super::cloud_ply::PlyPoints;
 use super::{Aabb, LoadLimits, Mesh, MeshError};
 use glam::DVec3;
 use std::path::Path;
 
 pub use super::cloud_arrays::CHUNK;
 
-/// Points in world space with their sRGB colours (one per point) or none: decoded in memory (text, PLY, a
-/// program's arrays) or streamed from an `.npy`/`.npz` file on every pass (`cloud_arrays.rs`), never held
-/// whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
+/// Points in world space with their sRGB colours (one per point) or none: decoded in memory (text, ASCII PLY, a
+/// program's arrays, uploads) or streamed from an `.npy`/`.npz` file or a binary PLY on disk on every pass
+/// (`cloud_arrays.rs`, `cloud_ply.rs`), never held whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
 /// known from the start.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointCloud {
@@ -32,6 +34,7 @@ pub struct PointCloud {
 enum Store {
     Memory { points: Vec<DVec3>, colours: Vec<[u8; 4]> },
     Arrays(Arrays),
+    Ply(PlyPoints),
 }
 
 impl PointCloud {
@@ -54,6 +57,11 @@ impl PointCloud {
         PointCloud { store: Store::Arrays(arrays), bounds, count }
     }
 
+    /// A cloud streamed from a binary PLY's vertex records (with the box and count of the first pass).
+    fn streamed_ply((ply, bounds, count): (PlyPoints, Aabb, u64)) -> PointCloud {
+        PointCloud { store: Store::Ply(ply), bounds, count }
+    }
+
     /// How many points.
     pub fn len(&self) -> u64 {
         self.count
@@ -73,12 +81,13 @@ impl PointCloud {
         match &self.store {
             Store::Memory { colours, .. } => !colours.is_empty(),
             Store::Arrays(arrays) => arrays.has_colours(),
+            Store::Ply(ply) => ply.has_colours(),
         }
     }
 
     /// Whether the points are read from their file on each pass rather than held in memory.
     pub fn is_streamed(&self) -> bool {
-        matches!(self.store, Store::Arrays(_))
+        !matches!(self.store, Store::Memory { .. })
     }
 
     /// One pass over the points in chunks of at most [`CHUNK`], each with its points' sRGB colours when `colours`
@@ -94,6 +103,7 @@ impl PointCloud {
                 Ok(())
             }
             Store::Arrays(arrays) => arrays.for_each_chunk(colours, &mut f),
+            Store::Ply(ply) => ply.for_each_chunk(colours, &mut f),
         }
     }
 }
@@ -126,6 +136,13 @@ pub(super) fn decoded(points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<Mesh,
 pub(super) fn open_file(path: &Path, format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let opened = Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?;
     Ok(Mesh::of_cloud("", PointCloud::streamed(opened)))
+}
+
+/// A binary PLY cloud on disk, streamed (see [`super::cloud_ply`]), or `None` when the PLY is not one (it has
+/// faces, is ASCII, or has list properties in or before its vertices) and is decoded in memory instead.
+pub(super) fn open_ply_file(path: &Path, limits: &LoadLimits) -> Result<Option<Mesh>, MeshError> {
+    let opened = super::cloud_ply::open_file(path, limits.max_file_bytes)?;
+    Ok(opened.map(|opened| Mesh::of_cloud("", PointCloud::streamed_ply(opened))))
 }
 
 /// The points of an `.npz` (by its extension) or else `.npy` file on disk that a program asks about (`meshvox query`'s points), under the

@@ -7,8 +7,8 @@ use crate::voxel::colour::VoxelColours;
 use wgpu::util::DeviceExt;
 
 /// Whether `device` has WebGL2's limits (`wgpu::Limits::downlevel_webgl2_defaults`), the only ones without
-/// storage buffers: its vertex shaders then get the voxels as per-instance vertex attributes, and its textures
-/// cannot be viewed in another format, so offscreen targets are not sRGB and the shader encodes.
+/// storage buffers: its vertex shaders then get the voxels as per-instance vertex attributes. (Its offscreen
+/// targets are not sRGB, as on every GL backend: see [`super::target_format`].)
 pub fn is_webgl2(device: &wgpu::Device) -> bool {
     device.limits().max_storage_buffers_per_shader_stage == 0
 }

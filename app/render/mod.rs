@@ -21,4 +21,4 @@ pub use cut::Cut;
 pub use floor::Floor;
 pub use instances::{ambient_occlusion, coloured_instances, instances_from_grid, is_webgl2, occlusion_buffer};
 pub use scene::Showing;
-pub use target::{Offscreen, RenderTarget, TARGET_FORMAT, TARGET_SAMPLES, target_format};
+pub use target::{Offscreen, RenderTarget, TARGET_FORMAT, TARGET_SAMPLES, check_picture, target_format};

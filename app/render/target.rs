@@ -3,8 +3,7 @@
 
 use super::camera::OrbitCamera;
 use super::cubes::{CubeRenderer, DEPTH_FORMAT, Scene, Style};
-use super::instances::is_webgl2;
-use crate::gpu::{Gpu, GpuError};
+use crate::gpu::{AdapterSummary, Gpu, GpuError};
 
 /// Format of offscreen targets: sRGB, so the hardware encodes and egui can show it as a texture.
 pub const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -183,7 +182,8 @@ impl Offscreen {
         Offscreen { renderer: CubeRenderer::new(&gpu.device, target_format(&gpu.device), TARGET_SAMPLES) }
     }
 
-    /// Renders `scene` from `camera` into a `width` × `height` RGBA image.
+    /// Renders `scene` from `camera` into a `width` × `height` RGBA image (see [`check_picture`] for the check
+    /// a caller makes before it shows or writes it).
     #[cfg(not(target_arch = "wasm32"))]
     pub fn render(
         &self,
@@ -200,10 +200,29 @@ impl Offscreen {
     }
 }
 
-/// The format of offscreen targets on `device`: [`TARGET_FORMAT`], or plain Rgba8Unorm on WebGL2 (see
-/// [`is_webgl2`]).
+/// The format of offscreen targets on `device`: [`TARGET_FORMAT`], or plain Rgba8Unorm (the shader encodes) on
+/// wgpu's GL backend, native GL as well as WebGL2. There a texture cannot be viewed in another format: an sRGB
+/// target created with an Rgba8Unorm view format (the viewer's [`RenderTarget::gamma_view`]) reads back as all
+/// zeros on Mesa's llvmpipe, clear colour included (issue 65), and WebGL2 has no view formats at all.
 pub fn target_format(device: &wgpu::Device) -> wgpu::TextureFormat {
-    if is_webgl2(device) { wgpu::TextureFormat::Rgba8Unorm } else { TARGET_FORMAT }
+    if device.adapter_info().backend == wgpu::Backend::Gl { wgpu::TextureFormat::Rgba8Unorm } else { TARGET_FORMAT }
+}
+
+/// Checks a picture read back after drawing `voxels` voxels: one in which every pixel is the same (the clear
+/// colour, or nothing at all) shows none of them, which is a fault of the adapter's drawing or readback, never
+/// a picture to hand to the user.
+pub fn check_picture(image: &image::RgbaImage, voxels: u32, adapter: &AdapterSummary) -> Result<(), GpuError> {
+    let first = image.pixels().next().copied();
+    let uniform = first.is_none_or(|first| image.pixels().all(|p| *p == first));
+    if voxels > 0 && uniform {
+        let what = match first {
+            Some(p) if p[3] == 0 => "nothing at all (every pixel transparent)".to_string(),
+            Some(p) => format!("every pixel #{:02x}{:02x}{:02x}", p[0], p[1], p[2]),
+            None => "no pixel".to_string(),
+        };
+        return Err(GpuError::BlankPicture { voxels, adapter: adapter.to_string(), what });
+    }
+    Ok(())
 }
 
 /// The sRGB transfer function (the shader's `encode`), for clear colours of targets that are not sRGB.

@@ -37,9 +37,16 @@ impl ViewerApp {
         let Some(view) = &self.view else { return };
         let name = format!("{}-{}.png", self.file_stem(), self.resolution);
         let pixels = view.target.read_later(&self.gpu);
+        // A picture that shows none of the voxels drawn is a fault of the adapter, told in the panel, not saved.
+        let voxels = self.scene.as_ref().map_or(0, |s| s.voxels.count);
+        let summary = self.gpu.summary.clone();
+        let checked = move |image: image::RgbaImage| {
+            crate::render::check_picture(&image, voxels, &summary).map_err(|e| e.to_string())?;
+            png_bytes(&image)
+        };
         #[cfg(not(target_arch = "wasm32"))]
         {
-            let png = match pollster::block_on(pixels).map_err(|e| e.to_string()).and_then(|image| png_bytes(&image)) {
+            let png = match pollster::block_on(pixels).map_err(|e| e.to_string()).and_then(checked) {
                 Ok(png) => png,
                 Err(e) => return self.fail(format!("screenshot: {e}")),
             };
@@ -52,7 +59,7 @@ impl ViewerApp {
         }
         #[cfg(target_arch = "wasm32")]
         wasm_bindgen_futures::spawn_local(async move {
-            let png = pixels.await.map_err(|e| e.to_string()).and_then(|image| png_bytes(&image));
+            let png = pixels.await.map_err(|e| e.to_string()).and_then(checked);
             if let Err(e) = png.and_then(|bytes| web::download(&name, &bytes)) {
                 web::send(web::Command::Failed(format!("screenshot: {e}")));
             }

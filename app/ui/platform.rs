@@ -11,10 +11,13 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
         create.device_descriptor = Arc::new(|adapter| {
             let supported = adapter.limits();
             let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
-            let base = if adapter.get_info().backend == wgpu::Backend::Gl {
-                wgpu::Limits::downlevel_webgl2_defaults()
-            } else {
-                wgpu::Limits::default()
+            // WebGL2 has no storage buffers or compute. Native GL (Mesa's llvmpipe where no Vulkan driver is
+            // installed, GL 4.5) has both, and the voxelizer's passes run there as on Vulkan: it gets what the
+            // adapter offers, as the CLI's device does, instead of WebGL2's floor.
+            let base = match adapter.get_info().backend {
+                wgpu::Backend::Gl if cfg!(target_arch = "wasm32") => wgpu::Limits::downlevel_webgl2_defaults(),
+                wgpu::Backend::Gl => supported.clone(),
+                _ => wgpu::Limits::default(),
             };
             wgpu::DeviceDescriptor {
                 label: Some("meshvox"),

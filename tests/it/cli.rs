@@ -167,8 +167,7 @@ fn gpu_backend_matches_cpu_and_names_the_adapter() {
     if !gpu.status.success() {
         let stderr = String::from_utf8_lossy(&gpu.stderr);
         assert!(stderr.contains("no GPU adapter"), "{stderr}");
-        assert!(std::env::var("CI").map_or(true, |v| v != "true"), "CI=true but the GPU backend failed: {stderr}");
-        eprintln!("\n*** SKIPPED GPU CLI test: {stderr} ***\n");
+        crate::common::skip("GPU CLI test", &stderr);
         return;
     }
     let (g, c) = (stats(&gpu), stats(&run("cpu")));
@@ -186,8 +185,7 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
     let args = |b| ["voxelize", "builtin:knot", "-r", "64", "-o", "k.npy", "--stats-json", "--backend", b];
     let gpu = meshvox(&args("gpu"), dir.path());
     if !gpu.status.success() {
-        assert!(std::env::var("CI").as_deref() != Ok("true"), "CI=true but the GPU backend failed");
-        eprintln!("\n*** SKIPPED: no GPU adapter ***\n");
+        crate::common::skip("auto on a software adapter", &String::from_utf8_lossy(&gpu.stderr));
         return;
     }
     let g = stats(&gpu);
@@ -207,6 +205,10 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
     // The probe's path: a job the cost model would send to the CPU anyway is probed with MESHVOX_AUTO_PROBE=1.
     let auto = stats(&meshvox_env(&args("auto"), dir.path(), &[("MESHVOX_AUTO_PROBE", "1")]));
     let backend = auto["backend"].as_str().unwrap_or_default();
+    // Every report names the API the adapter speaks (issue 65): the same llvmpipe comes behind Vulkan and GL.
+    for b in [backend, g["backend"].as_str().unwrap_or_default()] {
+        assert!(["(Vulkan", "(Gl", "(Metal", "(Dx12"].iter().any(|api| b.contains(api)), "no API named: {b}");
+    }
     if software {
         assert!(backend.starts_with("cpu (") && backend.contains("is software"), "{backend}");
         // No device, so no pipelines: the set-up is the adapter enumeration only.
@@ -363,8 +365,8 @@ fn the_gpu_watchdog_gives_up_and_auto_falls_back_to_the_cpu() {
     let hung = [("MESHVOX_GPU_TIMEOUT", "0")];
     let out = meshvox_env(&args("gpu"), dir.path(), &hung);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    if stderr.contains("no GPU adapter") && std::env::var("CI").as_deref() != Ok("true") {
-        eprintln!("\n*** SKIPPED: no GPU adapter ***\n");
+    if stderr.contains("no GPU adapter") {
+        crate::common::skip("GPU watchdog test", &stderr);
         return;
     }
     assert_eq!(out.status.code(), Some(1), "{stderr}");

@@ -1,6 +1,6 @@
-//! Helpers shared by the integration tests: where the shared test meshes are, a small seeded PRNG, and an
-//! independent brute-force voxelizer (13-axis separating-axis test in exact integer arithmetic on the lattice
-//! coordinates) to check the fast one against. The fuzz targets include this file too (tests/fuzz), so it uses no
+//! Helpers shared by the integration tests: where the shared test meshes are, skips told and recorded, a small
+//! seeded PRNG, and an independent brute-force voxelizer (13-axis separating-axis test in exact integer
+//! arithmetic on the lattice coordinates) to check the fast one against. The fuzz targets include this file too (tests/fuzz), so it uses no
 //! dev-dependency they lack.
 #![allow(dead_code)]
 
@@ -14,17 +14,38 @@ pub fn shared_meshes() -> Option<PathBuf> {
     required(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"), "the real-mesh tests", "")
 }
 
-/// `path` if it exists; otherwise `None` with a loud message that `what` did not run (and how to get it), or,
-/// under `CI=true`, a failure.
+/// `path` if it exists; otherwise `None` with a loud, recorded skip that `what` did not run (and how to get it),
+/// or, under CI, a failure.
 pub fn required(path: PathBuf, what: &str, how: &str) -> Option<PathBuf> {
     if path.exists() {
         return Some(path);
     }
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("CI=true but {} is missing: {what} cannot run{how}", path.display());
-    }
-    eprintln!("\n*** SKIPPED: {} not found; {what} did not run{how} ***\n", path.display());
+    skip(what, &format!("{} not found{how}", path.display()));
     None
+}
+
+/// Whether `CI` is set to a true value (`true`, `1` or `yes`, in any case), as CI systems set it: then whatever a
+/// test needs is installed, and a missing tool, mesh or adapter is a failure, not a skip.
+pub fn under_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| matches!(v.trim().to_ascii_lowercase().as_str(), "true" | "1" | "yes"))
+}
+
+/// Where skips are recorded, one line each: tests/run.sh empties it before the tests and prints it after them
+/// (and fails when it installed the tools itself and something still skipped).
+pub const SKIP_LOG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/target/test-skips.txt");
+
+/// `what` cannot run here (`why`): under CI a failure; otherwise a loud line on stderr, which `cargo test` hides
+/// in passing tests, and a line in [`SKIP_LOG`], which tests/run.sh shows.
+pub fn skip(what: &str, why: &str) {
+    if under_ci() {
+        panic!("CI is set, but {what} cannot run: {why}");
+    }
+    eprintln!("\n*** SKIPPED {what}: {why} ***\n");
+    let line = format!("cargo test: {what}: {}\n", why.lines().next().unwrap_or_default());
+    let log = std::fs::OpenOptions::new().create(true).append(true).open(SKIP_LOG);
+    if let Err(e) = log.and_then(|mut f| std::io::Write::write_all(&mut f, line.as_bytes())) {
+        eprintln!("(the skip could not be recorded in {SKIP_LOG}: {e})");
+    }
 }
 
 /// SplitMix64: a tiny deterministic generator, so the random meshes are the same on every run.
@@ -332,4 +353,66 @@ pub fn hard_cases() -> Vec<(&'static str, Vec<[Vec3; 3]>, UVec3)> {
         ("single voxel", vec![[Vec3::ZERO, Vec3::X, Vec3::Y]], UVec3::ONE),
         ("wide rows", vec![[v(0.25, 0.5, 1.0), v(70.0, 2.5, 2.0), v(3.0, 3.75, 0.5)]], UVec3::new(72, 4, 3)),
     ]
+}
+
+/// Whether the triangle (doubled lattice units, as [`sat_overlaps`] takes it) is in the voxel with minimum
+/// corner `p` under Schwarz & Seidel 2010's 6-separating rule (§3.2), in exact integer arithmetic, written from
+/// the paper: the voxel meets the triangle's bounding box; the plane passes within half a voxel of the centre
+/// along the normal's dominant axis, |n·(c − v₀)| ≤ ½·max|nₖ|; and in each of the XY, YZ and ZX projections the
+/// voxel's inscribed diamond (the L1 ball of radius ½ about the projected centre) is inside every edge's half
+/// plane, mₑ·(c − vₑ) + ½·max(|mₑ.a|, |mₑ.b|) ≥ 0, with mₑ the edge's inward normal (oriented by the sign of the
+/// dropped axis's normal component; a projection seen edge-on, sign 0, decides nothing). Ties count as inside.
+pub fn thin_overlaps(t: &[[i64; 3]; 3], p: UVec3, unit: i64) -> bool {
+    let u = unit as i128;
+    let centre = [0, 1, 2].map(|k| 2 * p[k] as i128 * u + u);
+    let in_box = (0..3).all(|k| {
+        let (lo, hi) = (t.iter().map(|v| v[k] as i128).min(), t.iter().map(|v| v[k] as i128).max());
+        lo.zip(hi).is_some_and(|(lo, hi)| lo <= centre[k] + u && hi >= centre[k] - u)
+    });
+    if !in_box {
+        return false;
+    }
+    // Vertices relative to the centre: the half voxel is `unit` in doubled units.
+    let v = t.map(|q| [0, 1, 2].map(|k| q[k] as i128 - centre[k]));
+    let e = [0, 1, 2].map(|i| [0, 1, 2].map(|k| v[(i + 1) % 3][k] - v[i][k]));
+    let n = cross(e[0], e[1]);
+    let plane = -(n[0] * v[0][0] + n[1] * v[0][1] + n[2] * v[0][2]);
+    if plane.abs() > u * n.iter().map(|c| c.abs()).max().unwrap_or(0) {
+        return false;
+    }
+    // (a, b, dropped): XY drops z, YZ drops x, ZX drops y; (a, b) is counter-clockwise seen from +dropped.
+    [(0, 1, 2), (1, 2, 0), (2, 0, 1)].iter().all(|&(a, b, dropped)| {
+        let s = n[dropped].signum();
+        (0..3).all(|i| {
+            let m = [-e[i][b] * s, e[i][a] * s];
+            // The centre is the origin: m·(0 − vᵢ) plus the diamond's reach along m.
+            -(m[0] * v[i][a] + m[1] * v[i][b]) + u * m[0].abs().max(m[1].abs()) >= 0
+        })
+    })
+}
+
+/// Every triangle against the voxels its bounding box meets under [`thin_overlaps`]: the 6-separating surface.
+pub fn thin_brute_force(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
+    let exact = exact_triangles(triangles, spec.dims);
+    let mut grid = VoxelGrid::new(spec).expect("grid");
+    let top = spec.dims.as_dvec3() - 1.0;
+    for (t, d) in exact.snapped.iter().zip(&exact.doubled) {
+        let t = t.map(|v| v.as_dvec3());
+        let (min, max) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+        if max.cmplt(DVec3::ZERO).any() || min.cmpgt(spec.dims.as_dvec3()).any() {
+            continue;
+        }
+        let lo = (min.ceil() - 1.0).clamp(DVec3::ZERO, top).as_uvec3();
+        let hi = max.floor().clamp(DVec3::ZERO, top).as_uvec3();
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    if !grid.get(x, y, z) && thin_overlaps(d, UVec3::new(x, y, z), exact.unit) {
+                        grid.set(x, y, z);
+                    }
+                }
+            }
+        }
+    }
+    grid
 }

@@ -113,42 +113,48 @@ fn vox_is_upright_in_magicavoxel() {
     assert_eq!((data.models[0].size.x, data.models[0].size.y, data.models[0].size.z), (2, 3, 5));
 }
 
-/// Runs the independent Python reader, or returns None (loudly) when python3 with numpy, binvox, trimesh and
-/// Pillow is not available. Under CI=true that is a failure: `.ci/run` installs them.
+/// Runs the independent Python reader (tests/tools/independent.py), or returns None (a recorded skip, a failure
+/// under CI) when python3 with numpy, binvox, trimesh and Pillow is not available.
 pub(crate) fn independent_args(kind: &str, args: &[&str]) -> Option<serde_json::Value> {
     let python = std::env::var("MESHVOX_PYTHON").unwrap_or_else(|_| "python3".into());
     let args = [&[kind], args].concat();
     let what = format!("independent {kind} check");
-    python_tool(&python, "independent.py", &args, &what, "python3 with numpy/binvox/trimesh unavailable")
+    python_tool(&python, "independent.py", &args, &what, &["numpy", "binvox", "trimesh", "PIL"])
 }
 
 fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
     independent_args(kind, &[&path.to_string_lossy()])
 }
 
-/// `tests/tools/SCRIPT ARGS` run with `python`, its stdout parsed as JSON; or `None` where it fails because the
-/// Python modules it needs (`missing`) are not installed, said loudly as a skipped `what`. Under `CI=true`, where
-/// tests/run.sh installs them, a failure.
+/// `tests/tools/SCRIPT ARGS` run with `python`, its stdout parsed as JSON. A missing tool and a checker's verdict
+/// are told apart before the check runs: only an interpreter that is missing or lacks one of `modules` is a skip
+/// of `what` (recorded; a failure under CI). A checker that ran and failed (it could not read what meshvox
+/// wrote, or found it wrong) fails the test, everywhere.
 pub(crate) fn python_tool(
     python: &str,
     script: &str,
     args: &[&str],
     what: &str,
-    missing: &str,
+    modules: &[&str],
 ) -> Option<serde_json::Value> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools").join(script);
-    match std::process::Command::new(python).arg(path).args(args).output() {
-        Ok(o) if o.status.success() => Some(serde_json::from_slice(&o.stdout).expect("json from the tool")),
-        other => {
-            let why = match other {
-                Ok(o) => String::from_utf8_lossy(&o.stderr).into_owned(),
-                Err(e) => e.to_string(),
-            };
-            assert!(!std::env::var("CI").is_ok_and(|v| v == "true"), "{script} failed under CI: {why}");
-            eprintln!("\n*** SKIPPED {what}: {missing}: {why} ***\n");
-            None
+    let probe = std::process::Command::new(python).arg("-c").arg(format!("import {}", modules.join(", "))).output();
+    match probe {
+        Ok(o) if o.status.success() => {}
+        Ok(o) => {
+            let why = String::from_utf8_lossy(&o.stderr);
+            let last = why.lines().last().unwrap_or_default();
+            crate::common::skip(what, &format!("{python} cannot import {}: {last}", modules.join(", ")));
+            return None;
+        }
+        Err(e) => {
+            crate::common::skip(what, &format!("{python}: {e}"));
+            return None;
         }
     }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools").join(script);
+    let o = std::process::Command::new(python).arg(path).args(args).output().expect("the interpreter just ran");
+    assert!(o.status.success(), "{script} {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+    Some(serde_json::from_slice(&o.stdout).unwrap_or_else(|e| panic!("{script} printed no JSON ({e})")))
 }
 
 fn set_coords(g: &VoxelGrid) -> Vec<[u32; 3]> {

@@ -196,6 +196,104 @@ fn npy_and_npz_clouds_stream_the_same_points_as_memory_holds() {
     assert_eq!(a.colours.expect("colours").rgba, b.colours.expect("colours").rgba);
 }
 
+/// A binary PLY of `records` under `header` lines (each record already in the file's byte order).
+fn binary_ply(big: bool, header: &[&str], records: &[u8]) -> Vec<u8> {
+    let order = if big { "binary_big_endian" } else { "binary_little_endian" };
+    let text = format!("ply\nformat {order} 1.0\ncomment made by a test\n{}\nend_header\n", header.join("\n"));
+    let mut bytes = text.into_bytes();
+    bytes.extend_from_slice(records);
+    bytes
+}
+
+/// Binary PLY clouds on disk are streamed (little and big endian, float and double, uchar and float colours, an
+/// element before the vertices, properties the reader skips), and give the points and colours that the in-memory
+/// reader (ply-rs, which an upload goes through) gives for the same bytes; a file cut short is refused at once
+/// with the in-memory reader's words; a PLY with faces is still a mesh.
+#[test]
+fn binary_ply_clouds_stream_the_points_the_in_memory_reader_gives() {
+    let mut rng = crate::common::Rng::new(65);
+    let n = 2 * cloud::CHUNK + 77;
+    let points: Vec<DVec3> =
+        (0..n).map(|_| DVec3::new(rng.unit() * 5.0 - 3e5, rng.unit() * 2.0 + 0.125, rng.unit() * 9.0)).collect();
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, big, double, float_colour) in
+        [("le-f32.ply", false, false, false), ("be-f64.ply", true, true, false), ("le-f64-fc.ply", false, true, true)]
+    {
+        let mut records = Vec::new();
+        for (i, p) in points.iter().enumerate() {
+            // x y z, a skipped intensity (ushort), then red green blue.
+            for v in p.to_array() {
+                match (double, big) {
+                    (true, true) => records.extend_from_slice(&v.to_be_bytes()),
+                    (true, false) => records.extend_from_slice(&v.to_le_bytes()),
+                    (false, true) => records.extend_from_slice(&(v as f32).to_be_bytes()),
+                    (false, false) => records.extend_from_slice(&(v as f32).to_le_bytes()),
+                }
+            }
+            let intensity = (i as u16).wrapping_mul(7);
+            records.extend_from_slice(&if big { intensity.to_be_bytes() } else { intensity.to_le_bytes() });
+            for c in [i % 256, i * 7 % 256, 255 - i % 256] {
+                match float_colour {
+                    true => records.extend_from_slice(&(c as f32 / 255.0).to_le_bytes()),
+                    false => records.push(c as u8),
+                }
+            }
+        }
+        let (coord, colour) = (if double { "double" } else { "float" }, if float_colour { "float" } else { "uchar" });
+        let mut camera = b"\x01\x02\x03\x04\x05\x06\x07\x08".to_vec();
+        camera.extend_from_slice(&records);
+        let header = [
+            "element camera 1".to_string(),
+            "property int view".into(),
+            "property float scale".into(),
+            format!("element vertex {n}"),
+            format!("property {coord} x"),
+            format!("property {coord} y"),
+            format!("property {coord} z"),
+            "property ushort intensity".into(),
+            format!("property {colour} red"),
+            format!("property {colour} green"),
+            format!("property {colour} blue"),
+            "element face 0".into(),
+            "property list uchar int vertex_indices".into(),
+        ];
+        let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        let bytes = binary_ply(big, &header, &camera);
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).expect("write");
+        let streamed = mesh::load_path(&path).expect(name);
+        let held = mesh::load_bytes(name, &bytes).expect(name);
+        let (s, h) = (streamed.points.as_ref().expect("a cloud"), held.points.as_ref().expect("a cloud"));
+        assert!(s.is_streamed() && !h.is_streamed() && s.len() == n as u64 && s.has_colours(), "{name}");
+        let (got, want) = (gathered(s), gathered(h));
+        assert!(got.0 == want.0, "{name}: the streamed points differ from ply-rs's");
+        assert!(got.1 == want.1, "{name}: the streamed colours differ from ply-rs's");
+        assert_eq!((s.bounds().min, s.bounds().max), (h.bounds().min, h.bounds().max), "{name}");
+        // Cut short by one byte: refused on opening, with what the in-memory reader says of it.
+        let short = dir.path().join(format!("short-{name}"));
+        std::fs::write(&short, &bytes[..bytes.len() - 1]).expect("write");
+        let e = mesh::load_path(&short).expect_err("a truncated cloud").to_string();
+        assert!(e.ends_with(&format!("the file ends before its {n} declared entries do (cut short?)")), "{e}");
+    }
+    // ASCII, and a binary PLY with faces: decoded in memory, as before.
+    let ascii = dir.path().join("a.ply");
+    std::fs::write(&ascii, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n").expect("write");
+    assert!(!mesh::load_path(&ascii).expect("ascii").points.expect("a cloud").is_streamed());
+    let tri: Vec<u8> =
+        [0f32, 0., 0., 1., 0., 0., 0., 1., 0.].iter().flat_map(|v| v.to_le_bytes()).chain([3u8, 0, 1, 2]).collect();
+    let faces = [
+        "element vertex 3",
+        "property float x",
+        "property float y",
+        "property float z",
+        "element face 1",
+        "property list uchar uchar vertex_indices",
+    ];
+    std::fs::write(dir.path().join("t.ply"), binary_ply(false, &faces, &tri)).expect("write");
+    let mesh = mesh::load_path(&dir.path().join("t.ply")).expect("a triangle");
+    assert!(mesh.points.is_none() && mesh.triangles.len() == 1);
+}
+
 #[test]
 fn npz_members_are_checked_before_they_are_inflated() {
     let ten = npy("<f4", (10, 3), &[0; 120]);

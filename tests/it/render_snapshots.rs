@@ -11,10 +11,17 @@ use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, voxelize};
 use std::path::PathBuf;
 
 const SIZE: u32 = 256;
-/// A pixel differs when any channel differs by more than this (driver and rounding noise stays below).
-const CHANNEL_TOLERANCE: u8 = 24;
-/// Share of differing pixels tolerated (antialiased edges may move by a pixel between driver versions).
-const PIXEL_FRACTION: f64 = 0.005;
+/// A pixel differs when any channel differs by more than this. The renderer is deterministic on one backend and
+/// adapter (../shared/PLATFORM.md: byte-identical frames across runs), whose name the golden carries: 1 level
+/// leaves room for an sRGB encoding rounded the other way, nothing for a moved edge or a changed shade.
+const CHANNEL_TOLERANCE: u8 = 1;
+/// Pixels that may differ by more than that: none on Vulkan's lavapipe. On GL's llvmpipe a few, because there the
+/// compaction pass's atomic cursor lists the voxels in an order that changes from run to run, and where two
+/// coplanar faces of neighbouring voxels tie in depth the later one drawn wins (seen: 2 pixels of the Duck, by 11
+/// levels). A moved edge or a missing voxel changes hundreds.
+fn allowed_pixels(slug: &str) -> usize {
+    if slug.starts_with("gl-") { 8 } else { 0 }
+}
 
 /// One golden: a mesh at a resolution, in a mode, optionally with the mesh overlaid or cut away.
 pub(crate) struct Case {
@@ -115,7 +122,7 @@ pub(crate) fn check_snapshot(name: &str, image: &image::RgbaImage, slug: &str) {
         }
     }
     let fraction = differing as f64 / (SIZE * SIZE) as f64;
-    if fraction > PIXEL_FRACTION {
+    if differing > allowed_pixels(slug) {
         image.save(&new).expect("write new");
         diff.save(&diff_path).expect("write diff");
         panic!(
@@ -215,8 +222,84 @@ fn renderer_goldens() {
         if let Err(e) = std::panic::catch_unwind(|| check_snapshot(&name, &image, &slug)) {
             failures.push(e.downcast_ref::<String>().cloned().unwrap_or_else(|| format!("{name} failed")));
         }
+        if slug != REFERENCE_SLUG {
+            failures.extend(silhouette_differs(&name, &image));
+        }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The adapter whose goldens the others' silhouettes are compared with.
+const REFERENCE_SLUG: &str = "vulkan-llvmpipe";
+/// Share of pixels whose coverage (voxel or background) may differ from the reference golden's: edges that
+/// land a pixel apart on another rasterizer, never a missing or misplaced voxel (a voxel of the rotated cube at
+/// 30 covers about 0.2% of the frame, its edge pixels a few hundredths of that).
+const SILHOUETTE_FRACTION: f64 = 0.002;
+
+/// Where a picture drawn on another backend covers other pixels than the reference golden of the same case:
+/// the colours may round differently (GL's targets are encoded by the shader), the geometry may not.
+fn silhouette_differs(name: &str, image: &image::RgbaImage) -> Option<String> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/snapshots");
+    let golden = dir.join(format!("{name}.{REFERENCE_SLUG}.png"));
+    let reference = match image::open(&golden) {
+        Ok(r) => r.to_rgba8(),
+        Err(e) => return Some(format!("{name}: no reference golden {}: {e}", golden.display())),
+    };
+    let covered = |img: &image::RgbaImage, x, y| {
+        let (p, bg) = (img.get_pixel(x, y), img.get_pixel(0, 0));
+        p.0[..3].iter().zip(&bg.0[..3]).any(|(a, b)| a.abs_diff(*b) > 30)
+    };
+    let differing = image.enumerate_pixels().filter(|(x, y, _)| covered(image, *x, *y) != covered(&reference, *x, *y));
+    let fraction = differing.count() as f64 / (SIZE * SIZE) as f64;
+    (fraction > SILHOUETTE_FRACTION).then(|| {
+        format!("{name}: {:.2}% of the pixels are covered differently from {}", fraction * 100.0, golden.display())
+    })
+}
+
+/// A picture in which every pixel is the same while voxels were drawn is refused, whatever its colour; one with
+/// any other pixel, or with nothing drawn, passes.
+#[test]
+fn a_uniform_picture_of_drawn_voxels_is_refused() {
+    let adapter = meshvox::gpu::AdapterSummary {
+        name: "llvmpipe".into(),
+        backend: "Gl".into(),
+        device_type: "Cpu".into(),
+        driver: String::new(),
+    };
+    let clear = image::RgbaImage::from_pixel(8, 8, image::Rgba([30, 33, 38, 255]));
+    let empty = image::RgbaImage::new(8, 8);
+    for (picture, shows) in [(&clear, "every pixel #1e2126"), (&empty, "nothing at all (every pixel transparent)")] {
+        let e = meshvox::render::check_picture(picture, 12, &adapter).expect_err("a uniform picture of 12 voxels");
+        assert_eq!(
+            e.to_string(),
+            format!("12 voxels were drawn on llvmpipe (Gl), but the picture read back shows {shows}")
+        );
+        meshvox::render::check_picture(picture, 0, &adapter).expect("nothing drawn, nothing to show");
+    }
+    let mut one = clear.clone();
+    one.put_pixel(7, 7, image::Rgba([31, 33, 38, 255]));
+    meshvox::render::check_picture(&one, 12, &adapter).expect("one pixel differs");
+}
+
+/// `render` whose draw is given an empty list while the report says voxels (a fault injected through
+/// MESHVOX_TEST_DRAW_NOTHING) exits non-zero with a one-line message naming the adapter, and writes no file.
+#[test]
+fn render_fails_on_a_picture_that_shows_none_of_its_voxels() {
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = ["render", "builtin:rotated-cube", "-r", "16", "--size", "64x64", "-o", "cube.png"];
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_meshvox"));
+    let out = cmd.args(args).current_dir(dir.path()).env("MESHVOX_TEST_DRAW_NOTHING", "1").output().expect("run");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "render wrote an empty picture: {stderr}");
+    let line = stderr.lines().last().unwrap_or_default();
+    assert_eq!(stderr.lines().filter(|l| l.starts_with("error")).count(), 1, "one error line expected: {stderr}");
+    let named = format!("voxels were drawn on {}, but the picture read back shows every pixel #", gpu.summary);
+    assert!(line.starts_with("error: ") && line.contains(&named), "{line}");
+    assert!(line.contains("cube.png not written") && line.contains("WGPU_BACKEND"), "{line}");
+    assert!(!dir.path().join("cube.png").exists(), "a picture was written");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
+    assert!(leftovers.is_empty(), "left behind: {leftovers:?}");
 }
 
 /// Draws `mesh` at `resolution`, voxelized and coloured on the CPU (as the WebGL2 page does), on `gpu`.
@@ -249,9 +332,7 @@ fn render_cpu_voxelized(gpu: &Gpu, mesh: &str, resolution: u32) -> image::RgbaIm
 fn the_webgl2_renderer_draws_what_the_storage_renderer_draws() {
     let Some((full, _)) = crate::gpu::gpu() else { return };
     assert!(!meshvox::render::is_webgl2(&full.device));
-    let limits = wgpu::Limits::downlevel_webgl2_defaults();
-    let webgl2 = pollster::block_on(Gpu::from_adapter_with_limits(full.adapter.clone(), limits))
-        .expect("a device with WebGL2's limits");
+    let webgl2 = crate::gpu::device_with_limits(|_| wgpu::Limits::downlevel_webgl2_defaults());
     assert!(meshvox::render::is_webgl2(&webgl2.device) && !webgl2.has_compute());
     let mut meshes = vec![("rotated-cube", "builtin:rotated-cube".to_string(), 30)];
     if let Some(dir) = crate::common::shared_meshes() {

@@ -49,3 +49,30 @@ fn every_shared_mesh_and_builtin() {
         }
     }
 }
+
+/// Every file under `../shared/meshes/gltf/` that a test, the browser test or a benchmark names exists there: a
+/// name that does not is a check that never runs (a binary Box once sat in a list that skipped missing files).
+#[test]
+fn every_shared_gltf_a_test_names_exists() {
+    let Some(shared) = shared_meshes() else { return };
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut named = std::collections::BTreeSet::new();
+    for dir in ["tests/it", "tests/python", "web/tests", "bench"] {
+        for entry in std::fs::read_dir(root.join(dir)).expect("a test folder") {
+            let Ok(text) = std::fs::read_to_string(entry.expect("entry").path()) else { continue };
+            for quote in ['"', '\''] {
+                for (start, _) in text.match_indices(&format!("{quote}gltf/")) {
+                    let rest = &text[start + 1..];
+                    let name = &rest[..rest.find(quote).unwrap_or(rest.len())];
+                    // Patterns (a folder's *.glb) are the harness's, not names of files.
+                    if !name.contains('*') {
+                        named.insert(name.to_string());
+                    }
+                }
+            }
+        }
+    }
+    assert!(named.len() >= 4, "the scan found too few names: {named:?}");
+    let missing: Vec<&String> = named.iter().filter(|n| !shared.join(n).exists()).collect();
+    assert!(missing.is_empty(), "named by tests but not in {}: {missing:?}", shared.display());
+}

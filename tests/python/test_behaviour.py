@@ -1,14 +1,18 @@
 """What users of the package rely on besides the grids: exceptions for bad input, threads in parallel, fork,
 Dask, Ctrl-C, progress."""
 
+import json
 import multiprocessing
 import os
 import signal
+import subprocess
 import threading
 import time
 
 import numpy as np
 import pytest
+
+from conftest import cli_npy, need
 
 import meshvox
 
@@ -76,9 +80,10 @@ def test_a_grid_over_the_memory_budget_is_refused_with_what_fits():
         meshvox.voxelize((CUBE_V, CUBE_F), 60_000, backend="cpu")
 
 
-def test_threads_run_in_parallel_and_give_the_same_grids(meshes):
+def test_threads_run_in_parallel_and_give_the_same_grids(meshes, cli, tmp_path):
     path = meshes / "stanford-bunny.obj"
-    expected = meshvox.voxelize(path, 96, mode="solid", backend="cpu")
+    # The CLI's grid, made in a process of its own: not the call under test run once more.
+    expected = cli_npy(cli, tmp_path, str(path), "-r", "96", "--mode", "solid")
     results = [None] * 4
     inside = []
 
@@ -91,12 +96,19 @@ def test_threads_run_in_parallel_and_give_the_same_grids(meshes):
         t.start()
     for t in threads:
         t.join()
-    assert all(r == expected for r in results)
+    assert all(r.matrix.tobytes() == expected.tobytes() for r in results)
     assert len(set(inside)) == 4
 
 
 def _voxel_count(path):
     return int(meshvox.voxelize(path, 32, backend="cpu").matrix.sum())
+
+
+def _cli_count(cli, path, out):
+    args = [str(cli), "voxelize", path, "-r", "32", "-o", str(out), "--backend", "cpu", "--stats-json"]
+    run = subprocess.run(args, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    return json.loads(run.stdout.splitlines()[-1])["voxels"]
 
 
 def _voxel_count_from_arrays(path):
@@ -105,10 +117,12 @@ def _voxel_count_from_arrays(path):
 
 
 @pytest.mark.skipif(os.name != "posix", reason="fork is POSIX")
-def test_a_forked_pool_voxelizes_after_the_parent_did(meshes):
+def test_a_forked_pool_voxelizes_after_the_parent_did(meshes, cli, tmp_path):
     paths = [str(meshes / n) for n in ["stanford-bunny.obj", "suzanne.obj", "teapot.obj", "spot.obj", "gltf/Duck.glb"]] * 2
+    # The counts the CLI gives, each in a process of its own.
+    expected = [_cli_count(cli, p, tmp_path / "c.npy") for p in paths]
     # The parent has made its thread pool and engine before forking: the children must make their own.
-    expected = [_voxel_count(p) for p in paths]
+    assert [_voxel_count(p) for p in paths[:5]] == expected[:5]
     assert [_voxel_count_from_arrays(p) for p in paths[:5]] == expected[:5]
     with multiprocessing.get_context("fork").Pool(2) as pool:
         counts = pool.map_async(_voxel_count, paths).get(timeout=120)
@@ -117,14 +131,16 @@ def test_a_forked_pool_voxelizes_after_the_parent_did(meshes):
     assert from_arrays == expected
 
 
-def test_dask_maps_voxelize_over_the_meshes(meshes):
-    distributed = pytest.importorskip("dask.distributed")
+def test_dask_maps_voxelize_over_the_meshes(meshes, cli, tmp_path):
+    distributed = need("dask.distributed")
     paths = [str(meshes / n) for n in ["stanford-bunny.obj", "suzanne.obj", "teapot.obj", "spot.obj"]]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         with distributed.Client(cluster) as client:
             futures = client.map(meshvox.voxelize, paths, resolution=40, backend="cpu")
             grids = client.gather(futures, errors="raise")
-    assert grids == [meshvox.voxelize(p, 40, backend="cpu") for p in paths]
+    # Each worker's grid against the CLI's (not against the same call in this process).
+    for grid, path in zip(grids, paths):
+        assert grid.matrix.tobytes() == cli_npy(cli, tmp_path, path, "-r", "40").tobytes(), path
 
 
 def _random_soup(triangles):

@@ -126,15 +126,27 @@ def test_npy_that_declares_more_than_its_file_is_refused_before_reading(cli, tmp
     assert line.count("No such file or directory") == 1, line
 
 
-@pytest.mark.parametrize("suffix", [".npy", ".npz"])
+@pytest.mark.parametrize("suffix", [".npy", ".npz", ".ply"])
 def test_a_cloud_larger_than_max_memory_is_streamed_to_numpys_grid(cli, tmp_path, baseline, suffix):
-    """12 M float32 points (144 MB) under --max-memory 48M: the grid is numpy's floor rule, the peak a chunk's."""
+    """12 M float32 points (144 MB) under --max-memory 48M: the grid is numpy's floor rule, the peak a chunk's.
+    The binary PLY is as scanners write it: x y z float, an intensity, uchar colours."""
     rng = np.random.default_rng(7)
     n = 12_000_000
     points = (rng.normal(0, 1, (n, 3)) * [3.0, 1.0, 0.5] + [1e5, -2e3, 7.0]).astype(np.float32)
     path = tmp_path / f"big{suffix}"
     if suffix == ".npy":
         np.save(path, points)
+    elif suffix == ".ply":
+        header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n"
+                  "property float z\nproperty float intensity\nproperty uchar red\nproperty uchar green\n"
+                  "property uchar blue\nend_header\n")
+        with open(path, "wb") as f:
+            f.write(header.encode())
+            for start in range(0, n, 1_000_000):
+                part = points[start : start + 1_000_000]
+                rows = np.zeros(len(part), dtype=[("p", "<f4", 3), ("i", "<f4"), ("c", "u1", 3)])
+                rows["p"] = part
+                f.write(rows.tobytes())
     else:
         colours = rng.integers(0, 256, (n, 3), dtype=np.uint8)
         np.savez(path, points=points, colors=colours)

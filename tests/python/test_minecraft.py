@@ -9,9 +9,9 @@ import pathlib
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import need, run_cli
 
-nbtlib = pytest.importorskip("nbtlib")
+nbtlib = need("nbtlib")
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -84,7 +84,7 @@ def test_a_coloured_mesh_becomes_the_nearest_blocks_in_oklab(meshes, cli, tmp_pa
 
 def read_litematic(path):
     """(block ids [x, y, z], the palette's ids, the schematic) of a .litematic, by litemapy."""
-    litemapy = pytest.importorskip("litemapy")
+    litemapy = need("litemapy")
     schematic = litemapy.Schematic.load(str(path))
     (region,) = schematic.regions.values()
     assert (region.x, region.y, region.z) == (0, 0, 0)
@@ -249,7 +249,7 @@ def test_block_states_with_properties_in_every_format(meshes, cli, tmp_path):
     assert palette & states, palette  # the Sponge palette's keys are the states, properties and all
     assert palette <= states | {"minecraft:orange_wool", "minecraft:yellow_wool", "minecraft:air"}
     # Litematica and structure files list {Name, Properties}: the same blocks, each with its axis.
-    litemapy = pytest.importorskip("litemapy")
+    litemapy = need("litemapy")
     (region,) = litemapy.Schematic.load(str(tmp_path / "d.litematic")).regions.values()
     for x, y, z in zip(*np.nonzero(names != "minecraft:air")):
         block = region[int(x), int(y), int(z)]

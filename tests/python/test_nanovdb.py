@@ -7,9 +7,9 @@ import struct
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import need, run_cli
 
-wp = pytest.importorskip("warp")
+wp = need("warp")
 wp.config.quiet = True
 
 

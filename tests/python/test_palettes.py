@@ -7,11 +7,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import need, run_cli
 from test_minecraft import default_set, oklab, read_litematic, read_schem
 
-models = pytest.importorskip("voxypy.models")
-Image = pytest.importorskip("PIL.Image")
+models = need("voxypy.models")
+Image = need("PIL.Image")
 
 
 def read_vox(path):

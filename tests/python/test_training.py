@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import meshvox
-from conftest import run_cli
+from conftest import need, run_cli
 
 
 def winding_numbers(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -310,7 +310,7 @@ def test_level_sets_are_watertight_for_trimesh(meshes, cli, tmp_path):
     # A field's level set as a mesh (issue 48): trimesh calls it watertight and consistently wound, with a positive
     # volume, from Python (to_mesh) and from the CLI (each mesh format), on the open bunny and on Spot; a udf shell
     # around the bunny too.
-    trimesh = pytest.importorskip("trimesh")
+    trimesh = need("trimesh")
     for name in ("stanford-bunny.obj", "spot.obj"):
         path = meshes / name
         field = meshvox.voxelize(path, 48, mode="sdf", backend="cpu")
@@ -339,7 +339,7 @@ def test_a_shell_is_the_inside_within_its_thickness_and_its_walls_are_watertight
     # A hollow shell (issue 48), from Python and the CLI: its voxels are those the signed field (computed apart,
     # mode="sdf") puts inside within the thickness, on the open bunny and on Spot; its walls are watertight for
     # trimesh from to_mesh and from save and the CLI; it survives pickling.
-    trimesh = pytest.importorskip("trimesh")
+    trimesh = need("trimesh")
     import pickle
 
     for name, thickness in (("stanford-bunny.obj", 1.0), ("spot.obj", 2.5)):
@@ -372,7 +372,7 @@ def test_a_shell_is_the_inside_within_its_thickness_and_its_walls_are_watertight
 def test_batch_makes_a_watertight_copy_of_a_folder(meshes, cli, tmp_path):
     # `batch --mode sdf --format ply` (issue 48): a folder of open and closed meshes becomes watertight copies at the
     # same paths, each the bytes `voxelize` writes; `--mode shell` gives each mesh's walls the same way.
-    trimesh = pytest.importorskip("trimesh")
+    trimesh = need("trimesh")
     import shutil
 
     source = tmp_path / "in" / "nested"

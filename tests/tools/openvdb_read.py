@@ -1,7 +1,7 @@
 """Reads a .vdb with OpenVDB itself (Debian's python3-openvdb, OpenVDB 10, for the system Python) for meshvox's
 tests, and prints one JSON object: per grid its name, tree type, class, creator, background, active voxel
 count, leaf count, active tiles (origin, edge and value), the active voxels of its leaves (or their count, when
-many), and the world position of a few index points through the grid's transform.
+many) and their distinct values, and the world position of a few index points through the grid's transform.
 
 usage: /usr/bin/python3 openvdb_read.py FILE.vdb [MAX_VOXELS]
 """
@@ -17,6 +17,16 @@ def value(v):
     if isinstance(v, bool):
         return v
     return float(v)
+
+
+def leaf_values(voxels):
+    counts = {}
+    for _, v in voxels:
+        key = json.dumps(v)
+        counts[key] = counts.get(key, 0) + 1
+        if len(counts) > 16:
+            break
+    return [[json.loads(k), n] for k, n in sorted(counts.items())]
 
 
 def grid_info(g, max_voxels):
@@ -40,6 +50,8 @@ def grid_info(g, max_voxels):
         "tiles": tiles,
         "voxel_count": len(voxels),
         "voxels": voxels if len(voxels) <= max_voxels else None,
+        # Listed or not, the distinct values of the leaves' voxels (at most 16) with how many hold each.
+        "leaf_values": leaf_values(voxels),
         "world": [list(g.transform.indexToWorld(p)) for p in probes],
         "voxel_size": list(g.transform.voxelSize()),
     }
