@@ -112,6 +112,14 @@ struct Layout {
     rgb: Option<[Option<Field>; 3]>,
 }
 
+/// An element as the header declares it: its record's width (`None` when a property is a list) and its fields.
+struct Element {
+    name: String,
+    count: u64,
+    width: Option<usize>,
+    fields: Vec<(String, Field)>,
+}
+
 /// Reads the header up to `end_header`: its bytes, or `None` when it is longer than [`MAX_HEADER`] or never ends.
 fn read_header(reader: &mut impl BufRead) -> std::io::Result<Option<Vec<u8>>> {
     let mut header = Vec::new();
@@ -136,21 +144,25 @@ fn layout(header: &[u8]) -> Option<Layout> {
         return None;
     }
     let mut big = None;
-    // (name, count, record width or None for lists, fields by name)
-    let mut elements: Vec<(String, u64, Option<usize>, Vec<(String, Field)>)> = Vec::new();
+    let mut elements: Vec<Element> = Vec::new();
     for line in lines {
         let words: Vec<&str> = line.split_whitespace().collect();
         match words.as_slice() {
             ["format", "binary_little_endian", _] => big = Some(false),
             ["format", "binary_big_endian", _] => big = Some(true),
             ["format", ..] => return None,
-            ["element", name, count] => elements.push((name.to_string(), count.parse().ok()?, Some(0), Vec::new())),
-            ["property", "list", ..] => elements.last_mut()?.2 = None,
+            ["element", name, count] => elements.push(Element {
+                name: name.to_string(),
+                count: count.parse().ok()?,
+                width: Some(0),
+                fields: Vec::new(),
+            }),
+            ["property", "list", ..] => elements.last_mut()?.width = None,
             ["property", kind, name] => {
                 let kind = Scalar::parse(kind)?;
                 let element = elements.last_mut()?;
-                if let Some(width) = &mut element.2 {
-                    element.3.push((name.to_string(), Field { offset: *width, kind }));
+                if let Some(width) = &mut element.width {
+                    element.fields.push((name.to_string(), Field { offset: *width, kind }));
                     *width += kind.width();
                 }
             }
@@ -158,11 +170,11 @@ fn layout(header: &[u8]) -> Option<Layout> {
         }
     }
     let big = big?;
-    if elements.iter().any(|(name, count, ..)| name == "face" && *count > 0) {
+    if elements.iter().any(|e| e.name == "face" && e.count > 0) {
         return None;
     }
     let mut start = header.len() as u64;
-    for (name, count, width, fields) in elements {
+    for Element { name, count, width, fields } in elements {
         let width = width?;
         if name != "vertex" {
             start = start.checked_add(count.checked_mul(width as u64)?)?;

@@ -30,6 +30,10 @@ pub struct Texture {
     pub nearest: bool,
 }
 
+/// The most a texture's decoded RGBA8 may take: the image crate's own limit on a decoder's allocations, checked
+/// first from the header so that the refusal says what the image declares.
+const TEXTURE_BYTES: u64 = 512 << 20;
+
 impl Texture {
     /// Decodes an encoded image (PNG, JPEG or WebP, guessed from its bytes) into RGBA8, within `budget`: the
     /// decoder may allocate no more than what is left of it (and no more than the image crate's default of
@@ -48,6 +52,14 @@ impl Texture {
             return Err("the image is empty".into());
         }
         let texel_bytes = width as u64 * height as u64 * 4;
+        if texel_bytes > TEXTURE_BYTES {
+            let human = crate::memory::human;
+            return Err(format!(
+                "declares {width}x{height} pixels, {} decoded, more than a texture may take ({})",
+                human(texel_bytes),
+                human(TEXTURE_BYTES)
+            ));
+        }
         budget.spend(texel_bytes).map_err(|total| format!("decoded, it {}", budget.over(texel_bytes, total)))?;
         let image = reader().map_err(|e| e.to_string())?.decode().map_err(|e| e.to_string())?.into_rgba8();
         let (width, height) = image.dimensions();

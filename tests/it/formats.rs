@@ -189,6 +189,7 @@ fn npy_and_binvox_read_by_independent_tools() {
         let coords = json_coords(&serde_json::json!({"set": j["set"].clone()}));
         let corners: Vec<[f64; 3]> = serde_json::from_value(j["corners"].clone()).expect("corners");
         let unsorted: Vec<[u32; 3]> = serde_json::from_value(j["set"].clone()).expect("set");
+        assert_eq!(corners.len(), unsorted.len(), "{name}: the reader placed every voxel");
         for (c, w) in unsorted.iter().zip(&corners) {
             let ours = g.spec.origin + UVec3::from_array(*c).as_dvec3() * g.spec.voxel_size;
             assert!((ours - DVec3::from_array(*w)).abs().max_element() < 1e-9, "{name}: {c:?} at {w:?}, ours {ours}");

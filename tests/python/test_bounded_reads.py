@@ -4,13 +4,16 @@ before they are inflated, and files that options name (`--palette`, `--blocks`, 
 the rules mesh files follow: regular files only, sizes checked first. Memory is the kernel's figure for the child
 (its peak resident size, through GNU time), a bound on bytes, not a timer."""
 
+import io
 import json
 import os
 import pathlib
+import struct
 import subprocess
 import sys
 import tempfile
 import zipfile
+import zlib
 
 import numpy as np
 import pytest
@@ -166,6 +169,132 @@ def test_a_cloud_larger_than_max_memory_is_streamed_to_numpys_grid(cli, tmp_path
     want[tuple(index.T)] = True
     got = np.load(out).astype(bool)
     assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def glb(doc: dict, payload: bytes) -> bytes:
+    """A binary glTF of `doc` with `payload` as its buffer."""
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    payload += bytes(-len(payload) % 4)
+    size = 12 + 8 + len(text) + 8 + len(payload)
+    return (b"glTF" + struct.pack("<II", 2, size) + struct.pack("<I", len(text)) + b"JSON" + text
+            + struct.pack("<I", len(payload)) + b"BIN\0" + payload)
+
+
+def one_mesh(doc: dict, primitive: dict) -> dict:
+    return {"asset": {"version": "2.0"}, **doc, "meshes": [{"primitives": [primitive]}], "nodes": [{"mesh": 0}],
+            "scenes": [{"nodes": [0]}], "scene": 0}
+
+
+def meshopt_bomb(count: int) -> bytes:
+    """A meshopt-compressed view whose 64 compressed bytes declare `count` vertices of 12 bytes."""
+    ext = {"buffer": 0, "byteOffset": 0, "byteLength": 64, "byteStride": 12, "count": count, "mode": "ATTRIBUTES"}
+    doc = {"extensionsUsed": ["EXT_meshopt_compression"], "extensionsRequired": ["EXT_meshopt_compression"],
+           "buffers": [{"byteLength": 64},
+                       {"byteLength": count * 12, "extensions": {"EXT_meshopt_compression": {"fallback": True}}}],
+           "bufferViews": [{"buffer": 1, "byteLength": count * 12, "byteStride": 12,
+                            "extensions": {"EXT_meshopt_compression": ext}}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 1]}]}
+    return glb(one_mesh(doc, {"attributes": {"POSITION": 0}}), bytes([0xA0]) + bytes(63))
+
+
+def varint(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        out.append((n & 0x7F) | (0x80 if n > 0x7F else 0))
+        n >>= 7
+        if not n:
+            return bytes(out)
+
+
+def draco_bomb(faces: int) -> bytes:
+    """A Draco mesh stream (sequential, v2.2) whose header declares `faces` faces and three times as many points,
+    in 64 bytes, with accessors that agree."""
+    stream = (b"DRACO" + bytes([2, 2, 1, 0]) + bytes(2) + varint(faces) + varint(3 * faces) + bytes(1)).ljust(64, b"\0")
+    draco = {"bufferView": 0, "attributes": {"POSITION": 0}}
+    doc = {"extensionsUsed": ["KHR_draco_mesh_compression"], "extensionsRequired": ["KHR_draco_mesh_compression"],
+           "buffers": [{"byteLength": 64}], "bufferViews": [{"buffer": 0, "byteLength": 64}],
+           "accessors": [{"componentType": 5126, "count": 3 * faces, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]},
+                         {"componentType": 5125, "count": 3 * faces, "type": "SCALAR"}]}
+    primitive = {"attributes": {"POSITION": 0}, "indices": 1, "extensions": {"KHR_draco_mesh_compression": draco}}
+    return glb(one_mesh(doc, primitive), stream)
+
+
+def huge_images() -> dict[str, tuple[bytes, str]]:
+    """Images of a few hundred bytes whose headers declare gigabytes of pixels: PNG (60000²), JPEG (60000²) and
+    WebP (an extended header's canvas of 16384², its largest: 1 GiB decoded)."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 60000, 60000, 8, 6, 0, 0, 0))
+           + chunk(b"IDAT", zlib.compress(bytes(4096))) + chunk(b"IEND", b""))
+    # A real 8x8 JPEG (Pillow's) whose frame header is made to say 60000x60000.
+    from PIL import Image
+    small = io.BytesIO()
+    Image.new("RGB", (8, 8), (200, 120, 40)).save(small, "JPEG")
+    jpeg = bytearray(small.getvalue())
+    frame = jpeg.index(b"\xff\xc0")
+    jpeg[frame + 5 : frame + 9] = struct.pack(">HH", 60000, 60000)
+    jpeg = bytes(jpeg)
+    canvas = bytes([0x10, 0, 0, 0]) + (16383).to_bytes(3, "little") * 2
+    vp8l = b"\x2f" + (16383 | 16383 << 14).to_bytes(4, "little") + bytes(64)
+    body = b"WEBP" + b"VP8X" + struct.pack("<I", len(canvas)) + canvas + b"VP8L" + struct.pack("<I", len(vp8l)) + vp8l
+    webp = b"RIFF" + struct.pack("<I", len(body)) + body
+    return {"png": (png, "image/png"), "jpeg": (jpeg, "image/jpeg"), "webp": (webp, "image/webp")}
+
+
+def textured_triangle(image: bytes, mime: str) -> bytes:
+    """One triangle whose material's base colour texture is `image`, embedded in the GLB."""
+    geometry = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<6f", 0, 0, 1, 0, 0, 1)
+    doc = {"buffers": [{"byteLength": len(geometry) + len(image) + (-len(image) % 4)}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                           {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+                           {"buffer": 0, "byteOffset": 60, "byteLength": len(image)}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 0]},
+                         {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}],
+           "images": [{"bufferView": 2, "mimeType": mime}], "textures": [{"source": 0}],
+           "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]}
+    primitive = {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "material": 0}
+    if mime == "image/webp":
+        doc["extensionsUsed"] = ["EXT_texture_webp"]
+        doc["textures"] = [{"extensions": {"EXT_texture_webp": {"source": 0}}}]
+    return glb(one_mesh(doc, primitive), geometry + image)
+
+
+def test_compressed_gltf_that_declares_billions_is_refused_in_bounded_memory(cli, tmp_path, baseline):
+    """meshopt and Draco streams of 64 bytes that declare billions of elements (or 90 M, under the triangle limit),
+    refused from their headers before anything is allocated, with the triangle limit raised out of the way."""
+    cases = {
+        "meshopt.glb": (meshopt_bomb(2_000_000_000), "2000000000 elements of 12 bytes cannot come from 64 compressed bytes"),
+        "meshopt-under.glb": (meshopt_bomb(270_000_000), "270000000 elements of 12 bytes cannot come from 64 compressed"),
+        "draco.glb": (draco_bomb(1_000_000_000), "declared 3000000000 symbols, more than the 64 byte stream could carry"),
+        "draco-under.glb": (draco_bomb(30_000_000), "declared 90000000 symbols, more than the 64 byte stream could carry"),
+    }
+    for name, (data, reason) in cases.items():
+        (tmp_path / name).write_bytes(data)
+        line = refused(cli, baseline, tmp_path / name, "--max-triangles", "100000000000")
+        assert name in line and reason in line, line
+    # Under the default triangle limit the billions are refused by the count the accessors declare.
+    line = refused(cli, baseline, tmp_path / "draco.glb")
+    assert "3000000000 triangles is more than the limit" in line or "more than the limit of" in line, line
+
+
+@pytest.mark.parametrize("kind", ["png", "jpeg", "webp"])
+def test_a_texture_that_declares_gigabytes_costs_only_itself(cli, tmp_path, baseline, kind):
+    """A texture whose header declares gigabytes of pixels is not decoded: the mesh is voxelized without it and a
+    warning names it (docs/formats.md: a texture that cannot be read costs its material only the texture), in
+    bounded memory."""
+    image, mime = huge_images()[kind]
+    path = tmp_path / f"{kind}.glb"
+    path.write_bytes(textured_triangle(image, mime))
+    rc, _, err, peak = measured(cli, "voxelize", str(path), "-r", "16", "-o", str(tmp_path / "o.npy"))
+    assert rc == 0, err
+    warnings = [line for line in err.splitlines() if line.startswith("warning: ")]
+    side = 16384 if kind == "webp" else 60000
+    declared = f"images[0]: declares {side}x{side} pixels"
+    assert len(warnings) == 1 and declared in warnings[0] and "more than a texture may take" in warnings[0], err
+    assert peak < baseline + ALLOWANCE, f"{kind}: peak {peak / MiB:.0f} MiB"
 
 
 def device_paths(tmp_path: pathlib.Path) -> list[pathlib.Path]:

@@ -45,7 +45,7 @@ def binvox_file(path):
     data = np.asarray(b.data, dtype=bool)
     coords = np.argwhere(data)
     # binvox-rw semantics: voxel (i, j, k) has its minimum corner at translate + scale * index / dim.
-    corners = [list(b.transform_coord(tuple(c))) for c in coords[:64]]
+    corners = [list(b.transform_coord(tuple(c))) for c in coords]
     with open(path, "rb") as f:
         t = tb.load_binvox(f)
     return {
