@@ -93,22 +93,19 @@ pub struct PlyPoints {
     path: PathBuf,
     /// The header as read when the file was opened: each pass reads it again and compares.
     header: Vec<u8>,
-    start: u64,
-    count: u64,
-    stride: usize,
-    big: bool,
-    xyz: [Field; 3],
-    /// The colour's red, green and blue, when any of them is given (a missing one reads 0, as in `ply.rs`).
-    rgb: Option<[Option<Field>; 3]>,
+    layout: Layout,
 }
 
-/// What the header says, once it is known to describe a streamable cloud.
+/// What the header says, once it is known to describe a streamable cloud: where the vertex records start, how many
+/// there are, their width and byte order, and where x, y, z and the colour are in each.
+#[derive(Clone, Debug, PartialEq)]
 struct Layout {
     start: u64,
     count: u64,
     stride: usize,
     big: bool,
     xyz: [Field; 3],
+    /// The colour's red, green and blue, when any of them is given (a missing one reads 0, as in `ply.rs`).
     rgb: Option<[Option<Field>; 3]>,
 }
 
@@ -207,16 +204,7 @@ pub fn open_file(path: &Path, limit: Option<u64>) -> Result<Option<(PlyPoints, A
             format!("element 'vertex': the file ends before its {} declared entries do (cut short?)", l.count);
         return Err(err(message));
     }
-    let cloud = PlyPoints {
-        path: path.to_path_buf(),
-        header,
-        start: l.start,
-        count: l.count,
-        stride: l.stride,
-        big: l.big,
-        xyz: l.xyz,
-        rgb: l.rgb,
-    };
+    let cloud = PlyPoints { path: path.to_path_buf(), header, layout: l };
     let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
     let (mut index, mut bad) = (0u64, None);
     cloud.for_each_chunk(false, &mut |chunk, _| {
@@ -237,7 +225,7 @@ pub fn open_file(path: &Path, limit: Option<u64>) -> Result<Option<(PlyPoints, A
 
 impl PlyPoints {
     pub fn has_colours(&self) -> bool {
-        self.rgb.is_some()
+        self.layout.rgb.is_some()
     }
 
     /// One pass over the points in chunks of at most [`CHUNK`], with their sRGB colours when `colours` is asked
@@ -249,27 +237,28 @@ impl PlyPoints {
         if read_header(&mut reader).map_err(io)?.as_deref() != Some(&self.header[..]) {
             return Err(err("the file changed since it was opened".into()));
         }
-        reader.seek(SeekFrom::Start(self.start)).map_err(io)?;
-        let rgb = self.rgb.filter(|_| colours);
-        let mut bytes = vec![0u8; CHUNK * self.stride];
+        let l = &self.layout;
+        reader.seek(SeekFrom::Start(l.start)).map_err(io)?;
+        let rgb = l.rgb.filter(|_| colours);
+        let mut bytes = vec![0u8; CHUNK * l.stride];
         let (mut points, mut rgba) = (Vec::with_capacity(CHUNK), Vec::new());
-        let mut left = self.count;
+        let mut left = l.count;
         while left > 0 {
             let n = left.min(CHUNK as u64) as usize;
-            let raw = &mut bytes[..n * self.stride];
+            let raw = &mut bytes[..n * l.stride];
             reader
                 .read_exact(raw)
                 .map_err(|e| err(format!("element 'vertex': {e} (the file changed or ends early)")))?;
-            let value = |record: &[u8], f: Field| f.kind.read(&record[f.offset..], self.big);
+            let value = |record: &[u8], f: Field| f.kind.read(&record[f.offset..], l.big);
             points.clear();
-            points.extend(raw.chunks_exact(self.stride).map(|r| DVec3::from_array(self.xyz.map(|f| value(r, f)))));
+            points.extend(raw.chunks_exact(l.stride).map(|r| DVec3::from_array(l.xyz.map(|f| value(r, f)))));
             rgba.clear();
             if let Some(fields) = rgb {
                 // Integer colours are bytes (0..255), float ones 0..1, as ply.rs reads them.
                 let unit = |r: &[u8], f: Option<Field>| {
                     f.map_or(0, |f| unit_byte(if f.kind.is_float() { value(r, f) } else { value(r, f) / 255.0 }))
                 };
-                rgba.extend(raw.chunks_exact(self.stride).map(|r| {
+                rgba.extend(raw.chunks_exact(l.stride).map(|r| {
                     let [red, green, blue] = fields.map(|f| unit(r, f));
                     [red, green, blue, 255]
                 }));

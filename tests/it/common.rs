@@ -164,6 +164,16 @@ pub fn brute_force_all(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
 /// triangle's bounding box are separated from it along a box axis, the first test of the SAT, so skipping them
 /// does not change the answer.
 pub fn brute_force(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
+    brute_force_by(triangles, spec, sat_overlaps)
+}
+
+/// Every triangle against the voxels its bounding box meets, by `overlaps` (doubled lattice units, a voxel's
+/// minimum corner, the lattice unit).
+fn brute_force_by(
+    triangles: &[[Vec3; 3]],
+    spec: GridSpec,
+    overlaps: fn(&[[i64; 3]; 3], UVec3, i64) -> bool,
+) -> VoxelGrid {
     let exact = exact_triangles(triangles, spec.dims);
     let mut grid = VoxelGrid::new(spec).expect("grid");
     let top = spec.dims.as_dvec3() - 1.0;
@@ -179,7 +189,7 @@ pub fn brute_force(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
-                    if !grid.get(x, y, z) && sat_overlaps(d, UVec3::new(x, y, z), exact.unit) {
+                    if !grid.get(x, y, z) && overlaps(d, UVec3::new(x, y, z), exact.unit) {
                         grid.set(x, y, z);
                     }
                 }
@@ -393,26 +403,5 @@ pub fn thin_overlaps(t: &[[i64; 3]; 3], p: UVec3, unit: i64) -> bool {
 
 /// Every triangle against the voxels its bounding box meets under [`thin_overlaps`]: the 6-separating surface.
 pub fn thin_brute_force(triangles: &[[Vec3; 3]], spec: GridSpec) -> VoxelGrid {
-    let exact = exact_triangles(triangles, spec.dims);
-    let mut grid = VoxelGrid::new(spec).expect("grid");
-    let top = spec.dims.as_dvec3() - 1.0;
-    for (t, d) in exact.snapped.iter().zip(&exact.doubled) {
-        let t = t.map(|v| v.as_dvec3());
-        let (min, max) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-        if max.cmplt(DVec3::ZERO).any() || min.cmpgt(spec.dims.as_dvec3()).any() {
-            continue;
-        }
-        let lo = (min.ceil() - 1.0).clamp(DVec3::ZERO, top).as_uvec3();
-        let hi = max.floor().clamp(DVec3::ZERO, top).as_uvec3();
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    if !grid.get(x, y, z) && thin_overlaps(d, UVec3::new(x, y, z), exact.unit) {
-                        grid.set(x, y, z);
-                    }
-                }
-            }
-        }
-    }
-    grid
+    brute_force_by(triangles, spec, thin_overlaps)
 }
