@@ -1,8 +1,8 @@
 //! Point clouds as input: lidar and scan users voxelize points, not triangles. A [`PointCloud`] is world points
-//! in f64 with optional sRGB colours; it comes from an ASCII PLY without faces (`ply.rs`), `.xyz`/`.pts` text or
-//! a program's arrays ([`from_points`]), held in memory, or from an `.npy` of `(N, 3)` floats, an `.npz` holding
-//! one (`cloud_arrays.rs`) or a binary PLY without faces on disk (`cloud_ply.rs`), streamed from the file on every
-//! pass. A mesh made of points has no triangles; the
+//! in f64 with optional sRGB colours; it comes from an ASCII PLY without faces (`ply.rs`) or a program's arrays
+//! ([`from_points`]), held in memory, or from an `.npy` of `(N, 3)` floats, an `.npz` holding one
+//! (`cloud_arrays.rs`), `.xyz`/`.pts` text (`cloud_text.rs`) or a binary PLY without faces on disk
+//! (`cloud_ply.rs`), streamed from the file on every pass. A mesh made of points has no triangles; the
 //! voxel layer sets each point's voxel (`voxel::points`), chunk by chunk.
 //!
 //! Text files: one point per line, numbers separated by spaces, tabs, commas or semicolons; empty lines and lines
@@ -11,17 +11,18 @@
 //! is an integer from 0 to 255 (else they are taken for normals and ignored); 7 `x y z intensity r g b`; any
 //! other count, `x y z` and the rest ignored.
 
-use super::cloud_arrays::Arrays;
+use super::cloud_arrays::{Arrays, Origin};
 use super::cloud_ply::PlyPoints;
+use super::cloud_text::TextPoints;
 use super::{Aabb, LoadLimits, Mesh, MeshError};
 use glam::DVec3;
 use std::path::Path;
 
 pub use super::cloud_arrays::CHUNK;
 
-/// Points in world space with their sRGB colours (one per point) or none: decoded in memory (text, ASCII PLY, a
-/// program's arrays, uploads) or streamed from an `.npy`/`.npz` file or a binary PLY on disk on every pass
-/// (`cloud_arrays.rs`, `cloud_ply.rs`), never held whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
+/// Points in world space with their sRGB colours (one per point) or none: decoded in memory (ASCII PLY, a
+/// program's arrays) or streamed from an `.npy`/`.npz` file, text or a binary PLY on disk on every pass
+/// (`cloud_arrays.rs`, `cloud_text.rs`, `cloud_ply.rs`), never held whole. Either way the points are visited in chunks ([`PointCloud::for_each_chunk`]); the box and the count are
 /// known from the start.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointCloud {
@@ -35,6 +36,7 @@ enum Store {
     Memory { points: Vec<DVec3>, colours: Vec<[u8; 4]> },
     Arrays(Arrays),
     Ply(PlyPoints),
+    Text(TextPoints),
 }
 
 impl PointCloud {
@@ -62,6 +64,11 @@ impl PointCloud {
         PointCloud { store: Store::Ply(ply), bounds, count }
     }
 
+    /// A cloud streamed from `.xyz`/`.pts` text (with the box and count of the first pass).
+    fn streamed_text((text, bounds, count): (TextPoints, Aabb, u64)) -> PointCloud {
+        PointCloud { store: Store::Text(text), bounds, count }
+    }
+
     /// How many points.
     pub fn len(&self) -> u64 {
         self.count
@@ -82,6 +89,7 @@ impl PointCloud {
             Store::Memory { colours, .. } => !colours.is_empty(),
             Store::Arrays(arrays) => arrays.has_colours(),
             Store::Ply(ply) => ply.has_colours(),
+            Store::Text(text) => text.has_colours(),
         }
     }
 
@@ -104,6 +112,7 @@ impl PointCloud {
             }
             Store::Arrays(arrays) => arrays.for_each_chunk(colours, &mut f),
             Store::Ply(ply) => ply.for_each_chunk(colours, &mut f),
+            Store::Text(text) => text.for_each_chunk(colours, &mut f),
         }
     }
 }
@@ -130,12 +139,21 @@ pub(super) fn decoded(points: Vec<DVec3>, colours: Vec<[u8; 4]>) -> Result<Mesh,
     Ok(Mesh::of_cloud("", PointCloud::in_memory(points, colours)?))
 }
 
-/// An `.npy` or `.npz` point cloud on disk, streamed (never read whole: see [`super::cloud_arrays`]). The
-/// triangle limit does not bound it, since its points are never held; an explicit `--max-file-size` bounds
-/// what its arrays may inflate to.
+/// An `.npy`, `.npz`, `.xyz` or `.pts` point cloud on disk, streamed (never read whole: see `cloud_arrays.rs`
+/// and `cloud_text.rs`). The triangle limit does not bound it, since its points are never held; an explicit
+/// `--max-file-size` bounds the file and what its arrays may inflate to.
 pub(super) fn open_file(path: &Path, format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    let opened = Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?;
-    Ok(Mesh::of_cloud("", PointCloud::streamed(opened)))
+    let cloud = match format {
+        CloudFormat::Text => {
+            let meta = std::fs::metadata(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+            super::files::check_named(path, &meta, limits.max_file_bytes)?;
+            PointCloud::streamed_text(TextPoints::open(path, Origin::Disk(path.to_path_buf()))?)
+        }
+        CloudFormat::Npy | CloudFormat::Npz => {
+            PointCloud::streamed(Arrays::open_file(path, format == CloudFormat::Npz, limits.max_file_bytes)?)
+        }
+    };
+    Ok(Mesh::of_cloud("", cloud))
 }
 
 /// A binary PLY cloud on disk, streamed (see [`super::cloud_ply`]), or `None` when the PLY is not one (it has
@@ -166,74 +184,15 @@ pub fn read_points_file(path: &Path, limits: &LoadLimits) -> Result<Vec<DVec3>, 
     Ok(points)
 }
 
-/// Reads a point cloud file of `format` from memory, checking a text file's point count against the triangle
-/// limit (which bounds points held in memory too).
+/// A point cloud file of `format` held in memory (an upload), decoded a chunk at a time on each pass like a file
+/// on disk.
 pub(super) fn load(path: &Path, bytes: &[u8], format: CloudFormat, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    let err = |message: String| MeshError::Points { path: path.to_path_buf(), message };
     let cloud = match format {
-        CloudFormat::Text => {
-            let (points, colours) = read_text(bytes).map_err(err)?;
-            limits.check_triangles(path, points.len() as u64)?;
-            PointCloud::in_memory(points, colours).map_err(err)?
-        }
+        CloudFormat::Text => PointCloud::streamed_text(TextPoints::open(path, Origin::Memory(bytes.into()))?),
         CloudFormat::Npy | CloudFormat::Npz => {
             let npz = format == CloudFormat::Npz;
             PointCloud::streamed(Arrays::open_bytes(path, bytes, npz, limits.max_file_bytes)?)
         }
     };
     Ok(Mesh::of_cloud("", cloud))
-}
-
-/// Splits a text line into its numbers' text.
-fn fields(line: &str) -> impl Iterator<Item = &str> {
-    line.split(|c: char| c.is_whitespace() || c == ',' || c == ';').filter(|f| !f.is_empty())
-}
-
-/// `.xyz` / `.pts` text (see the module documentation): the points and their colours (or none).
-#[allow(clippy::type_complexity)]
-fn read_text(bytes: &[u8]) -> Result<(Vec<DVec3>, Vec<[u8; 4]>), String> {
-    let text = std::str::from_utf8(bytes).map_err(|e| format!("not UTF-8 text ({e})"))?;
-    let mut rows: Vec<(usize, Vec<f64>)> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') || line.starts_with("//") {
-            continue;
-        }
-        let values: Vec<&str> = fields(line).collect();
-        if rows.is_empty() && values.len() == 1 && values[0].parse::<u64>().is_ok() {
-            continue; // a .pts point count
-        }
-        let numbers = values
-            .iter()
-            .map(|v| v.parse::<f64>().map_err(|_| format!("line {}: '{v}' is not a number", i + 1)))
-            .collect::<Result<Vec<f64>, _>>()?;
-        if numbers.len() < 3 {
-            return Err(format!("line {}: {} numbers, a point needs x y z", i + 1, numbers.len()));
-        }
-        if numbers[..3].iter().any(|v| !v.is_finite()) {
-            return Err(format!("line {}: a coordinate is not finite", i + 1));
-        }
-        rows.push((i + 1, numbers));
-    }
-    let columns = rows.first().map_or(3, |(_, r)| r.len());
-    if let Some((line, r)) = rows.iter().find(|(_, r)| r.len() != columns) {
-        return Err(format!("line {line}: {} numbers where the first point has {columns}", r.len()));
-    }
-    let byte = |v: f64| v.fract() == 0.0 && (0.0..=255.0).contains(&v);
-    let rgb_at = match columns {
-        6 if rows.iter().all(|(_, r)| r[3..6].iter().all(|&v| byte(v))) => Some(3),
-        7 => Some(4),
-        _ => None,
-    };
-    if let Some(at) = rgb_at
-        && let Some((line, _)) = rows.iter().find(|(_, r)| !r[at..at + 3].iter().all(|&v| byte(v)))
-    {
-        return Err(format!("line {line}: colours must be integers from 0 to 255"));
-    }
-    let points = rows.iter().map(|(_, r)| DVec3::new(r[0], r[1], r[2])).collect();
-    let colours = match rgb_at {
-        Some(at) => rows.iter().map(|(_, r)| [r[at] as u8, r[at + 1] as u8, r[at + 2] as u8, 255]).collect(),
-        None => Vec::new(),
-    };
-    Ok((points, colours))
 }

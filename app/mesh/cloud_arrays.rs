@@ -25,13 +25,13 @@ pub type ChunkFn<'a> = dyn FnMut(&[DVec3], &[[u8; 4]]) + 'a;
 
 /// Where the file's bytes are: on disk (read again on each pass) or in memory (a browser upload).
 #[derive(Clone, Debug, PartialEq)]
-enum Origin {
+pub(super) enum Origin {
     Disk(PathBuf),
     Memory(Arc<[u8]>),
 }
 
 /// The bytes of an [`Origin`], opened for one pass.
-enum Source {
+pub(super) enum Source {
     File(BufReader<std::fs::File>),
     Memory(Cursor<Arc<[u8]>>),
 }
@@ -290,7 +290,7 @@ impl Arrays {
 
 /// Opens the bytes for a pass (the regular-file rules were checked when the cloud was opened; a file replaced by
 /// something else since fails its header's check).
-fn open_source(origin: &Origin) -> std::io::Result<Source> {
+pub(super) fn open_source(origin: &Origin) -> std::io::Result<Source> {
     Ok(match origin {
         Origin::Disk(path) => Source::File(BufReader::with_capacity(1 << 20, super::files::open_nonblocking(path)?)),
         Origin::Memory(bytes) => Source::Memory(Cursor::new(bytes.clone())),

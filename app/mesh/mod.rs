@@ -7,6 +7,7 @@ pub mod builtin;
 pub mod cloud;
 mod cloud_arrays;
 mod cloud_ply;
+mod cloud_text;
 mod files;
 pub use files::{SETTING_FILE_LIMIT, read_named, read_setting_file};
 mod gltf_data;
@@ -458,9 +459,9 @@ pub fn load_path(path: &Path) -> Result<Mesh, MeshError> {
 /// checked against `max_file_bytes` before it is read, and the files it refers to must lie inside its folder
 /// or one of `resource_roots` (see `files.rs`).
 pub fn load_path_with(path: &Path, limits: &LoadLimits) -> Result<Mesh, MeshError> {
-    // `.npy` and `.npz` clouds, and binary PLY clouds, are streamed from the file, never read whole.
+    // Point clouds (`.npy`, `.npz`, `.xyz`, `.pts`, binary PLY) are streamed from the file, never read whole.
     match Format::detect(path, &[]) {
-        Some(Format::Points(format @ (CloudFormat::Npy | CloudFormat::Npz))) => {
+        Some(Format::Points(format)) => {
             let mesh = cloud::open_file(path, format, limits)?;
             return Ok(Mesh { name: file_name(path), ..mesh });
         }

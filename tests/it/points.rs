@@ -55,6 +55,26 @@ fn text_clouds_follow_their_column_rules() {
         let e = load(name, text).expect_err(name);
         assert!(e.contains(want) && e.contains(name), "{name}: {e}");
     }
+    // A text cloud on disk of three chunks' lines, streamed: the points and colours of its lines, in order.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let n = 2 * cloud::CHUNK + 3;
+    let mut text = String::from("# exported\n");
+    for i in 0..n {
+        text.push_str(&format!("{}.25 {} -{}.5 {} {} {}\n", i, i % 7, i % 11, i % 256, (i * 3) % 256, 255 - i % 256));
+    }
+    std::fs::write(dir.path().join("big.xyz"), &text).expect("write");
+    let big = mesh::load_path(&dir.path().join("big.xyz")).expect("big.xyz");
+    let c = big.points.as_ref().expect("a cloud");
+    assert!(c.is_streamed() && c.len() == n as u64 && c.has_colours());
+    let (points, colours) = gathered(c);
+    for i in [0, cloud::CHUNK - 1, cloud::CHUNK, n - 1] {
+        assert_eq!(points[i], DVec3::new(i as f64 + 0.25, (i % 7) as f64, -((i % 11) as f64) - 0.5), "point {i}");
+        assert_eq!(colours[i], [(i % 256) as u8, ((i * 3) % 256) as u8, (255 - i % 256) as u8, 255], "colour {i}");
+    }
+    // One endless line is refused at once, with its number.
+    std::fs::write(dir.path().join("long.xyz"), format!("1 2 3\n{}\n", "7 ".repeat(40_000))).expect("write");
+    let e = mesh::load_path(&dir.path().join("long.xyz")).expect_err("a 80 KB line").to_string();
+    assert!(e.ends_with("line 2: longer than 64 KiB, not a point's line"), "{e}");
     assert!(cloud::from_points("p", vec![DVec3::ZERO, DVec3::NAN], Vec::new()).is_err());
     assert!(cloud::from_points("p", vec![DVec3::ZERO], vec![[0; 4]; 2]).is_err());
 }
