@@ -177,11 +177,10 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     };
     let (spec, backend, voxelize_ms) = (grid.spec, &result.report.backend, result.report.voxelize_ms);
     let offscreen = Offscreen::new(&gpu);
-    let scene = offscreen.renderer.voxel_scene(&gpu.device, grid, result.instances, colours, showing, Some(&mesh));
+    let mut scene = offscreen.renderer.voxel_scene(&gpu.device, grid, result.instances, colours, showing, Some(&mesh));
     let count = scene.voxels.count;
     // Fault injection for the test of the check below: the draw gets an empty list while `count` voxels are
     // reported (tests/it/render_snapshots.rs).
-    let mut scene = scene;
     if std::env::var_os("MESHVOX_TEST_DRAW_NOTHING").is_some() {
         scene.voxels.count = 0;
     }

@@ -234,26 +234,14 @@ impl Arrays {
             check_limit(array, limit).map_err(|e| refuse(path, e))?;
         }
         let arrays = Arrays { origin, points, colours };
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        let mut index = 0u64;
-        let mut bad = None;
-        arrays.for_each_chunk(false, &mut |chunk, _| {
-            for p in chunk {
-                if bad.is_none() && !p.is_finite() {
-                    bad = Some(index);
-                }
-                lo = lo.min(*p);
-                hi = hi.max(*p);
-                index += 1;
-            }
-        })?;
-        if let Some(i) = bad {
+        let found = survey(|f| arrays.for_each_chunk(false, f))?;
+        if let Some(i) = found.not_finite {
             return Err(refuse(path, format!("point {i} is not finite")));
         }
-        if index == 0 {
+        if found.count == 0 {
             return Err(refuse(path, "no points".into()));
         }
-        Ok((arrays, Aabb { min: lo, max: hi }, index))
+        Ok((arrays, found.bounds, found.count))
     }
 
     pub fn has_colours(&self) -> bool {
@@ -286,6 +274,29 @@ impl Arrays {
         })
         .map_err(changed)
     }
+}
+
+/// What a streamed cloud's first pass finds: the points' box, their count, and the first that is not finite.
+pub(super) struct Survey {
+    pub bounds: Aabb,
+    pub count: u64,
+    pub not_finite: Option<u64>,
+}
+
+/// Makes a first pass (`pass` hands each chunk to the function it is given) and surveys the points.
+pub(super) fn survey(pass: impl FnOnce(&mut ChunkFn) -> Result<(), MeshError>) -> Result<Survey, MeshError> {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    let (mut count, mut not_finite) = (0u64, None);
+    pass(&mut |chunk, _| {
+        for p in chunk {
+            if not_finite.is_none() && !p.is_finite() {
+                not_finite = Some(count);
+            }
+            (lo, hi) = (lo.min(*p), hi.max(*p));
+            count += 1;
+        }
+    })?;
+    Ok(Survey { bounds: Aabb { min: lo, max: hi }, count, not_finite })
 }
 
 /// Opens the bytes for a pass (the regular-file rules were checked when the cloud was opened; a file replaced by

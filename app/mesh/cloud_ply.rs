@@ -7,7 +7,7 @@
 //! Anything else (ASCII, faces, a list property in or before the vertex element) is not a streamable cloud:
 //! [`open_file`] says so with `None` and the file is decoded in memory by `ply.rs`, as before.
 
-use super::cloud_arrays::{CHUNK, ChunkFn};
+use super::cloud_arrays::{CHUNK, ChunkFn, survey};
 use super::npy::unit_byte;
 use super::{Aabb, MeshError};
 use glam::DVec3;
@@ -205,21 +205,11 @@ pub fn open_file(path: &Path, limit: Option<u64>) -> Result<Option<(PlyPoints, A
         return Err(err(message));
     }
     let cloud = PlyPoints { path: path.to_path_buf(), header, layout: l };
-    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-    let (mut index, mut bad) = (0u64, None);
-    cloud.for_each_chunk(false, &mut |chunk, _| {
-        for p in chunk {
-            if bad.is_none() && !p.is_finite() {
-                bad = Some(index);
-            }
-            (lo, hi) = (lo.min(*p), hi.max(*p));
-            index += 1;
-        }
-    })?;
-    match (bad, index) {
+    let found = survey(|f| cloud.for_each_chunk(false, f))?;
+    match (found.not_finite, found.count) {
         (Some(i), _) => Err(err(format!("vertex {i} has a NaN or infinite coordinate"))),
         (None, 0) => Err(err("no faces and no vertices".into())),
-        (None, n) => Ok(Some((cloud, Aabb { min: lo, max: hi }, n))),
+        (None, n) => Ok(Some((cloud, found.bounds, n))),
     }
 }
 
