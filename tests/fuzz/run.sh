@@ -2,8 +2,13 @@
 # Runs meshvox's fuzz targets (see docs/limits.md). `bash tests/fuzz/run.sh [SECONDS] [TARGET...]` runs
 # each target (default: obj, gltf, voxelize, stl_ply, points) for SECONDS (default 20) starting from its kept corpus in
 # tests/fuzz/corpus/TARGET and the hostile corpus, on a scratch copy, so the kept corpus only changes when a
-# longer run is minimized into it on purpose. Installs a nightly toolchain and cargo-fuzz if they are missing.
-# Any crash fails the run and leaves the input in tests/fuzz/artifacts/TARGET/.
+# longer run is minimized into it on purpose. Any crash fails the run and leaves the input in
+# tests/fuzz/artifacts/TARGET/.
+#
+# The targets are built as `cargo fuzz build -s none` builds them (libFuzzer's coverage instrumentation, debug
+# assertions and overflow checks on, no sanitizer: the code is safe Rust, unsafe_code = deny), with the stable
+# toolchain: every flag that takes is stable, so CI installs neither a nightly toolchain nor cargo-fuzz (three
+# minutes of a fresh machine). cargo-fuzz on nightly remains the tool for long runs and `cargo fuzz cmin`.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 seconds="${1:-20}"
@@ -11,11 +16,16 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply points)
 
-rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
-cargo fuzz --version >/dev/null 2>&1 || cargo install cargo-fuzz --version 0.13.2 --locked
-# No sanitizer: the code is safe Rust (unsafe_code = deny), so what the fuzzers look for are panics, overflows
-# (debug assertions are on), hangs and runaway memory, which libFuzzer sees without one.
-cargo +nightly fuzz build --fuzz-dir tests/fuzz -s none
+host=$(rustc -vV | sed -n 's/^host: //p')
+# cargo-fuzz 0.13's flags for `-s none` on Linux (its project.rs), less `-Ccodegen-units=1`, which makes the
+# instrumented build several times slower on two cores for a few seconds of each run.
+RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
+  -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table
+  -Cllvm-args=-sanitizer-coverage-trace-compares -Cllvm-args=-simplifycfg-branch-fold-threshold=0
+  -Cllvm-args=-sanitizer-coverage-stack-depth -Cdebug-assertions --cfg fuzzing ${RUSTFLAGS:-}" \
+  cargo build --locked --manifest-path tests/fuzz/Cargo.toml --release --target "$host" --bins \
+  --config 'profile.release.debug="line-tables-only"'
+bin=tests/fuzz/target/$host/release
 
 for target in "${targets[@]}"; do
   scratch=$(mktemp -d)
@@ -29,7 +39,8 @@ for target in "${targets[@]}"; do
   echo "=== fuzz $target for ${seconds}s ($(ls "$scratch" | wc -l) kept inputs)"
   log="$scratch.log"
   status=0
-  cargo +nightly fuzz run --fuzz-dir tests/fuzz -s none "$target" "$scratch" "${seeds[@]}" -- \
+  mkdir -p "tests/fuzz/artifacts/$target"
+  "$bin/$target" -artifact_prefix="tests/fuzz/artifacts/$target/" "$scratch" "${seeds[@]}" \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 >"$log" 2>&1 || status=$?
   if [ "$status" -eq 0 ]; then
     grep -E '^(stat::(number_of_executed_units|average_exec_per_sec|new_units_added|peak_rss_mb)|INFO: seed corpus)' "$log" || true
