@@ -112,7 +112,7 @@ phase "the web build and the browser test"
 bash web/build.sh
 node web/tests/browser.mjs
 
-# The fuzz targets, briefly, over their kept corpus (nightly and cargo-fuzz are installed if missing).
+# The fuzz targets, briefly, over their kept corpus (built with the stable toolchain, tests/fuzz/run.sh).
 phase "fuzzing"
 bash tests/fuzz/run.sh 20
 

@@ -16,7 +16,8 @@ fi
 if [ "$(wasm-bindgen --version 2>/dev/null | awk '{print $2}')" != "$want" ]; then
   echo "installing wasm-bindgen-cli $want (a few minutes, once)" >&2
   # Not --locked: the CLI's own lock file pins a webpki-roots release that crates.io no longer serves.
-  cargo install wasm-bindgen-cli --version "$want" --quiet
+  # Without a compiler wrapper that lints meshvox (CI's clippy-driver, .ci/run): the tool is not ours to lint.
+  env -u RUSTC_WORKSPACE_WRAPPER cargo install wasm-bindgen-cli --version "$want" --quiet
 fi
 
 # web/node_modules (binaryen's wasm-opt, among others).
