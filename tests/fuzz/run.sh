@@ -7,8 +7,8 @@
 #
 # The targets are built as `cargo fuzz build -s none` builds them (libFuzzer's coverage instrumentation, debug
 # assertions and overflow checks on, no sanitizer: the code is safe Rust, unsafe_code = deny), with the stable
-# toolchain: every flag that takes is stable, so CI installs neither a nightly toolchain nor cargo-fuzz (three
-# minutes of a fresh machine). cargo-fuzz on nightly remains the tool for long runs and `cargo fuzz cmin`.
+# toolchain: every flag that takes is stable, so CI installs neither a nightly toolchain nor cargo-fuzz.
+# cargo-fuzz on nightly remains the tool for long runs and `cargo fuzz cmin`.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 seconds="${1:-20}"
@@ -17,8 +17,8 @@ targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply points)
 
 host=$(rustc -vV | sed -n 's/^host: //p')
-# cargo-fuzz 0.13's flags for `-s none` on Linux (its project.rs), less `-Ccodegen-units=1`, which makes the
-# instrumented build several times slower on two cores for a few seconds of each run.
+# cargo-fuzz 0.13's flags for `-s none` on Linux (its project.rs), less `-Ccodegen-units=1` (one codegen unit a
+# crate: faster fuzzing, a slower build, which CI's 20 seconds a target do not repay).
 RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
   -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table
   -Cllvm-args=-sanitizer-coverage-trace-compares -Cllvm-args=-simplifycfg-branch-fold-threshold=0

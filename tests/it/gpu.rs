@@ -472,6 +472,9 @@ fn occupied_leaves(grid: &meshvox::voxel::SparseGrid) -> u64 {
     grid.leaves.len() as u64 + grid.tiles.iter().map(|t| t.voxels() / 512).sum::<u64>()
 }
 
+/// The largest mesh the sparse-leaves test below runs with tiny limits (Suzanne has 968 triangles, Spot 5,856).
+const TINY_LIMITS_TRIANGLES: usize = 2_000;
+
 /// The sparse chain on the GPU (`shaders/leaves.wgsl`) against the CPU's sparse walk, field for field, on the hard
 /// cases and every mesh, in surface, surface6 and solid with the adapter's limits, and in surface (and solid, on the
 /// hard cases) with tiny ones (a 2 KiB stand-in binding: bricks of 4³ leaves with 26 slots, so most bricks a
@@ -479,9 +482,6 @@ fn occupied_leaves(grid: &meshvox::voxel::SparseGrid) -> u64 {
 /// occupied leaves of the surface (68 bytes each; a solid's shell) and a few counters per brick: `readback_bytes` is
 /// held to the leaf count, so a return to dense slabs fails here. Dense grids of the same voxels equal the CPU's
 /// too.
-/// The largest mesh the test below runs with tiny limits (Suzanne has 968 triangles, Spot 5,856).
-const TINY_LIMITS_TRIANGLES: usize = 2_000;
-
 #[test]
 fn sparse_leaves_on_the_gpu_equal_the_cpus_with_tiny_limits_and_read_back_only_the_leaves() {
     let Some((gpu, v)) = gpu() else { return };
