@@ -7,8 +7,8 @@
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
-# `bash tests/run.sh` runs everything: `cargo test` (and the doctests), the Python package's pytest suite, the web build
-# and the browser test, then each fuzz target for 20 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
+# `bash tests/run.sh` runs everything: `cargo test` (the crate documentation's example is examples/engine.rs, a test), the Python package's pytest suite, the web build
+# and the browser test, then each fuzz target for 10 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Each phase's start, in seconds from here: where a run's time goes (CI keeps its log).
@@ -36,19 +36,59 @@ if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
   mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 fi
 
-venv=target/pyenv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL' 2>/dev/null; then
-  if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3 python3-venv python3-pip
+# The Python tools and the Node.js tools are installed while the tests build (pip and npm wait on the network and
+# the disk, the build on the CPUs); each one's output is shown if it fails. `wait_for NAME` waits for one.
+mkdir -p target
+declare -A setup_pids=()
+in_background() {
+  local name=$1
+  shift
+  "$@" >"target/setup-$name.log" 2>&1 &
+  setup_pids[$name]=$!
+}
+wait_for() {
+  if ! wait "${setup_pids[$1]}"; then
+    cat "target/setup-$1.log" >&2
+    echo "tests/run.sh: setting up $1 failed (target/setup-$1.log)" >&2
+    exit 1
   fi
-  mkdir -p target
+}
+
+# The independent readers the Rust tests call (numpy, trimesh, binvox, Pillow).
+venv=target/pyenv
+readers_venv() {
   python3 -m venv "$venv"
   "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0
+}
+if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
+  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3 python3-venv python3-pip
+fi
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL' 2>/dev/null; then
+  in_background readers readers_venv
+else
+  in_background readers true
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 
 # gltfpack, gltf-pipeline and glTF-Transform for the optimized-glTF tests (and what the web build needs).
-bash web/install.sh
+in_background node bash web/install.sh
+
+# The Python package's test environment (the wheel's tests, after `cargo test`).
+pyvenv=target/pytest-venv
+pytest_venv() {
+  python3 -m venv "$pyvenv"
+  "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 pytest==9.2.0 \
+    dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0 nbtlib==2.0.4 \
+    litemapy==0.11.0b0 voxypy==0.2.3 imageio==2.37.2 pillow==12.1.1 warp-lang==1.19.0
+}
+if [ $# -eq 0 ]; then
+  if [ ! -x "$pyvenv/bin/python" ] || [ ! -x "$pyvenv/bin/maturin" ] \
+    || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL, warp' 2>/dev/null; then
+    in_background pytest pytest_venv
+  else
+    in_background pytest true
+  fi
+fi
 
 # Every skip (a missing tool, mesh, module or adapter) is recorded here by the Rust and Python tests
 # (tests/it/common.rs, tests/python/conftest.py) and listed at the end: `cargo test` hides what passing tests print.
@@ -64,6 +104,9 @@ show_skips() {
 }
 
 phase "cargo test"
+cargo test --locked --all-targets --no-run "$@"
+wait_for readers
+wait_for node
 cargo test --locked --all-targets "$@"
 [ $# -gt 0 ] && { show_skips; exit 0; }
 # The GPU tests again on GL, the API that Mesa's llvmpipe offers where no Vulkan driver is installed (containers,
@@ -84,23 +127,13 @@ if cargo tree --locked --no-default-features -e normal --prefix none | grep -E '
   echo "cargo tree --no-default-features: the crates above are in the core's dependency tree" >&2
   exit 1
 fi
-# The crate documentation's example (the engine through the public API); --all-targets leaves doctests out.
-phase "doctests"
-cargo test --locked --doc
 
 # The Python package (docs/python.md): the wheel built once, in the dev profile and with the test build's features
 # (pyproject.toml's `python` plus the default ones; `pip install .` builds it without the viewer), so that every
 # dependency it shares with the build above is reused, not compiled again (Cargo.toml lines the features up);
 # installed into its own virtual environment, then pytest against the CLI built above.
-pyvenv=target/pytest-venv
-if [ ! -x "$pyvenv/bin/python" ] || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL, warp' 2>/dev/null \
-  || [ ! -x "$pyvenv/bin/maturin" ]; then
-  python3 -m venv "$pyvenv"
-  "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 pytest==9.2.0 \
-    dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0 nbtlib==2.0.4 \
-    litemapy==0.11.0b0 voxypy==0.2.3 imageio==2.37.2 pillow==12.1.1 warp-lang==1.19.0
-fi
 phase "the wheel and pytest"
+wait_for pytest
 rm -rf target/wheels
 "$pyvenv/bin/maturin" build --quiet --profile dev --features python,gpu,viewer,cli --interpreter "$pyvenv/bin/python" --out target/wheels
 "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/meshvox-*.whl
@@ -114,7 +147,7 @@ node web/tests/browser.mjs
 
 # The fuzz targets, briefly, over their kept corpus (built with the stable toolchain, tests/fuzz/run.sh).
 phase "fuzzing"
-bash tests/fuzz/run.sh 20
+bash tests/fuzz/run.sh 10
 
 phase "done"
 show_skips

@@ -281,7 +281,7 @@ impl Engine {
         }
     }
 
-    /// Milliseconds the device was in use by this engine (and the others on its device, [`Engine::with_backend`]),
+    /// Milliseconds the device was in use by this engine (and the others on its device, `Engine::with_backend`),
     /// or `None` on the CPU.
     pub fn gpu_busy_ms(&self) -> Option<f64> {
         self.gpu.as_ref().map(|on| on.busy_ms())

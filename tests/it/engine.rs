@@ -418,3 +418,13 @@ fn every_setting_has_one_spelling_that_every_client_takes() {
         assert!(out.status.success(), "--axis {axis}: {}", String::from_utf8_lossy(&out.stderr));
     }
 }
+
+#[path = "../../examples/engine.rs"]
+mod example;
+
+/// The crate documentation's example (app/lib.rs shows examples/engine.rs; `[lib] doctest = false` in Cargo.toml:
+/// collecting doctests analysed the whole crate again, 50 s of CI for this one example).
+#[test]
+fn the_crate_documentations_example_runs() {
+    example::main().expect("examples/engine.rs runs");
+}

@@ -79,7 +79,7 @@ def training_points(vertices: np.ndarray, count: int, seed: int) -> np.ndarray:
 @pytest.mark.parametrize("name", ["stanford-bunny.obj", "spot.obj"])
 def test_query_matches_float64_over_every_triangle_at_every_point(meshes, name):
     vertices, faces = meshvox.load(meshes / name)
-    points = training_points(vertices, 600, 7)
+    points = training_points(vertices, 300, 7)
     prepared = meshvox.Mesh(meshes / name)
     q = meshvox.query(prepared, points)
     assert prepared.triangles == len(faces)
