@@ -1,4 +1,5 @@
-use meshvox::voxel::{Mode, Resolution, formats::VoxelFormat};
+use meshvox::formats::VoxelFormat;
+use meshvox::voxel::{Mode, Resolution};
 use meshvox::{Backend, Engine, Request};
 
 pub fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -5,7 +5,7 @@
 use super::{ColourArgs, Engine, LimitArgs, Request, VoxelizeArgs, check_merge, ms, open_engine, voxelize_loaded};
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
-use meshvox::voxel::formats::VoxelFormat;
+use meshvox::formats::VoxelFormat;
 use meshvox::voxel::{Axis, Mode};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};

@@ -389,9 +389,9 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         Some(sparse) => {
             let path = std::env::temp_dir().join(format!("meshvox-bench-{}.vdb", std::process::id()));
             let t = Instant::now();
-            let options = meshvox::voxel::formats::VdbOptions::default();
-            let bytes = meshvox::voxel::formats::atomic::write_atomically(&path, |out| {
-                meshvox::voxel::formats::write_vdb(sparse, options, None, &[], out)
+            let options = meshvox::formats::VdbOptions::default();
+            let bytes = meshvox::formats::atomic::write_atomically(&path, |out| {
+                meshvox::formats::write_vdb(sparse, options, None, &[], out)
             })?;
             let write_ms = ms(t);
             let _ = std::fs::remove_file(&path);

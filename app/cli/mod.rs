@@ -16,8 +16,9 @@ use anyhow::Result;
 use bench::BenchArgs;
 use clap::{Parser, Subcommand};
 use meshvox::engine::{Backend, Engine, Job, Request};
+use meshvox::formats::VoxelFormat;
 use meshvox::mesh::{self, builtin};
-use meshvox::voxel::{Axis, GridKind, Mode, Resolution, formats::VoxelFormat, labels::AttributeSet};
+use meshvox::voxel::{Axis, GridKind, Mode, Resolution, labels::AttributeSet};
 use output::remove_partials_on_interrupt;
 use render::RenderArgs;
 use std::path::PathBuf;
@@ -239,14 +240,14 @@ pub(super) struct BlockArgs {
 /// What [`BlockArgs`] name, read once: the block set (`None`: the default) and the palette.
 #[derive(Clone, Default)]
 pub(super) struct ColourMap {
-    pub(super) blocks: Option<meshvox::voxel::blocks::BlockSet>,
-    pub(super) palette: Option<meshvox::voxel::swatches::Swatches>,
+    pub(super) blocks: Option<meshvox::formats::blocks::BlockSet>,
+    pub(super) palette: Option<meshvox::formats::swatches::Swatches>,
 }
 
 impl BlockArgs {
     /// The block set and palette these arguments name for `format`, refused for formats that take neither.
     pub(super) fn read(&self, format: VoxelFormat) -> Result<ColourMap> {
-        use meshvox::voxel::blocks::BlockSet;
+        use meshvox::formats::blocks::BlockSet;
         let minecraft = matches!(format, VoxelFormat::Minecraft(_));
         let palette = match &self.palette {
             Some(_) if !minecraft && format != VoxelFormat::Vox => {
@@ -256,7 +257,7 @@ impl BlockArgs {
             Some(file) => {
                 let what = format!("--palette {}", file.display());
                 let bytes = meshvox::mesh::read_setting_file(file, &what)?;
-                let palette = meshvox::voxel::swatches::Swatches::read_palette(&bytes, &what)?;
+                let palette = meshvox::formats::swatches::Swatches::read_palette(&bytes, &what)?;
                 if format == VoxelFormat::Vox && palette.colours.len() > 255 {
                     anyhow::bail!(
                         "{what}: a .vox palette holds at most 255 colours; this one has {}",

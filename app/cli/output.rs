@@ -3,7 +3,7 @@
 //! ones on Ctrl-C (or SIGTERM), so an interrupted or failed run leaves finished files and nothing else.
 
 use anyhow::{Context, Result};
-use meshvox::voxel::formats::atomic::{self, AtomicFile};
+use meshvox::formats::atomic::{self, AtomicFile};
 use std::path::Path;
 
 /// On Ctrl-C (or SIGTERM): removes the unfinished outputs and exits with status 130.

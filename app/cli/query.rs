@@ -5,8 +5,8 @@
 use super::{LimitArgs, ms, open_engine};
 use anyhow::{Context, Result, bail};
 use meshvox::engine::{Backend, Engine, query_backend};
-use meshvox::voxel::formats::atomic::write_atomically;
-use meshvox::voxel::formats::points::{write_query_npz, write_samples_npz};
+use meshvox::formats::atomic::write_atomically;
+use meshvox::formats::points::{write_query_npz, write_samples_npz};
 use meshvox::voxel::query::{Prepared, Sign};
 use meshvox::voxel::sample::{Normalize, SampleRequest};
 use std::path::{Path, PathBuf};

@@ -4,7 +4,7 @@ use super::output::{temp_beside, write_atomically};
 use super::{ColourArgs, LimitArgs, parse_up, parse_view};
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
-use meshvox::voxel::blocks::BlockSet;
+use meshvox::formats::blocks::BlockSet;
 use meshvox::voxel::{Axis, Mode, Resolution};
 use meshvox::{Engine, Request};
 use std::path::PathBuf;
@@ -141,7 +141,7 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         }
         (None, None) => None,
         (blocks, palette) => {
-            use meshvox::voxel::formats::{MinecraftFormat, VoxelFormat};
+            use meshvox::formats::{MinecraftFormat, VoxelFormat};
             // Read as for a schematic, which takes a palette of any size (a .vox holds 255 colours).
             let format = VoxelFormat::Minecraft(MinecraftFormat::Schem);
             let choice = super::BlockArgs {

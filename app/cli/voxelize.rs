@@ -5,8 +5,9 @@ use super::{BandArgs, ColourArgs, Engine, GridArgs, Job, LimitArgs, Request, ms,
 use anyhow::{Result, anyhow, bail};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::Backend;
+use meshvox::formats::{self, VoxelFormat};
 use meshvox::mesh;
-use meshvox::voxel::{self, Axis, Mode, formats::VoxelFormat};
+use meshvox::voxel::{Axis, Mode};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -179,14 +180,14 @@ pub(super) fn voxelize_loaded(
     // appears without the colours or labels it was asked for.
     let npy_grid = voxelized.grid.dense().filter(|_| format == VoxelFormat::Npy);
     let colours_file = match (&voxelized.colours, npy_grid) {
-        (Some(colours), Some(grid)) => Some(write_beside(voxel::formats::colours_npy_path(&args.output), |out| {
-            voxel::formats::write_colours_npy(grid, colours, out)
+        (Some(colours), Some(grid)) => Some(write_beside(formats::colours_npy_path(&args.output), |out| {
+            formats::write_colours_npy(grid, colours, out)
         })?),
         _ => None,
     };
     let labels_file = match (&voxelized.labels, npy_grid) {
-        (Some(labels), Some(grid)) => Some(write_beside(voxel::formats::labels_npy_path(&args.output), |out| {
-            voxel::formats::write_labels_npy(grid, labels, out)
+        (Some(labels), Some(grid)) => Some(write_beside(formats::labels_npy_path(&args.output), |out| {
+            formats::write_labels_npy(grid, labels, out)
         })?),
         _ => None,
     };
@@ -199,7 +200,7 @@ pub(super) fn voxelize_loaded(
         meshing.set_length(total as u64);
         meshing.set_position(done as u64);
     };
-    let options = voxel::formats::WriteOptions {
+    let options = formats::WriteOptions {
         merge: args.merge,
         vdb_float: args.grid.vdb_float,
         level: args.band.level.unwrap_or(0.0),
@@ -227,7 +228,7 @@ pub(super) fn voxelize_loaded(
 /// Writes an array that goes beside an `.npy` grid to `path`, atomically; returns the path.
 fn write_beside(
     path: PathBuf,
-    write: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<(), voxel::formats::FormatError>,
+    write: impl FnOnce(&mut std::io::BufWriter<&std::fs::File>) -> Result<(), formats::FormatError>,
 ) -> Result<PathBuf> {
     let temp = temp_beside(&path)?;
     write_atomically(temp, &path, |out| Ok(write(out)?))?;

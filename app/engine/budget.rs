@@ -12,9 +12,9 @@
 //! peak ([`LEAF_BYTES`]); a solid adds its row crossings and the interior's tiles along the surface. A dense
 //! format written from a sparse grid needs the dense grid too.
 
+use crate::formats::VoxelFormat;
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::distance::Band;
-use crate::voxel::formats::VoxelFormat;
 use crate::voxel::{Axis, GridError, GridSpec, Mode, Resolution};
 use rayon::prelude::*;
 

@@ -4,9 +4,9 @@
 //! and the run all read the job instead of working any of it out again.
 
 use super::{EngineError, budget};
+use crate::formats::{MinecraftFormat, VoxelFormat};
 use crate::mesh::{Aabb, Mesh};
 use crate::voxel::distance::{Band, MAX_BAND};
-use crate::voxel::formats::{MinecraftFormat, VoxelFormat};
 use crate::voxel::labels::AttributeSet;
 use crate::voxel::{Axis, GridError, GridKind, GridSpec, MAX_DIM, Mode, Resolution};
 use glam::DVec3;
@@ -124,7 +124,7 @@ impl<'a> Job<'a> {
             spec.dims += 2 * pad;
         }
         // A structure file's size is known now: refused before anything is voxelized.
-        let max = crate::voxel::formats::minecraft::structure::MAX_SIDE;
+        let max = crate::formats::minecraft::structure::MAX_SIDE;
         if format == Some(VoxelFormat::Minecraft(MinecraftFormat::Structure)) && spec.dims.max_element() > max {
             return Err(EngineError::StructureSize { dims: spec.dims.to_array(), max });
         }

@@ -1,10 +1,10 @@
 //! What a request gives back: [`Voxelized`] (the grid, colours, the GPU's instance list) with its [`Report`] and
 //! the [`Notice`]s a client shows.
 
+use crate::formats::{self, FormatError, VoxelFormat, WriteOptions};
 use crate::voxel::Grid;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
-use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
 use crate::voxel::labels::Labels;
 
 /// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).

@@ -1,6 +1,6 @@
 //! Reading NumPy `.npy` headers (dtype and shape), for point clouds given as `.npy`/`.npz` and `meshvox query`'s
 //! points (their data is streamed by `cloud_arrays.rs`). The writers are the voxel formats'
-//! (`voxel::formats::npy`), which reuse [`read_header`].
+//! (`formats::npy`), which reuse [`read_header`].
 
 use std::io::Read;
 

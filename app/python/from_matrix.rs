@@ -1,9 +1,9 @@
 //! `VoxelGrid.save` from Python: a bit grid, its colours and labels made back from the dense arrays a `meshvox.VoxelGrid`
 //! holds (which may have been edited, pickled or built by hand), written with the CLI's writers.
 
+use crate::formats::atomic::write_atomically;
+use crate::formats::{self, FormatError, VoxelFormat, WriteOptions};
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::formats::atomic::write_atomically;
-use crate::voxel::formats::{self, FormatError, VoxelFormat, WriteOptions};
 use crate::voxel::labels::{Attribute, Labels};
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};

@@ -8,11 +8,11 @@
 mod process;
 
 use crate::engine::{Backend, Engine, EngineError, Job, Request, Voxelized};
+use crate::formats::VoxelFormat;
+use crate::formats::blocks::BlockSet;
+use crate::formats::swatches::Swatches;
 use crate::mesh::{self, Aabb, Mesh, MeshError};
-use crate::voxel::blocks::BlockSet;
-use crate::voxel::formats::VoxelFormat;
 use crate::voxel::labels::AttributeSet;
-use crate::voxel::swatches::Swatches;
 use crate::voxel::{Axis, GridError, Mode, Resolution};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
@@ -91,8 +91,8 @@ fn worded(message: impl ToString) -> String {
 
 /// A writer's failure as Python reports file errors: a missing folder is a `FileNotFoundError`, a folder that
 /// cannot be written a `PermissionError`, both naming the path the caller gave.
-fn save_err(path: &std::path::Path, e: crate::voxel::formats::FormatError) -> PyErr {
-    use crate::voxel::formats::FormatError;
+fn save_err(path: &std::path::Path, e: crate::formats::FormatError) -> PyErr {
+    use crate::formats::FormatError;
     use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyPermissionError};
     let message = format!("{}: {e}", path.display());
     match e {
@@ -467,7 +467,7 @@ fn save(
     let views: Vec<_> = labels.iter().map(|(name, values)| (name.clone(), values.as_array())).collect();
     let labels = (!views.is_empty()).then(|| from_matrix::labels(&grid, &views)).transpose()?;
     let labels = labels.filter(|_| format.holds_labels());
-    let options = crate::voxel::formats::WriteOptions {
+    let options = crate::formats::WriteOptions {
         merge,
         labels: labels.as_ref(),
         blocks: blocks.as_ref(),
@@ -509,11 +509,11 @@ fn save_field(
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
-        crate::voxel::formats::atomic::write_atomically(&path, |out| match thickness {
-            Some(thickness) => crate::voxel::formats::write_shell(&field, thickness, format, &Default::default(), out),
+        crate::formats::atomic::write_atomically(&path, |out| match thickness {
+            Some(thickness) => crate::formats::write_shell(&field, thickness, format, &Default::default(), out),
             None => {
-                let options = crate::voxel::formats::WriteOptions { level, ..Default::default() };
-                crate::voxel::formats::write_field(&field, format, &options, out)
+                let options = crate::formats::WriteOptions { level, ..Default::default() };
+                crate::formats::write_field(&field, format, &options, out)
             }
         })
     })?;

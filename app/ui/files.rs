@@ -4,9 +4,9 @@
 use super::ViewerApp;
 #[cfg(target_arch = "wasm32")]
 use super::web;
+use crate::formats;
 #[cfg(not(target_arch = "wasm32"))]
 use crate::mesh;
-use crate::voxel::formats;
 
 /// `image` encoded as PNG.
 pub(super) fn png_bytes(image: &image::RgbaImage) -> Result<Vec<u8>, String> {

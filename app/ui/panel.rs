@@ -5,9 +5,10 @@
 #[cfg(target_arch = "wasm32")]
 use super::web;
 use super::{ViewerApp, short_number};
+use crate::formats;
 use crate::mesh::builtin;
 use crate::render::{self, camera::UpAxis, camera::ViewPreset};
-use crate::voxel::{Axis, Mode, formats};
+use crate::voxel::{Axis, Mode};
 
 impl ViewerApp {
     pub(super) fn panel(&mut self, ui: &mut egui::Ui) {

@@ -7,10 +7,11 @@
 
 use super::{Stats, ViewerApp};
 use crate::engine::Backend;
+use crate::formats;
 use crate::gpu::AdapterSummary;
 use crate::mesh;
 use crate::render::{self, camera::ViewPreset};
-use crate::voxel::{Mode, formats};
+use crate::voxel::Mode;
 use std::cell::RefCell;
 use wasm_bindgen::{JsCast, JsValue};
 

@@ -1,5 +1,6 @@
 //! Voxel grids: the grid convention ([`GridSpec`]), the packed bit grid ([`VoxelGrid`]) shared with the GPU pass,
-//! the CPU backend ([`voxelize`]) with its mirror of the shaders ([`cpu`]) and the file formats ([`formats`]).
+//! the CPU backend ([`voxelize`]) with its mirror of the shaders ([`cpu`]), and the fields, solids, colours and
+//! labels the file formats ([`crate::formats`]) write.
 //!
 //! # Grid convention
 //! * The grid covers the axis-aligned bounding box of all triangles; its origin is the box minimum.
@@ -17,13 +18,11 @@
 //! (bit 0 is the least significant). Padding bits at the end of a row are always zero. Rows being word-aligned
 //! lets the GPU process the grid in z-slabs that are whole word ranges.
 
-pub mod blocks;
 pub mod bvh;
 pub mod colour;
 pub mod contour;
 pub mod cpu;
 pub mod distance;
-pub mod formats;
 mod grid;
 pub mod labels;
 mod lattice;
@@ -35,7 +34,6 @@ pub mod shell;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
-pub mod swatches;
 pub mod voxelize;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};

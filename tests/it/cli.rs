@@ -1,7 +1,7 @@
 //! The `meshvox voxelize` command as a user runs it: outputs, `--stats-json`, and clean one-line failures that
 //! leave no partial files behind.
 
-use meshvox::voxel::formats;
+use meshvox::formats;
 use serde_json::Value;
 use std::path::Path;
 use std::process::{Command, Output};

@@ -191,7 +191,7 @@ fn vox_palette_keeps_the_colours() {
         let out = meshvox(&["voxelize", &duck, "-r", "80", "-o", o, "--backend", "cpu"], out_dir.path());
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     }
-    let grid = meshvox::voxel::formats::read_npy(&mut std::fs::File::open(out_dir.path().join("d.npy")).expect("npy"))
+    let grid = meshvox::formats::read_npy(&mut std::fs::File::open(out_dir.path().join("d.npy")).expect("npy"))
         .expect("read npy");
     let dense = read_colours_npy(&out_dir.path().join("d.colors.npy"), grid.spec.dims);
     let data = dot_vox::load_bytes(&std::fs::read(out_dir.path().join("d.vox")).expect("vox")).expect("parse vox");
@@ -200,7 +200,7 @@ fn vox_palette_keeps_the_colours() {
     let mut used = std::collections::HashSet::new();
     let (mut ours, mut vox) = (Vec::new(), Vec::new());
     for v in &data.models[0].voxels {
-        // MagicaVoxel is z-up: (x, y, z) there is (x, z, dims_z - 1 - y) here (see voxel::formats).
+        // MagicaVoxel is z-up: (x, y, z) there is (x, z, dims_z - 1 - y) here (see formats).
         let p = UVec3::new(v.x as u32, v.z as u32, d.z - 1 - v.y as u32);
         used.insert(v.i);
         let c = data.palette[v.i as usize];
@@ -237,7 +237,7 @@ fn read_colours_npy(path: &Path, dims: UVec3) -> Vec<[u8; 4]> {
 #[test]
 fn palette_quantizes_many_colours_closely() {
     let quantized_error = |colours: &[[u8; 4]]| {
-        let q = meshvox::voxel::formats::palette::quantize(colours, 255);
+        let q = meshvox::formats::palette::quantize(colours, 255);
         assert!(q.palette.len() <= 255 && q.palette.len() > 200, "{} entries", q.palette.len());
         let mapped: Vec<[u8; 4]> = q.index.iter().map(|&i| q.palette[i as usize]).collect();
         mean_error(colours, &mapped)
@@ -268,7 +268,7 @@ fn palette_quantizes_many_colours_closely() {
     assert!(error < 14.0, "evenly spread colours: mean error {error:.2}");
     // Few colours are kept exactly.
     let few = vec![[10, 20, 30, 255], [200, 100, 0, 255], [10, 20, 30, 255]];
-    let q = meshvox::voxel::formats::palette::quantize(&few, 255);
+    let q = meshvox::formats::palette::quantize(&few, 255);
     assert_eq!(q.palette.len(), 2);
     assert_eq!(few.iter().zip(&q.index).filter(|(c, i)| q.palette[**i as usize] == **c).count(), 3);
 }

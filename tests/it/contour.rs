@@ -42,7 +42,7 @@ fn field(mesh: &Mesh, n: u32, mode: Mode, level: f64, grid: GridKind) -> meshvox
     let request = Request {
         grid,
         level,
-        format: Some(meshvox::voxel::formats::VoxelFormat::Mesh(meshvox::voxel::formats::mesh::MeshFormat::Ply)),
+        format: Some(meshvox::formats::VoxelFormat::Mesh(meshvox::formats::mesh::MeshFormat::Ply)),
         ..Request::new(Resolution::Count(n), mode)
     };
     engine.voxelize("mesh", mesh, &request).expect("field").field.expect("a field")

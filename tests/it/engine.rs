@@ -5,7 +5,7 @@
 //! (issue 50).
 
 use super::common::shared_meshes;
-use meshvox::voxel::formats::VoxelFormat;
+use meshvox::formats::VoxelFormat;
 use meshvox::voxel::{Mode, Resolution};
 use meshvox::{Backend, Engine, Request};
 use rayon::prelude::*;
@@ -53,7 +53,7 @@ fn the_cli_writes_what_the_public_api_writes() {
             );
             if let (Some(colours), "npy") = (&result.colours, ext) {
                 let mut api = Vec::new();
-                meshvox::voxel::formats::write_colours_npy(result.grid.dense().expect("dense"), colours, &mut api)
+                meshvox::formats::write_colours_npy(result.grid.dense().expect("dense"), colours, &mut api)
                     .expect("colours");
                 let cli = std::fs::read(out.path().join("grid.colors.npy")).expect("the CLI's colours");
                 assert!(cli == api, "{file}: .colors.npy differs");

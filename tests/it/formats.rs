@@ -3,7 +3,7 @@
 
 use crate::common::Rng;
 use glam::{DVec3, UVec3};
-use meshvox::voxel::formats::{self, VoxelFormat};
+use meshvox::formats::{self, VoxelFormat};
 use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, voxelize};
 
 fn random_grid(dims: UVec3, density: f64, seed: u64) -> VoxelGrid {

@@ -281,7 +281,7 @@ fn the_budget_counts_the_labels() {
 /// unset voxel has none. A solid sphere at 70 has 8³ tiles inside; the bunny's surface has holes.
 #[test]
 fn sparse_grids_are_labelled_as_dense_ones() {
-    use meshvox::voxel::formats::{VoxelFormat, WriteOptions, write_grid};
+    use meshvox::formats::{VoxelFormat, WriteOptions, write_grid};
     use meshvox::voxel::ranks::Ranked;
     use meshvox::voxel::{Grid, GridKind};
     let mut cases =

@@ -27,7 +27,7 @@ fn exposed_faces(grid: &VoxelGrid) -> Vec<(IVec3, usize)> {
 }
 
 fn read_grid(path: &Path) -> VoxelGrid {
-    meshvox::voxel::formats::read_npy(&mut std::fs::File::open(path).expect("npy")).expect("read npy")
+    meshvox::formats::read_npy(&mut std::fs::File::open(path).expect("npy")).expect("read npy")
 }
 
 /// Checks what trimesh reads against the grid: closed, the faces and area of the exposed voxel faces, the volume

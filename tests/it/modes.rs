@@ -516,7 +516,7 @@ fn a_solid_bunny_at_256_is_a_filled_vox_model() {
     let tris = voxelize::grid_space_triangles(&mesh, &s).expect("grid");
     let solid = voxelize(&tris, s, Mode::Solid);
     let mut bytes = std::io::Cursor::new(Vec::new());
-    meshvox::voxel::formats::write(&solid, meshvox::voxel::formats::VoxelFormat::Vox, &mut bytes).expect("write");
+    meshvox::formats::write(&solid, meshvox::formats::VoxelFormat::Vox, &mut bytes).expect("write");
     let bytes = bytes.into_inner();
     let data = dot_vox::load_bytes(&bytes).expect("dot_vox parses it");
     let total: usize = data.models.iter().map(|m| m.voxels.len()).sum();

@@ -1,4 +1,4 @@
-//! NanoVDB `.nvdb` files (`meshvox::voxel::formats::nvdb`), judged by NanoVDB's own tools from Debian
+//! NanoVDB `.nvdb` files (`meshvox::formats::nvdb`), judged by NanoVDB's own tools from Debian
 //! (`libnanovdb-tools`, OpenVDB 10.0.1): `nanovdb_validate` passes every grid (its checksum included),
 //! `nanovdb_print` lists them, and each grid is the same bytes as what `nanovdb_convert` makes of the same
 //! voxels' `.vdb` (itself read back by OpenVDB in `sparse.rs`), up to one documented difference: the inverse of

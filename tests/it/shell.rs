@@ -235,8 +235,8 @@ fn the_cli_writes_a_shell_and_its_walls_and_refuses_what_is_not_one() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let stats = crate::cli::stats(&out);
     assert_eq!(stats["mode"], "shell");
-    let grid = meshvox::voxel::formats::read_npy(&mut std::fs::File::open(dir.path().join("s.npy")).expect("npy"))
-        .expect("reads");
+    let grid =
+        meshvox::formats::read_npy(&mut std::fs::File::open(dir.path().join("s.npy")).expect("npy")).expect("reads");
     let engine = Engine::open(Backend::Cpu).expect("cpu");
     let made = shell(&engine, &mesh::load(mesh).expect("torus"), 41, 2.0, GridKind::Dense);
     assert_eq!(Some(&grid.words), made.grid.dense().map(|g| &g.words), "the .npy holds the engine's shell");

@@ -124,7 +124,7 @@ fn npz_is_the_sorted_coordinates_numpy_reads() {
     let dir = tempfile::tempdir().expect("tempdir");
     let plain = dir.path().join("g.npz");
     let file = std::fs::File::create(&plain).expect("create");
-    meshvox::voxel::formats::write_npz(&sparse, None, &[], None, std::io::BufWriter::new(file)).expect("npz");
+    meshvox::formats::write_npz(&sparse, None, &[], None, std::io::BufWriter::new(file)).expect("npz");
     let Some(j) = crate::formats::independent_args("npz", &[&plain.to_string_lossy()]) else { return };
     assert_eq!(j["files"], serde_json::json!(["coords", "dims", "origin", "voxel_size"]));
     assert_eq!(j["dtypes"]["coords"], "int32");
@@ -141,7 +141,7 @@ fn npz_is_the_sorted_coordinates_numpy_reads() {
     let coloured = dir.path().join("c.npz");
     let colour = |v: UVec3| [v.x as u8, v.y as u8, v.z as u8, 255];
     let file = std::fs::File::create(&coloured).expect("create");
-    meshvox::voxel::formats::write_npz(&sparse, Some(&colour), &[], None, std::io::BufWriter::new(file)).expect("npz");
+    meshvox::formats::write_npz(&sparse, Some(&colour), &[], None, std::io::BufWriter::new(file)).expect("npz");
     let Some(j) = crate::formats::independent_args("npz", &[&coloured.to_string_lossy()]) else { return };
     let colors: Vec<[u8; 4]> = serde_json::from_value(j["colors"].clone()).expect("colors");
     let expected: Vec<[u8; 4]> = coords.iter().map(|&c| colour(UVec3::from(c))).collect();

@@ -83,7 +83,7 @@ fn write_arrays(dir: &std::path::Path, mesh: &meshvox::mesh::Mesh) -> Result<()>
     let (positions, faces) = meshvox::mesh::to_indexed(mesh);
     let npy = |name: &str, descr: &str, rows: usize, bytes: Vec<u8>| -> Result<()> {
         let mut out = Vec::new();
-        meshvox::voxel::formats::npy::write_npy_header(descr, &format!("({rows}, 3)"), &mut out)?;
+        meshvox::formats::npy::write_npy_header(descr, &format!("({rows}, 3)"), &mut out)?;
         out.extend(bytes);
         std::fs::write(dir.join(name), out).with_context(|| format!("{}: cannot write", dir.display()))
     };

@@ -9,9 +9,9 @@
 //! model has no block, placing the structure leaves what is there (as a structure void does).
 
 use super::{DATA_VERSION, Palette, State};
+use crate::formats::FormatError;
+use crate::formats::blocks::BlockSet;
 use crate::voxel::VoxelGrid;
-use crate::voxel::blocks::BlockSet;
-use crate::voxel::formats::FormatError;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;

@@ -16,9 +16,9 @@
 //! span in OKLab, so colours far outside the set do not pile up error that streaks across a layer. Every set voxel
 //! still gets exactly one entry.
 
-use super::VoxelGrid;
-use super::colour::VoxelColours;
 use crate::mesh::material::SRGB_TO_LINEAR;
+use crate::voxel::VoxelGrid;
+use crate::voxel::colour::VoxelColours;
 
 /// The most entries a set holds (a voxel's entry is a `u16`).
 pub const MAX_ENTRIES: usize = u16::MAX as usize;

@@ -2,10 +2,10 @@
 //! the user's `id,r,g,b` file), each voxel's block the nearest to its colour in OKLab, dithered on request
 //! ([`Swatches`] does the picking).
 
-use super::VoxelGrid;
-use super::colour::VoxelColours;
 use super::swatches::Swatches;
 pub use super::swatches::oklab;
+use crate::voxel::VoxelGrid;
+use crate::voxel::colour::VoxelColours;
 
 /// The default block set: full, opaque, colourful blocks with the average colour of their textures.
 pub const DEFAULT_BLOCKS: &str = include_str!("../../assets/minecraft-blocks.csv");

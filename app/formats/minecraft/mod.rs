@@ -9,8 +9,8 @@ pub mod schem;
 pub mod structure;
 
 use super::FormatError;
+use crate::formats::blocks::{BlockSet, block_state};
 use crate::voxel::VoxelGrid;
-use crate::voxel::blocks::{BlockSet, block_state};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Write;

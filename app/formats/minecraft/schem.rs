@@ -10,9 +10,9 @@
 //! `BlockEntities` list. Written with `fastnbt` (serde) and gzipped with `flate2`.
 
 use super::{DATA_VERSION, Palette, check_cells, write_nbt};
+use crate::formats::FormatError;
+use crate::formats::blocks::BlockSet;
 use crate::voxel::VoxelGrid;
-use crate::voxel::blocks::BlockSet;
-use crate::voxel::formats::FormatError;
 use fastnbt::{ByteArray, IntArray};
 use serde::Serialize;
 use std::collections::BTreeMap;

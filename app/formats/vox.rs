@@ -5,8 +5,8 @@
 
 use super::error::{FormatError, invalid};
 use super::palette::Quantized;
+use crate::formats::swatches::Swatches;
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::swatches::Swatches;
 use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::Write;

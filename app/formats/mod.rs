@@ -8,6 +8,7 @@
 #[cfg(not(target_arch = "wasm32"))]
 pub mod atomic;
 pub mod binvox;
+pub mod blocks;
 mod error;
 pub mod mesh;
 pub mod minecraft;
@@ -17,6 +18,7 @@ pub mod nvdb;
 pub mod palette;
 pub mod points;
 pub mod surface;
+pub mod swatches;
 pub mod vdb;
 pub mod vox;
 
@@ -29,15 +31,15 @@ pub use npz::write_npz;
 pub use vdb::{VdbOptions, write_vdb};
 pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
 
-use super::blocks::BlockSet;
-use super::colour::VoxelColours;
-use super::distance::DistanceField;
-use super::labels::Labels;
-use super::ranks::Ranked;
-use super::swatches::Swatches;
-use super::{Grid, SparseGrid, VoxelGrid};
+use crate::voxel::colour::VoxelColours;
+use crate::voxel::distance::DistanceField;
+use crate::voxel::labels::Labels;
+use crate::voxel::ranks::Ranked;
+use crate::voxel::{Grid, SparseGrid, VoxelGrid};
+use blocks::BlockSet;
 use glam::UVec3;
 use std::io::{Seek, Write};
+use swatches::Swatches;
 
 /// The voxel formats meshvox writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -268,7 +270,7 @@ pub fn write_field<W: Write + Seek>(
     match format {
         VoxelFormat::Mesh(mesh) => {
             let progress = options.progress.unwrap_or(&|_, _| {});
-            let surface = super::contour::level_mesh_with_progress(field, options.level, progress)
+            let surface = crate::voxel::contour::level_mesh_with_progress(field, options.level, progress)
                 .map_err(std::io::Error::other)?;
             surface::write_surface(&surface, mesh, out)
         }
@@ -287,7 +289,7 @@ pub fn write_field<W: Write + Seek>(
     }
 }
 
-/// Writes the walls of a shell of `thickness` voxels cut from `field` ([`super::shell::shell_mesh`]) as the mesh
+/// Writes the walls of a shell of `thickness` voxels cut from `field` ([`crate::voxel::shell::shell_mesh`]) as the mesh
 /// `format`.
 pub fn write_shell<W: Write + Seek>(
     field: &DistanceField,
@@ -300,7 +302,8 @@ pub fn write_shell<W: Write + Seek>(
         return Err(std::io::Error::other("a shell's walls are written as .ply, .obj, .glb or .stl").into());
     };
     let progress = options.progress.unwrap_or(&|_, _| {});
-    let walls = super::shell::shell_mesh_with_progress(field, thickness, progress).map_err(std::io::Error::other)?;
+    let walls =
+        crate::voxel::shell::shell_mesh_with_progress(field, thickness, progress).map_err(std::io::Error::other)?;
     surface::write_surface(&walls, mesh, out)
 }
 

@@ -11,9 +11,9 @@
 //! takes `bits` from the palette's length, so it must be exactly this).
 
 use super::{DATA_VERSION, Palette, State, check_cells, write_nbt};
+use crate::formats::FormatError;
+use crate::formats::blocks::BlockSet;
 use crate::voxel::VoxelGrid;
-use crate::voxel::blocks::BlockSet;
-use crate::voxel::formats::FormatError;
 use fastnbt::LongArray;
 use serde::Serialize;
 use std::collections::BTreeMap;
