@@ -19,7 +19,7 @@ pub mod formats;
 pub mod gpu;
 pub mod memory;
 pub mod mesh;
-mod names;
+pub mod names;
 pub mod parallel;
 pub mod trace;
 // PyO3's macros expand to `unsafe` FFI glue (the module's own code has none).

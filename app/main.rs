@@ -27,6 +27,7 @@ mod web_entry {
     pub async fn start(canvas_id: String, query: String, adapter_name: String) -> Result<(), JsValue> {
         // Logs go to the browser console; warnings and errors are what the browser test watches for.
         let _ = eframe::WebLogger::init(log::LevelFilter::Info);
+        meshvox::names::spell_settings_with(meshvox::ui::panel_spelling);
         let canvas = web_sys::window()
             .and_then(|w| w.document())
             .and_then(|d| d.get_element_by_id(&canvas_id))

@@ -60,3 +60,98 @@ pub fn choices(names: &[&str]) -> String {
         [rest @ .., last] => format!("{} or {last}", rest.join(", ")),
     }
 }
+
+/// A setting a user gives, as messages name it: a flag on the command line (`--band`), a keyword in Python
+/// (`band=`), a control of the panel. The library's messages name settings only through this type, and each client
+/// spells them its own way, in one place, with [`spell_settings_with`]; without a client the library's own words
+/// are used (the setting's [`Setting::word`], and `word=value`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Setting {
+    Attributes,
+    Axis,
+    Backend,
+    Band,
+    Block,
+    Grid,
+    Level,
+    MaxFileSize,
+    MaxMemory,
+    MaxTriangles,
+    Merge,
+    Mode,
+    Output,
+    Resolution,
+    ResourceRoot,
+    Thickness,
+    VoxelSize,
+}
+
+impl Setting {
+    /// The library's word for the setting (Python's keyword).
+    pub fn word(self) -> &'static str {
+        match self {
+            Setting::Attributes => "attributes",
+            Setting::Axis => "axis",
+            Setting::Backend => "backend",
+            Setting::Band => "band",
+            Setting::Block => "block",
+            Setting::Grid => "grid",
+            Setting::Level => "level",
+            Setting::MaxFileSize => "max_file_size",
+            Setting::MaxMemory => "max_memory",
+            Setting::MaxTriangles => "max_triangles",
+            Setting::Merge => "merge",
+            Setting::Mode => "mode",
+            Setting::Output => "output",
+            Setting::Resolution => "resolution",
+            Setting::ResourceRoot => "resource_root",
+            Setting::Thickness => "thickness",
+            Setting::VoxelSize => "voxel_size",
+        }
+    }
+
+    /// The setting given `value`, as the client spells it (`--band full`, `band='full'`).
+    pub fn with(self, value: impl std::fmt::Display) -> Spelled {
+        Spelled { setting: self, value: value.to_string() }
+    }
+}
+
+/// How a client spells a setting, with a value or without.
+pub type Speller = fn(Setting, Option<&str>) -> String;
+
+static SPELLER: std::sync::RwLock<Option<Speller>> = std::sync::RwLock::new(None);
+
+/// Makes every message spell settings as `speller` does, from now on, in this process: the CLI, the Python module
+/// and the viewer call it once as they start.
+pub fn spell_settings_with(speller: Speller) {
+    *SPELLER.write().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(speller);
+}
+
+fn spell(setting: Setting, value: Option<&str>) -> String {
+    match *SPELLER.read().unwrap_or_else(std::sync::PoisonError::into_inner) {
+        Some(speller) => speller(setting, value),
+        None => match value {
+            None => setting.word().to_string(),
+            Some(value) => format!("{}={value}", setting.word()),
+        },
+    }
+}
+
+impl std::fmt::Display for Setting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&spell(*self, None))
+    }
+}
+
+/// A setting with its value, in a message ([`Setting::with`]).
+#[derive(Clone, Debug)]
+pub struct Spelled {
+    setting: Setting,
+    value: String,
+}
+
+impl std::fmt::Display for Spelled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&spell(self.setting, Some(&self.value)))
+    }
+}

@@ -359,7 +359,23 @@ fn parse_view(s: &str) -> Result<meshvox::render::camera::ViewPreset, String> {
     })
 }
 
+/// How messages name a setting on the command line: its flag (`--max-file-size`, `-o`), with a value
+/// `--band full`. The library's messages name settings through [`meshvox::names::Setting`]; this is the one place
+/// the command line spells them.
+fn flag(setting: meshvox::names::Setting, value: Option<&str>) -> String {
+    let flag = match setting {
+        meshvox::names::Setting::Output => "-o".to_string(),
+        meshvox::names::Setting::Resolution => "-r".to_string(),
+        other => format!("--{}", other.word().replace('_', "-")),
+    };
+    match value {
+        Some(value) => format!("{flag} {value}"),
+        None => flag,
+    }
+}
+
 pub fn main() -> ExitCode {
+    meshvox::names::spell_settings_with(flag);
     quiet_headless_vulkan();
     let cli = Cli::parse();
     if matches!(

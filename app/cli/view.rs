@@ -23,6 +23,8 @@ pub(super) fn view(args: &ViewArgs) -> Result<()> {
     if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
         bail!("no display (neither DISPLAY nor WAYLAND_DISPLAY is set); {HEADLESS}");
     }
+    // The window's messages name settings as its panel does.
+    meshvox::names::spell_settings_with(meshvox::ui::panel_spelling);
     let mesh = args.mesh.clone();
     let (resolution, up) = (args.resolution, args.up);
     eframe::run_native(

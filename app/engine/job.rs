@@ -4,8 +4,9 @@
 //! and the run all read the job instead of working any of it out again.
 
 use super::{EngineError, budget};
-use crate::formats::{MinecraftFormat, VoxelFormat};
+use crate::formats::VoxelFormat;
 use crate::mesh::{Aabb, Mesh};
+use crate::names::Setting;
 use crate::voxel::distance::{Band, MAX_BAND};
 use crate::voxel::labels::AttributeSet;
 use crate::voxel::{Axis, GridError, GridKind, GridSpec, MAX_DIM, Mode, Resolution};
@@ -123,10 +124,9 @@ impl<'a> Job<'a> {
             spec.origin -= DVec3::splat(f64::from(pad) * spec.voxel_size);
             spec.dims += 2 * pad;
         }
-        // A structure file's size is known now: refused before anything is voxelized.
-        let max = crate::formats::minecraft::structure::MAX_SIDE;
-        if format == Some(VoxelFormat::Minecraft(MinecraftFormat::Structure)) && spec.dims.max_element() > max {
-            return Err(EngineError::StructureSize { dims: spec.dims.to_array(), max });
+        // The grid's size is known now: a format that cannot hold it refuses it before anything is voxelized.
+        if let Some(format) = format {
+            format.check_fits(spec.dims).map_err(EngineError::TooLargeForFormat)?;
         }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
         let mut request = *request;
@@ -135,8 +135,9 @@ impl<'a> Job<'a> {
         }
         if request.mode.is_field() {
             match format {
-                Some(VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb) | None => {}
-                Some(VoxelFormat::Mesh(_)) => request.band = Job::level_band(&request, &spec)?,
+                None => {}
+                Some(f) if f.holds_field() => {}
+                Some(f) if f.is_mesh() => request.band = Job::level_band(&request, &spec)?,
                 Some(f) => {
                     return Err(EngineError::FieldFormat { mode: request.mode.name(), extension: f.extension() });
                 }
@@ -148,8 +149,8 @@ impl<'a> Job<'a> {
         if mesh.points.is_some() {
             let what = match (request.mode, request.attributes.is_empty()) {
                 (Mode::Surface, true) => None,
-                (Mode::Surface, false) => Some("--attributes".to_string()),
-                (mode, _) => Some(format!("--mode {mode}")),
+                (Mode::Surface, false) => Some(Setting::Attributes.to_string()),
+                (mode, _) => Some(Setting::Mode.with(mode).to_string()),
             };
             if let Some(what) = what {
                 return Err(EngineError::PointCloud { mesh: name.to_string(), what });
@@ -202,7 +203,8 @@ impl<'a> Job<'a> {
         match thickness > 0.0 && band <= MAX_BAND {
             true => Ok(Band::Voxels(band)),
             false => Err(EngineError::Level(format!(
-                "--thickness {thickness}: a shell's thickness is a number of voxels above 0 and at most {}",
+                "{}: a shell's thickness is a number of voxels above 0 and at most {}",
+                Setting::Thickness.with(thickness),
                 MAX_BAND - 2.0
             ))),
         }
@@ -213,7 +215,8 @@ impl<'a> Job<'a> {
         let level = request.level;
         if !level.is_finite() || (request.mode == Mode::Udf && level <= 0.0) {
             return Err(EngineError::Level(format!(
-                "--level {level}: {}",
+                "{}: {}",
+                Setting::Level.with(level),
                 match request.mode {
                     Mode::Udf => "an unsigned field's level set needs a level above 0 (the distance of the shell)",
                     _ => "a finite number of world units",
@@ -226,8 +229,9 @@ impl<'a> Job<'a> {
             Band::Full => Ok(Band::Full),
             Band::Voxels(_) if need <= MAX_BAND => Ok(Band::Voxels(need.ceil())),
             Band::Voxels(_) => Err(EngineError::Level(format!(
-                "--level {level} is {:.0} voxels from the surface; a band reaches at most {MAX_BAND}: a coarser grid \
-                 or a level nearer 0",
+                "{} is {:.0} voxels from the surface; a band reaches at most {MAX_BAND}: a coarser grid or a level \
+                 nearer 0",
+                Setting::Level.with(level),
                 need - 2.0
             ))),
         }

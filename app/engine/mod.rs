@@ -36,7 +36,9 @@ pub use query::{Queried, query_backend};
 pub use queue::{default_workers, work_queue};
 pub use report::{Instances, Notice, Report, Voxelized};
 
+use crate::formats::VoxelFormat;
 use crate::mesh::Mesh;
+use crate::names::Setting;
 use crate::parallel;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::{Band, DistanceField};
@@ -65,8 +67,8 @@ pub enum EngineError {
     #[cfg(feature = "gpu")]
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
-    /// `--backend gpu` in a build without the `gpu` feature.
-    #[error("this build of meshvox has no GPU backend (the `gpu` feature is off); use --backend cpu")]
+    /// The GPU backend asked for in a build without the `gpu` feature.
+    #[error("this build of meshvox has no GPU backend (the `gpu` feature is off); use {}", Setting::Backend.with("cpu"))]
     NoGpuBuild,
     /// The grid cannot be laid over the mesh, or does not fit the memory budget.
     #[error("{mesh}: {error}{hint}", hint = budget_hint(error, *sparse))]
@@ -75,7 +77,7 @@ pub enum EngineError {
     Empty { mesh: String },
     #[error("the GPU returned no grid")]
     NoGrid,
-    #[error("the grid or the mesh's textures are too large for one GPU binding; colour with --backend cpu")]
+    #[error("the grid or the mesh's textures are too large for one GPU binding; colour with {}", Setting::Backend.with("cpu"))]
     ColourTooLarge,
     #[error("the mesh has no colours")]
     NoColour,
@@ -85,13 +87,15 @@ pub enum EngineError {
     Bounds { min: [f64; 3], max: [f64; 3] },
     /// A distance field asked for in a format that holds occupancy only.
     #[error(
-        "--mode {mode} writes a distance field: use a .npy, .npz, .vdb or .nvdb output, or .ply, .obj, .glb or .stl \
-         for its level set as a mesh, not .{extension}"
+        "{} writes a distance field: use a {} output, or {} for its level set as a mesh, not .{extension}",
+        Setting::Mode.with(mode), VoxelFormat::listed(VoxelFormat::holds_field), VoxelFormat::listed(VoxelFormat::is_mesh)
     )]
     FieldFormat { mode: &'static str, extension: &'static str },
-    /// `--attributes` with an output that holds no labels.
+    /// Labels asked for with an output that holds no labels.
     #[error(
-        "--attributes: labels are written in .npy (as NAME.labels.npy beside it), .npz, .vdb and .nvdb, not .{extension}"
+        "{}: labels are written in {} (.npy as NAME.labels.npy beside the grid), not .{extension}",
+        Setting::Attributes,
+        VoxelFormat::listed(VoxelFormat::holds_labels)
     )]
     LabelsFormat { extension: &'static str },
     /// The labels' nearest triangles could not be found.
@@ -101,7 +105,7 @@ pub enum EngineError {
     #[error(transparent)]
     Read(crate::mesh::MeshError),
     /// A point cloud asked for something only triangles give.
-    #[error("{mesh} is a point cloud: each point sets its voxel in --mode surface; {what} needs triangles")]
+    #[error("{mesh} is a point cloud: each point sets its voxel in {}; {what} needs triangles", Setting::Mode.with("surface"))]
     PointCloud { mesh: String, what: String },
     /// A query's points cannot be answered.
     #[error(transparent)]
@@ -109,30 +113,32 @@ pub enum EngineError {
     /// Samples cannot be drawn.
     #[error(transparent)]
     Sample(#[from] crate::voxel::sample::SampleError),
-    /// A level set's `--level` that cannot be meshed.
+    /// A level set's level, or a shell's thickness, that cannot be meshed.
     #[error("{0}")]
     Level(String),
-    /// `--band full` with a sparse grid or output.
+    /// The whole grid's field with a sparse grid or output.
     #[error(
-        "--band full computes every voxel of the grid: write it as .npy (.vdb, .nvdb and .npz hold a band, --band K)"
+        "{} computes every voxel of the grid: write it as {} ({} hold a band, {})",
+        Setting::Band.with("full"), VoxelFormat::listed(|f| f.holds_field() && !f.is_sparse()),
+        VoxelFormat::listed(|f| f.holds_field() && f.is_sparse()), Setting::Band.with("K")
     )]
     FullBandSparse,
-    /// A structure file over the structure block's size.
-    #[error(
-        "a structure file (.nbt) is at most {max}×{max}×{max} blocks (the structure block's limit); this grid is \
-         {}×{}×{}: write a .schem or .litematic instead", dims[0], dims[1], dims[2]
-    )]
-    StructureSize { dims: [u32; 3], max: u32 },
+    /// The grid is larger than the output format holds ([`VoxelFormat::check_fits`]).
+    #[error(transparent)]
+    TooLargeForFormat(crate::formats::FormatError),
 }
 
 /// What to add to a grid error: where it is over the budget, what would fit.
-fn budget_hint(error: &GridError, sparse: bool) -> &'static str {
+fn budget_hint(error: &GridError, sparse: bool) -> String {
     match (error, sparse) {
-        (GridError::OverBudget { .. }, false) => {
-            " (or raise --max-memory, or write a sparse grid: -o FILE.vdb or FILE.npz, or --grid sparse)"
-        }
-        (GridError::OverBudget { .. }, true) => " (or raise --max-memory)",
-        _ => "",
+        (GridError::OverBudget { .. }, false) => format!(
+            " (or raise {}, or write a sparse grid: {} or FILE.npz, or {})",
+            Setting::MaxMemory,
+            Setting::Output.with("FILE.vdb"),
+            Setting::Grid.with("sparse")
+        ),
+        (GridError::OverBudget { .. }, true) => format!(" (or raise {})", Setting::MaxMemory),
+        _ => String::new(),
     }
 }
 
@@ -383,9 +389,10 @@ impl Engine {
                 notices.push(Notice {
                     warning: true,
                     message: format!(
-                        "labels of a sparse grid are written in .npz and .vdb: the .{} is unlabelled (--grid dense \
-                         labels it)",
-                        format.extension()
+                        "labels of a sparse grid are written in {}: the .{} is unlabelled ({} labels it)",
+                        VoxelFormat::listed(|f| f.holds_labels() && f.is_sparse()),
+                        format.extension(),
+                        Setting::Grid.with("dense")
                     ),
                 });
                 None
@@ -556,9 +563,11 @@ impl Engine {
         if band == Band::Full && self.gpu.is_some() {
             notices.push(Notice {
                 warning: false,
-                message: "--band full: each voxel's nearest triangle is searched on the CPU (a hierarchy over the \
-                          triangles); the GPU's band pass would test every triangle against every voxel"
-                    .into(),
+                message: format!(
+                    "{}: each voxel's nearest triangle is searched on the CPU (a hierarchy over the triangles); the \
+                     GPU's band pass would test every triangle against every voxel",
+                    Setting::Band.with("full")
+                ),
             });
         }
         if let Some(on) = on_gpu

@@ -132,11 +132,15 @@ impl Voxelized {
         options: &WriteOptions,
         out: &mut W,
     ) -> Result<(), FormatError> {
-        match (&self.field, self.shell) {
-            (Some(field), Some(thickness)) if matches!(format, VoxelFormat::Mesh(_)) => {
-                formats::write_shell(field, thickness, format, options, out)
+        match (&self.field, format) {
+            // A field written as a mesh: its level set, or a shell's walls, meshed here and written as a mesh.
+            (Some(field), VoxelFormat::Mesh(mesh)) => {
+                let progress = options.progress.unwrap_or(&|_, _| {});
+                let surface = crate::voxel::shell::field_mesh(field, self.shell, options.level, progress)
+                    .map_err(std::io::Error::other)?;
+                formats::surface::write_surface(&surface, mesh, out)
             }
-            (Some(field), None) => formats::write_field(field, format, options, out),
+            (Some(field), _) if self.shell.is_none() => formats::write_field(field, format, out),
             _ => {
                 let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
                 formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)

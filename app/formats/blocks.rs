@@ -17,7 +17,7 @@ pub enum BlockError {
     Line { what: String, line: usize, why: String },
     #[error("{0}: no blocks")]
     Empty(String),
-    #[error("--block {0}: a block id is a namespaced name such as minecraft:stone (not air)")]
+    #[error("{}: a block id is a namespaced name such as minecraft:stone (not air)", crate::names::Setting::Block.with(.0))]
     Id(String),
     #[error("{0}: more than {MAX_BLOCKS} blocks")]
     TooMany(String),

@@ -381,7 +381,10 @@ fn write_stl(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
     }
     let triangles = u32::try_from(quads * 2).map_err(|_| FormatError::Invalid {
         format: "stl",
-        message: format!("{quads} faces are more triangles than STL counts; use .ply or --merge"),
+        message: format!(
+            "{quads} faces are more triangles than STL counts; use .ply or {}",
+            crate::names::Setting::Merge
+        ),
     })?;
     let mut header = [0u8; 80];
     header[..19].copy_from_slice(b"meshvox voxel model");
@@ -426,7 +429,7 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
     }
     let layout = GlbLayout { quads, coloured, h: spec.voxel_size };
     let text = glb_json(&layout, spec, lo, hi);
-    write_glb_head(&text, layout.bin_len(), "use .ply or --merge", out)?;
+    write_glb_head(&text, layout.bin_len(), &format!("use .ply or {}", crate::names::Setting::Merge), out)?;
     write_glb_vertices(faces, &layout, out)?;
     for i in 0..quads as u32 {
         let b = 4 * i;

@@ -1,9 +1,13 @@
-//! Voxel file formats, one file each: the dense ones with a writer and a reader (the readers serve round-trip
-//! tests and later loading grids back into the viewer): NumPy [`npy`], [`binvox`], MagicaVoxel [`vox`], and the
-//! voxel model as a [`mesh`] (`.glb`, `.ply`, `.obj`); the sparse ones, written from a [`SparseGrid`] and read
-//! back in the tests by numpy and OpenVDB: coordinates [`npz`] and OpenVDB [`vdb`]. This module names them
-//! ([`VoxelFormat`], [`MeshFormat`]), holds their one error type, and writes any of them from either grid with
-//! [`write_grid`]; [`atomic`] puts a file in place only when whole.
+//! The output formats, one file each, the layer above the grids and fields (`voxel`) and below the engine. Dense
+//! grids: NumPy [`npy`], [`binvox`], MagicaVoxel [`vox`], the voxel model as a [`mesh`] (`.glb`, `.ply`, `.obj`,
+//! `.stl`) and the Minecraft schematics ([`minecraft`]: `.schem`, `.litematic`, `.nbt`, their blocks picked by
+//! [`blocks`] from colours, through a [`palette`] of [`swatches`] where one is given); sparse grids: coordinates
+//! [`npz`], OpenVDB [`vdb`] and NanoVDB [`nvdb`]; distance fields in `.npy`, `.npz`, `.vdb` and `.nvdb`; triangle
+//! meshes (a field's level set, a shell's walls, made before they are written) by [`surface`]; point samples by
+//! [`points`]. This module names the formats ([`VoxelFormat`], [`MeshFormat`]) and answers what each holds and how
+//! large a grid it takes, holds their one error type, and writes any of them from either grid with [`write_grid`];
+//! [`atomic`] puts a file in place only when whole. Every list of formats in a message comes from
+//! [`VoxelFormat::listed`].
 
 #[cfg(not(target_arch = "wasm32"))]
 pub mod atomic;
@@ -94,6 +98,33 @@ impl VoxelFormat {
         )
     }
 
+    /// The extensions of the formats `keep` answers true for, as a message lists them (`.npy, .npz or .vdb`), in
+    /// [`VoxelFormat::ALL`]'s order.
+    pub fn listed(keep: impl Fn(VoxelFormat) -> bool) -> String {
+        let names: Vec<String> =
+            VoxelFormat::ALL.into_iter().filter(|&f| keep(f)).map(|f| format!(".{}", f.extension())).collect();
+        crate::names::choices(&names.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+
+    /// Whether the format holds a distance field's values (the others hold occupancy, or a mesh).
+    pub fn holds_field(self) -> bool {
+        matches!(self, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb)
+    }
+
+    /// Whether the format is a triangle mesh (a voxel model, a field's level set or a shell's walls).
+    pub fn is_mesh(self) -> bool {
+        matches!(self, VoxelFormat::Mesh(_))
+    }
+
+    /// Whether a grid of `dims` voxels fits the format: the structure file's blocks are at most
+    /// [`minecraft::structure::MAX_SIDE`] a side. Asked before anything is voxelized.
+    pub fn check_fits(self, dims: UVec3) -> Result<(), FormatError> {
+        match self {
+            VoxelFormat::Minecraft(MinecraftFormat::Structure) => minecraft::structure::check_fits(dims),
+            _ => Ok(()),
+        }
+    }
+
     /// Whether the format holds per-voxel labels (`.npy` as a second file beside the grid).
     pub fn holds_labels(self) -> bool {
         matches!(self, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb)
@@ -171,9 +202,10 @@ pub struct WriteOptions<'a> {
     /// Per-voxel labels: `.npz` arrays and `.vdb` `Int32Grid`s named by their attributes (a dense `.npy` grid's
     /// go beside it, [`write_labels_npy`]).
     pub labels: Option<&'a Labels>,
-    /// A distance field written as a mesh: the level set's value, world units.
+    /// A distance field written as a mesh: the level set's value, world units (the engine makes the mesh before
+    /// it is written).
     pub level: f64,
-    /// Called now and then with (blocks done, blocks) while a level set or a shell's walls are meshed.
+    /// Called now and then with (blocks done, blocks) while the engine meshes a level set or a shell's walls.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
     /// The Minecraft formats: the blocks to map colours to (`None`: [`BlockSet::default_set`]), and whether to
     /// dither.
@@ -259,21 +291,15 @@ pub type Label<'a> = dyn Fn(UVec3) -> i32 + Sync + 'a;
 /// A named int32 value per set voxel: a label column as the sparse writers take it.
 pub type IntColumn<'a> = (&'a str, &'a Label<'a>);
 
-/// Writes a distance field in `format`: `.npy` float32 over the whole grid, `.npz` the band's coordinates and
-/// `values`, `.vdb` a level set. Other formats hold occupancy only (the engine refuses them before voxelizing).
+/// Writes a distance field's values in `format`: `.npy` float32 over the whole grid, `.npz` the band's coordinates
+/// and values, `.vdb` and `.nvdb` a level set. A field written as a mesh is its level set or a shell's walls, made
+/// first ([`crate::voxel::shell::field_mesh`]) and written by [`surface::write_surface`].
 pub fn write_field<W: Write + Seek>(
     field: &DistanceField,
     format: VoxelFormat,
-    options: &WriteOptions,
     out: &mut W,
 ) -> Result<(), FormatError> {
     match format {
-        VoxelFormat::Mesh(mesh) => {
-            let progress = options.progress.unwrap_or(&|_, _| {});
-            let surface = crate::voxel::contour::level_mesh_with_progress(field, options.level, progress)
-                .map_err(std::io::Error::other)?;
-            surface::write_surface(&surface, mesh, out)
-        }
         VoxelFormat::Npy => npy::write_field_npy(field, out),
         VoxelFormat::Npz => {
             let value = |v: UVec3| field.value(v);
@@ -282,29 +308,12 @@ pub fn write_field<W: Write + Seek>(
         VoxelFormat::Vdb => vdb::write_level_set(field, out),
         VoxelFormat::Nvdb => nvdb::write_level_set_nvdb(field, out),
         other => Err(std::io::Error::other(format!(
-            "a distance field is written as .npy, .npz, .vdb or a mesh of its level set, not .{}",
+            "a distance field is written as {}, or its level set as a mesh, not .{}",
+            VoxelFormat::listed(VoxelFormat::holds_field),
             other.extension()
         ))
         .into()),
     }
-}
-
-/// Writes the walls of a shell of `thickness` voxels cut from `field` ([`crate::voxel::shell::shell_mesh`]) as the mesh
-/// `format`.
-pub fn write_shell<W: Write + Seek>(
-    field: &DistanceField,
-    thickness: f32,
-    format: VoxelFormat,
-    options: &WriteOptions,
-    out: &mut W,
-) -> Result<(), FormatError> {
-    let VoxelFormat::Mesh(mesh) = format else {
-        return Err(std::io::Error::other("a shell's walls are written as .ply, .obj, .glb or .stl").into());
-    };
-    let progress = options.progress.unwrap_or(&|_, _| {});
-    let walls =
-        crate::voxel::shell::shell_mesh_with_progress(field, thickness, progress).map_err(std::io::Error::other)?;
-    surface::write_surface(&walls, mesh, out)
 }
 
 /// The path of the labels written beside an `.npy` grid: `grid.npy` → `grid.labels.npy`.

@@ -81,9 +81,9 @@ impl std::fmt::Display for AdapterSummary {
 /// Errors of the GPU path. Each message says what to do where there is something to do.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    #[error("no GPU adapter found ({0}); use --backend cpu, or install a Vulkan driver (mesa-vulkan-drivers)")]
+    #[error("no GPU adapter found ({0}); use {cpu}, or install a Vulkan driver (mesa-vulkan-drivers)", cpu = crate::names::Setting::Backend.with("cpu"))]
     NoAdapter(String),
-    #[error("this device has no compute shaders (WebGL2); use --backend cpu")]
+    #[error("this device has no compute shaders (WebGL2); use {}", crate::names::Setting::Backend.with("cpu"))]
     NoCompute,
     #[error("the GPU adapter refused a device: {0}")]
     RequestDevice(String),

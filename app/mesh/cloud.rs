@@ -173,9 +173,10 @@ pub fn read_points_file(path: &Path, limits: &LoadLimits) -> Result<Vec<DVec3>, 
     if bytes > limits.byte_limit() {
         let human = crate::memory::human;
         let message = format!(
-            "{count} points take {} as f64, more than the limit of {} (--max-file-size); query them in parts",
+            "{count} points take {} as f64, more than the limit of {} ({}); query them in parts",
             human(bytes),
-            human(limits.byte_limit())
+            human(limits.byte_limit()),
+            crate::names::Setting::MaxFileSize
         );
         return Err(MeshError::Points { path: path.to_path_buf(), message });
     }

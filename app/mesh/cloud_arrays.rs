@@ -188,9 +188,10 @@ fn check_stored(array: &Array, stored: u64) -> Result<(), String> {
 fn check_limit(array: &Array, limit: Option<u64>) -> Result<(), String> {
     match limit {
         Some(limit) if array.data_bytes() > limit => Err(format!(
-            "{} inflates past {} (--max-file-size): its header declares {}",
+            "{} inflates past {} ({}): its header declares {}",
             array.name(),
             crate::memory::human(limit),
+            crate::names::Setting::MaxFileSize,
             array.describe()
         )),
         _ => Ok(()),

@@ -18,6 +18,7 @@
 //! the folder while meshvox runs) is outside what it guards against.
 
 use super::MeshError;
+use crate::names::Setting;
 use std::borrow::Cow;
 use std::cell::Cell;
 use std::io::Read;
@@ -90,12 +91,15 @@ impl Budget {
     pub(crate) fn over(&self, size: u64, total: u64) -> String {
         let human = crate::memory::human;
         match size > self.limit {
-            true => format!("is {}, more than the limit of {} (--max-file-size)", human(size), human(self.limit)),
+            true => {
+                format!("is {}, more than the limit of {} ({})", human(size), human(self.limit), Setting::MaxFileSize)
+            }
             false => format!(
-                "is {}, which would bring what this mesh reads to {}, more than the limit of {} (--max-file-size)",
+                "is {}, which would bring what this mesh reads to {}, more than the limit of {} ({})",
                 human(size),
                 human(total),
-                human(self.limit)
+                human(self.limit),
+                Setting::MaxFileSize
             ),
         }
     }
@@ -194,7 +198,8 @@ impl Access {
         let real = std::fs::canonicalize(&joined)
             .map_err(|e| ReadError::Failed(format!("cannot read {}: {e}", joined.display())))?;
         if !self.roots.iter().any(|root| real.starts_with(root)) {
-            let also = if self.roots.len() > 1 { " or a --resource-root" } else { " (or a --resource-root)" };
+            let root = Setting::ResourceRoot;
+            let also = if self.roots.len() > 1 { format!(" or a {root}") } else { format!(" (or a {root})") };
             return Err(ReadError::Refused(format!(
                 "{shown} resolves to {}, outside {}; a file may only refer to files inside its own folder{also}",
                 real.display(),

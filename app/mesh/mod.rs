@@ -18,6 +18,7 @@ mod obj;
 mod ply;
 mod stl;
 
+use crate::names::Setting;
 use cloud::{CloudFormat, PointCloud};
 use files::{Access, Budget, Externals};
 use glam::{DVec3, Vec3, Vec4};
@@ -271,9 +272,9 @@ pub enum MeshError {
     NonFinite { path: PathBuf, triangle: usize },
     #[error("unknown builtin mesh 'builtin:{name}' (available: {})", builtin::NAMES.join(", "))]
     UnknownBuiltin { name: String },
-    #[error("{}: {triangles} triangles is more than the limit of {limit} (raise it with --max-triangles)", path.display())]
+    #[error("{}: {triangles} triangles is more than the limit of {limit} (raise it with {})", path.display(), Setting::MaxTriangles)]
     TooManyTriangles { path: PathBuf, triangles: u64, limit: u64 },
-    #[error("{}: the file is {}, more than the limit of {} (--max-file-size); it was not read", path.display(), crate::memory::human(*size), crate::memory::human(*limit))]
+    #[error("{}: the file is {}, more than the limit of {} ({}); it was not read", path.display(), crate::memory::human(*size), crate::memory::human(*limit), Setting::MaxFileSize)]
     FileTooLarge { path: PathBuf, size: u64, limit: u64 },
     /// The file, or a file it refers to, breaks a rule for untrusted input (see docs/untrusted-files.md).
     #[error("{}: {message}", path.display())]

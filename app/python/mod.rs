@@ -496,25 +496,30 @@ fn save_field(
     level: f64,
     thickness: Option<f32>,
 ) -> PyResult<()> {
-    let format = VoxelFormat::from_extension(&path)
-        .filter(|f| {
-            matches!(f, VoxelFormat::Npy | VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb | VoxelFormat::Mesh(_))
-        })
-        .ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "{}: a distance field is saved as .npy, .npz, .vdb or .nvdb, or its level set as .ply, .obj, .glb or .stl",
-                path.display()
-            ))
-        })?;
+    let format = VoxelFormat::from_extension(&path).filter(|f| f.holds_field() || f.is_mesh()).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "{}: a distance field is saved as {}, or its level set as {}",
+            path.display(),
+            VoxelFormat::listed(VoxelFormat::holds_field),
+            VoxelFormat::listed(VoxelFormat::is_mesh)
+        ))
+    })?;
     let (spec, values) = from_matrix::field_values(&distances.as_array(), origin, pitch, background)?;
     let written = process::run(py, None, |_| {
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
-        crate::formats::atomic::write_atomically(&path, |out| match thickness {
-            Some(thickness) => crate::formats::write_shell(&field, thickness, format, &Default::default(), out),
-            None => {
-                let options = crate::formats::WriteOptions { level, ..Default::default() };
-                crate::formats::write_field(&field, format, &options, out)
+        crate::formats::atomic::write_atomically(&path, |out| match format {
+            // The level set, or the shell's walls, made first and written as a mesh (as the engine writes them).
+            VoxelFormat::Mesh(mesh) => {
+                let surface = crate::voxel::shell::field_mesh(&field, thickness, level, &|_, _| {})
+                    .map_err(std::io::Error::other)?;
+                crate::formats::surface::write_surface(&surface, mesh, out)
             }
+            _ if thickness.is_some() => Err(std::io::Error::other(format!(
+                "a shell's walls are written as {}",
+                VoxelFormat::listed(VoxelFormat::is_mesh)
+            ))
+            .into()),
+            _ => crate::formats::write_field(&field, format, out),
         })
     })?;
     written.map(|_| ()).map_err(|e| save_err(&path, e))
@@ -555,8 +560,19 @@ fn level_mesh<'py>(
 mod from_matrix;
 mod query;
 
+/// How messages name a setting in Python: its keyword, with a value `band='full'` or `thickness=2`. The one place
+/// the Python package spells settings ([`crate::names::Setting`]).
+fn keyword(setting: crate::names::Setting, value: Option<&str>) -> String {
+    match value {
+        None => setting.word().to_string(),
+        Some(value) if value.parse::<f64>().is_ok() => format!("{}={value}", setting.word()),
+        Some(value) => format!("{}='{value}'", setting.word()),
+    }
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    crate::names::spell_settings_with(keyword);
     m.add("MeshError", m.py().get_type::<PyMeshError>())?;
     m.add_function(wrap_pyfunction!(voxelize, m)?)?;
     m.add_function(wrap_pyfunction!(voxelize_many, m)?)?;

@@ -81,7 +81,7 @@ impl ViewerApp {
         let colours = self.colours.as_ref();
         let mut bytes = std::io::Cursor::new(Vec::new());
         if let Some(field) = &self.field {
-            formats::write_field(field, format, &Default::default(), &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+            formats::write_field(field, format, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
             return Ok(vec![(name, bytes.into_inner())]);
         }
         formats::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;

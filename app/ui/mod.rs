@@ -28,6 +28,18 @@ use crate::voxel::{Axis, Mode, VoxelGrid};
 use job::Pending;
 #[cfg(not(target_arch = "wasm32"))]
 pub use platform::native_options;
+
+/// How messages name a setting in the viewer: the panel's word for it, quoted (“Mode: sdf”). The client that opens
+/// the viewer (the desktop command, the page) passes this to [`crate::names::spell_settings_with`]; the one place the
+/// viewer spells settings.
+pub fn panel_spelling(setting: crate::names::Setting, value: Option<&str>) -> String {
+    let word = setting.word().replace('_', " ");
+    let mut label = word[..1].to_uppercase() + &word[1..];
+    if let Some(value) = value {
+        label = format!("{label}: {value}");
+    }
+    format!("“{label}”")
+}
 #[cfg(target_arch = "wasm32")]
 pub use platform::web_options;
 pub use platform::wgpu_configuration;

@@ -290,10 +290,9 @@ impl ViewerApp {
             let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)];
             for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb].into_iter().chain(minecraft) {
                 // A structure file holds at most 48 blocks a side.
-                let max = formats::minecraft::structure::MAX_SIDE;
-                let too_big = self.grid.as_ref().is_some_and(|g| g.spec.dims.max_element() > max);
-                let fits = !(format == Minecraft(Structure) && too_big);
-                let usable = self.grid.is_some() && fits && (!field || matches!(format, Npy | Vdb | Nvdb | Npz));
+                let fits = self.grid.as_ref().is_some_and(|g| format.check_fits(g.spec.dims).is_ok());
+                let too_big = self.grid.is_some() && !fits;
+                let usable = fits && (!field || format.holds_field());
                 let hint = match (format, field) {
                     (Npy, true) => "numpy float32 distances (X,Y,Z), in the mesh's units",
                     (Vdb, true) => "OpenVDB level set: a FloatGrid 'surface' over the band",

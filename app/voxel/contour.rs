@@ -32,6 +32,7 @@
 use super::distance::DistanceField;
 use super::sparse::{LEAF_DIM, SparseGrid, key_origin};
 use super::{Grid, GridSpec};
+use crate::names::Setting;
 use crate::parallel;
 use glam::{DVec3, IVec3, UVec3};
 use rayon::prelude::*;
@@ -59,11 +60,11 @@ impl TriangleMesh {
 #[derive(Debug, thiserror::Error)]
 pub enum ContourError {
     #[error(
-        "--level {level}: the field's band reaches {reach} (world units) from the surface; the level must be \
-         within it (a wider --band)"
+        "{}: the field's band reaches {reach} (world units) from the surface; the level must be within it (a wider \
+         {})", Setting::Level.with(.level), Setting::Band
     )]
     OutsideBand { level: f64, reach: f64 },
-    #[error("--level {0}: an unsigned field (udf) has a level set only above 0")]
+    #[error("{}: an unsigned field (udf) has a level set only above 0", Setting::Level.with(.0))]
     UnsignedLevel(f64),
 }
 

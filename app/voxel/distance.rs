@@ -33,6 +33,7 @@ use super::bvh::Bvh;
 use super::cpu::distance::*;
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
+use crate::names::Setting;
 use crate::parallel;
 use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
@@ -70,10 +71,15 @@ impl Band {
         }
         match s.parse::<f32>() {
             Ok(k) if k > 0.0 && k <= MAX_BAND => Ok(Band::Voxels(k)),
-            Ok(k) if k.is_finite() && k > MAX_BAND => {
-                Err(format!("--band {s}: at most {MAX_BAND} voxels; use --band full for the whole grid"))
-            }
-            _ => Err(format!("--band {s}: use a number of voxels above 0 (3 is OpenVDB's default) or full")),
+            Ok(k) if k.is_finite() && k > MAX_BAND => Err(format!(
+                "{}: at most {MAX_BAND} voxels; use {} for the whole grid",
+                Setting::Band.with(s),
+                Setting::Band.with("full")
+            )),
+            _ => Err(format!(
+                "{}: use a number of voxels above 0 (3 is OpenVDB's default) or full",
+                Setting::Band.with(s)
+            )),
         }
     }
 

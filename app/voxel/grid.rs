@@ -1,6 +1,7 @@
 //! [`GridSpec`] (where the grid sits and how many voxels it has) and [`VoxelGrid`] (the packed bits).
 
 use crate::mesh::Aabb;
+use crate::names::Setting;
 use glam::{DVec3, UVec3, Vec3};
 
 /// Which axis the resolution counts voxels along.
@@ -72,9 +73,9 @@ pub enum GridError {
     ZeroResolution,
     #[error("the voxel size must be a positive finite number, not {0}")]
     BadVoxelSize(f64),
-    #[error("the mesh has zero extent along {0}: choose another --axis or give --voxel-size")]
+    #[error("the mesh has zero extent along {0}: choose another {axis} or give {size}", axis = Setting::Axis, size = Setting::VoxelSize)]
     FlatAxis(char),
-    #[error("the mesh is a single point: give --voxel-size to voxelize it")]
+    #[error("the mesh is a single point: give {} to voxelize it", Setting::VoxelSize)]
     PointMesh,
     #[error("the grid would be {}×{}×{} voxels; at most {MAX_DIM} per axis are supported", .0[0], .0[1], .0[2])]
     TooLarge([u64; 3]),
@@ -88,8 +89,8 @@ pub enum GridError {
         "the {}×{}×{} grid needs {} of memory but {} is available; {}",
         dims[0], dims[1], dims[2], crate::memory::human(*needed), crate::memory::human(*budget),
         match fits {
-            Some(n) => format!("the largest resolution that fits is -r {n}"),
-            None => "not even -r 1 fits".to_string(),
+            Some(n) => format!("the largest resolution that fits is {}", Setting::Resolution.with(n)),
+            None => format!("not even {} fits", Setting::Resolution.with(1)),
         }
     )]
     OverBudget { dims: [u32; 3], needed: u64, budget: u64, fits: Option<u32> },

@@ -65,9 +65,9 @@ crate::names::names!(Mode {
     Surface => "surface": "The conservative surface: every voxel a triangle touches (26-separating)",
     Solid => "solid": "The surface plus every voxel whose centre is inside (generalized winding number >= 1/2)",
     Surface6 => "surface6": "The thin surface (6-separating): no face-connected leak from inside a closed mesh",
-    Sdf => "sdf": "Signed distances near the surface (--band), negative inside (winding number >= 1/2): .npy, .vdb, .npz",
-    Udf => "udf": "Unsigned distances near the surface (--band), for open surfaces: .npy, .vdb, .npz",
-    Shell => "shell": "A hollow shell: voxels inside the mesh within --thickness voxels of its surface (a mesh output: its walls)",
+    Sdf => "sdf": "Signed distances near the surface (in a band), negative inside (winding number >= 1/2): .npy, .vdb, .npz",
+    Udf => "udf": "Unsigned distances near the surface (in a band), for open surfaces: .npy, .vdb, .npz",
+    Shell => "shell": "A hollow shell: voxels inside the mesh within a thickness (in voxels) of its surface (a mesh output: its walls)",
 });
 
 impl Mode {

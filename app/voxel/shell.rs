@@ -74,3 +74,17 @@ pub fn shell_mesh_with_progress(
     outer.faces.extend(inner.faces.iter().map(|f| [f[0] + base, f[2] + base, f[1] + base]));
     Ok(outer)
 }
+
+/// The mesh a field is written as: with `shell` (a thickness in voxels) the walls of the shell cut from it
+/// ([`shell_mesh`]), otherwise its level set at `level` ([`level_mesh_with_progress`]).
+pub fn field_mesh(
+    field: &DistanceField,
+    shell: Option<f32>,
+    level: f64,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TriangleMesh, ContourError> {
+    match shell {
+        Some(thickness) => shell_mesh_with_progress(field, thickness, progress),
+        None => level_mesh_with_progress(field, level, progress),
+    }
+}

@@ -1,8 +1,8 @@
 //! The layer rules of ARCHITECTURE.md, read from the source: every module's references to other modules
 //! (`use` items and inline paths through `crate::`, `super::` and, in the binary, `meshvox::`) form a graph in which
-//! no layer imports a higher one (memory, parallel, mesh, voxel, gpu, engine, render, then the clients: ui, python
-//! and the binary) and no circle of
-//! modules exists. A child's references to its own ancestors are left out: a parent module owns its children (the
+//! no layer imports a higher one (memory, parallel, mesh, voxel, gpu, formats, engine, render, then the clients: ui,
+//! python and the binary), the output formats are reached only from the engine and the clients (never from gpu,
+//! render, voxel or mesh), and no circle of modules exists. A child's references to its own ancestors are left out: a parent module owns its children (the
 //! viewer's `impl ViewerApp` blocks live in `ui/job.rs`, `ui/viewport.rs`…), which is not a circle between peers.
 //! A reference to an item a parent re-exports from a child (`pub use job::Stats`) counts as one to that child.
 
@@ -11,8 +11,14 @@ use std::path::{Path, PathBuf};
 
 /// The top-level modules from the bottom layer up (`names`, the vocabulary macro, under everything); `cli` stands
 /// for the binary (`main.rs` and `cli/`). The Python binding is a client like the viewer, and uses no drawing.
-const LAYERS: [&str; 12] =
-    ["names", "memory", "parallel", "trace", "mesh", "voxel", "gpu", "engine", "render", "ui", "python", "cli"];
+const LAYERS: [&str; 13] = [
+    "names", "memory", "parallel", "trace", "mesh", "voxel", "gpu", "formats", "engine", "render", "ui", "python",
+    "cli",
+];
+
+/// The layers that never import the output formats: the formats sit beside `gpu` above the algorithms, and drawing
+/// (`render`, above the engine) draws from the GPU, never from a file format.
+const BELOW_FORMATS: [&str; 4] = ["mesh", "voxel", "gpu", "render"];
 
 type Module = Vec<String>;
 
@@ -183,6 +189,9 @@ fn no_layer_imports_a_higher_one_and_no_modules_import_each_other() {
             if layer(&to) > layer(&s.module) {
                 violations.push(format!("{} uses {} ({path})", s.module.join("::"), to.join("::")));
             }
+            if to[0] == "formats" && BELOW_FORMATS.contains(&s.module[0].as_str()) {
+                violations.push(format!("{} uses the output formats, {} ({path})", s.module.join("::"), to.join("::")));
+            }
             edges.entry(s.module.clone()).or_default().insert(to);
         }
     }
@@ -230,5 +239,93 @@ fn no_layer_imports_a_higher_one_and_no_modules_import_each_other() {
         edges.get(&a).is_some_and(|e| e.contains(&b))
     };
     assert!(uses(&["engine", "device"], &["gpu", "voxelize"]), "{edges:?}");
+    assert!(uses(&["engine", "report"], &["formats"]), "{edges:?}");
     assert!(uses(&["ui", "job"], &["engine"]), "{edges:?}");
+}
+
+/// The string literals in `code` (comments already dropped): normal strings with their escapes, and raw strings.
+fn string_literals(code: &str) -> Vec<String> {
+    let bytes = code.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            // A character literal: `'"'`, `'\"'` or any other, skipped whole (a lifetime has no closing quote).
+            b'\'' => {
+                let close = if bytes.get(i + 1) == Some(&b'\\') { i + 3 } else { i + 2 };
+                i = if bytes.get(close) == Some(&b'\'') { close + 1 } else { i + 1 };
+            }
+            b'r' if matches!(bytes.get(i + 1), Some(b'#' | b'"'))
+                && (i == 0 || !bytes[i - 1].is_ascii_alphanumeric()) =>
+            {
+                let hashes = bytes[i + 1..].iter().take_while(|&&b| b == b'#').count();
+                let open = i + 1 + hashes;
+                if bytes.get(open) != Some(&b'"') {
+                    i += 1;
+                    continue;
+                }
+                let close = format!("\"{}", "#".repeat(hashes));
+                let end = code[open + 1..].find(&close).map_or(code.len(), |e| open + 1 + e);
+                out.push(code[open + 1..end].to_string());
+                i = end + close.len();
+            }
+            b'"' => {
+                let mut j = i + 1;
+                while j < bytes.len() && bytes[j] != b'"' {
+                    j += if bytes[j] == b'\\' { 2 } else { 1 };
+                }
+                out.push(code[i + 1..j.min(code.len())].to_string());
+                i = j + 1;
+            }
+            _ => i += 1,
+        }
+    }
+    out
+}
+
+/// Whether `text` names a command-line flag: `--band`, `--max-memory`, or `-o` or `-r` as a word.
+fn names_a_flag(text: &str) -> bool {
+    let b = text.as_bytes();
+    let long = text.match_indices("--").any(|(at, _)| {
+        let before_ok = at == 0 || !(b[at - 1].is_ascii_alphanumeric() || b[at - 1] == b'-');
+        before_ok && b.get(at + 2).is_some_and(u8::is_ascii_lowercase)
+    });
+    let short = text.split(|c: char| c.is_whitespace() || c == '(').any(|w| w == "-o" || w == "-r");
+    long || short
+}
+
+/// The library speaks in its own words: no string in a library module (everything but the clients: the viewer,
+/// Python and the binary) names a command-line flag. Settings are named through `names::Setting`, which each
+/// client spells its own way (`--band` on the command line, `band=` in Python, the panel's label).
+#[test]
+fn no_library_message_names_a_command_line_flag() {
+    let app = Path::new(env!("CARGO_MANIFEST_DIR")).join("app");
+    let mut files = Vec::new();
+    rust_files(&app, &mut files);
+    let mut offenders = Vec::new();
+    let mut literals = 0;
+    for file in &files {
+        let module = module_of(&app, file);
+        if ["ui", "python", "cli"].contains(&module[0].as_str()) {
+            continue;
+        }
+        let code = without_comments(&std::fs::read_to_string(file).expect("read"));
+        for literal in string_literals(&code) {
+            literals += 1;
+            if names_a_flag(&literal) {
+                offenders.push(format!("{}: \"{literal}\"", file.strip_prefix(&app).expect("under app/").display()));
+            }
+        }
+    }
+    assert!(literals > 500, "only {literals} string literals found: the scanner is broken");
+    assert!(offenders.is_empty(), "library messages that name a command-line flag:\n{}", offenders.join("\n"));
+    // The scanner finds what it must, and leaves alone what it must.
+    assert!(
+        names_a_flag("use --backend cpu")
+            && names_a_flag("(-o FILE.vdb)")
+            && names_a_flag("--band 3")
+            && names_a_flag("is -r 7")
+    );
+    assert!(!names_a_flag("a--b") && !names_a_flag("---") && !names_a_flag("-1 -- 2") && !names_a_flag("x-o"));
+    assert_eq!(string_literals(r##"f('"', "a\"b", r#"c"d"#)"##), ["a\\\"b", "c\"d"]);
 }

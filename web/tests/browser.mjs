@@ -501,7 +501,7 @@ async function webgpuPath(browser) {
   await page.waitForFunction(() => window.meshvoxStatus?.error?.includes("largest resolution that fits"), null,
     { timeout: 30_000 });
   const tooBig = await page.evaluate(() => window.meshvoxStatus.error);
-  check(/-r \d+/.test(tooBig), `resolution 20000 refused, naming what fits: "${tooBig}"`);
+  check(/“Resolution: \d+”/.test(tooBig), `resolution 20000 refused, naming what fits in the panel's words: "${tooBig}"`);
   await page.evaluate(() => window.meshvoxSetResolution(72));
   const recovered = await afterError({ ready: true, resolution: 72 }, "after the bad files");
   const recoveredCli = cliVoxels(boxObj, 72);

@@ -9,8 +9,8 @@
 //! model has no block, placing the structure leaves what is there (as a structure void does).
 
 use super::{DATA_VERSION, Palette, State};
-use crate::formats::FormatError;
 use crate::formats::blocks::BlockSet;
+use crate::formats::{FormatError, MinecraftFormat, VoxelFormat};
 use crate::voxel::VoxelGrid;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -18,6 +18,21 @@ use std::io::Write;
 
 /// The largest side a structure block saves or loads in Java Edition since 1.16.
 pub const MAX_SIDE: u32 = 48;
+
+/// Whether a grid of `dims` voxels fits a structure file: refused with the formats to use instead.
+pub fn check_fits(dims: glam::UVec3) -> Result<(), FormatError> {
+    match dims.max_element() <= MAX_SIDE {
+        true => Ok(()),
+        false => Err(FormatError::TooLarge(format!(
+            "a structure file (.nbt) is at most {MAX_SIDE}×{MAX_SIDE}×{MAX_SIDE} blocks (the structure block's limit); \
+             this grid is {}×{}×{}: write a {} instead",
+            dims.x,
+            dims.y,
+            dims.z,
+            VoxelFormat::listed(|f| matches!(f, VoxelFormat::Minecraft(m) if m != MinecraftFormat::Structure))
+        ))),
+    }
+}
 
 #[derive(Serialize)]
 #[serde(rename_all = "camelCase")]
