@@ -1,7 +1,7 @@
 //! The fixed-point lattice that grid-space coordinates are rounded onto before voxelization ([`Lattice`]).
 //!
 //! Both backends decide each sign test of the overlap test from an f32 value where its forward error bound
-//! makes the sign certain, and exactly otherwise (see `cpu.rs`). Exact decisions need exact inputs: every
+//! makes the sign certain, and exactly otherwise (see `cpu/exact.rs`). Exact decisions need exact inputs: every
 //! coordinate is a multiple of `2^-shift` voxel, so `coordinate · 2^shift` is an integer. `shift` is the largest
 //! for which every such integer, every voxel corner and every corner plus one is at most `2^23` in magnitude.
 //! Then these integers are exact in f32 (24-bit significand) and in i32, and so is the difference of any two

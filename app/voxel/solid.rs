@@ -30,12 +30,6 @@ pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit:
     }
 }
 
-/// The crossings of every row, grouped by row: row `r`'s are `crossings[offsets[r]..offsets[r + 1]]`, sorted.
-pub struct RowCrossings {
-    pub offsets: Vec<u32>,
-    pub crossings: Vec<u32>,
-}
-
 /// Lists the crossings of all lattice triangles.
 pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) -> RowCrossings {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.

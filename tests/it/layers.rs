@@ -329,3 +329,76 @@ fn no_library_message_names_a_command_line_flag() {
     assert!(!names_a_flag("a--b") && !names_a_flag("---") && !names_a_flag("-1 -- 2") && !names_a_flag("x-o"));
     assert_eq!(string_literals(r##"f('"', "a\"b", r#"c"d"#)"##), ["a\\\"b", "c\"d"]);
 }
+
+/// The files ARCHITECTURE.md's layout block names, as repository paths: each entry starts at column 0 with a
+/// folder (`app/voxel/`) or a file (`app/lib.rs`), and names files relative to that folder (`cpu/solid.rs`), or
+/// from the repository's root (`tests/it/shaders.rs`) where there is no such file in the folder.
+fn layout_names(architecture: &str, root: &Path) -> Vec<String> {
+    let block = architecture.split("## Layout").nth(1).expect("a Layout section");
+    let block = block.split("```").nth(1).expect("the layout's code block");
+    let mut folder = String::new();
+    let mut names = Vec::new();
+    for line in block.lines() {
+        let mut words = line.split_whitespace();
+        if !line.starts_with(' ')
+            && let Some(head) = words.next()
+        {
+            if head.ends_with('/') {
+                folder = head.to_string();
+            } else {
+                folder.clear();
+                names.push(head.to_string());
+            }
+        }
+        let rest: String = words.collect::<Vec<_>>().join(" ");
+        for token in rest.split(|c: char| !(c.is_ascii_alphanumeric() || "_./-".contains(c))) {
+            let token = token.trim_end_matches('.');
+            let named = [".rs", ".wgsl", ".py", ".pyi", "py.typed"].iter().any(|e| token.ends_with(e));
+            if !named {
+                continue;
+            }
+            let in_folder = format!("{folder}{token}");
+            let from_root = !root.join(&in_folder).exists() && root.join(token).exists();
+            names.push(if from_root { token.to_string() } else { in_folder });
+        }
+    }
+    names
+}
+
+/// ARCHITECTURE.md's layout names every file under app/ and shaders/ exactly once, and no file that is not there:
+/// the map a newcomer reads is the tree.
+#[test]
+fn the_layout_in_architecture_md_names_every_file_once() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let architecture = std::fs::read_to_string(root.join("ARCHITECTURE.md")).expect("ARCHITECTURE.md");
+    let mut tree = BTreeSet::new();
+    for top in ["app", "shaders"] {
+        let mut stack = vec![root.join(top)];
+        while let Some(dir) = stack.pop() {
+            for entry in std::fs::read_dir(&dir).expect("a folder") {
+                let path = entry.expect("entry").path();
+                let name = path.file_name().expect("a name").to_string_lossy().into_owned();
+                if path.is_dir() {
+                    // Python's caches beside the package, never committed.
+                    if name != "__pycache__" {
+                        stack.push(path);
+                    }
+                } else {
+                    tree.insert(path.strip_prefix(root).expect("under the root").to_string_lossy().into_owned());
+                }
+            }
+        }
+    }
+    let names = layout_names(&architecture, root);
+    let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+    for name in names.iter().filter(|n| n.starts_with("app/") || n.starts_with("shaders/")) {
+        *counts.entry(name.clone()).or_default() += 1;
+    }
+    let missing: Vec<&String> = tree.iter().filter(|f| !counts.contains_key(*f)).collect();
+    let twice: Vec<&String> = counts.iter().filter(|(_, n)| **n > 1).map(|(f, _)| f).collect();
+    let absent: Vec<&String> = counts.keys().filter(|f| !tree.contains(*f)).collect();
+    assert!(tree.len() > 100, "only {} files found under app/ and shaders/", tree.len());
+    assert!(missing.is_empty(), "ARCHITECTURE.md's layout does not name: {missing:?}");
+    assert!(twice.is_empty(), "ARCHITECTURE.md's layout names more than once: {twice:?}");
+    assert!(absent.is_empty(), "ARCHITECTURE.md's layout names files that do not exist: {absent:?}");
+}

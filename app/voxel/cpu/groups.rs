@@ -10,8 +10,7 @@
 //! host groups (in another order on the GPU, where slots are taken by atomics), which
 //! [`crate::voxel::solid_sparse::solid_from_groups`] turns into tiles and leaves.
 
-use super::solid::{Boundary, crossing_sign, near_boundary};
-use crate::voxel::solid::RowCrossings;
+use super::solid::{Boundary, RowCrossings, crossing_sign, near_boundary};
 use glam::UVec3;
 
 /// A leaf written by a group: its x index, its group's indices, its mask in OpenVDB's order (bit `y * 8 + z` of

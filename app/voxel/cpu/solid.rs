@@ -240,6 +240,14 @@ pub struct Boundary {
     pub nodes: Vec<BoundaryNode>,
 }
 
+/// The crossings of every row, grouped by row: row `r`'s are `crossings[offsets[r]..offsets[r + 1]]`, sorted, each
+/// packed by [`pack_crossing`]. The layout of the shader's crossing lists (`allocate_rows`, `write_crossings`), which
+/// the host makes on the CPU (`voxel::solid::column_crossings`) and the groups pass reads (`cpu/groups.rs`).
+pub struct RowCrossings {
+    pub offsets: Vec<u32>,
+    pub crossings: Vec<u32>,
+}
+
 /// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x, the spherical
 /// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector), as what it is
 /// made from: `(num, den, mag)`, the solid angle being `2 atan2(num, den)`, with `den = |a||b| + a·b + a_x|b| +
