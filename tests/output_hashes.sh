@@ -21,7 +21,7 @@ run() {
     echo "failed: voxelize $* -o $name: $(tail -n 1 "$out/stderr")" >&2
     exit 1
   }
-  for f in "$out/$name" "$out/${name%.*}".labels.npy "$out/${name%.*}".colours.npy; do
+  for f in "$out/$name" "$out/${name%.*}".labels.npy "$out/${name%.*}".colors.npy; do
     [ -f "$f" ] && echo "$(sha256sum < "$f" | cut -c1-64)  ${f#"$out"/}  voxelize $*"
   done
   rm -f "$out"/*

@@ -48,12 +48,12 @@ enum Failure {
 fn into_py_err(failure: Failure) -> PyErr {
     match failure {
         // Arrays that make no mesh are the caller's values; a file that makes none is a MeshError.
-        Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(worded(e)),
-        Failure::Mesh(e) => PyMeshError::new_err(worded(e)),
+        Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(e.to_string()),
+        Failure::Mesh(e) => PyMeshError::new_err(e.to_string()),
         // The package's grids are dense and its budget is the default: the CLI's hint (--max-memory, sparse
         // outputs) names nothing a Python caller can change.
         Failure::Engine(EngineError::Grid { mesh, error: error @ GridError::OverBudget { .. }, .. }) => {
-            PyMemoryError::new_err(worded(format!("{mesh}: {error}")))
+            PyMemoryError::new_err(format!("{mesh}: {error}"))
         }
         Failure::Engine(
             e @ (EngineError::Grid { .. }
@@ -65,28 +65,11 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::Sample(_)
             | EngineError::FullBandSparse
             | EngineError::Level(_)),
-        ) => PyValueError::new_err(worded(e)),
+        ) => PyValueError::new_err(e.to_string()),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
-        Failure::Engine(e) => PyRuntimeError::new_err(worded(e)),
+        Failure::Engine(e) => PyRuntimeError::new_err(e.to_string()),
         Failure::Query(e) => PyValueError::new_err(e.to_string()),
     }
-}
-
-/// The library's messages name its settings as the command line spells them; a Python caller passes keywords.
-const KEYWORDS: [(&str, &str); 8] = [
-    ("--voxel-size", "pitch="),
-    ("--band full", "band=\"full\""),
-    ("--band ", "band="),
-    ("--axis", "axis="),
-    ("--backend cpu", "backend=\"cpu\""),
-    ("--mode ", "mode="),
-    ("--attributes", "attributes="),
-    ("--thickness ", "thickness="),
-];
-
-/// A library message in the package's words ([`KEYWORDS`]).
-fn worded(message: impl ToString) -> String {
-    KEYWORDS.iter().fold(message.to_string(), |m, (flag, keyword)| m.replace(flag, keyword))
 }
 
 /// A writer's failure as Python reports file errors: a missing folder is a `FileNotFoundError`, a folder that
@@ -175,7 +158,7 @@ fn options(
         (Some(_), false) => return Err(PyValueError::new_err("thickness= is a shell's: use it with mode=\"shell\"")),
         (thickness, _) => thickness.unwrap_or(1.0),
     };
-    let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(worded(e)))?;
+    let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let backend = Backend::from_name(backend)
         .ok_or_else(|| PyValueError::new_err(format!("backend '{backend}': use {}", Backend::choices())))?;
     let bounds = bounds.map(|(min, max)| Aabb { min: DVec3::from(min), max: DVec3::from(max) });
@@ -550,7 +533,7 @@ fn level_mesh<'py>(
             None => crate::voxel::contour::level_mesh(&field, level),
         }
     })?
-    .map_err(|e| PyValueError::new_err(worded(e)))?;
+    .map_err(|e| PyValueError::new_err(e.to_string()))?;
     let (v, f) = (mesh.vertices.len(), mesh.faces.len());
     let vertices: Vec<f64> = mesh.vertices.iter().flat_map(|p| p.to_array()).collect();
     let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
@@ -560,13 +543,17 @@ fn level_mesh<'py>(
 mod from_matrix;
 mod query;
 
-/// How messages name a setting in Python: its keyword, with a value `band='full'` or `thickness=2`. The one place
-/// the Python package spells settings ([`crate::names::Setting`]).
+/// How messages name a setting in Python: its keyword (`pitch` for the voxel size), `band=` alone, with a value
+/// `band="full"` or `thickness=2`. The one place the Python package spells settings ([`crate::names::Setting`]).
 fn keyword(setting: crate::names::Setting, value: Option<&str>) -> String {
+    let word = match setting {
+        crate::names::Setting::VoxelSize => "pitch",
+        other => other.word(),
+    };
     match value {
-        None => setting.word().to_string(),
-        Some(value) if value.parse::<f64>().is_ok() => format!("{}={value}", setting.word()),
-        Some(value) => format!("{}='{value}'", setting.word()),
+        None => format!("{word}="),
+        Some(value) if value.parse::<f64>().is_ok() => format!("{word}={value}"),
+        Some(value) => format!("{word}=\"{value}\""),
     }
 }
 

@@ -371,7 +371,7 @@ fn a_planned_job_is_what_voxelize_runs_and_what_auto_prices() {
     ));
     let over = Request { max_memory: Some(1 << 20), ..Request::new(Resolution::Count(4000), Mode::Surface) };
     let e = meshvox::Job::plan("knot", &mesh, &over).err().expect("over the budget");
-    assert!(e.to_string().contains("largest resolution that fits is -r "), "{e}");
+    assert!(e.to_string().contains("largest resolution that fits is resolution="), "{e}");
 }
 
 /// The library owns its names (issue 44): every setting's values round-trip through `name`/`from_name`, are
@@ -427,4 +427,18 @@ mod example;
 #[test]
 fn the_crate_documentations_example_runs() {
     example::main().expect("examples/engine.rs runs");
+}
+
+/// Messages name settings in the words of whoever shows them (issue 66): the library's own words where no client
+/// chose (this test process chooses none), the panel's in the viewer; the CLI's flags and Python's keywords are
+/// checked where those clients print messages (hostile.rs, cli.rs; tests/python/test_client.py).
+#[test]
+fn settings_are_named_in_the_words_of_whoever_shows_the_message() {
+    use meshvox::names::Setting;
+    assert_eq!(Setting::Band.with("full").to_string(), "band=full");
+    assert_eq!(Setting::MaxMemory.to_string(), "max_memory");
+    assert_eq!(meshvox::ui::panel_spelling(Setting::Resolution, Some("2047")), "“Resolution: 2047”");
+    assert_eq!(meshvox::ui::panel_spelling(Setting::MaxFileSize, None), "“Max file size”");
+    let e = meshvox::voxel::distance::Band::parse("900").expect_err("past the largest band");
+    assert!(e.starts_with("band=900: at most") && e.contains("use band=full for the whole grid"), "{e}");
 }

@@ -332,7 +332,7 @@ fn the_budget_picks_sparse_refuses_dense_formats_and_says_what_fits() {
     // Forcing dense is refused the same way.
     let dense = meshvox::engine::Request { grid: meshvox::voxel::GridKind::Dense, ..request };
     let e = engine.voxelize("knot", &mesh, &dense).err().expect("over budget");
-    assert!(e.to_string().contains("--grid sparse"), "{e}");
+    assert!(e.to_string().contains("grid=sparse"), "{e}");
     // --vdb-float without a .vdb is a clear error.
     let wrong =
         crate::cli::meshvox(&["voxelize", "builtin:knot", "-r", "20", "-o", "g.npz", "--vdb-float"], dir.path());

@@ -126,7 +126,7 @@ fn a_bad_file_shows_its_error_and_the_app_keeps_going() {
     harness.state_mut().set_resolution(60_000);
     harness.run();
     let error = harness.state().error().expect("refused").to_string();
-    assert!(error.contains("largest resolution that fits is -r "), "{error}");
+    assert!(error.contains("largest resolution that fits is resolution="), "{error}");
     harness.get_by_label(&error);
     assert_eq!(harness.state().stats(), Some(&before));
     harness.state_mut().set_resolution(40);

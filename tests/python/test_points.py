@@ -136,7 +136,7 @@ def test_clouds_refuse_what_needs_triangles(cli, tmp_path):
     points = cloud(6, 100)
     np.save(tmp_path / "p.npy", points)
     assert meshvox.voxelize(tmp_path / "p.npy", 8).matrix.any()
-    with pytest.raises(ValueError, match="p.npy is a point cloud.*mode=solid needs triangles"):
+    with pytest.raises(ValueError, match='p.npy is a point cloud.*mode="solid" needs triangles'):
         meshvox.voxelize(tmp_path / "p.npy", 8, mode="solid")
     with pytest.raises(ValueError, match="attributes= needs triangles"):
         meshvox.voxelize(tmp_path / "p.npy", 8, attributes=("node",))
