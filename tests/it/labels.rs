@@ -270,7 +270,7 @@ fn the_budget_counts_the_labels() {
     let labelled = Request { attributes: AttributeSet::of(&Attribute::ALL), ..plain };
     let e = meshvox::engine::Job::plan("knot", &m, &labelled).err().expect("labels over the budget").to_string();
     let fits: u32 =
-        e.split("-r ").nth(1).and_then(|r| r.split_whitespace().next()).and_then(|n| n.parse().ok()).expect(&e);
+        e.split("resolution=").nth(1).and_then(|r| r.split_whitespace().next()).and_then(|n| n.parse().ok()).expect(&e);
     assert!((50..200).contains(&fits), "{e}");
     let smaller = Request { resolution: Resolution::Count(fits), ..labelled };
     assert!(meshvox::engine::Job::plan("knot", &m, &smaller).is_ok(), "-r {fits} fits: {e}");

@@ -373,7 +373,7 @@ fn npz_members_are_checked_before_they_are_inflated() {
     let e = mesh::load_path_with(&path, &limits).expect_err("over the limit").to_string();
     assert!(
         e.ends_with(
-            "points.npy inflates past 1000 bytes (--max-file-size): its header declares (100, 3) float32, 1.2 KiB"
+            "points.npy inflates past 1000 bytes (max_file_size): its header declares (100, 3) float32, 1.2 KiB"
         ),
         "{e}"
     );
