@@ -76,7 +76,7 @@ def test_bad_arguments_raise_value_error():
 
 def test_a_grid_over_the_memory_budget_is_refused_with_what_fits():
     # 60,000 voxels along each axis of a cube: far more than any machine's memory.
-    with pytest.raises(MemoryError, match="largest resolution that fits is -r "):
+    with pytest.raises(MemoryError, match=r"largest resolution that fits is resolution=\d+$"):
         meshvox.voxelize((CUBE_V, CUBE_F), 60_000, backend="cpu")
 
 
