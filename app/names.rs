@@ -1,7 +1,8 @@
-//! The library's vocabulary: the one place an enum of settings gets its names. [`names!`] gives a plain enum
+//! The library's vocabulary: the one place an enum of settings gets its names. `names!` gives a plain enum
 //! (`Axis`, `Backend`, `GridKind`, `Mode`, …) its `ALL`, `name`, `from_name` and `choices`, `Display`, and, behind
 //! the `cli` feature, `clap::ValueEnum`, all read from one table of spellings; the CLI, Python, the page's URL and
-//! the panel parse and print through them, so a name is spelled once.
+//! the panel parse and print through them, so a name is spelled once. Messages name the settings a user gives
+//! through [`Setting`], which each client spells its own way with [`spell_settings_with`].
 
 /// Gives `$ty` its names: `names!(Axis { Longest => "longest", X => "x" })`, optionally with a help line per value
 /// (`Surface => "surface": "every voxel a triangle touches"`) for `--help`.
