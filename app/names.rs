@@ -88,7 +88,7 @@ pub enum Setting {
 }
 
 impl Setting {
-    /// The library's word for the setting (Python's keyword).
+    /// The library's word for the setting (Python's keyword too, but for the voxel size, which Python calls `pitch`).
     pub fn word(self) -> &'static str {
         match self {
             Setting::Attributes => "attributes",
@@ -111,7 +111,7 @@ impl Setting {
         }
     }
 
-    /// The setting given `value`, as the client spells it (`--band full`, `band='full'`).
+    /// The setting given `value`, as the client spells it (`--band full`, `band="full"`).
     pub fn with(self, value: impl std::fmt::Display) -> Spelled {
         Spelled { setting: self, value: value.to_string() }
     }

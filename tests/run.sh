@@ -7,8 +7,9 @@
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
-# `bash tests/run.sh` runs everything: `cargo test` (the crate documentation's example is examples/engine.rs, a test), the Python package's pytest suite, the web build
-# and the browser test, then each fuzz target for 10 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
+# `bash tests/run.sh` runs everything: `cargo test` (the crate documentation's example is examples/engine.rs, a
+# test), the Python package's pytest suite, the web build and the browser test, then each fuzz target for 10 seconds
+# over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Each phase's start, in seconds from here: where a run's time goes (CI keeps its log).
@@ -37,7 +38,8 @@ if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
 fi
 
 # The Python tools and the Node.js tools are installed while the tests build (pip and npm wait on the network and
-# the disk, the build on the CPUs); each one's output is shown if it fails. `wait_for NAME` waits for one.
+# the disk, the build on the CPUs); each one's output is shown if it fails. `wait_for NAME` waits for one (at once
+# where nothing had to be installed).
 mkdir -p target
 declare -A setup_pids=()
 in_background() {
@@ -47,6 +49,7 @@ in_background() {
   setup_pids[$name]=$!
 }
 wait_for() {
+  [ -n "${setup_pids[$1]:-}" ] || return 0
   if ! wait "${setup_pids[$1]}"; then
     cat "target/setup-$1.log" >&2
     echo "tests/run.sh: setting up $1 failed (target/setup-$1.log)" >&2
@@ -65,8 +68,6 @@ if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
 fi
 if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL' 2>/dev/null; then
   in_background readers readers_venv
-else
-  in_background readers true
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 
@@ -85,8 +86,6 @@ if [ $# -eq 0 ]; then
   if [ ! -x "$pyvenv/bin/python" ] || [ ! -x "$pyvenv/bin/maturin" ] \
     || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL, warp' 2>/dev/null; then
     in_background pytest pytest_venv
-  else
-    in_background pytest true
   fi
 fi
 

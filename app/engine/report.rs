@@ -136,9 +136,7 @@ impl Voxelized {
             // A field written as a mesh: its level set, or a shell's walls, meshed here and written as a mesh.
             (Some(field), VoxelFormat::Mesh(mesh)) => {
                 let progress = options.progress.unwrap_or(&|_, _| {});
-                let surface = crate::voxel::shell::field_mesh(field, self.shell, options.level, progress)
-                    .map_err(std::io::Error::other)?;
-                formats::surface::write_surface(&surface, mesh, out)
+                write_field_mesh(field, self.shell, options.level, progress, mesh, out)
             }
             (Some(field), _) if self.shell.is_none() => formats::write_field(field, format, out),
             _ => {
@@ -147,4 +145,19 @@ impl Voxelized {
             }
         }
     }
+}
+
+/// Writes `field` as the mesh `format`: its level set at `level`, or with `shell` (a thickness in voxels) the walls
+/// of the shell cut from it, made first ([`crate::voxel::shell::field_mesh`]) and handed to the mesh writer.
+/// [`Voxelized::write`] and Python's `save_field` write a field's meshes through it.
+pub fn write_field_mesh(
+    field: &DistanceField,
+    shell: Option<f32>,
+    level: f64,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    format: formats::MeshFormat,
+    out: &mut impl std::io::Write,
+) -> Result<(), FormatError> {
+    let surface = crate::voxel::shell::field_mesh(field, shell, level, progress).map_err(std::io::Error::other)?;
+    formats::surface::write_surface(&surface, format, out)
 }

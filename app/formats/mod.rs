@@ -91,11 +91,9 @@ impl VoxelFormat {
         VoxelFormat::ALL.into_iter().find(|f| f.extension().eq_ignore_ascii_case(name))
     }
 
-    /// The extensions as a message lists them: `.npy, .binvox, … or .obj`.
+    /// The extensions as a message lists them: `.npy, .binvox, … or .nbt`.
     pub fn choices() -> String {
-        crate::names::choices(
-            &VoxelFormat::ALL.map(|f| f.extension()).map(|e| format!(".{e}")).each_ref().map(String::as_str),
-        )
+        VoxelFormat::listed(|_| true)
     }
 
     /// The extensions of the formats `keep` answers true for, as a message lists them (`.npy, .npz or .vdb`), in

@@ -22,7 +22,7 @@ host=$(rustc -vV | sed -n 's/^host: //p')
 opt=3
 [ "$seconds" -gt 60 ] || opt=1
 # cargo-fuzz 0.13's flags for `-s none` on Linux (its project.rs), less `-Ccodegen-units=1` (one codegen unit a
-# crate: faster fuzzing, a slower build, which CI's 20 seconds a target do not repay).
+# crate: faster fuzzing, a slower build, which CI's 10 seconds a target do not repay).
 RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
   -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table
   -Cllvm-args=-sanitizer-coverage-trace-compares -Cllvm-args=-simplifycfg-branch-fold-threshold=0
