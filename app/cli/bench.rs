@@ -108,6 +108,8 @@ struct Row {
     host_ms: f64,
     upload_bytes: Option<u64>,
     readback_bytes: Option<u64>,
+    /// Voxels the host decided or confirmed (`--stats-json`'s `host_decided`).
+    host_decided: u64,
     exact_tests: Option<u64>,
     /// Peak resident memory above what the process held before the case.
     peak_mib: Option<f64>,
@@ -415,6 +417,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         host_ms: median(host),
         upload_bytes: out.report.upload_bytes,
         readback_bytes: out.report.readback_bytes,
+        host_decided: out.report.host_decided,
         exact_tests: out.report.exact_tests,
         peak_mib: peak,
         grid: GridKind::of(case.sparse).name().to_string(),

@@ -87,6 +87,7 @@ pub(super) fn query(args: &QueryArgs) -> Result<()> {
             "points_per_second": points.len() as f64 / (query_ms / 1e3).max(1e-9),
             "backend": queried.backend,
             "gpu_ms": queried.gpu_ms,
+            "host_decided": queried.host_decided,
             "output": args.output,
             "bytes": bytes,
         });
@@ -211,6 +212,7 @@ pub(super) fn sample_file(
         "sample_ms": sample_ms,
         "backend": queried.backend,
         "gpu_ms": queried.gpu_ms,
+        "host_decided": queried.host_decided,
         "write_ms": write_ms,
         "output": output,
         "bytes": bytes,

@@ -313,8 +313,8 @@ impl OnGpu {
         let (gpu_ms, exact_tests, instances) = (out.gpu_ms, out.exact_tests, out.instances);
         let traffic = Some((out.traffic.upload, out.traffic.readback));
         let group = Some(out.group).filter(|&n| n > 0);
-        let voxels = out.voxels;
-        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group, voxels }))
+        let (voxels, host_decided) = (out.voxels, Some(out.host_decided));
+        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group, voxels, host_decided }))
     }
 
     /// A small grid made in a group with the others waiting for the device (`gpu/group.rs`): it waits in line for
@@ -405,23 +405,25 @@ impl OnGpu {
     /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a sparse
     /// grid of an open mesh (the groups cannot decide rows beside its holes), a limit of the adapter. A dense grid
     /// is the dense solid's fill without the walk (`Options::inside_only`), a sparse one the groups'
-    /// (`GpuVoxelizer::inside_async`).
+    /// (`GpuVoxelizer::inside_async`); with the inside voxels the host decided (`GpuOutput::host_decided`).
     pub(super) async fn inside(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         sparse: bool,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<Grid>, EngineError> {
+    ) -> Result<Option<(Grid, u64)>, EngineError> {
         if self.gpu.summary.is_software() && !software_gpu_preferred() {
             return Ok(None);
         }
         let made = {
             let _turn = self.turn().await;
             match sparse {
-                true => {
-                    self.voxelizer().inside_async(&self.gpu, tris, spec, Some(true)).await.map(|g| g.map(Grid::Sparse))
-                }
+                true => self
+                    .voxelizer()
+                    .inside_async(&self.gpu, tris, spec, Some(true))
+                    .await
+                    .map(|g| g.map(|g| (Grid::Sparse(g), 0))),
                 false => {
                     let options = Options {
                         read_grid: true,
@@ -430,7 +432,8 @@ impl OnGpu {
                         ..Default::default()
                     };
                     let made = self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await;
-                    made.map(|out| out.grid.map(Grid::Dense))
+                    // Where the CPU decided the whole grid (an overflow), every inside voxel is counted as the host's.
+                    made.map(|out| out.grid.map(|g| (Grid::Dense(g), out.host_decided)))
                 }
             }
         };

@@ -177,6 +177,8 @@ struct GridStage {
     group: Option<u32>,
     /// The set voxels, where they were counted as the grid was made (else the report counts the grid).
     voxels: Option<u64>,
+    /// Set voxels the host decided on a GPU (see `GpuOutput::host_decided`); `None` on the CPU, which decided all.
+    host_decided: Option<u64>,
 }
 
 /// The colour stage's result, from the GPU or the CPU.
@@ -350,13 +352,14 @@ impl Engine {
         request.cancelled()?;
         let voxelize_ms = ms(t);
         let t = Instant::now();
-        let (field, field_backend) = match request.mode.needs_field() {
+        let (field, field_backend, field_decided) = match request.mode.needs_field() {
             true => {
-                let (field, backend) = self.field(job, &tris, &mut notices).await?;
-                (Some(field), Some(backend))
+                let (field, backend, decided) = self.field(job, &tris, &mut notices).await?;
+                (Some(field), Some(backend), decided)
             }
-            false => (None, None),
+            false => (None, None, 0),
         };
+        let grid_decided = made.host_decided;
         let shell = (request.mode == Mode::Shell).then_some(request.thickness);
         if let (Some(thickness), Some(field)) = (shell, &field) {
             // The shell replaces the surface the grid stage made: its own voxels, counted again, drawn from the host.
@@ -425,6 +428,8 @@ impl Engine {
             meshes_in_submission: made.group,
             ..self.grid_report(job, &made.grid, made.voxels)
         };
+        // On the CPU every voxel of the output was the host's.
+        let report = Report { host_decided: grid_decided.unwrap_or(report.voxels) + field_decided, ..report };
         let colours = colours.map(|c| c.colours);
         if let Some(spans) = crate::trace::take() {
             eprintln!("trace: {} {} at {:?}: {spans}", job.name, request.mode.name(), spec.dims.to_array());
@@ -490,6 +495,7 @@ impl Engine {
             total_ms: voxelize_ms,
             ..self.grid_report(job, &grid, None)
         };
+        let report = Report { host_decided: report.voxels, ..report };
         Ok(Voxelized { grid, field: None, shell: None, colours, labels: None, instances: None, report, notices })
     }
 
@@ -531,6 +537,7 @@ impl Engine {
             instances: None,
             group: None,
             voxels: None,
+            host_decided: None,
         })
     }
 
@@ -543,18 +550,21 @@ impl Engine {
         job: &Job<'_>,
         tris: &[[Vec3; 3]],
         notices: &mut Vec<Notice>,
-    ) -> Result<(DistanceField, String), EngineError> {
+    ) -> Result<(DistanceField, String, u64), EngineError> {
         let (spec, band) = (job.spec, job.request.band);
         let grid_error = |error| job.grid_error(error);
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
-        let (mut inside, sign_on_gpu) = match job.request.mode.signed() {
+        // The sign's inside grid, whether the GPU made it, and the inside voxels the host decided (all of them
+        // where the CPU made it).
+        let (mut inside, sign_on_gpu, sign_decided) = match job.request.mode.signed() {
             true => {
                 let span = crate::trace::span("field: inside");
-                let (grid, on_gpu) = self.inside(job, &tris, lattice, notices).await?;
+                let (grid, decided) = self.inside(job, &tris, lattice, notices).await?;
                 drop(span);
-                (Some(grid), on_gpu)
+                let host = decided.unwrap_or_else(|| grid.count());
+                (Some(grid), decided.is_some(), host)
             }
-            false => (None, false),
+            false => (None, false, 0),
         };
         job.request.cancelled()?;
         // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
@@ -573,7 +583,7 @@ impl Engine {
         if let Some(on) = on_gpu
             && let Some(field) = on.field(&tris, spec, band, &mut inside, notices).await?
         {
-            return Ok((field, on.label()));
+            return Ok((field, on.label(), sign_decided));
         }
         let silent = |_: usize, _: usize| {};
         let progress = job.request.progress.unwrap_or(&silent);
@@ -583,26 +593,28 @@ impl Engine {
             true => format!("{} (sign on the GPU)", self.cpu_label()),
             false => self.cpu_label(),
         };
-        Ok((field, backend))
+        // Every band voxel's distance was the host's, beside the sign's voxels.
+        let decided = sign_decided + field.band_voxels;
+        Ok((field, backend, decided))
     }
 
     /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a hardware adapter; a
-    /// sparse field only of a closed mesh), else on the CPU; and whether on the GPU.
+    /// sparse field only of a closed mesh), else on the CPU; and on the GPU, how many of them the host decided.
     async fn inside(
         &self,
         job: &Job<'_>,
         tris: &[[Vec3; 3]],
         lattice: voxel::Lattice,
         notices: &mut Vec<Notice>,
-    ) -> Result<(Grid, bool), EngineError> {
+    ) -> Result<(Grid, Option<u64>), EngineError> {
         if let Some(on) = &self.gpu
-            && let Some(inside) = on.inside(tris, job.spec, job.sparse, notices).await?
+            && let Some((inside, host_decided)) = on.inside(tris, job.spec, job.sparse, notices).await?
         {
-            return Ok((inside, true));
+            return Ok((inside, Some(host_decided)));
         }
         let inside =
             voxel::distance::inside_grid(tris, lattice, job.spec, job.sparse).map_err(|e| job.grid_error(e))?;
-        Ok((inside, false))
+        Ok((inside, None))
     }
 
     /// Colours a voxelized mesh's grid (see `voxel::colour`) from its grid-space triangles on the GPU when it fits

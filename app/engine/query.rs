@@ -30,6 +30,9 @@ pub struct Queried {
     pub backend: String,
     /// Milliseconds the GPU's search took (its turn included), where it ran.
     pub gpu_ms: Option<f64>,
+    /// Points whose nearest triangle or sign the host decided or confirmed rather than the device: every point
+    /// today (the host confirms each triangle a GPU proposes and decides every sign).
+    pub host_decided: u64,
     /// What happened on the way (the CPU standing in for the GPU).
     pub notices: Vec<Notice>,
 }
@@ -45,7 +48,8 @@ impl Engine {
     ) -> Result<Queried, EngineError> {
         let Some(on) = &self.gpu else {
             let answers = prepared.query(points, sign, winding).map_err(EngineError::Query)?;
-            return Ok(Queried { answers, backend: self.cpu_label(), gpu_ms: None, notices: Vec::new() });
+            let host_decided = points.len() as u64;
+            return Ok(Queried { answers, backend: self.cpu_label(), gpu_ms: None, host_decided, notices: Vec::new() });
         };
         self.blocking(|| {
             let placed = prepared.place(points).map_err(EngineError::Query)?;
@@ -68,7 +72,9 @@ impl Engine {
                 None => self.cpu_label(),
             };
             let answers = prepared.query_found(points, &placed, found.as_deref().unwrap_or(&[]), sides, sign, winding);
-            Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), notices })
+            // Each proposal is confirmed by the host's own walk, and every sign is the host's.
+            let host_decided = points.len() as u64;
+            Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), host_decided, notices })
         })
     }
 

@@ -60,6 +60,12 @@ pub struct Report {
     /// The engine's time that is not the GPU's passes: `voxelize_ms + field_ms + colour_ms + labels_ms - gpu_ms` (all of it on
     /// the CPU). Loading and writing are the client's (`load_ms`, `write_ms`).
     pub host_ms: f64,
+    /// Voxels the host decided or confirmed rather than the device: on the CPU backend every set voxel (and for a
+    /// field, every inside voxel and every band voxel as well); on a GPU the set voxels of rows or grids the host
+    /// decided (the solid's deferred rows, a sparse solid's inside filled on the host, a grid an overflow left to
+    /// the CPU), the inside voxels of a sign the host made, and the band's voxels where the distances were the
+    /// CPU's. The work a return to host-side decisions would show.
+    pub host_decided: u64,
     /// Leaves of a sparse grid (8³ blocks with a voxel set); `None` for a dense grid.
     pub leaves: Option<u64>,
     pub load_ms: f64,

@@ -170,6 +170,7 @@ async fn read_back_group(gpu: &Gpu, runs: &mut [Run<'_>], timed: &[u64]) -> Resu
             decided_on_cpu: false,
             rows_on_host: 0,
             inside_on_host: false,
+            host_decided: 0,
             traffic: run.traffic,
             group: members as u32,
             voxels: None,

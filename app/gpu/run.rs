@@ -91,6 +91,8 @@ pub(super) struct Run<'a> {
     pub(super) solid: Option<SolidRun>,
     /// Rows the solid fill left to the host (see `solid_unsure` in `shaders/solid.wgsl`).
     pub(super) deferred_rows: Vec<u32>,
+    /// The set voxels of those rows, as the host filled them.
+    rows_decided: u64,
 }
 
 impl<'a> Run<'a> {
@@ -195,6 +197,7 @@ impl<'a> Run<'a> {
             presized: None,
             solid: None,
             deferred_rows: Vec::new(),
+            rows_decided: 0,
         })
     }
 
@@ -451,6 +454,7 @@ impl<'a> Run<'a> {
             crate::voxel::solid::fill_listed_rows(triangles, lattice, dims, &self.deferred_rows, &solid.boundary);
         let wpr = self.wpr as usize;
         for (r, words) in rows {
+            self.rows_decided += words.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
             let (y, z) = (r % dims.y, r / dims.y);
             if let Some(host) = self.grid.as_mut() {
                 let start = r as usize * wpr;
@@ -485,6 +489,7 @@ impl<'a> Run<'a> {
             decided_on_cpu: false,
             rows_on_host: self.deferred_rows.len() as u32,
             inside_on_host: false,
+            host_decided: self.rows_decided,
             traffic: self.traffic,
             group: 1,
             voxels: None,

@@ -87,10 +87,16 @@ impl GpuVoxelizer {
             return Ok(Attempt::Overflow);
         };
         out.inside_on_host = inside.is_none();
-        out.sparse = Some(Box::new(match inside {
+        let solid = match inside {
             Some(groups) => solid_from_groups(surface, &groups),
-            None => fill_sparse(triangles, lattice, surface),
-        }));
+            None => {
+                let shell = surface.count();
+                let solid = fill_sparse(triangles, lattice, surface);
+                out.host_decided += solid.count() - shell;
+                solid
+            }
+        };
+        out.sparse = Some(Box::new(solid));
         Ok(Attempt::Done(out))
     }
 
@@ -245,6 +251,7 @@ impl Run<'_> {
             decided_on_cpu: false,
             rows_on_host: 0,
             inside_on_host: false,
+            host_decided: 0,
             traffic: self.traffic,
             group: 1,
             voxels: counted,

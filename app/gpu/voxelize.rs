@@ -124,6 +124,10 @@ pub struct GpuOutput {
     /// A sparse solid's inside was filled on the host along the shell (beside an open mesh's holes, or where no
     /// slab of its rows fit a binding), not by the GPU's groups.
     pub inside_on_host: bool,
+    /// Set voxels the host decided rather than the device: all of them where the CPU decided the grid, those of
+    /// the rows the solid fill deferred, a sparse solid's inside where the host filled it (the report's
+    /// `host_decided`).
+    pub host_decided: u64,
     /// Bytes uploaded (triangles) and read back (grid, leaves, counters, timings).
     pub traffic: Traffic,
     /// Jobs in the submission that made this grid: 1 for a run of its own, more in a group (`gpu/group.rs`),
@@ -336,6 +340,7 @@ impl GpuVoxelizer {
             let never = std::sync::atomic::AtomicBool::new(false);
             let (sparse, stats) =
                 crate::voxel::voxelize::voxelize_grid_space_sparse(triangles, spec, options.mode, &|_, _| {}, &never)?;
+            let host_decided = sparse.count();
             return Ok(GpuOutput {
                 grid: None,
                 sparse: Some(Box::new(sparse)),
@@ -347,6 +352,7 @@ impl GpuVoxelizer {
                 decided_on_cpu: true,
                 rows_on_host: 0,
                 inside_on_host: false,
+                host_decided,
                 traffic: Default::default(),
                 group: 0,
                 voxels: None,
@@ -393,6 +399,7 @@ impl GpuVoxelizer {
             1 => instances.pop(),
             _ => Some(self.compactor(gpu).concat(gpu, instances).await?),
         };
+        let host_decided = grid.count();
         Ok(GpuOutput {
             grid: options.read_grid.then_some(grid),
             sparse: None,
@@ -404,6 +411,7 @@ impl GpuVoxelizer {
             decided_on_cpu: true,
             rows_on_host: 0,
             inside_on_host: false,
+            host_decided,
             traffic: Default::default(),
             group: 0,
             voxels: None,

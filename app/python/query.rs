@@ -139,6 +139,7 @@ pub(super) fn query<'py>(
     dict.set_item("barycentric", barycentric.into_pyarray(py).reshape([n, 3])?)?;
     dict.set_item("evaluations", answers.evaluations)?;
     dict.set_item("backend", queried.backend)?;
+    dict.set_item("host_decided", queried.host_decided)?;
     Ok(dict)
 }
 

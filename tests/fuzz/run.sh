@@ -17,10 +17,15 @@ targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(obj gltf voxelize stl_ply points)
 
 host=$(rustc -vV | sed -n 's/^host: //p')
-# A short run (CI's) is mostly the build: at opt-level 1 it took 4.3 minutes here instead of 5.3. Longer runs
-# take opt-level 3, more executions a second.
-opt=3
-[ "$seconds" -gt 60 ] || opt=1
+# A short run (CI's) is mostly the build: the dependencies at opt-level 0 and the code the targets run hot
+# (meshvox, the targets with their brute-force oracle, glam) at 1 built in 2m40 here, cold, instead of 4m15 all at
+# opt-level 1 (meshvox at 0 as well: one of voxelize's kept inputs then ran past the 10 s timeout). Longer runs
+# take opt-level 3 throughout, more executions a second.
+opt=(--config profile.release.opt-level=3)
+if [ "$seconds" -le 60 ]; then
+  opt=(--config profile.release.opt-level=0)
+  for package in meshvox meshvox-fuzz glam; do opt+=(--config "profile.release.package.$package.opt-level=1"); done
+fi
 # cargo-fuzz 0.13's flags for `-s none` on Linux (its project.rs), less `-Ccodegen-units=1` (one codegen unit a
 # crate: faster fuzzing, a slower build, which CI's 10 seconds a target do not repay).
 RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
@@ -28,7 +33,7 @@ RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4
   -Cllvm-args=-sanitizer-coverage-trace-compares -Cllvm-args=-simplifycfg-branch-fold-threshold=0
   -Cllvm-args=-sanitizer-coverage-stack-depth -Cdebug-assertions --cfg fuzzing ${RUSTFLAGS:-}" \
   cargo build --locked --manifest-path tests/fuzz/Cargo.toml --release --target "$host" --bins \
-  --config 'profile.release.debug="line-tables-only"' --config "profile.release.opt-level=$opt"
+  --config 'profile.release.debug="line-tables-only"' "${opt[@]}"
 bin=tests/fuzz/target/$host/release
 
 for target in "${targets[@]}"; do

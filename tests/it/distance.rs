@@ -28,6 +28,24 @@ pub(crate) fn distance_f64(p: DVec3, t: [DVec3; 3]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Each triangle's bounding box, for [`nearest_f64`].
+pub(crate) fn boxes_f64(tris: &[[DVec3; 3]]) -> Vec<(DVec3, DVec3)> {
+    tris.iter().map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect()
+}
+
+/// The least [`distance_f64`] from `p` to `tris` (with their `boxes`) that is at most `cutoff`, else infinity. A
+/// triangle whose box is farther than the least distance so far (or the cutoff) is not measured: it cannot be
+/// nearer.
+pub(crate) fn nearest_f64(p: DVec3, tris: &[[DVec3; 3]], boxes: &[(DVec3, DVec3)], cutoff: f64) -> f64 {
+    let mut best = f64::INFINITY;
+    for (&t, &(lo, hi)) in tris.iter().zip(boxes) {
+        if (p - p.clamp(lo, hi)).length() <= best.min(cutoff) {
+            best = best.min(distance_f64(p, t));
+        }
+    }
+    if best <= cutoff { best } else { f64::INFINITY }
+}
+
 /// The generalized winding number at `p` (the triangles' solid angles over 4π, Van Oosterom and Strackee).
 pub(crate) fn winding_f64(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
     let sum: f64 = tris
@@ -52,12 +70,13 @@ fn assert_field_matches(field: &DistanceField, world: &[[DVec3; 3]], tol: f64, w
     let bg = f64::from(field.background());
     let mut worst = 0f64;
     let d = spec.dims;
+    let boxes = boxes_f64(world);
     for z in 0..d.z {
         for y in 0..d.y {
             for x in 0..d.x {
                 let v = UVec3::new(x, y, z);
                 let p = spec.voxel_center(v);
-                let truth = world.iter().map(|&t| distance_f64(p, t)).fold(f64::INFINITY, f64::min) / h;
+                let truth = nearest_f64(p, world, &boxes, f64::INFINITY) / h;
                 let value = f64::from(field.value(v));
                 if truth < reach - tol {
                     let error = (value.abs() / h - truth).abs();

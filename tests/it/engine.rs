@@ -442,3 +442,50 @@ fn settings_are_named_in_the_words_of_whoever_shows_the_message() {
     let e = meshvox::voxel::distance::Band::parse("900").expect_err("past the largest band");
     assert!(e.starts_with("band=900: at most") && e.contains("use band=full for the whole grid"), "{e}");
 }
+
+/// Counts of what one field's voxels hold: (negative values, all voxels).
+fn negatives(field: &meshvox::voxel::distance::DistanceField) -> u64 {
+    let d = field.spec.dims;
+    let voxels = (0..d.z).flat_map(|z| (0..d.y).flat_map(move |y| (0..d.x).map(move |x| glam::UVec3::new(x, y, z))));
+    voxels.filter(|&v| field.value(v) < 0.0).count() as u64
+}
+
+#[test]
+fn host_decided_counts_the_voxels_and_points_the_host_decided() {
+    use meshvox::voxel::distance::Band;
+    let torus = meshvox::mesh::load("builtin:torus").expect("torus");
+    let run = |engine: &Engine, mode: Mode, band: Band| {
+        let request = Request { band, ..Request::new(Resolution::Count(40), mode) };
+        engine.voxelize("torus", &torus, &request).expect("voxelize")
+    };
+    // On the CPU every voxel is the host's: the grid's, and a field's inside voxels (its sign) and band voxels.
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    let surface = run(&cpu, Mode::Surface, Band::default());
+    assert_eq!(surface.report.host_decided, surface.report.voxels, "the CPU's surface");
+    let sdf = run(&cpu, Mode::Sdf, Band::Full);
+    let field = sdf.field.as_ref().expect("field");
+    let expected = sdf.report.voxels + negatives(field) + field.band_voxels;
+    assert_eq!(sdf.report.host_decided, expected, "the CPU's field: surface, inside and band voxels");
+    let points: Vec<glam::DVec3> = (0..500).map(|i| glam::DVec3::new(f64::from(i) * 0.01 - 2.5, 0.3, 0.1)).collect();
+    let prepared = meshvox::voxel::query::Prepared::new(torus.clone()).expect("prepare");
+    let sign = meshvox::voxel::query::Sign::Winding;
+    assert_eq!(cpu.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    let engine = Engine::on_device(gpu, Backend::Gpu).expect("gpu engine");
+    // The GPU decides a closed mesh's surface and solid whole.
+    for mode in [Mode::Surface, Mode::Solid] {
+        let out = run(&engine, mode, Band::default());
+        assert!(out.report.voxels > 0 && out.report.backend.starts_with("gpu"), "{}", out.report.backend);
+        assert_eq!(out.report.host_decided, 0, "the GPU's {mode}");
+    }
+    // A field's distances are the GPU's; its sign is the CPU's on a software adapter (faster there), every inside
+    // voxel of it then the host's.
+    let sdf = run(&engine, Mode::Sdf, Band::Voxels(3.0));
+    let inside = match gpu.summary.is_software() && std::env::var("MESHVOX_SOFTWARE_GPU").as_deref() != Ok("1") {
+        true => negatives(sdf.field.as_ref().expect("field")),
+        false => 0,
+    };
+    assert_eq!(sdf.report.host_decided, inside, "the GPU's field ({})", sdf.report.backend);
+    // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign.
+    assert_eq!(engine.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
+}

@@ -412,6 +412,10 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
             if margin.is_some() {
                 assert!(out.rows_on_host > 0, "{name}: rows went to the host");
             }
+            // The host decided the set voxels of its rows, and no other.
+            let (rows, decided) = (u64::from(out.rows_on_host), out.host_decided);
+            assert!(decided <= rows * u64::from(s.dims.x), "{name}: {decided} voxels decided in {rows} rows");
+            assert_eq!(decided == 0, rows == 0 || reference.count() == 0, "{name}: {decided} voxels in {rows} rows");
             assert_same_grid(&out.grid.expect("grid"), &reference, &format!("{name} margin {margin:?}"));
         }
         let never = std::sync::atomic::AtomicBool::new(false);
@@ -437,6 +441,10 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
         let options = Options { sparse: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
         let out = v.voxelize(gpu, &tris, s, &options).expect("gpu sparse");
         assert!(out.inside_on_host, "{name}: the sparse inside beside holes is the host's");
+        // Every voxel of the solid but the shell's (the surface the GPU made) was the host's.
+        let (shell, _) =
+            voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+        assert_eq!(out.host_decided, sparse.count() - shell.count(), "{name}: the sparse inside the host filled");
         let (gpu_dense, cpu_dense) =
             (out.sparse.expect("sparse").to_dense().expect("dense"), sparse.to_dense().expect("dense"));
         assert_same_grid(&gpu_dense, &cpu_dense, &format!("{name} sparse"));
@@ -444,6 +452,7 @@ fn rows_the_gpu_cannot_decide_are_filled_on_the_host_to_the_same_grid() {
         let options = Options { instances: true, mode: Mode::Solid, solid_margin: Some(1e12), ..Default::default() };
         let out = v.voxelize(gpu, &tris, s, &options).expect("gpu compact");
         assert!(out.decided_on_cpu, "{name}: compaction with host rows falls back");
+        assert_eq!(out.host_decided, reference.count(), "{name}: the CPU decided every voxel");
     }
 }
 

@@ -6,7 +6,7 @@
 
 use crate::common::{hard_cases, shared_meshes};
 use crate::contour::assert_watertight;
-use crate::distance::{distance_f64, winding_f64};
+use crate::distance::{boxes_f64, nearest_f64, winding_f64};
 use glam::{DVec3, UVec3, Vec3};
 use meshvox::engine::{Backend, Engine, Request};
 use meshvox::mesh::{self, Mesh};
@@ -37,12 +37,16 @@ impl Truth {
         let d = spec.dims;
         let voxels: Vec<UVec3> =
             (0..d.z).flat_map(|z| (0..d.y).flat_map(move |y| (0..d.x).map(move |x| UVec3::new(x, y, z)))).collect();
+        // A centre farther than `cutoff` from every triangle is beyond any shell of at most `reach` voxels (its
+        // distance is left infinite, its winding number not needed).
+        let cutoff = reach + 1.0;
+        let boxes = boxes_f64(&world);
         let (distance, winding) = voxels
             .par_iter()
             .map(|&v| {
                 let p = v.as_dvec3() + 0.5;
-                let distance = world.iter().map(|&t| distance_f64(p, t)).fold(f64::INFINITY, f64::min);
-                (distance, (distance <= reach + 1.0).then(|| winding_f64(p, &world)))
+                let distance = nearest_f64(p, &world, &boxes, cutoff);
+                (distance, (distance <= cutoff).then(|| winding_f64(p, &world)))
             })
             .unzip();
         Truth { dims: d, distance, winding }
