@@ -384,7 +384,8 @@ impl OnGpu {
     }
 
     /// The distance field on the GPU (compiled on first use), or `None` where the CPU is to compute it. `inside`
-    /// (the sign) is taken into the field only when the GPU's distances arrive, so the CPU can still use it.
+    /// (the sign) is taken into the field only when the GPU's distances arrive, so the CPU can still use it. With
+    /// the bytes its passes uploaded and read back.
     pub(super) async fn field(
         &self,
         tris: &[[Vec3; 3]],
@@ -392,13 +393,14 @@ impl OnGpu {
         band: Band,
         inside: &mut Option<Grid>,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<DistanceField>, EngineError> {
+    ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {
         let field = {
             let _turn = self.turn().await;
             let pass = self.distance.get_or_init(|| GpuDistance::new(&self.gpu));
             pass.field(&self.gpu, tris, spec, band, inside).await
         };
-        self.stand_in(Stage::Field, field, notices)
+        let made = self.stand_in(Stage::Field, field, notices)?;
+        Ok(made.map(|(field, traffic)| (field, (traffic.upload, traffic.readback))))
     }
 
     /// A distance field's sign (the voxels inside, without the shell) on the GPU, or `None` where the CPU is to

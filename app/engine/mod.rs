@@ -354,7 +354,11 @@ impl Engine {
         let t = Instant::now();
         let (field, field_backend, field_decided) = match request.mode.needs_field() {
             true => {
-                let (field, backend, decided) = self.field(job, &tris, &mut notices).await?;
+                let (field, backend, decided, traffic) = self.field(job, &tris, &mut notices).await?;
+                // The distance passes' bytes join the grid's (the sign's passes are not counted yet).
+                if let (Some((up, back)), Some(grid)) = (traffic, made.traffic.as_mut()) {
+                    *grid = (grid.0 + up, grid.1 + back);
+                }
                 (Some(field), Some(backend), decided)
             }
             false => (None, None, 0),
@@ -550,7 +554,7 @@ impl Engine {
         job: &Job<'_>,
         tris: &[[Vec3; 3]],
         notices: &mut Vec<Notice>,
-    ) -> Result<(DistanceField, String, u64), EngineError> {
+    ) -> Result<(DistanceField, String, u64, Option<(u64, u64)>), EngineError> {
         let (spec, band) = (job.spec, job.request.band);
         let grid_error = |error| job.grid_error(error);
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
@@ -581,9 +585,9 @@ impl Engine {
             });
         }
         if let Some(on) = on_gpu
-            && let Some(field) = on.field(&tris, spec, band, &mut inside, notices).await?
+            && let Some((field, traffic)) = on.field(&tris, spec, band, &mut inside, notices).await?
         {
-            return Ok((field, on.label(), sign_decided));
+            return Ok((field, on.label(), sign_decided, Some(traffic)));
         }
         let silent = |_: usize, _: usize| {};
         let progress = job.request.progress.unwrap_or(&silent);
@@ -595,7 +599,7 @@ impl Engine {
         };
         // Every band voxel's distance was the host's, beside the sign's voxels.
         let decided = sign_decided + field.band_voxels;
-        Ok((field, backend, decided))
+        Ok((field, backend, decided, None))
     }
 
     /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a hardware adapter; a

@@ -51,7 +51,7 @@ impl OnGpu {
         _: Band,
         _: &mut Option<Grid>,
         _: &mut Vec<Notice>,
-    ) -> Result<Option<DistanceField>, EngineError> {
+    ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {
         match *self {}
     }
 
@@ -61,7 +61,7 @@ impl OnGpu {
         _: GridSpec,
         _: bool,
         _: &mut Vec<Notice>,
-    ) -> Result<Option<Grid>, EngineError> {
+    ) -> Result<Option<(Grid, u64)>, EngineError> {
         match *self {}
     }
 

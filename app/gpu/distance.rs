@@ -11,6 +11,7 @@
 
 use super::readback::read_buffer;
 use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
+use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::cpu::distance::triangle_layers;
 use crate::voxel::distance::{Band, mark_leaves};
@@ -64,7 +65,8 @@ impl GpuDistance {
 
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
     /// given: what [`crate::voxel::distance::DistanceField::compute`] gives, with the distances from the GPU.
-    /// `inside` is taken only once the distances have arrived, so a caller whose GPU failed still has it.
+    /// `inside` is taken only once the distances have arrived, so a caller whose GPU failed still has it. With the
+    /// bytes its passes uploaded and read back.
     pub async fn field(
         &self,
         gpu: &Gpu,
@@ -72,7 +74,7 @@ impl GpuDistance {
         spec: GridSpec,
         band: Band,
         inside: &mut Option<Grid>,
-    ) -> Result<crate::voxel::distance::DistanceField, GpuError> {
+    ) -> Result<(crate::voxel::distance::DistanceField, Traffic), GpuError> {
         gpu.check()?;
         let dims = spec.dims;
         let reach = band.reach(dims);
@@ -89,13 +91,15 @@ impl GpuDistance {
             });
         }
         let mut best = Vec::with_capacity(leaves.len() * 512);
+        let mut traffic = Traffic::default();
         for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
-            let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z).await?;
+            let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
             best.extend(range);
         }
         gpu.check()?;
         let _span = crate::trace::span("field: finish values");
-        Ok(crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take()))
+        let field = crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take());
+        Ok((field, traffic))
     }
 
     /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared
@@ -110,6 +114,7 @@ impl GpuDistance {
         reach: f32,
         (first, count): (usize, usize),
         z: (u32, u32),
+        traffic: &mut Traffic,
     ) -> Result<Vec<f32>, GpuError> {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
@@ -162,6 +167,7 @@ impl GpuDistance {
                 init("distance best", bytemuck::cast_slice(&start), storage | wgpu::BufferUsages::COPY_SRC),
                 init("distance items", bytemuck::cast_slice(&items), storage),
             ];
+            traffic.upload += buffers.iter().map(wgpu::Buffer::size).sum::<u64>();
             let bound: Vec<&wgpu::Buffer> = buffers.iter().collect();
             submit_dispatch(device, &gpu.queue, (&self.layout, &self.band), &bound, (x, y));
             let [_, _, _, best, _] = buffers;
@@ -169,6 +175,7 @@ impl GpuDistance {
         })
         .await?;
         let data = read_buffer(device, &gpu.queue, &buffer, 0, bytes).await?;
+        traffic.readback += bytes;
         Ok(bytemuck::cast_slice::<u8, u32>(&data).iter().map(|&b| f32::from_bits(b)).collect())
     }
 }

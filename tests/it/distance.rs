@@ -299,7 +299,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
         let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
         let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
         let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
-        let on_gpu = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
+        let (on_gpu, _) = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
         (field_difference(&cpu, &on_gpu), gpu_bound_voxels(spec.dims.max_element()))
     };
     let mut worst = 0f64;

@@ -473,10 +473,14 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     let engine = Engine::on_device(gpu, Backend::Gpu).expect("gpu engine");
     // The GPU decides a closed mesh's surface and solid whole.
+    let mut surface_readback = 0;
     for mode in [Mode::Surface, Mode::Solid] {
         let out = run(&engine, mode, Band::default());
         assert!(out.report.voxels > 0 && out.report.backend.starts_with("gpu"), "{}", out.report.backend);
         assert_eq!(out.report.host_decided, 0, "the GPU's {mode}");
+        if mode == Mode::Surface {
+            surface_readback = out.report.readback_bytes.expect("bytes read back");
+        }
     }
     // A field's distances are the GPU's; its sign is the CPU's on a software adapter (faster there), every inside
     // voxel of it then the host's.
@@ -486,6 +490,10 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
         false => 0,
     };
     assert_eq!(sdf.report.host_decided, inside, "the GPU's field ({})", sdf.report.backend);
+    // Beside the surface's bytes, the field's passes read back their leaves' squared distances and nothing else.
+    let leaves = sdf.field.as_ref().expect("field").leaves.len() as u64;
+    let readback = sdf.report.readback_bytes.expect("bytes read back");
+    assert_eq!(readback - surface_readback, leaves * 512 * 4, "the field read back {readback} bytes");
     // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign.
     assert_eq!(engine.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
 }
