@@ -39,18 +39,28 @@ fi
 
 # The Python tools and the Node.js tools are installed while the tests build (pip and npm wait on the network and
 # the disk, the build on the CPUs); each one's output is shown if it fails. `wait_for NAME` waits for one (at once
-# where nothing had to be installed).
+# where nothing had to be installed); a job's exit status is also left in target/setup-NAME.status, for a job
+# that waits for another (`after NAME COMMAND...`).
 mkdir -p target
+rm -f target/setup-*.status
 declare -A setup_pids=()
 in_background() {
   local name=$1
   shift
-  "$@" >"target/setup-$name.log" 2>&1 &
+  { "$@" && status=0 || status=$?; echo $status >"target/setup-$name.status"; } >"target/setup-$name.log" 2>&1 &
   setup_pids[$name]=$!
+}
+after() {
+  local name=$1
+  shift
+  until [ -e "target/setup-$name.status" ]; do sleep 1; done
+  [ "$(cat "target/setup-$name.status")" = 0 ] || { echo "tests/run.sh: setting up $name failed" >&2; return 1; }
+  "$@"
 }
 wait_for() {
   [ -n "${setup_pids[$1]:-}" ] || return 0
-  if ! wait "${setup_pids[$1]}"; then
+  wait "${setup_pids[$1]}" || true
+  if [ "$(cat "target/setup-$1.status" 2>/dev/null)" != 0 ]; then
     cat "target/setup-$1.log" >&2
     echo "tests/run.sh: setting up $1 failed (target/setup-$1.log)" >&2
     exit 1
@@ -73,6 +83,10 @@ export MESHVOX_PYTHON="$PWD/$venv/bin/python"
 
 # gltfpack, gltf-pipeline and glTF-Transform for the optimized-glTF tests (and what the web build needs).
 in_background node bash web/install.sh
+# The page (web/dist, both wasm builds) is built beside the tests' build once web/node_modules is there: each of
+# the two builds spends long stretches compiling one crate at a time (naga, wgpu, meshvox, then the whole-program
+# LTO), as the tests' build does, so side by side they use the cores one alone leaves idle.
+[ $# -gt 0 ] || in_background web after node bash web/build.sh
 
 # The Python package's test environment (the wheel's tests, after `cargo test`).
 pyvenv=target/pytest-venv
@@ -138,10 +152,11 @@ rm -rf target/wheels
 "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/meshvox-*.whl
 MESHVOX_BIN="$PWD/target/debug/meshvox" "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
 
-# The web page: build web/dist (both builds; it installs web/node_modules for wasm-opt, which also holds the
-# browser test's playwright-core), then drive it in headless Chromium and compare with the CLI built above.
+# The web page: web/dist (built in the background since the tests' build began), driven in headless Chromium and
+# compared with the CLI built above.
 phase "the web build and the browser test"
-bash web/build.sh
+wait_for web
+grep -E '^web/dist:' target/setup-web.log || true
 node web/tests/browser.mjs
 
 # The fuzz targets, briefly, over their kept corpus (built with the stable toolchain, tests/fuzz/run.sh).
