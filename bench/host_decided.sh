@@ -49,8 +49,8 @@ for mesh in stanford-bunny.obj spot.obj; do
 import json, sys
 mesh, n, job, gpu, cpu = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4]), json.loads(sys.argv[5])
 items = gpu.get("band_voxels") or gpu["voxels"]
-leaf = 64 + (512 * 4 if job == "sdf" else 0)
-leaves = (gpu.get("leaves") or 0) * leaf
+# A field's band leaves hold 512 values each (and the .vdb a 64-byte mask); a solid's leaves their mask.
+leaves = gpu["band_leaves"] * (512 * 4 + 64) if gpu.get("band_leaves") else (gpu.get("leaves") or 0) * 64
 cpu_ms = cpu["voxelize_ms"] + (cpu.get("field_ms") or 0)
 back = gpu.get("readback_bytes")
 mib = lambda b: "-" if b is None else f"{b / 2**20:.2f} MiB"

@@ -419,6 +419,7 @@ impl Engine {
             voxelize_ms,
             band: request.mode.needs_field().then(|| request.band.name()),
             band_voxels: field.as_ref().map(|f| f.band_voxels),
+            band_leaves: field.as_ref().map(|f| f.leaves.len() as u64),
             distance_evaluations: field.as_ref().map(|f| f.evaluations).filter(|&n| n > 0),
             field_ms,
             field_backend,

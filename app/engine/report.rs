@@ -66,6 +66,8 @@ pub struct Report {
     /// the CPU), the inside voxels of a sign the host made, and the band's voxels where the distances were the
     /// CPU's. The work a return to host-side decisions would show.
     pub host_decided: u64,
+    /// `sdf`/`udf`/`shell`: the 8³ leaves the band touches, whose values the field holds (2 KiB each).
+    pub band_leaves: Option<u64>,
     /// Leaves of a sparse grid (8³ blocks with a voxel set); `None` for a dense grid.
     pub leaves: Option<u64>,
     pub load_ms: f64,

@@ -492,6 +492,7 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     assert_eq!(sdf.report.host_decided, inside, "the GPU's field ({})", sdf.report.backend);
     // Beside the surface's bytes, the field's passes read back their leaves' squared distances and nothing else.
     let leaves = sdf.field.as_ref().expect("field").leaves.len() as u64;
+    assert_eq!(sdf.report.band_leaves, Some(leaves), "the report's band leaves");
     let readback = sdf.report.readback_bytes.expect("bytes read back");
     assert_eq!(readback - surface_readback, leaves * 512 * 4, "the field read back {readback} bytes");
     // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign.
