@@ -8,8 +8,8 @@
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
 # for wasm32 too; web/build.sh adds the wasm32 target and wasm-bindgen-cli).
 # `bash tests/run.sh` runs everything: `cargo test` (the crate documentation's example is examples/engine.rs, a
-# test), the Python package's pytest suite, the web build and the browser test, then each fuzz target for 10 seconds
-# over its kept corpus. With arguments, only `cargo test ARGS` runs.
+# test), the Python package's pytest suite, the web build (beside the tests' build) and the browser test, then each
+# fuzz target for 10 seconds over its kept corpus. With arguments, only `cargo test ARGS` runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Each phase's start, in seconds from here: where a run's time goes (CI keeps its log).
