@@ -90,25 +90,3 @@ pub fn peak_resident() -> Option<u64> {
 pub fn reset_peak() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sizes_parse_as_written() {
-        assert_eq!(parse_size("512M"), Ok(512 << 20));
-        assert_eq!(parse_size("1.5GiB"), Ok(3 << 29));
-        assert_eq!(parse_size("1000"), Ok(1000));
-        assert!(parse_size("lots").is_err() && parse_size("5Q").is_err() && parse_size("0").is_err());
-        assert_eq!(human(3 << 29), "1.5 GiB");
-        assert_eq!(human(100), "100 bytes");
-    }
-
-    #[test]
-    #[cfg(target_os = "linux")]
-    fn linux_reports_available_memory() {
-        let a = available().expect("MemAvailable");
-        assert!(a > 1 << 20, "{a}");
-    }
-}

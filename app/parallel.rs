@@ -119,24 +119,3 @@ impl<'a> Ticker<'a> {
         (self.progress)(self.total, self.total);
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rayon::prelude::*;
-
-    #[test]
-    fn a_ticker_reports_the_start_each_crossing_once_and_the_end() {
-        let calls = Mutex::new(Vec::new());
-        let record =
-            |done: usize, total: usize| calls.lock().unwrap_or_else(PoisonError::into_inner).push((done, total));
-        let ticker = Ticker::new(1000, 10, &record);
-        install(|| (0..1000).into_par_iter().for_each(|_| ticker.add(1)));
-        ticker.finish();
-        let mut calls = calls.into_inner().unwrap_or_else(PoisonError::into_inner);
-        assert_eq!((calls[0], calls[calls.len() - 1]), ((0, 1000), (1000, 1000)));
-        calls.sort_unstable();
-        let crossings: Vec<usize> = calls[1..calls.len() - 1].iter().map(|c| c.0).collect();
-        assert_eq!(crossings, (1..=10).map(|k| k * 100).collect::<Vec<_>>(), "each multiple of 100 once");
-    }
-}

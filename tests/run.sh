@@ -117,10 +117,10 @@ show_skips() {
 }
 
 phase "cargo test"
-cargo test --locked --all-targets --no-run "$@"
+cargo test --locked --no-run "$@"
 wait_for readers
 wait_for node
-cargo test --locked --all-targets "$@"
+cargo test --locked "$@"
 [ $# -gt 0 ] && { show_skips; exit 0; }
 # The GPU tests again on GL, the API that Mesa's llvmpipe offers where no Vulkan driver is installed (containers,
 # CI runners, WSL2): the Vulkan driver hidden, and the tests told to expect GL so that finding Vulkan fails them.
@@ -146,6 +146,9 @@ fi
 # dependency it shares with the build above is reused, not compiled again (Cargo.toml lines the features up);
 # installed into its own virtual environment, then pytest against the CLI built above.
 phase "the wheel and pytest"
+# The fuzz targets are built (in their own target directory) while the wheel builds and pytest runs, which leave
+# one core idle much of the time.
+in_background fuzz bash tests/fuzz/run.sh --build 10
 wait_for pytest
 rm -rf target/wheels
 "$pyvenv/bin/maturin" build --quiet --profile dev --features python,gpu,viewer,cli --interpreter "$pyvenv/bin/python" --out target/wheels
@@ -159,8 +162,11 @@ wait_for web
 grep -E '^web/dist:' target/setup-web.log || true
 node web/tests/browser.mjs
 
-# The fuzz targets, briefly, over their kept corpus (built with the stable toolchain, tests/fuzz/run.sh).
+# The fuzz targets, briefly, over their kept corpus (built with the stable toolchain beside the Python tests,
+# tests/fuzz/run.sh), side by side.
 phase "fuzzing"
+wait_for fuzz
+grep -E '^ *Finished' target/setup-fuzz.log || true
 bash tests/fuzz/run.sh 10
 
 phase "done"

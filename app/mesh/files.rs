@@ -425,26 +425,3 @@ impl<'a> Externals<'a> {
         }
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn schemes_are_found_as_rfc_3986_spells_them() {
-        assert_eq!(uri_scheme("file:///etc/passwd"), Some("file"));
-        assert_eq!(uri_scheme("HTTP://example.org/a.bin"), Some("HTTP"));
-        assert_eq!(uri_scheme("svn+ssh:x"), Some("svn+ssh"));
-        assert_eq!(uri_scheme("C:/x.bin"), Some("C"));
-        assert_eq!(uri_scheme("sub/a:b.bin"), None);
-        assert_eq!(uri_scheme("a.bin"), None);
-        assert_eq!(uri_scheme("1x:y"), None);
-        assert_eq!(uri_scheme("?q=a:b"), None);
-    }
-
-    #[test]
-    fn references_are_quoted_on_one_short_line() {
-        assert_eq!(quote("a\nb.bin"), "\"ab.bin\"");
-        assert_eq!(quote(&"x".repeat(200)).chars().count(), 83);
-    }
-}

@@ -313,32 +313,3 @@ fn shorten(word: &str) -> String {
     }
     s
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn scan_counts_and_names_lines() {
-        let ok = b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
-        assert_eq!(scan(ok, false), Ok(Counts { vertices: 4, triangles: 4 }));
-        assert_eq!(scan(ok, true), Ok(Counts { vertices: 4, triangles: 4 }));
-        for (text, expected) in [
-            (&b"v 0 0\n"[..], "line 1: a vertex needs 3 coordinates"),
-            (b"v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate 'x'"),
-            (b"v 0 0 0\nv 1 1.2.3 0\n", "line 2: vertex coordinate '1.2.3'"),
-            (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices, this one has 2"),
-            (b"v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n", "line 3: face refers to texture coordinate 2 but the file has 1"),
-            (b"v 0 0 0\nvn 0 0 1\nf 1//-2 1//1 1//1\n", "line 3: relative normal index -2"),
-            (b"v 0 0 0\nf 1/1/1/1 1 1\n", "line 2: face vertex '1/1/1/1' is not v"),
-            (b"v 0 0 0\nf 0 1 1\n", "line 2: face vertex index 0"),
-            (b"v 0 0 0\nf -2 -1 -1\n", "line 2: relative vertex index -2"),
-            (b"v 0 0 0\nf 1 1 9\n", "line 2: face refers to vertex 9 but the file has 1"),
-            (b"v 0 0 0\nf 1 1 1.5\n", "line 2: face vertex '1.5' is not a valid index"),
-            (b"v 0 0 0\n\xff\n", "line 2: not text"),
-        ] {
-            let e = scan(text, true).expect_err(expected);
-            assert!(e.starts_with(expected), "{e}");
-        }
-    }
-}

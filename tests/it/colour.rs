@@ -334,3 +334,28 @@ fn sampler_wrap_modes_filter_and_texture_transform() {
         assert_eq!(on_gpu, colours, "the GPU's colours differ from the CPU reference");
     }
 }
+
+/// Palette files in the spellings people have them (GIMP, hex with or without `#`, Paint.NET's ARGB, CSV), and
+/// the nearest entry in Oklab, the first of equals.
+#[test]
+fn text_palettes_in_the_usual_spellings_and_the_nearest_entry_is_the_first_of_equals() {
+    use meshvox::formats::swatches::{Swatches, oklab};
+    let text = "\u{feff}GIMP Palette\r\nName: test\nColumns: 4\n# a comment\n#note\n  255   0   0\tRed\n#00ff00\n\
+                0000FF\n; Paint.NET\nFF102030\n1,2,3\n#f80\n#10203040\n";
+    let s = Swatches::read_palette(text.as_bytes(), "t").expect("a palette");
+    let want = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [16, 32, 48], [1, 2, 3], [255, 136, 0], [16, 32, 48]];
+    assert_eq!(s.colours, want);
+    // `#aé1234` is a comment, so that file has no colours.
+    assert!(Swatches::read_palette("#aé1234\n".as_bytes(), "c").is_err());
+    for bad in ["#ff00001\n", "aé12345\n", "12,34\n"] {
+        let e = Swatches::read_palette(bad.as_bytes(), "p.txt").expect_err(bad).to_string();
+        assert!(e.contains("p.txt, line 1"), "{bad}: {e}");
+    }
+    let e = Swatches::read_palette(b"12,34\n", "p.txt").expect_err("two fields").to_string();
+    assert!(e.contains("p.txt, line 1") && e.contains("12,34"), "{e}");
+    assert!(Swatches::read_palette(b"# nothing\n", "e").is_err());
+
+    let s = Swatches::new(vec![[10, 10, 10], [200, 0, 0], [10, 10, 10]]);
+    assert_eq!(s.nearest(oklab([0, 0, 0])), 0);
+    assert_eq!(s.nearest(oklab([250, 10, 0])), 1);
+}

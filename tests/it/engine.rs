@@ -498,3 +498,38 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign.
     assert_eq!(engine.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
 }
+
+/// Sizes as users write them (`--max-memory 512M`, `1.5GiB`), shown back in the same units, and the machine's
+/// available memory, which the engine's budget starts from.
+#[test]
+fn sizes_parse_as_written_and_linux_reports_available_memory() {
+    use meshvox::memory::{available, human, parse_size};
+    assert_eq!(parse_size("512M"), Ok(512 << 20));
+    assert_eq!(parse_size("1.5GiB"), Ok(3 << 29));
+    assert_eq!(parse_size("1000"), Ok(1000));
+    assert!(parse_size("lots").is_err() && parse_size("5Q").is_err() && parse_size("0").is_err());
+    assert_eq!(human(3 << 29), "1.5 GiB");
+    assert_eq!(human(100), "100 bytes");
+    if cfg!(target_os = "linux") {
+        let a = available().expect("MemAvailable");
+        assert!(a > 1 << 20, "{a}");
+    }
+}
+
+/// Progress from a parallel loop: the start, each crossing of a tenth once (from whichever thread crosses it),
+/// and the end.
+#[test]
+fn a_ticker_reports_the_start_each_crossing_once_and_the_end() {
+    use meshvox::parallel::{Ticker, install};
+    use std::sync::{Mutex, PoisonError};
+    let calls = Mutex::new(Vec::new());
+    let record = |done: usize, total: usize| calls.lock().unwrap_or_else(PoisonError::into_inner).push((done, total));
+    let ticker = Ticker::new(1000, 10, &record);
+    install(|| (0..1000).into_par_iter().for_each(|_| ticker.add(1)));
+    ticker.finish();
+    let mut calls = calls.into_inner().unwrap_or_else(PoisonError::into_inner);
+    assert_eq!((calls[0], calls[calls.len() - 1]), ((0, 1000), (1000, 1000)));
+    calls.sort_unstable();
+    let crossings: Vec<usize> = calls[1..calls.len() - 1].iter().map(|c| c.0).collect();
+    assert_eq!(crossings, (1..=10).map(|k| k * 100).collect::<Vec<_>>(), "each multiple of 100 once");
+}

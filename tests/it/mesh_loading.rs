@@ -442,3 +442,31 @@ fn files_opened_together_resolve_each_other() {
     let e = mesh::load_files(&files).expect_err("no buffer").to_string();
     assert!(e.contains("Cube.bin") && e.contains("not among the files"), "{e}");
 }
+
+/// The OBJ reader counts what it will hold before it allocates, and names the line of the first thing it cannot
+/// read (the quick scan and, where tobj refuses without saying where, the strict one).
+#[test]
+fn obj_files_count_their_faces_and_errors_name_the_line() {
+    let ok =
+        b"v 0 0 0\nv 1 0 0\r\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nvn 0 1 0\nf 1 2 3 4\nf -1 -2 -3\nf 1/1/1 2//2 3\n";
+    assert_eq!(mesh::load_bytes("ok.obj", ok).expect("a valid OBJ").triangles.len(), 4, "a quad, then two triangles");
+    for (text, expected) in [
+        (&b"v 0 0\n"[..], "line 1: a vertex needs 3 coordinates"),
+        (b"v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate 'x'"),
+        (b"v 0 0 0\nv 1 1.2.3 0\n", "line 2: vertex coordinate '1.2.3'"),
+        (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices, this one has 2"),
+        (b"v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n", "line 3: face refers to texture coordinate 2 but the file has 1"),
+        (b"v 0 0 0\nvn 0 0 1\nf 1//-2 1//1 1//1\n", "line 3: relative normal index -2"),
+        (b"v 0 0 0\nf 1/1/1/1 1 1\n", "line 2: face vertex '1/1/1/1' is not v"),
+        (b"v 0 0 0\nf 0 1 1\n", "line 2: face vertex index 0"),
+        (b"v 0 0 0\nf -2 -1 -1\n", "line 2: relative vertex index -2"),
+        (b"v 0 0 0\nf 1 1 9\n", "line 2: face refers to vertex 9 but the file has 1"),
+        (b"v 0 0 0\nf 1 1 1.5\n", "line 2: face vertex '1.5' is not a valid index"),
+        (b"v 0 0 0\n\xff\n", "line 2: not text"),
+    ] {
+        match mesh::load_bytes("bad.obj", text) {
+            Err(MeshError::Obj { message, .. }) => assert!(message.starts_with(expected), "{expected}: {message}"),
+            other => panic!("{expected}: {:?}", other.map(|m| m.triangles.len())),
+        }
+    }
+}

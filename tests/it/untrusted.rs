@@ -439,3 +439,29 @@ fn batch_refuses_each_hostile_file_in_one_line_and_goes_on() {
     assert_eq!(statuses.len(), 6, "{lines}");
     assert_eq!(statuses.iter().filter(|(_, s)| s == "done").count(), 2, "{lines}");
 }
+
+/// Which references are URIs with a scheme (RFC 3986: a letter, then letters, digits, `+`, `-` or `.`, then `:`
+/// before any `/`, `?` or `#`; a Windows drive parses as one and is refused too), and how a refusal shows a
+/// hostile reference: quoted, control characters dropped, cut after 80 characters.
+#[test]
+fn uri_schemes_are_found_as_rfc_3986_spells_them_and_references_are_quoted_on_one_short_line() {
+    let case = Case::new();
+    let error = |uri: &str| {
+        let mesh = case.write("scheme.gltf", gltf_json(uri, 60, None));
+        meshvox::mesh::load_path(&mesh).map(|m| m.triangles.len()).expect_err(uri).to_string()
+    };
+    for (uri, scheme) in [("HTTP://example.org/a.bin", "HTTP"), ("svn+ssh:x", "svn+ssh"), ("C:/x.bin", "C")] {
+        let e = error(uri);
+        assert!(e.contains(&format!("\"{uri}\" is a {scheme}: URI; a file may only refer to relative paths")), "{e}");
+    }
+    // Not schemes: read as paths relative to the folder, which do not exist there.
+    for uri in ["sub/a:b.bin", "a.bin", "1x:y", "?q=a:b"] {
+        let e = error(uri);
+        assert!(!e.contains("URI") && e.contains("cannot read"), "{uri}: {e}");
+    }
+    let e = error("/a\nb.bin");
+    assert!(e.contains("\"/ab.bin\" is an absolute path"), "{e}");
+    let long = format!("/{}", "x".repeat(199));
+    let e = error(&long);
+    assert!(e.contains(&format!("\"/{}…\" is an absolute path", "x".repeat(79))), "{e}");
+}

@@ -126,29 +126,3 @@ pub fn write_litematic<W: Write>(
     };
     write_nbt(&root, out)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bits_follow_litematicas_rule() {
-        let cases = [(1, 2), (2, 2), (4, 2), (5, 3), (8, 3), (9, 4), (16, 4), (17, 5), (59, 6), (65, 7)];
-        for (n, bits) in cases {
-            assert_eq!(bits_for(n), bits, "palette of {n}");
-        }
-    }
-
-    #[test]
-    fn entries_span_longs_least_significant_first() {
-        // 22 entries of 3 bits: entry 21 starts at bit 63 and spans two longs.
-        let cells: Vec<u32> = (0..22).map(|i| i % 8).collect();
-        let longs = pack(&cells, 3);
-        assert_eq!(longs.len(), 2);
-        let bit = |i: usize| (longs[i / 64] as u64 >> (i % 64)) & 1;
-        for (i, &v) in cells.iter().enumerate() {
-            let got: u64 = (0..3).map(|b| bit(i * 3 + b) << b).sum();
-            assert_eq!(got, v as u64, "entry {i}");
-        }
-    }
-}
