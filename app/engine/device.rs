@@ -289,6 +289,9 @@ impl OnGpu {
             surface_only: true,
             mode: job.request.mode.grid_mode(),
             instance_capacity,
+            // A software adapter's default is the host's fill of a sparse solid's inside, unless asked to treat it
+            // as a GPU.
+            inside_on_gpu: software_gpu_preferred().then_some(true),
             ..Default::default()
         };
         let voxelized = match self.voxelizer().groupable(&self.gpu, tris.len(), spec, &options) {
@@ -404,10 +407,10 @@ impl OnGpu {
     }
 
     /// A distance field's sign (the voxels inside, without the shell) on the GPU, or `None` where the CPU is to
-    /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a sparse
-    /// grid of an open mesh (the groups cannot decide rows beside its holes), a limit of the adapter. A dense grid
-    /// is the dense solid's fill without the walk (`Options::inside_only`), a sparse one the groups'
-    /// (`GpuVoxelizer::inside_async`); with the inside voxels the host decided (`GpuOutput::host_decided`).
+    /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a limit of
+    /// the adapter. A dense grid is the dense solid's fill without the walk (`Options::inside_only`), a sparse one
+    /// the groups' (`GpuVoxelizer::inside_async`, the groups beside an open mesh's holes filled on the host); with
+    /// the inside voxels the host decided (`GpuOutput::host_decided`).
     pub(super) async fn inside(
         &self,
         tris: &[[Vec3; 3]],
@@ -425,7 +428,7 @@ impl OnGpu {
                     .voxelizer()
                     .inside_async(&self.gpu, tris, spec, Some(true))
                     .await
-                    .map(|g| g.map(|g| (Grid::Sparse(g), 0))),
+                    .map(|g| g.map(|(g, host)| (Grid::Sparse(g), host))),
                 false => {
                     let options = Options {
                         read_grid: true,

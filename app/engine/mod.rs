@@ -188,8 +188,9 @@ struct ColourStage {
     backend: String,
 }
 
-/// `MESHVOX_SOFTWARE_GPU=1`: let `auto` use a software adapter for compute as it would a hardware one (to exercise
-/// the GPU path's fallbacks where the only adapter is lavapipe).
+/// `MESHVOX_SOFTWARE_GPU=1`: let `auto` use a software adapter for compute as it would a hardware one, and make a
+/// field's sign and a sparse solid's inside on it too (to exercise the GPU path and its fallbacks, and measure
+/// what the device decides, where the only adapter is lavapipe).
 pub fn software_gpu_preferred() -> bool {
     std::env::var("MESHVOX_SOFTWARE_GPU").is_ok_and(|v| v == "1")
 }

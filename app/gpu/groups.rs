@@ -6,12 +6,16 @@
 //! the bus follows the surface: the shell's leaf count bounds both (a leaf partly inside is crossed by the surface),
 //! and the host makes 128³ tiles from the runs ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)).
 //!
-//! Where the groups cannot decide a row by its crossing count (an open mesh's holes) the host fills the solid as
-//! the CPU backend does; so does it when a slab of eight layers is past a binding or an output past its capacity.
+//! A group with a row its crossing count does not decide (beside an open mesh's holes: crossings that do not cancel,
+//! or a boundary term that may reach ½ along it) is listed, and only the listed groups are filled on the host, as
+//! the CPU backend fills them ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)); the host fills
+//! the whole solid only when the list overflows its capacity, a slab of eight layers is past a binding or an output
+//! past its capacity.
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::solid::{
-    SolidBuffers, SolidParams, SolidPipelines, WG, boundary_bytes, crossing_total, item_offsets, run_passes,
+    SolidBuffers, SolidParams, SolidPipelines, UNSURE_ROWS, WG, boundary_bytes, crossing_total, item_offsets,
+    run_passes,
 };
 use super::util::{dispatch_2d, scoped, storage_buffer};
 use super::{Gpu, GpuError, Traffic};
@@ -44,9 +48,9 @@ fn shell_leaves_per_layer(shell: &SparseGrid) -> Vec<u64> {
 
 impl SolidPipelines {
     /// The inside of the sparse solid whose shell is `shell`, from `triangles` (on the lattice), in slabs under
-    /// `limit` bytes per binding; `None` where it is the host's to fill (an open mesh, or no slab of eight layers
-    /// fits). What crossed the bus is added to `traffic`, the passes' time (where the adapter times them) to
-    /// `gpu_ms`.
+    /// `limit` bytes per binding, with the groups left to the host listed in `host` (at most `host_capacity` a
+    /// slab); `None` where it is the host's to fill (no slab of eight layers fits, or a list overflowed). What
+    /// crossed the bus is added to `traffic`, the passes' time (where the adapter times them) to `gpu_ms`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) async fn sparse_inside(
         &self,
@@ -55,14 +59,13 @@ impl SolidPipelines {
         spec: GridSpec,
         lattice: Lattice,
         shell: &SparseGrid,
-        limit: u64,
+        (limit, host_capacity): (u64, u32),
         (traffic, gpu_ms): (&mut Traffic, &mut f64),
     ) -> Result<Option<GroupOutput>, GpuError> {
         let device = &gpu.device;
         let dims = spec.dims;
         let boundary = boundary(triangles, lattice);
-        // Beside a hole the groups' rows need winding numbers and certificates: the host's fill has both.
-        if !boundary.edges.is_empty() || triangles.len() as u64 * 36 > limit {
+        if triangles.len() as u64 * 36 > limit {
             return Ok(None);
         }
         let mut layers = ((limit / (8 * u64::from(dims.y))) as u32 / 8 * 8).min(dims.z.next_multiple_of(8));
@@ -74,7 +77,8 @@ impl SolidPipelines {
         if items > u64::from(u32::MAX) / 2 {
             return Ok(None);
         }
-        let base = SolidParams::new(spec, triangles.len(), &boundary.edges, &boundary.pieces, lattice, items);
+        let base = SolidParams::new(spec, triangles.len(), &boundary.edges, &boundary.pieces, lattice, items)
+            .with_unsure_capacity(host_capacity.min(UNSURE_ROWS));
         let edge_bytes = boundary_bytes(&boundary.edges, &boundary.pieces);
         let buffers =
             SolidBuffers::new(gpu, u64::from(dims.y) * u64::from(layers), &offsets, &edge_bytes, &base).await?;
@@ -103,6 +107,7 @@ impl SolidPipelines {
                 SlabEnd::Done(part) => {
                     out.leaves.extend(part.leaves);
                     out.runs.extend(part.runs);
+                    out.host.extend(part.host);
                     z0 = z1;
                 }
                 SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
@@ -198,7 +203,9 @@ impl SolidPipelines {
         traffic.readback += 12 + timed;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&counters[0]);
         let (leaves, runs) = (u64::from(words[0]), u64::from(words[1]));
-        if first_word(&counters[1]).unwrap_or(0) > 0 {
+        // The groups left to the host: each is filled there, unless more were listed than the list holds.
+        let host = u64::from(first_word(&counters[1]).unwrap_or(0));
+        if host > u64::from(params.unsure_capacity()) {
             return Ok(SlabEnd::Host);
         }
         if leaves > slab.leaf_capacity || runs > slab.run_capacity {
@@ -206,16 +213,22 @@ impl SolidPipelines {
         }
         let leaf_at = HEADER_WORDS * 4;
         let run_at = (HEADER_WORDS + LEAF_WORDS * slab.leaf_capacity) * 4;
-        let ranges = [(&output, leaf_at, leaves * LEAF_WORDS * 4), (&output, run_at, runs * 8)];
+        let ranges =
+            [(&output, leaf_at, leaves * LEAF_WORDS * 4), (&output, run_at, runs * 8), (&b.unsure, 4, host * 4)];
         let ranges: Vec<_> = ranges.into_iter().filter(|r| r.2 > 0).collect();
         traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
         let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
         let mut parts = parts.into_iter();
-        let leaf_words = if leaves > 0 { parts.next().unwrap_or_default() } else { Vec::new() };
-        let run_words = if runs > 0 { parts.next().unwrap_or_default() } else { Vec::new() };
-        let (leaf_words, run_words) =
-            (bytemuck::pod_collect_to_vec(&leaf_words), bytemuck::pod_collect_to_vec(&run_words));
-        Ok(SlabEnd::Done(decode(&leaf_words, &run_words)))
+        let mut next = |n: u64| -> Vec<u32> {
+            match n > 0 {
+                true => bytemuck::pod_collect_to_vec(&parts.next().unwrap_or_default()),
+                false => Vec::new(),
+            }
+        };
+        let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
+        let mut part = decode(&leaf_words, &run_words);
+        part.host = host_words.iter().map(|&w| (w & 0xffff, w >> 16)).collect();
+        Ok(SlabEnd::Done(part))
     }
 }
 
@@ -236,7 +249,7 @@ enum SlabEnd {
     Done(GroupOutput),
     /// Its crossing list or output is past a binding: cut the slab.
     TooLarge,
-    /// A group is the host's, or the output overflowed: the host fills the solid.
+    /// More groups were the host's than its list holds, or the output overflowed: the host fills the solid.
     Host,
 }
 

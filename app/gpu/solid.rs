@@ -122,6 +122,17 @@ impl SolidParams {
     pub(super) fn rows(self, z0: u32, z1: u32) -> SolidParams {
         SolidParams { rows_z0: z0, rows_z1: z1, ..self }
     }
+
+    /// The same with room for `capacity` entries in the list of what is left to the host (at most
+    /// [`UNSURE_ROWS`], the buffer's room).
+    pub(super) fn with_unsure_capacity(self, capacity: u32) -> SolidParams {
+        SolidParams { unsure_capacity: capacity.min(UNSURE_ROWS), ..self }
+    }
+
+    /// Entries the list of what is left to the host holds.
+    pub(super) fn unsure_capacity(&self) -> u32 {
+        self.unsure_capacity
+    }
 }
 
 /// The boundary as the shader reads it: the edges (two vec4 each), then the pieces (three vec4 each).

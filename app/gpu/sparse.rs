@@ -67,9 +67,11 @@ fn groups_on_gpu(gpu: &Gpu, asked: Option<bool>) -> bool {
 
 impl GpuVoxelizer {
     /// A sparse solid: its shell, the conservative surface, made as leaves on the GPU (the chain below: no dense
-    /// slab is allocated or read), then its inside by groups of 8×8 rows on the GPU too (`gpu/groups.rs`), or,
-    /// beside an open mesh's holes, on the host along that shell by the CPU backend's own fill ([`fill_sparse`]:
-    /// runs of leaves the surface does not cross decided whole, rows filled only through the leaves it crosses).
+    /// slab is allocated or read), then its inside by groups of 8×8 rows on the GPU too (`gpu/groups.rs`), the
+    /// groups beside an open mesh's holes that their crossing counts do not decide filled on the host as the CPU
+    /// backend fills them ([`solid_from_groups`]); or all of it on the host along that shell ([`fill_sparse`]:
+    /// runs of leaves the surface does not cross decided whole, rows filled only through the leaves it crosses)
+    /// where the groups do not run.
     /// Either way the grid is the CPU's, field for field. An overflowing unsure list hands the whole solid to the
     /// CPU, as for a surface.
     pub(super) async fn sparse_solid(
@@ -88,7 +90,11 @@ impl GpuVoxelizer {
         };
         out.inside_on_host = inside.is_none();
         let solid = match inside {
-            Some(groups) => solid_from_groups(surface, &groups),
+            Some(groups) => {
+                let (solid, host_voxels) = solid_from_groups(triangles, lattice, surface, &groups);
+                out.host_decided += host_voxels;
+                solid
+            }
             None => {
                 let shell = surface.count();
                 let solid = fill_sparse(triangles, lattice, surface);
@@ -103,24 +109,25 @@ impl GpuVoxelizer {
     /// The voxels whose centres are inside the mesh (the winding number at least ½), without the shell, as a sparse
     /// grid: a distance field's sign (what [`crate::voxel::distance::inside_grid`] makes on the CPU). Made on the
     /// GPU by the groups (`gpu/groups.rs`), their output bounded by the shell's leaves, which the chain makes
-    /// first; `None` where the host is to make it: an open mesh (the groups cannot decide rows beside its holes),
-    /// a software adapter unless `inside_on_gpu` says otherwise, or no slab of rows that fits.
+    /// first, and the groups they leave to the host (beside an open mesh's holes) filled there; with the inside
+    /// voxels those hold (what the host decided). `None` where the host is to make all of it: a software adapter
+    /// unless `inside_on_gpu` says otherwise, no slab of rows that fits, or more groups left to the host than
+    /// their list holds.
     pub async fn inside_async(
         &self,
         gpu: &Gpu,
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
         inside_on_gpu: Option<bool>,
-    ) -> Result<Option<SparseGrid>, GpuError> {
+    ) -> Result<Option<(SparseGrid, u64)>, GpuError> {
         let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
-        let closed = crate::voxel::solid::boundary(&triangles, lattice).edges.is_empty();
-        if !closed || !groups_on_gpu(gpu, inside_on_gpu) {
+        if !groups_on_gpu(gpu, inside_on_gpu) {
             return Ok(None);
         }
         let options = Options { read_grid: true, sparse: true, ..Default::default() };
         let made = self.shell_and_groups(gpu, &triangles, spec, lattice, &options, true).await?;
         let inside = made.and_then(|(_, _, inside)| inside);
-        Ok(inside.map(|groups| solid_from_groups(SparseGrid::new(spec), &groups)))
+        Ok(inside.map(|groups| solid_from_groups(&triangles, lattice, SparseGrid::new(spec), &groups)))
     }
 
     /// A solid's shell made by the chain (a surface run with `options`' limits), and, where `groups`, its inside's
@@ -146,7 +153,9 @@ impl GpuVoxelizer {
         let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
         let mut gpu_ms = 0.0;
         let account = (&mut out.traffic, &mut gpu_ms);
-        let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, limit, account).await?;
+        let capacity = options.max_host_groups.unwrap_or(super::solid::UNSURE_ROWS);
+        let bounds = (limit, capacity);
+        let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, bounds, account).await?;
         out.gpu_ms = out.gpu_ms.map(|ms| ms + gpu_ms);
         Ok(Some((out, *surface, inside)))
     }

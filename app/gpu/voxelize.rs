@@ -99,6 +99,9 @@ pub struct Options {
     /// along the shell. Default: on hardware adapters. On a software one the groups' barriers run as the cores'
     /// context switches, and the host's fill on the same cores is faster (bench/RESULTS.md).
     pub inside_on_gpu: Option<bool>,
+    /// Groups of 8×8 rows a sparse solid's groups may leave to the host per slab (default and most 2^16); past
+    /// it, the host fills the whole solid.
+    pub max_host_groups: Option<u32>,
     /// With `Mode::Solid` and a dense grid: only the voxels whose centres are inside, without the shell (no walk):
     /// a distance field's sign, as [`crate::voxel::distance::inside_grid`] makes it.
     pub inside_only: bool,
@@ -261,7 +264,8 @@ impl GpuVoxelizer {
         let solid = self.solid.get_or_init(|| SolidPipelines::new(&gpu.device));
         let (mut traffic, mut gpu_ms) = (Traffic::default(), 0.0);
         let account = (&mut traffic, &mut gpu_ms);
-        pollster::block_on(solid.sparse_inside(gpu, &triangles, spec, lattice, shell, limit, account))
+        let capacity = super::solid::UNSURE_ROWS;
+        pollster::block_on(solid.sparse_inside(gpu, &triangles, spec, lattice, shell, (limit, capacity), account))
     }
 
     pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {

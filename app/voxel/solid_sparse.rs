@@ -88,13 +88,26 @@ enum Leaf {
 /// whole, by each row's crossing count where the count decides (the rows that pass no hole, [`near_boundary`]),
 /// or by one winding number per box ([`certify_group`]) beside a hole.
 pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
+    let (tiles, inside) = interior(triangles, lattice, &surface, None);
+    join_interior(surface, tiles, inside)
+}
+
+/// The inside's tiles and leaves ([`fill_sparse`]'s, before they are joined with the shell `surface`), of every
+/// group of 8×8 rows or, with `only`, of those groups `(gy, gz)` alone (the groups a GPU left to the host: only
+/// the 128 × 128-row blocks that hold one are visited, and a block's 128³ tile needs all of its groups).
+fn interior(
+    triangles: &[[Vec3; 3]],
+    lattice: Lattice,
+    surface: &SparseGrid,
+    only: Option<&HashSet<(u32, u32)>>,
+) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         let spec = surface.spec;
         let dims = spec.dims;
         let rows = column_crossings(triangles, dims, lattice);
         let boundary = boundary(triangles, lattice);
-        let surface_keys = group_leaves(&surface, triangles, dims);
+        let surface_keys = group_leaves(surface, triangles, dims);
         let groups_y = dims.y.div_ceil(8);
         let wpr = spec.words_per_row();
         let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
@@ -115,7 +128,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
             for gz in 0..BLOCK / 8 {
                 for gy in 0..BLOCK / 8 {
                     let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
-                    if ya >= dims.y || za >= dims.z {
+                    if ya >= dims.y || za >= dims.z || only.is_some_and(|o| !o.contains(&(ya / 8, za / 8))) {
                         continue;
                     }
                     let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
@@ -266,7 +279,16 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
             }
             out
         };
-        let parts: Vec<BlockInterior> = (0..blocks_y * blocks_z).into_par_iter().map(fill_block).collect();
+        let blocks: Vec<u32> = match only {
+            None => (0..blocks_y * blocks_z).collect(),
+            Some(only) => {
+                let mut blocks: Vec<u32> = only.iter().map(|&(gy, gz)| gz / 16 * blocks_y + gy / 16).collect();
+                blocks.sort_unstable();
+                blocks.dedup();
+                blocks
+            }
+        };
+        let parts: Vec<BlockInterior> = blocks.into_par_iter().map(fill_block).collect();
         drop(rows);
         let mut tiles: Vec<Tile> = Vec::new();
         let mut inside: Vec<(u64, LeafMask)> = Vec::new();
@@ -274,7 +296,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
             tiles.extend(part.tiles);
             inside.extend(part.leaves);
         }
-        join_interior(surface, tiles, inside)
+        (tiles, inside)
     })
 }
 
@@ -316,11 +338,32 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
 }
 
 /// A solid from its shell and the inside that groups of 8×8 rows found ([`crate::voxel::cpu::groups`], the GPU's
-/// `fill_groups`): each block of 128 × 128 rows whose 256 groups all hold a 16-leaf segment whole gets a 128³
-/// tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³ tiles, the partly inside leaves
-/// leaves. The result is [`fill_sparse`]'s grid wherever no group was left to the host (`output.host` empty).
-pub fn solid_from_groups(surface: SparseGrid, output: &GroupOutput) -> SparseGrid {
-    let dims = surface.spec.dims;
+/// `fill_groups`), the groups they left to the host (`output.host`, beside an open mesh's holes) filled here as
+/// [`fill_sparse`] fills them: [`fill_sparse`]'s grid, field for field in canonical form. `triangles` are on
+/// `lattice`, as the groups' were. With the inside voxels the host's groups hold (what the host decided).
+pub fn solid_from_groups(
+    triangles: &[[Vec3; 3]],
+    lattice: Lattice,
+    surface: SparseGrid,
+    output: &GroupOutput,
+) -> (SparseGrid, u64) {
+    let (mut tiles, mut inside) = groups_interior(surface.spec.dims, output);
+    let mut host_voxels = 0;
+    if !output.host.is_empty() {
+        let only: HashSet<(u32, u32)> = output.host.iter().copied().collect();
+        let (host_tiles, host_leaves) = interior(triangles, lattice, &surface, Some(&only));
+        host_voxels = host_tiles.iter().map(|t| 1u64 << (3 * t.log2)).sum::<u64>()
+            + host_leaves.iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum::<u64>();
+        tiles.extend(host_tiles);
+        inside.extend(host_leaves);
+    }
+    (join_interior(surface, tiles, inside), host_voxels)
+}
+
+/// The tiles and leaves of what the groups decided: each block of 128 × 128 rows whose 256 groups all hold a
+/// 16-leaf segment whole gets a 128³ tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³
+/// tiles, the partly inside leaves leaves.
+fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
     let groups = (BLOCK / 8) * (BLOCK / 8);
     let whole_block = |gy: u32, gz: u32| (gy / 16 + 1) * BLOCK <= dims.y && (gz / 16 + 1) * BLOCK <= dims.z;
     // Per (block y, block z, segment): the groups that hold the segment whole.
@@ -344,5 +387,5 @@ pub fn solid_from_groups(surface: SparseGrid, output: &GroupOutput) -> SparseGri
         }
     }
     let inside = output.leaves.iter().map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask)).collect();
-    join_interior(surface, tiles, inside)
+    (tiles, inside)
 }

@@ -573,11 +573,11 @@ pub(crate) fn group_cases() -> Vec<(String, Vec<glam::Vec3>, GridSpec)> {
 }
 
 /// The sparse solid's inside by groups of 8×8 rows (`voxel::cpu::groups`, the mirror of `shaders/groups.wgsl`)
-/// gives the CPU's sparse solid, field for field in canonical form, on every closed mesh and hard case, whether the
-/// groups run over all rows at once or in slabs of 8 and 24 layers; on an open mesh the groups beside its holes are
-/// left to the host (and where none is, the groups' solid is the fill's there too).
+/// gives the CPU's sparse solid, field for field in canonical form, on every mesh and hard case, whether the groups
+/// run over all rows at once or in slabs of 8 and 24 layers; on an open mesh the groups beside its holes are left
+/// to the host, which fills them alone (`solid_from_groups`), and the solid is the fill's there too.
 #[test]
-fn the_groups_mirror_gives_the_sparse_fills_solid_on_closed_meshes() {
+fn the_groups_mirror_gives_the_sparse_fills_solid() {
     use meshvox::voxel::cpu::groups::{GroupOutput, fill_groups};
     let never = AtomicBool::new(false);
     let (mut closed, mut hosted) = (0, 0);
@@ -590,7 +590,6 @@ fn the_groups_mirror_gives_the_sparse_fills_solid_on_closed_meshes() {
         if !whole.host.is_empty() {
             assert!(!boundary.edges.is_empty(), "{name}: every row of a closed mesh is decided by its count");
             hosted += 1;
-            continue;
         }
         for step in [8, 24] {
             let mut parts = GroupOutput::default();
@@ -598,13 +597,17 @@ fn the_groups_mirror_gives_the_sparse_fills_solid_on_closed_meshes() {
                 let part = fill_groups(&crossings, spec.dims, &boundary, z0, (z0 + step as u32).min(spec.dims.z));
                 parts.leaves.extend(part.leaves);
                 parts.runs.extend(part.runs);
+                parts.host.extend(part.host);
             }
             assert!(parts.sorted() == whole, "{name}: slabs of {step} layers give the same groups");
         }
         let (shell, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("shell");
         let (solid, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &never).expect("solid");
-        let grouped = meshvox::voxel::solid_sparse::solid_from_groups(shell, &whole);
+        let (grouped, host_voxels) =
+            meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell, &whole);
         assert!(grouped == solid, "{name}: the groups' solid differs from the sparse fill's");
+        assert!(whole.host.is_empty() <= (host_voxels == 0), "{name}: no host group, no host voxel");
+        assert!(host_voxels < solid.count(), "{name}: the host filled {host_voxels} of {} voxels", solid.count());
         closed += usize::from(boundary.edges.is_empty());
     }
     assert!(closed >= 8 && hosted >= 2, "{closed} closed cases, {hosted} with groups left to the host");
