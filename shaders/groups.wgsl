@@ -5,16 +5,21 @@
 //                 event (a leaf in which some row has a crossing). Each event leaf's 64 rows of 8 voxels are all
 //                 inside (the leaf joins a run of full leaves), partly (the leaf comes back with its mask) or not at
 //                 all; between two events every row keeps its state, so the stretch is decided whole. The work
-//                 follows the surface: a group costs one step per leaf its rows' crossings fall in.
+//                 follows the surface: a group costs one step per leaf its rows' crossings fall in. An open group
+//                 (below) takes every leaf as an event.
 // Joined into the solid module after solid.wgsl, whose crossing lists it reads (`count_crossings`, `allocate_rows`,
 // `write_crossings` over the slab's rows). A group with a row its crossing count does not decide (beside an open
-// mesh's hole, or crossings that do not cancel) is listed for the host and left alone.
+// mesh's hole: crossings that do not cancel, or a boundary term that may reach 1/2 along it) is an open group: it
+// walks every leaf, its open rows decided a leaf at a time by the dense fill's certified runs (`open_leaf_bits`),
+// and is listed, flagged as decided (bit 31), or unflagged for the host where a certificate left a voxel open (the
+// host then drops what it wrote and fills it).
 //
 // Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
 // capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
 // mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
 // lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Host groups go to `solid_unsure` (a count, then
-// gy | gz << 16 each). gy and gz index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
+// gy | gz << 16 each, with bit 31 set for an open group decided here). gy and gz index groups: rows gy * 8 ..
+// gy * 8 + 8 along y, gz * 8 .. along z.
 
 const GROUP_LEAF_WORDS: u32 = 18u;
 const NO_LEAF: u32 = 0xffffffffu;
@@ -27,7 +32,9 @@ var<workgroup> group_any: atomic<u32>;
 var<workgroup> group_after: array<atomic<u32>, 2>;
 var<workgroup> group_next: atomic<u32>;
 var<workgroup> group_host: atomic<u32>;
-// Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is the host's.
+// Set where a certificate left some voxel of an open group open.
+var<workgroup> group_failed: atomic<u32>;
+// Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is open.
 var<workgroup> group_step: u32;
 var<workgroup> group_defer: u32;
 
@@ -48,6 +55,33 @@ fn row_leaf_bits(start: u32, n: u32, cursor: ptr<function, u32>, before: ptr<fun
         }
     }
     return bits;
+}
+
+// The 8 bits of leaf `l` of an open row (y, z) (crossings that do not cancel, or a boundary term that may reach 1/2
+// along it): each stretch of the leaf between crossings decided by the dense fill's certified runs (`fill_open_run`
+// into `leaf_bits`), `cursor` and `before` carried as in `row_leaf_bits`. `*ok` is set false where a certificate
+// leaves a voxel open.
+fn open_leaf_bits(start: u32, n: u32, cursor: ptr<function, u32>, before: ptr<function, i32>, l: u32, y: u32,
+                  z: u32, ok: ptr<function, bool>) -> u32 {
+    leaf_bits = 0u;
+    leaf_x0 = 8u * l;
+    let end = min(8u * l + 8u, solid.dims.x);
+    var x0 = 8u * l;
+    while x0 < end {
+        while *cursor < n && (crossings[start + *cursor] >> 1u) <= x0 {
+            *before += crossing_sign(crossings[start + *cursor]);
+            *cursor += 1u;
+        }
+        var x1 = end;
+        if *cursor < n {
+            x1 = min(crossings[start + *cursor] >> 1u, end);
+        }
+        if !fill_open_run(-*before, x0, x1 - 1u, y, z, LEAF_BITS) {
+            *ok = false;
+        }
+        x0 = x1;
+    }
+    return leaf_bits;
 }
 
 // The leaf of the row's next crossing (after `cursor`), or NO_LEAF.
@@ -87,10 +121,11 @@ fn emit_run(gy: u32, gz: u32, lx0: u32, lx1: u32) {
     atomicStore(&solid_grid[base + 1u], lx0 | (lx1 << 16u));
 }
 
-fn defer_group(gy: u32, gz: u32) {
+// Lists an open group: decided here (bit 31), or the host's.
+fn list_group(gy: u32, gz: u32, decided: bool) {
     let i = atomicAdd(&solid_unsure[0], 1u);
     if i < solid.unsure_capacity {
-        atomicStore(&solid_unsure[1u + i], gy | (gz << 16u));
+        atomicStore(&solid_unsure[1u + i], gy | (gz << 16u) | select(0u, 0x80000000u, decided));
     }
 }
 
@@ -168,6 +203,7 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     if r == 0u {
         atomicStore(&group_next, NO_LEAF);
         atomicStore(&group_host, 0u);
+        atomicStore(&group_failed, 0u);
     }
     workgroupBarrier();
     sort_row(start, n);
@@ -175,7 +211,8 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     for (var i = 0u; i < n; i++) {
         total += crossing_sign(crossings[start + i]);
     }
-    if valid && (total != 0 || (solid.piece_count > 0u && near_boundary(y, z))) {
+    let open = valid && (total != 0 || (solid.piece_count > 0u && near_boundary(y, z)));
+    if open {
         atomicStore(&group_host, 1u);
     }
     var cursor = 0u;
@@ -186,15 +223,15 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         group_defer = atomicLoad(&group_host);
         group_step = atomicLoad(&group_next);
     }
-    if workgroupUniformLoad(&group_defer) != 0u {
-        if r == 0u {
-            defer_group(gy, gz);
-        }
-        return;
-    }
+    // An open group walks every leaf: its open rows may change state anywhere.
+    let open_group = workgroupUniformLoad(&group_defer) != 0u;
     let leaves_x = (solid.dims.x + 7u) / 8u;
     var run = NO_LEAF;
     var l = workgroupUniformLoad(&group_step);
+    if open_group {
+        l = 0u;
+    }
+    var ok = true;
     while l < leaves_x {
         if r == 0u {
             for (var i = 0u; i < 16u; i++) {
@@ -207,7 +244,15 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
             atomicStore(&group_next, NO_LEAF);
         }
         workgroupBarrier();
-        let bits = row_leaf_bits(start, n, &cursor, &before, l, solid.dims.x);
+        var bits = 0u;
+        if open {
+            bits = open_leaf_bits(start, n, &cursor, &before, l, y, z, &ok);
+            if !ok {
+                atomicStore(&group_failed, 1u);
+            }
+        } else {
+            bits = row_leaf_bits(start, n, &cursor, &before, l, solid.dims.x);
+        }
         let bit = 1u << (r % 32u);
         for (var k = 0u; k < 8u; k++) {
             if (bits & (1u << k)) != 0u {
@@ -226,13 +271,25 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         atomicMin(&group_next, next_event_leaf(start, n, cursor));
         workgroupBarrier();
         if r == 0u {
-            let next = min(atomicLoad(&group_next), leaves_x);
+            var next = min(atomicLoad(&group_next), leaves_x);
+            if open_group {
+                next = l + 1u;
+            }
             run = settle_leaf(gy, gz, l, next, run, solid.dims.x);
+            // A group a certificate could not decide is the host's: what it wrote is dropped there.
+            if atomicLoad(&group_failed) != 0u {
+                next = leaves_x;
+            }
             group_step = next;
         }
         l = workgroupUniformLoad(&group_step);
     }
-    if r == 0u && run != NO_LEAF {
-        emit_run(gy, gz, run, leaves_x);
+    if r == 0u {
+        if run != NO_LEAF {
+            emit_run(gy, gz, run, leaves_x);
+        }
+        if open_group {
+            list_group(gy, gz, atomicLoad(&group_failed) == 0u);
+        }
     }
 }

@@ -272,8 +272,20 @@ fn crossing_sign(c: u32) -> i32 {
     return select(-1, 1, (c & 1u) != 0u);
 }
 
-// Sets bits k0..k1 (exclusive) of the row whose first word is `base` in the slab.
+// `set_range`'s base for the invocation's leaf rather than a row of the slab: bits k - leaf_x0 of `leaf_bits`
+// (the groups' open rows, a leaf at a time, groups.wgsl).
+const LEAF_BITS: u32 = 0xffffffffu;
+var<private> leaf_bits: u32;
+var<private> leaf_x0: u32;
+
+// Sets bits k0..k1 (exclusive) of the row whose first word is `base` in the slab (or of `leaf_bits`).
 fn set_range(base: u32, k0: u32, k1: u32) {
+    if base == LEAF_BITS {
+        for (var k = k0; k < k1; k++) {
+            leaf_bits |= 1u << (k - leaf_x0);
+        }
+        return;
+    }
     var k = k0;
     while k < k1 {
         let b = k % 32u;

@@ -7,10 +7,11 @@
 //! and the host makes 128³ tiles from the runs ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)).
 //!
 //! A group with a row its crossing count does not decide (beside an open mesh's holes: crossings that do not cancel,
-//! or a boundary term that may reach ½ along it) is listed, and only the listed groups are filled on the host, as
-//! the CPU backend fills them ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)); the host fills
-//! the whole solid only when the list overflows its capacity, a slab of eight layers is past a binding or an output
-//! past its capacity.
+//! or a boundary term that may reach ½ along it) is open: the GPU decides its rows leaf by leaf with the dense
+//! fill's certified runs and lists it, and where a certificate leaves a voxel open it lists the group for the host
+//! instead, which fills only those groups, as the CPU backend fills them
+//! ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)); the host fills the whole solid only
+//! when the list overflows its capacity, a slab of eight layers is past a binding or an output past its capacity.
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::solid::{
@@ -108,6 +109,7 @@ impl SolidPipelines {
                     out.leaves.extend(part.leaves);
                     out.runs.extend(part.runs);
                     out.host.extend(part.host);
+                    out.open.extend(part.open);
                     z0 = z1;
                 }
                 SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
@@ -227,7 +229,14 @@ impl SolidPipelines {
         };
         let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
         let mut part = decode(&leaf_words, &run_words);
-        part.host = host_words.iter().map(|&w| (w & 0xffff, w >> 16)).collect();
+        // The open groups: bit 31 where the groups decided one, clear where it is the host's.
+        for w in host_words {
+            let group = (w & 0xffff, (w >> 16) & 0x7fff);
+            match w >> 31 {
+                1 => part.open.push(group),
+                _ => part.host.push(group),
+            }
+        }
         Ok(SlabEnd::Done(part))
     }
 }
@@ -268,5 +277,5 @@ fn decode(leaves: &[u32], runs: &[u32]) -> GroupOutput {
         .chunks_exact(2)
         .map(|w| GroupRun { gz: w[0] >> 16, gy: w[0] & 0xffff, lx0: w[1] & 0xffff, lx1: w[1] >> 16 })
         .collect();
-    GroupOutput { leaves, runs, host: Vec::new() }
+    GroupOutput { leaves, runs, ..Default::default() }
 }

@@ -347,10 +347,10 @@ pub fn solid_from_groups(
     surface: SparseGrid,
     output: &GroupOutput,
 ) -> (SparseGrid, u64) {
-    let (mut tiles, mut inside) = groups_interior(surface.spec.dims, output);
+    let only: HashSet<(u32, u32)> = output.host.iter().copied().collect();
+    let (mut tiles, mut inside) = groups_interior(surface.spec.dims, output, &only);
     let mut host_voxels = 0;
-    if !output.host.is_empty() {
-        let only: HashSet<(u32, u32)> = output.host.iter().copied().collect();
+    if !only.is_empty() {
         let (host_tiles, host_leaves) = interior(triangles, lattice, &surface, Some(&only));
         host_voxels = host_tiles.iter().map(|t| 1u64 << (3 * t.log2)).sum::<u64>()
             + host_leaves.iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum::<u64>();
@@ -362,13 +362,14 @@ pub fn solid_from_groups(
 
 /// The tiles and leaves of what the groups decided: each block of 128 × 128 rows whose 256 groups all hold a
 /// 16-leaf segment whole gets a 128³ tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³
-/// tiles, the partly inside leaves leaves.
-fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
+/// tiles, the partly inside leaves leaves. What the groups wrote for a group left to the host (`host`) is dropped.
+fn groups_interior(dims: UVec3, output: &GroupOutput, host: &HashSet<(u32, u32)>) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
+    let runs: Vec<_> = output.runs.iter().filter(|r| !host.contains(&(r.gy, r.gz))).collect();
     let groups = (BLOCK / 8) * (BLOCK / 8);
     let whole_block = |gy: u32, gz: u32| (gy / 16 + 1) * BLOCK <= dims.y && (gz / 16 + 1) * BLOCK <= dims.z;
     // Per (block y, block z, segment): the groups that hold the segment whole.
     let mut segments: std::collections::HashMap<(u32, u32, u32), u32> = std::collections::HashMap::new();
-    for run in &output.runs {
+    for run in &runs {
         for t in run.lx0.div_ceil(16)..run.lx1 / 16 {
             *segments.entry((run.gy / 16, run.gz / 16, t)).or_default() += 1;
         }
@@ -381,11 +382,16 @@ fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, L
         .filter(|&(&(by, bz, t), _)| tiled(by * 16, bz * 16, t))
         .map(|(&(by, bz, t), _)| Tile { log2: 7, origin: UVec3::new(t, by, bz) * BLOCK })
         .collect();
-    for run in &output.runs {
+    for run in &runs {
         for lx in (run.lx0..run.lx1).filter(|&lx| !tiled(run.gy, run.gz, lx / 16)) {
             tiles.push(Tile { log2: 3, origin: UVec3::new(lx, run.gy, run.gz) * 8 });
         }
     }
-    let inside = output.leaves.iter().map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask)).collect();
+    let inside = output
+        .leaves
+        .iter()
+        .filter(|l| !host.contains(&(l.gy, l.gz)))
+        .map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask))
+        .collect();
     (tiles, inside)
 }

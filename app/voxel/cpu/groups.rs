@@ -1,16 +1,17 @@
 //! A sparse solid's inside by groups of 8×8 rows: the mirror of `shaders/groups.wgsl`, function by function with
 //! the same names. A group's 64 rows are walked together along x from event to event (a leaf in which some row has
 //! a crossing); each event leaf is all inside (it joins a run of full leaves), partly inside (it is kept with its
-//! mask) or outside, and between two events every row keeps its state, so the stretch is decided whole. Only groups
-//! whose every row is decided by its crossing count (all of a closed mesh's) are filled; the others are listed for
-//! the host, which fills them as the CPU backend does.
+//! mask) or outside, and between two events every row keeps its state, so the stretch is decided whole. A group
+//! with a row its crossing count does not decide (beside an open mesh's holes) is open: it walks every leaf, and
+//! its open rows' bits are the winding-number rule's, decided on the GPU by the dense fill's certified runs (a
+//! group where a certificate leaves a voxel open goes to the host) and here exactly ([`fill_row`]).
 //!
 //! The shader runs one workgroup per group with one invocation per row, the leaf's mask and flags in workgroup
 //! memory; here the rows of a group are a loop. What both produce is [`GroupOutput`]: the same leaves, runs and
-//! host groups (in another order on the GPU, where slots are taken by atomics), which
+//! open groups (in another order on the GPU, where slots are taken by atomics; there less the host's groups), which
 //! [`crate::voxel::solid_sparse::solid_from_groups`] turns into tiles and leaves.
 
-use super::solid::{Boundary, RowCrossings, crossing_sign, near_boundary};
+use super::solid::{Boundary, RowCrossings, crossing_sign, fill_row, near_boundary};
 use glam::UVec3;
 
 /// A leaf written by a group: its x index, its group's indices, its mask in OpenVDB's order (bit `y * 8 + z` of
@@ -37,8 +38,12 @@ pub struct GroupRun {
 pub struct GroupOutput {
     pub leaves: Vec<GroupLeaf>,
     pub runs: Vec<GroupRun>,
-    /// Groups `(gy, gz)` left to the host: some row is not decided by its count.
+    /// Groups `(gy, gz)` left to the host: an open group (below) in which a certificate left a voxel open (the
+    /// GPU's only; what it wrote for the group is dropped).
     pub host: Vec<(u32, u32)>,
+    /// Open groups decided: those with a row its crossing count does not decide (beside an open mesh's holes),
+    /// every leaf walked, the open rows decided by the dense fill's certified runs on the GPU, exactly here.
+    pub open: Vec<(u32, u32)>,
 }
 
 impl GroupOutput {
@@ -47,6 +52,7 @@ impl GroupOutput {
         self.leaves.sort_unstable();
         self.runs.sort_unstable();
         self.host.sort_unstable();
+        self.open.sort_unstable();
         self
     }
 }
@@ -140,24 +146,39 @@ fn settle_leaf(
     run
 }
 
+/// The 8 bits of leaf `l` of an open row, from the row filled exactly ([`fill_row`]). The shader decides them by
+/// the dense fill's certified runs a stretch of the leaf at a time, and leaves the group to the host wherever a
+/// certificate cannot: every bit it decides is the exact one, so the two agree wherever the shader decides.
+pub fn open_leaf_bits(row: &[u32], l: u32) -> u32 {
+    (row[l as usize / 4] >> ((l % 4) * 8)) & 0xff
+}
+
+/// One of a group's rows: its sorted crossings, whether it lies in the grid, and for an open row (one its crossing
+/// count does not decide) its voxels filled exactly.
+pub type GroupRow<'a> = (&'a [u32], bool, Option<Vec<u32>>);
+
 /// The group `(gy, gz)`'s 64 rows (row `r` is `y = gy * 8 + r / 8`, `z = gz * 8 + r % 8`; each list sorted, empty
-/// outside the grid and `valid` false there), walked together from event leaf to event leaf into `out`.
-pub fn fill_group(out: &mut GroupOutput, (gy, gz): (u32, u32), rows: &[(&[u32], bool, bool)], dims_x: u32) {
-    // rows: (the sorted list, valid, decided by its count).
-    if rows.iter().any(|&(_, valid, decided)| valid && !decided) {
-        out.host.push((gy, gz));
-        return;
-    }
+/// outside the grid and `valid` false there), walked together from event leaf to event leaf into `out`; an open
+/// group (with an open row) through every leaf.
+pub fn fill_group(out: &mut GroupOutput, (gy, gz): (u32, u32), rows: &[GroupRow], dims_x: u32) {
+    let open_group = rows.iter().any(|(_, valid, open)| *valid && open.is_some());
     let leaves_x = dims_x.div_ceil(8);
     let mut cursors = [0usize; 64];
     let mut befores = [0i32; 64];
     let mut run = NO_LEAF;
-    let mut l = rows.iter().map(|(list, _, _)| next_event_leaf(list, 0)).min().unwrap_or(NO_LEAF);
+    let mut l = match open_group {
+        true => 0,
+        false => rows.iter().map(|(list, _, _)| next_event_leaf(list, 0)).min().unwrap_or(NO_LEAF),
+    };
     while l < leaves_x {
         let mut state = LeafState { mask: [0; 8], full: true, any: false, after: 0 };
         let mut next = NO_LEAF;
-        for (r, &(list, valid, _)) in rows.iter().enumerate() {
-            let bits = row_leaf_bits(list, &mut cursors[r], &mut befores[r], l, dims_x);
+        for (r, (list, valid, open)) in rows.iter().enumerate() {
+            let (list, valid) = (*list, *valid);
+            let bits = match open {
+                Some(row) if valid => open_leaf_bits(row, l),
+                _ => row_leaf_bits(list, &mut cursors[r], &mut befores[r], l, dims_x),
+            };
             for (k, word) in state.mask.iter_mut().enumerate() {
                 if bits & (1 << k) != 0 {
                     *word |= 1 << r;
@@ -170,12 +191,15 @@ pub fn fill_group(out: &mut GroupOutput, (gy, gz): (u32, u32), rows: &[(&[u32], 
             }
             next = next.min(next_event_leaf(list, cursors[r]));
         }
-        let next = next.min(leaves_x);
+        let next = if open_group { l + 1 } else { next.min(leaves_x) };
         run = settle_leaf(out, (gy, gz), l, next, run, &state, dims_x);
         l = next;
     }
     if run != NO_LEAF {
         out.runs.push(GroupRun { gz, gy, lx0: run, lx1: leaves_x });
+    }
+    if open_group {
+        out.open.push((gy, gz));
     }
 }
 
@@ -185,17 +209,22 @@ pub fn fill_groups(crossings: &RowCrossings, dims: UVec3, boundary: &Boundary, z
     let mut out = GroupOutput::default();
     for gz in z0 / 8..z1.div_ceil(8) {
         for gy in 0..dims.y.div_ceil(8) {
-            let rows: Vec<(&[u32], bool, bool)> = (0..64u32)
+            let rows: Vec<GroupRow> = (0..64u32)
                 .map(|r| {
                     let (y, z) = (gy * 8 + r / 8, gz * 8 + r % 8);
                     if y >= dims.y || z >= z1 {
-                        return (&[][..], false, true);
+                        return (&[][..], false, None);
                     }
                     let i = (z * dims.y + y) as usize;
                     let list = &crossings.crossings[crossings.offsets[i] as usize..crossings.offsets[i + 1] as usize];
                     let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
                     let near = !boundary.pieces.is_empty() && near_boundary(y, z, &boundary.pieces);
-                    (list, true, total == 0 && !near)
+                    let open = (total != 0 || near).then(|| {
+                        let mut row = vec![0u32; dims.x.div_ceil(32) as usize];
+                        fill_row(list, y, z, dims.x, near, boundary, &[], &mut row);
+                        row
+                    });
+                    (list, true, open)
                 })
                 .collect();
             fill_group(&mut out, (gy, gz), &rows, dims.x);
