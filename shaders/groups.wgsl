@@ -11,15 +11,15 @@
 // `write_crossings` over the slab's rows). A group with a row its crossing count does not decide (beside an open
 // mesh's hole: crossings that do not cancel, or a boundary term that may reach 1/2 along it) is an open group: it
 // walks every leaf, its open rows decided a leaf at a time by the dense fill's certified runs (`open_leaf_bits`),
-// and is listed, flagged as decided (bit 31), or unflagged for the host where a certificate left a voxel open (the
-// host then drops what it wrote and fills it).
+// and is listed (bit 31). A row in which a certificate left a voxel open (that voxel, and what its run left, unset)
+// is listed for the host (bit 30), which fills it exactly and ORs it in.
 //
 // Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
 // capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
 // mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
 // lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Host groups go to `solid_unsure` (a count, then
-// gy | gz << 16 each, with bit 31 set for an open group decided here). gy and gz index groups: rows gy * 8 ..
-// gy * 8 + 8 along y, gz * 8 .. along z.
+// gy | gz << 16 | 1 << 31 for an open group, z * dims.y + y | 1 << 30 for a row of one left to the host). gy and gz
+// index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
 
 const GROUP_LEAF_WORDS: u32 = 18u;
 const NO_LEAF: u32 = 0xffffffffu;
@@ -32,8 +32,6 @@ var<workgroup> group_any: atomic<u32>;
 var<workgroup> group_after: array<atomic<u32>, 2>;
 var<workgroup> group_next: atomic<u32>;
 var<workgroup> group_host: atomic<u32>;
-// Set where a certificate left some voxel of an open group open.
-var<workgroup> group_failed: atomic<u32>;
 // Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is open.
 var<workgroup> group_step: u32;
 var<workgroup> group_defer: u32;
@@ -121,11 +119,11 @@ fn emit_run(gy: u32, gz: u32, lx0: u32, lx1: u32) {
     atomicStore(&solid_grid[base + 1u], lx0 | (lx1 << 16u));
 }
 
-// Lists an open group: decided here (bit 31), or the host's.
-fn list_group(gy: u32, gz: u32, decided: bool) {
+// Lists an open group (bit 31), or a row of one that is the host's (bit 30).
+fn list_open(entry: u32) {
     let i = atomicAdd(&solid_unsure[0], 1u);
     if i < solid.unsure_capacity {
-        atomicStore(&solid_unsure[1u + i], gy | (gz << 16u) | select(0u, 0x80000000u, decided));
+        atomicStore(&solid_unsure[1u + i], entry);
     }
 }
 
@@ -203,7 +201,6 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     if r == 0u {
         atomicStore(&group_next, NO_LEAF);
         atomicStore(&group_host, 0u);
-        atomicStore(&group_failed, 0u);
     }
     workgroupBarrier();
     sort_row(start, n);
@@ -247,9 +244,6 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         var bits = 0u;
         if open {
             bits = open_leaf_bits(start, n, &cursor, &before, l, y, z, &ok);
-            if !ok {
-                atomicStore(&group_failed, 1u);
-            }
         } else {
             bits = row_leaf_bits(start, n, &cursor, &before, l, solid.dims.x);
         }
@@ -276,10 +270,6 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
                 next = l + 1u;
             }
             run = settle_leaf(gy, gz, l, next, run, solid.dims.x);
-            // A group a certificate could not decide is the host's: what it wrote is dropped there.
-            if atomicLoad(&group_failed) != 0u {
-                next = leaves_x;
-            }
             group_step = next;
         }
         l = workgroupUniformLoad(&group_step);
@@ -289,7 +279,10 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
             emit_run(gy, gz, run, leaves_x);
         }
         if open_group {
-            list_group(gy, gz, atomicLoad(&group_failed) == 0u);
+            list_open(gy | (gz << 16u) | 0x80000000u);
         }
+    }
+    if !ok {
+        list_open((z * solid.dims.y + y) | 0x40000000u);
     }
 }

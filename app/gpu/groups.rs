@@ -8,8 +8,8 @@
 //!
 //! A group with a row its crossing count does not decide (beside an open mesh's holes: crossings that do not cancel,
 //! or a boundary term that may reach ½ along it) is open: the GPU decides its rows leaf by leaf with the dense
-//! fill's certified runs and lists it, and where a certificate leaves a voxel open it lists the group for the host
-//! instead, which fills only those groups, as the CPU backend fills them
+//! fill's certified runs and lists it, and lists for the host each row in which a certificate left a voxel open;
+//! the host fills only those rows, exactly, and ORs them in
 //! ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)); the host fills the whole solid only
 //! when the list overflows its capacity, a slab of eight layers is past a binding or an output past its capacity.
 
@@ -102,13 +102,13 @@ impl SolidPipelines {
             let run_capacity = leaf_capacity + groups;
             let out_bytes = (HEADER_WORDS + LEAF_WORDS * leaf_capacity + 2 * run_capacity) * 4;
             let rows = dims.y * (z1 - z0);
-            let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups };
+            let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups, dims_y: dims.y };
             let account = (&mut *traffic, &mut *gpu_ms);
             match self.slab_inside(gpu, &buffers, &tris, base, items, slab, limit, account).await? {
                 SlabEnd::Done(part) => {
                     out.leaves.extend(part.leaves);
                     out.runs.extend(part.runs);
-                    out.host.extend(part.host);
+                    out.host_rows.extend(part.host_rows);
                     out.open.extend(part.open);
                     z0 = z1;
                 }
@@ -229,12 +229,11 @@ impl SolidPipelines {
         };
         let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
         let mut part = decode(&leaf_words, &run_words);
-        // The open groups: bit 31 where the groups decided one, clear where it is the host's.
+        // The open groups (bit 31), and the rows of them a certificate left to the host (bit 30).
         for w in host_words {
-            let group = (w & 0xffff, (w >> 16) & 0x7fff);
-            match w >> 31 {
-                1 => part.open.push(group),
-                _ => part.host.push(group),
+            match w >> 30 {
+                2 | 3 => part.open.push((w & 0xffff, (w >> 16) & 0x7fff)),
+                _ => part.host_rows.push(((w & 0x3fff_ffff) % slab.dims_y, (w & 0x3fff_ffff) / slab.dims_y)),
             }
         }
         Ok(SlabEnd::Done(part))
@@ -251,6 +250,8 @@ struct Slab {
     run_capacity: u64,
     out_bytes: u64,
     groups: u64,
+    /// The grid's rows along y: a listed row is `z * dims_y + y`.
+    dims_y: u32,
 }
 
 /// How a slab ended.

@@ -153,7 +153,7 @@ impl GpuVoxelizer {
         let limit = options.max_slab_bytes.unwrap_or(u64::MAX).min(gpu.max_binding_bytes());
         let mut gpu_ms = 0.0;
         let account = (&mut out.traffic, &mut gpu_ms);
-        let capacity = options.max_host_groups.unwrap_or(super::solid::UNSURE_ROWS);
+        let capacity = options.max_open_list.unwrap_or(super::solid::UNSURE_ROWS);
         let bounds = (limit, capacity);
         let inside = solid.sparse_inside(gpu, triangles, spec, lattice, &surface, bounds, account).await?;
         out.gpu_ms = out.gpu_ms.map(|ms| ms + gpu_ms);

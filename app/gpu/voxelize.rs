@@ -99,9 +99,9 @@ pub struct Options {
     /// along the shell. Default: on hardware adapters. On a software one the groups' barriers run as the cores'
     /// context switches, and the host's fill on the same cores is faster (bench/RESULTS.md).
     pub inside_on_gpu: Option<bool>,
-    /// Groups of 8×8 rows a sparse solid's groups may leave to the host per slab (default and most 2^16); past
-    /// it, the host fills the whole solid.
-    pub max_host_groups: Option<u32>,
+    /// Entries of the list a sparse solid's groups keep per slab (default and most 2^16): the open groups beside
+    /// an open mesh's holes, and their rows left to the host; past it, the host fills the whole inside.
+    pub max_open_list: Option<u32>,
     /// With `Mode::Solid` and a dense grid: only the voxels whose centres are inside, without the shell (no walk):
     /// a distance field's sign, as [`crate::voxel::distance::inside_grid`] makes it.
     pub inside_only: bool,

@@ -88,26 +88,13 @@ enum Leaf {
 /// whole, by each row's crossing count where the count decides (the rows that pass no hole, [`near_boundary`]),
 /// or by one winding number per box ([`certify_group`]) beside a hole.
 pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
-    let (tiles, inside) = interior(triangles, lattice, &surface, None);
-    join_interior(surface, tiles, inside)
-}
-
-/// The inside's tiles and leaves ([`fill_sparse`]'s, before they are joined with the shell `surface`), of every
-/// group of 8×8 rows or, with `only`, of those groups `(gy, gz)` alone (the groups a GPU left to the host: only
-/// the 128 × 128-row blocks that hold one are visited, and a block's 128³ tile needs all of its groups).
-fn interior(
-    triangles: &[[Vec3; 3]],
-    lattice: Lattice,
-    surface: &SparseGrid,
-    only: Option<&HashSet<(u32, u32)>>,
-) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         let spec = surface.spec;
         let dims = spec.dims;
         let rows = column_crossings(triangles, dims, lattice);
         let boundary = boundary(triangles, lattice);
-        let surface_keys = group_leaves(surface, triangles, dims);
+        let surface_keys = group_leaves(&surface, triangles, dims);
         let groups_y = dims.y.div_ceil(8);
         let wpr = spec.words_per_row();
         let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
@@ -128,7 +115,7 @@ fn interior(
             for gz in 0..BLOCK / 8 {
                 for gy in 0..BLOCK / 8 {
                     let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
-                    if ya >= dims.y || za >= dims.z || only.is_some_and(|o| !o.contains(&(ya / 8, za / 8))) {
+                    if ya >= dims.y || za >= dims.z {
                         continue;
                     }
                     let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
@@ -279,16 +266,7 @@ fn interior(
             }
             out
         };
-        let blocks: Vec<u32> = match only {
-            None => (0..blocks_y * blocks_z).collect(),
-            Some(only) => {
-                let mut blocks: Vec<u32> = only.iter().map(|&(gy, gz)| gz / 16 * blocks_y + gy / 16).collect();
-                blocks.sort_unstable();
-                blocks.dedup();
-                blocks
-            }
-        };
-        let parts: Vec<BlockInterior> = blocks.into_par_iter().map(fill_block).collect();
+        let parts: Vec<BlockInterior> = (0..blocks_y * blocks_z).into_par_iter().map(fill_block).collect();
         drop(rows);
         let mut tiles: Vec<Tile> = Vec::new();
         let mut inside: Vec<(u64, LeafMask)> = Vec::new();
@@ -296,7 +274,7 @@ fn interior(
             tiles.extend(part.tiles);
             inside.extend(part.leaves);
         }
-        (tiles, inside)
+        join_interior(surface, tiles, inside)
     })
 }
 
@@ -338,38 +316,82 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
 }
 
 /// A solid from its shell and the inside that groups of 8×8 rows found ([`crate::voxel::cpu::groups`], the GPU's
-/// `fill_groups`), the groups they left to the host (`output.host`, beside an open mesh's holes) filled here as
-/// [`fill_sparse`] fills them: [`fill_sparse`]'s grid, field for field in canonical form. `triangles` are on
-/// `lattice`, as the groups' were. With the inside voxels the host's groups hold (what the host decided).
+/// `fill_groups`), the rows they left to the host (`output.host_rows`, in open groups beside an open mesh's holes,
+/// where a certificate left a voxel open) filled here exactly and ORed in: [`fill_sparse`]'s grid, field for field
+/// in canonical form. `triangles` are on `lattice`, as the groups' were. With the inside voxels of those rows (what
+/// the host decided).
 pub fn solid_from_groups(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
     surface: SparseGrid,
     output: &GroupOutput,
 ) -> (SparseGrid, u64) {
-    let only: HashSet<(u32, u32)> = output.host.iter().copied().collect();
-    let (mut tiles, mut inside) = groups_interior(surface.spec.dims, output, &only);
+    let (tiles, mut inside) = groups_interior(surface.spec.dims, output);
     let mut host_voxels = 0;
-    if !only.is_empty() {
-        let (host_tiles, host_leaves) = interior(triangles, lattice, &surface, Some(&only));
-        host_voxels = host_tiles.iter().map(|t| 1u64 << (3 * t.log2)).sum::<u64>()
-            + host_leaves.iter().map(|(_, m)| m.iter().map(|w| u64::from(w.count_ones())).sum::<u64>()).sum::<u64>();
-        tiles.extend(host_tiles);
-        inside.extend(host_leaves);
+    if !output.host_rows.is_empty() {
+        let (leaves, voxels) = host_rows(triangles, lattice, surface.spec.dims, &output.host_rows);
+        host_voxels = voxels;
+        inside.extend(leaves);
+        // A row's leaf and the groups' leaf at the same place are one leaf.
+        inside.sort_unstable_by_key(|(k, _)| *k);
+        inside.dedup_by(|next, kept| {
+            let same = next.0 == kept.0;
+            if same {
+                kept.1.iter_mut().zip(next.1).for_each(|(a, b)| *a |= b);
+            }
+            same
+        });
     }
     (join_interior(surface, tiles, inside), host_voxels)
 }
 
+/// Rows `(y, z)` filled exactly, as the CPU backend fills a row ([`fill_row_span`] over the whole row), as leaves
+/// holding only those rows' voxels; with the count of their inside voxels.
+fn host_rows(
+    triangles: &[[Vec3; 3]],
+    lattice: Lattice,
+    dims: UVec3,
+    rows: &[(u32, u32)],
+) -> (Vec<(u64, LeafMask)>, u64) {
+    let crossings = column_crossings(triangles, dims, lattice);
+    let boundary = boundary(triangles, lattice);
+    let words = dims.x.div_ceil(32) as usize;
+    crate::parallel::install(|| {
+        let filled: Vec<(Vec<(u64, LeafMask)>, u64)> = rows
+            .par_iter()
+            .map(|&(y, z)| {
+                let r = (z * dims.y + y) as usize;
+                let list = &crossings.crossings[crossings.offsets[r] as usize..crossings.offsets[r + 1] as usize];
+                let near = !boundary.pieces.is_empty() && near_boundary(y, z, &boundary.pieces);
+                let mut row = vec![0u32; words];
+                fill_row_span(list, y, z, 0..dims.x, near, &boundary, &[], &mut row);
+                let bit = 1u64 << ((y % 8) * 8 + z % 8);
+                let leaves = (0..dims.x.div_ceil(8) as usize)
+                    .filter_map(|lx| {
+                        let byte = row_byte(&row, lx);
+                        let mut mask: LeafMask = [0; 8];
+                        (0..8).filter(|x| byte >> x & 1 == 1).for_each(|x| mask[x] = bit);
+                        (byte != 0).then(|| (leaf_key(lx as u32 * 8, y / 8 * 8, z / 8 * 8), mask))
+                    })
+                    .collect();
+                (leaves, row.iter().map(|w| u64::from(w.count_ones())).sum())
+            })
+            .collect();
+        let voxels = filled.iter().map(|f| f.1).sum();
+        (filled.into_iter().flat_map(|f| f.0).collect(), voxels)
+    })
+}
+
 /// The tiles and leaves of what the groups decided: each block of 128 × 128 rows whose 256 groups all hold a
 /// 16-leaf segment whole gets a 128³ tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³
-/// tiles, the partly inside leaves leaves. What the groups wrote for a group left to the host (`host`) is dropped.
-fn groups_interior(dims: UVec3, output: &GroupOutput, host: &HashSet<(u32, u32)>) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
-    let runs: Vec<_> = output.runs.iter().filter(|r| !host.contains(&(r.gy, r.gz))).collect();
+/// tiles, the partly inside leaves leaves.
+fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
+    let runs = &output.runs;
     let groups = (BLOCK / 8) * (BLOCK / 8);
     let whole_block = |gy: u32, gz: u32| (gy / 16 + 1) * BLOCK <= dims.y && (gz / 16 + 1) * BLOCK <= dims.z;
     // Per (block y, block z, segment): the groups that hold the segment whole.
     let mut segments: std::collections::HashMap<(u32, u32, u32), u32> = std::collections::HashMap::new();
-    for run in &runs {
+    for run in runs {
         for t in run.lx0.div_ceil(16)..run.lx1 / 16 {
             *segments.entry((run.gy / 16, run.gz / 16, t)).or_default() += 1;
         }
@@ -382,16 +404,11 @@ fn groups_interior(dims: UVec3, output: &GroupOutput, host: &HashSet<(u32, u32)>
         .filter(|&(&(by, bz, t), _)| tiled(by * 16, bz * 16, t))
         .map(|(&(by, bz, t), _)| Tile { log2: 7, origin: UVec3::new(t, by, bz) * BLOCK })
         .collect();
-    for run in &runs {
+    for run in runs {
         for lx in (run.lx0..run.lx1).filter(|&lx| !tiled(run.gy, run.gz, lx / 16)) {
             tiles.push(Tile { log2: 3, origin: UVec3::new(lx, run.gy, run.gz) * 8 });
         }
     }
-    let inside = output
-        .leaves
-        .iter()
-        .filter(|l| !host.contains(&(l.gy, l.gz)))
-        .map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask))
-        .collect();
+    let inside = output.leaves.iter().map(|l| (leaf_key(l.lx * 8, l.gy * 8, l.gz * 8), l.mask)).collect();
     (tiles, inside)
 }
