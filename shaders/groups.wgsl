@@ -11,15 +11,16 @@
 // `write_crossings` over the slab's rows). A group with a row its crossing count does not decide (beside an open
 // mesh's hole: crossings that do not cancel, or a boundary term that may reach 1/2 along it) is an open group: it
 // walks every leaf, its open rows decided a leaf at a time by the dense fill's certified runs (`open_leaf_bits`),
-// and is listed (bit 31). A row in which a certificate left a voxel open (that voxel, and what its run left, unset)
-// is listed for the host (bit 30), which fills it exactly and ORs it in.
+// and is listed (bit 31). A leaf of a row in which a certificate left a voxel open (that voxel, and what its
+// stretch left, unset) is listed for the host (bit 30, then the leaf), which fills those 8 voxels exactly and ORs
+// them in.
 //
 // Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
 // capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
 // mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
 // lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Host groups go to `solid_unsure` (a count, then
-// gy | gz << 16 | 1 << 31 for an open group, z * dims.y + y | 1 << 30 for a row of one left to the host). gy and gz
-// index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
+// gy | gz << 16 | 1 << 31 for an open group; z * dims.y + y | 1 << 30 then lx for a row's leaf left to the host).
+// gy and gz index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
 
 const GROUP_LEAF_WORDS: u32 = 18u;
 const NO_LEAF: u32 = 0xffffffffu;
@@ -119,11 +120,15 @@ fn emit_run(gy: u32, gz: u32, lx0: u32, lx1: u32) {
     atomicStore(&solid_grid[base + 1u], lx0 | (lx1 << 16u));
 }
 
-// Lists an open group (bit 31), or a row of one that is the host's (bit 30).
-fn list_open(entry: u32) {
-    let i = atomicAdd(&solid_unsure[0], 1u);
-    if i < solid.unsure_capacity {
+// Lists an open group (`second` NO_LEAF: one word), or a row's leaf that is the host's (two words, together).
+fn list_open(entry: u32, second: u32) {
+    let words = select(2u, 1u, second == NO_LEAF);
+    let i = atomicAdd(&solid_unsure[0], words);
+    if i + words <= solid.unsure_capacity {
         atomicStore(&solid_unsure[1u + i], entry);
+        if words == 2u {
+            atomicStore(&solid_unsure[2u + i], second);
+        }
     }
 }
 
@@ -228,7 +233,6 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     if open_group {
         l = 0u;
     }
-    var ok = true;
     while l < leaves_x {
         if r == 0u {
             for (var i = 0u; i < 16u; i++) {
@@ -243,7 +247,11 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         workgroupBarrier();
         var bits = 0u;
         if open {
+            var ok = true;
             bits = open_leaf_bits(start, n, &cursor, &before, l, y, z, &ok);
+            if !ok {
+                list_open((z * solid.dims.y + y) | 0x40000000u, l);
+            }
         } else {
             bits = row_leaf_bits(start, n, &cursor, &before, l, solid.dims.x);
         }
@@ -279,10 +287,7 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
             emit_run(gy, gz, run, leaves_x);
         }
         if open_group {
-            list_open(gy | (gz << 16u) | 0x80000000u);
+            list_open(gy | (gz << 16u) | 0x80000000u, NO_LEAF);
         }
-    }
-    if !ok {
-        list_open((z * solid.dims.y + y) | 0x40000000u);
     }
 }

@@ -8,8 +8,8 @@
 //!
 //! A group with a row its crossing count does not decide (beside an open mesh's holes: crossings that do not cancel,
 //! or a boundary term that may reach ½ along it) is open: the GPU decides its rows leaf by leaf with the dense
-//! fill's certified runs and lists it, and lists for the host each row in which a certificate left a voxel open;
-//! the host fills only those rows, exactly, and ORs them in
+//! fill's certified runs and lists it, and lists for the host each leaf of a row in which a certificate left a
+//! voxel open; the host fills only those 8 voxels of the row, exactly, and ORs them in
 //! ([`solid_from_groups`](crate::voxel::solid_sparse::solid_from_groups)); the host fills the whole solid only
 //! when the list overflows its capacity, a slab of eight layers is past a binding or an output past its capacity.
 
@@ -108,7 +108,7 @@ impl SolidPipelines {
                 SlabEnd::Done(part) => {
                     out.leaves.extend(part.leaves);
                     out.runs.extend(part.runs);
-                    out.host_rows.extend(part.host_rows);
+                    out.host_leaves.extend(part.host_leaves);
                     out.open.extend(part.open);
                     z0 = z1;
                 }
@@ -229,11 +229,16 @@ impl SolidPipelines {
         };
         let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
         let mut part = decode(&leaf_words, &run_words);
-        // The open groups (bit 31), and the rows of them a certificate left to the host (bit 30).
-        for w in host_words {
+        // The open groups (bit 31), and the leaves of their rows a certificate left to the host (bit 30, then the
+        // leaf).
+        let mut words = host_words.into_iter();
+        while let Some(w) = words.next() {
             match w >> 30 {
                 2 | 3 => part.open.push((w & 0xffff, (w >> 16) & 0x7fff)),
-                _ => part.host_rows.push(((w & 0x3fff_ffff) % slab.dims_y, (w & 0x3fff_ffff) / slab.dims_y)),
+                _ => {
+                    let (row, lx) = (w & 0x3fff_ffff, words.next().unwrap_or_default());
+                    part.host_leaves.push((lx, row % slab.dims_y, row / slab.dims_y));
+                }
             }
         }
         Ok(SlabEnd::Done(part))

@@ -316,10 +316,10 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
 }
 
 /// A solid from its shell and the inside that groups of 8×8 rows found ([`crate::voxel::cpu::groups`], the GPU's
-/// `fill_groups`), the rows they left to the host (`output.host_rows`, in open groups beside an open mesh's holes,
-/// where a certificate left a voxel open) filled here exactly and ORed in: [`fill_sparse`]'s grid, field for field
-/// in canonical form. `triangles` are on `lattice`, as the groups' were. With the inside voxels of those rows (what
-/// the host decided).
+/// `fill_groups`), the 8 voxels of each row's leaf they left to the host (`output.host_leaves`, in open groups
+/// beside an open mesh's holes, where a certificate left a voxel open) filled here exactly and ORed in:
+/// [`fill_sparse`]'s grid, field for field in canonical form. `triangles` are on `lattice`, as the groups' were.
+/// With the inside voxels among them (what the host decided).
 pub fn solid_from_groups(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
@@ -328,11 +328,11 @@ pub fn solid_from_groups(
 ) -> (SparseGrid, u64) {
     let (tiles, mut inside) = groups_interior(surface.spec.dims, output);
     let mut host_voxels = 0;
-    if !output.host_rows.is_empty() {
-        let (leaves, voxels) = host_rows(triangles, lattice, surface.spec.dims, &output.host_rows);
+    if !output.host_leaves.is_empty() {
+        let (leaves, voxels) = host_leaves(triangles, lattice, surface.spec.dims, &output.host_leaves);
         host_voxels = voxels;
         inside.extend(leaves);
-        // A row's leaf and the groups' leaf at the same place are one leaf.
+        // The host's rows of a leaf and the groups' leaf at the same place are one leaf.
         inside.sort_unstable_by_key(|(k, _)| *k);
         inside.dedup_by(|next, kept| {
             let same = next.0 == kept.0;
@@ -345,40 +345,35 @@ pub fn solid_from_groups(
     (join_interior(surface, tiles, inside), host_voxels)
 }
 
-/// Rows `(y, z)` filled exactly, as the CPU backend fills a row ([`fill_row_span`] over the whole row), as leaves
-/// holding only those rows' voxels; with the count of their inside voxels.
-fn host_rows(
+/// Voxels `8 lx .. 8 lx + 8` of rows `(y, z)` filled exactly, as the CPU backend fills a row's span
+/// ([`fill_row_span`]), as leaves holding only those voxels; with the count of those inside.
+fn host_leaves(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
     dims: UVec3,
-    rows: &[(u32, u32)],
+    spans: &[(u32, u32, u32)],
 ) -> (Vec<(u64, LeafMask)>, u64) {
     let crossings = column_crossings(triangles, dims, lattice);
     let boundary = boundary(triangles, lattice);
     let words = dims.x.div_ceil(32) as usize;
     crate::parallel::install(|| {
-        let filled: Vec<(Vec<(u64, LeafMask)>, u64)> = rows
+        let filled: Vec<(u64, LeafMask, u64)> = spans
             .par_iter()
-            .map(|&(y, z)| {
+            .map(|&(lx, y, z)| {
                 let r = (z * dims.y + y) as usize;
                 let list = &crossings.crossings[crossings.offsets[r] as usize..crossings.offsets[r + 1] as usize];
                 let near = !boundary.pieces.is_empty() && near_boundary(y, z, &boundary.pieces);
                 let mut row = vec![0u32; words];
-                fill_row_span(list, y, z, 0..dims.x, near, &boundary, &[], &mut row);
+                fill_row_span(list, y, z, lx * 8..(lx * 8 + 8).min(dims.x), near, &boundary, &[], &mut row);
+                let byte = row_byte(&row, lx as usize);
                 let bit = 1u64 << ((y % 8) * 8 + z % 8);
-                let leaves = (0..dims.x.div_ceil(8) as usize)
-                    .filter_map(|lx| {
-                        let byte = row_byte(&row, lx);
-                        let mut mask: LeafMask = [0; 8];
-                        (0..8).filter(|x| byte >> x & 1 == 1).for_each(|x| mask[x] = bit);
-                        (byte != 0).then(|| (leaf_key(lx as u32 * 8, y / 8 * 8, z / 8 * 8), mask))
-                    })
-                    .collect();
-                (leaves, row.iter().map(|w| u64::from(w.count_ones())).sum())
+                let mut mask: LeafMask = [0; 8];
+                (0..8).filter(|x| byte >> x & 1 == 1).for_each(|x| mask[x] = bit);
+                (leaf_key(lx * 8, y / 8 * 8, z / 8 * 8), mask, u64::from(byte.count_ones()))
             })
             .collect();
-        let voxels = filled.iter().map(|f| f.1).sum();
-        (filled.into_iter().flat_map(|f| f.0).collect(), voxels)
+        let voxels = filled.iter().map(|f| f.2).sum();
+        (filled.into_iter().filter(|f| f.2 > 0).map(|f| (f.0, f.1)).collect(), voxels)
     })
 }
 

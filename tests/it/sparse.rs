@@ -587,7 +587,7 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
         let boundary = meshvox::voxel::solid::boundary(&lattice_tris, lattice);
         let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, spec.dims, lattice);
         let whole = fill_groups(&crossings, spec.dims, &boundary, 0, spec.dims.z).sorted();
-        assert!(whole.host_rows.is_empty(), "{name}: the mirror leaves no row to the host");
+        assert!(whole.host_leaves.is_empty(), "{name}: the mirror leaves no row to the host");
         if !whole.open.is_empty() {
             assert!(!boundary.edges.is_empty(), "{name}: every row of a closed mesh is decided by its count");
             hosted += 1;
@@ -598,7 +598,7 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
                 let part = fill_groups(&crossings, spec.dims, &boundary, z0, (z0 + step as u32).min(spec.dims.z));
                 parts.leaves.extend(part.leaves);
                 parts.runs.extend(part.runs);
-                parts.host_rows.extend(part.host_rows);
+                parts.host_leaves.extend(part.host_leaves);
                 parts.open.extend(part.open);
             }
             assert!(parts.sorted() == whole, "{name}: slabs of {step} layers give the same groups");
@@ -609,42 +609,54 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
             meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell.clone(), &whole);
         assert!(grouped == solid, "{name}: the groups' solid differs from the sparse fill's");
         assert_eq!(host_voxels, 0, "{name}: no host group, no host voxel");
-        // Every other row of every other open group left to the host, its voxels missing from the groups' leaves
-        // (as a GPU's certificates leave them, a full leaf then written as a leaf): the host fills those rows
-        // alone, ORs them in, and counts their inside voxels.
+        // Every other leaf of every other row of every other open group left to the host, its voxels missing from
+        // the groups' leaves (as a GPU's certificates leave them, a full leaf then written as a leaf): the host
+        // fills those alone, ORs them in, and counts those inside.
         if !whole.open.is_empty() {
-            let rows: Vec<(u32, u32)> = whole
+            let leaves_x = spec.dims.x.div_ceil(8);
+            let spans: Vec<(u32, u32, u32)> = whole
                 .open
                 .iter()
                 .step_by(2)
                 .flat_map(|&(gy, gz)| (0..64).step_by(2).map(move |r| (gy * 8 + r / 8, gz * 8 + r % 8)))
                 .filter(|&(y, z)| y < spec.dims.y && z < spec.dims.z)
+                .flat_map(|(y, z)| (0..leaves_x).step_by(2).map(move |lx| (lx, y, z)))
                 .collect();
-            let mut partial = GroupOutput { host_rows: rows.clone(), runs: Vec::new(), ..whole.clone() };
+            let held = |lx: u32, gy: u32, gz: u32| spans.iter().any(|&(l, y, z)| (l, y / 8, z / 8) == (lx, gy, gz));
+            let mut partial = GroupOutput { host_leaves: spans.clone(), runs: Vec::new(), ..whole.clone() };
             for run in &whole.runs {
-                let leaves = (run.lx0..run.lx1).map(|lx| meshvox::voxel::cpu::groups::GroupLeaf {
-                    gz: run.gz,
-                    gy: run.gy,
-                    lx,
-                    mask: meshvox::voxel::sparse::FULL_LEAF,
-                });
-                match rows.iter().any(|&(y, z)| (y / 8, z / 8) == (run.gy, run.gz)) {
-                    true => partial.leaves.extend(leaves),
-                    false => partial.runs.push(*run),
+                for lx in run.lx0..run.lx1 {
+                    match held(lx, run.gy, run.gz) {
+                        true => partial.leaves.push(meshvox::voxel::cpu::groups::GroupLeaf {
+                            gz: run.gz,
+                            gy: run.gy,
+                            lx,
+                            mask: meshvox::voxel::sparse::FULL_LEAF,
+                        }),
+                        false => {
+                            partial.runs.push(meshvox::voxel::cpu::groups::GroupRun { lx0: lx, lx1: lx + 1, ..*run })
+                        }
+                    }
                 }
             }
             for leaf in &mut partial.leaves {
-                for &(y, z) in rows.iter().filter(|&&(y, z)| (y / 8, z / 8) == (leaf.gy, leaf.gz)) {
+                for &(_, y, z) in spans.iter().filter(|&&(l, y, z)| (l, y / 8, z / 8) == (leaf.lx, leaf.gy, leaf.gz)) {
                     leaf.mask.iter_mut().for_each(|m| *m &= !(1u64 << ((y % 8) * 8 + z % 8)));
                 }
             }
             let (grouped, host_voxels) =
                 meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell, &partial);
-            assert!(grouped == solid, "{name}: with rows left to the host, the solid differs from the fill's");
+            assert!(grouped == solid, "{name}: with leaves left to the host, the solid differs from the fill's");
+            // Without the shell (a field's sign), where the missing voxels are not hidden by the surface's.
             let inside = meshvox::voxel::distance::inside_grid(&lattice_tris, lattice, spec, true).expect("inside");
-            let want: u64 =
-                rows.iter().map(|&(y, z)| (0..spec.dims.x).filter(|&x| inside.get(x, y, z)).count() as u64).sum();
-            assert_eq!(host_voxels, want, "{name}: the inside voxels of the host's rows");
+            let empty = meshvox::voxel::SparseGrid::new(spec);
+            let (sign, _) = meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, empty, &partial);
+            assert!(meshvox::voxel::Grid::Sparse(sign) == inside, "{name}: with leaves left to the host, the inside");
+            let inside_at = |&(lx, y, z): &(u32, u32, u32)| {
+                (lx * 8..(lx * 8 + 8).min(spec.dims.x)).filter(|&x| inside.get(x, y, z)).count() as u64
+            };
+            let want: u64 = spans.iter().map(inside_at).sum();
+            assert_eq!(host_voxels, want, "{name}: the inside voxels of the host's leaves");
         }
         closed += usize::from(boundary.edges.is_empty());
     }

@@ -3,12 +3,12 @@
 //! a crossing); each event leaf is all inside (it joins a run of full leaves), partly inside (it is kept with its
 //! mask) or outside, and between two events every row keeps its state, so the stretch is decided whole. A group
 //! with a row its crossing count does not decide (beside an open mesh's holes) is open: it walks every leaf, and
-//! its open rows' bits are the winding-number rule's, decided on the GPU by the dense fill's certified runs (a row
-//! where a certificate leaves a voxel open goes to the host) and here exactly ([`fill_row`]).
+//! its open rows' bits are the winding-number rule's, decided on the GPU by the dense fill's certified runs (a
+//! row's leaf where a certificate leaves a voxel open goes to the host) and here exactly ([`fill_row`]).
 //!
 //! The shader runs one workgroup per group with one invocation per row, the leaf's mask and flags in workgroup
 //! memory; here the rows of a group are a loop. What both produce is [`GroupOutput`]: the same leaves, runs and
-//! open groups (in another order on the GPU, where slots are taken by atomics; there less the host's rows' bits), which
+//! open groups (in another order on the GPU, where slots are taken by atomics; there less the bits of the host's leaves), which
 //! [`crate::voxel::solid_sparse::solid_from_groups`] turns into tiles and leaves.
 
 use super::solid::{Boundary, RowCrossings, crossing_sign, fill_row, near_boundary};
@@ -38,9 +38,10 @@ pub struct GroupRun {
 pub struct GroupOutput {
     pub leaves: Vec<GroupLeaf>,
     pub runs: Vec<GroupRun>,
-    /// Rows `(y, z)` of open groups (below) in which a certificate left a voxel open (the GPU's only): what the
-    /// GPU set in them is right but some inside voxels are missing, and the host fills them exactly.
-    pub host_rows: Vec<(u32, u32)>,
+    /// Leaves `(lx, y, z)` of rows of open groups (below) in which a certificate left a voxel open (the GPU's
+    /// only): voxels `8 lx .. 8 lx + 8` of row `(y, z)`, where what the GPU set is right but some inside voxels
+    /// may be missing, and the host fills them exactly.
+    pub host_leaves: Vec<(u32, u32, u32)>,
     /// Open groups decided: those with a row its crossing count does not decide (beside an open mesh's holes),
     /// every leaf walked, the open rows decided by the dense fill's certified runs on the GPU, exactly here.
     pub open: Vec<(u32, u32)>,
@@ -51,7 +52,7 @@ impl GroupOutput {
     pub fn sorted(mut self) -> GroupOutput {
         self.leaves.sort_unstable();
         self.runs.sort_unstable();
-        self.host_rows.sort_unstable();
+        self.host_leaves.sort_unstable();
         self.open.sort_unstable();
         self
     }
