@@ -18,7 +18,7 @@
 // Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
 // capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
 // mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
-// lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Host groups go to `solid_unsure` (a count, then
+// lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Open groups go to `solid_unsure` (a count, then
 // gy | gz << 16 | 1 << 31 for an open group; z * dims.y + y | 1 << 30 then lx for a row's leaf left to the host).
 // gy and gz index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
 
@@ -26,7 +26,7 @@ const GROUP_LEAF_WORDS: u32 = 18u;
 const NO_LEAF: u32 = 0xffffffffu;
 
 // The current leaf's mask (16 words), whether all its voxels are inside, whether any is, the rows inside after it
-// (bit r of two words), the next event leaf; and the host flag.
+// (bit r of two words), the next event leaf; and whether some row is open.
 var<workgroup> group_mask: array<atomic<u32>, 16>;
 var<workgroup> group_full: atomic<u32>;
 var<workgroup> group_any: atomic<u32>;
