@@ -410,14 +410,14 @@ impl OnGpu {
     /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a limit of
     /// the adapter. A dense grid is the dense solid's fill without the walk (`Options::inside_only`), a sparse one
     /// the groups' (`GpuVoxelizer::inside_async`, the groups beside an open mesh's holes filled on the host); with
-    /// the inside voxels the host decided (`GpuOutput::host_decided`).
+    /// the inside voxels the host decided (`GpuOutput::host_decided`) and the bytes uploaded and read back.
     pub(super) async fn inside(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         sparse: bool,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<(Grid, u64)>, EngineError> {
+    ) -> Result<Option<(Grid, u64, (u64, u64))>, EngineError> {
         if self.gpu.summary.is_software() && !software_gpu_preferred() {
             return Ok(None);
         }
@@ -428,7 +428,7 @@ impl OnGpu {
                     .voxelizer()
                     .inside_async(&self.gpu, tris, spec, Some(true))
                     .await
-                    .map(|g| g.map(|(g, host)| (Grid::Sparse(g), host))),
+                    .map(|g| g.map(|(g, host, t)| (Grid::Sparse(g), host, (t.upload, t.readback)))),
                 false => {
                     let options = Options {
                         read_grid: true,
@@ -438,7 +438,10 @@ impl OnGpu {
                     };
                     let made = self.voxelizer().voxelize_async(&self.gpu, tris, spec, &options).await;
                     // Where the CPU decided the whole grid (an overflow), every inside voxel is counted as the host's.
-                    made.map(|out| out.grid.map(|g| (Grid::Dense(g), out.host_decided)))
+                    made.map(|out| {
+                        let (host, traffic) = (out.host_decided, (out.traffic.upload, out.traffic.readback));
+                        out.grid.map(|g| (Grid::Dense(g), host, traffic))
+                    })
                 }
             }
         };

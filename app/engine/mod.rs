@@ -356,7 +356,7 @@ impl Engine {
         let (field, field_backend, field_decided) = match request.mode.needs_field() {
             true => {
                 let (field, backend, decided, traffic) = self.field(job, &tris, &mut notices).await?;
-                // The distance passes' bytes join the grid's (the sign's passes are not counted yet).
+                // The sign's and the distance passes' bytes join the grid's.
                 if let (Some((up, back)), Some(grid)) = (traffic, made.traffic.as_mut()) {
                     *grid = (grid.0 + up, grid.1 + back);
                 }
@@ -562,15 +562,16 @@ impl Engine {
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
         // The sign's inside grid, whether the GPU made it, and the inside voxels the host decided (all of them
         // where the CPU made it).
-        let (mut inside, sign_on_gpu, sign_decided) = match job.request.mode.signed() {
+        // And the bytes its passes uploaded and read back, where the GPU made it.
+        let (mut inside, sign_traffic, sign_decided) = match job.request.mode.signed() {
             true => {
                 let span = crate::trace::span("field: inside");
-                let (grid, decided) = self.inside(job, &tris, lattice, notices).await?;
+                let (grid, on_gpu) = self.inside(job, &tris, lattice, notices).await?;
                 drop(span);
-                let host = decided.unwrap_or_else(|| grid.count());
-                (Some(grid), decided.is_some(), host)
+                let host = on_gpu.map_or_else(|| grid.count(), |(decided, _)| decided);
+                (Some(grid), on_gpu.map(|(_, traffic)| traffic), host)
             }
-            false => (None, false, 0),
+            false => (None, None, 0),
         };
         job.request.cancelled()?;
         // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
@@ -589,34 +590,36 @@ impl Engine {
         if let Some(on) = on_gpu
             && let Some((field, traffic)) = on.field(&tris, spec, band, &mut inside, notices).await?
         {
-            return Ok((field, on.label(), sign_decided, Some(traffic)));
+            let (up, back) = sign_traffic.unwrap_or_default();
+            return Ok((field, on.label(), sign_decided, Some((traffic.0 + up, traffic.1 + back))));
         }
         let silent = |_: usize, _: usize| {};
         let progress = job.request.progress.unwrap_or(&silent);
         let field = DistanceField::compute_with_progress(&tris, spec, band, inside, progress);
         // The distances are the CPU's: say so where the sign was the GPU's.
-        let backend = match sign_on_gpu {
-            true => format!("{} (sign on the GPU)", self.cpu_label()),
-            false => self.cpu_label(),
+        let backend = match sign_traffic {
+            Some(_) => format!("{} (sign on the GPU)", self.cpu_label()),
+            None => self.cpu_label(),
         };
         // Every band voxel's distance was the host's, beside the sign's voxels.
         let decided = sign_decided + field.band_voxels;
-        Ok((field, backend, decided, None))
+        Ok((field, backend, decided, sign_traffic))
     }
 
     /// The voxels inside the mesh, a distance field's sign: on the GPU where it makes them (a hardware adapter; a
-    /// sparse field only of a closed mesh), else on the CPU; and on the GPU, how many of them the host decided.
+    /// sparse one beside holes too), else on the CPU; and on the GPU, how many of them the host decided and the
+    /// bytes uploaded and read back.
     async fn inside(
         &self,
         job: &Job<'_>,
         tris: &[[Vec3; 3]],
         lattice: voxel::Lattice,
         notices: &mut Vec<Notice>,
-    ) -> Result<(Grid, Option<u64>), EngineError> {
+    ) -> Result<(Grid, Option<(u64, (u64, u64))>), EngineError> {
         if let Some(on) = &self.gpu
-            && let Some((inside, host_decided)) = on.inside(tris, job.spec, job.sparse, notices).await?
+            && let Some((inside, host_decided, traffic)) = on.inside(tris, job.spec, job.sparse, notices).await?
         {
-            return Ok((inside, Some(host_decided)));
+            return Ok((inside, Some((host_decided, traffic))));
         }
         let inside =
             voxel::distance::inside_grid(tris, lattice, job.spec, job.sparse).map_err(|e| job.grid_error(e))?;

@@ -61,7 +61,7 @@ impl OnGpu {
         _: GridSpec,
         _: bool,
         _: &mut Vec<Notice>,
-    ) -> Result<Option<(Grid, u64)>, EngineError> {
+    ) -> Result<Option<(Grid, u64, (u64, u64))>, EngineError> {
         match *self {}
     }
 

@@ -14,7 +14,7 @@ use super::readback::{first_word, read_buffers, stream_buffer};
 use super::run::{Batch, Run};
 use super::util::scoped;
 use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
-use super::{Gpu, GpuError};
+use super::{Gpu, GpuError, Traffic};
 use crate::voxel::cpu::groups::GroupOutput;
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaf};
 use crate::voxel::cpu::surface::voxel_range;
@@ -110,7 +110,8 @@ impl GpuVoxelizer {
     /// grid: a distance field's sign (what [`crate::voxel::distance::inside_grid`] makes on the CPU). Made on the
     /// GPU by the groups (`gpu/groups.rs`), their output bounded by the shell's leaves, which the chain makes
     /// first, and the groups they leave to the host (beside an open mesh's holes) filled there; with the inside
-    /// voxels those hold (what the host decided). `None` where the host is to make all of it: a software adapter
+    /// voxels those hold (what the host decided) and the bytes that crossed the bus (the shell's and the groups').
+    /// `None` where the host is to make all of it: a software adapter
     /// unless `inside_on_gpu` says otherwise, no slab of rows that fits, or more groups left to the host than
     /// their list holds.
     pub async fn inside_async(
@@ -119,15 +120,16 @@ impl GpuVoxelizer {
         triangles: &[[Vec3; 3]],
         spec: GridSpec,
         inside_on_gpu: Option<bool>,
-    ) -> Result<Option<(SparseGrid, u64)>, GpuError> {
+    ) -> Result<Option<(SparseGrid, u64, Traffic)>, GpuError> {
         let (triangles, lattice) = crate::voxel::on_lattice(triangles, spec.dims)?;
         if !groups_on_gpu(gpu, inside_on_gpu) {
             return Ok(None);
         }
         let options = Options { read_grid: true, sparse: true, ..Default::default() };
         let made = self.shell_and_groups(gpu, &triangles, spec, lattice, &options, true).await?;
-        let inside = made.and_then(|(_, _, inside)| inside);
-        Ok(inside.map(|groups| solid_from_groups(&triangles, lattice, SparseGrid::new(spec), &groups)))
+        let Some((out, _, Some(groups))) = made else { return Ok(None) };
+        let (inside, host) = solid_from_groups(&triangles, lattice, SparseGrid::new(spec), &groups);
+        Ok(Some((inside, host, out.traffic)))
     }
 
     /// A solid's shell made by the chain (a surface run with `options`' limits), and, where `groups`, its inside's

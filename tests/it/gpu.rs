@@ -711,7 +711,7 @@ fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
             }
         }
         // A sparse field's sign, the voxels inside without the shell: the groups', and the host's rows.
-        let (inside, host) = pollster::block_on(v.inside_async(gpu, &tris, s, Some(true)))
+        let (inside, host, _) = pollster::block_on(v.inside_async(gpu, &tris, s, Some(true)))
             .expect("gpu inside")
             .unwrap_or_else(|| panic!("{name}: the groups did not run"));
         assert!(meshvox::voxel::Grid::Sparse(inside) == cpu_inside, "{name}: the GPU's inside differs from the CPU's");
