@@ -409,7 +409,7 @@ impl OnGpu {
     /// A distance field's sign (the voxels inside, without the shell) on the GPU, or `None` where the CPU is to
     /// make it: on a software adapter unless `MESHVOX_SOFTWARE_GPU=1` (the CPU's fill is faster there), a limit of
     /// the adapter. A dense grid is the dense solid's fill without the walk (`Options::inside_only`), a sparse one
-    /// the groups' (`GpuVoxelizer::inside_async`, the groups beside an open mesh's holes filled on the host); with
+    /// the groups' (`GpuVoxelizer::inside_async`, the row leaves no certificate placed filled on the host); with
     /// the inside voxels the host decided (`GpuOutput::host_decided`) and the bytes uploaded and read back.
     pub(super) async fn inside(
         &self,

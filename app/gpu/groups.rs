@@ -15,8 +15,7 @@
 
 use super::readback::{PassTimer, first_word, read_buffer, read_buffers};
 use super::solid::{
-    SolidBuffers, SolidParams, SolidPipelines, UNSURE_ROWS, WG, boundary_bytes, crossing_total, item_offsets,
-    run_passes,
+    SolidBuffers, SolidParams, SolidPipelines, WG, boundary_bytes, crossing_total, item_offsets, run_passes,
 };
 use super::util::{dispatch_2d, scoped, storage_buffer};
 use super::{Gpu, GpuError, Traffic};
@@ -79,7 +78,7 @@ impl SolidPipelines {
             return Ok(None);
         }
         let base = SolidParams::new(spec, triangles.len(), &boundary.edges, &boundary.pieces, lattice, items)
-            .with_unsure_capacity(host_capacity.min(UNSURE_ROWS));
+            .with_unsure_capacity(host_capacity);
         let edge_bytes = boundary_bytes(&boundary.edges, &boundary.pieces);
         let buffers =
             SolidBuffers::new(gpu, u64::from(dims.y) * u64::from(layers), &offsets, &edge_bytes, &base).await?;

@@ -68,8 +68,8 @@ fn groups_on_gpu(gpu: &Gpu, asked: Option<bool>) -> bool {
 impl GpuVoxelizer {
     /// A sparse solid: its shell, the conservative surface, made as leaves on the GPU (the chain below: no dense
     /// slab is allocated or read), then its inside by groups of 8×8 rows on the GPU too (`gpu/groups.rs`), the
-    /// groups beside an open mesh's holes that their crossing counts do not decide filled on the host as the CPU
-    /// backend fills them ([`solid_from_groups`]); or all of it on the host along that shell ([`fill_sparse`]:
+    /// leaves of rows beside an open mesh's holes that no certificate placed filled on the host as the CPU backend
+    /// fills them ([`solid_from_groups`]); or all of it on the host along that shell ([`fill_sparse`]:
     /// runs of leaves the surface does not cross decided whole, rows filled only through the leaves it crosses)
     /// where the groups do not run.
     /// Either way the grid is the CPU's, field for field. An overflowing unsure list hands the whole solid to the
@@ -109,11 +109,10 @@ impl GpuVoxelizer {
     /// The voxels whose centres are inside the mesh (the winding number at least ½), without the shell, as a sparse
     /// grid: a distance field's sign (what [`crate::voxel::distance::inside_grid`] makes on the CPU). Made on the
     /// GPU by the groups (`gpu/groups.rs`), their output bounded by the shell's leaves, which the chain makes
-    /// first, and the groups they leave to the host (beside an open mesh's holes) filled there; with the inside
-    /// voxels those hold (what the host decided) and the bytes that crossed the bus (the shell's and the groups').
-    /// `None` where the host is to make all of it: a software adapter
-    /// unless `inside_on_gpu` says otherwise, no slab of rows that fits, or more groups left to the host than
-    /// their list holds.
+    /// first, and the row leaves they leave to the host (beside an open mesh's holes) filled there; with the
+    /// inside voxels those hold (what the host decided) and the bytes that crossed the bus (the shell's and the
+    /// groups'). `None` where the host is to make all of it: a software adapter unless `inside_on_gpu` says
+    /// otherwise, no slab of rows that fits, or a list of open groups and host leaves past its capacity.
     pub async fn inside_async(
         &self,
         gpu: &Gpu,

@@ -100,7 +100,8 @@ pub struct Options {
     /// context switches, and the host's fill on the same cores is faster (bench/RESULTS.md).
     pub inside_on_gpu: Option<bool>,
     /// Entries of the list a sparse solid's groups keep per slab (default and most 2^16): the open groups beside
-    /// an open mesh's holes, and their rows left to the host; past it, the host fills the whole inside.
+    /// an open mesh's holes, and the leaves of their rows left to the host; past it, the host fills the whole
+    /// inside.
     pub max_open_list: Option<u32>,
     /// With `Mode::Solid` and a dense grid: only the voxels whose centres are inside, without the shell (no walk):
     /// a distance field's sign, as [`crate::voxel::distance::inside_grid`] makes it.

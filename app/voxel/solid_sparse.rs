@@ -35,7 +35,7 @@ struct BlockInterior {
 
 /// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8`.
 #[inline]
-fn row_byte(row: &[u32], lx: usize) -> u8 {
+pub(crate) fn row_byte(row: &[u32], lx: usize) -> u8 {
     (row[lx / 4] >> ((lx % 4) * 8)) as u8
 }
 
@@ -381,12 +381,11 @@ fn host_leaves(
 /// 16-leaf segment whole gets a 128³ tile there, as [`fill_sparse`] tiles its blocks; the other full leaves are 8³
 /// tiles, the partly inside leaves leaves.
 fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, LeafMask)>) {
-    let runs = &output.runs;
     let groups = (BLOCK / 8) * (BLOCK / 8);
     let whole_block = |gy: u32, gz: u32| (gy / 16 + 1) * BLOCK <= dims.y && (gz / 16 + 1) * BLOCK <= dims.z;
     // Per (block y, block z, segment): the groups that hold the segment whole.
     let mut segments: std::collections::HashMap<(u32, u32, u32), u32> = std::collections::HashMap::new();
-    for run in runs {
+    for run in &output.runs {
         for t in run.lx0.div_ceil(16)..run.lx1 / 16 {
             *segments.entry((run.gy / 16, run.gz / 16, t)).or_default() += 1;
         }
@@ -399,7 +398,7 @@ fn groups_interior(dims: UVec3, output: &GroupOutput) -> (Vec<Tile>, Vec<(u64, L
         .filter(|&(&(by, bz, t), _)| tiled(by * 16, bz * 16, t))
         .map(|(&(by, bz, t), _)| Tile { log2: 7, origin: UVec3::new(t, by, bz) * BLOCK })
         .collect();
-    for run in runs {
+    for run in &output.runs {
         for lx in (run.lx0..run.lx1).filter(|&lx| !tiled(run.gy, run.gz, lx / 16)) {
             tiles.push(Tile { log2: 3, origin: UVec3::new(lx, run.gy, run.gz) * 8 });
         }

@@ -148,10 +148,10 @@ fn settle_leaf(
 }
 
 /// The 8 bits of leaf `l` of an open row, from the row filled exactly ([`fill_row`]). The shader decides them by
-/// the dense fill's certified runs a stretch of the leaf at a time, and leaves the group to the host wherever a
-/// certificate cannot: every bit it decides is the exact one, so the two agree wherever the shader decides.
+/// the dense fill's certified runs a stretch of the leaf at a time, and lists the row's leaf for the host wherever
+/// a certificate cannot: every bit it decides is the exact one, so the two agree wherever the shader decides.
 pub fn open_leaf_bits(row: &[u32], l: u32) -> u32 {
-    (row[l as usize / 4] >> ((l % 4) * 8)) & 0xff
+    u32::from(crate::voxel::solid_sparse::row_byte(row, l as usize))
 }
 
 /// One of a group's rows: its sorted crossings, whether it lies in the grid, and for an open row (one its crossing
