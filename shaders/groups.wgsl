@@ -32,10 +32,10 @@ var<workgroup> group_full: atomic<u32>;
 var<workgroup> group_any: atomic<u32>;
 var<workgroup> group_after: array<atomic<u32>, 2>;
 var<workgroup> group_next: atomic<u32>;
-var<workgroup> group_host: atomic<u32>;
+var<workgroup> group_has_open: atomic<u32>;
 // Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is open.
 var<workgroup> group_step: u32;
-var<workgroup> group_defer: u32;
+var<workgroup> group_open: u32;
 
 // The 8 bits of leaf `l` of a sorted row (crossings[start .. start + n]): voxel 8 l + k is inside where the
 // crossings up to it leave a count of at least 1, and it lies in the grid. `cursor` and `before` carry the row's
@@ -205,7 +205,7 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     }
     if r == 0u {
         atomicStore(&group_next, NO_LEAF);
-        atomicStore(&group_host, 0u);
+        atomicStore(&group_has_open, 0u);
     }
     workgroupBarrier();
     sort_row(start, n);
@@ -215,18 +215,18 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     }
     let open = valid && (total != 0 || (solid.piece_count > 0u && near_boundary(y, z)));
     if open {
-        atomicStore(&group_host, 1u);
+        atomicStore(&group_has_open, 1u);
     }
     var cursor = 0u;
     var before = 0;
     atomicMin(&group_next, next_event_leaf(start, n, cursor));
     workgroupBarrier();
     if r == 0u {
-        group_defer = atomicLoad(&group_host);
+        group_open = atomicLoad(&group_has_open);
         group_step = atomicLoad(&group_next);
     }
     // An open group walks every leaf: its open rows may change state anywhere.
-    let open_group = workgroupUniformLoad(&group_defer) != 0u;
+    let open_group = workgroupUniformLoad(&group_open) != 0u;
     let leaves_x = (solid.dims.x + 7u) / 8u;
     var run = NO_LEAF;
     var l = workgroupUniformLoad(&group_step);
