@@ -15,7 +15,7 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::cpu::groups::GroupOutput;
+use super::cpu::groups::{GroupOutput, row_byte};
 use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
 use super::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
@@ -31,12 +31,6 @@ const BLOCK: u32 = 128;
 struct BlockInterior {
     tiles: Vec<Tile>,
     leaves: Vec<(u64, LeafMask)>,
-}
-
-/// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8`.
-#[inline]
-pub(crate) fn row_byte(row: &[u32], lx: usize) -> u8 {
-    (row[lx / 4] >> ((lx % 4) * 8)) as u8
 }
 
 /// Clears byte `lx` of a row, so the next group starts from an empty row without clearing all of it.

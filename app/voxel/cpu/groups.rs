@@ -151,7 +151,13 @@ fn settle_leaf(
 /// the dense fill's certified runs a stretch of the leaf at a time, and lists the row's leaf for the host wherever
 /// a certificate cannot: every bit it decides is the exact one, so the two agree wherever the shader decides.
 pub fn open_leaf_bits(row: &[u32], l: u32) -> u32 {
-    u32::from(crate::voxel::solid_sparse::row_byte(row, l as usize))
+    u32::from(row_byte(row, l as usize))
+}
+
+/// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8` (also how the sparse fill reads a leaf of a row).
+#[inline]
+pub(crate) fn row_byte(row: &[u32], lx: usize) -> u8 {
+    (row[lx / 4] >> ((lx % 4) * 8)) as u8
 }
 
 /// One of a group's rows: its sorted crossings, whether it lies in the grid, and for an open row (one its crossing
