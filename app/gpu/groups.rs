@@ -20,6 +20,7 @@ use super::solid::{
 use super::util::{dispatch_2d, scoped, storage_buffer};
 use super::{Gpu, GpuError, Traffic};
 use crate::voxel::cpu::groups::{GroupLeaf, GroupOutput, GroupRun};
+use crate::voxel::cpu::solid::Boundary;
 use crate::voxel::solid::boundary;
 use crate::voxel::{GridSpec, Lattice, SparseGrid};
 use glam::Vec3;
@@ -61,7 +62,7 @@ impl SolidPipelines {
         shell: &SparseGrid,
         (limit, host_capacity): (u64, u32),
         (traffic, gpu_ms): (&mut Traffic, &mut f64),
-    ) -> Result<Option<GroupOutput>, GpuError> {
+    ) -> Result<Option<(GroupOutput, Boundary)>, GpuError> {
         let device = &gpu.device;
         let dims = spec.dims;
         let boundary = boundary(triangles, lattice);
@@ -115,7 +116,7 @@ impl SolidPipelines {
                 SlabEnd::TooLarge | SlabEnd::Host => return Ok(None),
             }
         }
-        Ok(Some(out))
+        Ok(Some((out, boundary)))
     }
 
     /// One slab: its crossing lists, its groups, what they wrote.

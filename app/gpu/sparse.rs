@@ -17,6 +17,7 @@ use super::voxelize::{Attempt, GpuOutput, GpuVoxelizer, LeafPipelines, Options};
 use super::{Gpu, GpuError, Traffic};
 use crate::voxel::cpu::groups::GroupOutput;
 use crate::voxel::cpu::leaves::{SLOT_WORDS, scatter_rows, slot_leaf};
+use crate::voxel::cpu::solid::Boundary;
 use crate::voxel::cpu::surface::voxel_range;
 use crate::voxel::solid_sparse::{fill_sparse, solid_from_groups};
 use crate::voxel::sparse::{Brick, LeafMask, SparseGrid};
@@ -90,8 +91,8 @@ impl GpuVoxelizer {
         };
         out.inside_on_host = inside.is_none();
         let solid = match inside {
-            Some(groups) => {
-                let (solid, host_voxels) = solid_from_groups(triangles, lattice, surface, &groups);
+            Some((groups, boundary)) => {
+                let (solid, host_voxels) = solid_from_groups(triangles, lattice, &boundary, surface, &groups);
                 out.host_decided += host_voxels;
                 solid
             }
@@ -126,8 +127,8 @@ impl GpuVoxelizer {
         }
         let options = Options { read_grid: true, sparse: true, ..Default::default() };
         let made = self.shell_and_groups(gpu, &triangles, spec, lattice, &options, true).await?;
-        let Some((out, _, Some(groups))) = made else { return Ok(None) };
-        let (inside, host) = solid_from_groups(&triangles, lattice, SparseGrid::new(spec), &groups);
+        let Some((out, _, Some((groups, boundary)))) = made else { return Ok(None) };
+        let (inside, host) = solid_from_groups(&triangles, lattice, &boundary, SparseGrid::new(spec), &groups);
         Ok(Some((inside, host, out.traffic)))
     }
 
@@ -142,7 +143,7 @@ impl GpuVoxelizer {
         lattice: Lattice,
         options: &Options,
         groups: bool,
-    ) -> Result<Option<(GpuOutput, SparseGrid, Option<GroupOutput>)>, GpuError> {
+    ) -> Result<Option<(GpuOutput, SparseGrid, Option<(GroupOutput, Boundary)>)>, GpuError> {
         let shell = Options { mode: Mode::Surface, ..options.clone() };
         let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
         let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(None) };

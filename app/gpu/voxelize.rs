@@ -266,7 +266,8 @@ impl GpuVoxelizer {
         let (mut traffic, mut gpu_ms) = (Traffic::default(), 0.0);
         let account = (&mut traffic, &mut gpu_ms);
         let capacity = super::solid::UNSURE_ROWS;
-        pollster::block_on(solid.sparse_inside(gpu, &triangles, spec, lattice, shell, (limit, capacity), account))
+        let inside = solid.sparse_inside(gpu, &triangles, spec, lattice, shell, (limit, capacity), account);
+        Ok(pollster::block_on(inside)?.map(|(groups, _)| groups))
     }
 
     pub(super) fn compactor(&self, gpu: &Gpu) -> &Compactor {

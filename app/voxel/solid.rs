@@ -20,14 +20,63 @@ pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit:
     let units = t.map(|p| lattice.units(p));
     for z in s.lo[1]..=s.hi[1] {
         for y in s.lo[0]..=s.hi[0] {
-            if !covers_row(&s, y, z, unit) {
-                continue;
+            if covers_row(&s, y, z, unit) {
+                emit(z * dims.y + y, row_crossing(t, &s, &units, (y, z), dims.x, unit));
             }
-            let (x, err) = row_crossing_estimate(t, y, z);
-            let k = crossing_voxel_exact(&units, s.sign, x, err, y, z, dims.x, unit);
-            emit(z * dims.y + y, pack_crossing(k, s.sign > 0));
         }
     }
+}
+
+/// The packed crossing of row `(y, z)` with triangle `t`, whose setup `s` says it covers the row.
+fn row_crossing(
+    t: [Vec3; 3],
+    s: &CrossingSetup,
+    units: &[IVec3; 3],
+    (y, z): (u32, u32),
+    dims_x: u32,
+    unit: i32,
+) -> u32 {
+    let (x, err) = row_crossing_estimate(t, y, z);
+    pack_crossing(crossing_voxel_exact(units, s.sign, x, err, y, z, dims_x, unit), s.sign > 0)
+}
+
+/// The crossings of the rows listed (`rows`: sorted row indices `z * dims.y + y`), as [`column_crossings`] lists
+/// them for every row: what filling a few rows on the host needs, found through each triangle's rows by a binary
+/// search in the list rather than by listing every row's crossings.
+pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice, rows: &[u32]) -> RowCrossings {
+    let unit = 1i32 << lattice.shift;
+    let mut pairs: Vec<(u32, u32)> = crate::parallel::install(|| {
+        triangles
+            .par_iter()
+            .flat_map_iter(|&t| {
+                let s = crossing_setup(t, dims, lattice);
+                let mut v: Vec<(u32, u32)> = Vec::new();
+                if s.sign == 0 {
+                    return v;
+                }
+                let units = t.map(|p| lattice.units(p));
+                for z in s.lo[1]..=s.hi[1] {
+                    let first = rows.partition_point(|&r| r < z * dims.y + s.lo[0]);
+                    for (i, &r) in rows[first..].iter().enumerate().take_while(|&(_, &r)| r <= z * dims.y + s.hi[0]) {
+                        let y = r - z * dims.y;
+                        if covers_row(&s, y, z, unit) {
+                            v.push(((first + i) as u32, row_crossing(t, &s, &units, (y, z), dims.x, unit)));
+                        }
+                    }
+                }
+                v
+            })
+            .collect()
+    });
+    pairs.sort_unstable();
+    let mut offsets = vec![0u32; rows.len() + 1];
+    for &(i, _) in &pairs {
+        offsets[i as usize + 1] += 1;
+    }
+    for i in 0..rows.len() {
+        offsets[i + 1] += offsets[i];
+    }
+    RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
 }
 
 /// Lists the crossings of all lattice triangles.
@@ -117,36 +166,17 @@ pub fn fill_listed_rows(
     rows: &[u32],
     boundary: &Boundary,
 ) -> Vec<(u32, Vec<u32>)> {
+    let mut rows = rows.to_vec();
+    rows.sort_unstable();
+    rows.dedup();
+    let crossings = listed_row_crossings(triangles, dims, lattice, &rows);
+    let wpr = dims.x.div_ceil(32) as usize;
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
-        let mut rows = rows.to_vec();
-        rows.sort_unstable();
-        rows.dedup();
-        let mut lists: Vec<Vec<u32>> = triangles
-            .par_iter()
-            .fold(
-                || vec![Vec::new(); rows.len()],
-                |mut lists, &t| {
-                    triangle_crossings(t, dims, lattice, |row, c| {
-                        if let Ok(i) = rows.binary_search(&row) {
-                            lists[i].push(c);
-                        }
-                    });
-                    lists
-                },
-            )
-            .reduce(
-                || vec![Vec::new(); rows.len()],
-                |mut a, b| {
-                    a.iter_mut().zip(b).for_each(|(a, b)| a.extend(b));
-                    a
-                },
-            );
-        let wpr = dims.x.div_ceil(32) as usize;
-        rows.iter()
-            .zip(lists.iter_mut())
-            .map(|(&r, list)| {
-                list.sort_unstable();
+        rows.par_iter()
+            .enumerate()
+            .map(|(i, &r)| {
+                let list = &crossings.crossings[crossings.offsets[i] as usize..crossings.offsets[i + 1] as usize];
                 let (y, z) = (r % dims.y, r / dims.y);
                 let mut words = vec![0u32; wpr];
                 fill_row(list, y, z, dims.x, near_boundary(y, z, &boundary.pieces), boundary, &[], &mut words);

@@ -16,8 +16,8 @@
 
 use super::Lattice;
 use super::cpu::groups::{GroupOutput, row_byte};
-use super::cpu::solid::{LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
-use super::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
+use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::solid::{boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -317,13 +317,15 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
 pub fn solid_from_groups(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
+    boundary: &Boundary,
     surface: SparseGrid,
     output: &GroupOutput,
 ) -> (SparseGrid, u64) {
     let (tiles, mut inside) = groups_interior(surface.spec.dims, output);
     let mut host_voxels = 0;
     if !output.host_leaves.is_empty() {
-        let (leaves, voxels) = host_leaves(triangles, lattice, surface.spec.dims, &output.host_leaves);
+        let _span = crate::trace::span("groups: host leaves");
+        let (leaves, voxels) = host_leaves(triangles, lattice, surface.spec.dims, boundary, &output.host_leaves);
         host_voxels = voxels;
         inside.extend(leaves);
         // The host's rows of a leaf and the groups' leaf at the same place are one leaf.
@@ -336,6 +338,7 @@ pub fn solid_from_groups(
             same
         });
     }
+    let _span = crate::trace::span("groups: join the inside");
     (join_interior(surface, tiles, inside), host_voxels)
 }
 
@@ -345,20 +348,23 @@ fn host_leaves(
     triangles: &[[Vec3; 3]],
     lattice: Lattice,
     dims: UVec3,
+    boundary: &Boundary,
     spans: &[(u32, u32, u32)],
 ) -> (Vec<(u64, LeafMask)>, u64) {
-    let crossings = column_crossings(triangles, dims, lattice);
-    let boundary = boundary(triangles, lattice);
+    let mut rows: Vec<u32> = spans.iter().map(|&(_, y, z)| z * dims.y + y).collect();
+    rows.sort_unstable();
+    rows.dedup();
+    let crossings = listed_row_crossings(triangles, dims, lattice, &rows);
     let words = dims.x.div_ceil(32) as usize;
     crate::parallel::install(|| {
         let filled: Vec<(u64, LeafMask, u64)> = spans
             .par_iter()
             .map(|&(lx, y, z)| {
-                let r = (z * dims.y + y) as usize;
-                let list = &crossings.crossings[crossings.offsets[r] as usize..crossings.offsets[r + 1] as usize];
+                let i = rows.partition_point(|&r| r < z * dims.y + y);
+                let list = &crossings.crossings[crossings.offsets[i] as usize..crossings.offsets[i + 1] as usize];
                 let near = !boundary.pieces.is_empty() && near_boundary(y, z, &boundary.pieces);
                 let mut row = vec![0u32; words];
-                fill_row_span(list, y, z, lx * 8..(lx * 8 + 8).min(dims.x), near, &boundary, &[], &mut row);
+                fill_row_span(list, y, z, lx * 8..(lx * 8 + 8).min(dims.x), near, boundary, &[], &mut row);
                 let byte = row_byte(&row, lx as usize);
                 let bit = 1u64 << ((y % 8) * 8 + z % 8);
                 let mut mask: LeafMask = [0; 8];

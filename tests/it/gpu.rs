@@ -678,8 +678,13 @@ fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
             assert!(leaves(&groups) == leaves(&mirror), "{case}: the GPU's leaves differ from the mirror's");
             assert!(runs(&groups) == runs(&mirror), "{case}: the GPU's runs differ from the mirror's");
             // With the host's leaves, the CPU's solid.
-            let (completed, _) =
-                meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell.clone(), &groups);
+            let (completed, _) = meshvox::voxel::solid_sparse::solid_from_groups(
+                &lattice_tris,
+                lattice,
+                &boundary,
+                shell.clone(),
+                &groups,
+            );
             assert!(completed == cpu, "{case}: with the host's leaves, the groups' solid differs from the CPU's");
             sliced |= limit == small && 8 * u64::from(s.dims.y) * u64::from(s.dims.z) > small;
             if limit == gpu.max_binding_bytes() {

@@ -586,6 +586,15 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
         let (lattice_tris, lattice) = meshvox::voxel::on_lattice(&tris, spec.dims).expect("lattice");
         let boundary = meshvox::voxel::solid::boundary(&lattice_tris, lattice);
         let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, spec.dims, lattice);
+        // The crossings of a few rows, as the host finds them for the rows it fills, are those rows' lists.
+        let rows: Vec<u32> = (0..spec.dims.y * spec.dims.z).step_by(7).collect();
+        let listed = meshvox::voxel::solid::listed_row_crossings(&lattice_tris, spec.dims, lattice, &rows);
+        for (i, &r) in rows.iter().enumerate() {
+            let of = |c: &meshvox::voxel::cpu::solid::RowCrossings, k: usize| {
+                c.crossings[c.offsets[k] as usize..c.offsets[k + 1] as usize].to_vec()
+            };
+            assert_eq!(of(&listed, i), of(&crossings, r as usize), "{name}: row {r}'s listed crossings");
+        }
         let whole = fill_groups(&crossings, spec.dims, &boundary, 0, spec.dims.z).sorted();
         assert!(whole.host_leaves.is_empty(), "{name}: the mirror leaves no row to the host");
         if !whole.open.is_empty() {
@@ -606,7 +615,7 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
         let (shell, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Surface, &|_, _| {}, &never).expect("shell");
         let (solid, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &never).expect("solid");
         let (grouped, host_voxels) =
-            meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell.clone(), &whole);
+            meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, &boundary, shell.clone(), &whole);
         assert!(grouped == solid, "{name}: the groups' solid differs from the sparse fill's");
         assert_eq!(host_voxels, 0, "{name}: no host group, no host voxel");
         // Every other leaf of every other row of every other open group left to the host, its voxels missing from
@@ -645,12 +654,13 @@ fn the_groups_mirror_gives_the_sparse_fills_solid() {
                 }
             }
             let (grouped, host_voxels) =
-                meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, shell, &partial);
+                meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, &boundary, shell, &partial);
             assert!(grouped == solid, "{name}: with leaves left to the host, the solid differs from the fill's");
             // Without the shell (a field's sign), where the missing voxels are not hidden by the surface's.
             let inside = meshvox::voxel::distance::inside_grid(&lattice_tris, lattice, spec, true).expect("inside");
             let empty = meshvox::voxel::SparseGrid::new(spec);
-            let (sign, _) = meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, empty, &partial);
+            let (sign, _) =
+                meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, &boundary, empty, &partial);
             assert!(meshvox::voxel::Grid::Sparse(sign) == inside, "{name}: with leaves left to the host, the inside");
             let inside_at = |&(lx, y, z): &(u32, u32, u32)| {
                 (lx * 8..(lx * 8 + 8).min(spec.dims.x)).filter(|&x| inside.get(x, y, z)).count() as u64
