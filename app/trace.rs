@@ -2,6 +2,7 @@
 //! Nsight Systems): with `MESHVOX_TRACE=1` in the environment, named spans of host work (waits for the device,
 //! copies out of mapped memory, binning, scattering) add up their time, and [`take`] hands the totals of a job to
 //! the engine, which prints them to stderr after the job. Without the variable a span costs one relaxed load.
+//! Waits for the device are counted always, per thread ([`device_wait`], [`waited_ns`]): a report's `wait_ms`.
 //! (This module sits at the bottom with `parallel`: every layer may use it.)
 
 use std::collections::BTreeMap;
@@ -47,6 +48,37 @@ impl Drop for Span {
             entry.1 += ns;
         }
     }
+}
+
+thread_local! {
+    /// Nanoseconds this thread has waited for the device ([`device_wait`]), counted whether or not tracing is on.
+    static WAITED: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// A wait for the device: a submission (which blocks where the driver runs earlier work first, as lavapipe does)
+/// or a poll until work is done. Timed always, into this thread's [`waited_ns`], and as the span "gpu wait" when
+/// tracing.
+pub struct Wait {
+    since: Instant,
+    _span: Option<Span>,
+}
+
+/// Starts a [`Wait`], ended when dropped.
+pub fn device_wait() -> Wait {
+    Wait { since: Instant::now(), _span: span("gpu wait") }
+}
+
+impl Drop for Wait {
+    fn drop(&mut self) {
+        let ns = self.since.elapsed().as_nanos() as u64;
+        WAITED.with(|w| w.set(w.get() + ns));
+    }
+}
+
+/// Nanoseconds this thread has spent in [`Wait`]s so far: a job takes the difference across its run, so that its
+/// host work is its time less its waits for the device.
+pub fn waited_ns() -> u64 {
+    WAITED.with(|w| w.get())
 }
 
 /// The totals since the last call, as one line ("gpu wait 12×3.1 ms, …"), and empties them; `None` when tracing is

@@ -106,6 +106,8 @@ struct Row {
     /// The median run's time outside the GPU's passes, and the bytes its grid passes moved (`--stats-json`'s
     /// `host_ms`, `upload_bytes`, `readback_bytes`): what bounds the case.
     host_ms: f64,
+    /// The median run's own host work: its time less its waits for the device (`--stats-json`'s `host_work_ms`).
+    host_work_ms: f64,
     upload_bytes: Option<u64>,
     readback_bytes: Option<u64>,
     /// Voxels the host decided or confirmed (`--stats-json`'s `host_decided`).
@@ -369,6 +371,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
     let mut runs = Vec::new();
     let mut gpu = Vec::new();
     let mut host = Vec::new();
+    let mut work = Vec::new();
     let mut last = None;
     for _ in 0..repeats.max(1) {
         // The previous run's grid is dropped first, so the peak is one run's.
@@ -379,6 +382,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         runs.push(ms(t));
         gpu.extend(out.report.gpu_ms);
         host.push(out.report.host_ms);
+        work.push(out.report.host_work_ms);
         last = Some(out);
     }
     let peak = match (measure_peak, before, meshvox::memory::peak_resident()) {
@@ -415,6 +419,7 @@ fn measure(engine: &Engine, name: &str, m: &Mesh, case: &Case, repeats: usize) -
         runs_ms: runs,
         gpu_ms: (!gpu.is_empty()).then(|| median(gpu)),
         host_ms: median(host),
+        host_work_ms: median(work),
         upload_bytes: out.report.upload_bytes,
         readback_bytes: out.report.readback_bytes,
         host_decided: out.report.host_decided,
@@ -477,16 +482,17 @@ fn render(args: &BenchArgs, rows: &[Row], engines: &[EngineInfo]) -> String {
     } else if args.suite == Some(Suite::Sparse) {
         md += &sparse_table(rows);
     } else {
-        md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | host ms | up / back MiB | ns per voxel | peak MiB | exact tests |\n";
-        md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n";
+        md += "| mesh | triangles | N | mode | grid | voxels | backend | voxelize ms | gpu ms | host ms | host work ms | up / back MiB | ns per voxel | peak MiB | exact tests |\n";
+        md += "|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
         for r in rows {
             md += &format!(
-                "| {} | {} | {:.2} | {} | {:.1} | {} | {:.1} | {} | {} |\n",
+                "| {} | {} | {:.2} | {} | {:.1} | {:.1} | {} | {:.1} | {} | {} |\n",
                 r.head(true),
                 r.backend,
                 r.voxelize_ms,
                 opt(r.gpu_ms, 2),
                 r.host_ms,
+                r.host_work_ms,
                 traffic(r),
                 r.voxelize_ms * 1e6 / r.voxels.max(1) as f64,
                 opt(r.peak_mib, 0),

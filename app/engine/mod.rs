@@ -340,7 +340,7 @@ impl Engine {
         if let Some(cloud) = &mesh.points {
             return self.run_points(job, cloud);
         }
-        let t = Instant::now();
+        let (t, waited) = (Instant::now(), crate::trace::waited_ns());
         // Grid-space triangles once, for the voxels and their colours.
         let span = crate::trace::span("grid space");
         let tris = grid_space(mesh, &spec)?;
@@ -411,6 +411,10 @@ impl Engine {
             }
         };
         let labels_ms = labels.as_ref().map(|_| ms(t));
+        let engine_ms = voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) + labels_ms.unwrap_or(0.0);
+        // What this thread waited for the device; on the CPU nothing was asked of one.
+        let waited = (crate::trace::waited_ns() - waited) as f64 / 1e6;
+        let wait_ms = self.uses_gpu().then_some(waited);
         let report = Report {
             backend: made.backend,
             gpu_ms: made.gpu_ms,
@@ -424,9 +428,10 @@ impl Engine {
             distance_evaluations: field.as_ref().map(|f| f.evaluations).filter(|&n| n > 0),
             field_ms,
             field_backend,
-            host_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) + labels_ms.unwrap_or(0.0)
-                - made.gpu_ms.unwrap_or(0.0),
-            total_ms: voxelize_ms + field_ms.unwrap_or(0.0) + colour_ms.unwrap_or(0.0) + labels_ms.unwrap_or(0.0),
+            host_ms: engine_ms - made.gpu_ms.unwrap_or(0.0),
+            wait_ms,
+            host_work_ms: engine_ms - wait_ms.unwrap_or(0.0),
+            total_ms: engine_ms,
             labels: labels.as_ref().map(|l| l.columns.iter().map(|(a, _)| a.name().to_string()).collect()),
             labels_ms,
             upload_bytes: made.traffic.map(|t| t.0),
@@ -438,7 +443,11 @@ impl Engine {
         let report = Report { host_decided: grid_decided.unwrap_or(report.voxels) + field_decided, ..report };
         let colours = colours.map(|c| c.colours);
         if let Some(spans) = crate::trace::take() {
-            eprintln!("trace: {} {} at {:?}: {spans}", job.name, request.mode.name(), spec.dims.to_array());
+            let (work, wait) = (report.host_work_ms, report.wait_ms.unwrap_or(0.0));
+            let (name, mode, dims) = (job.name, request.mode.name(), spec.dims.to_array());
+            eprintln!(
+                "trace: {name} {mode} at {dims:?}: host work {work:.1} ms, waits for the device {wait:.1} ms; {spans}"
+            );
         }
         Ok(Voxelized { grid: made.grid, field, shell, colours, labels, instances: made.instances, report, notices })
     }
@@ -498,6 +507,7 @@ impl Engine {
             colour: colours.as_ref().map(|_| backend),
             voxelize_ms,
             host_ms: voxelize_ms,
+            host_work_ms: voxelize_ms,
             total_ms: voxelize_ms,
             ..self.grid_report(job, &grid, None)
         };

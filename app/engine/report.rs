@@ -60,6 +60,12 @@ pub struct Report {
     /// The engine's time that is not the GPU's passes: `voxelize_ms + field_ms + colour_ms + labels_ms - gpu_ms` (all of it on
     /// the CPU). Loading and writing are the client's (`load_ms`, `write_ms`).
     pub host_ms: f64,
+    /// The engine's time the job's thread spent waiting for the device: submissions a driver holds until earlier
+    /// work is done (lavapipe's do), and waits for passes and readbacks to finish. `None` on the CPU.
+    pub wait_ms: Option<f64>,
+    /// The engine's time less `wait_ms`: the host's own work (grid space, binning, sorting, the leaves and rows it
+    /// decides, copies), which issue 67 holds to a tenth of the CPU backend's time for the same job.
+    pub host_work_ms: f64,
     /// Voxels the host decided or confirmed rather than the device: on the CPU backend every set voxel (and for a
     /// field, every inside voxel and every band voxel as well); on a GPU the set voxels of rows or grids the host
     /// decided (the solid's deferred rows, a sparse solid's inside filled on the host, a grid an overflow left to

@@ -219,7 +219,7 @@ impl GpuColourer {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
-        gpu.queue.submit([encoder.finish()]);
+        super::util::submit(&gpu.queue, encoder.finish());
         let [.., best] = buffers;
         best
     }

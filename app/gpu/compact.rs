@@ -136,7 +136,7 @@ impl Compactor {
             pass.set_pipeline(pipeline);
             pass.dispatch_workgroups(x, y, 1);
         }
-        gpu.queue.submit([encoder.finish()]);
+        super::util::submit(&gpu.queue, encoder.finish());
     }
 
     /// Compacts a slab into a list presized for `capacity` entries, in one submission and without reading
@@ -226,7 +226,7 @@ impl Compactor {
                 encoder.copy_buffer_to_buffer(&p.buffer, 0, &buffer, at, p.count as u64 * 8);
                 at += p.count as u64 * 8;
             }
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(Instances { buffer, count: count as u32 })
         })
         .await

@@ -99,7 +99,7 @@ impl GpuVoxelizer {
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             let timed: Vec<u64> =
                 runs.iter_mut().zip(&members).map(|(run, (tris, _))| run.encode_member(&mut encoder, tris)).collect();
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(timed)
         })
         .await?;

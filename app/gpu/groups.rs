@@ -151,7 +151,7 @@ impl SolidPipelines {
         scoped(device, || {
             let mut encoder = device.create_command_encoder(&Default::default());
             encoder.clear_buffer(&b.counts, 0, None);
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(())
         })
         .await?;
@@ -190,7 +190,7 @@ impl SolidPipelines {
             Some(t) => {
                 let mut encoder = device.create_command_encoder(&Default::default());
                 let timed = t.resolve(&mut encoder);
-                gpu.queue.submit([encoder.finish()]);
+                super::util::submit(&gpu.queue, encoder.finish());
                 timed
             }
             None => 0,

@@ -27,7 +27,7 @@ pub fn watchdog() -> Duration {
 /// happened to finish first, and `MESHVOX_GPU_TIMEOUT=0` is how the fallback path is tried on purpose.
 pub(crate) fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
     let timeout = watchdog();
-    let _span = crate::trace::span("gpu wait");
+    let _wait = crate::trace::device_wait();
     if timeout.is_zero() {
         return Err(GpuError::Timeout(0.0));
     }
@@ -70,7 +70,7 @@ pub(crate) async fn read_buffers(
         encoder.copy_buffer_to_buffer(buffer, offset, &staging, at, size);
         at += size;
     }
-    queue.submit([encoder.finish()]);
+    super::util::submit(queue, encoder.finish());
     let bytes = map_and_copy(device, &staging).await?;
     if ranges.len() == 1 {
         // One range (most reads, grids included): no second copy.
@@ -150,7 +150,7 @@ pub(crate) async fn stream_buffer(
         let (at, len) = span(i);
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(source, start + at, &stream.0[(i % 2) as usize], 0, len);
-        queue.submit([encoder.finish()]);
+        super::util::submit(queue, encoder.finish());
     };
     let mut result = Ok(());
     for i in 0..chunks.min(2) {

@@ -263,7 +263,7 @@ impl<'a> Run<'a> {
             gpu.queue.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
             record_set_up(v, b, &mut encoder, timer, batch);
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(())
         })
         .await?;
@@ -304,7 +304,7 @@ impl<'a> Run<'a> {
             if let (Some(run), Some(solid)) = (solid_run, v.solid.get()) {
                 solid.fill(gpu, run, &mut encoder, slab.z0, slab.z1, timer.as_mut().and_then(|t| t.next_pass()));
             }
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(())
         })
         .await
@@ -362,7 +362,7 @@ impl<'a> Run<'a> {
         let (gpu, device) = (self.gpu, &self.gpu.device);
         let mut encoder = device.create_command_encoder(&Default::default());
         let timed = self.timer.as_mut().map_or(0, |t| t.resolve(&mut encoder));
-        gpu.queue.submit([encoder.finish()]);
+        super::util::submit(&gpu.queue, encoder.finish());
         let b = &self.buffers;
         let reading_grid = self.grid.is_some() || self.leaves.is_some();
         let mut ranges = Vec::new();

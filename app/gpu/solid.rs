@@ -298,7 +298,7 @@ pub(super) async fn run_passes(
                 pass.dispatch_workgroups(*x, *y, 1);
             }
         }
-        gpu.queue.submit([encoder.finish()]);
+        super::util::submit(&gpu.queue, encoder.finish());
         Ok(())
     })
     .await

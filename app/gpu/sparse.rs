@@ -366,7 +366,7 @@ impl Run<'_> {
                 pass.set_pipeline(&pipelines.mark);
                 pass.dispatch_workgroups_indirect(&b.dispatch, 0);
             }
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(())
         })
         .await
@@ -416,7 +416,7 @@ impl Run<'_> {
                 pass.set_pipeline(if dense { &pipelines.finish_rows } else { &pipelines.finish_leaves });
                 pass.dispatch_workgroups_indirect(&b.dispatch, 24);
             }
-            gpu.queue.submit([encoder.finish()]);
+            super::util::submit(&gpu.queue, encoder.finish());
             Ok(())
         })
         .await
@@ -431,7 +431,7 @@ impl Run<'_> {
             true => self.timer.as_mut().map_or(0, |t| t.resolve(&mut encoder)),
             false => 0,
         };
-        gpu.queue.submit([encoder.finish()]);
+        super::util::submit(&gpu.queue, encoder.finish());
         let mut ranges = vec![(&self.buffers.unsure_count, 0, 8)];
         if let Some(t) = self.timer.as_ref().filter(|_| timed > 0) {
             ranges.push((t.resolved(), 0, timed));

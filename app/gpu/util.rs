@@ -101,7 +101,14 @@ pub(crate) fn submit_dispatch(
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(groups.0, groups.1, 1);
     }
-    queue.submit([encoder.finish()]);
+    submit(queue, encoder.finish());
+}
+
+/// Submits `commands`, timed as a wait for the device ([`crate::trace::device_wait`]): a driver may run earlier
+/// work before it returns (lavapipe does), and that time is the device's, not the host's.
+pub(crate) fn submit(queue: &wgpu::Queue, commands: wgpu::CommandBuffer) {
+    let _wait = crate::trace::device_wait();
+    queue.submit([commands]);
 }
 
 pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, size: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {

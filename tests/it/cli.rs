@@ -201,7 +201,14 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
     assert!(back >= leaves * 68 && back <= leaves * 80 + 128, "{back} bytes for {leaves} leaves: {s}");
     let (host, total, passes) = (s["host_ms"].as_f64(), s["voxelize_ms"].as_f64(), s["gpu_ms"].as_f64());
     assert!(host.zip(total).is_some_and(|(h, t)| h > 0.0 && h <= t && h >= t - passes.unwrap_or(0.0) - 1e-6), "{s}");
-    let software = g["backend"].as_str().is_some_and(|b| b.contains("llvmpipe") || b.contains("SwiftShader"));
+    // The host's own work is the engine's time less its waits for the device. A software adapter runs the passes
+    // while the host waits in a submission or a poll, so there the waits cover most of the passes' time.
+    let (wait, work) = (s["wait_ms"].as_f64().expect("wait_ms on a GPU"), s["host_work_ms"].as_f64().expect("work"));
+    assert!(wait > 0.0 && (work + wait - total.unwrap_or(0.0)).abs() < 1e-6, "{s}");
+    if let Some(passes) = passes.filter(|_| is_software(&s)) {
+        assert!(wait >= 0.5 * passes, "the waits ({wait} ms) miss the passes' time ({passes} ms): {s}");
+    }
+    let software = is_software(&g);
     // The probe's path: a job the cost model would send to the CPU anyway is probed with MESHVOX_AUTO_PROBE=1.
     let auto = stats(&meshvox_env(&args("auto"), dir.path(), &[("MESHVOX_AUTO_PROBE", "1")]));
     let backend = auto["backend"].as_str().unwrap_or_default();
@@ -217,6 +224,11 @@ fn auto_on_a_software_adapter_voxelizes_on_the_cpu_and_says_so() {
         assert!(backend.starts_with("gpu: "), "{backend}");
     }
     assert_eq!(auto["voxels"], g["voxels"]);
+}
+
+/// Whether a report's backend is a software adapter (lavapipe, llvmpipe or SwiftShader).
+fn is_software(report: &serde_json::Value) -> bool {
+    report["backend"].as_str().is_some_and(|b| b.contains("llvmpipe") || b.contains("SwiftShader"))
 }
 
 /// `auto` prices a job before it opens anything: a small one goes to the CPU without probing an adapter (no
@@ -238,6 +250,7 @@ fn auto_prices_the_job_before_it_probes_an_adapter() {
         assert_eq!(auto["voxels"], cpu["voxels"]);
         assert!(cpu["upload_bytes"].is_null() && cpu["readback_bytes"].is_null(), "nothing crossed a bus: {cpu}");
         assert_eq!(cpu["host_ms"].as_f64(), cpu["voxelize_ms"].as_f64(), "all of it on the host: {cpu}");
+        assert!(cpu["wait_ms"].is_null() && cpu["host_work_ms"] == cpu["voxelize_ms"], "no device: {cpu}");
     }
     // A distance field of many voxels costs more on the CPU than opening a GPU would (on this 2-core box; on 16
     // threads the CPU's estimate is under the GPU's, so the price is what the test holds the choice to): the

@@ -67,6 +67,8 @@ fn the_cli_writes_what_the_public_api_writes() {
                 "voxelize_ms",
                 "colour_ms",
                 "host_ms",
+                "wait_ms",
+                "host_work_ms",
                 "total_ms",
                 "write_ms",
                 "output",
