@@ -68,6 +68,12 @@ pub fn device_wait() -> Wait {
     Wait { since: Instant::now(), _span: span("gpu wait") }
 }
 
+/// Starts a [`Wait`] for the driver's compiler: a pipeline made on first use (seconds on lavapipe, whose LLVM
+/// compiles each one) is the device's set-up, not the job's host work; as the span "compile pipeline".
+pub fn driver_compile() -> Wait {
+    Wait { since: Instant::now(), _span: span("compile pipeline") }
+}
+
 impl Drop for Wait {
     fn drop(&mut self) {
         let ns = self.since.elapsed().as_nanos() as u64;

@@ -61,7 +61,8 @@ pub struct Report {
     /// the CPU). Loading and writing are the client's (`load_ms`, `write_ms`).
     pub host_ms: f64,
     /// The engine's time the job's thread spent waiting for the device: submissions a driver holds until earlier
-    /// work is done (lavapipe's do), and waits for passes and readbacks to finish. `None` on the CPU.
+    /// work is done (lavapipe's do), waits for passes and readbacks to finish, and pipelines the driver compiles on
+    /// their first use. `None` on the CPU.
     pub wait_ms: Option<f64>,
     /// The engine's time less `wait_ms`: the host's own work (grid space, binning, sorting, the leaves and rows it
     /// decides, copies), which issue 67 holds to a tenth of the CPU backend's time for the same job.

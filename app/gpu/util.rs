@@ -52,6 +52,7 @@ pub(crate) fn pipeline_with(
         bind_group_layouts: layouts,
         immediate_size: 0,
     });
+    let _compile = crate::trace::driver_compile();
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout: Some(&layout),
