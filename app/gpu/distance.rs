@@ -9,7 +9,7 @@
 //! the band's values do not fit one storage binding, the pass runs once per such range (a chunk), each dispatch
 //! walking only its layers of every triangle's box.
 
-use super::readback::read_buffer;
+use super::readback::read_values;
 use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
 use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
@@ -90,11 +90,15 @@ impl GpuDistance {
                 limit: max,
             });
         }
-        let mut best = Vec::with_capacity(leaves.len() * 512);
+        let mut best = Vec::new();
         let mut traffic = Traffic::default();
         for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
             let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
-            best.extend(range);
+            // One chunk (a band that fits one binding) is the list as read back, not copied again.
+            match best.is_empty() {
+                true => best = range,
+                false => best.extend(range),
+            }
         }
         gpu.check()?;
         let _span = crate::trace::span("field: finish values");
@@ -174,9 +178,8 @@ impl GpuDistance {
             Ok(best)
         })
         .await?;
-        let data = read_buffer(device, &gpu.queue, &buffer, 0, bytes).await?;
         traffic.readback += bytes;
-        Ok(bytemuck::cast_slice::<u8, u32>(&data).iter().map(|&b| f32::from_bits(b)).collect())
+        read_values::<f32>(device, &gpu.queue, &buffer, 0, bytes).await
     }
 }
 

@@ -50,6 +50,29 @@ pub(crate) async fn read_buffer(
     Ok(parts.pop().unwrap_or_default())
 }
 
+/// Copies `size` bytes of `buffer` (from `offset`, a multiple of four) into host memory as values of `T`, once:
+/// straight out of the mapped range, where [`read_buffer`]'s bytes would be copied again to change their type.
+pub(crate) async fn read_values<T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    size: u64,
+) -> Result<Vec<T>, GpuError> {
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("meshvox readback"),
+        size: size.max(4),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
+    super::util::submit(queue, encoder.finish());
+    let mut values = Vec::new();
+    map_range(device, &staging, size, |mapped| values = bytemuck::pod_collect_to_vec(mapped)).await?;
+    Ok(values)
+}
+
 /// Copies several `(buffer, offset, size)` ranges (sizes multiples of four) into one staging buffer and maps it
 /// once: in the browser every map is a round trip to the GPU process, so reads that can share one do.
 pub(crate) async fn read_buffers(
