@@ -149,9 +149,8 @@ impl GpuColourer {
         }
         let device = &gpu.device;
         let best = scoped(device, || Ok(self.submit_passes(gpu, grid, triangles, shading))).await?;
-        let bytes = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
+        let words: Vec<u32> = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
         gpu.check()?;
-        let words: &[u32] = bytemuck::cast_slice(&bytes);
         let mut colours = VoxelColours { rgba: words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect() };
         fill_interior(grid, &mut colours);
         Ok(colours)

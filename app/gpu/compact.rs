@@ -43,8 +43,7 @@ impl Instances {
         if self.count == 0 {
             return Ok(Vec::new());
         }
-        let bytes = read_buffer(&gpu.device, &gpu.queue, &self.buffer, 0, self.count as u64 * 8).await?;
-        let raw: &[u32] = bytemuck::cast_slice(&bytes);
+        let raw: Vec<u32> = read_buffer(&gpu.device, &gpu.queue, &self.buffer, 0, self.count as u64 * 8).await?;
         Ok(raw.chunks_exact(2).map(|p| UVec3::new(p[0] & 0xffff, p[0] >> 16, p[1])).collect())
     }
 }

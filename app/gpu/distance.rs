@@ -9,7 +9,7 @@
 //! the band's values do not fit one storage binding, the pass runs once per such range (a chunk), each dispatch
 //! walking only its layers of every triangle's box.
 
-use super::readback::read_values;
+use super::readback::read_buffer;
 use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
 use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
@@ -179,7 +179,7 @@ impl GpuDistance {
         })
         .await?;
         traffic.readback += bytes;
-        read_values::<f32>(device, &gpu.queue, &buffer, 0, bytes).await
+        read_buffer::<f32>(device, &gpu.queue, &buffer, 0, bytes).await
     }
 }
 

@@ -105,8 +105,7 @@ impl GpuQuery {
                 Ok(answers)
             })
             .await?;
-            let data = read_buffer(device, &gpu.queue, &buffer, 0, chunk.len() as u64 * 8).await?;
-            let words: &[u32] = bytemuck::cast_slice(&data);
+            let words: Vec<u32> = read_buffer(device, &gpu.queue, &buffer, 0, chunk.len() as u64 * 8).await?;
             for (k, pair) in words.chunks_exact(2).enumerate() {
                 found[order[c * per_chunk + k] as usize] = (f32::from_bits(pair[0]), pair[1]);
             }

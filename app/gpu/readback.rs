@@ -38,33 +38,26 @@ pub(crate) fn wait(device: &wgpu::Device) -> Result<(), GpuError> {
     }
 }
 
-/// Copies `size` bytes of `buffer` (from `offset`) into host memory once the GPU is done.
-pub(crate) async fn read_buffer(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    buffer: &wgpu::Buffer,
-    offset: u64,
-    size: u64,
-) -> Result<Vec<u8>, GpuError> {
-    let mut parts = read_buffers(device, queue, &[(buffer, offset, size)]).await?;
-    Ok(parts.pop().unwrap_or_default())
+/// A MAP_READ buffer of `size` bytes (four at least) for one readback.
+fn staging_buffer(device: &wgpu::Device, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("meshvox readback"),
+        size: size.max(4),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
-/// Copies `size` bytes of `buffer` (from `offset`, a multiple of four) into host memory as values of `T`, once:
-/// straight out of the mapped range, where [`read_buffer`]'s bytes would be copied again to change their type.
-pub(crate) async fn read_values<T: bytemuck::Pod>(
+/// Copies `size` bytes of `buffer` (from `offset`, a multiple of four) into host memory once the GPU is done, as
+/// values of `T` (bytes, or the words or floats they hold), copied once: straight out of the mapped range.
+pub(crate) async fn read_buffer<T: bytemuck::Pod>(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     buffer: &wgpu::Buffer,
     offset: u64,
     size: u64,
 ) -> Result<Vec<T>, GpuError> {
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("meshvox readback"),
-        size: size.max(4),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let staging = staging_buffer(device, size);
     let mut encoder = device.create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
     super::util::submit(queue, encoder.finish());
@@ -81,12 +74,7 @@ pub(crate) async fn read_buffers(
     ranges: &[(&wgpu::Buffer, u64, u64)],
 ) -> Result<Vec<Vec<u8>>, GpuError> {
     let total: u64 = ranges.iter().map(|r| r.2).sum();
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("meshvox readback"),
-        size: total.max(4),
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let staging = staging_buffer(device, total);
     let mut encoder = device.create_command_encoder(&Default::default());
     let mut at = 0;
     for &(buffer, offset, size) in ranges {
