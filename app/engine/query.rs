@@ -33,6 +33,12 @@ pub struct Queried {
     /// Points whose nearest triangle or sign the host decided or confirmed rather than the device: every point
     /// today (the host confirms each triangle a GPU proposes and decides every sign).
     pub host_decided: u64,
+    /// Milliseconds the calling thread waited for the GPU's search after its own work (the signs) was done;
+    /// `None` on the CPU.
+    pub wait_ms: Option<f64>,
+    /// The query's time less `wait_ms`: the host's own work (placing the points, the signs, confirming each
+    /// proposed triangle, the f64 answers).
+    pub host_work_ms: f64,
     /// What happened on the way (the CPU standing in for the GPU).
     pub notices: Vec<Notice>,
 }
@@ -46,10 +52,13 @@ impl Engine {
         sign: Sign,
         winding: bool,
     ) -> Result<Queried, EngineError> {
+        let start = Instant::now();
         let Some(on) = &self.gpu else {
             let answers = prepared.query(points, sign, winding).map_err(EngineError::Query)?;
             let host_decided = points.len() as u64;
-            return Ok(Queried { answers, backend: self.cpu_label(), gpu_ms: None, host_decided, notices: Vec::new() });
+            let (backend, host_work_ms) = (self.cpu_label(), ms(start));
+            let notices = Vec::new();
+            return Ok(Queried { answers, backend, gpu_ms: None, host_decided, wait_ms: None, host_work_ms, notices });
         };
         self.blocking(|| {
             let placed = prepared.place(points).map_err(EngineError::Query)?;
@@ -63,9 +72,11 @@ impl Engine {
                     (found, ms(t))
                 });
                 let sides = prepared.sides(&placed, sign, winding);
+                let waiting = Instant::now();
                 let (found, gpu_ms) = search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-                (found, sides, gpu_ms)
+                (found, sides, (gpu_ms, ms(waiting)))
             });
+            let (gpu_ms, wait_ms) = gpu_ms;
             let found = found?;
             let backend = match &found {
                 Some(_) => self.label(),
@@ -74,7 +85,9 @@ impl Engine {
             let answers = prepared.query_found(points, &placed, found.as_deref().unwrap_or(&[]), sides, sign, winding);
             // Each proposal is confirmed by the host's own walk, and every sign is the host's.
             let host_decided = points.len() as u64;
-            Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), host_decided, notices })
+            let host_work_ms = ms(start) - wait_ms;
+            let wait_ms = Some(wait_ms);
+            Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), host_decided, wait_ms, host_work_ms, notices })
         })
     }
 

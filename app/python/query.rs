@@ -140,6 +140,8 @@ pub(super) fn query<'py>(
     dict.set_item("evaluations", answers.evaluations)?;
     dict.set_item("backend", queried.backend)?;
     dict.set_item("host_decided", queried.host_decided)?;
+    dict.set_item("wait_ms", queried.wait_ms)?;
+    dict.set_item("host_work_ms", queried.host_work_ms)?;
     Ok(dict)
 }
 

@@ -471,7 +471,9 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     let points: Vec<glam::DVec3> = (0..500).map(|i| glam::DVec3::new(f64::from(i) * 0.01 - 2.5, 0.3, 0.1)).collect();
     let prepared = meshvox::voxel::query::Prepared::new(torus.clone()).expect("prepare");
     let sign = meshvox::voxel::query::Sign::Winding;
-    assert_eq!(cpu.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
+    let on_cpu = cpu.query(&prepared, &points, sign, false).expect("query");
+    assert_eq!(on_cpu.host_decided, 500);
+    assert!(on_cpu.wait_ms.is_none() && on_cpu.host_work_ms > 0.0, "the CPU waits for no device");
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     let engine = Engine::on_device(gpu, Backend::Gpu).expect("gpu engine");
     // The GPU decides a closed mesh's surface and solid whole.
@@ -504,8 +506,14 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     let sign_bytes = readback - surface_readback - leaves * 512 * 4;
     let sign_range = if sign_on_cpu { 0..=0 } else { solid_readback.saturating_sub(48)..=solid_readback };
     assert!(sign_range.contains(&sign_bytes), "the field read back {readback} bytes, {sign_bytes} for its sign");
-    // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign.
-    assert_eq!(engine.query(&prepared, &points, sign, false).expect("query").host_decided, 500);
+    // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign; its own work is
+    // counted apart from its wait for the search.
+    let started = std::time::Instant::now();
+    let on_gpu = engine.query(&prepared, &points, sign, false).expect("query");
+    let total = started.elapsed().as_secs_f64() * 1e3;
+    assert_eq!(on_gpu.host_decided, 500);
+    let wait = on_gpu.wait_ms.expect("a GPU query's wait");
+    assert!(wait >= 0.0 && on_gpu.host_work_ms > 0.0 && wait + on_gpu.host_work_ms <= total, "{wait} {total}");
 }
 
 /// Sizes as users write them (`--max-memory 512M`, `1.5GiB`), shown back in the same units, and the machine's
