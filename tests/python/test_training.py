@@ -134,6 +134,10 @@ def test_the_gpu_answers_as_the_cpu_does(meshes):
     gpu = meshvox.query(bunny, points, backend="gpu")
     cpu = meshvox.query(bunny, points, backend="cpu")
     assert gpu.backend.startswith("gpu") and cpu.backend.startswith("cpu"), (gpu.backend, cpu.backend)
+    # Every point is still the host's to confirm; a GPU query splits its wait for the search from its own work.
+    assert gpu.host_decided == cpu.host_decided == len(points)
+    assert cpu.wait_ms is None and cpu.host_work_ms > 0
+    assert gpu.wait_ms is not None and gpu.wait_ms >= 0 and gpu.host_work_ms > 0
     assert np.array_equal(gpu.inside, cpu.inside)
     off = np.abs(cpu.distance) > 1e-6 * size
     assert off[:20000].all()

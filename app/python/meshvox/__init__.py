@@ -506,12 +506,21 @@ class Query:
     barycentric: np.ndarray
     #: Where the nearest triangles were found ("cpu (N threads)" or "gpu: ADAPTER").
     backend: str
+    #: Points whose nearest triangle or sign the host decided or confirmed (every point today).
+    host_decided: int
+    #: On a GPU, milliseconds the host waited for the search after its own work; None on the CPU.
+    wait_ms: float | None
+    #: The query's milliseconds less ``wait_ms``: the host's own work.
+    host_work_ms: float
 
     def __init__(self, out: dict[str, Any], mesh: Mesh, points: np.ndarray) -> None:
         for name in ("distance", "inside", "closest", "triangle", "barycentric"):
             setattr(self, name, out[name])
         self.evaluations = int(out["evaluations"])
         self.backend = str(out["backend"])
+        self.host_decided = int(out["host_decided"])
+        self.wait_ms = None if out["wait_ms"] is None else float(out["wait_ms"])
+        self.host_work_ms = float(out["host_work_ms"])
         self._mesh, self._points = mesh, points
         self._winding: np.ndarray | None = None
 
