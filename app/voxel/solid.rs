@@ -45,7 +45,7 @@ fn row_crossing(
 /// search in the list rather than by listing every row's crossings.
 pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice, rows: &[u32]) -> RowCrossings {
     let unit = 1i32 << lattice.shift;
-    let mut pairs: Vec<(u32, u32)> = crate::parallel::install(|| {
+    let pairs: Vec<(u32, u32)> = crate::parallel::install(|| {
         triangles
             .par_iter()
             .flat_map_iter(|&t| {
@@ -68,13 +68,18 @@ pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Latti
             })
             .collect()
     });
-    pairs.sort_unstable();
-    let mut offsets = vec![0u32; rows.len() + 1];
-    for &(i, _) in &pairs {
-        offsets[i as usize + 1] += 1;
+    by_row(pairs, rows.len())
+}
+
+/// `(row, packed crossing)` pairs as [`RowCrossings`] over `rows` rows: sorted, so each row's list is in order.
+fn by_row(mut pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
+    crate::parallel::install(|| pairs.par_sort_unstable());
+    let mut offsets = vec![0u32; rows + 1];
+    for &(row, _) in &pairs {
+        offsets[row as usize + 1] += 1;
     }
-    for i in 0..rows.len() {
-        offsets[i + 1] += offsets[i];
+    for r in 0..rows {
+        offsets[r + 1] += offsets[r];
     }
     RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
 }
@@ -83,7 +88,7 @@ pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Latti
 pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) -> RowCrossings {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
-        let mut pairs: Vec<(u32, u32)> = triangles
+        let pairs: Vec<(u32, u32)> = triangles
             .par_iter()
             .flat_map_iter(|&t| {
                 let mut v = Vec::new();
@@ -91,16 +96,7 @@ pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) 
                 v
             })
             .collect();
-        pairs.par_sort_unstable();
-        let rows = dims.y as usize * dims.z as usize;
-        let mut offsets = vec![0u32; rows + 1];
-        for &(row, _) in &pairs {
-            offsets[row as usize + 1] += 1;
-        }
-        for r in 0..rows {
-            offsets[r + 1] += offsets[r];
-        }
-        RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
+        by_row(pairs, dims.y as usize * dims.z as usize)
     })
 }
 
