@@ -1,16 +1,27 @@
 // Queries at arbitrary points (`meshvox.query`, `sample`, `meshvox query`; backend gpu): each point's nearest
-// triangle by a walk of the query hierarchy's 4-wide tree (see app/voxel/cpu/query.rs, the CPU mirror, whose
-// functions carry the same names). Joined after shared/common.wgsl (dot3, thread_index) and nearest.wgsl
-// (triangle, point_distance2).
+// triangle by a walk of the query hierarchy's 4-wide tree, and where asked its side of the mesh by the certified
+// winding number (see app/voxel/cpu/query.rs, the CPU mirror, whose functions carry the same names). Joined after
+// shared/common.wgsl (dot3, thread_index), nearest.wgsl (triangle, point_distance2) and shared/winding.wgsl
+// (winding_number_bounded, certain_side).
 //   nearest_points  one invocation per point: the least squared distance over every triangle (grid space of the
 //                   query frame), and of the triangles at it the first in the mesh's order, as (f32 bits, index);
-//                   (START, NONE) where none is nearer than START.
+//                   (START, NONE) where none is nearer than START. Where `signed`, also the point's side: the
+//                   signed crossings of the ray from it towards -x (each decided in f32 with Shewchuk's error
+//                   bounds) plus the holes' term, 0 outside, 1 inside, UNDECIDED where a bound does not tell.
 // The host answers the rest in world space and f64 from the triangle (nearest point, barycentric coordinates),
-// and the sign on the CPU with exact predicates while this runs.
+// and the undecided sides with exact predicates.
 
 struct Params {
     points: u32,
     row_threads: u32,
+    // Whether to decide the points' sides (signed queries).
+    signed: u32,
+}
+
+// The boundary's sizes, under the name shared/winding.wgsl reads them by (solid.wgsl's uniform has them too).
+struct BoundarySizes {
+    edge_count: u32,
+    piece_count: u32,
 }
 
 // A node of the 4-wide tree: the four children's boxes by coordinate, each child a node (count 0), a leaf
@@ -37,6 +48,23 @@ const NONE: u32 = 0xffffffffu;
 @group(0) @binding(3) var<storage, read> order: array<u32>;
 @group(0) @binding(4) var<storage, read> points: array<f32>;
 @group(0) @binding(5) var<storage, read_write> found: array<vec2<u32>>;
+@group(0) @binding(6) var<uniform> solid: BoundarySizes;
+// The open boundary as shared/winding.wgsl reads it (one placeholder vec4 on a closed mesh).
+@group(0) @binding(7) var<storage, read> boundary: array<vec4<f32>>;
+// Per point, where `signed`: 0 outside, 1 inside, UNDECIDED.
+@group(0) @binding(8) var<storage, read_write> sides: array<u32>;
+
+// Shewchuk's orientation error bounds for f32 ((3 + 16u)u and (7 + 56u)u of the permanent, u = 2^-24), four
+// times over: a GPU's fused multiply-add rounds less, never more, and the margin leaves no doubt; TINY covers
+// products a GPU flushes to zero.
+const ORIENT2_ERROR: f32 = 7.2e-7;
+const ORIENT3_ERROR: f32 = 1.7e-6;
+const TINY: f32 = 1e-30;
+// A crossing, or a point's side, that the bounds leave open: the host decides it exactly.
+const UNDECIDED: u32 = 2u;
+const UNSURE_CROSSING: i32 = 2;
+// How many error bounds from 1/2 a winding number must be (the CPU's MARGIN).
+const MARGIN: f32 = 2.0;
 
 fn child_distance2(node: WideNode, k: u32, p: vec3<f32>) -> f32 {
     let lo = vec3<f32>(node.lo_x[k], node.lo_y[k], node.lo_z[k]);
@@ -118,6 +146,130 @@ fn walk_nearest(p: vec3<f32>) -> vec2<u32> {
     return vec2<u32>(bitcast<u32>(best), found_id);
 }
 
+// The orientation of (a, b, c) in the YZ plane (positive counterclockwise, as Shewchuk's orient2d on (y, z)) and
+// the bound on its rounding.
+fn orient_yz(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec2<f32> {
+    let l = (a.y - c.y) * (b.z - c.z);
+    let r = (a.z - c.z) * (b.y - c.y);
+    return vec2<f32>(l - r, ORIENT2_ERROR * (abs(l) + abs(r)) + TINY);
+}
+
+// Shewchuk's orient3d(a, b, c, d) (positive where d is below the plane of a, b, c seen counterclockwise) and the
+// bound on its rounding.
+fn orient_xyz(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
+    let ad = a - d;
+    let bd = b - d;
+    let cd = c - d;
+    let bc = bd.y * cd.z - bd.z * cd.y;
+    let ca = cd.y * ad.z - cd.z * ad.y;
+    let ab = ad.y * bd.z - ad.z * bd.y;
+    let det = ad.x * bc + bd.x * ca + cd.x * ab;
+    let permanent = (abs(bd.y * cd.z) + abs(bd.z * cd.y)) * abs(ad.x) + (abs(cd.y * ad.z) + abs(cd.z * ad.y)) * abs(bd.x)
+        + (abs(ad.y * bd.z) + abs(ad.z * bd.y)) * abs(cd.x);
+    return vec2<f32>(det, ORIENT3_ERROR * permanent + TINY);
+}
+
+// What the exact crossing test (the host's `crossing`) says of triangle t and the ray from q towards -x, where the
+// bounds tell: the sign of the triangle's n_x where the ray crosses it at or before q, else 0; UNSURE_CROSSING
+// where q is too near an edge's shadow, the plane, or the triangle is too near edge-on to say.
+fn crossing_certain(t: array<vec3<f32>, 3>, q: vec3<f32>) -> i32 {
+    var edges: array<vec2<f32>, 3>;
+    var above = 0u;
+    var below = 0u;
+    for (var i = 0u; i < 3u; i++) {
+        edges[i] = orient_yz(t[i], t[(i + 1u) % 3u], q);
+        if edges[i].x > edges[i].y {
+            above += 1u;
+        } else if edges[i].x < -edges[i].y {
+            below += 1u;
+        }
+    }
+    // Edges certainly on both sides of q: outside the shadow, whichever way the triangle faces.
+    if above > 0u && below > 0u {
+        return 0;
+    }
+    let n = orient_yz(t[0], t[1], t[2]);
+    if abs(n.x) <= n.y {
+        return UNSURE_CROSSING;
+    }
+    let sign = select(-1, 1, n.x > 0.0);
+    let inside = select(below, above, sign > 0);
+    let outside = select(above, below, sign > 0);
+    if outside > 0u {
+        return 0;
+    }
+    if inside < 3u {
+        return UNSURE_CROSSING;
+    }
+    let side = orient_xyz(t[0], t[1], t[2], q);
+    if abs(side.x) <= side.y {
+        return UNSURE_CROSSING;
+    }
+    // -orient3d is q's side along the triangle's normal: the crossing is at or before q where it has n_x's sign.
+    if (-side.x > 0.0) == (sign > 0) {
+        return sign;
+    }
+    return 0;
+}
+
+// The signed crossings before p as the host's `crossings_before` counts them (less the sum of `crossing_certain`
+// over the triangles whose boxes the ray from p towards -x meets), and 1 in y where one was undecided. Each node
+// opened pushes at most four entries for the one it pops: the walk fits STACK as the nearest walk does.
+fn walk_crossings(p: vec3<f32>) -> vec2<i32> {
+    var count = 0;
+    var stack: array<u32, STACK>;
+    stack[0] = 0u;
+    var len = 1u;
+    while len > 0u {
+        len -= 1u;
+        let entry = stack[len];
+        let first = entry >> 4u;
+        let n = entry & 15u;
+        if n > 0u {
+            for (var j = first; j < first + n; j++) {
+                let c = crossing_certain(triangle(j), p);
+                if c == UNSURE_CROSSING {
+                    return vec2<i32>(count, 1);
+                }
+                count -= c;
+            }
+            continue;
+        }
+        let node = nodes[first];
+        for (var k = 0u; k < 4u; k++) {
+            if node.first[k] == EMPTY_LANE {
+                continue;
+            }
+            let meets = node.lo_y[k] <= p.y && p.y <= node.hi_y[k] && node.lo_z[k] <= p.z && p.z <= node.hi_z[k]
+                && node.lo_x[k] <= p.x;
+            if meets {
+                stack[len] = pack_entry(node.first[k], node.count[k]);
+                len += 1u;
+            }
+        }
+    }
+    return vec2<i32>(count, 0);
+}
+
+// p's side of the mesh: 1 where its winding number is certainly at least 1/2, 0 where certainly below, UNDECIDED
+// where a crossing or the bounds leave it open (the host's `inside` decides those exactly).
+fn point_inside(p: vec3<f32>) -> u32 {
+    let crossed = walk_crossings(p);
+    if crossed.y != 0 {
+        return UNDECIDED;
+    }
+    if solid.edge_count == 0u {
+        return select(0u, 1u, crossed.x >= 1);
+    }
+    var wed = winding_number_bounded(crossed.x, p, 0.0, FAR_BUDGET);
+    var side = certain_side(wed.x, wed.y, wed.w, MARGIN);
+    if side == UNDECIDED && wed.w > 0.0 {
+        wed = winding_number_bounded(crossed.x, p, 0.0, 0.0);
+        side = certain_side(wed.x, wed.y, 0.0, MARGIN);
+    }
+    return side;
+}
+
 @compute @workgroup_size(64)
 fn nearest_points(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = thread_index(gid, params.row_threads);
@@ -126,4 +278,7 @@ fn nearest_points(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let p = vec3<f32>(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
     found[i] = walk_nearest(p);
+    if params.signed != 0u {
+        sides[i] = point_inside(p);
+    }
 }

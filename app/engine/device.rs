@@ -22,8 +22,9 @@ use crate::gpu::voxelize::{GpuOutput, GpuVoxelizer, Options};
 use crate::gpu::{AdapterSummary, Gpu, GpuError};
 use crate::mesh::Shading;
 use crate::voxel::cpu::query::NearestTables;
+use crate::voxel::cpu::solid::Boundary;
 use crate::voxel::distance::{Band, DistanceField};
-use crate::voxel::query::Placed;
+use crate::voxel::query::{Placed, Proposed};
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -453,20 +454,30 @@ impl OnGpu {
         Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
     }
 
-    /// The nearest triangles of the placed points on the GPU (its pass compiled on first use), or `None` where the
-    /// CPU is to find them: [`crate::gpu::query::GpuQuery::nearest`] in this device's turn. (Native clients only:
-    /// the page asks no queries.)
+    /// Whether this device's query walk may decide the points' sides. Not on GL: there the walk compiled from
+    /// `shaders/query.wgsl` misses triangles (Mesa's llvmpipe: about a third of the sides wrong, and some points
+    /// with no nearest triangle), so the host decides every side there, as it confirms every nearest triangle on
+    /// every adapter.
+    pub(super) fn decides_sides(&self) -> bool {
+        self.gpu.summary.backend != format!("{:?}", wgpu::Backend::Gl)
+    }
+
+    /// The nearest triangles of the placed points on the GPU (its pass compiled on first use), with their sides
+    /// where `boundary` is given, or `None` where the CPU is to find them:
+    /// [`crate::gpu::query::GpuQuery::nearest`] in this device's turn. (Native clients only: the page asks no
+    /// queries.)
     #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(super) async fn nearest(
         &self,
         tables: &NearestTables,
+        boundary: Option<&Boundary>,
         placed: &Placed,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<Vec<(f32, u32)>>, EngineError> {
+    ) -> Result<Option<Proposed>, EngineError> {
         let found = {
             let _turn = self.turn().await;
             let pass = self.query.get_or_init(|| GpuQuery::new(&self.gpu));
-            pass.nearest(&self.gpu, tables, &placed.frame, &placed.order).await
+            pass.nearest(&self.gpu, tables, boundary, &placed.frame, &placed.order).await
         };
         self.stand_in(Stage::Query, found, notices)
     }

@@ -4,8 +4,9 @@
 use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice};
 use crate::mesh::Shading;
 use crate::voxel::cpu::query::NearestTables;
+use crate::voxel::cpu::solid::Boundary;
 use crate::voxel::distance::{Band, DistanceField};
-use crate::voxel::query::Placed;
+use crate::voxel::query::{Placed, Proposed};
 use crate::voxel::{Grid, GridSpec, VoxelGrid};
 use glam::Vec3;
 
@@ -75,12 +76,17 @@ impl OnGpu {
         match *self {}
     }
 
+    pub(super) fn decides_sides(&self) -> bool {
+        match *self {}
+    }
+
     pub(super) async fn nearest(
         &self,
         _: &NearestTables,
+        _: Option<&Boundary>,
         _: &Placed,
         _: &mut Vec<Notice>,
-    ) -> Result<Option<Vec<(f32, u32)>>, EngineError> {
+    ) -> Result<Option<Proposed>, EngineError> {
         match *self {}
     }
 }

@@ -1,9 +1,9 @@
 //! Queries and training samples through the engine (`meshvox query`, `meshvox sample`, `batch --sample`, Python's
 //! `query`, `sample` and `sample_many`): on a GPU engine the nearest triangles come from the GPU
-//! (`shaders/query.wgsl`) while the CPU decides the signs with exact predicates; on the CPU engine both are the
-//! CPU's ([`Prepared::query`]). The answers are the same either way (docs/training.md): the nearest triangle is
-//! the first in the mesh at the least distance, and the sign is the CPU's on every backend. Native only: the page
-//! asks no queries.
+//! (`shaders/query.wgsl`), and so do the sides where its certified f32 can be sure of them, the host deciding the
+//! rest with exact predicates; on the CPU engine both are the CPU's ([`Prepared::query`]). The answers are the same
+//! either way (docs/training.md): the nearest triangle is the first in the mesh at the least distance, and the side
+//! is the exact one. Native only: the page asks no queries.
 
 use super::{Backend, Engine, EngineError, Notice, ms};
 use crate::voxel::query::{Answers, Prepared, Sign};
@@ -31,13 +31,13 @@ pub struct Queried {
     /// Milliseconds the GPU's search took (its turn included), where it ran.
     pub gpu_ms: Option<f64>,
     /// Points whose nearest triangle or sign the host decided or confirmed rather than the device: every point
-    /// today (the host confirms each triangle a GPU proposes and decides every sign).
+    /// today (the host confirms each triangle a GPU proposes; it decides the sides a GPU leaves open).
     pub host_decided: u64,
     /// Milliseconds the calling thread waited for the GPU's search after its own work (the signs) was done;
     /// `None` on the CPU.
     pub wait_ms: Option<f64>,
-    /// The query's time less `wait_ms`: the host's own work (placing the points, the signs, confirming each
-    /// proposed triangle, the f64 answers).
+    /// The query's time less `wait_ms`: the host's own work (placing the points, the sides the GPU did not
+    /// decide, confirming each proposed triangle, the f64 answers).
     pub host_work_ms: f64,
     /// What happened on the way (the CPU standing in for the GPU).
     pub notices: Vec<Notice>,
@@ -63,15 +63,17 @@ impl Engine {
         self.blocking(|| {
             let placed = prepared.place(points).map_err(EngineError::Query)?;
             let tables = prepared.nearest_tables();
+            let device_sides = prepared.device_sides(sign, winding).filter(|_| on.decides_sides());
             let mut notices = Vec::new();
-            // The GPU searches on a thread of its own while this one decides the signs on the library's pool.
+            // The GPU searches on a thread of its own while this one decides the signs on the library's pool where
+            // the GPU does not (winding numbers' values, which the host sums to their tolerance).
             let (found, sides, gpu_ms) = std::thread::scope(|scope| {
                 let search = scope.spawn(|| {
                     let t = Instant::now();
-                    let found = pollster::block_on(on.nearest(tables, &placed, &mut notices));
+                    let found = pollster::block_on(on.nearest(tables, device_sides, &placed, &mut notices));
                     (found, ms(t))
                 });
-                let sides = prepared.sides(&placed, sign, winding);
+                let sides = device_sides.is_none().then(|| prepared.sides(&placed, sign, winding));
                 let waiting = Instant::now();
                 let (found, gpu_ms) = search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
                 (found, sides, (gpu_ms, ms(waiting)))
@@ -82,8 +84,9 @@ impl Engine {
                 Some(_) => self.label(),
                 None => self.cpu_label(),
             };
-            let answers = prepared.query_found(points, &placed, found.as_deref().unwrap_or(&[]), sides, sign, winding);
-            // Each proposal is confirmed by the host's own walk, and every sign is the host's.
+            let proposed = found.unwrap_or_default();
+            let (answers, _host_sides) = prepared.query_found(points, &placed, &proposed, sides, sign, winding);
+            // Each proposal is confirmed by the host's own walk; the sides the device left open are the host's.
             let host_decided = points.len() as u64;
             let host_work_ms = ms(start) - wait_ms;
             let wait_ms = Some(wait_ms);

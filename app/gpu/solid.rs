@@ -20,12 +20,13 @@ pub const SOLID_WGSL: &str = concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/exact.wgsl"),
+    include_str!("../../shaders/shared/winding.wgsl"),
     include_str!("../../shaders/solid.wgsl"),
     include_str!("../../shaders/groups.wgsl"),
 );
 /// The files joined into [`SOLID_WGSL`], in order, relative to `shaders/`.
-pub const SOLID_PARTS: [&str; 5] =
-    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "solid.wgsl", "groups.wgsl"];
+pub const SOLID_PARTS: [&str; 6] =
+    ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "shared/winding.wgsl", "solid.wgsl", "groups.wgsl"];
 
 pub(super) const WG: u32 = 64;
 /// The shader's `ROWS_PER_ITEM`.

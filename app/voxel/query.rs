@@ -15,7 +15,7 @@
 
 use super::bvh::Bvh;
 use super::cpu::nearest::point_distance2;
-use super::cpu::query::{FAR, NONE, NearestTables};
+use super::cpu::query::{FAR, NONE, NearestTables, UNDECIDED};
 use super::cpu::solid::{
     ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
 };
@@ -177,9 +177,17 @@ impl Prepared {
     }
 
     /// The sides ([`Prepared::query`]'s sign, and winding numbers where asked) at the placed points: what the CPU
-    /// computes while a GPU finds the nearest triangles.
+    /// computes while a GPU finds the nearest triangles, where the GPU is not to decide them
+    /// ([`Prepared::device_sides`]).
     pub fn sides(&self, placed: &Placed, sign: Sign, winding: bool) -> Sides {
         Sides(along_curve(&placed.order, |i, _| self.side(placed.frame[i], sign, winding)))
+    }
+
+    /// The open boundary a GPU decides the points' sides with, where it is to: a signed query that asks for the
+    /// inside alone (a winding number's value is summed on the host, to its tolerance). `None` where the host
+    /// decides every side ([`Prepared::sides`]).
+    pub fn device_sides(&self, sign: Sign, winding: bool) -> Option<&Boundary> {
+        (sign == Sign::Winding && !winding).then_some(&self.boundary)
     }
 
     /// [`Prepared::query`]'s answers where the nearest triangles were proposed elsewhere: `found[i]`, `(squared
@@ -191,15 +199,35 @@ impl Prepared {
     /// points around the bunny. Seeded with the nearest triangle, the walk opens only the nodes at that distance.
     /// A point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
     /// may overflow) is walked from its neighbour's triangle, as [`Prepared::query`] does.
+    ///
+    /// The sides are `sides` where the host computed them all; else the device's (`proposed.sides`), and the
+    /// host's exact [`Prepared::inside`] where the device left one [`UNDECIDED`] or the point is beyond [`FAR`].
+    /// Returns the answers and how many sides the host decided.
     pub fn query_found(
         &self,
         points: &[DVec3],
         placed: &Placed,
-        found: &[(f32, u32)],
-        sides: Sides,
+        proposed: &Proposed,
+        sides: Option<Sides>,
         sign: Sign,
         winding: bool,
-    ) -> Answers {
+    ) -> (Answers, u64) {
+        let found = &proposed.nearest[..];
+        let device = proposed.sides.as_deref().filter(|s| s.len() == points.len());
+        let sides = match (sides, device) {
+            (Some(sides), _) => sides.0,
+            (None, Some(device)) => along_curve(&placed.order, |i, _| {
+                let q = placed.frame[i];
+                match device[i] {
+                    side if u32::from(side) != UNDECIDED && q.abs().max_element() <= FAR => {
+                        Some(Side::Inside(side == 1))
+                    }
+                    _ => Some(Side::Host(self.inside(q))),
+                }
+            }),
+            (None, None) => self.sides(placed, sign, winding).0,
+        };
+        let host_sides = sides.iter().filter(|s| matches!(s, Some(Side::Host(_)))).count() as u64;
         let nears = along_curve(&placed.order, |i, last| {
             let q = placed.frame[i];
             let near = match found.get(i) {
@@ -213,7 +241,7 @@ impl Prepared {
             *last = Some(near.triangle);
             near
         });
-        assemble(nears.into_iter().zip(sides.0).collect(), sign, winding)
+        (assemble(nears.into_iter().zip(sides).collect(), sign, winding), host_sides)
     }
 
     /// What a signed query says of frame point `q`: the winding number's value, or only its side of ½.
@@ -343,7 +371,7 @@ fn assemble(answers: Vec<(Near, Option<Side>)>, sign: Sign, winding: bool) -> An
                 }
                 w >= 0.5
             }
-            Some(Side::Inside(inside)) => inside,
+            Some(Side::Inside(inside) | Side::Host(inside)) => inside,
             None => false,
         };
         if let Some(sides) = out.inside.as_mut() {
@@ -369,10 +397,22 @@ pub struct Placed {
     pub order: Vec<u32>,
 }
 
-/// What a signed query found at a point: the winding number's value, or only its side of ½.
+/// What a signed query found at a point: the winding number's value, or only its side of ½ (decided by the host
+/// after a device left it open, told apart so that it can be counted).
 enum Side {
     Value(f64),
     Inside(bool),
+    Host(bool),
+}
+
+/// What a device proposes for a list of points ([`Prepared::query_found`] makes the answers of it).
+#[derive(Clone, Debug, Default)]
+pub struct Proposed {
+    /// Per point `(squared distance in the frame, triangle)`, as [`super::cpu::query::walk_nearest`] gives it.
+    pub nearest: Vec<(f32, u32)>,
+    /// Per point its side where the device decided them ([`super::cpu::query::point_inside`]: 0 outside, 1
+    /// inside, 2 left to the host), for a signed query that asks for no winding numbers.
+    pub sides: Option<Vec<u8>>,
 }
 
 /// The nearest point of a triangle.

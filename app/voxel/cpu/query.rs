@@ -1,5 +1,7 @@
 //! The mirror of `shaders/query.wgsl`, function by function with the same names: a point's nearest triangle by a
-//! walk of the query hierarchy's 4-wide tree as the GPU holds it ([`NearestTables`]), one point per invocation.
+//! walk of the query hierarchy's 4-wide tree as the GPU holds it ([`NearestTables`]), one point per invocation,
+//! and its side of the mesh, decided in f32 where Shewchuk's error bounds and the winding number's tell
+//! ([`point_inside`]), else left to the host's exact predicates.
 //! The CPU's own walk ([`crate::voxel::bvh::Bvh::nearest_triangle`]) tests four triangles at a time with more
 //! bounds; this one is the shader's scalar walk, for the tests to compare with the GPU's answers bit for bit.
 //!
@@ -10,6 +12,7 @@
 
 use super::common::dot3;
 use super::nearest::point_distance2;
+use super::solid::{ATAN2_CPU, Boundary, FAR_BUDGET, MARGIN, certain_side, winding_number_bounded};
 use glam::Vec3;
 
 /// Entries of a walk's stack: [`STACK_DEPTH`] levels of the 4-wide tree, each opening adding at most three.
@@ -133,4 +136,141 @@ pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32) {
         len += n;
     }
     (best, found)
+}
+
+/// Shewchuk's orient2d error bound for f32, `(3 + 16u)u` of the permanent with `u = 2^-24`, four times over: a
+/// GPU's fused multiply-add rounds less, never more, and the margin leaves no doubt.
+pub const ORIENT2_ERROR: f32 = 7.2e-7;
+
+/// Shewchuk's orient3d error bound for f32, `(7 + 56u)u` of the permanent, four times over.
+pub const ORIENT3_ERROR: f32 = 1.7e-6;
+
+/// What the bounds add for products a GPU may flush to zero.
+pub const TINY: f32 = 1e-30;
+
+/// A point's side that the bounds leave open ([`point_inside`]): the host decides it exactly.
+pub const UNDECIDED: u32 = 2;
+
+/// A crossing the bounds leave open ([`crossing_certain`]).
+pub const UNSURE_CROSSING: i32 = 2;
+
+/// The orientation of `(a, b, c)` in the YZ plane (positive counterclockwise: Shewchuk's orient2d on `(y, z)`)
+/// and the bound on its rounding.
+pub fn orient_yz(a: Vec3, b: Vec3, c: Vec3) -> (f32, f32) {
+    let l = (a.y - c.y) * (b.z - c.z);
+    let r = (a.z - c.z) * (b.y - c.y);
+    (l - r, ORIENT2_ERROR * (l.abs() + r.abs()) + TINY)
+}
+
+/// Shewchuk's orient3d (positive where `d` is below the plane of `a, b, c` seen counterclockwise) and the bound
+/// on its rounding.
+pub fn orient_xyz(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (f32, f32) {
+    let (ad, bd, cd) = (a - d, b - d, c - d);
+    let bc = bd.y * cd.z - bd.z * cd.y;
+    let ca = cd.y * ad.z - cd.z * ad.y;
+    let ab = ad.y * bd.z - ad.z * bd.y;
+    let det = ad.x * bc + bd.x * ca + cd.x * ab;
+    let permanent = ((bd.y * cd.z).abs() + (bd.z * cd.y).abs()) * ad.x.abs()
+        + ((cd.y * ad.z).abs() + (cd.z * ad.y).abs()) * bd.x.abs()
+        + ((ad.y * bd.z).abs() + (ad.z * bd.y).abs()) * cd.x.abs();
+    (det, ORIENT3_ERROR * permanent + TINY)
+}
+
+/// What the exact crossing test ([`crate::voxel::query`]'s `crossing`) says of triangle `t` and the ray from `q`
+/// towards -x, where the bounds tell: the sign of the triangle's `n_x` where the ray crosses it at or before `q`,
+/// else 0; [`UNSURE_CROSSING`] where `q` is too near an edge's shadow or the plane, or the triangle too near
+/// edge-on, to say. Wherever it says, it says what the exact test does, tie rules included: a tie is never
+/// certain.
+pub fn crossing_certain(t: [Vec3; 3], q: Vec3) -> i32 {
+    let (mut above, mut below) = (0u32, 0u32);
+    for i in 0..3 {
+        let (e, bound) = orient_yz(t[i], t[(i + 1) % 3], q);
+        if e > bound {
+            above += 1;
+        } else if e < -bound {
+            below += 1;
+        }
+    }
+    // Edges certainly on both sides of q: outside the shadow, whichever way the triangle faces.
+    if above > 0 && below > 0 {
+        return 0;
+    }
+    let (n, bound) = orient_yz(t[0], t[1], t[2]);
+    if n.abs() <= bound {
+        return UNSURE_CROSSING;
+    }
+    let sign = if n > 0.0 { 1 } else { -1 };
+    let (inside, outside) = if sign > 0 { (above, below) } else { (below, above) };
+    if outside > 0 {
+        return 0;
+    }
+    if inside < 3 {
+        return UNSURE_CROSSING;
+    }
+    let (side, bound) = orient_xyz(t[0], t[1], t[2], q);
+    if side.abs() <= bound {
+        return UNSURE_CROSSING;
+    }
+    // -orient3d is q's side along the triangle's normal: the crossing is at or before q where it has n_x's sign.
+    if (-side > 0.0) == (sign > 0) { sign } else { 0 }
+}
+
+/// The signed crossings before `p` as the host's `crossings_before` counts them (less the sum of
+/// [`crossing_certain`] over the triangles whose boxes the ray from `p` towards -x meets), and whether one was
+/// undecided (then the count is not to be used).
+pub fn walk_crossings(tables: &NearestTables, p: Vec3) -> (i32, bool) {
+    let mut count = 0;
+    let mut stack = [0u32; STACK];
+    let mut len = usize::from(!tables.nodes.is_empty());
+    while len > 0 {
+        len -= 1;
+        let entry = stack[len];
+        let (first, n) = (entry >> 4, entry & 15);
+        if n > 0 {
+            for j in first..first + n {
+                let c = crossing_certain(tables.triangles[j as usize], p);
+                if c == UNSURE_CROSSING {
+                    return (count, true);
+                }
+                count -= c;
+            }
+            continue;
+        }
+        let node = &tables.nodes[first as usize];
+        for k in 0..4 {
+            if node.first[k] == EMPTY_LANE {
+                continue;
+            }
+            let meets = node.lo[1][k] <= p.y
+                && p.y <= node.hi[1][k]
+                && node.lo[2][k] <= p.z
+                && p.z <= node.hi[2][k]
+                && node.lo[0][k] <= p.x;
+            if meets {
+                stack[len] = pack_entry(node.first[k], node.count[k]);
+                len += 1;
+            }
+        }
+    }
+    (count, false)
+}
+
+/// `p`'s side of the mesh: 1 where its winding number is certainly at least ½, 0 where certainly below,
+/// [`UNDECIDED`] where a crossing or the winding number's bounds leave it open (the host's exact `inside` decides
+/// those). The boundary's term with the far budget first, then every piece summed where that left it open.
+pub fn point_inside(tables: &NearestTables, boundary: &Boundary, p: Vec3) -> u32 {
+    let (count, unsure) = walk_crossings(tables, p);
+    if unsure {
+        return UNDECIDED;
+    }
+    if boundary.edges.is_empty() {
+        return u32::from(count >= 1);
+    }
+    let (w, e, _, far) = winding_number_bounded(count, p, 0.0, boundary, FAR_BUDGET, ATAN2_CPU);
+    let side = certain_side(w, e, far, MARGIN);
+    if side == UNDECIDED && far > 0.0 {
+        let (w, e, _, _) = winding_number_bounded(count, p, 0.0, boundary, 0.0, ATAN2_CPU);
+        return certain_side(w, e, 0.0, MARGIN);
+    }
+    side
 }
