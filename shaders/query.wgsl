@@ -5,7 +5,10 @@
 // (winding_number_bounded, certain_side).
 //   nearest_points  one invocation per point: the least squared distance over every triangle (grid space of the
 //                   query frame), and of the triangles at it the first in the mesh's order, as (f32 bits, index);
-//                   (START, NONE) where none is nearer than START. Where `signed`, also the point's side: the
+//                   (START, NONE) where none is nearer than START. The index carries UNCERTAIN unless a second
+//                   walk proves that, in any f32 evaluation within QUERY_ERROR of this one (the CPU's), every
+//                   triangle sharing no vertex with it is farther: then the CPU's answer is it or one of its
+//                   neighbours, and the host compares just those. Where `signed`, also the point's side: the
 //                   signed crossings of the ray from it towards -x (each decided in f32 with Shewchuk's error
 //                   bounds) plus the holes' term, 0 outside, 1 inside, UNDECIDED where a bound does not tell.
 // The host answers the rest in world space and f64 from the triangle (nearest point, barycentric coordinates),
@@ -16,6 +19,9 @@ struct Params {
     row_threads: u32,
     // Whether to decide the points' sides (signed queries).
     signed: u32,
+    // The longest edge of any triangle in the frame (rounded up): how far a triangle's vertices can be from its
+    // nearest point.
+    reach: f32,
 }
 
 // The boundary's sizes, under the name shared/winding.wgsl reads them by (solid.wgsl's uniform has them too).
@@ -41,6 +47,16 @@ const STACK: u32 = 64u;
 const EMPTY_LANE: u32 = 0xffffffffu;
 const START: f32 = 1e38;
 const NONE: u32 = 0xffffffffu;
+// In `found`'s index: the host is to search for this point's nearest triangle itself.
+const UNCERTAIN: u32 = 0x80000000u;
+// In `order`: a triangle whose THIN test (nearest.wgsl's closest_barycentric) is within rounding of its threshold,
+// so that two evaluations may take different branches; below it, the mesh index.
+const NEAR_THIN: u32 = 0x80000000u;
+const INDEX: u32 = 0x7fffffffu;
+// How far apart two f32 evaluations of point_distance2 (the CPU's and a GPU's, whose fused multiply-adds and 2.5-ulp
+// division round otherwise) may be, relative to the largest squared offset in play: 2^-16, 64 times what an H200
+// was measured at.
+const QUERY_ERROR: f32 = 1.52587890625e-5;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> nodes: array<WideNode>;
@@ -89,9 +105,11 @@ fn pack_entry(first: u32, count: u32) -> u32 {
     return (first << 4u) | count;
 }
 
-fn walk_nearest(p: vec3<f32>) -> vec2<u32> {
+// (squared distance bits, mesh index, leaf-order index) of p's nearest triangle.
+fn walk_nearest(p: vec3<f32>) -> vec3<u32> {
     var best = START;
     var found_id = NONE;
+    var found_leaf = NONE;
     var stack: array<vec2<u32>, STACK>;
     stack[0] = vec2<u32>(0u, 0u);
     var len = 1u;
@@ -111,10 +129,11 @@ fn walk_nearest(p: vec3<f32>) -> vec2<u32> {
                     continue;
                 }
                 let d2 = point_distance2(p, t);
-                let id = order[j];
+                let id = order[j] & INDEX;
                 if d2 < best || (d2 == best && id < found_id) {
                     best = d2;
                     found_id = id;
+                    found_leaf = j;
                 }
             }
             continue;
@@ -143,7 +162,69 @@ fn walk_nearest(p: vec3<f32>) -> vec2<u32> {
         }
         len += n;
     }
-    return vec2<u32>(bitcast<u32>(best), found_id);
+    return vec3<u32>(bitcast<u32>(best), found_id, found_leaf);
+}
+
+// Whether triangles t and u have a vertex in common (the same point of the frame).
+fn shares_vertex(t: array<vec3<f32>, 3>, u: array<vec3<f32>, 3>) -> bool {
+    for (var i = 0u; i < 3u; i++) {
+        for (var k = 0u; k < 3u; k++) {
+            if all(t[i] == u[k]) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+// A bound on how far two f32 evaluations of point_distance2(p, t) may be apart: QUERY_ERROR of the largest squared
+// offset from p to a vertex.
+fn distance_error(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
+    let s = max(max(dot3(t[0] - p, t[0] - p), dot3(t[1] - p, t[1] - p)), dot3(t[2] - p, t[2] - p));
+    return QUERY_ERROR * s;
+}
+
+// Whether every triangle sharing no vertex with leaf-order triangle `leaf` (p's nearest, at squared distance
+// `best`) is certainly farther than it in any evaluation within distance_error of this one. A triangle at squared
+// distance d2 matters while d2 - QUERY_ERROR (sqrt(d2) + reach)^2 <= high, that is while sqrt(d2) <= (sqrt(high) +
+// sqrt(QUERY_ERROR) reach) / (1 - sqrt(QUERY_ERROR)): the walk opens everything within that.
+fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> bool {
+    let b = triangle(leaf);
+    if (order[leaf] & NEAR_THIN) != 0u {
+        return false;
+    }
+    let high = best + distance_error(p, b);
+    let root = (sqrt(high) + 0.00390625 * params.reach) / (1.0 - 0.00390625);
+    let limit = root * root * 1.0001;
+    var stack: array<u32, STACK>;
+    stack[0] = 0u;
+    var len = 1u;
+    while len > 0u {
+        len -= 1u;
+        let entry = stack[len];
+        let first = entry >> 4u;
+        let n = entry & 15u;
+        if n > 0u {
+            for (var j = first; j < first + n; j++) {
+                let t = triangle(j);
+                if j == leaf || may_skip(p, t, limit) || shares_vertex(t, b) {
+                    continue;
+                }
+                if (order[j] & NEAR_THIN) != 0u || point_distance2(p, t) - distance_error(p, t) <= high {
+                    return false;
+                }
+            }
+            continue;
+        }
+        let node = nodes[first];
+        for (var k = 0u; k < 4u; k++) {
+            if node.first[k] != EMPTY_LANE && child_distance2(node, k, p) <= limit {
+                stack[len] = pack_entry(node.first[k], node.count[k]);
+                len += 1u;
+            }
+        }
+    }
+    return true;
 }
 
 // The orientation of (a, b, c) in the YZ plane (positive counterclockwise, as Shewchuk's orient2d on (y, z)) and
@@ -277,7 +358,12 @@ fn nearest_points(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let p = vec3<f32>(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
-    found[i] = walk_nearest(p);
+    let near = walk_nearest(p);
+    var id = near.y;
+    if id != NONE && !nearest_certain(p, bitcast<f32>(near.x), near.z) {
+        id |= UNCERTAIN;
+    }
+    found[i] = vec2<u32>(near.x, id);
     if params.signed != 0u {
         sides[i] = point_inside(p);
     }

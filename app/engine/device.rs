@@ -454,11 +454,12 @@ impl OnGpu {
         Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
     }
 
-    /// Whether this device's query walk may decide the points' sides. Not on GL: there the walk compiled from
-    /// `shaders/query.wgsl` misses triangles (Mesa's llvmpipe: about a third of the sides wrong, and some points
-    /// with no nearest triangle), so the host decides every side there, as it confirms every nearest triangle on
-    /// every adapter.
-    pub(super) fn decides_sides(&self) -> bool {
+    /// Whether this device's query walk may decide the points' sides and prove its nearest triangles. Not on GL:
+    /// there the walk compiled from `shaders/query.wgsl` misses triangles (Mesa's llvmpipe: about a third of the
+    /// sides wrong, and some points with no nearest triangle), so the host decides every side there and searches
+    /// for every nearest triangle from the GPU's. (Native clients only: the page asks no queries.)
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
+    pub(super) fn trusts_walk(&self) -> bool {
         self.gpu.summary.backend != format!("{:?}", wgpu::Backend::Gl)
     }
 

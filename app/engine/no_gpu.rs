@@ -76,7 +76,7 @@ impl OnGpu {
         match *self {}
     }
 
-    pub(super) fn decides_sides(&self) -> bool {
+    pub(super) fn trusts_walk(&self) -> bool {
         match *self {}
     }
 

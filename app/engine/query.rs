@@ -6,6 +6,7 @@
 //! is the exact one. Native only: the page asks no queries.
 
 use super::{Backend, Engine, EngineError, Notice, ms};
+use crate::voxel::cpu::query::UNCERTAIN;
 use crate::voxel::query::{Answers, Prepared, Sign};
 use crate::voxel::sample::{SampleRequest, Samples, draw};
 use glam::DVec3;
@@ -30,14 +31,16 @@ pub struct Queried {
     pub backend: String,
     /// Milliseconds the GPU's search took (its turn included), where it ran.
     pub gpu_ms: Option<f64>,
-    /// Points whose nearest triangle or sign the host decided or confirmed rather than the device: every point
-    /// today (the host confirms each triangle a GPU proposes; it decides the sides a GPU leaves open).
+    /// Points whose nearest triangle the host searched for (the GPU could not prove that only its triangle's
+    /// neighbours can be nearer) or whose side it decided (the GPU's bounds left it open, or it decides none: a
+    /// winding number's value asked for, GL). Every other point's triangle is settled on the host among the GPU's
+    /// and its neighbours, by the CPU's f32 and tie rule ([`Prepared::query_found`]); all points on the CPU.
     pub host_decided: u64,
     /// Milliseconds the calling thread waited for the GPU's search after its own work (the signs) was done;
     /// `None` on the CPU.
     pub wait_ms: Option<f64>,
     /// The query's time less `wait_ms`: the host's own work (placing the points, the sides the GPU did not
-    /// decide, confirming each proposed triangle, the f64 answers).
+    /// decide, settling or searching for each triangle, the f64 answers).
     pub host_work_ms: f64,
     /// What happened on the way (the CPU standing in for the GPU).
     pub notices: Vec<Notice>,
@@ -63,7 +66,7 @@ impl Engine {
         self.blocking(|| {
             let placed = prepared.place(points).map_err(EngineError::Query)?;
             let tables = prepared.nearest_tables();
-            let device_sides = prepared.device_sides(sign, winding).filter(|_| on.decides_sides());
+            let device_sides = prepared.device_sides(sign, winding).filter(|_| on.trusts_walk());
             let mut notices = Vec::new();
             // The GPU searches on a thread of its own while this one decides the signs on the library's pool where
             // the GPU does not (winding numbers' values, which the host sums to their tolerance).
@@ -84,10 +87,11 @@ impl Engine {
                 Some(_) => self.label(),
                 None => self.cpu_label(),
             };
-            let proposed = found.unwrap_or_default();
-            let (answers, _host_sides) = prepared.query_found(points, &placed, &proposed, sides, sign, winding);
-            // Each proposal is confirmed by the host's own walk; the sides the device left open are the host's.
-            let host_decided = points.len() as u64;
+            let mut proposed = found.unwrap_or_default();
+            if !on.trusts_walk() {
+                proposed.nearest.iter_mut().for_each(|f| f.1 |= UNCERTAIN);
+            }
+            let (answers, host_decided) = prepared.query_found(points, &placed, &proposed, sides, sign, winding);
             let host_work_ms = ms(start) - wait_ms;
             let wait_ms = Some(wait_ms);
             Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), host_decided, wait_ms, host_work_ms, notices })

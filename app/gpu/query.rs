@@ -34,7 +34,7 @@ struct Params {
     points: u32,
     row_threads: u32,
     signed: u32,
-    _pad: u32,
+    reach: f32,
 }
 
 /// The compiled pass, reusable on one device.
@@ -61,7 +61,8 @@ impl GpuQuery {
     }
 
     /// The nearest triangle of each point of `frame` (the query frame's coordinates): `(squared distance, mesh
-    /// index)` as [`crate::voxel::cpu::query::walk_nearest`] answers, taking the points in `order`; and where
+    /// index)` as [`crate::voxel::cpu::query::nearest_point`] answers (the index marked `UNCERTAIN` where the host
+    /// is to search), taking the points in `order`; and where
     /// `boundary` is given (a signed query: the mesh's open boundary, empty on a closed mesh), each point's side as
     /// [`crate::voxel::cpu::query::point_inside`] decides it.
     pub async fn nearest(
@@ -111,7 +112,7 @@ impl GpuQuery {
         for (c, chunk) in sorted.chunks(per_chunk).enumerate() {
             let buffer = scoped(device, || {
                 let (x, y) = dispatch_2d((chunk.len() as u32).div_ceil(WG));
-                let params = Params { points: chunk.len() as u32, row_threads: x * WG, signed, _pad: 0 };
+                let params = Params { points: chunk.len() as u32, row_threads: x * WG, signed, reach: tables.reach };
                 let params = init("query params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
                 let points = init("query points", bytemuck::cast_slice(chunk), storage);
                 let answers = super::util::storage_buffer(

@@ -12,8 +12,8 @@
 //! minimum is bit for bit the minimum over every triangle.
 
 use super::cpu::common::dot3;
-use super::cpu::nearest::point_distance2;
-use super::cpu::query::{EMPTY_LANE, NearestTables, WideNode};
+use super::cpu::nearest::{near_thin, point_distance2};
+use super::cpu::query::{EMPTY_LANE, NEAR_THIN, NearestTables, WideNode};
 use glam::{Vec3, Vec4};
 
 /// Triangles per leaf.
@@ -339,7 +339,11 @@ impl Bvh {
                 node
             })
             .collect();
-        NearestTables { nodes, triangles: self.triangles.clone(), order: self.order.clone(), depth: self.depth() }
+        let order = self.order.iter().zip(&self.triangles).map(|(&i, &t)| if near_thin(t) { i | NEAR_THIN } else { i });
+        // The longest edge, a little more than rounding up.
+        let reach = self.triangles.iter().flat_map(|t| [t[1] - t[0], t[2] - t[1], t[0] - t[2]]).map(Vec3::length);
+        let reach = reach.fold(0.0f32, f32::max) * (1.0 + 1e-5);
+        NearestTables { nodes, triangles: self.triangles.clone(), order: order.collect(), reach, depth: self.depth() }
     }
 
     /// Levels of the 4-wide tree (0 without triangles).

@@ -15,7 +15,7 @@
 
 use super::bvh::Bvh;
 use super::cpu::nearest::point_distance2;
-use super::cpu::query::{FAR, NONE, NearestTables, UNDECIDED};
+use super::cpu::query::{FAR, INDEX, NONE, NearestTables, UNCERTAIN, UNDECIDED};
 use super::cpu::solid::{
     ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
 };
@@ -85,6 +85,46 @@ pub struct Prepared {
     boundary: Boundary,
     /// The hierarchy as the GPU reads it, made at the first GPU query and kept for the next.
     tables: std::sync::OnceLock<NearestTables>,
+    /// Each triangle's neighbours, made with the tables.
+    neighbours: std::sync::OnceLock<Neighbours>,
+}
+
+/// The triangles that share a vertex (the same point of the frame) with each triangle: triangle `t`'s are
+/// `list[first[t]..first[t + 1]]`, itself left out. Where a GPU proves that no other triangle can be nearer a
+/// point than its nearest one, the CPU's nearest is that one or one of these.
+struct Neighbours {
+    first: Vec<u32>,
+    list: Vec<u32>,
+}
+
+impl Neighbours {
+    fn of(frame: &[[Vec3; 3]]) -> Neighbours {
+        // The vertex as bits, -0 as 0 (the shader compares values).
+        let key = |v: Vec3| (v + Vec3::ZERO).to_array().map(f32::to_bits);
+        let mut corners: Vec<([u32; 3], u32)> =
+            frame.iter().enumerate().flat_map(|(t, tri)| tri.iter().map(move |&v| (key(v), t as u32))).collect();
+        corners.sort_unstable();
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); frame.len()];
+        for group in corners.chunk_by(|a, b| a.0 == b.0) {
+            for &(_, t) in group {
+                lists[t as usize].extend(group.iter().map(|&(_, u)| u).filter(|&u| u != t));
+            }
+        }
+        let mut first = Vec::with_capacity(frame.len() + 1);
+        let mut list = Vec::new();
+        first.push(0);
+        for mut l in lists {
+            l.sort_unstable();
+            l.dedup();
+            list.extend(l);
+            first.push(list.len() as u32);
+        }
+        Neighbours { first, list }
+    }
+
+    fn around(&self, t: u32) -> &[u32] {
+        &self.list[self.first[t as usize] as usize..self.first[t as usize + 1] as usize]
+    }
 }
 
 /// The answers for a list of points, one entry per point in each.
@@ -129,7 +169,8 @@ impl Prepared {
         let lattice = Lattice::fit(&frame, spec.dims)?;
         let (bvh, boundary) =
             crate::parallel::install(|| rayon::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
-        Ok(Prepared { spec, frame, mesh, bvh, boundary, tables: std::sync::OnceLock::new() })
+        let (tables, neighbours) = (std::sync::OnceLock::new(), std::sync::OnceLock::new());
+        Ok(Prepared { spec, frame, mesh, bvh, boundary, tables, neighbours })
     }
 
     /// The mesh as loaded.
@@ -171,8 +212,10 @@ impl Prepared {
         Ok(Placed { frame, order })
     }
 
-    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]), made once per prepared mesh.
+    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]), made once per prepared mesh (with the
+    /// triangles' neighbours, which its answers are settled among).
     pub fn nearest_tables(&self) -> &NearestTables {
+        self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
         self.tables.get_or_init(|| self.bvh.tables())
     }
 
@@ -191,18 +234,22 @@ impl Prepared {
     }
 
     /// [`Prepared::query`]'s answers where the nearest triangles were proposed elsewhere: `found[i]`, `(squared
-    /// distance in the frame, triangle)` as [`super::cpu::query::walk_nearest`] gives it, for point `i`. Each
-    /// proposal seeds this CPU's own walk, which confirms it or finds the triangle the tie rule names (the first in
-    /// the mesh at the least distance in this CPU's f32 arithmetic). Why not take the proposal as it is: a GPU's
-    /// f32 is not the CPU's (fused multiply-adds, WGSL's 2.5-ulp division), so where two triangles are nearly or
-    /// exactly as near (a point nearest a shared vertex or edge) it can name the other one, as an H200 did on 1M
-    /// points around the bunny. Seeded with the nearest triangle, the walk opens only the nodes at that distance.
-    /// A point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
-    /// may overflow) is walked from its neighbour's triangle, as [`Prepared::query`] does.
+    /// distance in the frame, triangle)` as [`super::cpu::query::nearest_point`] gives it, for point `i`. The answer
+    /// is this CPU's: the first triangle in the mesh at the least distance in its own f32 arithmetic. Why not take
+    /// the proposal as it is: a GPU's f32 is not the CPU's (fused multiply-adds, WGSL's 2.5-ulp division), so where
+    /// two triangles are nearly or exactly as near (a point nearest a shared vertex or edge) it can name the other
+    /// one, as an H200 did on 1M points around the bunny. So:
+    /// - a proposal the device proved (no [`UNCERTAIN`]: every triangle sharing no vertex with it is farther, in any
+    ///   evaluation within the bound of the device's) is settled among it and its neighbours here, by this CPU's
+    ///   arithmetic and the tie rule: the CPU's nearest is one of them;
+    /// - an [`UNCERTAIN`] one seeds this CPU's own walk, which finds the triangle the tie rule names, opening only
+    ///   the nodes at that distance;
+    /// - a point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
+    ///   may overflow) is walked from its neighbour's triangle, as [`Prepared::query`] does.
     ///
     /// The sides are `sides` where the host computed them all; else the device's (`proposed.sides`), and the
     /// host's exact [`Prepared::inside`] where the device left one [`UNDECIDED`] or the point is beyond [`FAR`].
-    /// Returns the answers and how many sides the host decided.
+    /// Returns the answers and how many points the host searched for or decided the side of.
     pub fn query_found(
         &self,
         points: &[DVec3],
@@ -227,21 +274,43 @@ impl Prepared {
             }),
             (None, None) => self.sides(placed, sign, winding).0,
         };
-        let host_sides = sides.iter().filter(|s| matches!(s, Some(Side::Host(_)))).count() as u64;
+        let neighbours = self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
         let nears = along_curve(&placed.order, |i, last| {
             let q = placed.frame[i];
-            let near = match found.get(i) {
-                Some(&(_, triangle))
-                    if triangle != NONE && (triangle as usize) < self.frame.len() && q.abs().max_element() <= FAR =>
+            let (near, searched) = match found.get(i) {
+                Some(&(_, word))
+                    if word != NONE && (word & INDEX) < self.frame.len() as u32 && q.abs().max_element() <= FAR =>
                 {
-                    self.nearest(points[i], q, Some(triangle))
+                    let triangle = word & INDEX;
+                    if word & UNCERTAIN == 0 {
+                        (self.nearest_among(points[i], q, triangle, neighbours.around(triangle)), false)
+                    } else {
+                        (self.nearest(points[i], q, Some(triangle)), true)
+                    }
                 }
-                _ => self.nearest(points[i], q, *last),
+                _ => (self.nearest(points[i], q, *last), true),
             };
             *last = Some(near.triangle);
-            near
+            (near, searched)
         });
-        (assemble(nears.into_iter().zip(sides).collect(), sign, winding), host_sides)
+        let host =
+            nears.iter().zip(&sides).filter(|((_, searched), side)| *searched || matches!(side, Some(Side::Host(_))));
+        let host = host.count() as u64;
+        let answers = assemble(nears.into_iter().map(|(near, _)| near).zip(sides).collect(), sign, winding);
+        (answers, host)
+    }
+
+    /// The nearest of triangle `t` and its `neighbours` to frame point `q` by this CPU's arithmetic, the first in
+    /// the mesh where they are as near (the tie rule), and its nearest point to `p` in world space.
+    fn nearest_among(&self, p: DVec3, q: Vec3, t: u32, neighbours: &[u32]) -> Near {
+        let mut best = (point_distance2(q, self.frame[t as usize]), t);
+        for &u in neighbours {
+            let d2 = point_distance2(q, self.frame[u as usize]);
+            if d2 < best.0 || (d2 == best.0 && u < best.1) {
+                best = (d2, u);
+            }
+        }
+        self.near_of(p, best.1, 1 + neighbours.len() as u32)
     }
 
     /// What a signed query says of frame point `q`: the winding number's value, or only its side of ½.
@@ -408,7 +477,8 @@ enum Side {
 /// What a device proposes for a list of points ([`Prepared::query_found`] makes the answers of it).
 #[derive(Clone, Debug, Default)]
 pub struct Proposed {
-    /// Per point `(squared distance in the frame, triangle)`, as [`super::cpu::query::walk_nearest`] gives it.
+    /// Per point `(squared distance in the frame, triangle)`, as [`super::cpu::query::nearest_point`] gives it (the
+    /// triangle marked [`UNCERTAIN`] where the host is to search).
     pub nearest: Vec<(f32, u32)>,
     /// Per point its side where the device decided them ([`super::cpu::query::point_inside`]: 0 outside, 1
     /// inside, 2 left to the host), for a signed query that asks for no winding numbers.

@@ -506,12 +506,14 @@ fn host_decided_counts_the_voxels_and_points_the_host_decided() {
     let sign_bytes = readback - surface_readback - leaves * 512 * 4;
     let sign_range = if sign_on_cpu { 0..=0 } else { solid_readback.saturating_sub(48)..=solid_readback };
     assert!(sign_range.contains(&sign_bytes), "the field read back {readback} bytes, {sign_bytes} for its sign");
-    // Queries: the host confirms every nearest triangle the GPU proposes and decides every sign; its own work is
-    // counted apart from its wait for the search.
+    // Queries: the GPU proves its nearest triangles and decides the sides, the host searching for or deciding only
+    // what it could not (none of these points: a return to host-side decisions fails here), except on GL, whose
+    // walk the engine does not trust; the host's own work is counted apart from its wait for the search.
     let started = std::time::Instant::now();
     let on_gpu = engine.query(&prepared, &points, sign, false).expect("query");
     let total = started.elapsed().as_secs_f64() * 1e3;
-    assert_eq!(on_gpu.host_decided, 500);
+    let trusted = !on_gpu.backend.contains("(Gl,");
+    assert_eq!(on_gpu.host_decided, if trusted { 0 } else { 500 }, "the host's points on {}", on_gpu.backend);
     let wait = on_gpu.wait_ms.expect("a GPU query's wait");
     assert!(wait >= 0.0 && on_gpu.host_work_ms > 0.0 && wait + on_gpu.host_work_ms <= total, "{wait} {total}");
 }

@@ -122,9 +122,9 @@ def test_query_errors_are_clear(meshes):
 
 
 def test_the_gpu_answers_as_the_cpu_does(meshes):
-    # backend="gpu" finds the nearest triangles on the GPU (lavapipe here) and decides the signs on the CPU: every
-    # answer equals the CPU's wherever the point is off the surface (on it, two triangles through the point may
-    # each be first for their walk, at the same distance).
+    # backend="gpu" finds the nearest triangles and the signs on the GPU (lavapipe here), the host settling each
+    # triangle among the GPU's and its neighbours: every answer equals the CPU's wherever the point is off the
+    # surface (on it, two triangles through the point may each be first for their walk, at the same distance).
     bunny = meshvox.Mesh(meshes / "stanford-bunny.obj")
     vertices, _ = meshvox.load(meshes / "stanford-bunny.obj")
     size = np.ptp(vertices, axis=0).max()
@@ -134,8 +134,10 @@ def test_the_gpu_answers_as_the_cpu_does(meshes):
     gpu = meshvox.query(bunny, points, backend="gpu")
     cpu = meshvox.query(bunny, points, backend="cpu")
     assert gpu.backend.startswith("gpu") and cpu.backend.startswith("cpu"), (gpu.backend, cpu.backend)
-    # Every point is still the host's to confirm; a GPU query splits its wait for the search from its own work.
-    assert gpu.host_decided == cpu.host_decided == len(points)
+    # The host searches for or signs few points of a GPU query: at most those on the surface (the vertices, whose
+    # sides no bound decides) and 0.2% of the others; a GPU query splits its wait for the search from its own work.
+    assert cpu.host_decided == len(points)
+    assert gpu.host_decided <= 2000 + 40, gpu.host_decided
     assert cpu.wait_ms is None and cpu.host_work_ms > 0
     assert gpu.wait_ms is not None and gpu.wait_ms >= 0 and gpu.host_work_ms > 0
     assert np.array_equal(gpu.inside, cpu.inside)

@@ -22,6 +22,15 @@ pub fn reach_range(t: [Vec3; 3], dims: UVec3, reach: f32) -> (IVec3, IVec3) {
 /// is thin, and [`closest_barycentric`] measures its edges too.
 pub const THIN: f32 = 1.0 / 1024.0;
 
+/// Whether triangle `t`'s `THIN` test in [`closest_barycentric`] is within a thousandth of its threshold (in f64),
+/// so that two f32 evaluations of it (the CPU's, a GPU's) may decide it otherwise: then their distances may be far
+/// apart (a GPU query treats its points as uncertain, `shaders/query.wgsl`'s `NEAR_THIN`).
+pub fn near_thin(t: [Vec3; 3]) -> bool {
+    let (ab, ac) = ((t[1] - t[0]).as_dvec3(), (t[2] - t[0]).as_dvec3());
+    let (n2, scale) = (ab.cross(ac).length_squared(), ab.length_squared() * ac.length_squared());
+    (n2 - f64::from(THIN) * scale).abs() <= 1e-3 * f64::from(THIN) * scale && scale > 0.0
+}
+
 /// Barycentric weights of the point of triangle `abc` nearest `p`: by Voronoi regions ([`voronoi_barycentric`]),
 /// and for a thin triangle the nearer of that point (where it is one of the triangle's) and the nearest point of
 /// its edges ([`nearest_on_edges`]). Why: a thin triangle's regions hang on products that rounding decides (exactly

@@ -36,6 +36,25 @@ pub const FAR: f32 = 1048576.0;
 /// What a walk found where no triangle is nearer than [`START`] (no triangle, or every distance overflowed).
 pub const NONE: u32 = u32::MAX;
 
+/// In a found triangle's index: the host is to search for the point's nearest triangle itself
+/// ([`nearest_certain`] could not prove that only the found triangle's neighbours can be nearer).
+pub const UNCERTAIN: u32 = 1 << 31;
+
+/// In [`NearestTables::order`]: a triangle whose `THIN` test ([`super::nearest::closest_barycentric`]) is within
+/// rounding of its threshold, so that two f32 evaluations may take different branches; below it, the mesh index.
+pub const NEAR_THIN: u32 = 1 << 31;
+
+/// The mesh index in a word of [`NearestTables::order`] or of a found triangle.
+pub const INDEX: u32 = !(1 << 31);
+
+/// How far apart two f32 evaluations of [`point_distance2`] (the CPU's and a GPU's, whose fused multiply-adds and
+/// 2.5-ulp division round otherwise) may be, relative to the largest squared offset in play: 2^-16, 64 times what
+/// an H200 was measured at (`tests/it/query_gpu.rs` holds hardware to 64 ulps of it).
+pub const QUERY_ERROR: f32 = 1.0 / 65536.0;
+
+/// `QUERY_ERROR`'s square root.
+const ROOT_ERROR: f32 = 1.0 / 256.0;
+
 /// One node of the 4-wide tree as the shader reads it: the four children's boxes by coordinate, and each child a
 /// node (`count` 0, `first` its index), a leaf (`count` triangles from `first` in leaf order), or no child
 /// (`first` [`EMPTY_LANE`]).
@@ -54,8 +73,10 @@ pub struct NearestTables {
     pub nodes: Vec<WideNode>,
     /// The triangles in leaf order, grid space of the query frame.
     pub triangles: Vec<[Vec3; 3]>,
-    /// Each leaf-order triangle's index in the mesh.
+    /// Each leaf-order triangle's index in the mesh, with [`NEAR_THIN`] where its `THIN` test is within rounding.
     pub order: Vec<u32>,
+    /// The longest edge of any triangle, rounded up: how far a triangle's vertices can be from its nearest point.
+    pub reach: f32,
     /// Levels of the 4-wide tree.
     pub depth: usize,
 }
@@ -86,10 +107,10 @@ pub fn pack_entry(first: u32, count: u32) -> u32 {
     first << 4 | count
 }
 
-/// `p`'s nearest triangle: `(squared distance, mesh index)`, or `(START, NONE)` where none is nearer than
-/// [`START`]. Children are pushed nearest last, so the nearest is walked first.
-pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32) {
-    let (mut best, mut found) = (START, NONE);
+/// `p`'s nearest triangle: `(squared distance, mesh index, leaf-order index)`, or `(START, NONE, NONE)` where none
+/// is nearer than [`START`]. Children are pushed nearest last, so the nearest is walked first.
+pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32, u32) {
+    let (mut best, mut found, mut leaf) = (START, NONE, NONE);
     let mut stack = [(0u32, 0.0f32); STACK];
     let mut len = usize::from(!tables.nodes.is_empty());
     while len > 0 {
@@ -106,9 +127,9 @@ pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32) {
                     continue;
                 }
                 let d2 = point_distance2(p, t);
-                let id = tables.order[j as usize];
+                let id = tables.order[j as usize] & INDEX;
                 if d2 < best || (d2 == best && id < found) {
-                    (best, found) = (d2, id);
+                    (best, found, leaf) = (d2, id, j);
                 }
             }
             continue;
@@ -135,7 +156,68 @@ pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32) {
         stack[len..len + n].copy_from_slice(&open[..n]);
         len += n;
     }
-    (best, found)
+    (best, found, leaf)
+}
+
+/// Whether triangles `t` and `u` have a vertex in common (the same point of the frame).
+pub fn shares_vertex(t: [Vec3; 3], u: [Vec3; 3]) -> bool {
+    t.iter().any(|a| u.contains(a))
+}
+
+/// A bound on how far two f32 evaluations of [`point_distance2`]`(p, t)` may be apart: [`QUERY_ERROR`] of the
+/// largest squared offset from `p` to a vertex.
+pub fn distance_error(p: Vec3, t: [Vec3; 3]) -> f32 {
+    let s = t.map(|v| dot3(v - p, v - p));
+    QUERY_ERROR * s[0].max(s[1]).max(s[2])
+}
+
+/// Whether every triangle sharing no vertex with leaf-order triangle `leaf` (`p`'s nearest, at squared distance
+/// `best`) is certainly farther than it in any evaluation within [`distance_error`] of this one; then the CPU's
+/// nearest triangle (the first at its least f32 distance) is `leaf`'s or one of its neighbours'. A triangle at
+/// squared distance `d2` matters while `d2 - QUERY_ERROR (√d2 + reach)² <= high`, that is while `√d2 <= (√high +
+/// √QUERY_ERROR reach) / (1 - √QUERY_ERROR)`: the walk opens everything within that.
+pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) -> bool {
+    let b = tables.triangles[leaf as usize];
+    if tables.order[leaf as usize] & NEAR_THIN != 0 {
+        return false;
+    }
+    let high = best + distance_error(p, b);
+    let root = (high.sqrt() + ROOT_ERROR * tables.reach) / (1.0 - ROOT_ERROR);
+    let limit = root * root * 1.0001;
+    let mut stack = [0u32; STACK];
+    let mut len = 1;
+    while len > 0 {
+        len -= 1;
+        let entry = stack[len];
+        let (first, n) = (entry >> 4, entry & 15);
+        if n > 0 {
+            for j in first..first + n {
+                let t = tables.triangles[j as usize];
+                if j == leaf || may_skip(p, t, limit) || shares_vertex(t, b) {
+                    continue;
+                }
+                if tables.order[j as usize] & NEAR_THIN != 0 || point_distance2(p, t) - distance_error(p, t) <= high {
+                    return false;
+                }
+            }
+            continue;
+        }
+        let node = &tables.nodes[first as usize];
+        for k in 0..4 {
+            if node.first[k] != EMPTY_LANE && child_distance2(node, k, p) <= limit {
+                stack[len] = pack_entry(node.first[k], node.count[k]);
+                len += 1;
+            }
+        }
+    }
+    true
+}
+
+/// What the shader's `nearest_points` writes for `p`: [`walk_nearest`]'s squared distance and mesh index, the index
+/// with [`UNCERTAIN`] unless [`nearest_certain`].
+pub fn nearest_point(tables: &NearestTables, p: Vec3) -> (f32, u32) {
+    let (best, id, leaf) = walk_nearest(tables, p);
+    if id != NONE && !nearest_certain(tables, p, best, leaf) { (best, id | UNCERTAIN) } else { (best, id) }
 }
 
 /// Shewchuk's orient2d error bound for f32, `(3 + 16u)u` of the permanent with `u = 2^-24`, four times over: a
