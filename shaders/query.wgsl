@@ -49,14 +49,18 @@ const START: f32 = 1e38;
 const NONE: u32 = 0xffffffffu;
 // In `found`'s index: the host is to search for this point's nearest triangle itself.
 const UNCERTAIN: u32 = 0x80000000u;
+// In `found`'s index: a neighbour of the found triangle may be as near in another evaluation; the host settles
+// among them (without it, the found triangle is the nearest in any evaluation within the bound).
+const TIED: u32 = 0x40000000u;
 // In `order`: a triangle whose THIN test (nearest.wgsl's closest_barycentric) is within rounding of its threshold,
 // so that two evaluations may take different branches; below it, the mesh index.
 const NEAR_THIN: u32 = 0x80000000u;
-const INDEX: u32 = 0x7fffffffu;
+const INDEX: u32 = 0x3fffffffu;
 // How far apart two f32 evaluations of point_distance2 (the CPU's and a GPU's, whose fused multiply-adds and 2.5-ulp
-// division round otherwise) may be, relative to the largest squared offset in play: 2^-16, 64 times what an H200
-// was measured at.
-const QUERY_ERROR: f32 = 1.52587890625e-5;
+// division round otherwise) may be, relative to the largest squared offset in play: 2^-18 (32 ulps), 16 times what
+// an H200 was measured at. ROOT_ERROR is its square root.
+const QUERY_ERROR: f32 = 3.814697265625e-6;
+const ROOT_ERROR: f32 = 0.001953125;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> nodes: array<WideNode>;
@@ -184,17 +188,19 @@ fn distance_error(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
     return QUERY_ERROR * s;
 }
 
-// Whether every triangle sharing no vertex with leaf-order triangle `leaf` (p's nearest, at squared distance
-// `best`) is certainly farther than it in any evaluation within distance_error of this one. A triangle at squared
-// distance d2 matters while d2 - QUERY_ERROR (sqrt(d2) + reach)^2 <= high, that is while sqrt(d2) <= (sqrt(high) +
-// sqrt(QUERY_ERROR) reach) / (1 - sqrt(QUERY_ERROR)): the walk opens everything within that.
-fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> bool {
+// What a second walk proves of leaf-order triangle `leaf` (p's nearest, at squared distance `best`) in any
+// evaluation within distance_error of this one: UNCERTAIN where a triangle sharing no vertex with it may be as
+// near, else TIED where a neighbour may be, else 0 (it is the nearest). A triangle at squared distance d2 matters
+// while d2 - QUERY_ERROR (sqrt(d2) + reach)^2 <= high, that is while sqrt(d2) <= (sqrt(high) + sqrt(QUERY_ERROR)
+// reach) / (1 - sqrt(QUERY_ERROR)): the walk opens everything within that.
+fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> u32 {
     let b = triangle(leaf);
     if (order[leaf] & NEAR_THIN) != 0u {
-        return false;
+        return UNCERTAIN;
     }
+    var tied = 0u;
     let high = best + distance_error(p, b);
-    let root = (sqrt(high) + 0.00390625 * params.reach) / (1.0 - 0.00390625);
+    let root = (sqrt(high) + ROOT_ERROR * params.reach) / (1.0 - ROOT_ERROR);
     let limit = root * root * 1.0001;
     var stack: array<u32, STACK>;
     stack[0] = 0u;
@@ -207,11 +213,14 @@ fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> bool {
         if n > 0u {
             for (var j = first; j < first + n; j++) {
                 let t = triangle(j);
-                if j == leaf || may_skip(p, t, limit) || shares_vertex(t, b) {
+                if j == leaf || may_skip(p, t, limit) {
                     continue;
                 }
                 if (order[j] & NEAR_THIN) != 0u || point_distance2(p, t) - distance_error(p, t) <= high {
-                    return false;
+                    if !shares_vertex(t, b) {
+                        return UNCERTAIN;
+                    }
+                    tied = TIED;
                 }
             }
             continue;
@@ -224,7 +233,7 @@ fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> bool {
             }
         }
     }
-    return true;
+    return tied;
 }
 
 // The orientation of (a, b, c) in the YZ plane (positive counterclockwise, as Shewchuk's orient2d on (y, z)) and
@@ -360,8 +369,8 @@ fn nearest_points(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = vec3<f32>(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
     let near = walk_nearest(p);
     var id = near.y;
-    if id != NONE && !nearest_certain(p, bitcast<f32>(near.x), near.z) {
-        id |= UNCERTAIN;
+    if id != NONE {
+        id |= nearest_certain(p, bitcast<f32>(near.x), near.z);
     }
     found[i] = vec2<u32>(near.x, id);
     if params.signed != 0u {

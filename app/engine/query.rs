@@ -64,8 +64,12 @@ impl Engine {
             return Ok(Queried { answers, backend, gpu_ms: None, host_decided, wait_ms: None, host_work_ms, notices });
         };
         self.blocking(|| {
+            let span = crate::trace::span("query: place points");
             let placed = prepared.place(points).map_err(EngineError::Query)?;
+            drop(span);
+            let span = crate::trace::span("query: tables");
             let tables = prepared.nearest_tables();
+            drop(span);
             let device_sides = prepared.device_sides(sign, winding).filter(|_| on.trusts_walk());
             let mut notices = Vec::new();
             // The GPU searches on a thread of its own while this one decides the signs on the library's pool where
@@ -91,8 +95,16 @@ impl Engine {
             if !on.trusts_walk() {
                 proposed.nearest.iter_mut().for_each(|f| f.1 |= UNCERTAIN);
             }
+            let span = crate::trace::span("query: settle and answer");
             let (answers, host_decided) = prepared.query_found(points, &placed, &proposed, sides, sign, winding);
+            drop(span);
             let host_work_ms = ms(start) - wait_ms;
+            if let Some(spans) = crate::trace::take() {
+                let n = points.len();
+                eprintln!(
+                    "trace: query of {n} points: host work {host_work_ms:.1} ms, waits for the device {wait_ms:.1} ms; {spans}"
+                );
+            }
             let wait_ms = Some(wait_ms);
             Ok(Queried { answers, backend, gpu_ms: Some(gpu_ms), host_decided, wait_ms, host_work_ms, notices })
         })

@@ -93,7 +93,9 @@ impl GpuQuery {
         if let Some(&big) = bytes.iter().find(|&&b| b > max) {
             return Err(GpuError::TooLarge { what: "the query hierarchy".into(), needed: big, limit: max });
         }
+        let span = crate::trace::span("query: order points");
         let sorted: Vec<Vec3> = order.iter().map(|&i| frame[i as usize]).collect();
+        drop(span);
         let mut found = vec![(0.0f32, 0u32); frame.len()];
         let mut sides = boundary.map(|_| vec![0u8; frame.len()]);
         let per_chunk = (max / 12).clamp(1, u64::from(u32::MAX / 2)) as usize;

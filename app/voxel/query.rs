@@ -15,7 +15,7 @@
 
 use super::bvh::Bvh;
 use super::cpu::nearest::point_distance2;
-use super::cpu::query::{FAR, INDEX, NONE, NearestTables, UNCERTAIN, UNDECIDED};
+use super::cpu::query::{FAR, INDEX, NONE, NearestTables, TIED, UNCERTAIN, UNDECIDED};
 use super::cpu::solid::{
     ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
 };
@@ -103,22 +103,44 @@ impl Neighbours {
         let key = |v: Vec3| (v + Vec3::ZERO).to_array().map(f32::to_bits);
         let mut corners: Vec<([u32; 3], u32)> =
             frame.iter().enumerate().flat_map(|(t, tri)| tri.iter().map(move |&v| (key(v), t as u32))).collect();
-        corners.sort_unstable();
-        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); frame.len()];
-        for group in corners.chunk_by(|a, b| a.0 == b.0) {
-            for &(_, t) in group {
-                lists[t as usize].extend(group.iter().map(|&(_, u)| u).filter(|&u| u != t));
+        corners.par_sort_unstable();
+        let groups: Vec<&[([u32; 3], u32)]> = corners.chunk_by(|a, b| a.0 == b.0).collect();
+        // Each triangle's list holds the others of its three corners' groups (a neighbour across an edge twice,
+        // until each list is sorted and its repeats dropped).
+        let mut first = vec![0u32; frame.len() + 1];
+        for group in &groups {
+            for &(_, t) in *group {
+                first[t as usize + 1] += group.len() as u32 - 1;
             }
         }
-        let mut first = Vec::with_capacity(frame.len() + 1);
-        let mut list = Vec::new();
-        first.push(0);
-        for mut l in lists {
-            l.sort_unstable();
-            l.dedup();
-            list.extend(l);
-            first.push(list.len() as u32);
+        for t in 0..frame.len() {
+            first[t + 1] += first[t];
         }
+        let mut list = vec![0u32; first[frame.len()] as usize];
+        let mut cursor = first.clone();
+        for group in &groups {
+            for &(_, t) in *group {
+                for &(_, u) in group.iter().filter(|&&(_, u)| u != t) {
+                    list[cursor[t as usize] as usize] = u;
+                    cursor[t as usize] += 1;
+                }
+            }
+        }
+        let (mut kept, mut start) = (0usize, 0usize);
+        for t in 0..frame.len() {
+            let end = first[t + 1] as usize;
+            list[start..end].sort_unstable();
+            first[t] = kept as u32;
+            for k in start..end {
+                if k == start || list[k] != list[k - 1] {
+                    list[kept] = list[k];
+                    kept += 1;
+                }
+            }
+            start = end;
+        }
+        first[frame.len()] = kept as u32;
+        list.truncate(kept);
         Neighbours { first, list }
     }
 
@@ -236,16 +258,16 @@ impl Prepared {
     /// [`Prepared::query`]'s answers where the nearest triangles were proposed elsewhere: `found[i]`, `(squared
     /// distance in the frame, triangle)` as [`super::cpu::query::nearest_point`] gives it, for point `i`. The answer
     /// is this CPU's: the first triangle in the mesh at the least distance in its own f32 arithmetic. Why not take
-    /// the proposal as it is: a GPU's f32 is not the CPU's (fused multiply-adds, WGSL's 2.5-ulp division), so where
+    /// every proposal as it is: a GPU's f32 is not the CPU's (fused multiply-adds, WGSL's 2.5-ulp division), so where
     /// two triangles are nearly or exactly as near (a point nearest a shared vertex or edge) it can name the other
     /// one, as an H200 did on 1M points around the bunny. So:
-    /// - a proposal the device proved (no [`UNCERTAIN`]: every triangle sharing no vertex with it is farther, in any
-    ///   evaluation within the bound of the device's) is settled among it and its neighbours here, by this CPU's
-    ///   arithmetic and the tie rule: the CPU's nearest is one of them;
+    /// - a proposal the device proved alone (no [`TIED`] or [`UNCERTAIN`]: every other triangle is farther in any
+    ///   evaluation within the bound of the device's) is the CPU's nearest;
+    /// - a [`TIED`] one (only its neighbours, the triangles sharing one of its vertices, may be as near) is settled
+    ///   among it and its neighbours here, by this CPU's arithmetic and the tie rule;
     /// - an [`UNCERTAIN`] one seeds this CPU's own walk, which finds the triangle the tie rule names, opening only
-    ///   the nodes at that distance;
-    /// - a point the search did not answer (`NONE`, missing, or beyond [`FAR`] in the frame, where a GPU's squares
-    ///   may overflow) is walked from its neighbour's triangle, as [`Prepared::query`] does.
+    ///   the nodes at that distance, and so does a point the search did not answer (`NONE`, missing, or beyond
+    ///   [`FAR`] in the frame, where a GPU's squares may overflow), from nothing.
     ///
     /// The sides are `sides` where the host computed them all; else the device's (`proposed.sides`), and the
     /// host's exact [`Prepared::inside`] where the device left one [`UNDECIDED`] or the point is beyond [`FAR`].
@@ -261,37 +283,41 @@ impl Prepared {
     ) -> (Answers, u64) {
         let found = &proposed.nearest[..];
         let device = proposed.sides.as_deref().filter(|s| s.len() == points.len());
+        let frame = &placed.frame;
+        let near = |q: Vec3| q.abs().max_element() <= FAR;
         let sides = match (sides, device) {
             (Some(sides), _) => sides.0,
-            (None, Some(device)) => along_curve(&placed.order, |i, _| {
-                let q = placed.frame[i];
-                match device[i] {
-                    side if u32::from(side) != UNDECIDED && q.abs().max_element() <= FAR => {
-                        Some(Side::Inside(side == 1))
-                    }
-                    _ => Some(Side::Host(self.inside(q))),
-                }
+            (None, Some(device)) => crate::parallel::install(|| {
+                (device, frame)
+                    .into_par_iter()
+                    .with_min_len(CHUNK)
+                    .map(|(&side, &q)| match u32::from(side) != UNDECIDED && near(q) {
+                        true => Some(Side::Inside(side == 1)),
+                        false => Some(Side::Host(self.inside(q))),
+                    })
+                    .collect()
             }),
             (None, None) => self.sides(placed, sign, winding).0,
         };
         let neighbours = self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
-        let nears = along_curve(&placed.order, |i, last| {
-            let q = placed.frame[i];
-            let (near, searched) = match found.get(i) {
-                Some(&(_, word))
-                    if word != NONE && (word & INDEX) < self.frame.len() as u32 && q.abs().max_element() <= FAR =>
-                {
-                    let triangle = word & INDEX;
-                    if word & UNCERTAIN == 0 {
-                        (self.nearest_among(points[i], q, triangle, neighbours.around(triangle)), false)
-                    } else {
-                        (self.nearest(points[i], q, Some(triangle)), true)
+        let triangles = self.frame.len() as u32;
+        let nears: Vec<(Near, bool)> = crate::parallel::install(|| {
+            (points, frame)
+                .into_par_iter()
+                .enumerate()
+                .with_min_len(CHUNK)
+                .map(|(i, (&p, &q))| match found.get(i) {
+                    Some(&(_, word)) if word != NONE && (word & INDEX) < triangles && near(q) => {
+                        let triangle = word & INDEX;
+                        match (word & UNCERTAIN != 0, word & TIED != 0) {
+                            (true, _) => (self.nearest(p, q, Some(triangle)), true),
+                            (false, true) => (self.nearest_among(p, q, triangle, neighbours.around(triangle)), false),
+                            (false, false) => (self.near_of(p, triangle, 1), false),
+                        }
                     }
-                }
-                _ => (self.nearest(points[i], q, *last), true),
-            };
-            *last = Some(near.triangle);
-            (near, searched)
+                    _ => (self.nearest(p, q, None), true),
+                })
+                .collect()
         });
         let host =
             nears.iter().zip(&sides).filter(|((_, searched), side)| *searched || matches!(side, Some(Side::Host(_))));

@@ -37,23 +37,29 @@ pub const FAR: f32 = 1048576.0;
 pub const NONE: u32 = u32::MAX;
 
 /// In a found triangle's index: the host is to search for the point's nearest triangle itself
-/// ([`nearest_certain`] could not prove that only the found triangle's neighbours can be nearer).
+/// ([`nearest_certain`] could not prove that only the found triangle's neighbours can be as near).
 pub const UNCERTAIN: u32 = 1 << 31;
+
+/// In a found triangle's index: a neighbour of the found triangle may be as near in another evaluation, and the
+/// host settles among them; without it (nor [`UNCERTAIN`]) the found triangle is the nearest in any evaluation
+/// within the bound.
+pub const TIED: u32 = 1 << 30;
 
 /// In [`NearestTables::order`]: a triangle whose `THIN` test ([`super::nearest::closest_barycentric`]) is within
 /// rounding of its threshold, so that two f32 evaluations may take different branches; below it, the mesh index.
 pub const NEAR_THIN: u32 = 1 << 31;
 
 /// The mesh index in a word of [`NearestTables::order`] or of a found triangle.
-pub const INDEX: u32 = !(1 << 31);
+pub const INDEX: u32 = (1 << 30) - 1;
 
 /// How far apart two f32 evaluations of [`point_distance2`] (the CPU's and a GPU's, whose fused multiply-adds and
-/// 2.5-ulp division round otherwise) may be, relative to the largest squared offset in play: 2^-16, 64 times what
-/// an H200 was measured at (`tests/it/query_gpu.rs` holds hardware to 64 ulps of it).
-pub const QUERY_ERROR: f32 = 1.0 / 65536.0;
+/// 2.5-ulp division round otherwise) may be, relative to the largest squared offset in play: 2^-18 (32 ulps), 16
+/// times what an H200 was measured at and what the CPU is off float64 by (`tests/it/query_gpu.rs` holds a hardware
+/// GPU's walk to it, and the CPU to half of it).
+pub const QUERY_ERROR: f32 = 1.0 / 262144.0;
 
 /// `QUERY_ERROR`'s square root.
-const ROOT_ERROR: f32 = 1.0 / 256.0;
+const ROOT_ERROR: f32 = 1.0 / 512.0;
 
 /// One node of the 4-wide tree as the shader reads it: the four children's boxes by coordinate, and each child a
 /// node (`count` 0, `first` its index), a leaf (`count` triangles from `first` in leaf order), or no child
@@ -171,16 +177,18 @@ pub fn distance_error(p: Vec3, t: [Vec3; 3]) -> f32 {
     QUERY_ERROR * s[0].max(s[1]).max(s[2])
 }
 
-/// Whether every triangle sharing no vertex with leaf-order triangle `leaf` (`p`'s nearest, at squared distance
-/// `best`) is certainly farther than it in any evaluation within [`distance_error`] of this one; then the CPU's
-/// nearest triangle (the first at its least f32 distance) is `leaf`'s or one of its neighbours'. A triangle at
-/// squared distance `d2` matters while `d2 - QUERY_ERROR (√d2 + reach)² <= high`, that is while `√d2 <= (√high +
-/// √QUERY_ERROR reach) / (1 - √QUERY_ERROR)`: the walk opens everything within that.
-pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) -> bool {
+/// What a second walk proves of leaf-order triangle `leaf` (`p`'s nearest, at squared distance `best`) in any
+/// evaluation within [`distance_error`] of this one: [`UNCERTAIN`] where a triangle sharing no vertex with it may be
+/// as near, else [`TIED`] where a neighbour may be (the CPU's nearest, the first at its least f32 distance, is then
+/// `leaf`'s or a neighbour's), else 0 (it is `leaf`'s). A triangle at squared distance `d2` matters while `d2 -
+/// QUERY_ERROR (√d2 + reach)² <= high`, that is while `√d2 <= (√high + √QUERY_ERROR reach) / (1 - √QUERY_ERROR)`:
+/// the walk opens everything within that.
+pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) -> u32 {
     let b = tables.triangles[leaf as usize];
     if tables.order[leaf as usize] & NEAR_THIN != 0 {
-        return false;
+        return UNCERTAIN;
     }
+    let mut tied = 0;
     let high = best + distance_error(p, b);
     let root = (high.sqrt() + ROOT_ERROR * tables.reach) / (1.0 - ROOT_ERROR);
     let limit = root * root * 1.0001;
@@ -193,11 +201,14 @@ pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) ->
         if n > 0 {
             for j in first..first + n {
                 let t = tables.triangles[j as usize];
-                if j == leaf || may_skip(p, t, limit) || shares_vertex(t, b) {
+                if j == leaf || may_skip(p, t, limit) {
                     continue;
                 }
                 if tables.order[j as usize] & NEAR_THIN != 0 || point_distance2(p, t) - distance_error(p, t) <= high {
-                    return false;
+                    if !shares_vertex(t, b) {
+                        return UNCERTAIN;
+                    }
+                    tied = TIED;
                 }
             }
             continue;
@@ -210,14 +221,14 @@ pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) ->
             }
         }
     }
-    true
+    tied
 }
 
 /// What the shader's `nearest_points` writes for `p`: [`walk_nearest`]'s squared distance and mesh index, the index
-/// with [`UNCERTAIN`] unless [`nearest_certain`].
+/// marked by [`nearest_certain`].
 pub fn nearest_point(tables: &NearestTables, p: Vec3) -> (f32, u32) {
     let (best, id, leaf) = walk_nearest(tables, p);
-    if id != NONE && !nearest_certain(tables, p, best, leaf) { (best, id | UNCERTAIN) } else { (best, id) }
+    if id != NONE { (best, id | nearest_certain(tables, p, best, leaf)) } else { (best, id) }
 }
 
 /// Shewchuk's orient2d error bound for f32, `(3 + 16u)u` of the permanent with `u = 2^-24`, four times over: a
