@@ -270,7 +270,7 @@ impl Prepared {
     ///   [`FAR`] in the frame, where a GPU's squares may overflow), from nothing.
     ///
     /// The sides are `sides` where the host computed them all; else the device's (`proposed.sides`), and the
-    /// host's exact [`Prepared::inside`] where the device left one [`UNDECIDED`] or the point is beyond [`FAR`].
+    /// host's exact `inside` where the device left one [`UNDECIDED`] or the point is beyond [`FAR`].
     /// Returns the answers and how many points the host searched for or decided the side of.
     pub fn query_found(
         &self,

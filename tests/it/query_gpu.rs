@@ -172,10 +172,7 @@ fn gpu_queries_and_samples_equal_the_cpus() {
     let cpu = Engine::open(Backend::Cpu).expect("the CPU engine");
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rng = Rng::new(4803);
-    let mut meshes: Vec<(String, Mesh)> = crate::inside::open_meshes(dir.path())
-        .into_iter()
-        .map(|(name, path, _)| (name, mesh::load(&path).expect("load")))
-        .collect();
+    let mut meshes = holed_meshes(dir.path());
     if let Some(shared) = shared_meshes() {
         for name in ["stanford-bunny.obj", "suzanne.obj"] {
             meshes.push((name.into(), mesh::load(&shared.join(name).to_string_lossy()).expect("load")));
@@ -199,16 +196,22 @@ fn gpu_queries_and_samples_equal_the_cpus() {
     }
 }
 
-/// The GPU only proposes: whatever triangle it names for a point (the CPU's own, a neighbour sharing a vertex,
-/// which is what a GPU's other rounding names at a near-tie, any other, or none), the answers are the CPU's,
-/// field for field. No GPU is needed: the proposals are made here.
+/// The meshes with holes of `tests/it/inside.rs`, loaded.
+fn holed_meshes(dir: &std::path::Path) -> Vec<(String, Mesh)> {
+    crate::inside::open_meshes(dir)
+        .into_iter()
+        .map(|(name, path, _)| (name, mesh::load(&path).expect("load")))
+        .collect()
+}
+
+/// What the host makes of a device's proposals, as its proofs mark them (the CPU's own triangle alone; a neighbour
+/// sharing a vertex, which is what a GPU's other rounding names at a near-tie, or the CPU's own, marked tied; any
+/// triangle or the CPU's marked uncertain; none): the answers are the CPU's, field for field, and the host searches
+/// for exactly the uncertain and missing ones. No GPU is needed: the proposals are made here.
 #[test]
 fn a_proposed_triangle_is_confirmed_by_the_cpus_walk() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut meshes: Vec<(String, Mesh)> = crate::inside::open_meshes(dir.path())
-        .into_iter()
-        .map(|(name, path, _)| (name, mesh::load(&path).expect("load")))
-        .collect();
+    let mut meshes = holed_meshes(dir.path());
     if let Some(shared) = shared_meshes() {
         meshes.push(("suzanne".into(), mesh::load(&shared.join("suzanne.obj").to_string_lossy()).expect("load")));
     }
@@ -310,10 +313,7 @@ fn side_points(mesh: &Mesh, rng: &mut Rng) -> (Vec<DVec3>, usize) {
 #[test]
 fn the_sides_a_device_decides_are_the_exact_inside() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut meshes: Vec<(String, Mesh)> = crate::inside::open_meshes(dir.path())
-        .into_iter()
-        .map(|(name, path, _)| (name, mesh::load(&path).expect("load")))
-        .collect();
+    let mut meshes = holed_meshes(dir.path());
     if let Some(shared) = shared_meshes() {
         // (open_meshes has the bunny.)
         for name in ["spot.obj", "suzanne.obj", "teapot.obj"] {
