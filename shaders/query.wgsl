@@ -377,3 +377,41 @@ fn nearest_points(@builtin(global_invocation_id) gid: vec3<u32>) {
         sides[i] = point_inside(p);
     }
 }
+
+// ---- the whole grid's distances (`--band full` on the GPU): the field grid's hierarchy walked from each voxel
+//   full_distances  one invocation per voxel of the listed leaves (512 a leaf, x fastest): its centre's least
+//                   squared distance to the triangles (walk_nearest over the field grid's tree, bindings 1 to 3),
+//                   at most `start`, what a voxel outside the grid keeps too: the CPU's `full_field` finds the same
+//                   least by its own walk, bounded by the previous voxel's.
+
+struct FullParams {
+    dims: vec3<u32>,
+    // Voxels in this dispatch: 512 per listed leaf.
+    voxels: u32,
+    row_threads: u32,
+    // The band's squared reach.
+    start: f32,
+}
+
+@group(0) @binding(9) var<uniform> full: FullParams;
+// Each listed leaf's origin, in voxels.
+@group(0) @binding(10) var<storage, read> leaf_origins: array<vec4<u32>>;
+@group(0) @binding(11) var<storage, read_write> full_values: array<f32>;
+
+// The squared distance of voxel i (x fastest) of the leaf at `origin`, as `full_field` stores it.
+fn voxel_distance2(origin: vec3<u32>, i: u32) -> f32 {
+    let v = origin + vec3<u32>(i & 7u, (i >> 3u) & 7u, i >> 6u);
+    if any(v >= full.dims) {
+        return full.start;
+    }
+    return min(bitcast<f32>(walk_nearest(vec3<f32>(v) + 0.5).x), full.start);
+}
+
+@compute @workgroup_size(64)
+fn full_distances(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = thread_index(gid, full.row_threads);
+    if i >= full.voxels {
+        return;
+    }
+    full_values[i] = voxel_distance2(leaf_origins[i / 512u].xyz, i % 512u);
+}

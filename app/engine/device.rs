@@ -398,6 +398,17 @@ impl OnGpu {
         inside: &mut Option<Grid>,
         notices: &mut Vec<Notice>,
     ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {
+        // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong (see `trusts_walk`).
+        if band == Band::Full && !self.trusts_walk() {
+            notices.push(Notice {
+                warning: false,
+                message: format!(
+                    "{}: each voxel's nearest triangle is searched on the CPU (the GPU's walk is not trusted on GL)",
+                    crate::names::Setting::Band.with("full")
+                ),
+            });
+            return Ok(None);
+        }
         let field = {
             let _turn = self.turn().await;
             let pass = self.distance.get_or_init(|| GpuDistance::new(&self.gpu));
@@ -457,8 +468,7 @@ impl OnGpu {
     /// Whether this device's query walk may decide the points' sides and prove its nearest triangles. Not on GL:
     /// there the walk compiled from `shaders/query.wgsl` misses triangles (Mesa's llvmpipe: about a third of the
     /// sides wrong, and some points with no nearest triangle), so the host decides every side there and searches
-    /// for every nearest triangle from the GPU's. (Native clients only: the page asks no queries.)
-    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
+    /// for every nearest triangle from the GPU's, and the whole grid's distances are the CPU's.
     pub(super) fn trusts_walk(&self) -> bool {
         self.gpu.summary.backend != format!("{:?}", wgpu::Backend::Gl)
     }

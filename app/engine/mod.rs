@@ -41,7 +41,7 @@ use crate::mesh::Mesh;
 use crate::names::Setting;
 use crate::parallel;
 use crate::voxel::colour::VoxelColours;
-use crate::voxel::distance::{Band, DistanceField};
+use crate::voxel::distance::DistanceField;
 use crate::voxel::{self, Grid, GridError, GridKind, GridSpec, Mode, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::AtomicBool;
@@ -584,20 +584,7 @@ impl Engine {
             false => (None, None, 0),
         };
         job.request.cancelled()?;
-        // The whole grid: the CPU's nearest-triangle search costs what the voxels need; the GPU's band pass would
-        // take every triangle's box over the whole grid.
-        let on_gpu = self.gpu.as_ref().filter(|_| band != Band::Full);
-        if band == Band::Full && self.gpu.is_some() {
-            notices.push(Notice {
-                warning: false,
-                message: format!(
-                    "{}: each voxel's nearest triangle is searched on the CPU (a hierarchy over the triangles); the \
-                     GPU's band pass would test every triangle against every voxel",
-                    Setting::Band.with("full")
-                ),
-            });
-        }
-        if let Some(on) = on_gpu
+        if let Some(on) = &self.gpu
             && let Some((field, traffic)) = on.field(&tris, spec, band, &mut inside, notices).await?
         {
             let (up, back) = sign_traffic.unwrap_or_default();

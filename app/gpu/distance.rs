@@ -8,12 +8,21 @@
 //! The leaves are numbered z-layer by z-layer, so the leaves of a range of layers are a range of indices: when
 //! the band's values do not fit one storage binding, the pass runs once per such range (a chunk), each dispatch
 //! walking only its layers of every triangle's box.
+//!
+//! The whole grid (`Band::Full`) is not a band pass: every triangle's box would be the grid. Each voxel walks a
+//! hierarchy over the triangles instead (`shaders/query.wgsl`'s `full_distances`, the query walk over the field
+//! grid's tree), the leaves' values in runs that fit a binding.
 
+use super::query::QUERY_WGSL;
 use super::readback::read_buffer;
-use super::util::{buffer_init, scoped, single_pipeline, storage_entry, submit_dispatch, uniform_entry};
+use super::util::{
+    buffer_init, scoped, single_pipeline, storage_buffer, storage_entry, submit_bound, submit_dispatch, uniform_entry,
+};
 use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
+use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::triangle_layers;
+use crate::voxel::cpu::query::STACK_DEPTH;
 use crate::voxel::distance::{Band, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
@@ -44,10 +53,22 @@ struct Params {
     z_hi: u32,
 }
 
-/// The compiled pass, reusable on one device.
+/// `full_distances`' parameters (`FullParams` in `shaders/query.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FullParams {
+    dims: [u32; 3],
+    voxels: u32,
+    row_threads: u32,
+    start: f32,
+    _pad: [u32; 2],
+}
+
+/// The compiled pass, reusable on one device; the whole grid's pass compiled on first use.
 pub struct GpuDistance {
     layout: wgpu::BindGroupLayout,
     band: wgpu::ComputePipeline,
+    full: std::sync::OnceLock<(wgpu::BindGroupLayout, wgpu::ComputePipeline)>,
 }
 
 impl GpuDistance {
@@ -60,7 +81,7 @@ impl GpuDistance {
             storage_entry(4, true),
         ];
         let (layout, band) = single_pipeline(&gpu.device, "distance.wgsl", DISTANCE_WGSL, &entries, "band_distance");
-        GpuDistance { layout, band }
+        GpuDistance { layout, band, full: std::sync::OnceLock::new() }
     }
 
     /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
@@ -92,7 +113,11 @@ impl GpuDistance {
         }
         let mut best = Vec::new();
         let mut traffic = Traffic::default();
-        for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
+        if band == Band::Full {
+            best = self.full_values(gpu, triangles, spec, &leaves, &mut traffic).await?;
+        }
+        let banded = if band == Band::Full { Vec::new() } else { chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) };
+        for (first, count, z) in banded {
             let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
             // One chunk (a band that fits one binding) is the list as read back, not copied again.
             match best.is_empty() {
@@ -104,6 +129,85 @@ impl GpuDistance {
         let _span = crate::trace::span("field: finish values");
         let field = crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take());
         Ok((field, traffic))
+    }
+
+    /// Every voxel's squared distance in `leaves` (the whole grid's), by `full_distances` over a hierarchy of
+    /// `triangles`, in runs of leaves that fit a binding.
+    async fn full_values(
+        &self,
+        gpu: &Gpu,
+        triangles: &[[Vec3; 3]],
+        spec: GridSpec,
+        leaves: &[UVec3],
+        traffic: &mut Traffic,
+    ) -> Result<Vec<f32>, GpuError> {
+        let span = crate::trace::span("field: hierarchy");
+        let tables = Bvh::build(triangles).tables();
+        drop(span);
+        if tables.depth > STACK_DEPTH {
+            return Err(GpuError::TooLarge {
+                what: "the field's hierarchy's depth".into(),
+                needed: tables.depth as u64,
+                limit: STACK_DEPTH as u64,
+            });
+        }
+        let max = gpu.max_binding_bytes();
+        let bytes = [tables.nodes.len() as u64 * 128, tables.triangles.len() as u64 * 36];
+        if let Some(&big) = bytes.iter().find(|&&b| b > max) {
+            return Err(GpuError::TooLarge { what: "the field's hierarchy".into(), needed: big, limit: max });
+        }
+        let device = &gpu.device;
+        let (layout, pipeline) = self.full.get_or_init(|| {
+            let entries = [
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                uniform_entry(9),
+                storage_entry(10, true),
+                storage_entry(11, false),
+            ];
+            single_pipeline(device, "query.wgsl", QUERY_WGSL, &entries, "full_distances")
+        });
+        let storage = wgpu::BufferUsages::STORAGE;
+        let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
+        let tree = [
+            init("field nodes", bytemuck::cast_slice(&tables.nodes), storage),
+            init("field triangles", bytemuck::cast_slice(&tables.triangles), storage),
+            init("field order", bytemuck::cast_slice(&tables.order), storage),
+        ];
+        traffic.upload += tree.iter().map(wgpu::Buffer::size).sum::<u64>();
+        let reach = Band::Full.reach(spec.dims);
+        let per_run = (max / LEAF_BYTES).clamp(1, u64::from(u32::MAX) / 512) as usize;
+        let mut best: Vec<f32> = Vec::new();
+        for run in leaves.chunks(per_run) {
+            let voxels = run.len() as u64 * 512;
+            let buffer = scoped(device, || {
+                let (x, y) = dispatch_2d((voxels as u32).div_ceil(WG));
+                let params = FullParams {
+                    dims: spec.dims.to_array(),
+                    voxels: voxels as u32,
+                    row_threads: x * WG,
+                    start: reach * reach,
+                    _pad: [0; 2],
+                };
+                let origins: Vec<[u32; 4]> = run.iter().map(|o| [o.x, o.y, o.z, 0]).collect();
+                let params = init("full params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
+                let origins = init("full leaves", bytemuck::cast_slice(&origins), storage);
+                let values = storage_buffer(device, "full values", voxels * 4, wgpu::BufferUsages::COPY_SRC);
+                traffic.upload += params.size() + origins.size();
+                let bound = [(1, &tree[0]), (2, &tree[1]), (3, &tree[2]), (9, &params), (10, &origins), (11, &values)];
+                submit_bound(device, &gpu.queue, (layout, pipeline), &bound, (x, y));
+                Ok(values)
+            })
+            .await?;
+            traffic.readback += voxels * 4;
+            let values = read_buffer::<f32>(device, &gpu.queue, &buffer, 0, voxels * 4).await?;
+            match best.is_empty() {
+                true => best = values,
+                false => best.extend(values),
+            }
+        }
+        Ok(best)
     }
 
     /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared

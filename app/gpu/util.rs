@@ -85,15 +85,25 @@ pub(crate) fn single_pipeline(
 pub(crate) fn submit_dispatch(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    (layout, pipeline): (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
+    pipeline: (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
     buffers: &[&wgpu::Buffer],
     groups: (u32, u32),
 ) {
-    let entries: Vec<wgpu::BindGroupEntry> = buffers
-        .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-        .collect();
+    let bound: Vec<(u32, &wgpu::Buffer)> = buffers.iter().enumerate().map(|(i, &b)| (i as u32, b)).collect();
+    submit_bound(device, queue, pipeline, &bound, groups);
+}
+
+/// Binds each `(binding, buffer)` of `buffers` in `layout` and submits one dispatch of `pipeline` over `groups`
+/// (x, y): for an entry point that reads some of its module's bindings.
+pub(crate) fn submit_bound(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    (layout, pipeline): (&wgpu::BindGroupLayout, &wgpu::ComputePipeline),
+    buffers: &[(u32, &wgpu::Buffer)],
+    groups: (u32, u32),
+) {
+    let entries: Vec<wgpu::BindGroupEntry> =
+        buffers.iter().map(|&(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() }).collect();
     let bind = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries });
     let mut encoder = device.create_command_encoder(&Default::default());
     {

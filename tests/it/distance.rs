@@ -294,6 +294,9 @@ fn gpu_bound_voxels(n: u32) -> f64 {
 fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     let pass = meshvox::gpu::distance::GpuDistance::new(gpu);
+    // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong: the engine leaves it to
+    // the CPU there (`gpu_field_in_chunks_…` checks that), so it is compared on the other APIs.
+    let full = if gpu.summary.backend == "Gl" { Band::Voxels(2.0) } else { Band::Full };
     // The field of `tris` (grid space) in `band` on both, signed by the CPU's inside: how far apart, and the bound.
     let compare = |tris: &[[Vec3; 3]], spec: GridSpec, band: Band| {
         let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
@@ -305,7 +308,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let mut worst = 0f64;
     for name in crate::common::all_meshes() {
         let mesh = meshvox::mesh::load(&name).expect("mesh");
-        for (n, band) in [(45, Band::Voxels(3.0)), (70, Band::Voxels(1.0))] {
+        for (n, band) in [(45, Band::Voxels(3.0)), (70, Band::Voxels(1.0)), (24, full)] {
             let spec =
                 GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
                     .expect("spec");
@@ -319,9 +322,11 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     // otherwise than the CPU's (`closest_barycentric` measures a thin triangle's edges as well).
     for (name, tris, dims) in hard_cases() {
         let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
-        let (d, bound) = compare(&tris, spec, Band::Voxels(3.0));
-        assert!(d <= bound, "{name}: GPU and CPU differ by {d} voxels (bound {bound:.2e})");
-        worst = worst.max(d);
+        for band in [Band::Voxels(3.0), full] {
+            let (d, bound) = compare(&tris, spec, band);
+            assert!(d <= bound, "{name} ({band:?}): GPU and CPU differ by {d} voxels (bound {bound:.2e})");
+            worst = worst.max(d);
+        }
     }
     eprintln!("GPU against CPU distances: at most {worst:.2e} voxels apart on every mesh and hard case");
 }
@@ -349,6 +354,54 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
         assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
         let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
         assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot {mode} in chunks: {d} voxels");
+    }
+    // The whole grid too: every voxel walks the field's hierarchy on the GPU, in runs of leaves; on GL, whose
+    // compiled walk misses triangles, the CPU's, with a note.
+    let request = Request { band: Band::Full, ..Request::new(Resolution::Count(112), Mode::Sdf) };
+    let on_gpu = engine.voxelize("knot", &mesh, &request).expect("gpu");
+    let on_cpu = cpu.voxelize("knot", &mesh, &request).expect("cpu");
+    let field = on_gpu.field.as_ref().expect("field");
+    assert!(field.leaves.len() as u64 * 2048 > limit, "the grid must not fit one binding");
+    let gl = small.summary.backend == "Gl";
+    let backend = on_gpu.report.field_backend.as_deref().unwrap_or_default();
+    assert_eq!(backend.starts_with("gpu"), !gl, "{:?}", on_gpu.report);
+    assert_eq!(on_gpu.notices.len(), usize::from(gl), "{:?}", on_gpu.notices);
+    let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
+    assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot's whole grid in runs: {d} voxels");
+}
+
+/// The whole grid's mirror (`voxel_distance2`, what `shaders/query.wgsl`'s `full_distances` computes per voxel)
+/// gives the CPU's `--band full` field bit for bit: the least squared distance over every triangle, whichever walk
+/// finds it, on the hard cases and a mesh with decimal coordinates at a size that is not a multiple of a leaf.
+#[test]
+fn the_whole_grids_mirror_gives_the_cpus_field_bit_for_bit() {
+    use meshvox::voxel::bvh::Bvh;
+    use meshvox::voxel::cpu::query::voxel_distance2;
+    use meshvox::voxel::distance::mark_leaves;
+    let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
+    let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(27), meshvox::voxel::Axis::Longest)
+        .expect("spec");
+    let torus = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+    let mut cases: Vec<(String, Vec<[Vec3; 3]>, GridSpec)> = vec![("torus at 27".into(), torus, spec)];
+    for (name, tris, dims) in hard_cases() {
+        cases.push((name.into(), tris, GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }));
+    }
+    for (name, tris, spec) in cases {
+        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+        let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
+        let cpu = DistanceField::compute(&tris, spec, Band::Full, Some(inside.clone()));
+        let reach = Band::Full.reach(spec.dims);
+        let (slots, leaves) = mark_leaves(&tris, spec.dims, reach);
+        let tables = Bvh::build(&tris).tables();
+        let best: Vec<f32> = leaves
+            .iter()
+            .flat_map(|&o| (0..512).map(move |i| (o, i)))
+            .map(|(o, i)| voxel_distance2(&tables, spec.dims, reach * reach, o, i))
+            .collect();
+        let mirror = DistanceField::from_squared(spec, Band::Full, slots, leaves, best, Some(inside));
+        let differ = cpu.values.iter().zip(&mirror.values).position(|(a, b)| a.to_bits() != b.to_bits());
+        assert!(differ.is_none(), "{name}: value {differ:?} differs");
+        assert_eq!(cpu.values.len(), mirror.values.len(), "{name}: the same voxels");
     }
 }
 

@@ -13,7 +13,7 @@
 use super::common::dot3;
 use super::nearest::point_distance2;
 use super::solid::{ATAN2_CPU, Boundary, FAR_BUDGET, MARGIN, certain_side, winding_number_bounded};
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 
 /// Entries of a walk's stack: [`STACK_DEPTH`] levels of the 4-wide tree, each opening adding at most three.
 pub const STACK: usize = 64;
@@ -366,4 +366,15 @@ pub fn point_inside(tables: &NearestTables, boundary: &Boundary, p: Vec3) -> u32
         return certain_side(w, e, 0.0, MARGIN);
     }
     side
+}
+
+/// The squared distance of voxel `i` (x fastest) of the leaf at `origin` in a grid of `dims`, as the CPU's
+/// `full_field` stores it: its centre's least [`point_distance2`] over the tables' triangles (the field grid's), at
+/// most `start` (the band's squared reach), and `start` outside the grid.
+pub fn voxel_distance2(tables: &NearestTables, dims: UVec3, start: f32, origin: UVec3, i: u32) -> f32 {
+    let v = origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6);
+    if !v.cmplt(dims).all() {
+        return start;
+    }
+    walk_nearest(tables, v.as_vec3() + 0.5).0.min(start)
 }
