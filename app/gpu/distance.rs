@@ -13,7 +13,7 @@
 //! hierarchy over the triangles instead (`shaders/query.wgsl`'s `full_distances`, the query walk over the field
 //! grid's tree), the leaves' values in runs that fit a binding.
 
-use super::query::QUERY_WGSL;
+use super::query::{QUERY_WGSL, fits_walk};
 use super::readback::read_buffer;
 use super::util::{
     buffer_init, scoped, single_pipeline, storage_buffer, storage_entry, submit_bound, submit_dispatch, uniform_entry,
@@ -22,7 +22,6 @@ use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::triangle_layers;
-use crate::voxel::cpu::query::STACK_DEPTH;
 use crate::voxel::distance::{Band, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
@@ -144,18 +143,7 @@ impl GpuDistance {
         let span = crate::trace::span("field: hierarchy");
         let tables = Bvh::build(triangles).tables();
         drop(span);
-        if tables.depth > STACK_DEPTH {
-            return Err(GpuError::TooLarge {
-                what: "the field's hierarchy's depth".into(),
-                needed: tables.depth as u64,
-                limit: STACK_DEPTH as u64,
-            });
-        }
-        let max = gpu.max_binding_bytes();
-        let bytes = [tables.nodes.len() as u64 * 128, tables.triangles.len() as u64 * 36];
-        if let Some(&big) = bytes.iter().find(|&&b| b > max) {
-            return Err(GpuError::TooLarge { what: "the field's hierarchy".into(), needed: big, limit: max });
-        }
+        let max = fits_walk(&tables, gpu, "the field's hierarchy")?;
         let device = &gpu.device;
         let (layout, pipeline) = self.full.get_or_init(|| {
             let entries = [

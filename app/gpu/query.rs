@@ -74,24 +74,13 @@ impl GpuQuery {
         order: &[u32],
     ) -> Result<Proposed, GpuError> {
         gpu.check()?;
-        if tables.depth > STACK_DEPTH {
-            return Err(GpuError::TooLarge {
-                what: "the query hierarchy's depth".into(),
-                needed: tables.depth as u64,
-                limit: STACK_DEPTH as u64,
-            });
-        }
-        let max = gpu.max_binding_bytes();
-        let counts = [tables.nodes.len() as u64, tables.triangles.len() as u64];
-        if let Some(&big) = counts.iter().find(|&&n| n >= INDEX_LIMIT) {
-            return Err(GpuError::TooLarge { what: "the query hierarchy".into(), needed: big, limit: INDEX_LIMIT });
-        }
+        let max = fits_walk(tables, gpu, "the query hierarchy")?;
         let mut boundary_data = boundary.map_or_else(Vec::new, |b| boundary_bytes(&b.edges, &b.pieces));
         // A closed mesh's is empty: one placeholder vec4 for the binding.
         boundary_data.resize(boundary_data.len().max(16), 0);
-        let bytes = [tables.nodes.len() as u64 * 128, tables.triangles.len() as u64 * 36, boundary_data.len() as u64];
-        if let Some(&big) = bytes.iter().find(|&&b| b > max) {
-            return Err(GpuError::TooLarge { what: "the query hierarchy".into(), needed: big, limit: max });
+        if boundary_data.len() as u64 > max {
+            let needed = boundary_data.len() as u64;
+            return Err(GpuError::TooLarge { what: "the query's boundary".into(), needed, limit: max });
         }
         let span = crate::trace::span("query: order points");
         let sorted: Vec<Vec3> = order.iter().map(|&i| frame[i as usize]).collect();
@@ -148,4 +137,27 @@ impl GpuQuery {
         gpu.check()?;
         Ok(Proposed { nearest: found, sides })
     }
+}
+
+/// Whether the walk of `shaders/query.wgsl` can take `tables` (`what` names them in the error): a tree no deeper
+/// than its stack, nodes and triangles that its stack entries can index (28 bits), and their buffers within one
+/// binding. Returns the binding limit.
+pub(super) fn fits_walk(tables: &NearestTables, gpu: &Gpu, what: &str) -> Result<u64, GpuError> {
+    if tables.depth > STACK_DEPTH {
+        return Err(GpuError::TooLarge {
+            what: format!("{what}'s depth"),
+            needed: tables.depth as u64,
+            limit: STACK_DEPTH as u64,
+        });
+    }
+    let counts = [tables.nodes.len() as u64, tables.triangles.len() as u64];
+    if let Some(&big) = counts.iter().find(|&&n| n >= INDEX_LIMIT) {
+        return Err(GpuError::TooLarge { what: what.into(), needed: big, limit: INDEX_LIMIT });
+    }
+    let max = gpu.max_binding_bytes();
+    let bytes = [tables.nodes.len() as u64 * 128, tables.triangles.len() as u64 * 36];
+    if let Some(&big) = bytes.iter().find(|&&b| b > max) {
+        return Err(GpuError::TooLarge { what: what.into(), needed: big, limit: max });
+    }
+    Ok(max)
 }

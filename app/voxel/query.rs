@@ -85,7 +85,7 @@ pub struct Prepared {
     boundary: Boundary,
     /// The hierarchy as the GPU reads it, made at the first GPU query and kept for the next.
     tables: std::sync::OnceLock<NearestTables>,
-    /// Each triangle's neighbours, made with the tables.
+    /// Each triangle's neighbours, made at the first GPU query's answers and kept for the next.
     neighbours: std::sync::OnceLock<Neighbours>,
 }
 
@@ -234,10 +234,8 @@ impl Prepared {
         Ok(Placed { frame, order })
     }
 
-    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]), made once per prepared mesh (with the
-    /// triangles' neighbours, which its answers are settled among).
+    /// The hierarchy as the GPU's walk reads it (see [`Bvh::tables`]), made once per prepared mesh.
     pub fn nearest_tables(&self) -> &NearestTables {
-        self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
         self.tables.get_or_init(|| self.bvh.tables())
     }
 
