@@ -13,8 +13,8 @@ use web_time::Instant;
 /// 0: not read yet, 1: off, 2: on.
 static STATE: AtomicU8 = AtomicU8::new(0);
 
-/// The totals so far: name → (spans, nanoseconds).
-static TOTALS: Mutex<BTreeMap<&'static str, (u64, u128)>> = Mutex::new(BTreeMap::new());
+/// The totals so far: name → (spans, nanoseconds, nanoseconds not waiting for the device).
+static TOTALS: Mutex<BTreeMap<&'static str, (u64, u128, u128)>> = Mutex::new(BTreeMap::new());
 
 /// Whether `MESHVOX_TRACE=1` asked for spans (read once per process).
 pub fn enabled() -> bool {
@@ -32,20 +32,24 @@ pub fn enabled() -> bool {
 pub struct Span {
     name: &'static str,
     since: Instant,
+    /// This thread's [`waited_ns`] at the start: a span's host work is its time less the waits inside it.
+    waited: u64,
 }
 
 /// Starts a span named `name` (nothing when tracing is off).
 pub fn span(name: &'static str) -> Option<Span> {
-    enabled().then(|| Span { name, since: Instant::now() })
+    enabled().then(|| Span { name, since: Instant::now(), waited: waited_ns() })
 }
 
 impl Drop for Span {
     fn drop(&mut self) {
         let ns = self.since.elapsed().as_nanos();
+        let waited = u128::from(waited_ns().saturating_sub(self.waited));
         if let Ok(mut totals) = TOTALS.lock() {
             let entry = totals.entry(self.name).or_default();
             entry.0 += 1;
             entry.1 += ns;
+            entry.2 += ns.saturating_sub(waited);
         }
     }
 }
@@ -87,8 +91,9 @@ pub fn waited_ns() -> u64 {
     WAITED.with(|w| w.get())
 }
 
-/// The totals since the last call, as one line ("gpu wait 12×3.1 ms, …"), and empties them; `None` when tracing is
-/// off or nothing was timed.
+/// The totals since the last call, as one line ("gpu wait 12x 3.1 ms, …", a span that waited for the device
+/// adding its host work: "write brick 2x 316.0 ms (host 41.2)"), and empties them; `None` when tracing is off or
+/// nothing was timed.
 pub fn take() -> Option<String> {
     if !enabled() {
         return None;
@@ -96,7 +101,17 @@ pub fn take() -> Option<String> {
     let totals = std::mem::take(&mut *TOTALS.lock().ok()?);
     (!totals.is_empty()).then(|| {
         let parts: Vec<String> =
-            totals.iter().map(|(name, (count, ns))| format!("{name} {count}x {:.3} ms", *ns as f64 / 1e6)).collect();
+            totals.iter().map(|(name, (count, ns, host))| describe(name, *count, *ns, *host)).collect();
         parts.join(", ")
     })
+}
+
+/// One span's totals as the trace prints them.
+fn describe(name: &str, count: u64, ns: u128, host: u128) -> String {
+    let ms = |ns: u128| ns as f64 / 1e6;
+    if host == ns {
+        format!("{name} {count}x {:.3} ms", ms(ns))
+    } else {
+        format!("{name} {count}x {:.3} ms (host {:.3})", ms(ns), ms(host))
+    }
 }

@@ -3,13 +3,16 @@
 // shared/common.wgsl (dot3, thread_index), shared/items.wgsl (item_triangle) and nearest.wgsl (triangle,
 // closest_barycentric).
 //   band_distance  one thread per (triangle, voxel layer of its band box in this dispatch's z-range of leaves):
-//                  for every voxel centre of the layer within the band of the triangle's bounding box, atomicMin
-//                  of the squared distance (f32 bits, which order like the values for non-negative numbers) into
-//                  best[512 * (leaf - leaf_base) + offset in the leaf]. `first_items[t]` is the first item of
-//                  triangle t (a prefix sum over its layers, made on the host), so big and small triangles spread
-//                  evenly.
-// The host marks the leaves (`mark_leaves`), starts `best` at reach², and turns the result into signed world
-// distances (`finish_value`).
+//                  for every voxel centre of the layer within the band of the triangle's bounding box, the least
+//                  squared distance kept in best[512 * (leaf - leaf_base) + offset in the leaf] (`best_word`).
+//                  `first_items[t]` is the first item of triangle t (a prefix sum over its layers, made on the
+//                  host), so big and small triangles spread evenly.
+//   best_word      a squared distance as `best` keeps it: its f32 bits (which order like the values for
+//                  non-negative numbers) inverted, so an atomicMax keeps the least, and a word still zero, as the
+//                  buffer is made, is a voxel no triangle came within the band of (`best_value`: reach²). Nothing
+//                  is uploaded to start the buffer.
+// The host marks the leaves (`mark_leaves`) and turns the words into signed world distances (`best_value`,
+// `finish_value`).
 
 struct Params {
     dims: vec3<u32>,
@@ -40,6 +43,17 @@ fn band_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
 fn band_hi(t: array<vec3<f32>, 3>) -> vec3<i32> {
     let hi = max(max(t[0], t[1]), t[2]) + (params.reach - 0.5);
     return clamp(vec3<i32>(floor(hi)), vec3<i32>(-1), vec3<i32>(params.dims) - 1);
+}
+
+fn best_word(d2: f32) -> u32 {
+    return ~bitcast<u32>(d2);
+}
+
+fn best_value(word: u32) -> f32 {
+    if word == 0u {
+        return params.reach * params.reach;
+    }
+    return bitcast<f32>(~word);
 }
 
 fn leaf_slot(l: vec3<u32>) -> u32 {
@@ -83,7 +97,7 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
             let v = vec3<u32>(vec3<i32>(x, y, z));
             let at = (slots[leaf_slot(v / 8u)] - params.leaf_base) * 512u + leaf_offset(v);
             let p = vec3<f32>(v) + 0.5;
-            let current = bitcast<f32>(atomicLoad(&best[at]));
+            let current = best_value(atomicLoad(&best[at]));
             // The plane's squared distance already no lower than the best: this triangle cannot win here.
             let plane = dot3(n, tri[0] - p);
             if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
@@ -96,7 +110,7 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
             }
             let d2 = point_distance2(p, tri);
             if d2 < current {
-                atomicMin(&best[at], bitcast<u32>(d2));
+                atomicMax(&best[at], best_word(d2));
             }
         }
     }

@@ -22,7 +22,7 @@ use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::triangle_layers;
-use crate::voxel::distance::{Band, mark_leaves};
+use crate::voxel::distance::{Band, DistanceField, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -94,7 +94,7 @@ impl GpuDistance {
         spec: GridSpec,
         band: Band,
         inside: &mut Option<Grid>,
-    ) -> Result<(crate::voxel::distance::DistanceField, Traffic), GpuError> {
+    ) -> Result<(DistanceField, Traffic), GpuError> {
         gpu.check()?;
         let dims = spec.dims;
         let reach = band.reach(dims);
@@ -110,23 +110,26 @@ impl GpuDistance {
                 limit: max,
             });
         }
-        let mut best = Vec::new();
         let mut traffic = Traffic::default();
-        if band == Band::Full {
-            best = self.full_values(gpu, triangles, spec, &leaves, &mut traffic).await?;
-        }
-        let banded = if band == Band::Full { Vec::new() } else { chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) };
-        for (first, count, z) in banded {
-            let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
-            // One chunk (a band that fits one binding) is the list as read back, not copied again.
-            match best.is_empty() {
-                true => best = range,
-                false => best.extend(range),
+        let field = if band == Band::Full {
+            let best = self.full_values(gpu, triangles, spec, &leaves, &mut traffic).await?;
+            gpu.check()?;
+            let _span = crate::trace::span("field: finish values");
+            DistanceField::from_squared(spec, band, slots, leaves, best, inside.take())
+        } else {
+            let mut words = Vec::new();
+            for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
+                let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
+                // One chunk (a band that fits one binding) is the list as read back, not copied again.
+                match words.is_empty() {
+                    true => words = range,
+                    false => words.extend(range),
+                }
             }
-        }
-        gpu.check()?;
-        let _span = crate::trace::span("field: finish values");
-        let field = crate::voxel::distance::DistanceField::from_squared(spec, band, slots, leaves, best, inside.take());
+            gpu.check()?;
+            let _span = crate::trace::span("field: finish values");
+            DistanceField::from_words(spec, band, slots, leaves, words, inside.take())
+        };
         Ok((field, traffic))
     }
 
@@ -198,8 +201,8 @@ impl GpuDistance {
         Ok(best)
     }
 
-    /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their squared
-    /// distances back.
+    /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their `best`
+    /// words back (`best_word`: the squared distances, decoded as the values are finished).
     #[allow(clippy::too_many_arguments)]
     async fn chunk(
         &self,
@@ -211,7 +214,7 @@ impl GpuDistance {
         (first, count): (usize, usize),
         z: (u32, u32),
         traffic: &mut Traffic,
-    ) -> Result<Vec<f32>, GpuError> {
+    ) -> Result<Vec<u32>, GpuError> {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
         // Each triangle's first work item: a prefix sum over its layers in this chunk.
@@ -254,16 +257,16 @@ impl GpuDistance {
                 z_lo: z.0,
                 z_hi: z.1,
             };
-            let start = vec![(reach * reach).to_bits(); count * 512];
             let storage = wgpu::BufferUsages::STORAGE;
+            // `best` starts as a new buffer's zeros (`best_word`): nothing to upload.
             let buffers = [
                 init("distance params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
                 init("distance triangles", bytemuck::cast_slice(triangles), storage),
                 init("distance slots", bytemuck::cast_slice(slots), storage),
-                init("distance best", bytemuck::cast_slice(&start), storage | wgpu::BufferUsages::COPY_SRC),
+                storage_buffer(device, "distance best", bytes, wgpu::BufferUsages::COPY_SRC),
                 init("distance items", bytemuck::cast_slice(&items), storage),
             ];
-            traffic.upload += buffers.iter().map(wgpu::Buffer::size).sum::<u64>();
+            traffic.upload += buffers.iter().map(wgpu::Buffer::size).sum::<u64>() - bytes;
             let bound: Vec<&wgpu::Buffer> = buffers.iter().collect();
             submit_dispatch(device, &gpu.queue, (&self.layout, &self.band), &bound, (x, y));
             let [_, _, _, best, _] = buffers;
@@ -271,7 +274,7 @@ impl GpuDistance {
         })
         .await?;
         traffic.readback += bytes;
-        read_buffer::<f32>(device, &gpu.queue, &buffer, 0, bytes).await
+        read_buffer::<u32>(device, &gpu.queue, &buffer, 0, bytes).await
     }
 }
 

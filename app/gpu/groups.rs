@@ -65,7 +65,9 @@ impl SolidPipelines {
     ) -> Result<Option<(GroupOutput, Boundary)>, GpuError> {
         let device = &gpu.device;
         let dims = spec.dims;
+        let span = crate::trace::span("groups: boundary");
         let boundary = boundary(triangles, lattice);
+        drop(span);
         if triangles.len() as u64 * 36 > limit {
             return Ok(None);
         }
@@ -73,7 +75,9 @@ impl SolidPipelines {
         if layers < 8 {
             return Ok(None);
         }
+        let span = crate::trace::span("groups: work items");
         let (offsets, items) = item_offsets(triangles, spec, lattice);
+        drop(span);
         // The work items are counted in u32, as the dense solid's (which refuses past this).
         if items > u64::from(u32::MAX) / 2 {
             return Ok(None);
@@ -228,6 +232,7 @@ impl SolidPipelines {
             }
         };
         let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
+        let _span = crate::trace::span("groups: decode");
         let mut part = decode(&leaf_words, &run_words);
         // The open groups (bit 31), and the leaves of their rows a certificate left to the host (bit 30, then the
         // leaf).

@@ -128,6 +128,7 @@ impl GpuVoxelizer {
         let options = Options { read_grid: true, sparse: true, ..Default::default() };
         let made = self.shell_and_groups(gpu, &triangles, spec, lattice, &options, true).await?;
         let Some((out, _, Some((groups, boundary)))) = made else { return Ok(None) };
+        let _span = crate::trace::span("groups: the solid");
         let (inside, host) = solid_from_groups(&triangles, lattice, &boundary, SparseGrid::new(spec), &groups);
         Ok(Some((inside, host, out.traffic)))
     }
@@ -145,8 +146,10 @@ impl GpuVoxelizer {
         groups: bool,
     ) -> Result<Option<(GpuOutput, SparseGrid, Option<(GroupOutput, Boundary)>)>, GpuError> {
         let shell = Options { mode: Mode::Surface, ..options.clone() };
+        let span = crate::trace::span("groups: shell");
         let run = Run::allocate(self, gpu, triangles, spec, lattice, &shell).await?;
         let Attempt::Done(mut out) = run.voxelize_bricks(triangles).await? else { return Ok(None) };
+        drop(span);
         let surface = out.sparse.take().ok_or_else(|| GpuError::Device("the shell came back without leaves".into()))?;
         if !groups {
             return Ok(Some((out, *surface, None)));

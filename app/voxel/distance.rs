@@ -246,6 +246,33 @@ impl DistanceField {
         best: Vec<f32>,
         inside: Option<Grid>,
     ) -> DistanceField {
+        DistanceField::finish(spec, band, (slots, leaves), best, inside, |d2| d2)
+    }
+
+    /// [`DistanceField::from_squared`] from the words the GPU's `best` buffer holds
+    /// ([`super::cpu::distance::best_word`]), decoded in the same pass that finishes the values.
+    pub fn from_words(
+        spec: GridSpec,
+        band: Band,
+        slots: Vec<u32>,
+        leaves: Vec<UVec3>,
+        words: Vec<u32>,
+        inside: Option<Grid>,
+    ) -> DistanceField {
+        let reach = band.reach(spec.dims);
+        let decode = |word: f32| super::cpu::distance::best_value(word.to_bits(), reach);
+        DistanceField::finish(spec, band, (slots, leaves), bytemuck::cast_vec(words), inside, decode)
+    }
+
+    /// The values of `leaves` from `decode(squared)` of each of `best`'s, in place.
+    fn finish(
+        spec: GridSpec,
+        band: Band,
+        (slots, leaves): (Vec<u32>, Vec<UVec3>),
+        best: Vec<f32>,
+        inside: Option<Grid>,
+        decode: impl Fn(f32) -> f32 + Sync,
+    ) -> DistanceField {
         parallel::install(|| {
             let h = spec.voxel_size as f32;
             let mut values = best;
@@ -254,7 +281,7 @@ impl DistanceField {
                 let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
                 for (i, value) in leaf.iter_mut().enumerate() {
                     let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-                    *value = finish_value(*value, mask[x] >> (y * 8 + z) & 1 != 0, h);
+                    *value = finish_value(decode(*value), mask[x] >> (y * 8 + z) & 1 != 0, h);
                 }
             });
             let dims = spec.dims;

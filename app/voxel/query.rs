@@ -297,8 +297,11 @@ impl Prepared {
             }),
             (None, None) => self.sides(placed, sign, winding).0,
         };
+        let span = crate::trace::span("query: neighbours");
         let neighbours = self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
+        drop(span);
         let triangles = self.frame.len() as u32;
+        let span = crate::trace::span("query: nearest points");
         let nears: Vec<(Near, bool)> = crate::parallel::install(|| {
             (points, frame)
                 .into_par_iter()
@@ -317,6 +320,8 @@ impl Prepared {
                 })
                 .collect()
         });
+        drop(span);
+        let _span = crate::trace::span("query: assemble");
         let host =
             nears.iter().zip(&sides).filter(|((_, searched), side)| *searched || matches!(side, Some(Side::Host(_))));
         let host = host.count() as u64;

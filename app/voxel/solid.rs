@@ -108,27 +108,24 @@ pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) 
 pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<BoundaryEdge> {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
-        let mut uses: Vec<([i32; 3], [i32; 3], i32)> = triangles
-            .par_iter()
-            .flat_map_iter(|t| {
-                let u = t.map(|p| lattice.units(p).to_array());
-                // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
-                // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
-                let (e0, e1) = (
-                    IVec3::from_array(u[1]) - IVec3::from_array(u[0]),
-                    IVec3::from_array(u[2]) - IVec3::from_array(u[0]),
-                );
-                let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
-                (0..3).filter(move |_| !flat).filter_map(move |i| {
-                    let (a, b) = (u[i], u[(i + 1) % 3]);
-                    match a.cmp(&b) {
-                        std::cmp::Ordering::Less => Some((a, b, 1)),
-                        std::cmp::Ordering::Greater => Some((b, a, -1)),
-                        std::cmp::Ordering::Equal => None,
-                    }
-                })
-            })
-            .collect();
+        // Three uses a triangle, each edge keyed by its ends in order; a use of weight 0 (a zero-area triangle's,
+        // or an edge whose ends coincide) adds nothing to its edge's sum.
+        let mut uses: Vec<([i32; 3], [i32; 3], i32)> = vec![([0; 3], [0; 3], 0); triangles.len() * 3];
+        uses.par_chunks_mut(3).zip(triangles.par_iter()).for_each(|(out, t)| {
+            let u = t.map(|p| lattice.units(p));
+            // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of a
+            // collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
+            let (e0, e1) = (u[1] - u[0], u[2] - u[0]);
+            let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
+            for (i, slot) in out.iter_mut().enumerate() {
+                let (a, b) = (u[i].to_array(), u[(i + 1) % 3].to_array());
+                *slot = match (flat, a.cmp(&b)) {
+                    (true, _) | (_, std::cmp::Ordering::Equal) => (a, a, 0),
+                    (_, std::cmp::Ordering::Less) => (a, b, 1),
+                    (_, std::cmp::Ordering::Greater) => (b, a, -1),
+                };
+            }
+        });
         uses.par_sort_unstable();
         let scale = 1.0 / lattice.scale();
         let point = |u: [i32; 3]| IVec3::from_array(u).as_vec3() * scale;
@@ -189,7 +186,10 @@ pub fn fill_listed_rows(
 /// a vertex is in one piece), which is what lets a far piece's term be bounded by its spanning area
 /// ([`winding_number_bounded`]).
 pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
+    let span = crate::trace::span("boundary: edges");
     let edges = boundary_edges(triangles, lattice);
+    drop(span);
+    let _span = crate::trace::span("boundary: pieces");
     let mut ids = std::collections::HashMap::new();
     let mut parent: Vec<usize> = Vec::new();
     fn root(parent: &mut [usize], mut i: usize) -> usize {

@@ -354,7 +354,9 @@ fn host_leaves(
     let mut rows: Vec<u32> = spans.iter().map(|&(_, y, z)| z * dims.y + y).collect();
     rows.sort_unstable();
     rows.dedup();
+    let span = crate::trace::span("groups: host rows' crossings");
     let crossings = listed_row_crossings(triangles, dims, lattice, &rows);
+    drop(span);
     let words = dims.x.div_ceil(32) as usize;
     crate::parallel::install(|| {
         let filled: Vec<(u64, LeafMask, u64)> = spans

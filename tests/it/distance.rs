@@ -448,7 +448,7 @@ fn distance_evaluations_stay_a_small_multiple_of_the_band_voxels() {
 /// `LeafCells`), bit for bit, on a mesh with decimal coordinates at a size that is not a multiple of a brick.
 #[test]
 fn bricks_give_the_leaves_atomics_field_bit_for_bit() {
-    use meshvox::voxel::cpu::distance::{LeafCells, band_distance};
+    use meshvox::voxel::cpu::distance::{LeafCells, band_distance, best_value};
     use meshvox::voxel::distance::mark_leaves;
     use std::sync::atomic::{AtomicU32, Ordering};
     let mesh = meshvox::mesh::load("builtin:torus").expect("torus");
@@ -460,10 +460,10 @@ fn bricks_give_the_leaves_atomics_field_bit_for_bit() {
         let field = DistanceField::compute(&tris, spec, band, None);
         let reach = band.reach(spec.dims);
         let (slots, leaves) = mark_leaves(&tris, spec.dims, reach);
-        let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new((reach * reach).to_bits())).collect();
-        let mut cells = LeafCells { dims: spec.dims, slots: &slots, best: &best };
+        let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(0)).collect();
+        let mut cells = LeafCells { dims: spec.dims, reach, slots: &slots, best: &best };
         let evaluated: u64 = tris.iter().map(|&t| band_distance(t, spec.dims, reach, &mut cells)).sum();
-        let best: Vec<f32> = best.iter().map(|b| f32::from_bits(b.load(Ordering::Relaxed))).collect();
+        let best: Vec<f32> = best.iter().map(|b| best_value(b.load(Ordering::Relaxed), reach)).collect();
         let atomics = DistanceField::from_squared(spec, band, slots, leaves, best, None);
         assert_eq!(field.values.len(), atomics.values.len(), "{n}");
         let differ = field.values.iter().zip(&atomics.values).filter(|(a, b)| a.to_bits() != b.to_bits()).count();

@@ -50,10 +50,26 @@ pub trait Cells {
     fn lower(&mut self, v: IVec3, d2: f32);
 }
 
-/// The GPU's layout: 512 atomics per leaf slot, lowered with an atomic minimum of the f32 bits (which order like
-/// the numbers for non-negative values).
+/// A squared distance as the GPU's `best` buffer keeps it: its f32 bits (which order like the numbers for
+/// non-negative values) inverted, so that an atomic maximum keeps the least distance and a word of zero, as a
+/// buffer is made, is a voxel no triangle has lowered ([`best_value`]): nothing is uploaded to start it.
+pub fn best_word(d2: f32) -> u32 {
+    !d2.to_bits()
+}
+
+/// The squared distance a `best` word holds ([`best_word`]), `reach²` where no triangle lowered it.
+pub fn best_value(word: u32, reach: f32) -> f32 {
+    match word {
+        0 => reach * reach,
+        word => f32::from_bits(!word),
+    }
+}
+
+/// The GPU's layout: 512 atomics per leaf slot, each a [`best_word`] (starting at zero), lowered with an atomic
+/// maximum.
 pub struct LeafCells<'a> {
     pub dims: UVec3,
+    pub reach: f32,
     pub slots: &'a [u32],
     pub best: &'a [AtomicU32],
 }
@@ -71,10 +87,10 @@ impl Cells for LeafCells<'_> {
         (IVec3::ZERO, self.dims.as_ivec3() - 1)
     }
     fn get(&self, v: IVec3) -> f32 {
-        f32::from_bits(self.at(v).load(Ordering::Relaxed))
+        best_value(self.at(v).load(Ordering::Relaxed), self.reach)
     }
     fn lower(&mut self, v: IVec3, d2: f32) {
-        self.at(v).fetch_min(d2.to_bits(), Ordering::Relaxed);
+        self.at(v).fetch_max(best_word(d2), Ordering::Relaxed);
     }
 }
 
