@@ -8,7 +8,8 @@
 //                   (START, NONE) where none is nearer than START. The index carries UNCERTAIN unless a second
 //                   walk proves that, in any f32 evaluation within QUERY_ERROR of this one (the CPU's), every
 //                   triangle sharing no vertex with it is farther: then the CPU's answer is it or one of its
-//                   neighbours, and the host compares just those. Where `signed`, also the point's side: the
+//                   neighbours, and the host compares just those, or just those around one of its vertices
+//                   (RING) where every neighbour that may be as near shares it. Where `signed`, also the point's side: the
 //                   signed crossings of the ray from it towards -x (each decided in f32 with Shewchuk's error
 //                   bounds) plus the holes' term, 0 outside, 1 inside, UNDECIDED where a bound does not tell.
 // The host answers the rest in world space and f64 from the triangle (nearest point, barycentric coordinates),
@@ -52,10 +53,14 @@ const UNCERTAIN: u32 = 0x80000000u;
 // In `found`'s index: a neighbour of the found triangle may be as near in another evaluation; the host settles
 // among them (without it, the found triangle is the nearest in any evaluation within the bound).
 const TIED: u32 = 0x40000000u;
+// In `found`'s index, with TIED: 1 + the vertex of the found triangle that every neighbour as near shares (the host
+// compares only the triangles around it), 0 where none is common to them all.
+const RING: u32 = 0x30000000u;
+const RING_SHIFT: u32 = 28u;
 // In `order`: a triangle whose THIN test (nearest.wgsl's closest_barycentric) is within rounding of its threshold,
 // so that two evaluations may take different branches; below it, the mesh index.
 const NEAR_THIN: u32 = 0x80000000u;
-const INDEX: u32 = 0x3fffffffu;
+const INDEX: u32 = 0x0fffffffu;
 // How far apart two f32 evaluations of point_distance2 (the CPU's and a GPU's, whose fused multiply-adds and 2.5-ulp
 // division round otherwise) may be, relative to the largest squared offset in play: 2^-18 (32 ulps), 16 times what
 // an H200 was measured at. ROOT_ERROR is its square root.
@@ -169,16 +174,25 @@ fn walk_nearest(p: vec3<f32>) -> vec3<u32> {
     return vec3<u32>(bitcast<u32>(best), found_id, found_leaf);
 }
 
-// Whether triangles t and u have a vertex in common (the same point of the frame).
-fn shares_vertex(t: array<vec3<f32>, 3>, u: array<vec3<f32>, 3>) -> bool {
-    for (var i = 0u; i < 3u; i++) {
-        for (var k = 0u; k < 3u; k++) {
+// The vertices of u (bit k for vertex k) that triangle t has too (the same point of the frame).
+fn shared_vertices(t: array<vec3<f32>, 3>, u: array<vec3<f32>, 3>) -> u32 {
+    var mask = 0u;
+    for (var k = 0u; k < 3u; k++) {
+        for (var i = 0u; i < 3u; i++) {
             if all(t[i] == u[k]) {
-                return true;
+                mask |= 1u << k;
             }
         }
     }
-    return false;
+    return mask;
+}
+
+// TIED with the RING of the lowest vertex in `ring_mask` (a mask of the found triangle's vertices), none where empty.
+fn tied_ring(ring_mask: u32) -> u32 {
+    if ring_mask == 0u {
+        return TIED;
+    }
+    return TIED | ((firstTrailingBit(ring_mask) + 1u) << RING_SHIFT);
 }
 
 // A bound on how far two f32 evaluations of point_distance2(p, t) may be apart: QUERY_ERROR of the largest squared
@@ -190,7 +204,8 @@ fn distance_error(p: vec3<f32>, t: array<vec3<f32>, 3>) -> f32 {
 
 // What a second walk proves of leaf-order triangle `leaf` (p's nearest, at squared distance `best`) in any
 // evaluation within distance_error of this one: UNCERTAIN where a triangle sharing no vertex with it may be as
-// near, else TIED where a neighbour may be, else 0 (it is the nearest). A triangle at squared distance d2 matters
+// near, else TIED where a neighbour may be (with the RING of a vertex all such neighbours share), else 0 (it is
+// the nearest). A triangle at squared distance d2 matters
 // while d2 - QUERY_ERROR (sqrt(d2) + reach)^2 <= high, that is while sqrt(d2) <= (sqrt(high) + sqrt(QUERY_ERROR)
 // reach) / (1 - sqrt(QUERY_ERROR)): the walk opens everything within that.
 fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> u32 {
@@ -198,7 +213,8 @@ fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> u32 {
     if (order[leaf] & NEAR_THIN) != 0u {
         return UNCERTAIN;
     }
-    var tied = 0u;
+    var tied = false;
+    var ring_mask = 7u;
     let high = best + distance_error(p, b);
     let root = (sqrt(high) + ROOT_ERROR * params.reach) / (1.0 - ROOT_ERROR);
     let limit = root * root * 1.0001;
@@ -217,10 +233,12 @@ fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> u32 {
                     continue;
                 }
                 if (order[j] & NEAR_THIN) != 0u || point_distance2(p, t) - distance_error(p, t) <= high {
-                    if !shares_vertex(t, b) {
+                    let around = shared_vertices(t, b);
+                    if around == 0u {
                         return UNCERTAIN;
                     }
-                    tied = TIED;
+                    ring_mask &= around;
+                    tied = true;
                 }
             }
             continue;
@@ -233,7 +251,10 @@ fn nearest_certain(p: vec3<f32>, best: f32, leaf: u32) -> u32 {
             }
         }
     }
-    return tied;
+    if !tied {
+        return 0u;
+    }
+    return tied_ring(ring_mask);
 }
 
 // The orientation of (a, b, c) in the YZ plane (positive counterclockwise, as Shewchuk's orient2d on (y, z)) and

@@ -15,7 +15,7 @@
 
 use super::bvh::Bvh;
 use super::cpu::nearest::point_distance2;
-use super::cpu::query::{FAR, INDEX, NONE, NearestTables, TIED, UNCERTAIN, UNDECIDED};
+use super::cpu::query::{FAR, INDEX, NONE, NearestTables, RING, RING_SHIFT, TIED, UNCERTAIN, UNDECIDED};
 use super::cpu::solid::{
     ATAN2_CPU, Boundary, MARGIN, Winding, certain_side, point_side, winding_exact, winding_number_tree,
 };
@@ -56,10 +56,12 @@ fn morton_order(frame: &[Vec3], dims: glam::UVec3) -> Vec<u32> {
         let c = ((q + size) / (3.0 * size) * 1024.0).clamp(Vec3::ZERO, Vec3::splat(1023.0)).as_uvec3();
         spread(c.x) | spread(c.y) << 1 | spread(c.z) << 2
     };
-    let mut order: Vec<(u64, u32)> =
-        crate::parallel::install(|| frame.par_iter().enumerate().map(|(i, &q)| (key(q), i as u32)).collect());
-    order.par_sort_unstable();
-    order.into_iter().map(|(_, i)| i).collect()
+    // The key (30 bits) above the index, sorted as one integer.
+    crate::parallel::install(|| {
+        let mut order: Vec<u64> = frame.par_iter().enumerate().map(|(i, &q)| key(q) << 32 | i as u64).collect();
+        order.par_sort_unstable();
+        order.par_iter().map(|&k| k as u32).collect()
+    })
 }
 
 /// Whether to sign the distances (and compute the winding number).
@@ -85,67 +87,69 @@ pub struct Prepared {
     boundary: Boundary,
     /// The hierarchy as the GPU reads it, made at the first GPU query and kept for the next.
     tables: std::sync::OnceLock<NearestTables>,
-    /// Each triangle's neighbours, made at the first GPU query's answers and kept for the next.
+    /// The triangles around each vertex, made at the first GPU query's answers and kept for the next.
     neighbours: std::sync::OnceLock<Neighbours>,
 }
 
-/// The triangles that share a vertex (the same point of the frame) with each triangle: triangle `t`'s are
-/// `list[first[t]..first[t + 1]]`, itself left out. Where a GPU proves that no other triangle can be nearer a
-/// point than its nearest one, the CPU's nearest is that one or one of these.
+/// The triangles around each vertex (the same point of the frame), for the triangles that share a vertex with a
+/// triangle. Where a GPU proves that no other triangle can be nearer a point than its nearest one, the CPU's
+/// nearest is that one or one of those around its vertices, or around the one vertex the GPU names ([`RING`]).
 struct Neighbours {
-    first: Vec<u32>,
-    list: Vec<u32>,
+    /// The triangles, grouped by vertex: each corner's triangle, the corners sorted by their vertex.
+    triangles: Vec<u32>,
+    /// Where each vertex's group starts in `triangles` (one more, at the end).
+    start: Vec<u32>,
+    /// The group of corner `k` of triangle `t`, at `3 t + k`.
+    group: Vec<u32>,
 }
 
 impl Neighbours {
     fn of(frame: &[[Vec3; 3]]) -> Neighbours {
-        // The vertex as bits, -0 as 0 (the shader compares values).
-        let key = |v: Vec3| (v + Vec3::ZERO).to_array().map(f32::to_bits);
-        let mut corners: Vec<([u32; 3], u32)> =
-            frame.iter().enumerate().flat_map(|(t, tri)| tri.iter().map(move |&v| (key(v), t as u32))).collect();
-        corners.par_sort_unstable();
-        let groups: Vec<&[([u32; 3], u32)]> = corners.chunk_by(|a, b| a.0 == b.0).collect();
-        // Each triangle's list holds the others of its three corners' groups (a neighbour across an edge twice,
-        // until each list is sorted and its repeats dropped).
-        let mut first = vec![0u32; frame.len() + 1];
-        for group in &groups {
-            for &(_, t) in *group {
-                first[t as usize + 1] += group.len() as u32 - 1;
+        // A corner as one integer, the vertex's three words (-0 as 0: the shader compares values) above its place
+        // `3 t + k`: sorted as integers, the corners at one vertex are a run.
+        let corner = |v: Vec3, at: usize| {
+            let [x, y, z] = (v + Vec3::ZERO).to_array().map(|c| u128::from(c.to_bits()));
+            x << 96 | y << 64 | z << 32 | at as u128
+        };
+        let mut corners = vec![0u128; frame.len() * 3];
+        crate::parallel::install(|| {
+            corners.par_chunks_mut(3).zip(frame.par_iter()).enumerate().for_each(|(t, (out, tri))| {
+                out.iter_mut().zip(tri).enumerate().for_each(|(k, (c, &v))| *c = corner(v, 3 * t + k));
+            });
+            corners.par_sort_unstable();
+        });
+        let mut neighbours = Neighbours {
+            triangles: Vec::with_capacity(corners.len()),
+            start: Vec::new(),
+            group: vec![0; corners.len()],
+        };
+        for (i, &c) in corners.iter().enumerate() {
+            if i == 0 || c >> 32 != corners[i - 1] >> 32 {
+                neighbours.start.push(i as u32);
             }
+            let at = c as u32;
+            neighbours.group[at as usize] = neighbours.start.len() as u32 - 1;
+            neighbours.triangles.push(at / 3);
         }
-        for t in 0..frame.len() {
-            first[t + 1] += first[t];
-        }
-        let mut list = vec![0u32; first[frame.len()] as usize];
-        let mut cursor = first.clone();
-        for group in &groups {
-            for &(_, t) in *group {
-                for &(_, u) in group.iter().filter(|&&(_, u)| u != t) {
-                    list[cursor[t as usize] as usize] = u;
-                    cursor[t as usize] += 1;
-                }
-            }
-        }
-        let (mut kept, mut start) = (0usize, 0usize);
-        for t in 0..frame.len() {
-            let end = first[t + 1] as usize;
-            list[start..end].sort_unstable();
-            first[t] = kept as u32;
-            for k in start..end {
-                if k == start || list[k] != list[k - 1] {
-                    list[kept] = list[k];
-                    kept += 1;
-                }
-            }
-            start = end;
-        }
-        first[frame.len()] = kept as u32;
-        list.truncate(kept);
-        Neighbours { first, list }
+        neighbours.start.push(corners.len() as u32);
+        neighbours
     }
 
-    fn around(&self, t: u32) -> &[u32] {
-        &self.list[self.first[t as usize] as usize..self.first[t as usize + 1] as usize]
+    /// The triangles around corner `k` of triangle `t` (`t` among them).
+    fn ring(&self, t: u32, k: u32) -> &[u32] {
+        let g = self.group[(3 * t + k) as usize] as usize;
+        &self.triangles[self.start[g] as usize..self.start[g + 1] as usize]
+    }
+
+    /// The triangles that may tie with `t` where a GPU's proposal is [`TIED`]: around the vertex its [`RING`]
+    /// names, or around all three (those across an edge twice, and `t` itself: comparing one again changes
+    /// nothing).
+    fn candidates(&self, t: u32, word: u32) -> impl Iterator<Item = u32> + '_ {
+        let corners = match (word & RING) >> RING_SHIFT {
+            0 => 0..3,
+            k => k - 1..k,
+        };
+        corners.flat_map(move |k| self.ring(t, k).iter().copied())
     }
 }
 
@@ -222,7 +226,7 @@ impl Prepared {
             *last = Some(near.triangle);
             (near, self.side(q, sign, winding))
         });
-        Ok(assemble(answers, sign, winding))
+        Ok(columns(points.len(), sign, winding, |i| (answers[i].0, false), |i| (answers[i].1, false)).0)
     }
 
     /// The points in the frame, and their order along a Morton curve: what [`Prepared::query`] walks them in, and
@@ -262,7 +266,8 @@ impl Prepared {
     /// - a proposal the device proved alone (no [`TIED`] or [`UNCERTAIN`]: every other triangle is farther in any
     ///   evaluation within the bound of the device's) is the CPU's nearest;
     /// - a [`TIED`] one (only its neighbours, the triangles sharing one of its vertices, may be as near) is settled
-    ///   among it and its neighbours here, by this CPU's arithmetic and the tie rule;
+    ///   among it and its neighbours here, by this CPU's arithmetic and the tie rule: those around the one vertex
+    ///   its [`RING`] names, where the device found that every neighbour as near shares it;
     /// - an [`UNCERTAIN`] one seeds this CPU's own walk, which finds the triangle the tie rule names, opening only
     ///   the nodes at that distance, and so does a point the search did not answer (`NONE`, missing, or beyond
     ///   [`FAR`] in the frame, where a GPU's squares may overflow), from nothing.
@@ -301,45 +306,44 @@ impl Prepared {
         let neighbours = self.neighbours.get_or_init(|| Neighbours::of(&self.frame));
         drop(span);
         let triangles = self.frame.len() as u32;
-        let span = crate::trace::span("query: nearest points");
-        let nears: Vec<(Near, bool)> = crate::parallel::install(|| {
-            (points, frame)
-                .into_par_iter()
-                .enumerate()
-                .with_min_len(CHUNK)
-                .map(|(i, (&p, &q))| match found.get(i) {
-                    Some(&(_, word)) if word != NONE && (word & INDEX) < triangles && near(q) => {
-                        let triangle = word & INDEX;
-                        match (word & UNCERTAIN != 0, word & TIED != 0) {
-                            (true, _) => (self.nearest(p, q, Some(triangle)), true),
-                            (false, true) => (self.nearest_among(p, q, triangle, neighbours.around(triangle)), false),
-                            (false, false) => (self.near_of(p, triangle, 1), false),
+        let _span = crate::trace::span("query: nearest points");
+        // Each point's answer written straight into the columns; `true` where the host searched for it.
+        let settle = |i: usize| {
+            let (p, q) = (points[i], frame[i]);
+            match found.get(i) {
+                Some(&(_, word)) if word != NONE && (word & INDEX) < triangles && near(q) => {
+                    let triangle = word & INDEX;
+                    match (word & UNCERTAIN != 0, word & TIED != 0) {
+                        (true, _) => (self.nearest(p, q, Some(triangle)), true),
+                        (false, true) => {
+                            (self.nearest_among(p, q, triangle, neighbours.candidates(triangle, word)), false)
                         }
+                        (false, false) => (self.near_of(p, triangle, 1), false),
                     }
-                    _ => (self.nearest(p, q, None), true),
-                })
-                .collect()
-        });
-        drop(span);
-        let _span = crate::trace::span("query: assemble");
-        let host =
-            nears.iter().zip(&sides).filter(|((_, searched), side)| *searched || matches!(side, Some(Side::Host(_))));
-        let host = host.count() as u64;
-        let answers = assemble(nears.into_iter().map(|(near, _)| near).zip(sides).collect(), sign, winding);
-        (answers, host)
+                }
+                _ => (self.nearest(p, q, None), true),
+            }
+        };
+        let side = |i: usize| -> (Option<Side>, bool) {
+            let side = sides[i];
+            (side, matches!(side, Some(Side::Host(_))))
+        };
+        columns(points.len(), sign, winding, settle, side)
     }
 
     /// The nearest of triangle `t` and its `neighbours` to frame point `q` by this CPU's arithmetic, the first in
     /// the mesh where they are as near (the tie rule), and its nearest point to `p` in world space.
-    fn nearest_among(&self, p: DVec3, q: Vec3, t: u32, neighbours: &[u32]) -> Near {
+    fn nearest_among(&self, p: DVec3, q: Vec3, t: u32, neighbours: impl Iterator<Item = u32>) -> Near {
         let mut best = (point_distance2(q, self.frame[t as usize]), t);
-        for &u in neighbours {
+        let mut evaluations = 1;
+        for u in neighbours.filter(|&u| u != t) {
             let d2 = point_distance2(q, self.frame[u as usize]);
             if d2 < best.0 || (d2 == best.0 && u < best.1) {
                 best = (d2, u);
             }
+            evaluations += 1;
         }
-        self.near_of(p, best.1, 1 + neighbours.len() as u32)
+        self.near_of(p, best.1, evaluations)
     }
 
     /// What a signed query says of frame point `q`: the winding number's value, or only its side of ½.
@@ -352,7 +356,7 @@ impl Prepared {
     }
 
     fn frame_points(&self, points: &[DVec3]) -> Vec<Vec3> {
-        points.iter().map(|&p| self.to_frame(p)).collect()
+        crate::parallel::install(|| points.par_iter().map(|&p| self.to_frame(p)).collect())
     }
 
     /// The winding numbers at `points` alone (world space), within [`WINDING_TOLERANCE`], on the library's threads.
@@ -427,7 +431,7 @@ impl Prepared {
 
 /// Refuses the first point with a NaN or infinite coordinate.
 fn all_finite(points: &[DVec3]) -> Result<(), QueryError> {
-    match points.iter().position(|p| !p.is_finite()) {
+    match crate::parallel::install(|| points.par_iter().position_first(|p| !p.is_finite())) {
         Some(index) => Err(QueryError::NonFinite { index, point: points[index].to_array() }),
         None => Ok(()),
     }
@@ -453,35 +457,79 @@ fn along_curve<T: Send>(order: &[u32], answer: impl Fn(usize, &mut Option<u32>) 
     out.into_iter().flatten().collect()
 }
 
-/// The answers of each point's nearest triangle and side.
-fn assemble(answers: Vec<(Near, Option<Side>)>, sign: Sign, winding: bool) -> Answers {
+/// The answers' columns from each point's nearest triangle and side (`near(i)`, `side(i)`, each with whether the
+/// host searched for or decided it), filled in place on the library's threads; with how many points the host
+/// searched for or decided.
+fn columns(
+    n: usize,
+    sign: Sign,
+    winding: bool,
+    near: impl Fn(usize) -> (Near, bool) + Sync,
+    side: impl Fn(usize) -> (Option<Side>, bool) + Sync,
+) -> (Answers, u64) {
     let signed = sign == Sign::Winding;
     let mut out = Answers {
-        winding: (signed && winding).then(|| Vec::with_capacity(answers.len())),
-        inside: signed.then(|| Vec::with_capacity(answers.len())),
-        ..Answers::default()
+        distance: vec![0.0; n],
+        winding: (signed && winding).then(|| vec![0.0; n]),
+        inside: signed.then(|| vec![false; n]),
+        closest: vec![DVec3::ZERO; n],
+        triangle: vec![0; n],
+        barycentric: vec![[0.0; 3]; n],
+        evaluations: 0,
     };
-    for (near, side) in answers {
-        let inside = match side {
-            Some(Side::Value(w)) => {
-                if let Some(values) = out.winding.as_mut() {
-                    values.push(w as f32);
+    // A column that is not asked for is passed as chunks of nothing, so the zip below keeps its length.
+    let winding_chunks = match out.winding.as_mut() {
+        Some(values) => values.chunks_mut(CHUNK).collect::<Vec<_>>(),
+        None => (0..n.div_ceil(CHUNK)).map(|_| Default::default()).collect(),
+    };
+    let inside_chunks = match out.inside.as_mut() {
+        Some(values) => values.chunks_mut(CHUNK).collect::<Vec<_>>(),
+        None => (0..n.div_ceil(CHUNK)).map(|_| Default::default()).collect(),
+    };
+    let (evaluations, host) = crate::parallel::install(|| {
+        let columns = (
+            out.distance.par_chunks_mut(CHUNK),
+            out.closest.par_chunks_mut(CHUNK),
+            out.triangle.par_chunks_mut(CHUNK),
+            out.barycentric.par_chunks_mut(CHUNK),
+            winding_chunks.into_par_iter(),
+            inside_chunks.into_par_iter(),
+        );
+        columns
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, (distance, closest, triangle, barycentric, values, sides))| {
+                let (mut evaluations, mut host) = (0u64, 0u64);
+                for k in 0..distance.len() {
+                    let i = c * CHUNK + k;
+                    let ((found, searched), (side, decided)) = (near(i), side(i));
+                    let inside = match side {
+                        Some(Side::Value(w)) => {
+                            if let Some(value) = values.get_mut(k) {
+                                *value = w as f32;
+                            }
+                            w >= 0.5
+                        }
+                        Some(Side::Inside(inside) | Side::Host(inside)) => inside,
+                        None => false,
+                    };
+                    if let Some(slot) = sides.get_mut(k) {
+                        *slot = inside;
+                    }
+                    let d = found.distance;
+                    distance[k] = if inside && d > 0.0 { -d } else { d } as f32;
+                    closest[k] = found.closest;
+                    triangle[k] = found.triangle;
+                    barycentric[k] = found.barycentric.as_vec3().to_array();
+                    evaluations += u64::from(found.evaluations);
+                    host += u64::from(searched || decided);
                 }
-                w >= 0.5
-            }
-            Some(Side::Inside(inside) | Side::Host(inside)) => inside,
-            None => false,
-        };
-        if let Some(sides) = out.inside.as_mut() {
-            sides.push(inside);
-        }
-        out.distance.push(if inside && near.distance > 0.0 { -near.distance } else { near.distance } as f32);
-        out.evaluations += u64::from(near.evaluations);
-        out.closest.push(near.closest);
-        out.triangle.push(near.triangle);
-        out.barycentric.push(near.barycentric.as_vec3().to_array());
-    }
-    out
+                (evaluations, host)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    });
+    out.evaluations = evaluations;
+    (out, host)
 }
 
 /// The sides of a list of points ([`Prepared::sides`]), kept for [`Prepared::query_found`].
@@ -497,6 +545,7 @@ pub struct Placed {
 
 /// What a signed query found at a point: the winding number's value, or only its side of ½ (decided by the host
 /// after a device left it open, told apart so that it can be counted).
+#[derive(Clone, Copy)]
 enum Side {
     Value(f64),
     Inside(bool),
@@ -515,6 +564,7 @@ pub struct Proposed {
 }
 
 /// The nearest point of a triangle.
+#[derive(Clone, Copy)]
 struct Near {
     distance: f64,
     /// Point-to-triangle distances the hierarchy evaluated.

@@ -14,7 +14,7 @@ use meshvox::mesh::{self, Mesh};
 use meshvox::voxel::bvh::Bvh;
 use meshvox::voxel::cpu::nearest::point_distance2;
 use meshvox::voxel::cpu::query::{
-    INDEX, NONE, TIED, UNCERTAIN, UNDECIDED, distance_error, nearest_point, point_inside,
+    INDEX, NONE, RING, RING_SHIFT, TIED, UNCERTAIN, UNDECIDED, distance_error, nearest_point, point_inside,
 };
 use meshvox::voxel::query::{Answers, Prepared, Proposed, Sign};
 use meshvox::voxel::sample::SampleRequest;
@@ -205,7 +205,8 @@ fn holed_meshes(dir: &std::path::Path) -> Vec<(String, Mesh)> {
 }
 
 /// What the host makes of a device's proposals, as its proofs mark them (the CPU's own triangle alone; a neighbour
-/// sharing a vertex, which is what a GPU's other rounding names at a near-tie, or the CPU's own, marked tied; any
+/// sharing a vertex, which is what a GPU's other rounding names at a near-tie, or the CPU's own, marked tied; a
+/// triangle around one of the CPU's triangle's vertices, marked tied with the ring of that vertex; any
 /// triangle or the CPU's marked uncertain; none): the answers are the CPU's, field for field, and the host searches
 /// for exactly the uncertain and missing ones. No GPU is needed: the proposals are made here.
 #[test]
@@ -233,19 +234,28 @@ fn a_proposed_triangle_is_confirmed_by_the_cpus_walk() {
             let shared = &by_vertex[&key(mesh.triangles[t as usize][0])];
             shared.iter().copied().find(|&s| s != t).unwrap_or(t)
         };
+        // Another triangle around vertex `k` of triangle `t` (itself where none is), with the RING that names that
+        // vertex in it: what a device proposes where every triangle as near shares that vertex.
+        let around = |t: u32, k: usize| {
+            let v = key(mesh.triangles[t as usize][k]);
+            let u = by_vertex[&v].iter().copied().rev().find(|&u| u != t).unwrap_or(t);
+            let corner = mesh.triangles[u as usize].iter().position(|&w| key(w) == v).expect("a shared vertex");
+            u | TIED | ((corner as u32 + 1) << RING_SHIFT)
+        };
         let placed = prepared.place(&points).expect("place");
-        // A proposal the device proved alone is taken, a tied one settled among the triangle and its neighbours;
-        // uncertain ones and none are searched for.
+        // A proposal the device proved alone is taken, a tied one settled among the triangle and its neighbours
+        // (or those around the vertex its ring names); uncertain ones and none are searched for.
         let found: Vec<(f32, u32)> = cpu
             .triangle
             .iter()
             .enumerate()
-            .map(|(i, &t)| match i % 6 {
+            .map(|(i, &t)| match i % 7 {
                 0 => (0.0, t),
                 1 => (0.0, neighbour(t) | TIED),
                 2 => (0.0, t | TIED),
                 3 => (0.0, rng.below(u64::from(triangles)) as u32 | UNCERTAIN),
                 4 => (0.0, t | UNCERTAIN),
+                5 => (0.0, around(t, i % 3)),
                 _ => (0.0, NONE),
             })
             .collect();
@@ -266,6 +276,23 @@ fn a_proposed_triangle_is_confirmed_by_the_cpus_walk() {
         let tied = nearest.iter().filter(|f| f.1 & (TIED | UNCERTAIN) == TIED).count();
         let alone = nearest.iter().filter(|f| f.1 & (TIED | UNCERTAIN) == 0).count();
         assert!(tied > 0 && alone > 0, "{name}: {tied} points tied, {alone} alone: both ways are taken");
+        let ringed = nearest.iter().filter(|f| f.1 & (TIED | UNCERTAIN) == TIED && f.1 & RING != 0).count();
+        assert!(ringed > 0, "{name}: none of {tied} tied points names the vertex its neighbours share");
+        // The vertex a proof names is on every triangle that may be as near (brute force over all of them).
+        for (q, &(best, word)) in placed.frame.iter().zip(&nearest) {
+            if word == NONE || word & (TIED | UNCERTAIN) != TIED || word & RING == 0 {
+                continue;
+            }
+            let leaf = tables.order.iter().position(|&o| o & INDEX == word & INDEX).expect("the found triangle");
+            let b = tables.triangles[leaf];
+            let v = b[((word & RING) >> RING_SHIFT) as usize - 1];
+            let high = best + distance_error(*q, b);
+            for (j, &t) in tables.triangles.iter().enumerate() {
+                if j != leaf && point_distance2(*q, t) - distance_error(*q, t) <= high {
+                    assert!(t.contains(&v), "{name}: at {q}, triangle {j} may tie but lacks the named vertex {v}");
+                }
+            }
+        }
         let sides = prepared.sides(&placed, Sign::Winding, false);
         let mirrored = Proposed { nearest, sides: None };
         let (answers, _) = prepared.query_found(&points, &placed, &mirrored, Some(sides), Sign::Winding, false);

@@ -45,12 +45,19 @@ pub const UNCERTAIN: u32 = 1 << 31;
 /// within the bound.
 pub const TIED: u32 = 1 << 30;
 
+/// In a found triangle's index, with [`TIED`]: 1 + the vertex of the found triangle that every neighbour that may
+/// be as near shares, so that the host compares only the triangles around it; 0 where no vertex is common to them.
+pub const RING: u32 = 3 << RING_SHIFT;
+
+/// Where [`RING`] starts.
+pub const RING_SHIFT: u32 = 28;
+
 /// In [`NearestTables::order`]: a triangle whose `THIN` test ([`super::nearest::closest_barycentric`]) is within
 /// rounding of its threshold, so that two f32 evaluations may take different branches; below it, the mesh index.
 pub const NEAR_THIN: u32 = 1 << 31;
 
 /// The mesh index in a word of [`NearestTables::order`] or of a found triangle.
-pub const INDEX: u32 = (1 << 30) - 1;
+pub const INDEX: u32 = (1 << RING_SHIFT) - 1;
 
 /// How far apart two f32 evaluations of [`point_distance2`] (the CPU's and a GPU's, whose fused multiply-adds and
 /// 2.5-ulp division round otherwise) may be, relative to the largest squared offset in play: 2^-18 (32 ulps), 16
@@ -165,9 +172,18 @@ pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32, u32) {
     (best, found, leaf)
 }
 
-/// Whether triangles `t` and `u` have a vertex in common (the same point of the frame).
-pub fn shares_vertex(t: [Vec3; 3], u: [Vec3; 3]) -> bool {
-    t.iter().any(|a| u.contains(a))
+/// The vertices of `u` (bit `k` for vertex `k`) that triangle `t` has too (the same point of the frame).
+pub fn shared_vertices(t: [Vec3; 3], u: [Vec3; 3]) -> u32 {
+    (0..3).filter(|&k| t.contains(&u[k])).map(|k| 1 << k).sum()
+}
+
+/// [`TIED`] with the [`RING`] of the lowest vertex in `ring_mask` (a mask of the found triangle's vertices), none where
+/// it is empty.
+pub fn tied_ring(ring_mask: u32) -> u32 {
+    match ring_mask {
+        0 => TIED,
+        ring_mask => TIED | (ring_mask.trailing_zeros() + 1) << RING_SHIFT,
+    }
 }
 
 /// A bound on how far two f32 evaluations of [`point_distance2`]`(p, t)` may be apart: [`QUERY_ERROR`] of the
@@ -180,7 +196,7 @@ pub fn distance_error(p: Vec3, t: [Vec3; 3]) -> f32 {
 /// What a second walk proves of leaf-order triangle `leaf` (`p`'s nearest, at squared distance `best`) in any
 /// evaluation within [`distance_error`] of this one: [`UNCERTAIN`] where a triangle sharing no vertex with it may be
 /// as near, else [`TIED`] where a neighbour may be (the CPU's nearest, the first at its least f32 distance, is then
-/// `leaf`'s or a neighbour's), else 0 (it is `leaf`'s). A triangle at squared distance `d2` matters while `d2 -
+/// `leaf`'s or a neighbour's; with the [`RING`] of a vertex every such neighbour shares), else 0 (it is `leaf`'s). A triangle at squared distance `d2` matters while `d2 -
 /// QUERY_ERROR (√d2 + reach)² <= high`, that is while `√d2 <= (√high + √QUERY_ERROR reach) / (1 - √QUERY_ERROR)`:
 /// the walk opens everything within that.
 pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) -> u32 {
@@ -188,7 +204,7 @@ pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) ->
     if tables.order[leaf as usize] & NEAR_THIN != 0 {
         return UNCERTAIN;
     }
-    let mut tied = 0;
+    let (mut tied, mut ring_mask) = (false, 7);
     let high = best + distance_error(p, b);
     let root = (high.sqrt() + ROOT_ERROR * tables.reach) / (1.0 - ROOT_ERROR);
     let limit = root * root * 1.0001;
@@ -205,10 +221,12 @@ pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) ->
                     continue;
                 }
                 if tables.order[j as usize] & NEAR_THIN != 0 || point_distance2(p, t) - distance_error(p, t) <= high {
-                    if !shares_vertex(t, b) {
+                    let around = shared_vertices(t, b);
+                    if around == 0 {
                         return UNCERTAIN;
                     }
-                    tied = TIED;
+                    ring_mask &= around;
+                    tied = true;
                 }
             }
             continue;
@@ -221,7 +239,7 @@ pub fn nearest_certain(tables: &NearestTables, p: Vec3, best: f32, leaf: u32) ->
             }
         }
     }
-    tied
+    if tied { tied_ring(ring_mask) } else { 0 }
 }
 
 /// What the shader's `nearest_points` writes for `p`: [`walk_nearest`]'s squared distance and mesh index, the index
