@@ -14,7 +14,7 @@
 //! grid's tree), the leaves' values in runs that fit a binding.
 
 use super::query::{QUERY_WGSL, fits_walk};
-use super::readback::read_buffer;
+use super::readback::{read_buffer, read_buffer_with};
 use super::util::{
     buffer_init, scoped, single_pipeline, storage_buffer, storage_entry, submit_bound, submit_dispatch, uniform_entry,
 };
@@ -22,7 +22,7 @@ use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::triangle_layers;
-use crate::voxel::distance::{Band, DistanceField, mark_leaves};
+use crate::voxel::distance::{Band, DistanceField, Finishing, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -117,18 +117,22 @@ impl GpuDistance {
             let _span = crate::trace::span("field: finish values");
             DistanceField::from_squared(spec, band, slots, leaves, best, inside.take())
         } else {
-            let mut words = Vec::new();
+            // Each run of leaves finished straight out of the mapped range into the field's values.
+            let mut finishing = Finishing::new(spec, band, leaves.len(), inside.as_ref());
             for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
-                let range = self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic).await?;
-                // One chunk (a band that fits one binding) is the list as read back, not copied again.
-                match words.is_empty() {
-                    true => words = range,
-                    false => words.extend(range),
-                }
+                let origins = &leaves[first..first + count];
+                let take = |mapped: &[u8]| {
+                    let _span = crate::trace::span("field: finish values");
+                    match bytemuck::try_cast_slice::<u8, u32>(mapped) {
+                        Ok(words) => finishing.words(first, origins, words),
+                        Err(_) => finishing.words(first, origins, &bytemuck::pod_collect_to_vec(mapped)),
+                    }
+                };
+                self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic, take).await?;
             }
             gpu.check()?;
-            let _span = crate::trace::span("field: finish values");
-            DistanceField::from_words(spec, band, slots, leaves, words, inside.take())
+            let (values, band_voxels) = finishing.done();
+            DistanceField::from_values(spec, band, (slots, leaves), values, inside.take(), band_voxels)
         };
         Ok((field, traffic))
     }
@@ -201,8 +205,8 @@ impl GpuDistance {
         Ok(best)
     }
 
-    /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and reads their `best`
-    /// words back (`best_word`: the squared distances, decoded as the values are finished).
+    /// Runs `band_distance` over leaves `first..first + count` (voxel layers `z.0..z.1`) and hands their `best`
+    /// words (`best_word`: the squared distances) to `take` out of the mapped range.
     #[allow(clippy::too_many_arguments)]
     async fn chunk(
         &self,
@@ -214,7 +218,8 @@ impl GpuDistance {
         (first, count): (usize, usize),
         z: (u32, u32),
         traffic: &mut Traffic,
-    ) -> Result<Vec<u32>, GpuError> {
+        take: impl FnOnce(&[u8]),
+    ) -> Result<(), GpuError> {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
         // Each triangle's first work item: a prefix sum over its layers in this chunk.
@@ -274,7 +279,7 @@ impl GpuDistance {
         })
         .await?;
         traffic.readback += bytes;
-        read_buffer::<u32>(device, &gpu.queue, &buffer, 0, bytes).await
+        read_buffer_with(device, &gpu.queue, &buffer, (0, bytes), take).await
     }
 }
 

@@ -57,13 +57,26 @@ pub(crate) async fn read_buffer<T: bytemuck::Pod>(
     offset: u64,
     size: u64,
 ) -> Result<Vec<T>, GpuError> {
+    let mut values = Vec::new();
+    read_buffer_with(device, queue, buffer, (offset, size), |mapped| values = bytemuck::pod_collect_to_vec(mapped))
+        .await?;
+    Ok(values)
+}
+
+/// Hands `size` bytes of `buffer` (from `offset`, a multiple of four) to `take` straight out of the mapped range
+/// once the GPU is done: for a reader that makes what it keeps of them as it reads (no copy first).
+pub(crate) async fn read_buffer_with(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    (offset, size): (u64, u64),
+    take: impl FnOnce(&[u8]),
+) -> Result<(), GpuError> {
     let staging = staging_buffer(device, size);
     let mut encoder = device.create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
     super::util::submit(queue, encoder.finish());
-    let mut values = Vec::new();
-    map_range(device, &staging, size, |mapped| values = bytemuck::pod_collect_to_vec(mapped)).await?;
-    Ok(values)
+    map_range(device, &staging, size, take).await
 }
 
 /// Copies several `(buffer, offset, size)` ranges (sizes multiples of four) into one staging buffer and maps it

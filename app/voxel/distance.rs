@@ -246,60 +246,56 @@ impl DistanceField {
         best: Vec<f32>,
         inside: Option<Grid>,
     ) -> DistanceField {
-        DistanceField::finish(spec, band, (slots, leaves), best, inside, |d2| d2)
+        DistanceField::finish(spec, band, (slots, leaves), best, inside)
     }
 
-    /// [`DistanceField::from_squared`] from the words the GPU's `best` buffer holds
-    /// ([`super::cpu::distance::best_word`]), decoded in the same pass that finishes the values.
-    pub fn from_words(
-        spec: GridSpec,
-        band: Band,
-        slots: Vec<u32>,
-        leaves: Vec<UVec3>,
-        words: Vec<u32>,
-        inside: Option<Grid>,
-    ) -> DistanceField {
-        let reach = band.reach(spec.dims);
-        let decode = |word: f32| super::cpu::distance::best_value(word.to_bits(), reach);
-        DistanceField::finish(spec, band, (slots, leaves), bytemuck::cast_vec(words), inside, decode)
-    }
-
-    /// The values of `leaves` from `decode(squared)` of each of `best`'s, in place.
+    /// The values of `leaves` from each of `best`'s squared distances, in place, the band counted as they are made.
     fn finish(
         spec: GridSpec,
         band: Band,
         (slots, leaves): (Vec<u32>, Vec<UVec3>),
         best: Vec<f32>,
         inside: Option<Grid>,
-        decode: impl Fn(f32) -> f32 + Sync,
     ) -> DistanceField {
-        parallel::install(|| {
-            let h = spec.voxel_size as f32;
-            let mut values = best;
-            leaves.par_iter().zip(values.par_chunks_mut(512)).for_each(|(&origin, leaf)| {
-                // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
-                let mask = inside.as_ref().map_or([0; 8], |g| inside_mask(g, origin));
-                for (i, value) in leaf.iter_mut().enumerate() {
-                    let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-                    *value = finish_value(decode(*value), mask[x] >> (y * 8 + z) & 1 != 0, h);
-                }
-            });
-            let dims = spec.dims;
-            DistanceField {
-                spec,
-                signed: inside.is_some(),
-                band,
-                reach: band.reach(dims),
-                leaf_dims: (dims + 7) / 8,
-                slots,
-                leaves,
-                values,
-                inside,
-                band_voxels: 0,
-                evaluations: 0,
-            }
-            .with_band_count()
-        })
+        let mut values = best;
+        let finish = Finish::new(spec, band, inside.as_ref());
+        let band_voxels = parallel::install(|| {
+            leaves
+                .par_iter()
+                .zip(values.par_chunks_mut(512))
+                .map(|(&origin, leaf)| {
+                    let squared: [f32; 512] = std::array::from_fn(|i| leaf[i]);
+                    finish.leaf(origin, |i| squared[i], leaf)
+                })
+                .sum()
+        });
+        DistanceField::from_values(spec, band, (slots, leaves), values, inside, band_voxels)
+    }
+
+    /// A field from its finished values (with `band_voxels` of them in the band), with `slots` and `leaves` as
+    /// [`mark_leaves`] made them and signed by `inside` where given: what [`Finishing`] makes.
+    pub fn from_values(
+        spec: GridSpec,
+        band: Band,
+        (slots, leaves): (Vec<u32>, Vec<UVec3>),
+        values: Vec<f32>,
+        inside: Option<Grid>,
+        band_voxels: u64,
+    ) -> DistanceField {
+        let dims = spec.dims;
+        DistanceField {
+            spec,
+            signed: inside.is_some(),
+            band,
+            reach: band.reach(dims),
+            leaf_dims: (dims + 7) / 8,
+            slots,
+            leaves,
+            values,
+            inside,
+            band_voxels,
+            evaluations: 0,
+        }
     }
 
     /// A field from every voxel's value (world units, `values[(x * dims_y + y) * dims_z + z]`, as numpy's C order
@@ -538,6 +534,78 @@ fn store_brick(cells: &BrickCells, dims: UVec3, slots: &[u32], best: &[AtomicU32
                 }
             }
         }
+    }
+}
+
+/// What pass 3 needs to finish a leaf: the voxel size, the band's background, the grid and the inside.
+struct Finish<'a> {
+    h: f32,
+    background: f32,
+    full: bool,
+    dims: UVec3,
+    inside: Option<&'a Grid>,
+}
+
+impl<'a> Finish<'a> {
+    fn new(spec: GridSpec, band: Band, inside: Option<&'a Grid>) -> Finish<'a> {
+        let h = spec.voxel_size as f32;
+        // As `DistanceField::background` and `band_mask` have them.
+        let background = band.reach(spec.dims) * h;
+        Finish { h, background, full: band == Band::Full, dims: spec.dims, inside }
+    }
+
+    /// The values of the leaf at `origin` into `out` from voxel `i`'s squared distance `squared(i)`; returns how
+    /// many of them are in the band (as [`DistanceField::band_mask`] counts).
+    fn leaf(&self, origin: UVec3, squared: impl Fn(usize) -> f32, out: &mut [f32]) -> u64 {
+        // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
+        let mask = self.inside.map_or([0; 8], |g| inside_mask(g, origin));
+        let mut band = 0;
+        for (i, value) in out.iter_mut().enumerate() {
+            let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
+            *value = finish_value(squared(i), mask[x] >> (y * 8 + z) & 1 != 0, self.h);
+            let within = (origin + UVec3::new(x as u32, y as u32, z as u32)).cmplt(self.dims).all();
+            band += u64::from((value.abs() < self.background || self.full) && within);
+        }
+        band
+    }
+}
+
+/// A field's values made as a GPU's runs of leaves are read back, from the words of its `best` buffer
+/// ([`super::cpu::distance::best_word`]) straight out of the mapped memory: decoded, finished and counted in one
+/// pass into the field's values.
+pub struct Finishing<'a> {
+    finish: Finish<'a>,
+    reach: f32,
+    values: Vec<f32>,
+    band_voxels: u64,
+}
+
+impl<'a> Finishing<'a> {
+    /// For `leaves` leaves of a field of `band` on `spec`'s grid, signed by `inside` where given.
+    pub fn new(spec: GridSpec, band: Band, leaves: usize, inside: Option<&'a Grid>) -> Finishing<'a> {
+        // Zeros from the allocator: the pages are touched once, by the values.
+        let values = vec![0.0; leaves * 512];
+        Finishing { finish: Finish::new(spec, band, inside), reach: band.reach(spec.dims), values, band_voxels: 0 }
+    }
+
+    /// Leaves `first..first + origins.len()`, from their `best` words.
+    pub fn words(&mut self, first: usize, origins: &[UVec3], words: &[u32]) {
+        let (finish, reach) = (&self.finish, self.reach);
+        let out = &mut self.values[first * 512..(first + origins.len()) * 512];
+        self.band_voxels += parallel::install(|| {
+            origins
+                .par_iter()
+                .zip(out.par_chunks_mut(512).zip(words.par_chunks(512)))
+                .map(|(&origin, (leaf, words))| {
+                    finish.leaf(origin, |i| super::cpu::distance::best_value(words[i], reach), leaf)
+                })
+                .sum::<u64>()
+        });
+    }
+
+    /// The values and how many of them are in the band: what [`DistanceField::from_values`] takes.
+    pub fn done(self) -> (Vec<f32>, u64) {
+        (self.values, self.band_voxels)
     }
 }
 

@@ -303,6 +303,10 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
         let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
         let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
         let (on_gpu, _) = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
+        // The band counted as the values are finished is the band's grid, on both.
+        for field in [&cpu, &on_gpu] {
+            assert_eq!(field.band_voxels, field.band_grid().count(), "the band's voxels, counted as they were made");
+        }
         (field_difference(&cpu, &on_gpu), gpu_bound_voxels(spec.dims.max_element()))
     };
     let mut worst = 0f64;
