@@ -493,3 +493,56 @@ fn the_cpus_atan2_is_within_its_stated_bound_on_every_f32_it_takes() {
         assert!(ours == libm || (ours.is_nan() && libm.is_nan()) || (ours - libm).abs() <= 1e-6, "atan2({y}, {x})");
     }
 }
+
+/// The mesh's boundary (every edge's uses one way less its uses the other, by exact lattice points, zero-area
+/// triangles left out) equals a count of every use in an ordered map, edge for edge and in the map's order, on the
+/// holed meshes, every shared and built-in mesh, and a soup with a collinear triangle, a repeated one and one
+/// turned over.
+#[test]
+fn the_boundary_edges_equal_a_count_of_every_use() {
+    use meshvox::voxel::solid::boundary_edges;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut meshes: Vec<(String, meshvox::mesh::Mesh)> = open_meshes(dir.path())
+        .into_iter()
+        .map(|(name, path, _)| (name, meshvox::mesh::load(&path).expect("load")))
+        .collect();
+    for name in crate::common::all_meshes() {
+        meshes.push((name.clone(), meshvox::mesh::load(&name).expect("load")));
+    }
+    let soup = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 2 3\nf 1 3 5\nf 5 3 1\nf 2 3 5\n";
+    let path = dir.path().join("soup.obj");
+    std::fs::write(&path, soup).expect("write");
+    meshes.push(("soup".into(), meshvox::mesh::load(&path.to_string_lossy()).expect("load")));
+    for (name, mesh) in &meshes {
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(97), Axis::Longest).expect("spec");
+        let tris = voxelize::grid_space_triangles(mesh, &spec).expect("grid space");
+        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+        let units = |p: Vec3| (p * lattice.scale()).as_ivec3().to_array();
+        let mut uses: std::collections::BTreeMap<([i32; 3], [i32; 3]), i64> = Default::default();
+        for t in tris.iter() {
+            let u = t.map(units);
+            let d = |i: usize, k: usize| i64::from(u[i][k]) - i64::from(u[0][k]);
+            let normal = [
+                d(1, 1) * d(2, 2) - d(1, 2) * d(2, 1),
+                d(1, 2) * d(2, 0) - d(1, 0) * d(2, 2),
+                d(1, 0) * d(2, 1) - d(1, 1) * d(2, 0),
+            ];
+            if normal == [0; 3] {
+                continue;
+            }
+            for i in 0..3 {
+                let (a, b) = (u[i], u[(i + 1) % 3]);
+                if a != b {
+                    *uses.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+                }
+            }
+        }
+        let expected: Vec<([i32; 3], [i32; 3], f32)> =
+            uses.into_iter().filter(|&(_, w)| w != 0).map(|((a, b), w)| (a, b, w as f32)).collect();
+        let edges: Vec<([i32; 3], [i32; 3], f32)> = boundary_edges(&tris, lattice)
+            .iter()
+            .map(|e| (units(Vec3::from_array(e.a)), units(Vec3::from_array(e.b)), e.weight))
+            .collect();
+        assert_eq!(edges, expected, "{name}: the boundary's edges");
+    }
+}
