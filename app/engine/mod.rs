@@ -368,7 +368,9 @@ impl Engine {
         let shell = (request.mode == Mode::Shell).then_some(request.thickness);
         if let (Some(thickness), Some(field)) = (shell, &field) {
             // The shell replaces the surface the grid stage made: its own voxels, counted again, drawn from the host.
+            let span = crate::trace::span("shell: cut");
             let cut = voxel::shell::shell_grid(field, thickness);
+            drop(span);
             made.grid = match job.sparse {
                 true => Grid::Sparse(cut),
                 false => Grid::Dense(cut.to_dense().map_err(|e| job.grid_error(e))?),
