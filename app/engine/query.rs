@@ -36,8 +36,8 @@ pub struct Queried {
     /// winding number's value asked for, GL). Every other point's triangle is settled on the host among the GPU's
     /// and its neighbours, by the CPU's f32 and tie rule ([`Prepared::query_found`]); all points on the CPU.
     pub host_decided: u64,
-    /// Milliseconds the calling thread waited for the GPU's search after its own work (the signs) was done;
-    /// `None` on the CPU.
+    /// Milliseconds the calling thread waited for the GPU's search after its own work (the signs) was done, less
+    /// the search thread's own host work (ordering the points, uploads, taking the answers); `None` on the CPU.
     pub wait_ms: Option<f64>,
     /// The query's time less `wait_ms`: the host's own work (placing the points, the sides the GPU did not
     /// decide, settling or searching for each triangle, the f64 answers).
@@ -76,14 +76,17 @@ impl Engine {
             // the GPU does not (winding numbers' values, which the host sums to their tolerance).
             let (found, sides, gpu_ms) = std::thread::scope(|scope| {
                 let search = scope.spawn(|| {
-                    let t = Instant::now();
+                    let (t, waited) = (Instant::now(), crate::trace::waited_ns());
                     let found = pollster::block_on(on.nearest(tables, device_sides, &placed, &mut notices));
-                    (found, ms(t))
+                    // The search thread's own work (ordering the points, uploads, taking the answers) is the
+                    // host's too: only its waits for the device are waits.
+                    let own = ms(t) - (crate::trace::waited_ns() - waited) as f64 / 1e6;
+                    (found, ms(t), own)
                 });
                 let sides = device_sides.is_none().then(|| prepared.sides(&placed, sign, winding));
                 let waiting = Instant::now();
-                let (found, gpu_ms) = search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-                (found, sides, (gpu_ms, ms(waiting)))
+                let (found, gpu_ms, own) = search.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                (found, sides, (gpu_ms, (ms(waiting) - own).max(0.0)))
             });
             let (gpu_ms, wait_ms) = gpu_ms;
             let found = found?;
