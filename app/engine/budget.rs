@@ -147,21 +147,30 @@ pub fn labels_bytes(spec: &GridSpec, mode: Mode, count: usize, area: f64, triang
     }
 }
 
-/// A distance field's leaves (values, and their atomics while computed: 4 KiB each) and slots: the surface's
-/// leaves widened by the band on both sides, or every leaf for `Band::Full`. A dense `.npy` of it is written
-/// a slice at a time ([`writer`]).
+/// A distance field's leaves and slots: 2 KiB of values a leaf (the CPU's atomics become the values in place; the
+/// GPU's values are finished out of its readback, a run of leaves at a time, mapped: at most [`MAX_READBACK`] of
+/// it), and a slot (4 bytes) for every leaf of the grid. A band of `k` voxels thickens the surface's leaves across
+/// it, by `k` voxels and a leaf's misalignment on each side: the estimated surface leaves times that thickness in
+/// leaves, half again for curvature (a convex surface's band grows outward), or every leaf for `Band::Full`. The
+/// bunny's sdf at 4096 holds 2.98 million band leaves, 3.3 of its surface's (bench/RESULTS.md); this estimate is
+/// 4.4 million at 2 KiB, where 4 KiB times the thickness squared made it 14.8 million at 4 KiB and refused a job
+/// that peaks at 6.7 GiB as needing 48 GiB. A dense `.npy` of it is written a slice at a time ([`writer`]).
 fn field_bytes(spec: &GridSpec, band: Band, triangles: u64, area: f64) -> u64 {
     let d = spec.dims.as_u64vec3();
     let all = d.x.div_ceil(8) * d.y.div_ceil(8) * d.z.div_ceil(8);
     let leaves = match band {
         Band::Full => all,
         Band::Voxels(k) => {
-            let widen = 1.0 + (2.0 * f64::from(k) + 8.0) / 8.0;
-            ((sparse_leaves(spec, area, triangles) as f64 * widen * widen) as u64).min(all)
+            let thickness = 1.0 + (2.0 * f64::from(k) + 8.0) / 8.0;
+            ((sparse_leaves(spec, area, triangles) as f64 * thickness * 1.5) as u64).min(all)
         }
     };
-    leaves.saturating_mul(4096).saturating_add(all.saturating_mul(4))
+    let values = leaves.saturating_mul(FIELD_LEAF_BYTES);
+    values.saturating_add(values.min(MAX_READBACK)).saturating_add(all.saturating_mul(4))
 }
+
+/// A field's values per leaf: 512 of 4 bytes.
+const FIELD_LEAF_BYTES: u64 = 512 * 4;
 
 /// The dense formats' working memory beside the grid.
 fn writer(spec: &GridSpec, format: Option<VoxelFormat>) -> u64 {
