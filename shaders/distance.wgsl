@@ -27,6 +27,11 @@ struct Params {
     leaf_base: u32,
     z_lo: u32,
     z_hi: u32,
+    // The first slot in `slots`: a dispatch binds only its leaf layers' slots.
+    slot_base: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -95,7 +100,7 @@ fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
         let span = band_span(bmin, bmax, y, z);
         for (var x = max(span.x, lo.x); x <= min(span.y, hi.x); x++) {
             let v = vec3<u32>(vec3<i32>(x, y, z));
-            let at = (slots[leaf_slot(v / 8u)] - params.leaf_base) * 512u + leaf_offset(v);
+            let at = (slots[leaf_slot(v / 8u) - params.slot_base] - params.leaf_base) * 512u + leaf_offset(v);
             let p = vec3<f32>(v) + 0.5;
             let current = best_value(atomicLoad(&best[at]));
             // The plane's squared distance already no lower than the best: this triangle cannot win here.

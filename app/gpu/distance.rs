@@ -50,6 +50,8 @@ struct Params {
     leaf_base: u32,
     z_lo: u32,
     z_hi: u32,
+    slot_base: u32,
+    _pad: [u32; 3],
 }
 
 /// `full_distances`' parameters (`FullParams` in `shaders/query.wgsl`).
@@ -102,7 +104,9 @@ impl GpuDistance {
         let (slots, leaves) = mark_leaves(triangles, dims, reach);
         drop(span);
         let max = gpu.max_binding_bytes();
-        let needed = [triangles.len() as u64 * 36, slots.len() as u64 * 4];
+        // A run of leaves binds its own leaf layers' slots: one layer's must fit.
+        let layer = u64::from(dims.x.div_ceil(8) * dims.y.div_ceil(8));
+        let needed = [triangles.len() as u64 * 36, layer * 4];
         if let Some(&big) = needed.iter().find(|&&b| b > max) {
             return Err(GpuError::TooLarge {
                 what: "the distance field's triangles or leaf slots".into(),
@@ -119,7 +123,18 @@ impl GpuDistance {
         } else {
             // Each run of leaves finished straight out of the mapped range into the field's values.
             let mut finishing = Finishing::new(spec, band, leaves.len(), inside.as_ref());
-            for (first, count, z) in chunks(&leaves, (max / LEAF_BYTES).max(1) as usize) {
+            let layers = (max / (layer * 4)).max(1) as u32;
+            let runs = chunks(&leaves, (max / LEAF_BYTES).max(1) as usize, layers);
+            // A run is at least a whole leaf layer, whose values must fit a binding.
+            if let Some(&(_, count, _)) = runs.iter().find(|run| run.1 as u64 * LEAF_BYTES > max) {
+                let (needed, limit) = (count as u64 * LEAF_BYTES, max);
+                return Err(GpuError::TooLarge {
+                    what: "a layer of the distance field's leaves".into(),
+                    needed,
+                    limit,
+                });
+            }
+            for (first, count, z) in runs {
                 let origins = &leaves[first..first + count];
                 let take = |mapped: &[u8]| {
                     let _span = crate::trace::span("field: finish values");
@@ -252,6 +267,9 @@ impl GpuDistance {
             let init = |label: &str, contents: &[u8], usage| buffer_init(device, label, contents, usage);
             let (x, y) = dispatch_2d((total as u32).div_ceil(WG));
             let leaf_dims = (spec.dims + 7) / 8;
+            // Only this run's leaf layers' slots: its work items write voxels of layers z.0..z.1 alone.
+            let layer = (leaf_dims.x * leaf_dims.y) as usize;
+            let own = (z.0 / 8) as usize * layer..((z.1.div_ceil(8)) as usize * layer).min(slots.len());
             let params = Params {
                 dims: spec.dims.to_array(),
                 tri_count: triangles.len() as u32,
@@ -261,13 +279,15 @@ impl GpuDistance {
                 leaf_base: first as u32,
                 z_lo: z.0,
                 z_hi: z.1,
+                slot_base: own.start as u32,
+                _pad: [0; 3],
             };
             let storage = wgpu::BufferUsages::STORAGE;
             // `best` starts as a new buffer's zeros (`best_word`): nothing to upload.
             let buffers = [
                 init("distance params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM),
                 init("distance triangles", bytemuck::cast_slice(triangles), storage),
-                init("distance slots", bytemuck::cast_slice(slots), storage),
+                init("distance slots", bytemuck::cast_slice(&slots[own]), storage),
                 storage_buffer(device, "distance best", bytes, wgpu::BufferUsages::COPY_SRC),
                 init("distance items", bytemuck::cast_slice(&items), storage),
             ];
@@ -283,15 +303,15 @@ impl GpuDistance {
     }
 }
 
-/// The leaves in runs of whole leaf layers of at most `per_chunk` leaves (a layer larger than that alone):
-/// `(first leaf, leaves, voxel layers)` per run.
-fn chunks(leaves: &[UVec3], per_chunk: usize) -> Vec<(usize, usize, (u32, u32))> {
+/// The leaves in runs of whole leaf layers of at most `per_chunk` leaves (a layer larger than that alone) and at
+/// most `max_layers` leaf layers (whose slots a run binds): `(first leaf, leaves, voxel layers)` per run.
+fn chunks(leaves: &[UVec3], per_chunk: usize, max_layers: u32) -> Vec<(usize, usize, (u32, u32))> {
     let mut out: Vec<(usize, usize, (u32, u32))> = Vec::new();
     let mut first = 0;
     for layer in leaves.chunk_by(|a, b| a.z == b.z) {
         let z = (layer[0].z, layer[0].z + 8);
         match out.last_mut() {
-            Some(last) if last.1 + layer.len() <= per_chunk && last.2.1 == z.0 => {
+            Some(last) if last.1 + layer.len() <= per_chunk && last.2.1 == z.0 && z.1 - last.2.0 <= 8 * max_layers => {
                 last.1 += layer.len();
                 last.2.1 = z.1;
             }

@@ -372,6 +372,38 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
     assert_eq!(on_gpu.notices.len(), usize::from(gl), "{:?}", on_gpu.notices);
     let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
     assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot's whole grid in runs: {d} voxels");
+    // A grid whose table of leaf slots outgrows a binding (as the bunny's at 4096 outgrew lavapipe's 128 MiB):
+    // each run of leaves binds only its own leaf layers' slots.
+    // An open tube along z, 1.6 wide and 2 tall: its layers' band leaves fit a binding of 1 MiB, its grid's slots
+    // do not.
+    let (segments, stacks) = (64, 8);
+    let mut obj = String::new();
+    for k in 0..=stacks {
+        for i in 0..segments {
+            let a = std::f64::consts::TAU * f64::from(i) / f64::from(segments);
+            let z = -1.0 + 2.0 * f64::from(k) / f64::from(stacks);
+            obj += &format!("v {} {} {z}\n", 0.8 * a.cos(), 0.8 * a.sin());
+        }
+    }
+    for k in 0..stacks {
+        for i in 0..segments {
+            let (a, b) = (k * segments + i + 1, k * segments + (i + 1) % segments + 1);
+            obj += &format!("f {a} {b} {}\nf {a} {} {}\n", b + segments, b + segments, a + segments);
+        }
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("tube.obj");
+    std::fs::write(&path, obj).expect("write");
+    let tube = meshvox::mesh::load(&path.to_string_lossy()).expect("tube");
+    let tiny = limit;
+    let request = Request { band: Band::Voxels(1.0), ..Request::new(Resolution::Count(600), Mode::Udf) };
+    let on_gpu = engine.voxelize("tube", &tube, &request).expect("gpu");
+    let on_cpu = cpu.voxelize("tube", &tube, &request).expect("cpu");
+    let field = on_gpu.field.as_ref().expect("field");
+    assert!(field.slots.len() as u64 * 4 > tiny, "the slots must not fit one binding");
+    assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
+    let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
+    assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "tube with its slots in runs: {d} voxels");
 }
 
 /// The whole grid's mirror (`voxel_distance2`, what `shaders/query.wgsl`'s `full_distances` computes per voxel)
