@@ -246,17 +246,7 @@ impl DistanceField {
         best: Vec<f32>,
         inside: Option<Grid>,
     ) -> DistanceField {
-        DistanceField::finish(spec, band, (slots, leaves), best, inside)
-    }
-
-    /// The values of `leaves` from each of `best`'s squared distances, in place, the band counted as they are made.
-    fn finish(
-        spec: GridSpec,
-        band: Band,
-        (slots, leaves): (Vec<u32>, Vec<UVec3>),
-        best: Vec<f32>,
-        inside: Option<Grid>,
-    ) -> DistanceField {
+        // In place, the band counted as the values are made.
         let mut values = best;
         let finish = Finish::new(spec, band, inside.as_ref());
         let band_voxels = parallel::install(|| {

@@ -349,14 +349,19 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
     let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
     let engine = Engine::on_device(&small, Backend::Gpu).expect("engine");
     let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    // A banded field on both, which must have been the GPU's: the GPU's field, and how far the CPU's is from it.
+    let banded = |name: &str, mesh: &meshvox::mesh::Mesh, request: &Request| {
+        let on_gpu = engine.voxelize(name, mesh, request).expect("gpu");
+        let on_cpu = cpu.voxelize(name, mesh, request).expect("cpu");
+        assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
+        let field = on_gpu.field.expect("field");
+        let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), &field);
+        (field, d)
+    };
     for mode in Mode::FIELDS {
         let request = Request { band: Band::Voxels(2.0), ..Request::new(Resolution::Count(160), mode) };
-        let on_gpu = engine.voxelize("knot", &mesh, &request).expect("gpu");
-        let on_cpu = cpu.voxelize("knot", &mesh, &request).expect("cpu");
-        let field = on_gpu.field.as_ref().expect("field");
+        let (field, d) = banded("knot", &mesh, &request);
         assert!(field.leaves.len() as u64 * 2048 > limit, "the band must not fit one binding");
-        assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
-        let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
         assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot {mode} in chunks: {d} voxels");
     }
     // The whole grid too: every voxel walks the field's hierarchy on the GPU, in runs of leaves; on GL, whose
@@ -373,9 +378,8 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
     let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
     assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot's whole grid in runs: {d} voxels");
     // A grid whose table of leaf slots outgrows a binding (as the bunny's at 4096 outgrew lavapipe's 128 MiB):
-    // each run of leaves binds only its own leaf layers' slots.
-    // An open tube along z, 1.6 wide and 2 tall: its layers' band leaves fit a binding of 1 MiB, its grid's slots
-    // do not.
+    // each run of leaves binds only its own leaf layers' slots. An open tube along z, 1.6 wide and 2 tall: its
+    // layers' band leaves fit a binding of 1 MiB, its grid's slots do not.
     let (segments, stacks) = (64, 8);
     let mut obj = String::new();
     for k in 0..=stacks {
@@ -395,14 +399,9 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
     let path = dir.path().join("tube.obj");
     std::fs::write(&path, obj).expect("write");
     let tube = meshvox::mesh::load(&path.to_string_lossy()).expect("tube");
-    let tiny = limit;
     let request = Request { band: Band::Voxels(1.0), ..Request::new(Resolution::Count(600), Mode::Udf) };
-    let on_gpu = engine.voxelize("tube", &tube, &request).expect("gpu");
-    let on_cpu = cpu.voxelize("tube", &tube, &request).expect("cpu");
-    let field = on_gpu.field.as_ref().expect("field");
-    assert!(field.slots.len() as u64 * 4 > tiny, "the slots must not fit one binding");
-    assert!(on_gpu.report.field_backend.as_deref().is_some_and(|b| b.starts_with("gpu")), "{:?}", on_gpu.report);
-    let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
+    let (field, d) = banded("tube", &tube, &request);
+    assert!(field.slots.len() as u64 * 4 > limit, "the slots must not fit one binding");
     assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "tube with its slots in runs: {d} voxels");
 }
 
