@@ -15,6 +15,7 @@
 
 use super::{Backend, ColourStage, Engine, EngineError, GridStage, Job, Notice, software_gpu_preferred};
 use crate::gpu::colour::GpuColourer;
+pub(super) use crate::gpu::distance::FieldPlan;
 use crate::gpu::distance::GpuDistance;
 use crate::gpu::group::{GROUP_BYTES, GROUP_JOBS, GroupJob};
 use crate::gpu::query::GpuQuery;
@@ -387,17 +388,16 @@ impl OnGpu {
         Ok(colours.map(|colours| ColourStage { colours, backend: self.label() }))
     }
 
-    /// The distance field on the GPU (compiled on first use), or `None` where the CPU is to compute it. `inside`
-    /// (the sign) is taken into the field only when the GPU's distances arrive, so the CPU can still use it. With
-    /// the bytes its passes uploaded and read back.
-    pub(super) async fn field(
+    /// A distance field's pass planned for the GPU before its sign is made (the band's leaves marked, the adapter's
+    /// limits checked: [`FieldPlan::new`]), or `None` where the CPU is to compute the field: the whole grid on GL,
+    /// a limit of the adapter where this engine falls back (an error where it does not, before minutes of sign).
+    pub(super) fn field_plan(
         &self,
         tris: &[[Vec3; 3]],
         spec: GridSpec,
         band: Band,
-        inside: &mut Option<Grid>,
         notices: &mut Vec<Notice>,
-    ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {
+    ) -> Result<Option<FieldPlan>, EngineError> {
         // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong (see `trusts_walk`).
         if band == Band::Full && !self.trusts_walk() {
             notices.push(Notice {
@@ -409,10 +409,23 @@ impl OnGpu {
             });
             return Ok(None);
         }
+        self.stand_in(Stage::Field, FieldPlan::new(&self.gpu, tris, spec, band), notices)
+    }
+
+    /// The distance field of `plan` on the GPU (compiled on first use), or `None` where the CPU is to compute it.
+    /// `inside` (the sign) is taken into the field only when the GPU's distances arrive, so the CPU can still use
+    /// it. With the bytes its passes uploaded and read back.
+    pub(super) async fn field(
+        &self,
+        tris: &[[Vec3; 3]],
+        plan: FieldPlan,
+        inside: &mut Option<Grid>,
+        notices: &mut Vec<Notice>,
+    ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {
         let field = {
             let _turn = self.turn().await;
             let pass = self.distance.get_or_init(|| GpuDistance::new(&self.gpu));
-            pass.field(&self.gpu, tris, spec, band, inside).await
+            pass.field(&self.gpu, tris, plan, inside).await
         };
         let made = self.stand_in(Stage::Field, field, notices)?;
         Ok(made.map(|(field, traffic)| (field, (traffic.upload, traffic.readback))))

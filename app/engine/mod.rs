@@ -572,6 +572,11 @@ impl Engine {
         let (spec, band) = (job.spec, job.request.band);
         let grid_error = |error| job.grid_error(error);
         let (tris, lattice) = voxel::on_lattice(tris, spec.dims).map_err(grid_error)?;
+        // The GPU's pass planned first: a field no binding takes is refused (or left to the CPU) before the sign.
+        let plan = match &self.gpu {
+            Some(on) => on.field_plan(&tris, spec, band, notices)?,
+            None => None,
+        };
         // The sign's inside grid, whether the GPU made it, and the inside voxels the host decided (all of them
         // where the CPU made it).
         // And the bytes its passes uploaded and read back, where the GPU made it.
@@ -586,8 +591,8 @@ impl Engine {
             false => (None, None, 0),
         };
         job.request.cancelled()?;
-        if let Some(on) = &self.gpu
-            && let Some((field, traffic)) = on.field(&tris, spec, band, &mut inside, notices).await?
+        if let (Some(on), Some(plan)) = (&self.gpu, plan)
+            && let Some((field, traffic)) = on.field(&tris, plan, &mut inside, notices).await?
         {
             let (up, back) = sign_traffic.unwrap_or_default();
             return Ok((field, on.label(), sign_decided, Some((traffic.0 + up, traffic.1 + back))));

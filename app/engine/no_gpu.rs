@@ -13,6 +13,9 @@ use glam::Vec3;
 /// There is no GPU in this build: no engine holds one.
 pub(super) enum OnGpu {}
 
+/// Nor plans a field's pass for one.
+pub(super) enum FieldPlan {}
+
 impl Engine {
     /// Opens `backend` in a build without the GPU: the CPU, or an error for `Gpu`.
     pub fn open(backend: Backend) -> Result<Engine, EngineError> {
@@ -45,11 +48,20 @@ impl OnGpu {
         match *self {}
     }
 
-    pub(super) async fn field(
+    pub(super) fn field_plan(
         &self,
         _: &[[Vec3; 3]],
         _: GridSpec,
         _: Band,
+        _: &mut Vec<Notice>,
+    ) -> Result<Option<FieldPlan>, EngineError> {
+        match *self {}
+    }
+
+    pub(super) async fn field(
+        &self,
+        _: &[[Vec3; 3]],
+        _: FieldPlan,
         _: &mut Option<Grid>,
         _: &mut Vec<Notice>,
     ) -> Result<Option<(DistanceField, (u64, u64))>, EngineError> {

@@ -22,6 +22,7 @@ use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::triangle_layers;
+use crate::voxel::cpu::query::NearestTables;
 use crate::voxel::distance::{Band, DistanceField, Finishing, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
@@ -65,6 +66,63 @@ struct FullParams {
     _pad: [u32; 2],
 }
 
+/// A field's pass before it runs: the band's leaves marked and the adapter's limits checked against them
+/// ([`FieldPlan::new`]), so that a field no binding can take is refused before its sign is made (the sign of the
+/// bunny at 4096 takes minutes on a software adapter).
+pub struct FieldPlan {
+    spec: GridSpec,
+    band: Band,
+    reach: f32,
+    slots: Vec<u32>,
+    leaves: Vec<UVec3>,
+    work: Work,
+}
+
+/// How the leaves' values are made: in runs of whole leaf layers that fit a binding (`(first leaf, leaves, voxel
+/// layers)`), or, for the whole grid, by the walk over the field grid's hierarchy (with the bytes one run binds).
+enum Work {
+    Runs(Vec<(usize, usize, (u32, u32))>),
+    Full(NearestTables, u64),
+}
+
+impl FieldPlan {
+    /// The leaves of `band` around the lattice triangles `triangles` of `spec`'s grid, in the runs `gpu`'s bindings
+    /// take; a `TooLarge` where the triangles, one leaf layer's slots or values, or the whole grid's hierarchy
+    /// do not fit.
+    pub fn new(gpu: &Gpu, triangles: &[[Vec3; 3]], spec: GridSpec, band: Band) -> Result<FieldPlan, GpuError> {
+        let dims = spec.dims;
+        let reach = band.reach(dims);
+        let max = gpu.max_binding_bytes();
+        // A run of leaves binds its own leaf layers' slots: one layer's must fit.
+        let layer = u64::from(dims.x.div_ceil(8) * dims.y.div_ceil(8));
+        let needed = [triangles.len() as u64 * 36, layer * 4];
+        if let Some(&big) = needed.iter().find(|&&b| b > max) {
+            let what = "the distance field's triangles or leaf slots".into();
+            return Err(GpuError::TooLarge { what, needed: big, limit: max });
+        }
+        let span = crate::trace::span("field: mark leaves");
+        let (slots, leaves) = mark_leaves(triangles, dims, reach);
+        drop(span);
+        let work = if band == Band::Full {
+            let span = crate::trace::span("field: hierarchy");
+            let tables = Bvh::build(triangles).tables();
+            drop(span);
+            let max = fits_walk(&tables, gpu, "the field's hierarchy")?;
+            Work::Full(tables, max)
+        } else {
+            let layers = (max / (layer * 4)).max(1) as u32;
+            let runs = chunks(&leaves, (max / LEAF_BYTES).max(1) as usize, layers);
+            // A run is at least a whole leaf layer, whose values must fit a binding.
+            if let Some(&(_, count, _)) = runs.iter().find(|run| run.1 as u64 * LEAF_BYTES > max) {
+                let what = "a layer of the distance field's leaves".into();
+                return Err(GpuError::TooLarge { what, needed: count as u64 * LEAF_BYTES, limit: max });
+            }
+            Work::Runs(runs)
+        };
+        Ok(FieldPlan { spec, band, reach, slots, leaves, work })
+    }
+}
+
 /// The compiled pass, reusable on one device; the whole grid's pass compiled on first use.
 pub struct GpuDistance {
     layout: wgpu::BindGroupLayout,
@@ -85,7 +143,7 @@ impl GpuDistance {
         GpuDistance { layout, band, full: std::sync::OnceLock::new() }
     }
 
-    /// The field of `band` around the lattice triangles `triangles` of `spec`'s grid, signed by `inside` when
+    /// The field of `plan`'s band around the lattice triangles `triangles` of its grid, signed by `inside` when
     /// given: what [`crate::voxel::distance::DistanceField::compute`] gives, with the distances from the GPU.
     /// `inside` is taken only once the distances have arrived, so a caller whose GPU failed still has it. With the
     /// bytes its passes uploaded and read back.
@@ -93,79 +151,52 @@ impl GpuDistance {
         &self,
         gpu: &Gpu,
         triangles: &[[Vec3; 3]],
-        spec: GridSpec,
-        band: Band,
+        plan: FieldPlan,
         inside: &mut Option<Grid>,
     ) -> Result<(DistanceField, Traffic), GpuError> {
         gpu.check()?;
-        let dims = spec.dims;
-        let reach = band.reach(dims);
-        let span = crate::trace::span("field: mark leaves");
-        let (slots, leaves) = mark_leaves(triangles, dims, reach);
-        drop(span);
-        let max = gpu.max_binding_bytes();
-        // A run of leaves binds its own leaf layers' slots: one layer's must fit.
-        let layer = u64::from(dims.x.div_ceil(8) * dims.y.div_ceil(8));
-        let needed = [triangles.len() as u64 * 36, layer * 4];
-        if let Some(&big) = needed.iter().find(|&&b| b > max) {
-            return Err(GpuError::TooLarge {
-                what: "the distance field's triangles or leaf slots".into(),
-                needed: big,
-                limit: max,
-            });
-        }
+        let FieldPlan { spec, band, reach, slots, leaves, work } = plan;
         let mut traffic = Traffic::default();
-        let field = if band == Band::Full {
-            let best = self.full_values(gpu, triangles, spec, &leaves, &mut traffic).await?;
-            gpu.check()?;
-            let _span = crate::trace::span("field: finish values");
-            DistanceField::from_squared(spec, band, slots, leaves, best, inside.take())
-        } else {
-            // Each run of leaves finished straight out of the mapped range into the field's values.
-            let mut finishing = Finishing::new(spec, band, leaves.len(), inside.as_ref());
-            let layers = (max / (layer * 4)).max(1) as u32;
-            let runs = chunks(&leaves, (max / LEAF_BYTES).max(1) as usize, layers);
-            // A run is at least a whole leaf layer, whose values must fit a binding.
-            if let Some(&(_, count, _)) = runs.iter().find(|run| run.1 as u64 * LEAF_BYTES > max) {
-                let (needed, limit) = (count as u64 * LEAF_BYTES, max);
-                return Err(GpuError::TooLarge {
-                    what: "a layer of the distance field's leaves".into(),
-                    needed,
-                    limit,
-                });
+        let field = match work {
+            Work::Full(tables, max) => {
+                let best = self.full_values(gpu, &tables, max, spec, &leaves, &mut traffic).await?;
+                gpu.check()?;
+                let _span = crate::trace::span("field: finish values");
+                DistanceField::from_squared(spec, band, slots, leaves, best, inside.take())
             }
-            for (first, count, z) in runs {
-                let origins = &leaves[first..first + count];
-                let take = |mapped: &[u8]| {
-                    let _span = crate::trace::span("field: finish values");
-                    match bytemuck::try_cast_slice::<u8, u32>(mapped) {
-                        Ok(words) => finishing.words(first, origins, words),
-                        Err(_) => finishing.words(first, origins, &bytemuck::pod_collect_to_vec(mapped)),
-                    }
-                };
-                self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic, take).await?;
+            Work::Runs(runs) => {
+                // Each run of leaves finished straight out of the mapped range into the field's values.
+                let mut finishing = Finishing::new(spec, band, leaves.len(), inside.as_ref());
+                for (first, count, z) in runs {
+                    let origins = &leaves[first..first + count];
+                    let take = |mapped: &[u8]| {
+                        let _span = crate::trace::span("field: finish values");
+                        match bytemuck::try_cast_slice::<u8, u32>(mapped) {
+                            Ok(words) => finishing.words(first, origins, words),
+                            Err(_) => finishing.words(first, origins, &bytemuck::pod_collect_to_vec(mapped)),
+                        }
+                    };
+                    self.chunk(gpu, triangles, &slots, spec, reach, (first, count), z, &mut traffic, take).await?;
+                }
+                gpu.check()?;
+                let (values, band_voxels) = finishing.done();
+                DistanceField::from_values(spec, band, (slots, leaves), values, inside.take(), band_voxels)
             }
-            gpu.check()?;
-            let (values, band_voxels) = finishing.done();
-            DistanceField::from_values(spec, band, (slots, leaves), values, inside.take(), band_voxels)
         };
         Ok((field, traffic))
     }
 
-    /// Every voxel's squared distance in `leaves` (the whole grid's), by `full_distances` over a hierarchy of
-    /// `triangles`, in runs of leaves that fit a binding.
+    /// Every voxel's squared distance in `leaves` (the whole grid's), by `full_distances` over the field grid's
+    /// hierarchy `tables`, in runs of leaves that fit a binding of `max` bytes.
     async fn full_values(
         &self,
         gpu: &Gpu,
-        triangles: &[[Vec3; 3]],
+        tables: &NearestTables,
+        max: u64,
         spec: GridSpec,
         leaves: &[UVec3],
         traffic: &mut Traffic,
     ) -> Result<Vec<f32>, GpuError> {
-        let span = crate::trace::span("field: hierarchy");
-        let tables = Bvh::build(triangles).tables();
-        drop(span);
-        let max = fits_walk(&tables, gpu, "the field's hierarchy")?;
         let device = &gpu.device;
         let (layout, pipeline) = self.full.get_or_init(|| {
             let entries = [

@@ -293,7 +293,8 @@ fn gpu_bound_voxels(n: u32) -> f64 {
 #[test]
 fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
-    let pass = meshvox::gpu::distance::GpuDistance::new(gpu);
+    use meshvox::gpu::distance::{FieldPlan, GpuDistance};
+    let pass = GpuDistance::new(gpu);
     // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong: the engine leaves it to
     // the CPU there (`gpu_field_in_chunks_…` checks that), so it is compared on the other APIs.
     let full = if gpu.summary.backend == "Gl" { Band::Voxels(2.0) } else { Band::Full };
@@ -302,7 +303,8 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
         let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
         let inside = inside_grid(&tris, lattice, spec, false).expect("inside");
         let cpu = DistanceField::compute(&tris, spec, band, Some(inside.clone()));
-        let (on_gpu, _) = pollster::block_on(pass.field(gpu, &tris, spec, band, &mut Some(inside))).expect("gpu field");
+        let plan = FieldPlan::new(gpu, &tris, spec, band).expect("plan");
+        let (on_gpu, _) = pollster::block_on(pass.field(gpu, &tris, plan, &mut Some(inside))).expect("gpu field");
         // The band counted as the values are finished is the band's grid, on both.
         for field in [&cpu, &on_gpu] {
             assert_eq!(field.band_voxels, field.band_grid().count(), "the band's voxels, counted as they were made");
@@ -403,6 +405,34 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
     let (field, d) = banded("tube", &tube, &request);
     assert!(field.slots.len() as u64 * 4 > limit, "the slots must not fit one binding");
     assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "tube with its slots in runs: {d} voxels");
+}
+
+/// A field one of whose leaf layers no binding takes is refused through `--backend gpu` by the pass's plan, which
+/// the engine makes before the sign (the bunny's sign at 4096 takes minutes on a software adapter before the old
+/// check refused it): a flat square 256 voxels wide has 1,024 band leaves in a layer, 2 MiB of values against a
+/// binding of 1 MiB, while its triangles, a layer's slots and its grid fit.
+#[test]
+fn a_field_whose_leaf_layer_no_binding_takes_is_refused_on_the_gpu() {
+    if crate::gpu::gpu().is_none() {
+        return;
+    }
+    let limit = 1u64 << 20;
+    let small = crate::gpu::device_with_limits(|l| wgpu::Limits {
+        max_storage_buffer_binding_size: limit,
+        max_buffer_size: limit,
+        ..l
+    });
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("square.obj");
+    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0.01\nv 0 1 0.01\nf 1 2 3\nf 1 3 4\n").expect("write");
+    let square = meshvox::mesh::load(&path.to_string_lossy()).expect("square");
+    let engine = Engine::on_device(&small, Backend::Gpu).expect("engine");
+    for mode in Mode::FIELDS {
+        let request = Request { band: Band::Voxels(2.0), ..Request::new(Resolution::Count(256), mode) };
+        let error = engine.voxelize("square", &square, &request).err().map(|e| e.to_string());
+        let said = error.as_deref().unwrap_or("no error");
+        assert!(said.contains("a layer of the distance field's leaves"), "{mode}: {said}");
+    }
 }
 
 /// The whole grid's mirror (`voxel_distance2`, what `shaders/query.wgsl`'s `full_distances` computes per voxel)
