@@ -216,21 +216,26 @@ impl DistanceField {
                 return full_field(triangles, spec, slots, leaves, inside, progress);
             }
             let start = reach * reach;
-            let best: Vec<AtomicU32> = (0..leaves.len() * 512).map(|_| AtomicU32::new(start.to_bits())).collect();
+            // Every leaf is in one brick, which writes all its values: nothing to start them with, and the pages
+            // of the largest allocation are first touched by the bricks, on every thread.
+            let best: Vec<AtomicU32> = bytemuck::zeroed_vec(leaves.len() * 512);
             let bins = bin_bricks(triangles, dims, reach);
             let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
-            let evaluations = AtomicU64::new(0);
+            let (evaluations, band_voxels) = (AtomicU64::new(0), AtomicU64::new(0));
+            let finish = Finish::new(spec, band, inside.as_ref());
             let ticker = parallel::Ticker::new(work, PROGRESS_CALLS, progress);
             bins.par_iter().for_each(|(origin, bin)| {
                 let mut cells = BrickCells::new(*origin, dims, start);
-                let n: u64 = bin.iter().map(|&i| band_distance(triangles[i as usize], dims, reach, &mut cells)).sum();
+                let n = super::lanes::lower_brick(triangles, bin, dims, reach, &mut cells);
                 evaluations.fetch_add(n, Ordering::Relaxed);
-                store_brick(&cells, dims, &slots, &best, start);
+                let band = finish_brick(&cells, &finish, &slots, &best, start);
+                band_voxels.fetch_add(band, Ordering::Relaxed);
                 ticker.add(bin.len());
             });
             ticker.finish();
-            let best: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
-            let mut field = DistanceField::from_squared(spec, band, slots, leaves, best, inside);
+            let values: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
+            let band_voxels = band_voxels.into_inner();
+            let mut field = DistanceField::from_values(spec, band, (slots, leaves), values, inside, band_voxels);
             field.evaluations = evaluations.into_inner();
             field
         })
@@ -504,10 +509,13 @@ fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, V
         .collect()
 }
 
-/// Copies a brick's squared distances into the leaves it holds (every leaf belongs to one brick).
-fn store_brick(cells: &BrickCells, dims: UVec3, slots: &[u32], best: &[AtomicU32], start: f32) {
-    let leaf_dims = (dims + 7) / 8;
+/// Pass 3 for the leaves a brick holds (every leaf belongs to one brick): their values from the brick's squared
+/// distances, finished ([`Finish::leaf`]) and stored as f32 bits; returns how many are in the band.
+fn finish_brick(cells: &BrickCells, finish: &Finish, slots: &[u32], best: &[AtomicU32], start: f32) -> u64 {
+    let leaf_dims = (finish.dims + 7) / 8;
     let (lo, hi) = (cells.origin.as_uvec3() / 8, cells.hi.as_uvec3() / 8);
+    let mut band = 0;
+    let mut values = [0.0f32; 512];
     for lz in lo.z..=hi.z {
         for ly in lo.y..=hi.y {
             for lx in lo.x..=hi.x {
@@ -516,15 +524,18 @@ fn store_brick(cells: &BrickCells, dims: UVec3, slots: &[u32], best: &[AtomicU32
                     continue;
                 }
                 let origin = UVec3::new(lx, ly, lz) * 8;
-                for i in 0..512u32 {
-                    let v = (origin + UVec3::new(i & 7, (i >> 3) & 7, i >> 6)).as_ivec3();
+                let squared = |i: usize| {
+                    let v = (origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6)).as_ivec3();
                     // Voxels past the grid's end keep the start value, as the leaves' atomics would.
-                    let d2 = if v.cmple(cells.hi).all() { cells.get(v) } else { start };
-                    best[slot as usize * 512 + i as usize].store(d2.to_bits(), Ordering::Relaxed);
-                }
+                    if v.cmple(cells.hi).all() { cells.get(v) } else { start }
+                };
+                band += finish.leaf(origin, squared, &mut values);
+                let out = &best[slot as usize * 512..(slot as usize + 1) * 512];
+                out.iter().zip(&values).for_each(|(o, v)| o.store(v.to_bits(), Ordering::Relaxed));
             }
         }
     }
+    band
 }
 
 /// What pass 3 needs to finish a leaf: the voxel size, the band's background, the grid and the inside.

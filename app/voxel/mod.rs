@@ -25,6 +25,7 @@ pub mod cpu;
 pub mod distance;
 mod grid;
 pub mod labels;
+pub mod lanes;
 mod lattice;
 pub mod points;
 pub mod query;

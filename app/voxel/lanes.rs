@@ -1,0 +1,186 @@
+//! The CPU backend's distance kernel: pass 2 of a field over one brick ([`lower_brick`]), eight voxels of a row
+//! at a time against one triangle. It gives [`crate::voxel::cpu::distance::band_distance`]'s squared distances bit
+//! for bit (the mirror of the GPU's pass stays the reference; `tests/it/distance.rs` holds the two together): the
+//! same pruning bounds, and [`point_distance2`]'s arithmetic per lane in the same order, each Voronoi region's
+//! weights computed in every lane and the first region that holds selected, where the scalar code branches. IEEE
+//! arithmetic is the same in a vector lane as in a scalar register and Rust never fuses a multiply and an add, so
+//! the lanes are exact copies. [`lower_brick`] is compiled for the widest vector set the machine has (AVX-512,
+//! AVX2), chosen at run time, over the baseline (SSE2 on x86-64, and what wasm and other targets run);
+//! [`lower_brick_baseline`] is the baseline alone, for the tests. A thin triangle, whose nearest point
+//! [`point_distance2`] also compares with its edges', takes the scalar code per voxel.
+
+use super::cpu::common::dot3;
+use super::cpu::distance::{BrickCells, band_range, band_span, cannot_lower, triangle_layers};
+use super::cpu::nearest::{THIN, point_distance2};
+use glam::{IVec3, UVec3, Vec3};
+use multiversion::multiversion;
+use std::cmp::Ordering;
+
+/// Voxels evaluated at once.
+const LANES: usize = 8;
+
+/// Lowers `cells` over every voxel of the triangles `bin` (indices into `triangles`) that the brick holds, as
+/// [`crate::voxel::cpu::distance::band_distance`] does for each; returns how many distances it evaluated (those the
+/// pruning let through, as the scalar pass counts them).
+#[multiversion(targets("x86_64+avx512f+avx512vl+avx2+fma", "x86_64+avx2+fma"))]
+pub fn lower_brick(triangles: &[[Vec3; 3]], bin: &[u32], dims: UVec3, reach: f32, cells: &mut BrickCells) -> u64 {
+    brick(triangles, bin, dims, reach, cells)
+}
+
+/// [`lower_brick`] compiled for the baseline vector set only.
+pub fn lower_brick_baseline(
+    triangles: &[[Vec3; 3]],
+    bin: &[u32],
+    dims: UVec3,
+    reach: f32,
+    cells: &mut BrickCells,
+) -> u64 {
+    brick(triangles, bin, dims, reach, cells)
+}
+
+#[inline(always)]
+fn brick(triangles: &[[Vec3; 3]], bin: &[u32], dims: UVec3, reach: f32, cells: &mut BrickCells) -> u64 {
+    let mut evaluated = 0;
+    for &i in bin {
+        let t = triangles[i as usize];
+        let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
+        let frame = Frame::of(t);
+        for z in first.max(cells.origin.z)..=last.min(cells.hi.z) {
+            evaluated += u64::from(layer(t, &frame, z, dims, reach, cells));
+        }
+    }
+    evaluated
+}
+
+/// What every lane needs of a triangle, computed once: as [`point_distance2`] computes it per call.
+struct Frame {
+    a: Vec3,
+    b: Vec3,
+    c: Vec3,
+    ab: Vec3,
+    ac: Vec3,
+    n: Vec3,
+    n2: f32,
+    bounds: (Vec3, Vec3),
+    thin: bool,
+}
+
+impl Frame {
+    #[inline(always)]
+    fn of(t: [Vec3; 3]) -> Frame {
+        let (a, b, c) = (t[0], t[1], t[2]);
+        let (ab, ac) = (b - a, c - a);
+        // `triangle_layer`'s normal (glam's cross) for the pruning, `closest_barycentric`'s for the thin test.
+        let n = ab.cross(ac);
+        let m = Vec3::new(ab.y * ac.z - ab.z * ac.y, ab.z * ac.x - ab.x * ac.z, ab.x * ac.y - ab.y * ac.x);
+        let thin = dot3(m, m).partial_cmp(&(THIN * dot3(ab, ab) * dot3(ac, ac))) != Some(Ordering::Greater);
+        let bounds = (a.min(b).min(c), a.max(b).max(c));
+        Frame { a, b, c, ab, ac, n, n2: dot3(n, n), bounds, thin }
+    }
+}
+
+/// [`crate::voxel::cpu::distance::triangle_layer`] over a brick, eight voxels of a row at a time.
+#[inline(always)]
+fn layer(t: [Vec3; 3], f: &Frame, z: i32, dims: UVec3, reach: f32, cells: &mut BrickCells) -> u32 {
+    let (lo, hi) = band_range(t, dims, reach);
+    let (lo, hi) = (lo.max(cells.origin), hi.min(cells.hi));
+    let mut evaluated = 0;
+    for y in lo.y..=hi.y {
+        let (x0, x1) = band_span(f.bounds.0, f.bounds.1, y, z, reach);
+        let (x0, x1) = (x0.max(lo.x), x1.min(hi.x));
+        let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
+        let mut start = x0;
+        while start <= x1 {
+            let index: [usize; LANES] =
+                std::array::from_fn(|k| cells.index(IVec3::new((start + k as i32).min(x1), y, z)));
+            let xs: [f32; LANES] = std::array::from_fn(|k| (start + k as i32).min(x1) as f32 + 0.5);
+            let mut pass = 0u32;
+            for k in 0..LANES {
+                let p = Vec3::new(xs[k], py, pz);
+                let far = cannot_lower(p, f.a, f.n, f.n2, f.bounds, cells.best[index[k]]);
+                pass |= u32::from(!far && start + (k as i32) <= x1) << k;
+            }
+            if pass != 0 {
+                let d2 = match f.thin {
+                    false => distances(f, &xs, py, pz),
+                    true => std::array::from_fn(|k| point_distance2(Vec3::new(xs[k], py, pz), t)),
+                };
+                evaluated += pass.count_ones();
+                while pass != 0 {
+                    let k = pass.trailing_zeros() as usize;
+                    pass &= pass - 1;
+                    if d2[k] < cells.best[index[k]] {
+                        cells.best[index[k]] = d2[k];
+                    }
+                }
+            }
+            start += LANES as i32;
+        }
+    }
+    evaluated
+}
+
+/// [`point_distance2`] of a triangle that is not thin at the points `(xs[k], py, pz)`.
+#[inline(always)]
+fn distances(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32) -> [f32; LANES] {
+    let mut out = [0.0; LANES];
+    for k in 0..LANES {
+        out[k] = distance(f, Vec3::new(xs[k], py, pz));
+    }
+    out
+}
+
+/// One lane: `voronoi_barycentric`'s weights without branches (every region's weights, the first region that
+/// holds taken), then `offset2`.
+#[inline(always)]
+fn distance(f: &Frame, p: Vec3) -> f32 {
+    let (a, b, c, ab, ac) = (f.a, f.b, f.c, f.ab, f.ac);
+    let ap = p - a;
+    let d1 = dot3(ab, ap);
+    let d2 = dot3(ac, ap);
+    let bp = p - b;
+    let d3 = dot3(ab, bp);
+    let d4 = dot3(ac, bp);
+    let vc = d1 * d4 - d3 * d2;
+    let cp = p - c;
+    let d5 = dot3(ab, cp);
+    let d6 = dot3(ac, cp);
+    let vb = d5 * d2 - d1 * d6;
+    let va = d3 * d6 - d5 * d4;
+    let sum = va + vb + vc;
+    // The regions in `voronoi_barycentric`'s order; the weights of b and c only (`offset2` reads no other).
+    let r1 = d1 <= 0.0 && d2 <= 0.0;
+    let r2 = d3 >= 0.0 && d4 <= d3;
+    let r3 = vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0;
+    let r4 = d6 >= 0.0 && d5 <= d6;
+    let r5 = vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0;
+    let r6 = va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0;
+    let degenerate = sum.partial_cmp(&0.0) != Some(Ordering::Greater);
+    // The last region first, so that the first that holds is what remains.
+    let (mut wy, mut wz) = (vb / sum, vc / sum);
+    // `nearest_vertex`.
+    let (pa, pb, pc) = (a - p, b - p, c - p);
+    let (da, db, dc) = (dot3(pa, pa), dot3(pb, pb), dot3(pc, pc));
+    let (ny, nz) = match (da <= db && da <= dc, db <= dc) {
+        (true, _) => (0.0, 0.0),
+        (false, true) => (1.0, 0.0),
+        (false, false) => (0.0, 1.0),
+    };
+    (wy, wz) = select(degenerate, (ny, nz), (wy, wz));
+    let w6 = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    (wy, wz) = select(r6, (1.0 - w6, w6), (wy, wz));
+    let w5 = d2 / (d2 - d6);
+    (wy, wz) = select(r5, (0.0, w5), (wy, wz));
+    (wy, wz) = select(r4, (0.0, 1.0), (wy, wz));
+    let v3 = d1 / (d1 - d3);
+    (wy, wz) = select(r3, (v3, 0.0), (wy, wz));
+    (wy, wz) = select(r2, (1.0, 0.0), (wy, wz));
+    (wy, wz) = select(r1, (0.0, 0.0), (wy, wz));
+    let d = (a - p) + ab * wy + ac * wz;
+    dot3(d, d)
+}
+
+#[inline(always)]
+fn select(take: bool, new: (f32, f32), old: (f32, f32)) -> (f32, f32) {
+    if take { new } else { old }
+}
