@@ -319,7 +319,19 @@ impl OnGpu {
         let traffic = Some((out.traffic.upload, out.traffic.readback));
         let group = Some(out.group).filter(|&n| n > 0);
         let (voxels, host_decided) = (out.voxels, Some(out.host_decided));
-        Ok(Some(GridStage { grid, backend, gpu_ms, exact_tests, traffic, instances, group, voxels, host_decided }))
+        let fill = None;
+        Ok(Some(GridStage {
+            grid,
+            backend,
+            gpu_ms,
+            exact_tests,
+            fill,
+            traffic,
+            instances,
+            group,
+            voxels,
+            host_decided,
+        }))
     }
 
     /// A small grid made in a group with the others waiting for the device (`gpu/group.rs`): it waits in line for

@@ -169,6 +169,8 @@ struct GridStage {
     backend: String,
     gpu_ms: Option<f64>,
     exact_tests: Option<u64>,
+    /// A solid's fill beside the holes, on the CPU.
+    fill: Option<voxel::solid::FillStats>,
     /// Bytes uploaded and read back, on the GPU.
     traffic: Option<(u64, u64)>,
     /// The GPU's list of exposed voxels, when asked for and made there.
@@ -421,6 +423,8 @@ impl Engine {
             backend: made.backend,
             gpu_ms: made.gpu_ms,
             exact_tests: made.exact_tests,
+            rows_beside_holes: made.fill.map(|f| f.rows_beside_holes),
+            winding_evaluations: made.fill.map(|f| f.winding_evaluations),
             colour: colours.as_ref().map(|c| c.backend.clone()),
             colour_ms,
             voxelize_ms,
@@ -551,6 +555,7 @@ impl Engine {
             backend,
             gpu_ms: None,
             exact_tests,
+            fill: stats.fill,
             traffic: None,
             instances: None,
             group: None,

@@ -90,6 +90,9 @@ pub struct Report {
     pub points: Option<u64>,
     /// Bytes the grid's GPU passes read back (the grid or its leaves, counters, timings); `None` on the CPU.
     pub readback_bytes: Option<u64>,
+    /// `solid` on the CPU: the rows near an open mesh's boundary, whose fill may evaluate the winding number (0 for
+    /// a closed mesh); `None` elsewhere.
+    pub rows_beside_holes: Option<u64>,
     /// Adapter, device and pipeline creation, once per engine.
     pub setup_ms: f64,
     pub threads: usize,
@@ -109,6 +112,9 @@ pub struct Report {
     pub voxels: u64,
     /// The mesh's load warnings.
     pub warnings: Vec<String>,
+    /// `solid` on the CPU: the certified winding numbers its fill evaluated beside the holes (trees and f64 sums,
+    /// for leaves and rows' stretches): per row of `rows_beside_holes`, what a row along a hole's cap costs.
+    pub winding_evaluations: Option<u64>,
     pub write_ms: f64,
 }
 

@@ -205,7 +205,7 @@ impl SolidPipelines {
         if rows * 8 > limit {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
-        let Boundary { edges, pieces, nodes } = boundary(triangles, lattice);
+        let Boundary { edges, pieces, nodes, .. } = boundary(triangles, lattice);
         let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
@@ -241,7 +241,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
-            boundary: Boundary { edges, pieces, nodes },
+            boundary: Boundary { edges, pieces, nodes, evaluations: Default::default() },
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

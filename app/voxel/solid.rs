@@ -249,7 +249,7 @@ pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
         });
         i += n;
     }
-    Boundary { edges: grouped, pieces, nodes }
+    Boundary { edges: grouped, pieces, nodes, evaluations: Default::default() }
 }
 
 /// The net ends of a chain of weighted edges (`-w` where an edge starts, `+w` where it ends), those not zero.
@@ -514,9 +514,19 @@ pub fn certify_group(
     counted.into_iter().zip(whole).map(|(c, w)| if c != LEAF_OPEN { c } else { w }).collect()
 }
 
+/// What a solid's fill did beside the mesh's holes: the certified winding numbers it evaluated (each tree
+/// evaluation and each f64 sum, leaves certified and rows' stretches alike), and the rows near the boundary
+/// ([`near_boundary`]), whose fill may need them. Their ratio is what a row along a hole's cap costs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FillStats {
+    pub winding_evaluations: u64,
+    pub rows_beside_holes: u64,
+}
+
 /// Adds the inside voxels of the lattice triangles' mesh to `grid` (which holds the surface shell), eight z-layers
-/// at a time: a group of 8×8 rows beside a hole first certifies the leaves it can whole ([`certify_leaves`]).
-pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
+/// at a time: a group of 8×8 rows beside a hole first certifies the leaves it can whole ([`certify_leaves`]); with
+/// what it did beside the holes.
+pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> FillStats {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         let spec = grid.spec;
@@ -529,12 +539,14 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
         };
         let wpr = spec.words_per_row();
         let layer = wpr * dims.y as usize;
+        let near_rows = std::sync::atomic::AtomicU64::new(0);
         grid.words.par_chunks_mut(8 * layer).enumerate().for_each(|(slab, words)| {
             let za = slab as u32 * 8;
             for ya in (0..dims.y).step_by(8) {
                 let group: Vec<(u32, u32)> =
                     (za..(za + 8).min(dims.z)).flat_map(|z| (ya..(ya + 8).min(dims.y)).map(move |y| (y, z))).collect();
                 let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
+                near_rows.fetch_add(near.iter().filter(|&&n| n).count() as u64, std::sync::atomic::Ordering::Relaxed);
                 let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
                 let decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
                     true => certify_group(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
@@ -551,5 +563,6 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) {
                 }
             }
         });
+        FillStats { winding_evaluations: boundary.evaluations.get(), rows_beside_holes: near_rows.into_inner() }
     })
 }

@@ -17,7 +17,9 @@
 use super::Lattice;
 use super::cpu::groups::{GroupOutput, row_byte};
 use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
-use super::solid::{boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves};
+use super::solid::{
+    FillStats, boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves,
+};
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -31,6 +33,8 @@ const BLOCK: u32 = 128;
 struct BlockInterior {
     tiles: Vec<Tile>,
     leaves: Vec<(u64, LeafMask)>,
+    /// Rows near the boundary ([`near_boundary`]).
+    near_rows: u64,
 }
 
 /// Clears byte `lx` of a row, so the next group starts from an empty row without clearing all of it.
@@ -82,6 +86,11 @@ enum Leaf {
 /// whole, by each row's crossing count where the count decides (the rows that pass no hole, [`near_boundary`]),
 /// or by one winding number per box ([`certify_group`]) beside a hole.
 pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> SparseGrid {
+    fill_sparse_counted(triangles, lattice, surface).0
+}
+
+/// [`fill_sparse`], with what it did beside the holes.
+pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGrid) -> (SparseGrid, FillStats) {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         let spec = surface.spec;
@@ -133,6 +142,7 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
                         .take_while(|&&k| k >> 21 == first)
                         .map(|&k| (k & 0x1f_ffff) as usize)
                         .collect();
+                    out.near_rows += group_rows.iter().filter(|row| row.3).count() as u64;
                     let quiet =
                         crossed.is_empty() && group_rows.iter().all(|(_, _, list, near, _)| list.is_empty() && !near);
                     if quiet {
@@ -264,11 +274,13 @@ pub fn fill_sparse(triangles: &[[Vec3; 3]], lattice: Lattice, surface: SparseGri
         drop(rows);
         let mut tiles: Vec<Tile> = Vec::new();
         let mut inside: Vec<(u64, LeafMask)> = Vec::new();
+        let mut stats = FillStats { winding_evaluations: boundary.evaluations.get(), rows_beside_holes: 0 };
         for part in parts {
             tiles.extend(part.tiles);
             inside.extend(part.leaves);
+            stats.rows_beside_holes += part.near_rows;
         }
-        join_interior(surface, tiles, inside)
+        (join_interior(surface, tiles, inside), stats)
     })
 }
 

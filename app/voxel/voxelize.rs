@@ -61,6 +61,8 @@ pub fn grid_space_triangles(mesh: &Mesh, spec: &GridSpec) -> Result<Vec<[Vec3; 3
 pub struct CpuStats {
     /// Voxel tests (triangle, voxel) that needed the exact integer path; the rest were certain in f32.
     pub exact_tests: u64,
+    /// A solid's fill beside the holes: its winding-number evaluations and the rows there.
+    pub fill: Option<super::solid::FillStats>,
 }
 
 /// Voxelizes grid-space triangles into a new surface grid (rounding them onto the lattice first, if they are not
@@ -97,7 +99,7 @@ pub fn voxelize_grid_space_mode(
             .enumerate()
             .map(|(b, words)| ((b * band) as u32, words))
             .collect();
-        let stats = walk_bands(
+        let mut stats = walk_bands(
             &triangles,
             lattice,
             dims,
@@ -112,7 +114,7 @@ pub fn voxelize_grid_space_mode(
             },
         );
         if mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
-            super::solid::fill(&triangles, lattice, &mut grid);
+            stats.fill = Some(super::solid::fill(&triangles, lattice, &mut grid));
         }
         Ok((grid, stats))
     })
@@ -133,13 +135,17 @@ pub fn voxelize_grid_space_sparse(
         let dims = spec.dims;
         let band = band_layers(dims.z).next_multiple_of(LEAF_DIM as usize);
         let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
-        let stats =
+        let mut stats =
             walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
                 set.set_run(x0, x1, y, z)
             });
         let grid = SparseGrid::from_leaf_sets(spec, bands);
         let grid = match mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
-            true => super::solid_sparse::fill_sparse(&triangles, lattice, grid),
+            true => {
+                let (grid, fill) = super::solid_sparse::fill_sparse_counted(&triangles, lattice, grid);
+                stats.fill = Some(fill);
+                grid
+            }
             false => grid.prune(),
         };
         Ok((grid, stats))
@@ -208,7 +214,7 @@ fn walk_bands<S: Send>(
         let finished = done.fetch_add(batch.len(), Ordering::Relaxed) + batch.len();
         progress(finished, triangles.len());
     }
-    CpuStats { exact_tests: exact.into_inner() }
+    CpuStats { exact_tests: exact.into_inner(), fill: None }
 }
 
 /// Voxelizes a world-space mesh on the CPU.

@@ -238,6 +238,24 @@ pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
     pub nodes: Vec<BoundaryNode>,
+    /// The certified winding numbers evaluated against it so far (CPU only: the fills report them).
+    pub evaluations: Evaluations,
+}
+
+/// A count of winding-number evaluations (each [`winding_number_tree`], and each f64 sum a fill falls back to),
+/// added from any thread.
+#[derive(Default, Debug)]
+pub struct Evaluations(std::sync::atomic::AtomicU64);
+
+impl Evaluations {
+    #[inline]
+    pub fn add(&self, n: u64) {
+        self.0.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    pub fn get(&self) -> u64 {
+        self.0.load(std::sync::atomic::Ordering::Relaxed)
+    }
 }
 
 /// The crossings of every row, grouped by row: row `r`'s are `crossings[offsets[r]..offsets[r + 1]]`, sorted, each
@@ -508,6 +526,7 @@ pub fn winding_number_tree(
     budget: f32,
     atan2_error: f32,
 ) -> Winding {
+    boundary.evaluations.add(1);
     let scale = 1.0 / (4.0 * std::f32::consts::PI);
     let mut terms = EdgeTerms::default();
     let mut far = 0.0f32;
@@ -817,7 +836,10 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
                 let inside = match r >= 1.0 {
                     true => v.w > 0.5,
                     false => match point_side(count, p, boundary) {
-                        2 => inside_exact(count, m, y, z, &boundary.edges),
+                        2 => {
+                            boundary.evaluations.add(1);
+                            inside_exact(count, m, y, z, &boundary.edges)
+                        }
                         side => side == 1,
                     },
                 };
