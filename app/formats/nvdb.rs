@@ -246,8 +246,8 @@ pub fn write_nvdb<W: Write + Seek>(
 /// Writes a distance field as a NanoVDB level set `surface`: the `.vdb`'s level set ([`super::vdb`]).
 pub fn write_level_set_nvdb<W: Write + Seek>(field: &DistanceField, mut out: W) -> Result<(), FormatError> {
     let band = field.band_grid();
-    let value = |v: UVec3| field.value(v);
-    let values = Values::LevelSet { value: &value, background: field.background() };
+    let (value, leaf) = (|v: UVec3| field.value(v), |origin: UVec3| field.leaf_values(origin));
+    let values = Values::LevelSet { value: &value, leaf: &leaf, background: field.background() };
     write_segment(&band, &tree_nodes(&band), "surface", values, &mut out)?;
     out.flush()?;
     Ok(())
@@ -571,6 +571,19 @@ fn leaf(grid: &SparseGrid, i: usize, bbox: BBox, values: &Values, kind: &Kind) -
     match values {
         // Every active voxel is true: the values are the mask.
         Values::Bool => mask.iter().for_each(|w| b.extend_from_slice(&w.to_le_bytes())),
+        // What the arm below writes, from the leaf's values looked up once: a level set's inactive value is
+        // `±background` as the voxel's own value is outside or inside.
+        Values::LevelSet { background, .. } if let Some(leaf) = values.leaf_values(origin) => {
+            pad(&mut b, kind.leaf - 512 * 4);
+            for (n, &v) in leaf.iter().enumerate() {
+                let v = match (active(n), v > 0.0) {
+                    (true, _) => v,
+                    (false, true) => *background,
+                    (false, false) => -background,
+                };
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+        }
         _ => {
             pad(&mut b, kind.leaf - 512 * if kind.stride == 16 { 12 } else { 4 });
             for n in 0..512 {

@@ -61,9 +61,11 @@ pub(super) enum Values<'a> {
     Colour(&'a (dyn Fn(UVec3) -> [f32; 3] + Sync)),
     /// An int32 label per voxel (background -1).
     Int(&'a (dyn Fn(UVec3) -> i32 + Sync)),
-    /// A level set: each voxel's signed distance, `±background` beyond the band.
+    /// A level set: each voxel's signed distance, `±background` beyond the band; and a whole leaf's values at once
+    /// in OpenVDB's order, where the field has that leaf (one lookup a leaf instead of one a voxel).
     LevelSet {
         value: &'a (dyn Fn(UVec3) -> f32 + Sync),
+        leaf: &'a (dyn Fn(UVec3) -> Option<[f32; 512]> + Sync),
         background: f32,
     },
 }
@@ -118,6 +120,15 @@ impl Values<'_> {
                 out.extend_from_slice(&(-background).to_le_bytes())
             }
             _ => self.background(out),
+        }
+    }
+
+    /// A level set's values of the leaf at `origin`, `value` voxel by voxel, in OpenVDB's order (`x << 6 | y << 3 |
+    /// z`), where the field has the leaf.
+    pub(super) fn leaf_values(&self, origin: UVec3) -> Option<[f32; 512]> {
+        match self {
+            Values::LevelSet { leaf, .. } => leaf(origin),
+            _ => None,
         }
     }
 
@@ -372,8 +383,8 @@ pub(super) fn grids_of<'a>(
 pub fn write_level_set<W: Write + Seek>(field: &DistanceField, mut out: W) -> Result<(), FormatError> {
     let band = field.band_grid();
     out.write_all(&file_head(&band, 1))?;
-    let value = |v: UVec3| field.value(v);
-    let values = Values::LevelSet { value: &value, background: field.background() };
+    let (value, leaf) = (|v: UVec3| field.value(v), |origin: UVec3| field.leaf_values(origin));
+    let values = Values::LevelSet { value: &value, leaf: &leaf, background: field.background() };
     write_grid(&band, &tree_nodes(&band), active_bounds(&band), "surface", values, &mut out)?;
     out.flush()?;
     Ok(())
@@ -597,6 +608,21 @@ fn write_buffers(
                         Values::Bool => {
                             coord(&mut b, origin);
                             Mask(mask.to_vec()).write(&mut b);
+                        }
+                        // What the arm below writes, from the leaf's values looked up once.
+                        Values::LevelSet { .. } if let Some(leaf) = values.leaf_values(origin) => {
+                            b.push(MASK_AND_NO_INACTIVE_VALS);
+                            let mut selection = Mask::new(512);
+                            (0..512).filter(|&n| leaf[n] > 0.0).for_each(|n| selection.set(n));
+                            selection.write(&mut b);
+                            for (x, &word) in mask.iter().enumerate() {
+                                let mut bits = word;
+                                while bits != 0 {
+                                    let n = bits.trailing_zeros() as usize;
+                                    b.extend_from_slice(&leaf[x << 6 | n].to_le_bytes());
+                                    bits &= bits - 1;
+                                }
+                            }
                         }
                         Values::Density | Values::Colour(_) | Values::Int(_) | Values::LevelSet { .. } => {
                             let at = |n: usize| origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);

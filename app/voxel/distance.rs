@@ -384,6 +384,28 @@ impl DistanceField {
         }
     }
 
+    /// The values of the leaf at `origin` (a leaf's first voxel) in OpenVDB's order (`x << 6 | y << 3 | z`), as
+    /// [`DistanceField::value`] gives them voxel by voxel, looked up once; `None` where the band has no leaf there.
+    pub fn leaf_values(&self, origin: UVec3) -> Option<[f32; 512]> {
+        let l = origin / 8;
+        if !l.cmplt(self.leaf_dims).all() {
+            return None;
+        }
+        let slot = self.slots[leaf_slot(l, self.leaf_dims)];
+        if slot == NO_LEAF {
+            return None;
+        }
+        let leaf = &self.values[slot as usize * 512..(slot as usize + 1) * 512];
+        let (dims, background) = (self.spec.dims, self.background());
+        Some(std::array::from_fn(|n| {
+            let v = origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
+            match v.cmplt(dims).all() {
+                true => leaf[leaf_offset(v)],
+                false => background,
+            }
+        }))
+    }
+
     /// Voxel values of the x-slice `x`, `[y, z]` in C order (`slice[y * dims_z + z]`): what the dense `.npy` and
     /// Python's `.distances` hold.
     pub fn x_slice(&self, x: u32, slice: &mut [f32]) {

@@ -337,17 +337,21 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     eprintln!("GPU against CPU distances: at most {worst:.2e} voxels apart on every mesh and hard case");
 }
 
-#[test]
-fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
-    if crate::gpu::gpu().is_none() {
-        return;
-    }
-    let limit = 1u64 << 20;
-    let small = crate::gpu::device_with_limits(|l| wgpu::Limits {
+/// A device like the tests' whose storage bindings and buffers hold at most `limit` bytes; `None` without an
+/// adapter.
+fn device_of_at_most(limit: u64) -> Option<meshvox::gpu::Gpu> {
+    crate::gpu::gpu()?;
+    Some(crate::gpu::device_with_limits(|l| wgpu::Limits {
         max_storage_buffer_binding_size: limit,
         max_buffer_size: limit,
         ..l
-    });
+    }))
+}
+
+#[test]
+fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
+    let limit = 1u64 << 20;
+    let Some(small) = device_of_at_most(limit) else { return };
     let mesh = meshvox::mesh::load("builtin:knot").expect("knot");
     let engine = Engine::on_device(&small, Backend::Gpu).expect("engine");
     let cpu = Engine::open(Backend::Cpu).expect("cpu");
@@ -413,15 +417,7 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
 /// binding of 1 MiB, while its triangles, a layer's slots and its grid fit.
 #[test]
 fn a_field_whose_leaf_layer_no_binding_takes_is_refused_on_the_gpu() {
-    if crate::gpu::gpu().is_none() {
-        return;
-    }
-    let limit = 1u64 << 20;
-    let small = crate::gpu::device_with_limits(|l| wgpu::Limits {
-        max_storage_buffer_binding_size: limit,
-        max_buffer_size: limit,
-        ..l
-    });
+    let Some(small) = device_of_at_most(1 << 20) else { return };
     let dir = tempfile::tempdir().expect("tempdir");
     let path = dir.path().join("square.obj");
     std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 1 1 0.01\nv 0 1 0.01\nf 1 2 3\nf 1 3 4\n").expect("write");
