@@ -5,9 +5,25 @@
 # drawing) for the others; the page loads only the one it needs. Each wasm is built with the size-optimised `web`
 # profile and shrunk with wasm-opt (npm's binaryen, installed into web/node_modules).
 # `bash web/build.sh --serve [PORT]` then serves it on http://127.0.0.1:PORT (default 8080).
-# Run as root on a fresh machine, it installs the wasm32 target and wasm-bindgen-cli first.
+# Run as root on a fresh machine, it installs what it needs first: clang and llvm (meshoptimizer's C++ decoder is
+# compiled for wasm32 with clang and archived with llvm-ar), Node.js and npm (for wasm-opt), the wasm32 target and
+# wasm-bindgen-cli. Not as root, it names the packages it lacks.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+need=()
+command -v clang >/dev/null 2>&1 || need+=(clang)
+command -v llvm-ar >/dev/null 2>&1 || need+=(llvm)
+command -v npm >/dev/null 2>&1 || need+=(nodejs npm)
+if [ ${#need[@]} -gt 0 ]; then
+  if [ "$(id -u)" != 0 ]; then
+    echo "web/build.sh needs ${need[*]}: apt-get install ${need[*]} (or run it as root, which installs them)" >&2
+    exit 1
+  fi
+  echo "installing ${need[*]}" >&2
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
 
 want=$(grep -A1 '^name = "wasm-bindgen"$' Cargo.lock | sed -n 's/^version = "\(.*\)"/\1/p')
 if ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknown; then
