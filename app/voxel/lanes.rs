@@ -44,9 +44,9 @@ fn brick(triangles: &[[Vec3; 3]], bin: &[u32], dims: UVec3, reach: f32, cells: &
     for &i in bin {
         let t = triangles[i as usize];
         let (first, last) = triangle_layers(t, dims, reach, (0, dims.z));
-        let frame = Frame::of(t);
+        let frame = Frame::of(t, dims, reach);
         for z in first.max(cells.origin.z)..=last.min(cells.hi.z) {
-            evaluated += u64::from(layer(t, &frame, z, dims, reach, cells));
+            evaluated += u64::from(layer(t, &frame, z, reach, cells));
         }
     }
     evaluated
@@ -63,11 +63,13 @@ struct Frame {
     n2: f32,
     bounds: (Vec3, Vec3),
     thin: bool,
+    /// Its [`band_range`], which every layer clips.
+    range: (IVec3, IVec3),
 }
 
 impl Frame {
     #[inline(always)]
-    fn of(t: [Vec3; 3]) -> Frame {
+    fn of(t: [Vec3; 3], dims: UVec3, reach: f32) -> Frame {
         let (a, b, c) = (t[0], t[1], t[2]);
         let (ab, ac) = (b - a, c - a);
         // `triangle_layer`'s normal (glam's cross) for the pruning, `closest_barycentric`'s for the thin test.
@@ -75,15 +77,14 @@ impl Frame {
         let m = Vec3::new(ab.y * ac.z - ab.z * ac.y, ab.z * ac.x - ab.x * ac.z, ab.x * ac.y - ab.y * ac.x);
         let thin = dot3(m, m).partial_cmp(&(THIN * dot3(ab, ab) * dot3(ac, ac))) != Some(Ordering::Greater);
         let bounds = (a.min(b).min(c), a.max(b).max(c));
-        Frame { a, b, c, ab, ac, n, n2: dot3(n, n), bounds, thin }
+        Frame { a, b, c, ab, ac, n, n2: dot3(n, n), bounds, thin, range: band_range(t, dims, reach) }
     }
 }
 
 /// [`crate::voxel::cpu::distance::triangle_layer`] over a brick, eight voxels of a row at a time.
 #[inline(always)]
-fn layer(t: [Vec3; 3], f: &Frame, z: i32, dims: UVec3, reach: f32, cells: &mut BrickCells) -> u32 {
-    let (lo, hi) = band_range(t, dims, reach);
-    let (lo, hi) = (lo.max(cells.origin), hi.min(cells.hi));
+fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) -> u32 {
+    let (lo, hi) = (f.range.0.max(cells.origin), f.range.1.min(cells.hi));
     let mut evaluated = 0;
     for y in lo.y..=hi.y {
         let (x0, x1) = band_span(f.bounds.0, f.bounds.1, y, z, reach);
