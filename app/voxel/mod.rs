@@ -36,6 +36,7 @@ pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
 pub mod voxelize;
+pub mod winding_lanes;
 
 pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};

@@ -573,3 +573,65 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
     assert!(per_row[1] <= per_row[0] * 1.1, "a row's evaluations grow with the grid: {per_row:?}");
     assert_eq!(solid("spot.obj", 128), (0, 0), "a closed mesh has no rows beside holes");
 }
+
+/// The CPU adds a winding number's boundary terms eight edges at a time (`voxel/winding_lanes.rs`, on the widest
+/// vector set the machine has and on the baseline) and must give the scalar sum's bits: the value, its error
+/// bound, the far chains' bound, the drift and its rate, at every point asked, for the holed test meshes, the
+/// bunny and the teapot. The points are voxel centres on a stride through the grid and around every boundary edge:
+/// its ends (where `atan2` takes (0, 0) and the batch goes to the scalar code), points on its line and on the strip
+/// swept from it along +x (where `atan2` jumps), each with reaches from none to a long stretch and with the far
+/// budgets the fill uses and none.
+#[test]
+fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
+    use meshvox::voxel::cpu::solid::{ATAN2_CPU, FAR_BUDGET, Kernel, STRETCH_BUDGET, winding_number_tree_with};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut meshes: Vec<(String, String)> =
+        open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
+    if let Some(shared) = shared_meshes() {
+        for name in ["stanford-bunny.obj", "teapot.obj"] {
+            meshes.push((name.into(), shared.join(name).to_string_lossy().into_owned()));
+        }
+    }
+    let mut ends = 0;
+    let mut judged = 0usize;
+    for (name, path) in &meshes {
+        let mesh = meshvox::mesh::load(path).expect("load");
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(160), Axis::Longest).expect("spec");
+        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+        let boundary = meshvox::voxel::solid::boundary(&tris, lattice);
+        assert!(!boundary.edges.is_empty(), "{name}: no boundary");
+        let d = spec.dims;
+        let mut points: Vec<Vec3> = (0..d.z)
+            .step_by(7)
+            .flat_map(|z| (0..d.y).step_by(5).flat_map(move |y| (0..d.x).step_by(11).map(move |x| (x, y, z))))
+            .map(|(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) + 0.5)
+            .collect();
+        for e in &boundary.edges {
+            let (a, b) = (Vec3::from_array(e.a), Vec3::from_array(e.b));
+            ends += 2;
+            points.extend([a, b, (a + b) / 2.0, a + (b - a) * 1.5, (a + b) / 2.0 + Vec3::X * 3.0]);
+            points.extend([a + Vec3::new(0.25, 0.5, -0.5), b + Vec3::new(-2.0, 0.125, 0.0)]);
+        }
+        for &p in &points {
+            for reach in [0.0, 1.0, 7.5, 300.0] {
+                for budget in [STRETCH_BUDGET, FAR_BUDGET / 64.0, 0.0] {
+                    let at = |kernel| winding_number_tree_with(kernel, 1, p, reach, &boundary, budget, ATAN2_CPU);
+                    let bits =
+                        |v: meshvox::voxel::cpu::solid::Winding| [v.w, v.e, v.far, v.drift, v.rate].map(f32::to_bits);
+                    let scalar = bits(at(Kernel::Scalar));
+                    for kernel in [Kernel::Widest, Kernel::Baseline] {
+                        assert_eq!(
+                            bits(at(kernel)),
+                            scalar,
+                            "{name}: {kernel:?} at {p}, reach {reach}, budget {budget}: w, e, far, drift, rate"
+                        );
+                    }
+                    judged += 1;
+                }
+            }
+        }
+    }
+    eprintln!("{judged} winding numbers equal bit for bit ({ends} at edges' ends) on {} meshes", meshes.len());
+    assert!(judged > 100_000, "only {judged} winding numbers judged");
+}

@@ -49,6 +49,8 @@
 use super::common::dot3;
 use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
+use crate::voxel::winding_lanes::{LANES, Sums, Terms, edge_sums, edge_sums_baseline};
+use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
 
 /// A crossing as stored on both backends: the first voxel at or beyond it along the row (at most `dims.x`),
@@ -290,7 +292,7 @@ pub fn strip_term(a: Vec3) -> f32 {
 }
 
 /// f32's unit roundoff, `2^-24`.
-const U: f32 = 1.0 / 16_777_216.0;
+pub const U: f32 = 1.0 / 16_777_216.0;
 
 /// How many error bounds from 1/2 an f32 winding number must be for the reference (and by default the GPU) to
 /// take its side: each backend's error and the other's are below one bound.
@@ -372,66 +374,97 @@ pub fn winding_number_bounded(
 }
 
 /// The sums [`winding_number_bounded`] keeps over the edges it adds (the shader keeps them in its loop): the
-/// boundary term, the magnitudes of its terms, their error bounds and their drift.
+/// boundary term, the magnitudes of its terms, their error bounds, their drift, and the drift per voxel of reach
+/// for any reach up to the one added with (`Σ |w| span / gap²`): [`EdgeTerm`]'s fields, summed.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct EdgeTerms {
-    sum: f32,
-    magnitude: f32,
-    error: f32,
-    drift: f32,
-    /// The drift per voxel of reach, for any reach up to the one added with: `Σ |w| span / gap²`.
-    rate: f32,
-    summed: u32,
+    sums: Sums,
 }
 
 impl EdgeTerms {
     /// Adds edge `e`'s strip angle seen from `p`, its error bound and its drift over `reach` voxels of the row.
     #[inline]
     pub fn add(&mut self, e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) {
-        let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-        let (num, den, mag) = cone_parts(a, b);
-        let (la, lb) = (a.length(), b.length());
-        let angle = 2.0 * super::atan::atan2(num, den);
-        self.sum += e.weight * angle;
-        self.summed += 1;
-        let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
-        let d_den = 64.0 * U * mag;
-        let r2 = num * num + den * den;
-        // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
-        // is on the strip swept from the edge, where the crossing count jumps the other way).
-        let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
-            true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
-            false => f32::INFINITY,
-        };
-        self.magnitude += (e.weight * angle).abs();
-        self.error += e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
-        if reach > 0.0 {
-            let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
-            let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
-            let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
-            let gap = across.max(along);
-            let pull = edge_pull(num, d_num);
-            let per_voxel = match gap > 0.0 {
-                true => (e.span / (gap * gap)).min(pull / (gap * gap * gap)),
-                false => f32::INFINITY,
-            };
-            let whole = match across > 0.0 {
-                true => (2.0 * e.span / across).min(2.0 * pull / (across * across)),
-                false => f32::INFINITY,
-            };
-            self.drift += e.weight.abs() * (reach * per_voxel).min(whole);
-            // A shorter reach only widens the gap: its drift is at most `reach'` times this.
-            self.rate += e.weight.abs() * per_voxel;
-        }
+        self.sums.accumulate(edge_term(e, p, reach, atan2_error).terms(), reach);
     }
 
     /// `(w, e, drift)` with `count` crossings before the point: the winding number, its error bound and its drift.
     pub fn finish(&self, count: i32) -> (f32, f32, f32) {
+        let Sums { sum, magnitude, error, drift, .. } = self.sums;
         let scale = 1.0 / (4.0 * std::f32::consts::PI);
-        let w = count as f32 + self.sum * scale;
-        let bound = (self.error + (self.summed as f32 + 2.0) * U * self.magnitude) * scale * 1.01 + 2.0 * U * w.abs();
-        (w, bound, self.drift * scale * 1.01)
+        let w = count as f32 + sum * scale;
+        let bound = (error + (self.sums.summed as f32 + 2.0) * U * magnitude) * scale * 1.01 + 2.0 * U * w.abs();
+        (w, bound, drift * scale * 1.01)
     }
+
+    /// The drift per voxel summed.
+    fn rate(&self) -> f32 {
+        self.sums.rate
+    }
+}
+
+/// What one boundary edge adds to [`EdgeTerms`]' sums: its weighted strip angle, that angle's magnitude, its error
+/// bound, and (with a reach) its drift over the reach and its drift per voxel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EdgeTerm {
+    pub angle: f32,
+    pub magnitude: f32,
+    pub error: f32,
+    pub drift: f32,
+    pub rate: f32,
+}
+
+impl EdgeTerm {
+    /// The fields in order, as [`Sums`] adds them.
+    #[inline]
+    pub fn terms(self) -> Terms {
+        [self.angle, self.magnitude, self.error, self.drift, self.rate]
+    }
+}
+
+/// Edge `e`'s strip angle seen from `p`, its error bound and its drift over `reach` voxels of the row
+/// ([`EdgeTerms::add`]'s terms; `voxel/winding_lanes.rs` computes the same eight edges at a time).
+#[inline]
+pub fn edge_term(e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) -> EdgeTerm {
+    let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+    let (num, den, mag) = cone_parts(a, b);
+    let (la, lb) = (a.length(), b.length());
+    let angle = 2.0 * super::atan::atan2(num, den);
+    let d_num = 3.0 * U * ((a.y * b.z).abs() + (a.z * b.y).abs());
+    let d_den = 64.0 * U * mag;
+    let r2 = num * num + den * den;
+    // Infinite also where `num`'s sign is uncertain with `den < 0`: there `atan2` jumps by 2π (the point
+    // is on the strip swept from the edge, where the crossing count jumps the other way).
+    let moved = match r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num) {
+        true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
+        false => f32::INFINITY,
+    };
+    let mut term = EdgeTerm {
+        angle: e.weight * angle,
+        magnitude: (e.weight * angle).abs(),
+        error: e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30),
+        drift: 0.0,
+        rate: 0.0,
+    };
+    if reach > 0.0 {
+        let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
+        let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
+        let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+        let gap = across.max(along);
+        let pull = edge_pull(num, d_num);
+        let per_voxel = match gap > 0.0 {
+            true => (e.span / (gap * gap)).min(pull / (gap * gap * gap)),
+            false => f32::INFINITY,
+        };
+        let whole = match across > 0.0 {
+            true => (2.0 * e.span / across).min(2.0 * pull / (across * across)),
+            false => f32::INFINITY,
+        };
+        term.drift = e.weight.abs() * (reach * per_voxel).min(whole);
+        // A shorter reach only widens the gap: its drift is at most `reach'` times this.
+        term.rate = e.weight.abs() * per_voxel;
+    }
+    term
 }
 
 /// The winding number at a point from the tree, with its bounds ([`winding_number_tree`]).
@@ -455,7 +488,7 @@ pub const NO_NODE: u32 = u32::MAX;
 pub const TREE_DEPTH: usize = 32;
 
 /// Edges a leaf of the tree sums directly.
-pub const LEAF_EDGES: u32 = 2;
+pub const LEAF_EDGES: u32 = 8;
 
 /// What a node's chain reduces to when its stretch passes outside its box.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -526,11 +559,26 @@ pub fn winding_number_tree(
     budget: f32,
     atan2_error: f32,
 ) -> Winding {
+    winding_number_tree_with(Kernel::Widest, count, p, reach, boundary, budget, atan2_error)
+}
+
+/// [`winding_number_tree`] with its edges' terms added by `kernel`: the same bits from each (the tests hold them
+/// together).
+pub fn winding_number_tree_with(
+    kernel: Kernel,
+    count: i32,
+    p: Vec3,
+    reach: f32,
+    boundary: &Boundary,
+    budget: f32,
+    atan2_error: f32,
+) -> Winding {
     boundary.evaluations.add(1);
     let scale = 1.0 / (4.0 * std::f32::consts::PI);
     let mut terms = EdgeTerms::default();
     let mut far = 0.0f32;
     let share = budget / boundary.edges.len().max(1) as f32;
+    let mut pending = Pending { kernel, p, reach, atan2_error, edges: [BoundaryEdge::zeroed(); PENDING], len: 0 };
     walk_tree(boundary, |node| {
         if node.chord != Chord::Branched
             && let Some(d2) = node.outside_distance2(p, reach)
@@ -541,19 +589,87 @@ pub fn winding_number_tree(
             if bound <= share * node.count as f32 {
                 far += bound;
                 if let Chord::Edge(chord) = node.chord {
-                    terms.add(&chord, p, reach, atan2_error);
+                    pending.push(std::slice::from_ref(&chord), &mut terms);
                 }
                 return false;
             }
         }
         if node.children == [NO_NODE, NO_NODE] {
-            boundary.node_edges(node).iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+            pending.push(boundary.node_edges(node), &mut terms);
         }
         true
     });
+    pending.flush(&mut terms, 1);
     let (w, e, drift) = terms.finish(count);
-    let rate = terms.rate * scale * 1.01;
+    let rate = terms.rate() * scale * 1.01;
     Winding { w, e, drift, far, rate }
+}
+
+/// Edges [`winding_number_tree_with`] gathers before it adds them: three batches of lanes.
+const PENDING: usize = 3 * LANES;
+
+/// The edges a walk has yet to add, in its order: added a whole batch of lanes at a time while the walk goes on, so
+/// that a leaf's few edges and the chords between them fill the lanes.
+struct Pending {
+    kernel: Kernel,
+    p: Vec3,
+    reach: f32,
+    atan2_error: f32,
+    edges: [BoundaryEdge; PENDING],
+    len: usize,
+}
+
+impl Pending {
+    #[inline(always)]
+    fn push(&mut self, edges: &[BoundaryEdge], terms: &mut EdgeTerms) {
+        for part in edges.chunks(PENDING - LANES) {
+            if self.len + part.len() > PENDING {
+                self.flush(terms, LANES);
+            }
+            self.edges[self.len..self.len + part.len()].copy_from_slice(part);
+            self.len += part.len();
+        }
+    }
+
+    /// Adds the edges gathered, in whole multiples of `multiple` (the rest kept for later).
+    #[inline(always)]
+    fn flush(&mut self, terms: &mut EdgeTerms, multiple: usize) {
+        let whole = self.len / multiple * multiple;
+        self.kernel.add(terms, &self.edges[..whole], self.p, self.reach, self.atan2_error);
+        self.edges.copy_within(whole..self.len, 0);
+        self.len -= whole;
+    }
+}
+
+/// How the CPU adds a batch of edges' terms: eight lanes on the widest vector set the machine has, eight on the
+/// baseline set, or one at a time ([`EdgeTerms::add`], the shader's loop). All three give the same bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    Widest,
+    Baseline,
+    Scalar,
+}
+
+impl Kernel {
+    #[inline]
+    fn add(self, terms: &mut EdgeTerms, edges: &[BoundaryEdge], p: Vec3, reach: f32, atan2_error: f32) {
+        let lanes = match self {
+            Kernel::Widest => edge_sums,
+            Kernel::Baseline => edge_sums_baseline,
+            Kernel::Scalar => {
+                edges.iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+                return;
+            }
+        };
+        let mut rest = edges;
+        while !rest.is_empty() {
+            rest = &rest[lanes(&mut terms.sums, bytemuck::cast_slice(rest), p.to_array(), reach, atan2_error)..];
+            // A batch with a special `atan2` (a point on an edge's end) is the scalar code's.
+            let special = rest.len().min(LANES);
+            rest[..special].iter().for_each(|e| terms.add(e, p, reach, atan2_error));
+            rest = &rest[special..];
+        }
+    }
 }
 
 /// The side of 1/2 of the winding number at `p` alone (`1` at least, `0` below, `2` undecided by f32): the tree
@@ -602,6 +718,7 @@ pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
 /// Walks each piece's tree depth first, each node before its halves: `visit(node)` says whether to open it (a
 /// node without halves is the visit's to finish). A piece's tree is balanced, so the stack holds at most its
 /// depth plus one entry per level.
+#[inline(always)]
 fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bool) {
     let mut stack = [0u32; 2 * TREE_DEPTH];
     for piece in &boundary.pieces {

@@ -1,0 +1,171 @@
+//! The CPU's boundary terms of the winding number eight edges at a time ([`edge_sums`]): what a solid, a shell or
+//! a field's sign beside holes spends most of its time on (two thirds of the bunny's sparse solid, some 68 edges
+//! an evaluation). Each lane computes [`edge_term`](crate::voxel::cpu::solid::edge_term)'s arithmetic in the same order, `strip_term`'s two forms,
+//! `atan2`'s octants and the bounds' infinite cases taken as selects where the scalar code branches, and the sums
+//! then take the lanes' terms one after another in the edges' order, as [`EdgeTerms::add`](crate::voxel::cpu::solid::EdgeTerms::add) does: IEEE arithmetic
+//! is the same in a vector lane as in a scalar register and Rust never fuses a multiply and an add, so the sums
+//! are the scalar ones bit for bit (`tests/it/inside.rs` holds them together). A batch with a lane `atan2` would
+//! answer specially (a non-finite input, or both zero: the point on an edge's end) is added by the scalar code.
+//! [`edge_sums`] is compiled for the widest vector set the machine has (AVX-512, AVX2), chosen at run time, over
+//! the baseline; [`edge_sums_baseline`] is the baseline alone, for the tests. [`crate::voxel::cpu::solid::Kernel`]
+//! chooses.
+
+use super::cpu::atan::atan_unit;
+use multiversion::multiversion;
+use std::f32::consts::{FRAC_PI_2, PI};
+
+/// Edges evaluated at once.
+pub const LANES: usize = 8;
+
+/// A boundary edge as [`crate::voxel::cpu::solid::BoundaryEdge`] lays it out: `a.xyz, weight, b.xyz, span`.
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
+pub struct Edge {
+    a: [f32; 3],
+    weight: f32,
+    b: [f32; 3],
+    span: f32,
+}
+
+/// One edge's terms, [`crate::voxel::cpu::solid::EdgeTerm`]'s fields in order: `angle, magnitude, error, drift,
+/// rate` (the last two zero without a reach).
+pub type Terms = [f32; 5];
+
+/// f32's unit roundoff, `2^-24`, as the scalar bounds take it.
+const U: f32 = f32::EPSILON / 2.0;
+
+/// The sums a winding number keeps over its edges (an `EdgeTerms` holds them): each of [`Terms`] summed, and how
+/// many edges were.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sums {
+    pub sum: f32,
+    pub magnitude: f32,
+    pub error: f32,
+    pub drift: f32,
+    pub rate: f32,
+    pub summed: u32,
+}
+
+impl Sums {
+    /// Adds one edge's terms (its drift and rate only with a reach), as the shader's loop adds them.
+    #[inline(always)]
+    pub fn accumulate(&mut self, t: Terms, reach: f32) {
+        self.sum += t[0];
+        self.summed += 1;
+        self.magnitude += t[1];
+        self.error += t[2];
+        if reach > 0.0 {
+            self.drift += t[3];
+            self.rate += t[4];
+        }
+    }
+}
+
+/// Adds the terms of the edges seen from `p` (with `reach` and `atan2_error` as `EdgeTerms::add` takes them) to
+/// `sums` in order, [`LANES`] at a time, up to the first batch with a lane whose `atan2` answers specially (that
+/// batch is the scalar code's); returns how many edges it added.
+#[multiversion(targets("x86_64+avx512f+avx512vl+avx2+fma", "x86_64+avx2+fma"))]
+pub fn edge_sums(sums: &mut Sums, edges: &[Edge], p: [f32; 3], reach: f32, atan2_error: f32) -> usize {
+    add(sums, edges, p, reach, atan2_error)
+}
+
+/// [`edge_sums`] compiled for the baseline vector set only.
+pub fn edge_sums_baseline(sums: &mut Sums, edges: &[Edge], p: [f32; 3], reach: f32, atan2_error: f32) -> usize {
+    add(sums, edges, p, reach, atan2_error)
+}
+
+#[inline(always)]
+fn add(sums: &mut Sums, edges: &[Edge], p: [f32; 3], reach: f32, atan2_error: f32) -> usize {
+    let mut added = 0;
+    for batch in edges.chunks(LANES) {
+        // Short batches repeat their first edge; the extra lanes are not added.
+        let edge: [&Edge; LANES] = std::array::from_fn(|k| batch.get(k).unwrap_or(&batch[0]));
+        let mut terms = [[0.0; 5]; LANES];
+        let mut special = [false; LANES];
+        for k in 0..LANES {
+            (terms[k], special[k]) = lane(edge[k], p, reach, atan2_error);
+        }
+        if special[..batch.len()].iter().any(|&s| s) {
+            break;
+        }
+        terms[..batch.len()].iter().for_each(|&t| sums.accumulate(t, reach));
+        added += batch.len();
+    }
+    added
+}
+
+/// One lane: `edge_term` without branches, and whether its `atan2` is special.
+#[inline(always)]
+fn lane(e: &Edge, p: [f32; 3], reach: f32, atan2_error: f32) -> (Terms, bool) {
+    let (weight, span) = (e.weight, e.span);
+    let a = [e.a[0] - p[0], e.a[1] - p[1], e.a[2] - p[2]];
+    let b = [e.b[0] - p[0], e.b[1] - p[1], e.b[2] - p[2]];
+    // `cone_parts` and `strip_term`.
+    let num = a[1] * b[2] - a[2] * b[1];
+    let (la, lb) = (length(a), length(b));
+    let (ta, tb) = (strip(a, la), strip(b, lb));
+    let den = ta * tb + (a[1] * b[1] + a[2] * b[2]);
+    let mag = ta * tb + (a[1] * b[1]).abs() + (a[2] * b[2]).abs();
+    let (angle, special) = atan2(num, den);
+    let angle = 2.0 * angle;
+    let d_num = 3.0 * U * ((a[1] * b[2]).abs() + (a[2] * b[1]).abs());
+    let d_den = 64.0 * U * mag;
+    let r2 = num * num + den * den;
+    let certain = r2 > 64.0 * (d_num + d_den) * (d_num + d_den) && (den > 0.0 || num.abs() > d_num);
+    let moved = select(certain, 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2, f32::INFINITY);
+    let error = weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
+    let mut terms = [weight * angle, (weight * angle).abs(), error, 0.0, 0.0];
+    if reach > 0.0 {
+        let (ya, yb) = ([0.0, a[1], a[2]], [0.0, b[1], b[2]]);
+        let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (length(ya) + length(yb));
+        let along = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (la + lb) - reach;
+        let gap = across.max(along);
+        // `edge_pull`.
+        let pull = (num.abs() + 2.0 * d_num) * (1.0 + 1.0 / 1024.0);
+        let per_voxel = select(gap > 0.0, (span / (gap * gap)).min(pull / (gap * gap * gap)), f32::INFINITY);
+        let whole = select(across > 0.0, (2.0 * span / across).min(2.0 * pull / (across * across)), f32::INFINITY);
+        terms[3] = weight.abs() * (reach * per_voxel).min(whole);
+        terms[4] = weight.abs() * per_voxel;
+    }
+    (terms, special)
+}
+
+#[inline(always)]
+fn select(take: bool, new: f32, old: f32) -> f32 {
+    if take { new } else { old }
+}
+
+/// glam's `length` (its `dot`'s order).
+#[inline(always)]
+fn length(v: [f32; 3]) -> f32 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// `strip_term` with `|v|` given: both forms, the one for `v`'s side taken.
+#[inline(always)]
+fn strip(v: [f32; 3], l: f32) -> f32 {
+    select(v[0] >= 0.0, l + v[0], (v[1] * v[1] + v[2] * v[2]) / (l - v[0]))
+}
+
+/// `segment_distance`: the distance from the origin to the segment `a b`.
+#[inline(always)]
+fn segment_distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let length2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
+    let along = -(a[0] * ab[0] + a[1] * ab[1] + a[2] * ab[2]) / length2;
+    let t = select(length2 > 0.0, along.clamp(0.0, 1.0), 0.0);
+    length([a[0] + ab[0] * t, a[1] + ab[1] * t, a[2] + ab[2] * t])
+}
+
+/// `cpu::atan::atan2` for inputs it does not answer specially, and whether it would.
+#[inline(always)]
+fn atan2(y: f32, x: f32) -> (f32, bool) {
+    let (ay, ax) = (y.abs(), x.abs());
+    let special = !(ay.is_finite() && ax.is_finite()) || (ay == 0.0 && ax == 0.0);
+    let steep = ay > ax;
+    let t = select(steep, ax / ay, ay / ax);
+    let mut a = atan_unit(t);
+    a = select(steep, FRAC_PI_2 - a, a);
+    a = select(x < 0.0, PI - a, a);
+    (a.copysign(y), special)
+}
