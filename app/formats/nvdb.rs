@@ -283,12 +283,12 @@ fn write_segment<W: Write + Seek>(
         .lowers
         .iter()
         .map(|(_, entries)| {
-            entries.iter().fold(None, |bbox, (_, node)| match node {
+            entries.iter().fold(None, |bbox, (order, node)| match node {
                 Node::Leaf(_) => {
                     next_leaf += 1;
                     join(bbox, leaf_boxes[next_leaf - 1])
                 }
-                Node::Tile { origin, .. } => join(bbox, cube(*origin, 3)),
+                Node::Tile { .. } => join(bbox, cube(node_origin(*order, 3), 3)),
             })
         })
         .collect();
@@ -300,7 +300,7 @@ fn write_segment<W: Write + Seek>(
             let mut bbox = None;
             for lower in slots {
                 bbox = match lower[0].1 {
-                    Node::Tile { log2: 7, origin } => join(bbox, cube(origin, 7)),
+                    Node::Tile { log2: 7 } => join(bbox, cube(node_origin(lower[0].0, 7), 7)),
                     _ => {
                         next_lower += 1;
                         join(bbox, lower_boxes[next_lower - 1])

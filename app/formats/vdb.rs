@@ -149,11 +149,13 @@ impl Values<'_> {
     }
 }
 
-/// One entry of the tree below the root: a leaf (index into the grid's leaves) or a tile of 8³ or 128³ voxels.
+/// One entry of the tree below the root: a leaf (index into the grid's leaves) or a tile of 8³ or 128³ voxels,
+/// whose origin is its order key's ([`node_origin`]): sixteen bytes an entry with the key, where a solid at 8192 has
+/// some 30 million.
 #[derive(Clone, Copy)]
 pub(super) enum Node {
     Leaf(u32),
-    Tile { log2: u32, origin: UVec3 },
+    Tile { log2: u32 },
 }
 
 /// The order the tree visits a node at `origin` in: root child (4096³ block, x-major), then the slot in the
@@ -408,7 +410,7 @@ pub(super) fn tree_nodes(grid: &SparseGrid) -> TreeNodes {
         let mut root_tiles = Vec::new();
         for t in &grid.tiles {
             match t.log2 {
-                3 | 7 => below_root.push((tree_order(t.origin), Node::Tile { log2: t.log2, origin: t.origin })),
+                3 | 7 => below_root.push((tree_order(t.origin), Node::Tile { log2: t.log2 })),
                 _ => root_tiles.push(t.origin),
             }
         }
@@ -536,9 +538,9 @@ fn write_topology(
         let (mut children, mut active, mut tiles) = (Mask::new(32768), Mask::new(32768), Vec::new());
         for lower in &lowers {
             match lower[0].1 {
-                Node::Tile { log2: 7, origin } => {
+                Node::Tile { log2: 7 } => {
                     active.set(slot5_of(lower[0].0));
-                    tiles.push(origin);
+                    tiles.push(node_origin(lower[0].0, 7));
                 }
                 _ => children.set(slot5_of(lower[0].0)),
             }
@@ -561,9 +563,9 @@ fn write_lower_topology(grid: &SparseGrid, lower: &[(u64, Node)], values: Values
     for &(order, node) in lower {
         match node {
             Node::Leaf(_) => children.set(slot4_of(order)),
-            Node::Tile { origin, .. } => {
+            Node::Tile { log2 } => {
                 active.set(slot4_of(order));
-                tiles.push(origin);
+                tiles.push(node_origin(order, log2));
             }
         }
     }

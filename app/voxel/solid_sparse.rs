@@ -270,16 +270,21 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
             }
             out
         };
-        let parts: Vec<BlockInterior> = (0..blocks_y * blocks_z).into_par_iter().map(fill_block).collect();
+        // Each block's tiles and leaves are moved into the whole grid's lists as the block finishes: the blocks'
+        // many mid-sized lists are then never all alive at once, and later blocks reuse the memory earlier ones
+        // freed (at 8192, keeping them all until the last left some 600 MB of the process's heap behind them).
+        // The lists' order is the blocks' finishing order; the join sorts both.
+        let joined = std::sync::Mutex::new((Vec::<Tile>::new(), Vec::<(u64, LeafMask)>::new(), 0u64));
+        (0..blocks_y * blocks_z).into_par_iter().for_each(|b| {
+            let part = fill_block(b);
+            let mut joined = joined.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            joined.0.extend(part.tiles);
+            joined.1.extend(part.leaves);
+            joined.2 += part.near_rows;
+        });
+        let (tiles, inside, rows_beside_holes) = joined.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
         drop(rows);
-        let mut tiles: Vec<Tile> = Vec::new();
-        let mut inside: Vec<(u64, LeafMask)> = Vec::new();
-        let mut stats = FillStats { winding_evaluations: boundary.evaluations.get(), rows_beside_holes: 0 };
-        for part in parts {
-            tiles.extend(part.tiles);
-            inside.extend(part.leaves);
-            stats.rows_beside_holes += part.near_rows;
-        }
+        let stats = FillStats { winding_evaluations: boundary.evaluations.get(), rows_beside_holes };
         (join_interior(surface, tiles, inside), stats)
     })
 }
@@ -297,25 +302,33 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
         small.par_sort_unstable();
         let under_tile =
             |key: u64| small.binary_search(&key).is_ok() || blocks.contains(&((key_origin(key) >> 7u32) << 7u32));
-        // Join the two sorted lists, OR-ing leaves present in both.
-        let mut leaves = Vec::with_capacity(surface.leaves.len() + inside.len());
-        let (mut a, mut b) = (surface.leaves.into_iter().peekable(), inside.into_iter().peekable());
-        loop {
-            let next = match (a.peek(), b.peek()) {
-                (Some(x), Some(y)) if x.0 == y.0 => {
-                    let (k, m) = a.next().unwrap_or_default();
-                    let (_, n) = b.next().unwrap_or_default();
-                    (k, std::array::from_fn(|i| m[i] | n[i]))
-                }
-                (Some(x), Some(y)) if x.0 < y.0 => a.next().unwrap_or_default(),
-                (Some(_), Some(_)) | (None, Some(_)) => b.next().unwrap_or_default(),
-                (Some(_), None) => a.next().unwrap_or_default(),
-                (None, None) => break,
-            };
-            if !under_tile(next.0) {
-                leaves.push(next);
+        // Join the two sorted lists in the surface's, from the back (no third list: at 8192 each is some 230 MB),
+        // then OR the leaves present in both.
+        let mut leaves = surface.leaves;
+        let (mut a, mut b) = (leaves.len(), inside.len());
+        leaves.resize(a + b, (0, [0; 8]));
+        for w in (0..a + b).rev() {
+            if b == 0 {
+                break;
+            }
+            if a > 0 && leaves[a - 1].0 > inside[b - 1].0 {
+                leaves[w] = leaves[a - 1];
+                a -= 1;
+            } else {
+                leaves[w] = inside[b - 1];
+                b -= 1;
             }
         }
+        drop(inside);
+        leaves.dedup_by(|later, kept| {
+            let same = later.0 == kept.0;
+            if same {
+                kept.1 = std::array::from_fn(|i| kept.1[i] | later.1[i]);
+            }
+            same
+        });
+        leaves.retain(|(k, _)| !under_tile(*k));
+        drop((small, blocks));
         tiles.extend(surface.tiles);
         SparseGrid { spec, leaves, tiles }.prune()
     })
