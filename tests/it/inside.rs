@@ -551,7 +551,7 @@ fn the_boundary_edges_equal_a_count_of_every_use() {
 /// evaluated (`winding_evaluations`) and the rows near its boundary (`rows_beside_holes`), and their ratio stays
 /// within a constant as the grid grows fourfold (rows along a cap cost O(1) evaluations, not log N: the N² log N
 /// growth issue 68 measured at 8192 cannot come back unnoticed); the rows grow as the grid's rows do. Spot, closed,
-/// reports none. Measured: 13.4, 12.3, 10.6 evaluations a row at 128, 256, 512.
+/// reports none. Measured: 11.4, 10.2, 8.8 evaluations a row at 128, 256, 512.
 #[test]
 fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
     let Some(dir) = shared_meshes() else { return };

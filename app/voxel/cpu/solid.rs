@@ -950,7 +950,8 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
                     }
                     false => (m, m),
                 };
-                let inside = match r >= 1.0 {
+                // The middle alone needs no drift: where the stretch's own bounds place it, it is placed.
+                let inside = match r >= 1.0 || slack > 0.0 {
                     true => v.w > 0.5,
                     false => match point_side(count, p, boundary) {
                         2 => {
