@@ -576,32 +576,36 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
 
 /// The CPU adds a winding number's boundary terms eight edges at a time (`voxel/winding_lanes.rs`, on the widest
 /// vector set the machine has and on the baseline) and must give the scalar sum's bits: the value, its error
-/// bound, the far chains' bound, the drift and its rate, at every point asked, for the holed test meshes, the
-/// bunny and the teapot. The points are voxel centres on a stride through the grid and around every boundary edge:
-/// its ends (where `atan2` takes (0, 0) and the batch goes to the scalar code), points on its line and on the strip
-/// swept from it along +x (where `atan2` jumps), each with reaches from none to a long stretch and with the far
-/// budgets the fill uses and none.
+/// bound, the far chains' bound, the drift and its rate, at every point asked, for every mesh with a boundary (the
+/// holed test meshes, the built-in and shared meshes, the hard cases). The points are voxel centres on a stride
+/// through the grid and around every boundary edge: its ends (where `atan2` takes (0, 0) and the batch goes to the
+/// scalar code), points on its line and on the strip swept from it along +x (where `atan2` jumps), each with
+/// reaches from none to a long stretch and with the far budgets the fill uses and none.
 #[test]
 fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
     use meshvox::voxel::cpu::solid::{ATAN2_CPU, FAR_BUDGET, Kernel, STRETCH_BUDGET, winding_number_tree_with};
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut meshes: Vec<(String, String)> =
+    let mut paths: Vec<(String, String)> =
         open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
-    if let Some(shared) = shared_meshes() {
-        for name in ["stanford-bunny.obj", "teapot.obj"] {
-            meshes.push((name.into(), shared.join(name).to_string_lossy().into_owned()));
-        }
+    paths.extend(crate::common::all_meshes().into_iter().map(|name| (name.clone(), name)));
+    // Every mesh with a boundary, on a 160 grid, and the hard cases with one.
+    let mut cases: Vec<(String, Vec<[Vec3; 3]>, UVec3)> =
+        crate::common::hard_cases().into_iter().map(|(name, tris, dims)| (name.to_string(), tris, dims)).collect();
+    for (name, path) in &paths {
+        let mesh = meshvox::mesh::load(path).expect("load");
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(160), Axis::Longest).expect("spec");
+        cases.push((name.clone(), voxelize::grid_space_triangles(&mesh, &spec).expect("grid space"), spec.dims));
     }
     let mut ends = 0;
     let mut judged = 0usize;
-    for (name, path) in &meshes {
-        let mesh = meshvox::mesh::load(path).expect("load");
-        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(160), Axis::Longest).expect("spec");
-        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
-        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+    let mut meshes = Vec::new();
+    for (name, tris, d) in &cases {
+        let (tris, lattice) = on_lattice(tris, *d).expect("lattice");
         let boundary = meshvox::voxel::solid::boundary(&tris, lattice);
-        assert!(!boundary.edges.is_empty(), "{name}: no boundary");
-        let d = spec.dims;
+        if boundary.edges.is_empty() {
+            continue;
+        }
+        meshes.push(name.clone());
         let mut points: Vec<Vec3> = (0..d.z)
             .step_by(7)
             .flat_map(|z| (0..d.y).step_by(5).flat_map(move |y| (0..d.x).step_by(11).map(move |x| (x, y, z))))
@@ -632,6 +636,13 @@ fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
             }
         }
     }
-    eprintln!("{judged} winding numbers equal bit for bit ({ends} at edges' ends) on {} meshes", meshes.len());
+    eprintln!("{judged} winding numbers equal bit for bit ({ends} at edges' ends) on {meshes:?}");
     assert!(judged > 100_000, "only {judged} winding numbers judged");
+    let shared: &[&str] = match crate::common::shared_meshes() {
+        Some(_) => &["stanford-bunny.obj", "teapot.obj"],
+        None => &[],
+    };
+    for open in ["sphere with four holes", "face on a boundary"].iter().chain(shared) {
+        assert!(meshes.iter().any(|m| m.ends_with(open)), "{open} was not judged: {meshes:?}");
+    }
 }
