@@ -11,6 +11,7 @@
 //! chooses.
 
 use super::cpu::atan::atan_unit;
+use super::cpu::common::U;
 use multiversion::multiversion;
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -27,12 +28,9 @@ pub struct Edge {
     span: f32,
 }
 
-/// One edge's terms, [`crate::voxel::cpu::solid::EdgeTerm`]'s fields in order: `angle, magnitude, error, drift,
-/// rate` (the last two zero without a reach).
+/// One edge's terms, as [`crate::voxel::cpu::solid::edge_term`] gives them: `angle, magnitude, error, drift, rate`
+/// (the last two zero without a reach).
 pub type Terms = [f32; 5];
-
-/// f32's unit roundoff, `2^-24`, as the scalar bounds take it.
-const U: f32 = f32::EPSILON / 2.0;
 
 /// The sums a winding number keeps over its edges (an `EdgeTerms` holds them): each of [`Terms`] summed, and how
 /// many edges were.

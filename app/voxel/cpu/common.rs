@@ -4,6 +4,10 @@
 
 use glam::Vec3;
 
+/// f32's unit roundoff, `2^-24` (`shaders/shared/winding.wgsl`'s `U`): what the winding number's error bounds are
+/// counted in, by the scalar code (`cpu/solid.rs`) and its lanes (`voxel/winding_lanes.rs`) alike.
+pub const U: f32 = 1.0 / 16_777_216.0;
+
 /// `a · b`.
 #[inline]
 pub fn dot3(a: Vec3, b: Vec3) -> f32 {

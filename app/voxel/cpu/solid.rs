@@ -46,7 +46,7 @@
 //! ([`fill_listed_rows`](crate::voxel::solid::fill_listed_rows)). So every decision is the exact winding number's wherever it is more than 1e-6 from
 //! 1/2, and the GPU's grid is this one.
 
-use super::common::dot3;
+use super::common::{U, dot3};
 use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
 use crate::voxel::winding_lanes::{LANES, Sums, Terms, edge_sums, edge_sums_baseline};
@@ -291,9 +291,6 @@ pub fn strip_term(a: Vec3) -> f32 {
     if a.x >= 0.0 { la + a.x } else { (a.y * a.y + a.z * a.z) / (la - a.x) }
 }
 
-/// f32's unit roundoff, `2^-24`.
-pub const U: f32 = 1.0 / 16_777_216.0;
-
 /// How many error bounds from 1/2 an f32 winding number must be for the reference (and by default the GPU) to
 /// take its side: each backend's error and the other's are below one bound.
 pub const MARGIN: f32 = 2.0;
@@ -375,7 +372,7 @@ pub fn winding_number_bounded(
 
 /// The sums [`winding_number_bounded`] keeps over the edges it adds (the shader keeps them in its loop): the
 /// boundary term, the magnitudes of its terms, their error bounds, their drift, and the drift per voxel of reach
-/// for any reach up to the one added with (`Σ |w| span / gap²`): [`EdgeTerm`]'s fields, summed.
+/// for any reach up to the one added with (`Σ |w| span / gap²`): [`edge_term`]'s terms, summed.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct EdgeTerms {
     sums: Sums,
@@ -385,7 +382,7 @@ impl EdgeTerms {
     /// Adds edge `e`'s strip angle seen from `p`, its error bound and its drift over `reach` voxels of the row.
     #[inline]
     pub fn add(&mut self, e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) {
-        self.sums.accumulate(edge_term(e, p, reach, atan2_error).terms(), reach);
+        self.sums.accumulate(edge_term(e, p, reach, atan2_error), reach);
     }
 
     /// `(w, e, drift)` with `count` crossings before the point: the winding number, its error bound and its drift.
@@ -403,29 +400,11 @@ impl EdgeTerms {
     }
 }
 
-/// What one boundary edge adds to [`EdgeTerms`]' sums: its weighted strip angle, that angle's magnitude, its error
-/// bound, and (with a reach) its drift over the reach and its drift per voxel.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct EdgeTerm {
-    pub angle: f32,
-    pub magnitude: f32,
-    pub error: f32,
-    pub drift: f32,
-    pub rate: f32,
-}
-
-impl EdgeTerm {
-    /// The fields in order, as [`Sums`] adds them.
-    #[inline]
-    pub fn terms(self) -> Terms {
-        [self.angle, self.magnitude, self.error, self.drift, self.rate]
-    }
-}
-
-/// Edge `e`'s strip angle seen from `p`, its error bound and its drift over `reach` voxels of the row
-/// ([`EdgeTerms::add`]'s terms; `voxel/winding_lanes.rs` computes the same eight edges at a time).
+/// What edge `e` adds to [`EdgeTerms`]' sums seen from `p` ([`Terms`]): its weighted strip angle, that angle's
+/// magnitude, its error bound, and with a reach its drift over `reach` voxels of the row and its drift per voxel
+/// (zero without). `voxel/winding_lanes.rs` computes the same eight edges at a time.
 #[inline]
-pub fn edge_term(e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) -> EdgeTerm {
+pub fn edge_term(e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) -> Terms {
     let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
     let (num, den, mag) = cone_parts(a, b);
     let (la, lb) = (a.length(), b.length());
@@ -439,13 +418,8 @@ pub fn edge_term(e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) -> Edg
         true => 2.0 * (den.abs() * d_num + num.abs() * d_den) / r2,
         false => f32::INFINITY,
     };
-    let mut term = EdgeTerm {
-        angle: e.weight * angle,
-        magnitude: (e.weight * angle).abs(),
-        error: e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30),
-        drift: 0.0,
-        rate: 0.0,
-    };
+    let error = e.weight.abs() * 2.0 * (moved + angle.abs() * atan2_error + 1e-30);
+    let mut terms = [e.weight * angle, (e.weight * angle).abs(), error, 0.0, 0.0];
     if reach > 0.0 {
         let (ya, yb) = (Vec3::new(0.0, a.y, a.z), Vec3::new(0.0, b.y, b.z));
         let across = segment_distance(ya, yb) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (ya.length() + yb.length());
@@ -460,11 +434,11 @@ pub fn edge_term(e: &BoundaryEdge, p: Vec3, reach: f32, atan2_error: f32) -> Edg
             true => (2.0 * e.span / across).min(2.0 * pull / (across * across)),
             false => f32::INFINITY,
         };
-        term.drift = e.weight.abs() * (reach * per_voxel).min(whole);
+        terms[3] = e.weight.abs() * (reach * per_voxel).min(whole);
         // A shorter reach only widens the gap: its drift is at most `reach'` times this.
-        term.rate = e.weight.abs() * per_voxel;
+        terms[4] = e.weight.abs() * per_voxel;
     }
-    term
+    terms
 }
 
 /// The winding number at a point from the tree, with its bounds ([`winding_number_tree`]).
