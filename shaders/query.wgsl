@@ -158,13 +158,21 @@ fn walk_nearest(p: vec3<f32>) -> vec3<u32> {
             if dk > best * 1.0001 {
                 continue;
             }
-            var at = n;
-            while at > 0u && bitcast<f32>(open[at - 1u].y) < dk {
-                open[at] = open[at - 1u];
-                at -= 1u;
-            }
-            open[at] = vec2<u32>(pack_entry(node.first[k], node.count[k]), bitcast<u32>(dk));
+            open[n] = vec2<u32>(pack_entry(node.first[k], node.count[k]), bitcast<u32>(dk));
             n += 1u;
+        }
+        // Nearest last, equal distances in lane order: an insertion sort whose loops have constant bounds. Its
+        // `while at > 0u && open[at - 1u].y ...` form is what Mesa's GL compiler gets wrong (llvmpipe,
+        // Mesa 22.3): the walks lost children there, points had no nearest triangle and a third of the sides were
+        // wrong.
+        for (var a = 1u; a < n; a++) {
+            for (var b = a; b > 0u; b--) {
+                if bitcast<f32>(open[b - 1u].y) < bitcast<f32>(open[b].y) {
+                    let t = open[b];
+                    open[b] = open[b - 1u];
+                    open[b - 1u] = t;
+                }
+            }
         }
         for (var k = 0u; k < n; k++) {
             stack[len + k] = open[k];

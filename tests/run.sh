@@ -124,17 +124,14 @@ cargo test --locked "$@"
 [ $# -gt 0 ] && { show_skips; exit 0; }
 # The GPU tests again on GL, the API that Mesa's llvmpipe offers where no Vulkan driver is installed (containers,
 # CI runners, WSL2): the Vulkan driver hidden, and the tests told to expect GL so that finding Vulkan fails them.
-# Compute (every pass against the CPU), drawing (goldens named gl-llvmpipe), the viewer and the CLI. Left out: the
-# query walk's own comparisons with its mirror (query_gpu::the_gpu_walk_*, query_gpu::the_sides_*), which GL's
-# compiled shader fails (it finds no triangle for some points and misses crossings; the host's confirmation makes
-# the answers right, and on GL the engine leaves every side to the host, which
-# query_gpu::gpu_queries_and_samples_equal_the_cpus checks here): a defect of the GPU query on GL, issue 67's.
-gl_tests="gpu:: modes::gpu modes::rows_the_gpu colour::gpu distance::gpu far::far_meshes_on_the_gpu engine::threads
-  query_gpu::gpu_queries query_gpu::a_proposed render_snapshots ui_snapshot view:: desktop_xvfb cli::gpu_backend
+# Compute (every pass against the CPU, the query walk against its mirror), drawing (goldens named gl-llvmpipe), the
+# viewer and the CLI.
+gl_tests="gpu:: modes::gpu modes::rows_the_gpu colour::gpu distance::gpu distance::a_field far::far_meshes_on_the_gpu engine::threads
+  query_gpu:: render_snapshots ui_snapshot view:: desktop_xvfb cli::gpu_backend
   cli::the_gpu_watchdog cli::a_headless"
 phase "the GPU tests on GL"
 # shellcheck disable=SC2086
-VK_ICD_FILENAMES=/nonexistent.json MESHVOX_TEST_BACKEND=gl cargo test --locked --test it -- $gl_tests --skip query_gpu::the_gpu_walk --skip query_gpu::the_sides
+VK_ICD_FILENAMES=/nonexistent.json MESHVOX_TEST_BACKEND=gl cargo test --locked --test it -- $gl_tests
 # The core (loaders, CPU voxelizer, formats, the engine on the CPU) builds without the GPU and UI stacks: no wgpu,
 # naga, egui, eframe or winit crate in its dependency tree. The fuzz build at the end compiles it that way.
 if cargo tree --locked --no-default-features -e normal --prefix none | grep -E '^(wgpu|naga|egui|eframe|winit)'; then

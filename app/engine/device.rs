@@ -410,17 +410,6 @@ impl OnGpu {
         band: Band,
         notices: &mut Vec<Notice>,
     ) -> Result<Option<FieldPlan>, EngineError> {
-        // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong (see `trusts_walk`).
-        if band == Band::Full && !self.trusts_walk() {
-            notices.push(Notice {
-                warning: false,
-                message: format!(
-                    "{}: each voxel's nearest triangle is searched on the CPU (the GPU's walk is not trusted on GL)",
-                    crate::names::Setting::Band.with("full")
-                ),
-            });
-            return Ok(None);
-        }
         self.stand_in(Stage::Field, FieldPlan::new(&self.gpu, tris, spec, band), notices)
     }
 
@@ -488,14 +477,6 @@ impl OnGpu {
             return Ok(None);
         }
         Ok(self.stand_in(Stage::Field, made, notices)?.flatten())
-    }
-
-    /// Whether this device's query walk may decide the points' sides and prove its nearest triangles. Not on GL:
-    /// there the walk compiled from `shaders/query.wgsl` misses triangles (Mesa's llvmpipe: about a third of the
-    /// sides wrong, and some points with no nearest triangle), so the host decides every side there and searches
-    /// for every nearest triangle from the GPU's, and the whole grid's distances are the CPU's.
-    pub(super) fn trusts_walk(&self) -> bool {
-        self.gpu.summary.backend != format!("{:?}", wgpu::Backend::Gl)
     }
 
     /// The nearest triangles of the placed points on the GPU (its pass compiled on first use), with their sides

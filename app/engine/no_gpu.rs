@@ -88,10 +88,6 @@ impl OnGpu {
         match *self {}
     }
 
-    pub(super) fn trusts_walk(&self) -> bool {
-        match *self {}
-    }
-
     pub(super) async fn nearest(
         &self,
         _: &NearestTables,

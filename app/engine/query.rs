@@ -6,7 +6,6 @@
 //! is the exact one. Native only: the page asks no queries.
 
 use super::{Backend, Engine, EngineError, Notice, ms};
-use crate::voxel::cpu::query::UNCERTAIN;
 use crate::voxel::query::{Answers, Prepared, Sign};
 use crate::voxel::sample::{SampleRequest, Samples, draw};
 use glam::DVec3;
@@ -70,7 +69,7 @@ impl Engine {
             let span = crate::trace::span("query: tables");
             let tables = prepared.nearest_tables();
             drop(span);
-            let device_sides = prepared.device_sides(sign, winding).filter(|_| on.trusts_walk());
+            let device_sides = prepared.device_sides(sign, winding);
             let mut notices = Vec::new();
             // The GPU searches on a thread of its own while this one decides the signs on the library's pool where
             // the GPU does not (winding numbers' values, which the host sums to their tolerance).
@@ -94,10 +93,7 @@ impl Engine {
                 Some(_) => self.label(),
                 None => self.cpu_label(),
             };
-            let mut proposed = found.unwrap_or_default();
-            if !on.trusts_walk() {
-                proposed.nearest.iter_mut().for_each(|f| f.1 |= UNCERTAIN);
-            }
+            let proposed = found.unwrap_or_default();
             let span = crate::trace::span("query: settle and answer");
             let (answers, host_decided) = prepared.query_found(points, &placed, &proposed, sides, sign, winding);
             drop(span);

@@ -295,9 +295,6 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     use meshvox::gpu::distance::{FieldPlan, GpuDistance};
     let pass = GpuDistance::new(gpu);
-    // The whole grid walks the query's hierarchy, which GL's compiled shader gets wrong: the engine leaves it to
-    // the CPU there (`gpu_field_in_chunks_…` checks that), so it is compared on the other APIs.
-    let full = if gpu.summary.backend == "Gl" { Band::Voxels(2.0) } else { Band::Full };
     // The field of `tris` (grid space) in `band` on both, signed by the CPU's inside: how far apart, and the bound.
     let compare = |tris: &[[Vec3; 3]], spec: GridSpec, band: Band| {
         let (tris, lattice) = on_lattice(tris, spec.dims).expect("lattice");
@@ -314,7 +311,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     let mut worst = 0f64;
     for name in crate::common::all_meshes() {
         let mesh = meshvox::mesh::load(&name).expect("mesh");
-        for (n, band) in [(45, Band::Voxels(3.0)), (70, Band::Voxels(1.0)), (24, full)] {
+        for (n, band) in [(45, Band::Voxels(3.0)), (70, Band::Voxels(1.0)), (24, Band::Full)] {
             let spec =
                 GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), meshvox::voxel::Axis::Longest)
                     .expect("spec");
@@ -328,7 +325,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     // otherwise than the CPU's (`closest_barycentric` measures a thin triangle's edges as well).
     for (name, tris, dims) in hard_cases() {
         let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
-        for band in [Band::Voxels(3.0), full] {
+        for band in [Band::Voxels(3.0), Band::Full] {
             let (d, bound) = compare(&tris, spec, band);
             assert!(d <= bound, "{name} ({band:?}): GPU and CPU differ by {d} voxels (bound {bound:.2e})");
             worst = worst.max(d);
@@ -370,17 +367,15 @@ fn gpu_field_in_chunks_past_the_binding_limit_and_through_the_engine() {
         assert!(field.leaves.len() as u64 * 2048 > limit, "the band must not fit one binding");
         assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot {mode} in chunks: {d} voxels");
     }
-    // The whole grid too: every voxel walks the field's hierarchy on the GPU, in runs of leaves; on GL, whose
-    // compiled walk misses triangles, the CPU's, with a note.
+    // The whole grid too: every voxel walks the field's hierarchy on the GPU, in runs of leaves, GL's too.
     let request = Request { band: Band::Full, ..Request::new(Resolution::Count(112), Mode::Sdf) };
     let on_gpu = engine.voxelize("knot", &mesh, &request).expect("gpu");
     let on_cpu = cpu.voxelize("knot", &mesh, &request).expect("cpu");
     let field = on_gpu.field.as_ref().expect("field");
     assert!(field.leaves.len() as u64 * 2048 > limit, "the grid must not fit one binding");
-    let gl = small.summary.backend == "Gl";
     let backend = on_gpu.report.field_backend.as_deref().unwrap_or_default();
-    assert_eq!(backend.starts_with("gpu"), !gl, "{:?}", on_gpu.report);
-    assert_eq!(on_gpu.notices.len(), usize::from(gl), "{:?}", on_gpu.notices);
+    assert!(backend.starts_with("gpu"), "{:?}", on_gpu.report);
+    assert!(on_gpu.notices.is_empty(), "{:?}", on_gpu.notices);
     let d = field_difference(on_cpu.field.as_ref().expect("cpu field"), field);
     assert!(d <= gpu_bound_voxels(field.spec.dims.max_element()), "knot's whole grid in runs: {d} voxels");
     // A grid whose table of leaf slots outgrows a binding (as the bunny's at 4096 outgrew lavapipe's 128 MiB):

@@ -158,13 +158,16 @@ pub fn walk_nearest(tables: &NearestTables, p: Vec3) -> (f32, u32, u32) {
             if dk > best * 1.0001 {
                 continue;
             }
-            let mut at = n;
-            while at > 0 && open[at - 1].1 < dk {
-                open[at] = open[at - 1];
-                at -= 1;
-            }
-            open[at] = (pack_entry(node.first[k], node.count[k]), dk);
+            open[n] = (pack_entry(node.first[k], node.count[k]), dk);
             n += 1;
+        }
+        // Nearest last, equal distances in lane order: the shader's insertion sort, its loops of constant bounds.
+        for a in 1..n {
+            for b in (1..=a).rev() {
+                if open[b - 1].1 < open[b].1 {
+                    open.swap(b - 1, b);
+                }
+            }
         }
         stack[len..len + n].copy_from_slice(&open[..n]);
         len += n;
