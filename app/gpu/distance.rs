@@ -94,7 +94,7 @@ impl FieldPlan {
         let reach = band.reach(dims);
         let max = gpu.max_binding_bytes();
         // A run of leaves binds its own leaf layers' slots: one layer's must fit.
-        let layer = u64::from(dims.x.div_ceil(8) * dims.y.div_ceil(8));
+        let layer = leaf_layer(dims) as u64;
         let needed = [triangles.len() as u64 * 36, layer * 4];
         if let Some(&big) = needed.iter().find(|&&b| b > max) {
             let what = "the distance field's triangles or leaf slots".into();
@@ -299,7 +299,7 @@ impl GpuDistance {
             let (x, y) = dispatch_2d((total as u32).div_ceil(WG));
             let leaf_dims = (spec.dims + 7) / 8;
             // Only this run's leaf layers' slots: its work items write voxels of layers z.0..z.1 alone.
-            let layer = (leaf_dims.x * leaf_dims.y) as usize;
+            let layer = leaf_layer(spec.dims);
             let own = (z.0 / 8) as usize * layer..((z.1.div_ceil(8)) as usize * layer).min(slots.len());
             let params = Params {
                 dims: spec.dims.to_array(),
@@ -332,6 +332,12 @@ impl GpuDistance {
         traffic.readback += bytes;
         read_buffer_with(device, &gpu.queue, &buffer, (0, bytes), take).await
     }
+}
+
+/// The leaves in one leaf layer (eight voxel layers) of a `dims` grid: the slots a run of leaves binds per layer,
+/// which the plan checks against a binding and each run takes its own of.
+fn leaf_layer(dims: UVec3) -> usize {
+    (dims.x.div_ceil(8) * dims.y.div_ceil(8)) as usize
 }
 
 /// The leaves in runs of whole leaf layers of at most `per_chunk` leaves (a layer larger than that alone) and at
