@@ -73,6 +73,8 @@ pub enum Setting {
     Backend,
     Band,
     Block,
+    Drain,
+    FillPockets,
     Grid,
     Level,
     MaxFileSize,
@@ -84,6 +86,7 @@ pub enum Setting {
     Resolution,
     ResourceRoot,
     Thickness,
+    Unit,
     VoxelSize,
 }
 
@@ -96,6 +99,8 @@ impl Setting {
             Setting::Backend => "backend",
             Setting::Band => "band",
             Setting::Block => "block",
+            Setting::Drain => "drain",
+            Setting::FillPockets => "fill_pockets",
             Setting::Grid => "grid",
             Setting::Level => "level",
             Setting::MaxFileSize => "max_file_size",
@@ -107,6 +112,7 @@ impl Setting {
             Setting::Resolution => "resolution",
             Setting::ResourceRoot => "resource_root",
             Setting::Thickness => "thickness",
+            Setting::Unit => "unit",
             Setting::VoxelSize => "voxel_size",
         }
     }

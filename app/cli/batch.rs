@@ -47,6 +47,8 @@ pub struct BatchArgs {
     #[command(flatten)]
     band: super::BandArgs,
     #[command(flatten)]
+    voids: super::VoidArgs,
+    #[command(flatten)]
     blocks: super::BlockArgs,
     /// Where to voxelize (one engine for the whole run).
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
@@ -222,11 +224,13 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     // The block set and palette are read once, before any file: one that cannot be read fails the run.
     let blocks = args.blocks.read(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
+    let drain = args.voids.plan()?;
     let task = match args.sample {
         true => Task::Sample(args.samples.request()?),
         false => {
             let resolution = super::resolution(args.resolution, args.voxel_size)?;
             let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
+            let request = args.voids.request(request, &drain);
             Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, Box::new(blocks))
         }
     };
@@ -303,9 +307,9 @@ fn plan_outputs(args: &BatchArgs, items: &[Item], extension: &str) -> Result<Vec
 }
 
 /// What a batch makes of each input: a grid (the request, the output format's included) or training samples.
-enum Task {
+enum Task<'a> {
     /// The request, and the block set and palette of a Minecraft or .vox output.
-    Voxelize(Request<'static>, Box<super::ColourMap>),
+    Voxelize(Request<'a>, Box<super::ColourMap>),
     Sample(meshvox::voxel::sample::SampleRequest),
 }
 
@@ -315,7 +319,7 @@ struct Work<'a> {
     items: &'a [Item],
     outputs: &'a [PathBuf],
     /// What every input gets, made once for the run.
-    task: Task,
+    task: Task<'a>,
     engine: &'a Engine,
 }
 
@@ -356,6 +360,7 @@ impl Work<'_> {
             merge: args.merge,
             mode: args.mode,
             band: args.band.clone(),
+            voids: args.voids.clone(),
             blocks: args.blocks.clone(),
             stats_json: false,
             backend: args.backend,

@@ -305,10 +305,84 @@ pub(super) struct BandArgs {
     /// surface; udf: above 0, the thickness of the shell around open sheets). The band widens to hold it.
     #[arg(long, value_name = "L", allow_negative_numbers = true)]
     pub(super) level: Option<f64>,
-    /// shell: the shell's thickness in voxels (default 1): the voxels inside the mesh within T voxels of its
-    /// surface. 1 or more holds water: no face-connected path from the hollow to the outside.
+    /// shell: the shell's thickness (default 1 voxel): the voxels inside the mesh within T of its surface. A number
+    /// alone is voxels; with a unit (2mm, 0.5cm, 0.002m, 0.1in) a length in the mesh's world (see --unit). 1 voxel
+    /// or more holds water: no face-connected path from the hollow to the outside.
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
-    pub(super) thickness: Option<f32>,
+    pub(super) thickness: Option<String>,
+}
+
+/// A shell's or solid's voids, for printing: drain holes, the pockets left sealed, the up axis and the mesh's unit.
+#[derive(clap::Args, Clone, Default)]
+pub(super) struct VoidArgs {
+    /// shell/solid: cut drain holes through the walls so every void drains: N holes per void on its lowest layer
+    /// along --up, or one through the world point X,Y,Z (repeat for more), R its radius (default 2 voxels; a unit
+    /// as --thickness has one). Any void left sealed is reported in --stats-json's "pockets".
+    #[arg(long, value_name = "N|X,Y,Z[,R]", allow_negative_numbers = true)]
+    pub(super) drain: Vec<String>,
+    /// shell/solid: fill the voids left sealed (pockets) instead of leaving them empty.
+    #[arg(long)]
+    pub(super) fill_pockets: bool,
+    /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
+    #[arg(long, value_name = "y|z", value_parser = parse_up)]
+    pub(super) up: Option<meshvox::mesh::UpAxis>,
+    /// The mesh's unit, for lengths with a unit (--thickness 2mm): mm, cm, m, in or ft (default: m for glTF,
+    /// which is in metres; mm for OBJ, STL and PLY, as slicers read them).
+    #[arg(long, value_name = "UNIT", value_parser = parse_unit)]
+    pub(super) unit: Option<f64>,
+}
+
+impl VoidArgs {
+    /// `request` with these voids' settings and the drain holes `drain` (made by [`VoidArgs::plan`]).
+    pub(super) fn request<'a>(&self, request: Request<'a>, drain: &'a meshvox::voxel::voids::DrainPlan) -> Request<'a> {
+        Request { drain, fill_pockets: self.fill_pockets, up: self.up, unit: self.unit, ..request }
+    }
+
+    /// The drain holes `--drain` asks for.
+    pub(super) fn plan(&self) -> Result<meshvox::voxel::voids::DrainPlan> {
+        use meshvox::voxel::voids::DrainPlan;
+        let length = |text: &str| meshvox::voxel::Length::parse(text).map_err(|e| anyhow::anyhow!("--drain: {e}"));
+        let mut points = Vec::new();
+        for text in &self.drain {
+            let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+            match parts.as_slice() {
+                [n] if self.drain.len() == 1 => {
+                    let holes: u32 = n.parse().map_err(|_| {
+                        anyhow::anyhow!("--drain {text}: give a number of holes per void, or a point X,Y,Z[,R]")
+                    })?;
+                    anyhow::ensure!(holes >= 1, "--drain {text}: at least one hole");
+                    return Ok(DrainPlan::Count { holes, radius: None });
+                }
+                [_] => {
+                    anyhow::bail!("--drain {text}: a number of holes is given once; repeat --drain X,Y,Z for points")
+                }
+                [x, y, z, rest @ ..] if rest.len() <= 1 => {
+                    let coordinate = |c: &str| {
+                        c.parse::<f64>()
+                            .ok()
+                            .filter(|v| v.is_finite())
+                            .ok_or_else(|| anyhow::anyhow!("--drain {text}: '{c}' is not a coordinate"))
+                    };
+                    let point = glam::DVec3::new(coordinate(x)?, coordinate(y)?, coordinate(z)?);
+                    let radius = rest.first().map(|r| length(r)).transpose()?;
+                    points.push((point, radius));
+                }
+                _ => anyhow::bail!("--drain {text}: give N (holes per void) or X,Y,Z[,R]"),
+            }
+        }
+        Ok(match points.is_empty() {
+            true => DrainPlan::None,
+            false => DrainPlan::At(points),
+        })
+    }
+}
+
+/// `--unit mm|cm|m|in|ft`: metres per unit.
+fn parse_unit(s: &str) -> Result<f64, String> {
+    meshvox::voxel::Length::unit(s).ok_or_else(|| {
+        let names: Vec<&str> = meshvox::voxel::Length::UNITS.iter().map(|u| u.0).collect();
+        format!("'{s}': use one of {}", names.join(", "))
+    })
 }
 
 impl BandArgs {
@@ -337,17 +411,18 @@ impl BandArgs {
     }
 
     /// `--thickness`, which only means something for `--mode shell`.
-    pub(super) fn thickness(&self, mode: Mode) -> Result<f32> {
-        match (self.thickness, mode == Mode::Shell) {
+    pub(super) fn thickness(&self, mode: Mode) -> Result<meshvox::voxel::Length> {
+        match (&self.thickness, mode == Mode::Shell) {
             (Some(_), false) => anyhow::bail!("--thickness is a shell's: use it with --mode shell"),
-            (thickness, _) => Ok(thickness.unwrap_or(1.0)),
+            (Some(text), true) => meshvox::voxel::Length::parse(text).map_err(|e| anyhow::anyhow!("--thickness: {e}")),
+            (None, _) => Ok(meshvox::voxel::Length::Voxels(1.0)),
         }
     }
 }
 
 /// `--up y|z`.
-fn parse_up(s: &str) -> Result<meshvox::render::camera::UpAxis, String> {
-    meshvox::render::camera::UpAxis::from_name(s).ok_or_else(|| format!("'{s}': use y or z"))
+fn parse_up(s: &str) -> Result<meshvox::mesh::UpAxis, String> {
+    meshvox::mesh::UpAxis::from_name(s).ok_or_else(|| format!("'{s}': use y or z"))
 }
 
 /// `--view NAME`, one of the preset views.

@@ -42,6 +42,8 @@ pub(super) struct VoxelizeArgs {
     pub(super) mode: Mode,
     #[command(flatten)]
     pub(super) band: BandArgs,
+    #[command(flatten)]
+    pub(super) voids: super::VoidArgs,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     pub(super) stats_json: bool,
@@ -61,17 +63,22 @@ pub(super) struct VoxelizeArgs {
 impl VoxelizeArgs {
     /// The request these arguments make for an output in `format`: `-r N` or `--voxel-size H`, the band, the
     /// grid, colour and the memory limit, parsed once.
-    pub(super) fn request(&self, format: VoxelFormat) -> Result<Request<'static>> {
+    pub(super) fn request<'a>(
+        &self,
+        format: VoxelFormat,
+        drain: &'a meshvox::voxel::voids::DrainPlan,
+    ) -> Result<Request<'a>> {
         let resolution = super::resolution(self.resolution, self.voxel_size)?;
         let request = self.limits.request(resolution, self.axis, self.mode, &self.band, &self.colour)?;
-        Ok(Request { format: Some(format), grid: self.grid.grid, ..request })
+        Ok(Request { format: Some(format), grid: self.grid.grid, ..self.voids.request(request, drain) })
     }
 }
 
 pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let format = output_format(&args.output, args.merge)?;
     args.grid.check(format)?;
-    let request = args.request(format)?;
+    let drain = args.voids.plan()?;
+    let request = args.request(format, &drain)?;
     let colour_map = args.blocks.read(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);

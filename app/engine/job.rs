@@ -5,11 +5,13 @@
 
 use super::{EngineError, budget};
 use crate::formats::VoxelFormat;
+use crate::mesh::UpAxis;
 use crate::mesh::{Aabb, Mesh};
 use crate::names::Setting;
 use crate::voxel::distance::{Band, MAX_BAND};
 use crate::voxel::labels::AttributeSet;
-use crate::voxel::{Axis, GridError, GridKind, GridSpec, MAX_DIM, Mode, Resolution};
+use crate::voxel::voids::DrainPlan;
+use crate::voxel::{Axis, GridError, GridKind, GridSpec, Length, MAX_DIM, Mode, Resolution};
 use glam::DVec3;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -49,8 +51,16 @@ pub struct Request<'a> {
     /// `Mode::Sdf`/`Mode::Udf` written as a mesh: the level set's value, world units (the band is widened to hold
     /// it).
     pub level: f64,
-    /// `Mode::Shell`: the shell's thickness in voxels (the band is set to hold it).
-    pub thickness: f32,
+    /// `Mode::Shell`: the shell's thickness (the band is set to hold it).
+    pub thickness: Length,
+    /// The mesh's unit in metres, for lengths given in metres; `None`: the format's ([`Mesh::guess_unit`]).
+    pub unit: Option<f64>,
+    /// The model's up axis, which drain holes go down; `None`: the format's ([`Mesh::guess_up`]).
+    pub up: Option<UpAxis>,
+    /// `Mode::Shell`/`Mode::Solid`: drain holes to cut ([`crate::voxel::voids`]).
+    pub drain: &'a DrainPlan,
+    /// `Mode::Shell`/`Mode::Solid`: set the voxels of the voids left sealed.
+    pub fill_pockets: bool,
 }
 
 impl Request<'_> {
@@ -71,7 +81,11 @@ impl Request<'_> {
             band: Band::default(),
             attributes: AttributeSet::NONE,
             level: 0.0,
-            thickness: 1.0,
+            thickness: Length::Voxels(1.0),
+            unit: None,
+            up: None,
+            drain: &DrainPlan::None,
+            fill_pockets: false,
         }
     }
 
@@ -97,6 +111,10 @@ pub struct Job<'a> {
     pub sparse: bool,
     /// The mesh's surface area in world units².
     pub area: f64,
+    /// `Mode::Shell`: its thickness in voxels.
+    pub thickness: f32,
+    /// The mesh's unit in metres.
+    pub unit: f64,
 }
 
 impl<'a> Job<'a> {
@@ -130,8 +148,20 @@ impl<'a> Job<'a> {
         }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
         let mut request = *request;
+        let unit = request.unit.unwrap_or_else(|| mesh.guess_unit());
+        let thickness = request.thickness.in_voxels(&spec, unit) as f32;
         if request.mode == Mode::Shell {
-            request.band = Job::shell_band(request.thickness)?;
+            request.band = Job::shell_band(thickness)?;
+        }
+        let voids_asked = *request.drain != DrainPlan::None || request.fill_pockets;
+        if voids_asked && !matches!(request.mode, Mode::Shell | Mode::Solid) {
+            return Err(EngineError::Voids(format!(
+                "{} and {} are for the voids of a shell or a solid: use them with {} or {}",
+                Setting::Drain,
+                Setting::FillPockets,
+                Setting::Mode.with("shell"),
+                Setting::Mode.with("solid")
+            )));
         }
         if request.mode.is_field() {
             match format {
@@ -168,7 +198,7 @@ impl<'a> Job<'a> {
             GridKind::Auto => (sparse_format || field_mesh) && !coloured,
         };
         let area = budget::surface_area(mesh);
-        let mut job = Job { name, mesh, request, bounds, spec, sparse, area };
+        let mut job = Job { name, mesh, request, bounds, spec, sparse, area, thickness, unit };
         let Some(limit) = request.max_memory.or_else(crate::memory::default_budget) else { return Ok(job) };
         let dense_fits = job.check_budget(None, limit).is_ok();
         if request.grid == GridKind::Auto && !sparse && !dense_fits && format.is_none_or(VoxelFormat::is_sparse) {
@@ -203,8 +233,8 @@ impl<'a> Job<'a> {
         match thickness > 0.0 && band <= MAX_BAND {
             true => Ok(Band::Voxels(band)),
             false => Err(EngineError::Level(format!(
-                "{}: a shell's thickness is a number of voxels above 0 and at most {}",
-                Setting::Thickness.with(thickness),
+                "{}: a shell's thickness is above 0 and at most {} voxels (this one is {thickness} voxels)",
+                Setting::Thickness,
                 MAX_BAND - 2.0
             ))),
         }

@@ -42,10 +42,14 @@ use crate::names::Setting;
 use crate::parallel;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
-use crate::voxel::{self, Grid, GridError, GridKind, GridSpec, Mode, VoxelGrid};
+use crate::voxel::voids::{DrainPlan, Hollowing};
+use crate::voxel::{self, Grid, GridError, GridKind, GridSpec, Mode, SparseGrid, VoxelGrid};
 use glam::Vec3;
 use std::sync::atomic::AtomicBool;
 use web_time::Instant;
+
+/// The most voxels whose voids are looked for: their dense grid (512 MiB) is flooded row by row.
+pub const VOIDS_MAX_VOXELS: u64 = 1 << 32;
 
 /// Where voxelizations run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -116,6 +120,9 @@ pub enum EngineError {
     /// A level set's level, or a shell's thickness, that cannot be meshed.
     #[error("{0}")]
     Level(String),
+    /// Drain holes or pockets that cannot be made ([`crate::voxel::voids`]).
+    #[error("{0}")]
+    Voids(String),
     /// The whole grid's field with a sparse grid or output.
     #[error(
         "{} computes every voxel of the grid: write it as {} ({} hold a band, {})",
@@ -367,7 +374,7 @@ impl Engine {
             false => (None, None, 0),
         };
         let grid_decided = made.host_decided;
-        let shell = (request.mode == Mode::Shell).then_some(request.thickness);
+        let shell = (request.mode == Mode::Shell).then_some(job.thickness);
         if let (Some(thickness), Some(field)) = (shell, &field) {
             // The shell replaces the surface the grid stage made: its own voxels, counted again, drawn from the host.
             let span = crate::trace::span("shell: cut");
@@ -377,6 +384,11 @@ impl Engine {
                 true => Grid::Sparse(cut),
                 false => Grid::Dense(cut.to_dense().map_err(|e| job.grid_error(e))?),
             };
+            made.voxels = None;
+            made.instances = None;
+        }
+        let hollowing = self.hollow(job, &mut made.grid, &mut notices)?;
+        if hollowing.is_some() {
             made.voxels = None;
             made.instances = None;
         }
@@ -443,6 +455,8 @@ impl Engine {
             upload_bytes: made.traffic.map(|t| t.0),
             readback_bytes: made.traffic.map(|t| t.1),
             meshes_in_submission: made.group,
+            pockets: hollowing.as_ref().map(|h| h.pockets.clone()),
+            drains: hollowing.as_ref().map(|h| h.drains.clone()),
             ..self.grid_report(job, &made.grid, made.voxels)
         };
         // On the CPU every voxel of the output was the host's.
@@ -455,7 +469,50 @@ impl Engine {
                 "trace: {name} {mode} at {dims:?}: host work {work:.1} ms, waits for the device {wait:.1} ms; {spans}"
             );
         }
-        Ok(Voxelized { grid: made.grid, field, shell, colours, labels, instances: made.instances, report, notices })
+        let instances = made.instances;
+        Ok(Voxelized { grid: made.grid, field, shell, hollowing, colours, labels, instances, report, notices })
+    }
+
+    /// A shell's or a solid's voids for printing ([`voxel::voids`]): the drain holes asked for cut, the pockets
+    /// left found (and filled where asked). A shell's pockets are always looked for where its dense grid is at
+    /// most [`VOIDS_MAX_VOXELS`]; a solid's only where holes or filling are asked, which a larger grid refuses.
+    fn hollow(&self, job: &Job, grid: &mut Grid, notices: &mut Vec<Notice>) -> Result<Option<Hollowing>, EngineError> {
+        let request = &job.request;
+        let asked = *request.drain != DrainPlan::None || request.fill_pockets;
+        if !(asked || request.mode == Mode::Shell) {
+            return Ok(None);
+        }
+        let spec = *grid.spec();
+        if spec.voxel_count() > VOIDS_MAX_VOXELS {
+            let message = format!(
+                "a {}x{}x{} grid is past the {} voxels whose voids meshvox looks for (a dense flood of its rows)",
+                spec.dims.x, spec.dims.y, spec.dims.z, VOIDS_MAX_VOXELS
+            );
+            return match asked {
+                true => Err(EngineError::Voids(format!("{}: {message}", Setting::Drain))),
+                false => {
+                    notices.push(Notice { warning: false, message: format!("no pockets reported: {message}") });
+                    Ok(None)
+                }
+            };
+        }
+        let _span = crate::trace::span("voids");
+        let hollow = voxel::voids::Hollow {
+            drains: request.drain.clone(),
+            fill: request.fill_pockets,
+            up: request.up.unwrap_or_else(|| job.mesh.guess_up()),
+            unit: job.unit,
+        };
+        let mut dense = match grid {
+            Grid::Dense(g) => std::mem::replace(g, VoxelGrid { spec, words: Vec::new() }),
+            Grid::Sparse(s) => s.to_dense().map_err(|e| job.grid_error(e))?,
+        };
+        let made = voxel::voids::hollow(&mut dense, &hollow).map_err(|e| EngineError::Voids(e.to_string()));
+        *grid = match grid {
+            Grid::Dense(_) => Grid::Dense(dense),
+            Grid::Sparse(_) => Grid::Sparse(SparseGrid::from_dense(&dense)),
+        };
+        made.map(Some)
     }
 
     /// The report's fields every run fills the same way: the job's mesh, grid and mode, and the engine's set-up.
@@ -518,7 +575,17 @@ impl Engine {
             ..self.grid_report(job, &grid, None)
         };
         let report = Report { host_decided: report.voxels, ..report };
-        Ok(Voxelized { grid, field: None, shell: None, colours, labels: None, instances: None, report, notices })
+        Ok(Voxelized {
+            grid,
+            field: None,
+            shell: None,
+            hollowing: None,
+            colours,
+            labels: None,
+            instances: None,
+            report,
+            notices,
+        })
     }
 
     /// The job's grid (in its mode's grid mode: the surface for the fields) on the GPU, with the CPU standing in

@@ -6,6 +6,7 @@ use crate::voxel::Grid;
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::labels::Labels;
+use crate::voxel::voids::{Drain, Hollowing, Pocket};
 
 /// Something a client should tell its user: a fallback (a note) or a failure worked around (a warning).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -37,6 +38,9 @@ pub struct Report {
     pub colour: Option<String>,
     pub colour_ms: Option<f64>,
     pub colours_output: Option<String>,
+    /// `shell`/`solid` with `--drain`: the holes cut, each from its void to past the wall (world points) with its
+    /// radius (world units).
+    pub drains: Option<Vec<Drain>>,
     pub dims: [u32; 3],
     /// `sdf`/`udf` on the CPU: the point-to-triangle distances its pass evaluated (a few per band voxel; `None`
     /// where not counted, as on the GPU).
@@ -86,6 +90,9 @@ pub struct Report {
     /// The grid's world minimum corner.
     pub origin: [f64; 3],
     pub output: String,
+    /// `shell` (and `solid` with `--drain` or `--fill-pockets`): the voids no face-connected path of empty voxels
+    /// joins to the outside after any drain holes: resin or powder they would trap. Empty when none.
+    pub pockets: Option<Vec<Pocket>>,
     /// Points of a point cloud (which has no triangles); `None` for a mesh.
     pub points: Option<u64>,
     /// Bytes the grid's GPU passes read back (the grid or its leaves, counters, timings); `None` on the CPU.
@@ -133,6 +140,9 @@ pub struct Voxelized {
     pub field: Option<DistanceField>,
     /// `shell`: its thickness in voxels. Its grid is then the result and its field is written only as walls.
     pub shell: Option<f32>,
+    /// A shell's or solid's voids ([`crate::voxel::voids`]): the drain holes cut (which the shell's walls have
+    /// too) and the pockets left.
+    pub hollowing: Option<Hollowing>,
     pub colours: Option<VoxelColours>,
     /// The per-voxel labels asked for (`Request::attributes`), on dense grids.
     pub labels: Option<Labels>,
@@ -157,7 +167,14 @@ impl Voxelized {
             // A field written as a mesh: its level set, or a shell's walls, meshed here and written as a mesh.
             (Some(field), VoxelFormat::Mesh(mesh)) => {
                 let progress = options.progress.unwrap_or(&|_, _| {});
-                write_field_mesh(field, self.shell, options.level, progress, mesh, out)
+                match (self.shell, &self.hollowing) {
+                    // Holes or filled pockets: the walls are one level set of the shell's own field.
+                    (Some(thickness), Some(h)) if !h.tubes.is_empty() || h.filled_voxels.is_some() => {
+                        let walls = crate::voxel::shell::walls_field(field, thickness, h);
+                        write_field_mesh(&walls, None, 0.0, progress, mesh, out)
+                    }
+                    _ => write_field_mesh(field, self.shell, options.level, progress, mesh, out),
+                }
             }
             (Some(field), _) if self.shell.is_none() => formats::write_field(field, format, out),
             _ => {

@@ -108,6 +108,15 @@ impl Mesh {
         }
     }
 
+    /// The mesh's unit in metres, for lengths given in metres: glTF's is the metre by its specification; OBJ, STL and
+    /// PLY carry none, and are read in millimetres, as slicers read them.
+    pub fn guess_unit(&self) -> f64 {
+        match Format::detect(Path::new(&self.name), &[]) {
+            Some(Format::Gltf) => 1.0,
+            _ => 1e-3,
+        }
+    }
+
     /// The world-space bounding box of all triangles (or points), or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
         use rayon::prelude::*;

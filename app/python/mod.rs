@@ -156,7 +156,7 @@ fn options(
         .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use {}", Mode::choices())))?;
     let thickness = match (thickness, mode == Mode::Shell) {
         (Some(_), false) => return Err(PyValueError::new_err("thickness= is a shell's: use it with mode=\"shell\"")),
-        (thickness, _) => thickness.unwrap_or(1.0),
+        (thickness, _) => crate::voxel::Length::Voxels(thickness.map_or(1.0, f64::from)),
     };
     let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let backend = Backend::from_name(backend)

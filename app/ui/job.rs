@@ -76,7 +76,7 @@ impl ViewerApp {
                 // The GPU lists the exposed voxels for drawing only where the scene can be drawn from that list
                 // (a field is drawn from its slice, made on the host).
                 instances: self.showing().from_gpu_list(mesh.has_colour()) && !self.mode.needs_field(),
-                thickness: self.thickness,
+                thickness: crate::voxel::Length::Voxels(f64::from(self.thickness)),
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
             };
             let mesh = mesh.clone();

@@ -361,6 +361,23 @@ impl DistanceField {
         mask
     }
 
+    /// The same field's layout (grid, band, leaves) with no values and no inside: for a field made from this one.
+    pub fn clone_without_values(&self) -> DistanceField {
+        DistanceField {
+            spec: self.spec,
+            signed: self.signed,
+            band: self.band,
+            reach: self.reach,
+            leaf_dims: self.leaf_dims,
+            slots: self.slots.clone(),
+            leaves: self.leaves.clone(),
+            values: Vec::new(),
+            inside: None,
+            band_voxels: self.band_voxels,
+            evaluations: self.evaluations,
+        }
+    }
+
     /// The background: the band's half-width in world units (positive; `-background` inside).
     pub fn background(&self) -> f32 {
         self.reach * self.spec.voxel_size as f32

@@ -42,6 +42,56 @@ pub enum Resolution {
     VoxelSize(f64),
 }
 
+/// A length a user gives (a shell's thickness, a drain hole's radius): in voxels, or in metres, which the mesh's
+/// unit turns into its own units (glTF's is the metre; OBJ, STL and PLY carry none, and meshvox reads them in
+/// millimetres, as slicers do, unless told otherwise).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Length {
+    Voxels(f64),
+    Metres(f64),
+}
+
+impl Length {
+    /// The units a length may be given in, with their size in metres: a number without one is in voxels.
+    pub const UNITS: [(&'static str, f64); 5] =
+        [("mm", 1e-3), ("cm", 1e-2), ("m", 1.0), ("in", 0.0254), ("ft", 0.3048)];
+
+    /// `2` (voxels), `2vx`, `2mm`, `0.5cm`, `0.002m`, `0.1in`: positive and finite.
+    pub fn parse(text: &str) -> Result<Length, String> {
+        let t = text.trim();
+        let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+        let (number, unit) = t.split_at(split);
+        let value: f64 = number.trim().parse().map_err(|_| format!("'{text}' is not a length (2, 2vx, 2mm, 0.1in)"))?;
+        if !(value.is_finite() && value > 0.0) {
+            return Err(format!("'{text}': a length must be above 0"));
+        }
+        match unit.to_ascii_lowercase().as_str() {
+            "" | "vx" => Ok(Length::Voxels(value)),
+            u => Length::UNITS
+                .iter()
+                .find(|(name, _)| *name == u)
+                .map(|&(_, metres)| Length::Metres(value * metres))
+                .ok_or_else(|| {
+                    let names: Vec<&str> = Length::UNITS.iter().map(|u| u.0).collect();
+                    format!("'{text}': the unit '{unit}' is not one of vx, {}", names.join(", "))
+                }),
+        }
+    }
+
+    /// In voxels of `spec`, for a mesh whose unit is `unit` metres.
+    pub fn in_voxels(self, spec: &GridSpec, unit: f64) -> f64 {
+        match self {
+            Length::Voxels(v) => v,
+            Length::Metres(m) => m / unit / spec.voxel_size,
+        }
+    }
+
+    /// The metres per unit named `name` (`mm`, `cm`, `m`, `in`, `ft`).
+    pub fn unit(name: &str) -> Option<f64> {
+        Length::UNITS.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|u| u.1)
+    }
+}
+
 /// Largest number of voxels along one axis. 2^16 keeps every voxel coordinate well inside f32's exact integers
 /// and every index inside u32 arithmetic on the GPU.
 pub const MAX_DIM: u32 = 65_536;
@@ -190,6 +240,11 @@ impl GridSpec {
     #[inline]
     pub fn to_grid(&self, p: DVec3) -> Vec3 {
         self.snap_to_grid(p - self.origin, self.snap_tolerance())
+    }
+
+    /// A world point in grid space, unsnapped: where a point a user gives lies among the voxels.
+    pub fn world_to_grid(&self, p: DVec3) -> Vec3 {
+        ((p - self.origin) / self.voxel_size).as_vec3()
     }
 
     /// Grid-space coordinates of the point `d` (world units) from the grid origin, snapped within `tolerance`.

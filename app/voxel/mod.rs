@@ -35,10 +35,11 @@ pub mod shell;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;
+pub mod voids;
 pub mod voxelize;
 pub mod winding_lanes;
 
-pub use grid::{Axis, GridError, GridSpec, MAX_DIM, Resolution, SNAP, VoxelGrid};
+pub use grid::{Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid};
 pub use lattice::{GridTriangles, Lattice, on_lattice};
 pub use sparse::SparseGrid;
 

@@ -2,7 +2,10 @@
 //! winding number over every triangle for inside, the distance to every triangle for the thickness) on closed,
 //! open (several holes), self-intersecting and far-from-the-origin meshes, on the CPU and the GPU, dense and sparse;
 //! a closed mesh's shell 6-separating its hollow from the outside (no face-connected path of unset voxels); the
-//! walls as a closed, edge-manifold mesh holding the shell's volume; and the CLI's outputs and errors.
+//! walls as a closed, edge-manifold mesh holding the shell's volume; and the CLI's outputs and errors. For printing
+//! (`meshvox::voxel::voids`): drain holes that join every hollow to the outside (a flood fill of the test's own
+//! from outside the grid reaches every unset voxel), walls with the holes closed and of the genus the holes give,
+//! and a sealed cavity reported as one pocket of its volume and filled where asked.
 
 use crate::common::{hard_cases, shared_meshes};
 use crate::contour::assert_watertight;
@@ -11,7 +14,8 @@ use glam::{DVec3, UVec3, Vec3};
 use meshvox::engine::{Backend, Engine, Request};
 use meshvox::mesh::{self, Mesh};
 use meshvox::voxel::shell::shell_mesh;
-use meshvox::voxel::{Axis, Grid, GridKind, GridSpec, Mode, Resolution, on_lattice, voxelize};
+use meshvox::voxel::voids::DrainPlan;
+use meshvox::voxel::{Axis, Grid, GridKind, GridSpec, Length, Mode, Resolution, on_lattice, voxelize};
 use rayon::prelude::*;
 
 /// How far from ½ a winding number, and from `T` a distance (in voxels), must be for a voxel to be judged: a bound
@@ -86,7 +90,11 @@ fn engines() -> Vec<(&'static str, Engine)> {
 }
 
 fn shell(engine: &Engine, mesh: &Mesh, r: u32, thickness: f32, grid: GridKind) -> meshvox::engine::Voxelized {
-    let request = Request { grid, thickness, ..Request::new(Resolution::Count(r), Mode::Shell) };
+    let request = Request {
+        grid,
+        thickness: Length::Voxels(thickness.into()),
+        ..Request::new(Resolution::Count(r), Mode::Shell)
+    };
     engine.voxelize("shell", mesh, &request).expect("shell")
 }
 
@@ -261,6 +269,221 @@ fn the_cli_writes_a_shell_and_its_walls_and_refuses_what_is_not_one() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
         assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: one line: {stderr}");
+        assert!(!dir.path().join("x.npy").exists());
+    }
+}
+
+/// The voxels no face-connected path of unset voxels joins to outside the grid (the test's own flood fill).
+fn sealed_voxels(grid: &Grid) -> u64 {
+    let reached = reached_from_outside(grid);
+    let d = grid.spec().dims;
+    let unset = reached.iter().enumerate().filter(|(i, _)| {
+        let i = *i as u32;
+        !grid.get(i % d.x, i / d.x % d.y, i / (d.x * d.y))
+    });
+    unset.filter(|(_, r)| !**r).count() as u64
+}
+
+/// Builtin sphere of radius 1 with a cavity: the same sphere at `inner` times its size, wound inward.
+fn ball_with_cavity(inner: f64) -> Mesh {
+    let sphere = mesh::load("builtin:sphere").expect("sphere");
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for (scale, flip) in [(1.0, false), (inner, true)] {
+        for i in 0..sphere.triangles.len() {
+            let t = sphere.world_triangle(i).map(|v| v * scale);
+            let base = positions.len() as u32;
+            positions.extend(t);
+            faces.push(if flip { [base, base + 2, base + 1] } else { [base, base + 1, base + 2] });
+        }
+    }
+    mesh::from_indexed("ball with a cavity", &positions, &faces).expect("mesh")
+}
+
+fn hollowed(engine: &Engine, mesh: &Mesh, request: Request) -> meshvox::engine::Voxelized {
+    engine.voxelize("hollowed", mesh, &request).expect("voxelize")
+}
+
+#[test]
+fn a_sealed_cavity_is_one_pocket_of_its_volume_and_filled_where_asked() {
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    let mesh = ball_with_cavity(0.5);
+    for kind in [GridKind::Dense, GridKind::Sparse] {
+        let what = format!("ball with a cavity ({kind:?})");
+        let request = Request { grid: kind, fill_pockets: false, ..Request::new(Resolution::Count(48), Mode::Solid) };
+        let plain = hollowed(&cpu, &mesh, request);
+        // A solid reports pockets only where drains or filling are asked for.
+        assert_eq!(plain.report.pockets, None, "{what}");
+        let drain = DrainPlan::None;
+        let asked = Request { grid: kind, fill_pockets: true, drain: &drain, ..request };
+        let filled = hollowed(&cpu, &mesh, asked);
+        let pockets = filled.report.pockets.as_ref().expect("pockets");
+        assert_eq!(pockets.len(), 1, "{what}: {pockets:?}");
+        // The pocket is what the test's own flood fill leaves unreached in the plain solid, voxel for voxel.
+        assert_eq!(pockets[0].voxels, sealed_voxels(&plain.grid), "{what}: the pocket's voxels");
+        assert_eq!(filled.grid.count(), plain.grid.count() + pockets[0].voxels, "{what}: filled");
+        assert_eq!(sealed_voxels(&filled.grid), 0, "{what}: nothing sealed once filled");
+        // Its volume is the cavity's within a voxel layer of its surface (radius 0.5: 4/3 pi r^3, area 4 pi r^2).
+        let h = plain.grid.spec().voxel_size;
+        let (volume, area) = (4.0 / 3.0 * std::f64::consts::PI * 0.125, 4.0 * std::f64::consts::PI * 0.25);
+        assert!((pockets[0].volume - volume).abs() <= area * h, "{what}: {} against {volume}", pockets[0].volume);
+        let p = DVec3::from_array(pockets[0].point);
+        assert!(p.length() < 0.5, "{what}: the pocket's point {p} lies in the cavity");
+    }
+}
+
+#[test]
+fn drain_holes_join_every_hollow_to_the_outside() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    let mut meshes: Vec<(String, Mesh, u32)> = vec![
+        ("sphere".into(), mesh::load("builtin:sphere").expect("sphere"), 40),
+        ("torus".into(), mesh::load("builtin:torus").expect("torus"), 45),
+        ("ball with a cavity".into(), ball_with_cavity(0.5), 48),
+    ];
+    let (name, path, resolutions) = crate::inside::open_meshes(dir.path()).into_iter().next().expect("an open mesh");
+    meshes.push((name, mesh::load(&path).expect("open mesh"), resolutions[0]));
+    if let Some(shared) = shared_meshes() {
+        meshes.push(("spot".into(), mesh::load(&shared.join("spot.obj").to_string_lossy()).expect("spot"), 64));
+    }
+    for (name, mesh, r) in meshes {
+        for (holes, kind) in [(1, GridKind::Dense), (3, GridKind::Sparse)] {
+            let what = format!("{name} at {r}, {holes} holes ({kind:?})");
+            let thickness = Length::Voxels(2.0);
+            let plain = Request { grid: kind, thickness, ..Request::new(Resolution::Count(r), Mode::Shell) };
+            let before = hollowed(&cpu, &mesh, plain);
+            let sealed = before.report.pockets.as_ref().expect("a shell reports its pockets");
+            assert_eq!(
+                sealed.iter().map(|p| p.voxels).sum::<u64>(),
+                sealed_voxels(&before.grid),
+                "{what}: the pockets are the voxels a flood fill from outside does not reach"
+            );
+            let drain = DrainPlan::Count { holes, radius: None };
+            let after = hollowed(&cpu, &mesh, Request { drain: &drain, ..plain });
+            assert_eq!(sealed_voxels(&after.grid), 0, "{what}: a hollow is still sealed");
+            assert_eq!(after.report.pockets.as_deref(), Some(&[][..]), "{what}");
+            let drains = after.report.drains.as_ref().expect("drains");
+            if sealed.is_empty() {
+                // An open mesh's shell is open where its holes are: nothing to drain, nothing cut.
+                assert!(name.contains("holes"), "{what}: a closed mesh's shell has a hollow");
+                assert!(drains.is_empty() && after.grid.count() == before.grid.count(), "{what}: {drains:?}");
+                continue;
+            }
+            assert!(!drains.is_empty() && drains.len() <= holes as usize * sealed.len(), "{what}: {drains:?}");
+            // The holes take the wall's voxels around their axes and nothing else.
+            let cut = before.grid.count() - after.grid.count();
+            let h = before.grid.spec().voxel_size;
+            let bound: f64 = drains
+                .iter()
+                .map(|d| {
+                    let length = DVec3::from_array(d.from).distance(DVec3::from_array(d.to)) / h + 2.0;
+                    std::f64::consts::PI * (d.radius / h + 1.0).powi(2) * length
+                })
+                .sum();
+            assert!(cut > 0 && (cut as f64) <= bound, "{what}: {cut} voxels cut, at most {bound:.0}");
+            assert_eq!(after.grid.count(), after.report.voxels, "{what}: the report counts the drained shell");
+            // The walls: one closed level set, each hole a tube through the wall (a handle: the Euler
+            // characteristic falls by 2 for each).
+            let field = after.field.as_ref().expect("field");
+            let hollowing = after.hollowing.as_ref().expect("hollowing");
+            let walls = meshvox::voxel::shell::walls_field(field, 2.0, hollowing);
+            let mesh = meshvox::voxel::shell::field_mesh(&walls, None, 0.0, &|_, _| {}).expect("walls");
+            assert_watertight(&mesh, &what);
+            if name == "sphere" {
+                let edges = mesh.faces.len() * 3 / 2;
+                let euler = mesh.vertices.len() as i64 - edges as i64 + mesh.faces.len() as i64;
+                assert_eq!(euler, 4 - 2 * drains.len() as i64, "{what}: two spheres joined by the holes");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_drain_goes_where_it_is_asked_and_lengths_take_units() {
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    let mesh = mesh::load("builtin:sphere").expect("sphere");
+    // Through the side of the sphere at +x, 3 voxels wide.
+    let drain = DrainPlan::At(vec![(DVec3::new(1.0, 0.0, 0.0), Some(Length::Voxels(3.0)))]);
+    let request = Request {
+        thickness: Length::Voxels(2.0),
+        drain: &drain,
+        grid: GridKind::Dense,
+        ..Request::new(Resolution::Count(40), Mode::Shell)
+    };
+    let out = hollowed(&cpu, &mesh, request);
+    assert_eq!(sealed_voxels(&out.grid), 0);
+    let d = &out.report.drains.as_ref().expect("drains")[0];
+    let (from, to) = (DVec3::from_array(d.from), DVec3::from_array(d.to));
+    assert!(from.x > 0.5 && to.x > from.x && to.y.abs() < 0.1 && to.z.abs() < 0.1, "{d:?}");
+    let h = out.grid.spec().voxel_size;
+    assert!((d.radius - 3.0 * h).abs() < 1e-6 * h, "{d:?}");
+    // A point far from any void: one line saying so.
+    let nowhere = DrainPlan::At(vec![(DVec3::new(0.0, 0.0, 0.0), None)]);
+    let solid = Request { drain: &nowhere, ..Request::new(Resolution::Count(20), Mode::Solid) };
+    let error = cpu.voxelize("sphere", &mesh, &solid).err().expect("no void").to_string();
+    assert!(error.contains("no void to drain"), "{error}");
+    // 0.1 units of a mesh in millimetres: 0.0001 m; the same thickness in voxels gives the same shell.
+    let mm = Request {
+        unit: Some(1e-3),
+        thickness: Length::Metres(1e-4),
+        ..Request::new(Resolution::Count(40), Mode::Shell)
+    };
+    let h = meshvox::engine::Job::plan("sphere", &mesh, &mm).expect("plan").spec.voxel_size;
+    let by_voxels = Request { thickness: Length::Voxels(0.1 / h), ..mm };
+    assert_eq!(hollowed(&cpu, &mesh, mm).grid.count(), hollowed(&cpu, &mesh, by_voxels).grid.count());
+}
+
+#[test]
+fn the_cli_drains_reports_pockets_and_refuses_what_it_cannot() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let cli = |args: &[&str]| crate::cli::meshvox(args, dir.path());
+    let base = ["voxelize", "builtin:sphere", "-r", "40", "--mode", "shell", "--stats-json"];
+    // No holes: the hollow is one pocket; 2 holes: none, and the holes listed; filled: the pocket's voxels set.
+    let run = |extra: &[&str], out: &str| {
+        let out = cli(&[&base[..], extra, &["-o", out]].concat());
+        assert!(out.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&out.stderr));
+        crate::cli::stats(&out)
+    };
+    let sealed = run(&["--thickness", "2"], "a.npy");
+    let pockets = sealed["pockets"].as_array().expect("pockets");
+    assert_eq!(pockets.len(), 1, "{sealed}");
+    for key in ["voxels", "volume", "point"] {
+        assert!(!pockets[0][key].is_null(), "{key} in {sealed}");
+    }
+    let drained = run(&["--thickness", "2", "--drain", "2", "--up", "z"], "b.npy");
+    assert_eq!(drained["pockets"].as_array().map(Vec::len), Some(0), "{drained}");
+    let drains = drained["drains"].as_array().expect("drains");
+    assert_eq!(drains.len(), 2, "{drained}");
+    // Down the asked up axis: each hole leaves its void downwards in z.
+    for d in drains {
+        assert!(d["to"][2].as_f64() < d["from"][2].as_f64(), "{d}");
+    }
+    let filled = run(&["--thickness", "2", "--fill-pockets"], "c.npy");
+    let (v, p) = (sealed["voxels"].as_u64().unwrap_or(0), pockets[0]["voxels"].as_u64().unwrap_or(0));
+    assert_eq!(filled["voxels"].as_u64(), Some(v + p), "{filled}");
+    // A thickness with a unit: the builtin sphere (radius 1) read in metres, 0.1 m is 2 voxels of 0.05.
+    let metres = run(&["--thickness", "0.1m", "--unit", "m"], "d.npy");
+    assert_eq!(metres["voxels"], sealed["voxels"], "{metres}");
+    // The walls with the holes, as a mesh.
+    let out = cli(&[&base[..], &["--thickness", "2", "--drain", "1", "-o", "walls.ply"]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let walls = mesh::load(&dir.path().join("walls.ply").to_string_lossy()).expect("the walls load");
+    assert!(!walls.triangles.is_empty());
+    for (args, says) in [
+        (&["--mode", "surface", "--drain", "1"][..], "--drain and --fill-pockets are for the voids"),
+        (&["--mode", "sdf", "--fill-pockets"][..], "--drain and --fill-pockets are for the voids"),
+        (&["--mode", "shell", "--drain", "0"][..], "at least one hole"),
+        (&["--mode", "shell", "--drain", "1,2"][..], "give N (holes per void) or X,Y,Z[,R]"),
+        (&["--mode", "shell", "--drain", "1", "--drain", "2"][..], "a number of holes is given once"),
+        (&["--mode", "shell", "--drain", "0,0,x"][..], "'x' is not a coordinate"),
+        (&["--mode", "shell", "--drain", "1,0,0,2furlongs"][..], "is not one of vx, mm"),
+        (&["--mode", "shell", "--thickness", "2parsecs"][..], "--thickness"),
+        (&["--mode", "solid", "--drain", "0,0,0"][..], "no void to drain"),
+        (&["--mode", "shell", "--unit", "cubit"][..], "use one of mm, cm, m, in, ft"),
+    ] {
+        let out = cli(&[&["voxelize", "builtin:sphere", "-r", "20", "-o", "x.npy"][..], args].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
         assert!(!dir.path().join("x.npy").exists());
     }
 }

@@ -177,7 +177,7 @@ fn the_shell_mode_shows_its_thickness_slider_and_voxels_of_each_thickness() {
     let engine = meshvox::Engine::open(meshvox::Backend::Cpu).expect("cpu");
     let shell = |thickness: f32| {
         let request = meshvox::Request {
-            thickness,
+            thickness: meshvox::voxel::Length::Voxels(thickness.into()),
             grid: meshvox::voxel::GridKind::Dense,
             ..meshvox::Request::new(meshvox::voxel::Resolution::Count(40), meshvox::voxel::Mode::Shell)
         };

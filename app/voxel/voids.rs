@@ -1,0 +1,447 @@
+//! Voids for printing (`--mode shell|solid` with `--drain`, `--fill-pockets`): the empty voxels that no
+//! face-connected path of empty voxels joins to the outside (a hollowed shell's inside, a cavity in a solid, which
+//! would trap resin or powder), drain holes cut through the walls below them, and the pockets left sealed.
+//!
+//! # The voids
+//! Each x-row's runs of empty voxels are the nodes of a union-find: a run joins the runs it overlaps in the rows
+//! below it in y and in z (face neighbours), and a run on the grid's boundary joins the outside (beyond the grid
+//! everything is empty). The components not joined to the outside are the voids: exact, in O(runs), where a
+//! voxel-by-voxel flood fill would visit the whole box.
+//!
+//! # Drain holes
+//! A hole is a cylinder of empty voxels (every voxel whose centre is within its radius of the axis segment) from a
+//! void through the wall below it: from the void's voxel straight down the up axis, or from the void's voxel
+//! nearest an asked point through that point, on until the first empty voxel beyond the wall (the outside or
+//! another void, itself drained) or the grid's end. `--drain N` places N holes per void on its lowest layer: the
+//! first nearest the middle of that layer, each next one farthest from those before. A hole's radius is at least
+//! one voxel, so its axis is a face-connected path of empty voxels whatever its direction.
+//!
+//! # Pockets
+//! The voids still sealed after the holes (all of them where no hole was asked): `--stats-json`'s `pockets`, each
+//! with its voxels, its volume and a point in it; `--fill-pockets` sets their voxels.
+
+use super::sparse::LeafSet;
+use super::{Length, SparseGrid, VoxelGrid};
+use crate::mesh::UpAxis;
+use glam::{DVec3, UVec3, Vec3};
+
+/// Where drain holes go, in the library's words.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum DrainPlan {
+    /// No holes.
+    #[default]
+    None,
+    /// This many holes per void, on its lowest layer along the up axis, of a radius ([`DRAIN_RADIUS`] voxels by
+    /// default).
+    Count { holes: u32, radius: Option<Length> },
+    /// A hole through each world point (mesh units), from the nearest void's voxel.
+    At(Vec<(DVec3, Option<Length>)>),
+}
+
+/// The default radius of a drain hole, in voxels; a hole is never narrower than one voxel.
+pub const DRAIN_RADIUS: f64 = 2.0;
+
+/// What a printer asks of a solid's or shell's voids: drain holes, and whether to fill the pockets left; `up` is
+/// the model's up axis and `unit` its unit in metres (for lengths in metres).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hollow {
+    pub drains: DrainPlan,
+    pub fill: bool,
+    pub up: UpAxis,
+    pub unit: f64,
+}
+
+/// A void left sealed: its voxels, its volume (world units³) and a world point inside it (the centre of one of
+/// its voxels on its lowest layer).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Pocket {
+    pub voxels: u64,
+    pub volume: f64,
+    pub point: [f64; 3],
+}
+
+/// A drain hole cut: where it opens into its void and where it leaves the wall (world points), and its radius
+/// (world units).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Drain {
+    pub from: [f64; 3],
+    pub to: [f64; 3],
+    pub radius: f64,
+}
+
+/// What [`hollow`] did: the holes it cut, the pockets left sealed (filled where asked), and the holes as grid-space
+/// segments (`(from, to, radius)` in voxels) for the walls' mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Hollowing {
+    pub drains: Vec<Drain>,
+    pub pockets: Vec<Pocket>,
+    pub tubes: Vec<(Vec3, Vec3, f32)>,
+    /// The pockets' voxels where they were filled (none where there were none).
+    pub filled_voxels: Option<SparseGrid>,
+}
+
+/// Why a drain cannot be cut.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum VoidError {
+    #[error("no void to drain at ({}, {}, {}): the model has no hollow or cavity there (a shell's inside, a cavity)", .0[0], .0[1], .0[2])]
+    NothingToDrain([f64; 3]),
+}
+
+/// A run of empty voxels `x0..x1` of one row.
+#[derive(Clone, Copy)]
+struct Run {
+    x0: u32,
+    x1: u32,
+}
+
+/// The empty runs of every row and their components.
+struct Voids {
+    dims: UVec3,
+    /// Row `r`'s runs are `runs[starts[r]..starts[r + 1]]` (rows `z * dims.y + y`).
+    starts: Vec<u32>,
+    runs: Vec<Run>,
+    /// Each run's component root; `OUTSIDE`'s for those joined to the outside.
+    roots: Vec<u32>,
+    outside: u32,
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[i as usize];
+        parent[i as usize] = parent[p as usize];
+        i = p;
+    }
+    i
+}
+
+fn union(parent: &mut [u32], a: u32, b: u32) {
+    let (a, b) = (find(parent, a), find(parent, b));
+    if a != b {
+        // The smaller index the root: the outside (the last index) never is, so it is found through its members.
+        let (lo, hi) = (a.min(b), a.max(b));
+        parent[hi as usize] = lo;
+    }
+}
+
+impl Voids {
+    fn find(grid: &VoxelGrid) -> Voids {
+        let dims = grid.spec.dims;
+        let wpr = grid.spec.words_per_row();
+        let rows = (dims.y * dims.z) as usize;
+        let mut starts = Vec::with_capacity(rows + 1);
+        let mut runs = Vec::new();
+        for r in 0..rows {
+            starts.push(runs.len() as u32);
+            let row = &grid.words[r * wpr..(r + 1) * wpr];
+            let mut x = 0;
+            while x < dims.x {
+                x = next_bit(row, x, false, dims.x);
+                if x >= dims.x {
+                    break;
+                }
+                let end = next_bit(row, x, true, dims.x);
+                runs.push(Run { x0: x, x1: end });
+                x = end;
+            }
+        }
+        starts.push(runs.len() as u32);
+        let outside = runs.len() as u32;
+        let mut parent: Vec<u32> = (0..=outside).collect();
+        for z in 0..dims.z {
+            for y in 0..dims.y {
+                let r = (z * dims.y + y) as usize;
+                let here = starts[r]..starts[r + 1];
+                let edge_row = y == 0 || z == 0 || y + 1 == dims.y || z + 1 == dims.z;
+                for i in here.clone() {
+                    let run = runs[i as usize];
+                    if edge_row || run.x0 == 0 || run.x1 == dims.x {
+                        union(&mut parent, i, outside);
+                    }
+                }
+                let below = [(y > 0).then(|| r - 1), (z > 0).then(|| r - dims.y as usize)];
+                for b in below.into_iter().flatten() {
+                    join_overlaps(&mut parent, &runs, here.clone(), starts[b]..starts[b + 1]);
+                }
+            }
+        }
+        let roots = (0..=outside).map(|i| find(&mut parent, i)).collect();
+        Voids { dims, starts, runs, roots, outside }
+    }
+
+    fn outside_root(&self) -> u32 {
+        self.roots[self.outside as usize]
+    }
+
+    /// The sealed components: each with its runs' indices.
+    fn sealed(&self) -> Vec<Vec<u32>> {
+        let outside = self.outside_root();
+        let mut index = std::collections::HashMap::new();
+        let mut groups: Vec<Vec<u32>> = Vec::new();
+        for (i, &root) in self.roots[..self.outside as usize].iter().enumerate() {
+            if root == outside {
+                continue;
+            }
+            let g = *index.entry(root).or_insert_with(|| {
+                groups.push(Vec::new());
+                groups.len() - 1
+            });
+            groups[g].push(i as u32);
+        }
+        groups
+    }
+
+    /// Row `r`'s (y, z).
+    fn row_yz(&self, r: usize) -> (u32, u32) {
+        (r as u32 % self.dims.y, r as u32 / self.dims.y)
+    }
+
+    /// The row of run `i`.
+    fn row_of(&self, i: u32) -> usize {
+        self.starts.partition_point(|&s| s <= i) - 1
+    }
+
+    /// The component root of the empty voxel `v`, or `None` where it is set.
+    fn root_at(&self, v: UVec3) -> Option<u32> {
+        let r = (v.z * self.dims.y + v.y) as usize;
+        let row = &self.runs[self.starts[r] as usize..self.starts[r + 1] as usize];
+        let k = row.partition_point(|run| run.x1 <= v.x);
+        row.get(k).filter(|run| run.x0 <= v.x).map(|_| self.roots[self.starts[r] as usize + k])
+    }
+}
+
+/// Joins the runs of `a` and `b` (two neighbouring rows, each sorted) that overlap in x.
+fn join_overlaps(parent: &mut [u32], runs: &[Run], a: std::ops::Range<u32>, b: std::ops::Range<u32>) {
+    let (mut i, mut j) = (a.start, b.start);
+    while i < a.end && j < b.end {
+        let (ra, rb) = (runs[i as usize], runs[j as usize]);
+        if ra.x0 < rb.x1 && rb.x0 < ra.x1 {
+            union(parent, i, j);
+        }
+        if ra.x1 < rb.x1 { i += 1 } else { j += 1 }
+    }
+}
+
+/// The first x at or after `x` whose bit is `set` (`end` where none).
+fn next_bit(row: &[u32], x: u32, set: bool, end: u32) -> u32 {
+    let mut w = (x / 32) as usize;
+    let mut word = if set { row[w] } else { !row[w] } & (u32::MAX << (x % 32));
+    loop {
+        if word != 0 {
+            return (w as u32 * 32 + word.trailing_zeros()).min(end);
+        }
+        w += 1;
+        if w >= row.len() {
+            return end;
+        }
+        word = if set { row[w] } else { !row[w] };
+    }
+}
+
+/// The up axis's index.
+fn up_index(up: UpAxis) -> usize {
+    match up {
+        UpAxis::Y => 1,
+        UpAxis::Z => 2,
+    }
+}
+
+/// The voxels of a void's lowest `layers` layers along axis `u`, with their height above its lowest.
+fn lowest_layers(voids: &Voids, runs: &[u32], u: usize, layers: u32) -> Vec<(UVec3, u32)> {
+    let placed: Vec<(u32, u32, u32)> = runs
+        .iter()
+        .map(|&i| {
+            let (y, z) = voids.row_yz(voids.row_of(i));
+            (i, y, z)
+        })
+        .collect();
+    let level = |&(_, y, z): &(u32, u32, u32)| if u == 1 { y } else { z };
+    let low = placed.iter().map(level).min().unwrap_or(0);
+    placed
+        .iter()
+        .filter(|p| level(p) < low + layers)
+        .flat_map(|p| {
+            let (i, y, z) = *p;
+            let (run, height) = (voids.runs[i as usize], level(p) - low);
+            (run.x0..run.x1).map(move |x| (UVec3::new(x, y, z), height))
+        })
+        .collect()
+}
+
+/// Up to `holes` hole positions among `low` (voxels with their height above the void's lowest layer): the first on
+/// the lowest layer nearest its middle, each next the farthest from those chosen, at least `spacing` from each so
+/// that the holes do not run into one another (fewer holes where the void's bottom has no room for them).
+fn spread(low: &[(UVec3, u32)], holes: u32, spacing: f32) -> Vec<UVec3> {
+    let floor: Vec<Vec3> = low.iter().filter(|(_, h)| *h == 0).map(|(v, _)| v.as_vec3()).collect();
+    if floor.is_empty() || holes == 0 {
+        return Vec::new();
+    }
+    let middle = floor.iter().copied().sum::<Vec3>() / floor.len() as f32;
+    let first = low
+        .iter()
+        .filter(|(_, h)| *h == 0)
+        .min_by(|a, b| a.0.as_vec3().distance_squared(middle).total_cmp(&b.0.as_vec3().distance_squared(middle)))
+        .map(|(v, _)| *v);
+    let mut chosen: Vec<UVec3> = first.into_iter().collect();
+    let mut nearest: Vec<f32> = low.iter().map(|(v, _)| v.as_vec3().distance_squared(chosen[0].as_vec3())).collect();
+    while chosen.len() < holes as usize {
+        // The farthest, the lower of equals.
+        let best = nearest
+            .iter()
+            .zip(low)
+            .enumerate()
+            .max_by(|a, b| a.1.0.total_cmp(b.1.0).then_with(|| b.1.1.1.cmp(&a.1.1.1)));
+        let Some((k, (&far, _))) = best else { break };
+        if far < spacing * spacing {
+            break;
+        }
+        let v = low[k].0;
+        chosen.push(v);
+        for (n, (w, _)) in nearest.iter_mut().zip(low) {
+            *n = n.min(w.as_vec3().distance_squared(v.as_vec3()));
+        }
+    }
+    chosen
+}
+
+/// The end of a hole from the centre `from` (in the void) along `dir`: the first point past the wall (set voxels)
+/// whose voxel is empty, or where the ray leaves the grid.
+fn through_wall(grid: &VoxelGrid, from: Vec3, dir: Vec3) -> Vec3 {
+    let dims = grid.spec.dims.as_vec3();
+    let voxel = |p: Vec3| (p.cmpge(Vec3::ZERO).all() && p.cmplt(dims).all()).then(|| p.as_uvec3());
+    let step = 0.25;
+    let mut t = 0.0;
+    let mut in_wall = false;
+    loop {
+        t += step;
+        let p = from + dir * t;
+        match voxel(p) {
+            None => return p,
+            Some(v) if grid.get(v.x, v.y, v.z) => in_wall = true,
+            Some(_) if in_wall => return p,
+            Some(_) => {}
+        }
+    }
+}
+
+/// Clears the voxels of `grid` whose centres lie within `radius` of the segment `a b` (grid space).
+fn cut_tube(grid: &mut VoxelGrid, a: Vec3, b: Vec3, radius: f32) {
+    let dims = grid.spec.dims;
+    let lo = (a.min(b) - radius - 1.0).max(Vec3::ZERO).as_uvec3();
+    let hi = (a.max(b) + radius + 1.0).min(dims.as_vec3()).as_uvec3();
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    for z in lo.z..hi.z {
+        for y in lo.y..hi.y {
+            for x in lo.x..hi.x {
+                let c = UVec3::new(x, y, z).as_vec3() + 0.5;
+                let t = if len2 > 0.0 { ((c - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                if (a + ab * t).distance_squared(c) <= radius * radius {
+                    let (w, bit) = grid.spec.word_and_bit(x, y, z);
+                    grid.words[w] &= !(1 << bit);
+                }
+            }
+        }
+    }
+}
+
+/// Cuts the drain holes `hollow` asks for into `grid` (its set voxels are the walls), finds the voids left sealed
+/// and, where asked, sets their voxels (see the module documentation).
+pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidError> {
+    let spec = grid.spec;
+    let u = up_index(hollow.up);
+    let radius = |r: Option<Length>| r.map_or(DRAIN_RADIUS, |r| r.in_voxels(&spec, hollow.unit)).max(1.0) as f32;
+    let mut tubes: Vec<(Vec3, Vec3, f32)> = Vec::new();
+    let mut down = Vec3::ZERO;
+    down[u] = -1.0;
+    match &hollow.drains {
+        DrainPlan::None => {}
+        DrainPlan::Count { holes, radius: r } => {
+            let voids = Voids::find(grid);
+            let r = radius(*r);
+            // Holes at least a wall's width apart, from the void's lowest layers up to a few holes' widths.
+            let (spacing, layers) = (2.0 * r + 2.0, 2 * (r.ceil() as u32 + 1));
+            for runs in voids.sealed() {
+                for v in spread(&lowest_layers(&voids, &runs, u, layers), *holes, spacing) {
+                    let from = v.as_vec3() + 0.5;
+                    tubes.push((from, through_wall(grid, from, down), r));
+                }
+            }
+        }
+        DrainPlan::At(points) => {
+            let voids = Voids::find(grid);
+            let outside = voids.outside_root();
+            for &(point, r) in points {
+                let p = spec.world_to_grid(point);
+                let from = nearest_void(&voids, p, outside).ok_or(VoidError::NothingToDrain(point.to_array()))?;
+                let from = from.as_vec3() + 0.5;
+                let dir = (p - from).try_normalize().unwrap_or(down);
+                tubes.push((from, through_wall(grid, from, dir), radius(r)));
+            }
+        }
+    }
+    for &(a, b, radius) in &tubes {
+        cut_tube(grid, a, b, radius);
+    }
+    let voids = Voids::find(grid);
+    let sealed = voids.sealed();
+    let h = spec.voxel_size;
+    let pockets = sealed
+        .iter()
+        .map(|runs| {
+            let voxels = runs.iter().map(|&i| u64::from(voids.runs[i as usize].x1 - voids.runs[i as usize].x0)).sum();
+            let first = spread(&lowest_layers(&voids, runs, u, 1), 1, 0.0);
+            let point = first.first().map_or(DVec3::ZERO, |v| spec.voxel_center(*v));
+            Pocket { voxels, volume: voxels as f64 * h * h * h, point: point.to_array() }
+        })
+        .collect();
+    let filled_voxels = (hollow.fill && !sealed.is_empty()).then(|| {
+        let mut set = LeafSet::default();
+        for runs in &sealed {
+            for &i in runs {
+                let (y, z) = voids.row_yz(voids.row_of(i));
+                let run = voids.runs[i as usize];
+                (run.x0..run.x1).for_each(|x| grid.set(x, y, z));
+                set.set_run(run.x0, run.x1 - 1, y, z);
+            }
+        }
+        SparseGrid::from_leaf_sets(spec, vec![set])
+    });
+    let world = |p: Vec3| (spec.origin + p.as_dvec3() * h).to_array();
+    let drains =
+        tubes.iter().map(|&(a, b, r)| Drain { from: world(a), to: world(b), radius: f64::from(r) * h }).collect();
+    Ok(Hollowing { drains, pockets, tubes, filled_voxels })
+}
+
+/// The sealed void's voxel nearest the grid point `p`: searched in growing cubes around it.
+fn nearest_void(voids: &Voids, p: Vec3, outside: u32) -> Option<UVec3> {
+    let dims = voids.dims.as_ivec3();
+    let c = p.floor().as_ivec3();
+    let mut best: Option<(f32, UVec3)> = None;
+    for r in 0..=dims.max_element() {
+        // Every voxel within the cube of half-width r not yet looked at (its shell); stop once nothing nearer can
+        // lie further out.
+        if let Some((d2, _)) = best
+            && (r as f32 - 1.0).max(0.0).powi(2) > d2
+        {
+            break;
+        }
+        for z in (c.z - r).max(0)..=(c.z + r).min(dims.z - 1) {
+            for y in (c.y - r).max(0)..=(c.y + r).min(dims.y - 1) {
+                for x in (c.x - r).max(0)..=(c.x + r).min(dims.x - 1) {
+                    let on_shell = (x - c.x).abs() == r || (y - c.y).abs() == r || (z - c.z).abs() == r;
+                    if !on_shell {
+                        continue;
+                    }
+                    let v = UVec3::new(x as u32, y as u32, z as u32);
+                    if voids.root_at(v).is_some_and(|root| root != outside) {
+                        let d2 = (v.as_vec3() + 0.5).distance_squared(p);
+                        if best.is_none_or(|(b, _)| d2 < b) {
+                            best = Some((d2, v));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    best.map(|(_, v)| v)
+}
