@@ -48,6 +48,9 @@ pub struct BatchArgs {
     band: super::BandArgs,
     #[command(flatten)]
     voids: super::VoidArgs,
+    /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
+    #[arg(long, value_name = "y|z", value_parser = super::parse_up)]
+    up: Option<meshvox::mesh::UpAxis>,
     #[command(flatten)]
     blocks: super::BlockArgs,
     /// Where to voxelize (one engine for the whole run).
@@ -230,7 +233,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
         false => {
             let resolution = super::resolution(args.resolution, args.voxel_size)?;
             let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
-            let request = args.voids.request(request, &drain);
+            let request = args.voids.request(request, &drain, args.up);
             Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, Box::new(blocks))
         }
     };
@@ -361,6 +364,7 @@ impl Work<'_> {
             mode: args.mode,
             band: args.band.clone(),
             voids: args.voids.clone(),
+            up: args.up,
             blocks: args.blocks.clone(),
             stats_json: false,
             backend: args.backend,

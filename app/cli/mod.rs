@@ -312,20 +312,18 @@ pub(super) struct BandArgs {
     pub(super) thickness: Option<String>,
 }
 
-/// A shell's or solid's voids, for printing: drain holes, the pockets left sealed, the up axis and the mesh's unit.
+/// A shell's or solid's voids, for printing: drain holes, the pockets left sealed and the mesh's unit (the up axis,
+/// down which holes go, is each command's `--up`).
 #[derive(clap::Args, Clone, Default)]
 pub(super) struct VoidArgs {
-    /// shell/solid: cut drain holes through the walls so every void drains: N holes per void on its lowest layer
-    /// along --up, or one through the world point X,Y,Z (repeat for more), R its radius (default 2 voxels; a unit
+    /// shell/solid: cut drain holes through the walls so every void drains: N holes per void on its lowest layers
+    /// along --up, or one through the world point X,Y,Z (repeat for more); R the radius (default 2 voxels; a unit
     /// as --thickness has one). Any void left sealed is reported in --stats-json's "pockets".
-    #[arg(long, value_name = "N|X,Y,Z[,R]", allow_negative_numbers = true)]
+    #[arg(long, value_name = "N[,R]|X,Y,Z[,R]", allow_negative_numbers = true)]
     pub(super) drain: Vec<String>,
     /// shell/solid: fill the voids left sealed (pockets) instead of leaving them empty.
     #[arg(long)]
     pub(super) fill_pockets: bool,
-    /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
-    #[arg(long, value_name = "y|z", value_parser = parse_up)]
-    pub(super) up: Option<meshvox::mesh::UpAxis>,
     /// The mesh's unit, for lengths with a unit (--thickness 2mm): mm, cm, m, in or ft (default: m for glTF,
     /// which is in metres; mm for OBJ, STL and PLY, as slicers read them).
     #[arg(long, value_name = "UNIT", value_parser = parse_unit)]
@@ -333,9 +331,14 @@ pub(super) struct VoidArgs {
 }
 
 impl VoidArgs {
-    /// `request` with these voids' settings and the drain holes `drain` (made by [`VoidArgs::plan`]).
-    pub(super) fn request<'a>(&self, request: Request<'a>, drain: &'a meshvox::voxel::voids::DrainPlan) -> Request<'a> {
-        Request { drain, fill_pockets: self.fill_pockets, up: self.up, unit: self.unit, ..request }
+    /// `request` with these voids' settings, the drain holes `drain` (made by [`VoidArgs::plan`]) and the up axis.
+    pub(super) fn request<'a>(
+        &self,
+        request: Request<'a>,
+        drain: &'a meshvox::voxel::voids::DrainPlan,
+        up: Option<meshvox::mesh::UpAxis>,
+    ) -> Request<'a> {
+        Request { drain, fill_pockets: self.fill_pockets, up, unit: self.unit, ..request }
     }
 
     /// The drain holes `--drain` asks for.
@@ -346,14 +349,15 @@ impl VoidArgs {
         for text in &self.drain {
             let parts: Vec<&str> = text.split(',').map(str::trim).collect();
             match parts.as_slice() {
-                [n] if self.drain.len() == 1 => {
+                [n, rest @ ..] if rest.len() <= 1 && self.drain.len() == 1 => {
                     let holes: u32 = n.parse().map_err(|_| {
                         anyhow::anyhow!("--drain {text}: give a number of holes per void, or a point X,Y,Z[,R]")
                     })?;
                     anyhow::ensure!(holes >= 1, "--drain {text}: at least one hole");
-                    return Ok(DrainPlan::Count { holes, radius: None });
+                    let radius = rest.first().map(|r| length(r)).transpose()?;
+                    return Ok(DrainPlan::Count { holes, radius });
                 }
-                [_] => {
+                [_] | [_, _] => {
                     anyhow::bail!("--drain {text}: a number of holes is given once; repeat --drain X,Y,Z for points")
                 }
                 [x, y, z, rest @ ..] if rest.len() <= 1 => {
@@ -367,7 +371,7 @@ impl VoidArgs {
                     let radius = rest.first().map(|r| length(r)).transpose()?;
                     points.push((point, radius));
                 }
-                _ => anyhow::bail!("--drain {text}: give N (holes per void) or X,Y,Z[,R]"),
+                _ => anyhow::bail!("--drain {text}: give N[,R] (holes per void) or X,Y,Z[,R]"),
             }
         }
         Ok(match points.is_empty() {

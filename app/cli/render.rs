@@ -45,6 +45,8 @@ pub(super) struct RenderArgs {
     mode: Mode,
     #[command(flatten)]
     band: super::BandArgs,
+    #[command(flatten)]
+    voids: super::VoidArgs,
     /// sdf/udf: the slice through the field to draw, AXIS:FRACTION (default z:0.5): blue inside, orange
     /// outside, a stripe per voxel of distance, white at the zero crossing.
     #[arg(long, value_name = "AXIS:FRACTION", value_parser = parse_cut)]
@@ -110,6 +112,8 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     let mesh = args.limits.load(&args.mesh)?;
     let mode = args.mode;
     let request = args.limits.request(Resolution::Count(args.resolution), args.axis, mode, &args.band, &args.colour)?;
+    let drain = args.voids.plan()?;
+    let request = args.voids.request(request, &drain, args.up);
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;
     args.colour.note_if_colourless(&args.mesh, &mesh);
     let showing = Showing { cut: args.cut, ao: !args.no_ao };

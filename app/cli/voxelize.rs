@@ -44,6 +44,9 @@ pub(super) struct VoxelizeArgs {
     pub(super) band: BandArgs,
     #[command(flatten)]
     pub(super) voids: super::VoidArgs,
+    /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
+    #[arg(long, value_name = "y|z", value_parser = super::parse_up)]
+    pub(super) up: Option<meshvox::mesh::UpAxis>,
     /// Print a JSON object with the statistics as the last line of stdout.
     #[arg(long)]
     pub(super) stats_json: bool,
@@ -70,7 +73,7 @@ impl VoxelizeArgs {
     ) -> Result<Request<'a>> {
         let resolution = super::resolution(self.resolution, self.voxel_size)?;
         let request = self.limits.request(resolution, self.axis, self.mode, &self.band, &self.colour)?;
-        Ok(Request { format: Some(format), grid: self.grid.grid, ..self.voids.request(request, drain) })
+        Ok(Request { format: Some(format), grid: self.grid.grid, ..self.voids.request(request, drain, self.up) })
     }
 }
 

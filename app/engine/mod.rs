@@ -507,7 +507,11 @@ impl Engine {
             Grid::Dense(g) => std::mem::replace(g, VoxelGrid { spec, words: Vec::new() }),
             Grid::Sparse(s) => s.to_dense().map_err(|e| job.grid_error(e))?,
         };
-        let made = voxel::voids::hollow(&mut dense, &hollow).map_err(|e| EngineError::Voids(e.to_string()));
+        let made = {
+            let _span = crate::trace::span("voids: find, drain, fill");
+            voxel::voids::hollow(&mut dense, &hollow).map_err(|e| EngineError::Voids(e.to_string()))
+        };
+        let _span = crate::trace::span("voids: back to sparse");
         *grid = match grid {
             Grid::Dense(_) => Grid::Dense(dense),
             Grid::Sparse(_) => Grid::Sparse(SparseGrid::from_dense(&dense)),

@@ -13,7 +13,7 @@ use crate::formats::blocks::BlockSet;
 use crate::formats::swatches::Swatches;
 use crate::mesh::{self, Aabb, Mesh, MeshError};
 use crate::voxel::labels::AttributeSet;
-use crate::voxel::{Axis, GridError, Mode, Resolution};
+use crate::voxel::{Axis, GridError, Length, Mode, Resolution};
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
@@ -36,7 +36,56 @@ enum Input {
 
 /// What a call asks for, from the keyword arguments of `meshvox.voxelize`: where, and the library's request
 /// (the one place the package builds it; each call adds its progress and cancel flag).
-type Options = (Backend, Request<'static>);
+type Options = (Backend, Request<'static>, crate::voxel::voids::DrainPlan);
+
+/// A shell's or solid's voids, for printing, as `meshvox.voxelize` hands them over (`drain=` already split into a
+/// count and a radius, or points with their radii; lengths as given: `2`, `"2mm"`).
+#[derive(FromPyObject, Default)]
+#[pyo3(from_item_all)]
+struct Voids {
+    drain_holes: Option<u32>,
+    drain_radius: Option<String>,
+    drain_points: Vec<([f64; 3], Option<String>)>,
+    fill_pockets: bool,
+    up: Option<String>,
+    unit: Option<String>,
+}
+
+impl Voids {
+    /// `request` with these voids, and the drain holes they ask for.
+    fn apply(self, request: Request<'static>) -> PyResult<(Request<'static>, crate::voxel::voids::DrainPlan)> {
+        use crate::voxel::voids::DrainPlan;
+        let length = |text: &str| Length::parse(text).map_err(|e| PyValueError::new_err(format!("drain=: {e}")));
+        let plan = match (self.drain_holes, self.drain_points.is_empty()) {
+            (Some(0), _) => return Err(PyValueError::new_err("drain=: at least one hole")),
+            (Some(holes), _) => {
+                DrainPlan::Count { holes, radius: self.drain_radius.as_deref().map(length).transpose()? }
+            }
+            (None, false) => DrainPlan::At(
+                self.drain_points
+                    .iter()
+                    .map(|(p, r)| Ok((DVec3::from(*p), r.as_deref().map(length).transpose()?)))
+                    .collect::<PyResult<_>>()?,
+            ),
+            (None, true) => DrainPlan::None,
+        };
+        let up = match self.up.as_deref() {
+            None => None,
+            Some(name) => Some(
+                crate::mesh::UpAxis::from_name(name)
+                    .ok_or_else(|| PyValueError::new_err(format!("up '{name}': use y or z")))?,
+            ),
+        };
+        let unit = match self.unit.as_deref() {
+            None => None,
+            Some(name) => Some(Length::unit(name).ok_or_else(|| {
+                let names: Vec<&str> = Length::UNITS.iter().map(|u| u.0).collect();
+                PyValueError::new_err(format!("unit '{name}': use one of {}", names.join(", ")))
+            })?),
+        };
+        Ok((Request { fill_pockets: self.fill_pockets, up, unit, ..request }, plan))
+    }
+}
 
 /// Why a call failed, turned into the Python exception users expect ([`into_py_err`]).
 enum Failure {
@@ -142,7 +191,8 @@ fn options(
     bounds: Option<([f64; 3], [f64; 3])>,
     band: &str,
     attributes: &str,
-    thickness: Option<f32>,
+    thickness: Option<&str>,
+    voids: Option<Voids>,
 ) -> PyResult<Options> {
     let resolution = match (resolution, pitch) {
         (Some(n), None) => Resolution::Count(n),
@@ -156,7 +206,8 @@ fn options(
         .ok_or_else(|| PyValueError::new_err(format!("mode '{mode}': use {}", Mode::choices())))?;
     let thickness = match (thickness, mode == Mode::Shell) {
         (Some(_), false) => return Err(PyValueError::new_err("thickness= is a shell's: use it with mode=\"shell\"")),
-        (thickness, _) => crate::voxel::Length::Voxels(thickness.map_or(1.0, f64::from)),
+        (Some(t), true) => Length::parse(t).map_err(|e| PyValueError::new_err(format!("thickness={t}: {e}")))?,
+        (None, _) => Length::Voxels(1.0),
     };
     let band = crate::voxel::distance::Band::parse(band).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let backend = Backend::from_name(backend)
@@ -174,19 +225,20 @@ fn options(
         thickness,
         ..Request::new(resolution, mode)
     };
-    Ok((backend, request))
+    let (request, drain) = voids.unwrap_or_default().apply(request)?;
+    Ok((backend, request, drain))
 }
 
 /// One voxelization on this process's engine, inside [`process::run`]'s working thread (or one of
 /// `voxelize_many`'s): `progress` as the engine calls it, `cancel` the flag Ctrl-C sets.
 fn voxelize_one(
     input: Input,
-    &(backend, request): &Options,
+    (backend, request, drain): &Options,
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<Voxelized, Failure> {
     let (name, mesh) = input.load()?;
-    let request = Request { progress: Some(progress), cancel: Some(cancel), ..request };
+    let (backend, request) = (*backend, Request { drain, progress: Some(progress), cancel: Some(cancel), ..*request });
     let job = Job::plan(&name, &mesh, &request).map_err(Failure::Engine)?;
     // Priced first, as the CLI does: a job the CPU finishes sooner opens (or probes) no GPU. Once this process's
     // engine has a GPU open, its opening is paid and no longer in the price.
@@ -231,8 +283,17 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     });
     dict.set_item("labels", labels.transpose()?)?;
     dict.set_item("words", grid.words.into_pyarray(py))?;
+    // A shell with drain holes or filled pockets hands over its walls' field (one level set at 0, the holes cut)
+    // instead of the field it was cut from, as the CLI writes its walls.
+    let walls = match (&result.field, result.shell, &result.hollowing) {
+        (Some(field), Some(thickness), Some(h)) if !h.tubes.is_empty() || h.filled_voxels.is_some() => {
+            Some(crate::voxel::shell::walls_field(field, thickness, h))
+        }
+        _ => None,
+    };
+    let field = walls.as_ref().or(result.field.as_ref());
     // A distance field as float32 [x, y, z] over the whole grid, and its background.
-    let distances = result.field.as_ref().map(|field| {
+    let distances = field.map(|field| {
         let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
         let mut values = vec![0f32; nx * ny * nz];
         // One trip to the library's pool for every slice (rayon's global pool does not survive a fork).
@@ -244,16 +305,16 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
         values.into_pyarray(py).reshape([nx, ny, nz])
     });
     dict.set_item("distances", distances.transpose()?)?;
-    dict.set_item("background", result.field.as_ref().map(|f| f.background()))?;
-    dict.set_item("signed", result.field.as_ref().map(|f| f.signed))?;
+    dict.set_item("background", field.map(|f| f.background()))?;
+    dict.set_item("signed", field.map(|f| f.signed))?;
     // A shell's thickness in voxels: its `distances` are the signed field it was cut from, for its walls.
-    dict.set_item("thickness", result.shell)?;
+    dict.set_item("thickness", if walls.is_some() { None } else { result.shell })?;
     Ok(dict)
 }
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness, voids=None))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
@@ -268,9 +329,10 @@ fn voxelize<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     band: &str,
     attributes: &str,
-    thickness: Option<f32>,
+    thickness: Option<&str>,
+    voids: Option<Voids>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
     let input = input(source)?;
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
@@ -294,7 +356,7 @@ fn voxelize_points<'py>(
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", None)?;
+    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", None, None)?;
     let (points, colors) = (points.as_array(), colors.as_ref().map(|c| c.as_array()));
     if points.ncols() != 3 || colors.is_some_and(|c| c.ncols() != 4) {
         return Err(PyValueError::new_err("points must be (N, 3) and colours (N, 4)"));
@@ -316,7 +378,7 @@ fn voxelize_points<'py>(
 /// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
 /// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
-#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes, thickness))]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes, thickness, voids=None))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize_many<'py>(
     py: Python<'py>,
@@ -332,9 +394,10 @@ fn voxelize_many<'py>(
     workers: Option<usize>,
     band: &str,
     attributes: &str,
-    thickness: Option<f32>,
+    thickness: Option<&str>,
+    voids: Option<Voids>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness)?;
+    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();

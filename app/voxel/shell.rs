@@ -108,7 +108,7 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
             })
             .collect()
     });
-    let inside = hollowing.filled_voxels.clone().map(super::Grid::Sparse);
+    let inside = hollowing.filled_voxels.clone().map(super::Grid::Dense);
     DistanceField { values, inside, evaluations: 0, ..field.clone_without_values() }
 }
 

@@ -20,8 +20,7 @@
 //! The voids still sealed after the holes (all of them where no hole was asked): `--stats-json`'s `pockets`, each
 //! with its voxels, its volume and a point in it; `--fill-pockets` sets their voxels.
 
-use super::sparse::LeafSet;
-use super::{Length, SparseGrid, VoxelGrid};
+use super::{Length, VoxelGrid};
 use crate::mesh::UpAxis;
 use glam::{DVec3, UVec3, Vec3};
 
@@ -77,7 +76,7 @@ pub struct Hollowing {
     pub pockets: Vec<Pocket>,
     pub tubes: Vec<(Vec3, Vec3, f32)>,
     /// The pockets' voxels where they were filled (none where there were none).
-    pub filled_voxels: Option<SparseGrid>,
+    pub filled_voxels: Option<VoxelGrid>,
 }
 
 /// Why a drain cannot be cut.
@@ -395,21 +394,34 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         })
         .collect();
     let filled_voxels = (hollow.fill && !sealed.is_empty()).then(|| {
-        let mut set = LeafSet::default();
+        // The grid fits (it is here), so the pockets' own does.
+        let mut pockets = VoxelGrid { spec, words: vec![0; grid.words.len()] };
         for runs in &sealed {
             for &i in runs {
                 let (y, z) = voids.row_yz(voids.row_of(i));
                 let run = voids.runs[i as usize];
-                (run.x0..run.x1).for_each(|x| grid.set(x, y, z));
-                set.set_run(run.x0, run.x1 - 1, y, z);
+                set_run(grid, run, y, z);
+                set_run(&mut pockets, run, y, z);
             }
         }
-        SparseGrid::from_leaf_sets(spec, vec![set])
+        pockets
     });
     let world = |p: Vec3| (spec.origin + p.as_dvec3() * h).to_array();
     let drains =
         tubes.iter().map(|&(a, b, r)| Drain { from: world(a), to: world(b), radius: f64::from(r) * h }).collect();
     Ok(Hollowing { drains, pockets, tubes, filled_voxels })
+}
+
+/// Sets the voxels of `run` in row `(y, z)`, a word at a time.
+fn set_run(grid: &mut VoxelGrid, run: Run, y: u32, z: u32) {
+    let (row, _) = grid.spec.word_and_bit(0, y, z);
+    let mut x = run.x0;
+    while x < run.x1 {
+        let (w, b) = ((x / 32) as usize, x % 32);
+        let n = (32 - b).min(run.x1 - x);
+        grid.words[row + w] |= if n == 32 { u32::MAX } else { ((1u32 << n) - 1) << b };
+        x += n;
+    }
 }
 
 /// The sealed void's voxel nearest the grid point `p`: searched in growing cubes around it.

@@ -450,13 +450,14 @@ fn the_cli_drains_reports_pockets_and_refuses_what_it_cannot() {
     for key in ["voxels", "volume", "point"] {
         assert!(!pockets[0][key].is_null(), "{key} in {sealed}");
     }
-    let drained = run(&["--thickness", "2", "--drain", "2", "--up", "z"], "b.npy");
+    let drained = run(&["--thickness", "2", "--drain", "2,1.5", "--up", "z"], "b.npy");
     assert_eq!(drained["pockets"].as_array().map(Vec::len), Some(0), "{drained}");
     let drains = drained["drains"].as_array().expect("drains");
     assert_eq!(drains.len(), 2, "{drained}");
-    // Down the asked up axis: each hole leaves its void downwards in z.
+    // Down the asked up axis: each hole leaves its void downwards in z, 1.5 voxels wide.
     for d in drains {
         assert!(d["to"][2].as_f64() < d["from"][2].as_f64(), "{d}");
+        assert!((d["radius"].as_f64().unwrap_or(0.0) - 1.5 * 0.05).abs() < 1e-9, "{d}");
     }
     let filled = run(&["--thickness", "2", "--fill-pockets"], "c.npy");
     let (v, p) = (sealed["voxels"].as_u64().unwrap_or(0), pockets[0]["voxels"].as_u64().unwrap_or(0));
@@ -473,7 +474,8 @@ fn the_cli_drains_reports_pockets_and_refuses_what_it_cannot() {
         (&["--mode", "surface", "--drain", "1"][..], "--drain and --fill-pockets are for the voids"),
         (&["--mode", "sdf", "--fill-pockets"][..], "--drain and --fill-pockets are for the voids"),
         (&["--mode", "shell", "--drain", "0"][..], "at least one hole"),
-        (&["--mode", "shell", "--drain", "1,2"][..], "give N (holes per void) or X,Y,Z[,R]"),
+        (&["--mode", "shell", "--drain", "1,2,3,4,5"][..], "give N[,R] (holes per void) or X,Y,Z[,R]"),
+        (&["--mode", "shell", "--drain", "x,2mm"][..], "give a number of holes per void"),
         (&["--mode", "shell", "--drain", "1", "--drain", "2"][..], "a number of holes is given once"),
         (&["--mode", "shell", "--drain", "0,0,x"][..], "'x' is not a coordinate"),
         (&["--mode", "shell", "--drain", "1,0,0,2furlongs"][..], "is not one of vx, mm"),

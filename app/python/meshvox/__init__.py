@@ -371,7 +371,11 @@ def voxelize(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
-    thickness: float | None = None,
+    thickness: float | str | None = None,
+    drain: Any = None,
+    fill_pockets: bool = False,
+    up: str | None = None,
+    unit: str | None = None,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
@@ -389,12 +393,48 @@ def voxelize(
     ``.labels``: each voxel's nearest triangle among those touching it, that triangle's material and its glTF node
     or OBJ object. ``progress(done, total)`` is called from this thread now and then. The GIL is released meanwhile, and
     Ctrl-C stops the work.
+
+    For printing (``mode="shell"`` or ``"solid"``; docs/printing.md): ``thickness`` is voxels as a number, or a
+    length with a unit (``"2mm"``, ``"0.5cm"``, ``"0.1in"``) in the mesh's world, whose unit is ``unit`` (``"mm"``,
+    ``"cm"``, ``"m"``, ``"in"``, ``"ft"``; default metres for glTF, millimetres otherwise). ``drain=N`` cuts N
+    drain holes per void on its lowest layers along ``up`` (``"y"`` or ``"z"``; default by the file's convention),
+    ``drain=[(x, y, z), (x, y, z, r)]`` one through each world point (``r`` the radius, default 2 voxels; a
+    number is voxels, a string may have a unit). ``stats["pockets"]`` lists the voids left sealed (``voxels``,
+    ``volume``, ``point``), ``stats["drains"]`` the holes; ``fill_pockets=True`` fills the pockets. A shell with
+    holes or filled pockets has its walls' field in ``.distances`` (below 0 within the walls, the holes cut), so
+    :meth:`VoxelGrid.to_mesh` and saving as a mesh give the walls with the holes.
     """
     out = _native.voxelize(
         _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
-        _attributes(attributes), None if thickness is None else float(thickness),
+        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit),
     )
     return _grid(out)
+
+
+def _length(value: Any) -> str | None:
+    """A length as the engine parses it: a number (voxels) or a string with a unit."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return value
+    return repr(float(value))
+
+
+def _voids(drain: Any, fill_pockets: bool, up: str | None, unit: str | None) -> dict[str, Any]:
+    """``drain=``, ``fill_pockets=``, ``up=`` and ``unit=`` as the engine takes them."""
+    voids: dict[str, Any] = {"drain_holes": None, "drain_radius": None, "drain_points": [],
+                             "fill_pockets": bool(fill_pockets), "up": up, "unit": unit}
+    if drain is None or drain is False:
+        return voids
+    if isinstance(drain, (int, np.integer)) and not isinstance(drain, bool):
+        voids["drain_holes"] = int(drain)
+        return voids
+    for point in drain:
+        p = list(point)
+        if len(p) not in (3, 4):
+            raise ValueError(f"drain=: each point is (x, y, z) or (x, y, z, r), not {point!r}")
+        voids["drain_points"].append(((float(p[0]), float(p[1]), float(p[2])), _length(p[3]) if len(p) == 4 else None))
+    return voids
 
 
 def voxelize_many(
@@ -411,14 +451,18 @@ def voxelize_many(
     progress: Progress | None = None,
     band: float | str = 3,
     attributes: Sequence[str] = (),
-    thickness: float | None = None,
+    thickness: float | str | None = None,
+    drain: Any = None,
+    fill_pockets: bool = False,
+    up: str | None = None,
+    unit: str | None = None,
 ) -> list[VoxelGrid]:
     """Voxelizes many meshes with one engine on ``workers`` threads (default: one per core), as ``meshvox batch``
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
         sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band),
-        _attributes(attributes), None if thickness is None else float(thickness),
+        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit),
     )
     return [_grid(o) for o in outs]
 

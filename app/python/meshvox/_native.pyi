@@ -22,7 +22,8 @@ def voxelize(
     progress: Callable[[int, int], Any] | None,
     band: str,
     attributes: str,
-    thickness: float | None,
+    thickness: str | None,
+    voids: dict[str, Any] | None = None,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
@@ -37,7 +38,8 @@ def voxelize_many(
     workers: int | None,
     band: str,
     attributes: str,
-    thickness: float | None,
+    thickness: str | None,
+    voids: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]: ...
 def voxelize_points(
     points: np.ndarray,
