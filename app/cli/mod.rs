@@ -251,7 +251,7 @@ impl BlockArgs {
         let minecraft = matches!(format, VoxelFormat::Minecraft(_));
         let palette = match &self.palette {
             Some(_) if !minecraft && format != VoxelFormat::Vox => {
-                anyhow::bail!("--palette is for .vox and Minecraft outputs (.schem, .litematic, .nbt)")
+                anyhow::bail!("--palette is for .vox and Minecraft outputs (.schem, .litematic, .nbt, .zip)")
             }
             Some(_) if self.block.is_some() => anyhow::bail!("--block puts one block everywhere: leave out --palette"),
             Some(file) => {
@@ -271,7 +271,7 @@ impl BlockArgs {
         if !minecraft {
             if self.blocks.is_some() || self.block.is_some() {
                 anyhow::bail!(
-                    "--blocks and --block are for Minecraft outputs: use a .schem, .litematic or .nbt output"
+                    "--blocks and --block are for Minecraft outputs: use a .schem, .litematic, .nbt or .zip output"
                 );
             }
             if self.dither && palette.is_none() {

@@ -29,8 +29,8 @@ pub(super) struct VoxelizeArgs {
     pub(super) axis: Axis,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB), .nvdb (NanoVDB)
     /// or .npz (sorted coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
-    /// .schem, .litematic or .nbt for Minecraft (Sponge v3, Litematica, a structure file up to 48³; blocks
-    /// by colour: --blocks, --block, --dither).
+    /// .schem, .litematic, .nbt or .zip for Minecraft (Sponge v3, Litematica, a structure file up to 48³, or
+    /// structure files of 48³ in a datapack that places them; blocks by colour: --blocks, --block, --dither).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(super) output: PathBuf,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).
@@ -218,6 +218,7 @@ pub(super) fn voxelize_loaded(
         blocks: colour_map.blocks.as_ref(),
         palette: colour_map.palette.as_ref(),
         dither: args.blocks.dither,
+        name: args.output.file_stem().and_then(|s| s.to_str()),
         ..Default::default()
     };
     let bytes = write_atomically(temp, &args.output, |out| Ok(voxelized.write(format, &options, out)?))?;

@@ -65,7 +65,7 @@ pub enum VoxelFormat {
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 13] = [
+    pub const ALL: [VoxelFormat; 14] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -79,6 +79,7 @@ impl VoxelFormat {
         VoxelFormat::Minecraft(MinecraftFormat::Schem),
         VoxelFormat::Minecraft(MinecraftFormat::Litematic),
         VoxelFormat::Minecraft(MinecraftFormat::Structure),
+        VoxelFormat::Minecraft(MinecraftFormat::Tiles),
     ];
 
     /// The format named by a file's extension.
@@ -213,12 +214,15 @@ pub struct WriteOptions<'a> {
     pub palette: Option<&'a Swatches>,
     /// Dither the colours to the palette when there is one, else to the blocks.
     pub dither: bool,
+    /// The model's name for the structure tiles' datapack (its function and folder; `None`: `model`), the output
+    /// file's name where a client writes one.
+    pub name: Option<&'a str>,
 }
 
 /// Writes a Minecraft schematic of `grid`: each voxel's block the nearest in `options.blocks` to its colour
 /// (dithered on request), or the set's first block without colours ([`BlockSet::assign`]); with
 /// `options.palette`, to its colour's nearest palette entry.
-fn write_minecraft<W: Write>(
+fn write_minecraft<W: Write + Seek>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
     format: MinecraftFormat,
@@ -239,7 +243,13 @@ fn write_minecraft<W: Write>(
         Some(palette) => set.assign(grid, Some(&palette.recolour(grid, colours, options.dither)), false),
         None => set.assign(grid, colours, options.dither),
     };
-    minecraft::write(grid, &blocks, set, format, "meshvox", out)
+    // The schematics keep the name they always had (the page's files are the CLI's bytes); the tiles' datapack
+    // is named for its file, so that two models' packs do not clash.
+    let name = match format {
+        MinecraftFormat::Tiles => options.name.unwrap_or("model"),
+        _ => "meshvox",
+    };
+    minecraft::write(grid, &blocks, set, format, name, out)
 }
 
 /// Writes either grid in `format` with its colours where the format holds them: a dense grid into a sparse

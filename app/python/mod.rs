@@ -519,6 +519,7 @@ fn save(
         blocks: blocks.as_ref(),
         palette: palette.as_ref(),
         dither,
+        name: path.file_stem().and_then(|s| s.to_str()),
         ..Default::default()
     };
     let written = process::run(py, None, |_| from_matrix::write(&path, format, &grid, colours.as_ref(), &options))?;

@@ -68,8 +68,9 @@ pub struct Drain {
     pub radius: f64,
 }
 
-/// What [`hollow`] did: the holes it cut, the pockets left sealed (filled where asked), and the holes as grid-space
-/// segments (`(from, to, radius)` in voxels) for the walls' mesh.
+/// What [`hollow`] did: the holes it cut, the pockets left sealed (filled where asked), and for the walls' mesh
+/// ([`super::shell::walls_field`]) the holes as grid-space segments with their radii, `(from, to, radius)` in
+/// voxels, and the filled pockets' voxels.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Hollowing {
     pub drains: Vec<Drain>,
@@ -82,7 +83,7 @@ pub struct Hollowing {
 /// Why a drain cannot be cut.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum VoidError {
-    #[error("no void to drain at ({}, {}, {}): the model has no hollow or cavity there (a shell's inside, a cavity)", .0[0], .0[1], .0[2])]
+    #[error("no void to drain at ({}, {}, {}): nothing in this model is sealed (no shell's hollow, no cavity)", .0[0], .0[1], .0[2])]
     NothingToDrain([f64; 3]),
 }
 
@@ -99,7 +100,7 @@ struct Voids {
     /// Row `r`'s runs are `runs[starts[r]..starts[r + 1]]` (rows `z * dims.y + y`).
     starts: Vec<u32>,
     runs: Vec<Run>,
-    /// Each run's component root; `OUTSIDE`'s for those joined to the outside.
+    /// Each run's component root, and the outside's (a node after the runs, joined to every run on the boundary).
     roots: Vec<u32>,
     outside: u32,
 }
@@ -126,7 +127,7 @@ impl Voids {
     fn find(grid: &VoxelGrid) -> Voids {
         let dims = grid.spec.dims;
         let wpr = grid.spec.words_per_row();
-        let rows = (dims.y * dims.z) as usize;
+        let rows = dims.y as usize * dims.z as usize;
         let mut starts = Vec::with_capacity(rows + 1);
         let mut runs = Vec::new();
         for r in 0..rows {
@@ -148,7 +149,7 @@ impl Voids {
         let mut parent: Vec<u32> = (0..=outside).collect();
         for z in 0..dims.z {
             for y in 0..dims.y {
-                let r = (z * dims.y + y) as usize;
+                let r = z as usize * dims.y as usize + y as usize;
                 let here = starts[r]..starts[r + 1];
                 let edge_row = y == 0 || z == 0 || y + 1 == dims.y || z + 1 == dims.z;
                 for i in here.clone() {
@@ -191,7 +192,8 @@ impl Voids {
 
     /// Row `r`'s (y, z).
     fn row_yz(&self, r: usize) -> (u32, u32) {
-        (r as u32 % self.dims.y, r as u32 / self.dims.y)
+        let dims_y = self.dims.y as usize;
+        ((r % dims_y) as u32, (r / dims_y) as u32)
     }
 
     /// The row of run `i`.
@@ -201,7 +203,7 @@ impl Voids {
 
     /// The component root of the empty voxel `v`, or `None` where it is set.
     fn root_at(&self, v: UVec3) -> Option<u32> {
-        let r = (v.z * self.dims.y + v.y) as usize;
+        let r = v.z as usize * self.dims.y as usize + v.y as usize;
         let row = &self.runs[self.starts[r] as usize..self.starts[r + 1] as usize];
         let k = row.partition_point(|run| run.x1 <= v.x);
         row.get(k).filter(|run| run.x0 <= v.x).map(|_| self.roots[self.starts[r] as usize + k])
@@ -369,9 +371,15 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         DrainPlan::At(points) => {
             let voids = Voids::find(grid);
             let outside = voids.outside_root();
+            let none = voids.sealed().is_empty();
             for &(point, r) in points {
                 let p = spec.world_to_grid(point);
-                let from = nearest_void(&voids, p, outside).ok_or(VoidError::NothingToDrain(point.to_array()))?;
+                let nearest = match none {
+                    // Nothing sealed: no search of the whole grid to say so.
+                    true => None,
+                    false => nearest_void(&voids, p, outside),
+                };
+                let from = nearest.ok_or(VoidError::NothingToDrain(point.to_array()))?;
                 let from = from.as_vec3() + 0.5;
                 let dir = (p - from).try_normalize().unwrap_or(down);
                 tubes.push((from, through_wall(grid, from, dir), radius(r)));

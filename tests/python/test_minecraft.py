@@ -158,7 +158,44 @@ def test_a_structure_file_over_48_blocks_is_refused_naming_the_others(cli, tmp_p
                           "--backend", "cpu"], capture_output=True, text=True)
     assert out.returncode != 0 and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert "48" in out.stderr and ".schem" in out.stderr and ".litematic" in out.stderr, out.stderr
+    assert ".zip" in out.stderr, out.stderr
     assert not (tmp_path / "big.nbt").exists()
+
+
+def test_structure_tiles_reassemble_into_the_schematics_blocks(meshes, cli, tmp_path):
+    import json
+    import zipfile
+
+    duck = str(meshes / "gltf" / "Duck.glb")
+    for ext in ("schem", "zip"):
+        run_cli(cli, "voxelize", duck, "-r", "101", "-o", str(tmp_path / f"Big Duck.{ext}"), "--backend", "cpu",
+                "--dither")
+    schem, _, _ = read_schem(tmp_path / "Big Duck.schem")
+    assert max(schem.shape) > 96, "the grid needs three tiles along its longest side"
+    with zipfile.ZipFile(tmp_path / "Big Duck.zip") as pack:
+        names = set(pack.namelist())
+        manifest = json.loads(pack.read("manifest.json"))
+        mcmeta = json.loads(pack.read("pack.mcmeta"))
+        function = pack.read("data/meshvox/functions/big_duck.mcfunction").decode().splitlines()
+        assert mcmeta["pack"]["pack_format"] == 15
+        assert manifest["name"] == "big_duck" and manifest["tile"] == 48 and manifest["function"] == "meshvox:big_duck"
+        assert manifest["size"] == list(schem.shape)
+        assembled = np.full(schem.shape, "minecraft:air", dtype=object)
+        for tile in manifest["tiles"]:
+            assert tile["file"] in names
+            ox, oy, oz = tile["offset"]
+            stem = f"{ox}_{oy}_{oz}"
+            assert tile["file"] == f"data/meshvox/structures/big_duck/{stem}.nbt"
+            assert f"place template meshvox:big_duck/{stem} ~{ox} ~{oy} ~{oz}" in function
+            (tmp_path / "tile.nbt").write_bytes(pack.read(tile["file"]))
+            blocks, _, root = read_structure(tmp_path / "tile.nbt")
+            assert [int(v) for v in root["size"]] == tile["size"] and max(tile["size"]) <= 48
+            assert len(root["blocks"]) == tile["blocks"] > 0
+            sx, sy, sz = blocks.shape
+            assert (assembled[ox:ox + sx, oy:oy + sy, oz:oz + sz] == "minecraft:air").all(), "tiles overlap"
+            assembled[ox:ox + sx, oy:oy + sy, oz:oz + sz] = blocks
+        assert len(function) == len(manifest["tiles"])
+    assert np.array_equal(assembled, schem)
 
 
 def test_one_block_a_users_set_and_an_uncoloured_mesh(meshes, cli, tmp_path):

@@ -1,12 +1,13 @@
-//! The three Minecraft formats, each a gzipped NBT file of blocks: WorldEdit's Sponge v3 schematic ([`schem`]),
-//! Litematica's `.litematic` ([`litematic`]) and the game's own structure-block file ([`structure`], `.nbt`,
-//! at most [`structure::MAX_SIDE`] along each axis). One set voxel is one block of a [`BlockSet`], picked by
+//! The Minecraft formats, each gzipped NBT files of blocks: WorldEdit's Sponge v3 schematic ([`schem`]),
+//! Litematica's `.litematic` ([`litematic`]), the game's own structure-block file ([`structure`], `.nbt`, at most
+//! [`structure::MAX_SIDE`] along each axis) and a model of any size as such files in a datapack ([`tiles`], `.zip`). One set voxel is one block of a [`BlockSet`], picked by
 //! [`BlockSet::assign`]; the grid's y is Minecraft's up, and its voxel `(x, y, z)` is the block at `(x, y, z)`
 //! from the schematic's origin. The layouts and their sources are in `docs/minecraft-formats.md`.
 
 pub mod litematic;
 pub mod schem;
 pub mod structure;
+pub mod tiles;
 
 use super::FormatError;
 use crate::formats::blocks::{BlockSet, block_state};
@@ -49,6 +50,8 @@ pub enum MinecraftFormat {
     Litematic,
     /// A structure-block file (`.nbt`).
     Structure,
+    /// Structure files of at most 48³ in a datapack that places them (`.zip`).
+    Tiles,
 }
 
 impl MinecraftFormat {
@@ -57,6 +60,7 @@ impl MinecraftFormat {
             MinecraftFormat::Schem => "schem",
             MinecraftFormat::Litematic => "litematic",
             MinecraftFormat::Structure => "nbt",
+            MinecraftFormat::Tiles => "zip",
         }
     }
 }
@@ -127,7 +131,7 @@ pub(super) fn write_nbt<W: Write, T: Serialize>(root: &T, out: &mut W) -> Result
 
 /// Writes `grid` in `format`, set voxel `i` (in [`VoxelGrid::iter_set`]'s order) as block `set.ids[blocks[i]]`,
 /// named `name` where the format keeps a name.
-pub fn write<W: Write>(
+pub fn write<W: Write + std::io::Seek>(
     grid: &VoxelGrid,
     blocks: &[u16],
     set: &BlockSet,
@@ -139,5 +143,6 @@ pub fn write<W: Write>(
         MinecraftFormat::Schem => schem::write_schem(grid, blocks, set, name, out),
         MinecraftFormat::Litematic => litematic::write_litematic(grid, blocks, set, name, out),
         MinecraftFormat::Structure => structure::write_structure(grid, blocks, set, out),
+        MinecraftFormat::Tiles => tiles::write_tiles(grid, blocks, set, name, out),
     }
 }

@@ -1,6 +1,6 @@
 //! The game's structure-block file (`.nbt`): gzipped NBT listing each block with its position, for boxes up to
 //! [`MAX_SIDE`] along each axis (the structure block's limit in Java since 1.16); larger grids are refused with a
-//! message naming `.schem` and `.litematic`.
+//! message naming `.schem`, `.litematic` and `.zip` (the same files in tiles, [`super::tiles`]).
 //!
 //! # Layout (minecraft.wiki "Structure file"; docs/minecraft-formats.md)
 //! An unnamed root compound: `DataVersion` (Int: [`DATA_VERSION`]), `size` (a list of three Ints: the grid's x,
@@ -63,7 +63,7 @@ pub fn write_structure<W: Write>(
     if d.max_element() > MAX_SIDE {
         return Err(FormatError::TooLarge(format!(
             "a structure file (.nbt) is at most {MAX_SIDE}×{MAX_SIDE}×{MAX_SIDE} blocks (the structure block's \
-             limit); this grid is {}×{}×{}: write a .schem or .litematic instead",
+             limit); this grid is {}×{}×{}: write a .schem, .litematic or .zip (structure tiles) instead",
             d.x, d.y, d.z
         )));
     }

@@ -215,11 +215,11 @@ class VoxelGrid:
         ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
         in the mesh formats."""
         suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
-        minecraft = suffix in ("schem", "litematic", "nbt")
+        minecraft = suffix in ("schem", "litematic", "nbt", "zip")
         if (blocks is not None or block is not None) and not minecraft:
-            raise ValueError("blocks= and block= are for Minecraft files: save as .schem, .litematic or .nbt")
+            raise ValueError("blocks= and block= are for Minecraft files: save as .schem, .litematic, .nbt or .zip")
         if palette is not None and not (minecraft or suffix == "vox"):
-            raise ValueError("palette= is for .vox and Minecraft files (.schem, .litematic, .nbt)")
+            raise ValueError("palette= is for .vox and Minecraft files (.schem, .litematic, .nbt, .zip)")
         if dither and not (minecraft or palette is not None):
             raise ValueError("dither= is for Minecraft files, and for .vox with palette=")
         if block is not None and (blocks is not None or palette is not None):
