@@ -470,7 +470,24 @@ impl Engine {
             );
         }
         let instances = made.instances;
-        Ok(Voxelized { grid: made.grid, field, shell, hollowing, colours, labels, instances, report, notices })
+        // A field written as a mesh takes the source's colours at its vertices, when it is written.
+        let colour_source = (field.is_some()
+            && request.format.is_some_and(|f| f.is_mesh())
+            && request.colour != Some(false)
+            && mesh.has_colour())
+        .then(|| std::sync::Arc::new(mesh.clone()));
+        Ok(Voxelized {
+            grid: made.grid,
+            field,
+            shell,
+            hollowing,
+            colour_source,
+            colours,
+            labels,
+            instances,
+            report,
+            notices,
+        })
     }
 
     /// A shell's or a solid's voids for printing ([`voxel::voids`]): the drain holes asked for cut, the pockets
@@ -584,6 +601,7 @@ impl Engine {
             field: None,
             shell: None,
             hollowing: None,
+            colour_source: None,
             colours,
             labels: None,
             instances: None,

@@ -143,6 +143,8 @@ pub struct Voxelized {
     /// A shell's or solid's voids ([`crate::voxel::voids`]): the drain holes cut (which the shell's walls have
     /// too) and the pockets left.
     pub hollowing: Option<Hollowing>,
+    /// A field written as a mesh from a coloured mesh: that mesh, whose colours the level set's vertices take.
+    pub colour_source: Option<std::sync::Arc<crate::mesh::Mesh>>,
     pub colours: Option<VoxelColours>,
     /// The per-voxel labels asked for (`Request::attributes`), on dense grids.
     pub labels: Option<Labels>,
@@ -167,13 +169,14 @@ impl Voxelized {
             // A field written as a mesh: its level set, or a shell's walls, meshed here and written as a mesh.
             (Some(field), VoxelFormat::Mesh(mesh)) => {
                 let progress = options.progress.unwrap_or(&|_, _| {});
+                let colour = self.colour_source.as_ref();
                 match (self.shell, &self.hollowing) {
                     // Holes or filled pockets: the walls are one level set of the shell's own field.
                     (Some(thickness), Some(h)) if !h.tubes.is_empty() || h.filled_voxels.is_some() => {
                         let walls = crate::voxel::shell::walls_field(field, thickness, h);
-                        write_field_mesh(&walls, None, 0.0, progress, mesh, out)
+                        write_field_mesh(&walls, None, 0.0, colour, progress, mesh, out)
                     }
-                    _ => write_field_mesh(field, self.shell, options.level, progress, mesh, out),
+                    _ => write_field_mesh(field, self.shell, options.level, colour, progress, mesh, out),
                 }
             }
             (Some(field), _) if self.shell.is_none() => formats::write_field(field, format, out),
@@ -186,16 +189,24 @@ impl Voxelized {
 }
 
 /// Writes `field` as the mesh `format`: its level set at `level`, or with `shell` (a thickness in voxels) the walls
-/// of the shell cut from it, made first ([`crate::voxel::shell::field_mesh`]) and handed to the mesh writer.
+/// of the shell cut from it, made first ([`crate::voxel::shell::field_mesh`]) and handed to the mesh writer; with
+/// `colour`, the mesh the field was made from, each vertex coloured as that mesh is at its nearest point.
 /// [`Voxelized::write`] and Python's `save_field` write a field's meshes through it.
+#[allow(clippy::too_many_arguments)]
 pub fn write_field_mesh(
     field: &DistanceField,
     shell: Option<f32>,
     level: f64,
+    colour: Option<&std::sync::Arc<crate::mesh::Mesh>>,
     progress: &(dyn Fn(usize, usize) + Sync),
     format: formats::MeshFormat,
     out: &mut impl std::io::Write,
 ) -> Result<(), FormatError> {
-    let surface = crate::voxel::shell::field_mesh(field, shell, level, progress).map_err(std::io::Error::other)?;
+    let mut surface = crate::voxel::shell::field_mesh(field, shell, level, progress).map_err(std::io::Error::other)?;
+    // Each vertex the colour of the source mesh at its nearest point, where the format holds colours.
+    if let Some(source) = colour.filter(|_| format.holds_colour()) {
+        surface.colours = crate::voxel::colour::colour_points(source, &surface.vertices)
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
+    }
     formats::surface::write_surface(&surface, format, out)
 }

@@ -49,6 +49,11 @@ impl MeshFormat {
             MeshFormat::Stl => "stl",
         }
     }
+
+    /// Whether the format holds vertex colours (STL has none).
+    pub fn holds_colour(self) -> bool {
+        self != MeshFormat::Stl
+    }
 }
 
 /// One exposed face: its corners in grid units from the grid origin (counter-clockwise seen from outside) and the

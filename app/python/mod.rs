@@ -556,7 +556,9 @@ fn save_field(
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::formats::atomic::write_atomically(&path, |out| match format {
             // The level set, or the shell's walls, made first and written as a mesh (as the engine writes them).
-            VoxelFormat::Mesh(mesh) => crate::engine::write_field_mesh(&field, thickness, level, &|_, _| {}, mesh, out),
+            VoxelFormat::Mesh(mesh) => {
+                crate::engine::write_field_mesh(&field, thickness, level, None, &|_, _| {}, mesh, out)
+            }
             _ if thickness.is_some() => Err(std::io::Error::other(format!(
                 "a shell's walls are written as {}",
                 VoxelFormat::listed(VoxelFormat::is_mesh)

@@ -122,6 +122,27 @@ pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadin
     })
 }
 
+/// The colour of `mesh` (texture, vertex colours, material, as [`shade`] gives a voxel's) at each world point's
+/// nearest point on it: the query's nearest triangle ([`super::query::Prepared`], exact, the first in the mesh's
+/// order at a tie) at its barycentric coordinates; `None` where the mesh has no colour. A level set's or a
+/// shell's vertices take the colours the voxel model shows.
+pub fn colour_points(
+    mesh: &std::sync::Arc<crate::mesh::Mesh>,
+    points: &[glam::DVec3],
+) -> Result<Option<Vec<[u8; 4]>>, super::query::QueryError> {
+    let Some(shading) = mesh.shading.as_ref().filter(|s| s.has_colour()) else { return Ok(None) };
+    let prepared = super::query::Prepared::new(mesh.clone())?;
+    let answers = prepared.query(points, super::query::Sign::Unsigned, false)?;
+    Ok(Some(parallel::install(|| {
+        answers
+            .triangle
+            .par_iter()
+            .zip(&answers.barycentric)
+            .map(|(&t, w)| pack_colour(shade(shading, &shading.triangles[t as usize], Vec3::from_array(*w))))
+            .collect()
+    })))
+}
+
 /// Gives every voxel left uncoloured (alpha 0: no triangle within reach) the colour of the nearest coloured voxel
 /// before it in its x-row, or after it when none is before (see the module docs). A row with no coloured voxel
 /// at all (rare: a solid row whose surface voxels lie in other rows) is treated the same way in storage order.

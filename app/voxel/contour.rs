@@ -46,6 +46,8 @@ pub struct TriangleMesh {
     pub vertices: Vec<DVec3>,
     /// Counter-clockwise seen from outside.
     pub faces: Vec<[u32; 3]>,
+    /// Per vertex, sRGB RGBA from the source mesh's colours ([`super::colour::colour_points`]), where it has any.
+    pub colours: Option<Vec<[u8; 4]>>,
 }
 
 impl TriangleMesh {
@@ -125,7 +127,7 @@ pub fn level_mesh_with_progress(
     let index = |k: u64| keyed.binary_search_by_key(&k, |(key, _)| *key).map_or(u32::MAX, |i| i as u32);
     let faces: Vec<[u32; 3]> =
         parallel::install(|| pieces.par_iter().flat_map_iter(|(_, tris)| tris.iter().map(|t| t.map(index))).collect());
-    Ok(TriangleMesh { vertices: keyed.into_iter().map(|(_, p)| p).collect(), faces })
+    Ok(TriangleMesh { vertices: keyed.into_iter().map(|(_, p)| p).collect(), faces, colours: None })
 }
 
 /// Each leaf position's side, with a border of outside positions: `(leaf_dims + 2)³`, index by [`state_at`].
