@@ -12,9 +12,10 @@
 //! A hole is a cylinder of empty voxels (every voxel whose centre is within its radius of the axis segment) from a
 //! void through the wall below it: from the void's voxel straight down the up axis, or from the void's voxel
 //! nearest an asked point through that point, on until the first empty voxel beyond the wall (the outside or
-//! another void, itself drained) or the grid's end. `--drain N` places N holes per void on its lowest layer: the
-//! first nearest the middle of that layer, each next one farthest from those before. A hole's radius is at least
-//! one voxel, so its axis is a face-connected path of empty voxels whatever its direction.
+//! another void, itself drained) or the grid's end. `--drain N` places up to N holes per void: the first on its
+//! lowest layer nearest the middle of that layer, each next the farthest from those before among the void's lowest
+//! few layers and at least a hole's width plus two voxels from each (fewer where the bottom has no room). A hole's
+//! radius is at least one voxel, so its axis is a face-connected path of empty voxels whatever its direction.
 //!
 //! # Pockets
 //! The voids still sealed after the holes (all of them where no hole was asked): `--stats-json`'s `pockets`, each
@@ -350,7 +351,9 @@ fn cut_tube(grid: &mut VoxelGrid, a: Vec3, b: Vec3, radius: f32) {
 pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidError> {
     let spec = grid.spec;
     let u = up_index(hollow.up);
-    let radius = |r: Option<Length>| r.map_or(DRAIN_RADIUS, |r| r.in_voxels(&spec, hollow.unit)).max(1.0) as f32;
+    let radius = |r: Option<Length>| r.map_or(DRAIN_RADIUS, |r| r.in_voxels(&spec, hollow.unit)).max(1.0);
+    // Each hole's radius in voxels as asked (f64, for the report; the cut takes it in f32).
+    let mut radii: Vec<f64> = Vec::new();
     let mut tubes: Vec<(Vec3, Vec3, f32)> = Vec::new();
     let mut down = Vec3::ZERO;
     down[u] = -1.0;
@@ -360,11 +363,12 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
             let voids = Voids::find(grid);
             let r = radius(*r);
             // Holes at least a wall's width apart, from the void's lowest layers up to a few holes' widths.
-            let (spacing, layers) = (2.0 * r + 2.0, 2 * (r.ceil() as u32 + 1));
+            let (spacing, layers) = (2.0 * r as f32 + 2.0, 2 * (r.ceil() as u32 + 1));
             for runs in voids.sealed() {
                 for v in spread(&lowest_layers(&voids, &runs, u, layers), *holes, spacing) {
                     let from = v.as_vec3() + 0.5;
-                    tubes.push((from, through_wall(grid, from, down), r));
+                    tubes.push((from, through_wall(grid, from, down), r as f32));
+                    radii.push(r);
                 }
             }
         }
@@ -382,7 +386,8 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
                 let from = nearest.ok_or(VoidError::NothingToDrain(point.to_array()))?;
                 let from = from.as_vec3() + 0.5;
                 let dir = (p - from).try_normalize().unwrap_or(down);
-                tubes.push((from, through_wall(grid, from, dir), radius(r)));
+                tubes.push((from, through_wall(grid, from, dir), radius(r) as f32));
+                radii.push(radius(r));
             }
         }
     }
@@ -415,8 +420,11 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         pockets
     });
     let world = |p: Vec3| (spec.origin + p.as_dvec3() * h).to_array();
-    let drains =
-        tubes.iter().map(|&(a, b, r)| Drain { from: world(a), to: world(b), radius: f64::from(r) * h }).collect();
+    let drains = tubes
+        .iter()
+        .zip(&radii)
+        .map(|(&(a, b, _), &r)| Drain { from: world(a), to: world(b), radius: r * h })
+        .collect();
     Ok(Hollowing { drains, pockets, tubes, filled_voxels })
 }
 
