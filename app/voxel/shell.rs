@@ -96,7 +96,8 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
                 leaf.iter().enumerate().map(move |(i, &d)| {
                     let v = origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
                     if v.cmplt(field.spec.dims).all() && filled(v) {
-                        return d;
+                        // Inside, whichever side of the mesh the pocket was on (a cavity is outside it).
+                        return (-d.abs()).min(-f32::MIN_POSITIVE);
                     }
                     let c = v.as_vec3() + 0.5;
                     let hole = tubes

@@ -201,14 +201,6 @@ impl Voids {
     fn row_of(&self, i: u32) -> usize {
         self.starts.partition_point(|&s| s <= i) - 1
     }
-
-    /// The component root of the empty voxel `v`, or `None` where it is set.
-    fn root_at(&self, v: UVec3) -> Option<u32> {
-        let r = v.z as usize * self.dims.y as usize + v.y as usize;
-        let row = &self.runs[self.starts[r] as usize..self.starts[r + 1] as usize];
-        let k = row.partition_point(|run| run.x1 <= v.x);
-        row.get(k).filter(|run| run.x0 <= v.x).map(|_| self.roots[self.starts[r] as usize + k])
-    }
 }
 
 /// Joins the runs of `a` and `b` (two neighbouring rows, each sorted) that overlap in x.
@@ -269,10 +261,24 @@ fn lowest_layers(voids: &Voids, runs: &[u32], u: usize, layers: u32) -> Vec<(UVe
         .collect()
 }
 
-/// Up to `holes` hole positions among `low` (voxels with their height above the void's lowest layer): the first on
-/// the lowest layer nearest its middle, each next the farthest from those chosen, at least `spacing` from each so
-/// that the holes do not run into one another (fewer holes where the void's bottom has no room for them).
-fn spread(low: &[(UVec3, u32)], holes: u32, spacing: f32) -> Vec<UVec3> {
+/// Whether the voxel below `v` along axis `u` is set (part of a wall).
+fn grid_below(grid: &VoxelGrid, v: UVec3, u: usize) -> bool {
+    let mut below = v;
+    below[u] -= 1;
+    grid.get(below.x, below.y, below.z)
+}
+
+/// Up to `holes` hole positions among `low` (voxels with their height above the void's lowest layer along axis
+/// `u`): the first on the lowest layer nearest its middle, each next the farthest from those chosen, at least
+/// `spacing` from each across the up axis (the holes run along it) so that they do not run into one another
+/// (fewer holes where the void's bottom has no room for them).
+fn spread(low: &[(UVec3, u32)], holes: u32, spacing: f32, u: usize) -> Vec<UVec3> {
+    // Positions across the up axis: a hole's distance from another is its axis's.
+    let flat = |v: UVec3| {
+        let mut p = v.as_vec3();
+        p[u] = 0.0;
+        p
+    };
     let floor: Vec<Vec3> = low.iter().filter(|(_, h)| *h == 0).map(|(v, _)| v.as_vec3()).collect();
     if floor.is_empty() || holes == 0 {
         return Vec::new();
@@ -284,7 +290,7 @@ fn spread(low: &[(UVec3, u32)], holes: u32, spacing: f32) -> Vec<UVec3> {
         .min_by(|a, b| a.0.as_vec3().distance_squared(middle).total_cmp(&b.0.as_vec3().distance_squared(middle)))
         .map(|(v, _)| *v);
     let mut chosen: Vec<UVec3> = first.into_iter().collect();
-    let mut nearest: Vec<f32> = low.iter().map(|(v, _)| v.as_vec3().distance_squared(chosen[0].as_vec3())).collect();
+    let mut nearest: Vec<f32> = low.iter().map(|(v, _)| flat(*v).distance_squared(flat(chosen[0]))).collect();
     while chosen.len() < holes as usize {
         // The farthest, the lower of equals.
         let best = nearest
@@ -299,7 +305,7 @@ fn spread(low: &[(UVec3, u32)], holes: u32, spacing: f32) -> Vec<UVec3> {
         let v = low[k].0;
         chosen.push(v);
         for (n, (w, _)) in nearest.iter_mut().zip(low) {
-            *n = n.min(w.as_vec3().distance_squared(v.as_vec3()));
+            *n = n.min(flat(*w).distance_squared(flat(v)));
         }
     }
     chosen
@@ -351,7 +357,10 @@ fn cut_tube(grid: &mut VoxelGrid, a: Vec3, b: Vec3, radius: f32) {
 pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidError> {
     let spec = grid.spec;
     let u = up_index(hollow.up);
-    let radius = |r: Option<Length>| r.map_or(DRAIN_RADIUS, |r| r.in_voxels(&spec, hollow.unit)).max(1.0);
+    // At least a voxel, at most the grid's longest side (a radius in the wrong unit cuts the grid, not a panic).
+    let longest = f64::from(spec.dims.max_element());
+    let radius =
+        |r: Option<Length>| r.map_or(DRAIN_RADIUS, |r| r.in_voxels(&spec, hollow.unit)).clamp(1.0, longest.max(1.0));
     // Each hole's radius in voxels as asked (f64, for the report; the cut takes it in f32).
     let mut radii: Vec<f64> = Vec::new();
     let mut tubes: Vec<(Vec3, Vec3, f32)> = Vec::new();
@@ -365,7 +374,10 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
             // Holes at least a wall's width apart, from the void's lowest layers up to a few holes' widths.
             let (spacing, layers) = (2.0 * r as f32 + 2.0, 2 * (r.ceil() as u32 + 1));
             for runs in voids.sealed() {
-                for v in spread(&lowest_layers(&voids, &runs, u, layers), *holes, spacing) {
+                // A hole starts on the void's floor: a voxel with wall (or the grid's end) right below it.
+                let mut low = lowest_layers(&voids, &runs, u, layers);
+                low.retain(|&(v, height)| height == 0 || grid_below(grid, v, u));
+                for v in spread(&low, *holes, spacing, u) {
                     let from = v.as_vec3() + 0.5;
                     tubes.push((from, through_wall(grid, from, down), r as f32));
                     radii.push(r);
@@ -375,15 +387,9 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         DrainPlan::At(points) => {
             let voids = Voids::find(grid);
             let outside = voids.outside_root();
-            let none = voids.sealed().is_empty();
             for &(point, r) in points {
                 let p = spec.world_to_grid(point);
-                let nearest = match none {
-                    // Nothing sealed: no search of the whole grid to say so.
-                    true => None,
-                    false => nearest_void(&voids, p, outside),
-                };
-                let from = nearest.ok_or(VoidError::NothingToDrain(point.to_array()))?;
+                let from = nearest_void(&voids, p, outside).ok_or(VoidError::NothingToDrain(point.to_array()))?;
                 let from = from.as_vec3() + 0.5;
                 let dir = (p - from).try_normalize().unwrap_or(down);
                 tubes.push((from, through_wall(grid, from, dir), radius(r) as f32));
@@ -401,7 +407,7 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         .iter()
         .map(|runs| {
             let voxels = runs.iter().map(|&i| u64::from(voids.runs[i as usize].x1 - voids.runs[i as usize].x0)).sum();
-            let first = spread(&lowest_layers(&voids, runs, u, 1), 1, 0.0);
+            let first = spread(&lowest_layers(&voids, runs, u, 1), 1, 0.0, u);
             let point = first.first().map_or(DVec3::ZERO, |v| spec.voxel_center(*v));
             Pocket { voxels, volume: voxels as f64 * h * h * h, point: point.to_array() }
         })
@@ -440,35 +446,20 @@ fn set_run(grid: &mut VoxelGrid, run: Run, y: u32, z: u32) {
     }
 }
 
-/// The sealed void's voxel nearest the grid point `p`: searched in growing cubes around it.
+/// The sealed voxel nearest the grid point `p` (the first run's at a tie): each sealed run's voxel nearest `p`,
+/// over every sealed run, so a point anywhere (outside the grid too) finds the nearest void in O(runs).
 fn nearest_void(voids: &Voids, p: Vec3, outside: u32) -> Option<UVec3> {
-    let dims = voids.dims.as_ivec3();
-    let c = p.floor().as_ivec3();
     let mut best: Option<(f32, UVec3)> = None;
-    for r in 0..=dims.max_element() {
-        // Every voxel within the cube of half-width r not yet looked at (its shell); stop once nothing nearer can
-        // lie further out.
-        if let Some((d2, _)) = best
-            && (r as f32 - 1.0).max(0.0).powi(2) > d2
-        {
-            break;
+    for (i, run) in voids.runs.iter().enumerate() {
+        if voids.roots[i] == outside {
+            continue;
         }
-        for z in (c.z - r).max(0)..=(c.z + r).min(dims.z - 1) {
-            for y in (c.y - r).max(0)..=(c.y + r).min(dims.y - 1) {
-                for x in (c.x - r).max(0)..=(c.x + r).min(dims.x - 1) {
-                    let on_shell = (x - c.x).abs() == r || (y - c.y).abs() == r || (z - c.z).abs() == r;
-                    if !on_shell {
-                        continue;
-                    }
-                    let v = UVec3::new(x as u32, y as u32, z as u32);
-                    if voids.root_at(v).is_some_and(|root| root != outside) {
-                        let d2 = (v.as_vec3() + 0.5).distance_squared(p);
-                        if best.is_none_or(|(b, _)| d2 < b) {
-                            best = Some((d2, v));
-                        }
-                    }
-                }
-            }
+        let (y, z) = voids.row_yz(voids.row_of(i as u32));
+        let x = (p.x - 0.5).round().clamp(run.x0 as f32, (run.x1 - 1) as f32) as u32;
+        let v = UVec3::new(x, y, z);
+        let d2 = (v.as_vec3() + 0.5).distance_squared(p);
+        if best.is_none_or(|(b, _)| d2 < b) {
+            best = Some((d2, v));
         }
     }
     best.map(|(_, v)| v)

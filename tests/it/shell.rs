@@ -489,3 +489,33 @@ fn the_cli_drains_reports_pockets_and_refuses_what_it_cannot() {
         assert!(!dir.path().join("x.npy").exists());
     }
 }
+
+#[test]
+fn filled_pockets_leave_one_closed_wall_whichever_side_of_the_mesh_they_were() {
+    // A ball with a cavity, hollowed: two sealed voids, the shell's hollow (inside the mesh) and the cavity
+    // (outside it). Filled, the whole ball is solid and its walls are one closed sphere.
+    let cpu = Engine::open(Backend::Cpu).expect("cpu");
+    let mesh = ball_with_cavity(0.5);
+    let drain = DrainPlan::None;
+    let request = Request {
+        thickness: Length::Voxels(2.0),
+        fill_pockets: true,
+        drain: &drain,
+        grid: GridKind::Sparse,
+        ..Request::new(Resolution::Count(48), Mode::Shell)
+    };
+    let out = hollowed(&cpu, &mesh, request);
+    assert_eq!(out.report.pockets.as_ref().map(Vec::len), Some(2), "{:?}", out.report.pockets);
+    assert_eq!(sealed_voxels(&out.grid), 0);
+    let walls = meshvox::voxel::shell::walls_field(
+        out.field.as_ref().expect("field"),
+        2.0,
+        out.hollowing.as_ref().expect("hollowing"),
+    );
+    let mesh = meshvox::voxel::shell::field_mesh(&walls, None, 0.0, &|_, _| {}).expect("walls");
+    let volume = assert_watertight(&mesh, "filled ball");
+    let euler = mesh.vertices.len() as i64 - (mesh.faces.len() * 3 / 2) as i64 + mesh.faces.len() as i64;
+    assert_eq!(euler, 2, "one closed surface");
+    let ball = 4.0 / 3.0 * std::f64::consts::PI;
+    assert!((volume / ball - 1.0).abs() < 0.05, "the walls hold the whole ball: {volume} against {ball}");
+}
