@@ -383,10 +383,7 @@ impl VoidArgs {
 
 /// `--unit mm|cm|m|in|ft`: metres per unit.
 fn parse_unit(s: &str) -> Result<f64, String> {
-    meshvox::voxel::Length::unit(s).ok_or_else(|| {
-        let names: Vec<&str> = meshvox::voxel::Length::UNITS.iter().map(|u| u.0).collect();
-        format!("'{s}': use one of {}", names.join(", "))
-    })
+    meshvox::voxel::Length::unit(s)
 }
 
 impl BandArgs {

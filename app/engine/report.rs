@@ -172,7 +172,7 @@ impl Voxelized {
                 let colour = self.colour_source.as_ref();
                 match (self.shell, &self.hollowing) {
                     // Holes or filled pockets: the walls are one level set of the shell's own field.
-                    (Some(thickness), Some(h)) if !h.tubes.is_empty() || h.filled_voxels.is_some() => {
+                    (Some(thickness), Some(h)) if h.reshapes_walls() => {
                         let walls = crate::voxel::shell::walls_field(field, thickness, h);
                         write_field_mesh(&walls, None, 0.0, colour, progress, mesh, out)
                     }

@@ -356,6 +356,14 @@ impl UpAxis {
     pub fn from_name(name: &str) -> Option<UpAxis> {
         [UpAxis::Y, UpAxis::Z].into_iter().find(|u| u.name() == name.to_ascii_lowercase())
     }
+
+    /// The axis's index (1 for Y, 2 for Z).
+    pub fn index(self) -> usize {
+        match self {
+            UpAxis::Y => 1,
+            UpAxis::Z => 2,
+        }
+    }
 }
 
 /// The mesh file formats meshvox reads.

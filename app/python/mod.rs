@@ -78,10 +78,7 @@ impl Voids {
         };
         let unit = match self.unit.as_deref() {
             None => None,
-            Some(name) => Some(Length::unit(name).ok_or_else(|| {
-                let names: Vec<&str> = Length::UNITS.iter().map(|u| u.0).collect();
-                PyValueError::new_err(format!("unit '{name}': use one of {}", names.join(", ")))
-            })?),
+            Some(name) => Some(Length::unit(name).map_err(|e| PyValueError::new_err(format!("unit {e}")))?),
         };
         Ok((Request { fill_pockets: self.fill_pockets, up, unit, ..request }, plan))
     }
@@ -286,7 +283,7 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     // A shell with drain holes or filled pockets hands over its walls' field (one level set at 0, the holes cut)
     // instead of the field it was cut from, as the CLI writes its walls.
     let walls = match (&result.field, result.shell, &result.hollowing) {
-        (Some(field), Some(thickness), Some(h)) if !h.tubes.is_empty() || h.filled_voxels.is_some() => {
+        (Some(field), Some(thickness), Some(h)) if h.reshapes_walls() => {
             Some(crate::voxel::shell::walls_field(field, thickness, h))
         }
         _ => None,

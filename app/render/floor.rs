@@ -23,10 +23,7 @@ pub struct Floor {
 impl Floor {
     /// The floor of grid `spec` seen with `up` up.
     pub fn new(spec: &GridSpec, up: UpAxis) -> Floor {
-        let up = match up {
-            UpAxis::Y => 1,
-            UpAxis::Z => 2,
-        };
+        let up = up.index();
         let size = spec.dims.as_dvec3() * spec.voxel_size;
         let (a, b) = ((up + 1) % 3, (up + 2) % 3);
         let extent = size[a].max(size[b]).max(spec.voxel_size);

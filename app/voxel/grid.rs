@@ -67,14 +67,9 @@ impl Length {
         }
         match unit.to_ascii_lowercase().as_str() {
             "" | "vx" => Ok(Length::Voxels(value)),
-            u => Length::UNITS
-                .iter()
-                .find(|(name, _)| *name == u)
-                .map(|&(_, metres)| Length::Metres(value * metres))
-                .ok_or_else(|| {
-                    let names: Vec<&str> = Length::UNITS.iter().map(|u| u.0).collect();
-                    format!("'{text}': the unit '{unit}' is not one of vx, {}", names.join(", "))
-                }),
+            u => Length::unit(u)
+                .map(|metres| Length::Metres(value * metres))
+                .map_err(|_| format!("'{text}': the unit '{unit}' is not one of vx, {}", Length::unit_names())),
         }
     }
 
@@ -86,9 +81,18 @@ impl Length {
         }
     }
 
-    /// The metres per unit named `name` (`mm`, `cm`, `m`, `in`, `ft`).
-    pub fn unit(name: &str) -> Option<f64> {
-        Length::UNITS.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|u| u.1)
+    /// The metres per unit named `name` (`mm`, `cm`, `m`, `in`, `ft`, in any case), or the message naming them.
+    pub fn unit(name: &str) -> Result<f64, String> {
+        Length::UNITS
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name))
+            .map(|u| u.1)
+            .ok_or_else(|| format!("'{name}': use one of {}", Length::unit_names()))
+    }
+
+    /// The units' names, as messages list them (`mm, cm, m, in, ft`).
+    fn unit_names() -> String {
+        Length::UNITS.iter().map(|u| u.0).collect::<Vec<_>>().join(", ")
     }
 }
 

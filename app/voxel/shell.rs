@@ -19,11 +19,12 @@
 //! volume (the two level sets of a continuous field at different levels never meet).
 
 use super::contour::{ContourError, TriangleMesh, level_mesh_with_progress};
+use super::cpu::solid::segment_distance;
 use super::distance::DistanceField;
 use super::sparse::LeafMask;
 use super::voids::Hollowing;
 use super::{GridSpec, SparseGrid};
-use glam::{UVec3, Vec3};
+use glam::UVec3;
 
 /// The band (in voxels) a shell of `thickness` voxels is cut from: every voxel within the thickness gets its
 /// exact distance, with room for the inner wall's level set (which needs the samples around it).
@@ -78,8 +79,8 @@ pub fn shell_mesh_with_progress(
 
 /// The field whose level set at 0 is the walls of the shell of `thickness` voxels in `field` with the drain holes
 /// and filled pockets of `hollowing` ([`super::voids`]): `max(d, -d - T·h)` (below 0 within the shell) raised to
-/// `-c` inside each hole (`c` the distance from its axis less its radius), and the signed distance itself in the
-/// filled pockets, which are inside beyond the band too. One closed level set then holds both walls and a tube
+/// `-c` inside each hole (`c` the distance from its axis less its radius), and inside (below 0) in the filled
+/// pockets, whichever side of the mesh they were on, and beyond the band too. One closed level set then holds both walls and a tube
 /// through the wall for each hole, and no inner wall around a filled pocket.
 pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing) -> DistanceField {
     let t = shell_reach(&field.spec, thickness);
@@ -102,7 +103,7 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
                     let c = v.as_vec3() + 0.5;
                     let hole = tubes
                         .iter()
-                        .map(|&(a, b, r)| (segment_distance(c, a, b) - r) * h)
+                        .map(|&(a, b, r)| (segment_distance(a - c, b - c) - r) * h)
                         .fold(f32::INFINITY, f32::min);
                     d.max(-d - t).max(-hole)
                 })
@@ -111,14 +112,6 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
     });
     let inside = hollowing.filled_voxels.clone().map(super::Grid::Dense);
     DistanceField { values, inside, evaluations: 0, ..field.clone_without_values() }
-}
-
-/// The distance from `p` to the segment `a b`.
-fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
-    let ab = b - a;
-    let len2 = ab.length_squared();
-    let t = if len2 > 0.0 { ((p - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    (a + ab * t).distance(p)
 }
 
 /// The mesh a field is written as: with `shell` (a thickness in voxels) the walls of the shell cut from it

@@ -21,6 +21,7 @@
 //! The voids still sealed after the holes (all of them where no hole was asked): `--stats-json`'s `pockets`, each
 //! with its voxels, its volume and a point in it; `--fill-pockets` sets their voxels.
 
+use super::cpu::solid::{segment_distance, set_range};
 use super::{Length, VoxelGrid};
 use crate::mesh::UpAxis;
 use glam::{DVec3, UVec3, Vec3};
@@ -79,6 +80,14 @@ pub struct Hollowing {
     pub tubes: Vec<(Vec3, Vec3, f32)>,
     /// The pockets' voxels where they were filled (none where there were none).
     pub filled_voxels: Option<VoxelGrid>,
+}
+
+impl Hollowing {
+    /// Whether a shell's walls differ from its field's two level sets: holes were cut or pockets filled (its walls
+    /// are then [`super::shell::walls_field`]'s one level set).
+    pub fn reshapes_walls(&self) -> bool {
+        !self.tubes.is_empty() || self.filled_voxels.is_some()
+    }
 }
 
 /// Why a drain cannot be cut.
@@ -231,14 +240,6 @@ fn next_bit(row: &[u32], x: u32, set: bool, end: u32) -> u32 {
     }
 }
 
-/// The up axis's index.
-fn up_index(up: UpAxis) -> usize {
-    match up {
-        UpAxis::Y => 1,
-        UpAxis::Z => 2,
-    }
-}
-
 /// The voxels of a void's lowest `layers` layers along axis `u`, with their height above its lowest.
 fn lowest_layers(voids: &Voids, runs: &[u32], u: usize, layers: u32) -> Vec<(UVec3, u32)> {
     let placed: Vec<(u32, u32, u32)> = runs
@@ -336,14 +337,11 @@ fn cut_tube(grid: &mut VoxelGrid, a: Vec3, b: Vec3, radius: f32) {
     let dims = grid.spec.dims;
     let lo = (a.min(b) - radius - 1.0).max(Vec3::ZERO).as_uvec3();
     let hi = (a.max(b) + radius + 1.0).min(dims.as_vec3()).as_uvec3();
-    let ab = b - a;
-    let len2 = ab.length_squared();
     for z in lo.z..hi.z {
         for y in lo.y..hi.y {
             for x in lo.x..hi.x {
                 let c = UVec3::new(x, y, z).as_vec3() + 0.5;
-                let t = if len2 > 0.0 { ((c - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
-                if (a + ab * t).distance_squared(c) <= radius * radius {
+                if segment_distance(a - c, b - c) <= radius {
                     let (w, bit) = grid.spec.word_and_bit(x, y, z);
                     grid.words[w] &= !(1 << bit);
                 }
@@ -356,7 +354,7 @@ fn cut_tube(grid: &mut VoxelGrid, a: Vec3, b: Vec3, radius: f32) {
 /// and, where asked, sets their voxels (see the module documentation).
 pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidError> {
     let spec = grid.spec;
-    let u = up_index(hollow.up);
+    let u = hollow.up.index();
     // At least a voxel, at most the grid's longest side (a radius in the wrong unit cuts the grid, not a panic).
     let longest = f64::from(spec.dims.max_element());
     let radius =
@@ -419,8 +417,10 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
             for &i in runs {
                 let (y, z) = voids.row_yz(voids.row_of(i));
                 let run = voids.runs[i as usize];
-                set_run(grid, run, y, z);
-                set_run(&mut pockets, run, y, z);
+                for g in [&mut *grid, &mut pockets] {
+                    let (row, _) = g.spec.word_and_bit(0, y, z);
+                    set_range(&mut g.words[row..row + spec.words_per_row()], run.x0, run.x1);
+                }
             }
         }
         pockets
@@ -432,18 +432,6 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
         .map(|(&(a, b, _), &r)| Drain { from: world(a), to: world(b), radius: r * h })
         .collect();
     Ok(Hollowing { drains, pockets, tubes, filled_voxels })
-}
-
-/// Sets the voxels of `run` in row `(y, z)`, a word at a time.
-fn set_run(grid: &mut VoxelGrid, run: Run, y: u32, z: u32) {
-    let (row, _) = grid.spec.word_and_bit(0, y, z);
-    let mut x = run.x0;
-    while x < run.x1 {
-        let (w, b) = ((x / 32) as usize, x % 32);
-        let n = (32 - b).min(run.x1 - x);
-        grid.words[row + w] |= if n == 32 { u32::MAX } else { ((1u32 << n) - 1) << b };
-        x += n;
-    }
 }
 
 /// The sealed voxel nearest the grid point `p` (the first run's at a tie): each sealed run's voxel nearest `p`,

@@ -831,7 +831,7 @@ pub fn winding_exact(count: i32, p: DVec3, edges: &[BoundaryEdge]) -> f64 {
 
 /// Sets bits `k0..k1` of a row.
 #[inline]
-fn set_range(row: &mut [u32], k0: u32, k1: u32) {
+pub fn set_range(row: &mut [u32], k0: u32, k1: u32) {
     let mut k = k0;
     while k < k1 {
         let (w, b) = ((k / 32) as usize, k % 32);
