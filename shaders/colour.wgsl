@@ -6,6 +6,9 @@
 //                     best[2 * rank + 1] (ties go to the lowest index);
 //   shade_voxels      one thread per grid word: each set voxel's winning triangle is shaded at the nearest point
 //                     and the sRGB bytes replace the distance in best[2 * rank] (0 where no triangle reached it).
+// A candidate whose material masks alpha and whose alpha at its nearest point is below the cutoff (`cut_out`)
+// lowers no distance; it lowers the winner to CUT, which any triangle index is below, and a voxel left at CUT is
+// shaded CUT_COLOUR.
 // A voxel's rank is its index among the set voxels in storage order: ranks[word] plus the set bits below it.
 // Joined after shared/common.wgsl (dot3, thread_index) and nearest.wgsl (triangle, closest_barycentric).
 
@@ -36,6 +39,9 @@ const REACH2: f32 = 0.76;
 // A little more than sqrt(REACH2), as a constant so both sides widen the range alike.
 const REACH: f32 = 0.872;
 const NO_TRIANGLE: u32 = 0xffffffffu;
+const CUT: u32 = 0xfffffffeu;
+// Bytes (1, 0, 0, 0): alpha 0 (no colour), told from a voxel no triangle reached (0) by its red byte.
+const CUT_COLOUR: u32 = 1u;
 // `tables`: the sRGB-to-linear table (256 f32), then its 255 midpoints, then the records.
 const MIDPOINTS_AT: u32 = 256u;
 const MATERIAL_WORDS: u32 = 12u;
@@ -94,8 +100,15 @@ fn visit(t: u32, step: u32) {
                     continue;
                 }
                 let p = voxel_centre(v);
-                let d = squared_distance(p, tri, closest_barycentric(p, tri[0], tri[1], tri[2]));
+                let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
+                let d = squared_distance(p, tri, w);
                 if d > REACH2 {
+                    continue;
+                }
+                if cut_out(t, w) {
+                    if step == 1u {
+                        atomicMin(&best[2u * rank + 1u], CUT);
+                    }
                     continue;
                 }
                 if step == 0u {
@@ -227,6 +240,13 @@ fn shade(t: u32, w: vec3<f32>) -> vec4<f32> {
     return colour;
 }
 
+// Whether triangle t's surface at barycentric weights w is cut out: its material masks (a cutoff above 0 in the
+// record's last word), and the shaded alpha there is below the cutoff.
+fn cut_out(t: u32, w: vec3<f32>) -> bool {
+    let cutoff = bitcast<f32>(tables[params.materials_at + MATERIAL_WORDS * shading[t].material + 11u]);
+    return cutoff > 0.0 && shade(t, w).w < cutoff;
+}
+
 fn encode_srgb(linear: f32) -> u32 {
     var lo = 0u;
     var hi = 255u;
@@ -262,7 +282,9 @@ fn shade_voxels(@builtin(global_invocation_id) gid: vec3<u32>) {
         bits &= bits - 1u;
         let t = atomicLoad(&best[2u * rank + 1u]);
         var packed = 0u;
-        if t != NO_TRIANGLE {
+        if t == CUT {
+            packed = CUT_COLOUR;
+        } else if t != NO_TRIANGLE {
             let tri = triangle(t);
             let p = voxel_centre(vec3<u32>(x0 + b, y, z));
             packed = pack_colour(shade(t, closest_barycentric(p, tri[0], tri[1], tri[2])));

@@ -397,7 +397,7 @@ impl OnGpu {
             colourer.colour_async(&self.gpu, grid, tris, shading).await
         };
         let colours = self.stand_in(Stage::Colour, coloured, notices)?;
-        Ok(colours.map(|colours| ColourStage { colours, backend: self.label() }))
+        Ok(colours.map(|coloured| ColourStage { coloured, backend: self.label() }))
     }
 
     /// A distance field's pass planned for the GPU before its sign is made (the band's leaves marked, the adapter's

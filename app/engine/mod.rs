@@ -40,7 +40,7 @@ use crate::formats::VoxelFormat;
 use crate::mesh::Mesh;
 use crate::names::Setting;
 use crate::parallel;
-use crate::voxel::colour::VoxelColours;
+use crate::voxel::colour::Coloured;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::voids::{DrainPlan, Hollowing};
 use crate::voxel::{self, Grid, GridError, GridKind, GridSpec, Mode, SparseGrid, VoxelGrid};
@@ -192,7 +192,8 @@ struct GridStage {
 
 /// The colour stage's result, from the GPU or the CPU.
 struct ColourStage {
-    colours: VoxelColours,
+    /// The colours, and the voxels the materials' alpha cut out.
+    coloured: Coloured,
     /// Where, as the report's `colour` says it.
     backend: String,
 }
@@ -395,15 +396,40 @@ impl Engine {
         let field_ms = field.as_ref().map(|_| ms(t));
         request.cancelled()?;
         let t = Instant::now();
-        let colours = match (request.colour != Some(false) && mesh.has_colour(), &made.grid) {
-            (true, Grid::Dense(grid)) => Some(self.colour(mesh, &tris, grid, &mut notices).await?),
+        let wanted = request.colour != Some(false) && mesh.has_colour();
+        // Cut-out materials shape a surface grid: their alpha is found by the colour passes, wanted or not.
+        let cuts = matches!(request.mode, Mode::Surface | Mode::Surface6)
+            && mesh.shading.as_ref().is_some_and(|s| s.cuts_out());
+        let (mut alpha_cut, mut colour_ran) = (None, false);
+        let colours = match (wanted || cuts, &mut made.grid) {
+            (true, Grid::Dense(grid)) => {
+                let ColourStage { coloured, backend } = self.colour(mesh, &tris, grid, &mut notices).await?;
+                let colours = match cuts {
+                    true => {
+                        alpha_cut = Some(coloured.cut.len() as u64);
+                        if !coloured.cut.is_empty() {
+                            made.voxels = None;
+                            made.instances = None;
+                        }
+                        coloured.cut_from(grid)
+                    }
+                    false => coloured.colours,
+                };
+                colour_ran = true;
+                wanted.then_some((colours, backend))
+            }
             (true, Grid::Sparse(_)) => {
-                notices.push(dense_only("colours", "uncoloured"));
+                let what = match (wanted, cuts) {
+                    (true, true) => "colours and alpha cut-outs",
+                    (true, false) => "colours",
+                    (false, _) => "alpha cut-outs",
+                };
+                notices.push(dense_only(what, if wanted { "uncoloured" } else { "not cut out" }));
                 None
             }
             (false, _) => None,
         };
-        let colour_ms = colours.as_ref().map(|_| ms(t));
+        let colour_ms = colour_ran.then(|| ms(t));
         request.cancelled()?;
         let t = Instant::now();
         let labels = match (request.attributes.is_empty(), &made.grid, request.format) {
@@ -437,7 +463,8 @@ impl Engine {
             exact_tests: made.exact_tests,
             rows_beside_holes: made.fill.map(|f| f.rows_beside_holes),
             winding_evaluations: made.fill.map(|f| f.winding_evaluations),
-            colour: colours.as_ref().map(|c| c.backend.clone()),
+            colour: colours.as_ref().map(|c| c.1.clone()),
+            alpha_cut,
             colour_ms,
             voxelize_ms,
             band: request.mode.needs_field().then(|| request.band.name()),
@@ -461,7 +488,7 @@ impl Engine {
         };
         // On the CPU every voxel of the output was the host's.
         let report = Report { host_decided: grid_decided.unwrap_or(report.voxels) + field_decided, ..report };
-        let colours = colours.map(|c| c.colours);
+        let colours = colours.map(|c| c.0);
         if let Some(spans) = crate::trace::take() {
             let (work, wait) = (report.host_work_ms, report.wait_ms.unwrap_or(0.0));
             let (name, mode, dims) = (job.name, request.mode.name(), spec.dims.to_array());
@@ -739,7 +766,7 @@ impl Engine {
         {
             return Ok(made);
         }
-        let colours = voxel::colour::colour_voxels(grid, tris, shading);
-        Ok(ColourStage { colours, backend: format!("cpu ({} threads)", parallel::threads()) })
+        let coloured = voxel::colour::colour_and_cut(grid, tris, shading);
+        Ok(ColourStage { coloured, backend: format!("cpu ({} threads)", parallel::threads()) })
     }
 }

@@ -29,6 +29,9 @@ impl std::fmt::Display for Notice {
 pub struct Report {
     /// Where the grid was voxelized: `gpu: ADAPTER (API, driver)` or `cpu (N threads[; why])`.
     pub backend: String,
+    /// `surface`/`surface6` of a mesh with a cut-out material (glTF `MASK`, OBJ `map_d`): the voxels its alpha took
+    /// out of the grid.
+    pub alpha_cut: Option<u64>,
     /// `sdf`/`udf`: the band's half-width in voxels (`--band`), or `full`.
     pub band: Option<String>,
     /// `sdf`/`udf`: voxels whose centres are within the band (those a `.vdb` or `.npz` holds values for).

@@ -11,7 +11,7 @@ use super::{Gpu, GpuError, dispatch_2d};
 use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::VoxelGrid;
-use crate::voxel::colour::{VoxelColours, fill_interior, word_ranks};
+use crate::voxel::colour::{Coloured, finish, word_ranks};
 use crate::voxel::cpu::colour::{NO_TRIANGLE, SRGB_MIDPOINTS};
 use glam::Vec3;
 
@@ -70,7 +70,7 @@ impl Tables {
                 row1[0].to_bits(),
                 row1[1].to_bits(),
                 row1[2].to_bits(),
-                0,
+                m.cutoff().to_bits(),
             ];
             words.extend(record);
         }
@@ -130,30 +130,29 @@ impl GpuColourer {
         grid: &VoxelGrid,
         triangles: &[[Vec3; 3]],
         shading: &Shading,
-    ) -> Result<VoxelColours, GpuError> {
-        pollster::block_on(self.colour_async(gpu, grid, triangles, shading))
+    ) -> Result<crate::voxel::colour::VoxelColours, GpuError> {
+        Ok(pollster::block_on(self.colour_async(gpu, grid, triangles, shading))?.colours)
     }
 
-    /// [`GpuColourer::colour`] as a future, for the browser.
+    /// [`GpuColourer::colour`] as a future, for the browser, with the voxels the materials' alpha cuts out
+    /// listed (as [`crate::voxel::colour::colour_and_cut`]).
     pub async fn colour_async(
         &self,
         gpu: &Gpu,
         grid: &VoxelGrid,
         triangles: &[[Vec3; 3]],
         shading: &Shading,
-    ) -> Result<VoxelColours, GpuError> {
+    ) -> Result<Coloured, GpuError> {
         gpu.check()?;
         let count = grid.count();
         if count == 0 || triangles.is_empty() {
-            return Ok(VoxelColours { rgba: vec![[0; 4]; count as usize] });
+            return Ok(finish(grid, vec![[0; 4]; count as usize]));
         }
         let device = &gpu.device;
         let best = scoped(device, || Ok(self.submit_passes(gpu, grid, triangles, shading))).await?;
         let words: Vec<u32> = read_buffer(device, &gpu.queue, &best, 0, count * 8).await?;
         gpu.check()?;
-        let mut colours = VoxelColours { rgba: words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect() };
-        fill_interior(grid, &mut colours);
-        Ok(colours)
+        Ok(finish(grid, words.chunks_exact(2).map(|p| p[0].to_le_bytes()).collect()))
     }
 
     /// Uploads the grid, its ranks, the triangles and the shading tables, and submits the three passes (one per

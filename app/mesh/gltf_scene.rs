@@ -8,7 +8,7 @@
 
 use super::files::{Externals, ReadError, RefStyle};
 use super::gltf_data;
-use super::material::{Material, Shading, Texture, TextureRef, Wrap};
+use super::material::{AlphaMode, DEFAULT_ALPHA_CUTOFF, Material, Shading, Texture, TextureRef, Wrap};
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DMat4, DQuat, DVec3, Vec4};
 use gltf::mesh::Mode;
@@ -532,6 +532,13 @@ fn read_materials(
             name: material.name().unwrap_or("").to_string(),
             base_color: Vec4::from(pbr.base_color_factor()),
             texture,
+            alpha: match material.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                gltf::material::AlphaMode::Mask => {
+                    AlphaMode::Mask(material.alpha_cutoff().unwrap_or(DEFAULT_ALPHA_CUTOFF))
+                }
+                gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            },
         });
         tex_sets.push(set);
     }

@@ -87,18 +87,46 @@ impl TextureRef {
     }
 }
 
-/// A material's colour: `base_color × texture(uv)`, linear RGBA.
+/// What a material's alpha (base colour alpha × texture alpha × vertex colour alpha) means: glTF's `alphaMode`.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum AlphaMode {
+    /// Alpha is ignored: every surface point is there (glTF's default).
+    #[default]
+    Opaque,
+    /// A cut-out (glTF `MASK` with its `alphaCutoff`, OBJ `map_d`): a surface point whose alpha is below the
+    /// cutoff is not there. It sets no voxel of a surface grid and gives no voxel its colour.
+    Mask(f32),
+    /// Blended: every point is there; alpha is the colour's opacity.
+    Blend,
+}
+
+/// glTF's `alphaCutoff` when a `MASK` material gives none, and meshvox's for OBJ materials with a `map_d`.
+pub const DEFAULT_ALPHA_CUTOFF: f32 = 0.5;
+
+/// A material's colour: `base_color × texture(uv)`, linear RGBA, and what its alpha means.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
     pub base_color: Vec4,
     pub texture: Option<TextureRef>,
+    pub alpha: AlphaMode,
 }
 
 impl Default for Material {
-    /// glTF's default material: white, untextured.
+    /// glTF's default material: white, untextured, opaque.
     fn default() -> Material {
-        Material { name: String::new(), base_color: Vec4::ONE, texture: None }
+        Material { name: String::new(), base_color: Vec4::ONE, texture: None, alpha: AlphaMode::Opaque }
+    }
+}
+
+impl Material {
+    /// The alpha below which a surface point of this material is cut out: 0 (nothing is) unless it masks, and
+    /// 0 for a cutoff that is not a number in (0, 1].
+    pub fn cutoff(&self) -> f32 {
+        match self.alpha {
+            AlphaMode::Mask(c) if c > 0.0 => c.min(1.0),
+            _ => 0.0,
+        }
     }
 }
 
@@ -154,6 +182,12 @@ impl Shading {
     pub fn has_colour(&self) -> bool {
         let used = |m: &Material| m.texture.is_some() || m.base_color != Vec4::ONE;
         self.materials.iter().any(used) || self.triangles.iter().any(|t| t.color != [TriangleShading::WHITE; 3])
+    }
+
+    /// Whether a material cuts out what its alpha hides ([`AlphaMode::Mask`]): then the colour pass decides
+    /// which surface voxels are there, too.
+    pub fn cuts_out(&self) -> bool {
+        self.materials.iter().any(|m| m.cutoff() > 0.0)
     }
 }
 

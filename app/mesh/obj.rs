@@ -7,7 +7,7 @@
 //! statement, naming the line of the first problem.
 
 use super::files::{Externals, ReadError, RefStyle};
-use super::material::{Material, Shading, Texture, TextureRef, Wrap};
+use super::material::{AlphaMode, DEFAULT_ALPHA_CUTOFF, Material, Shading, Texture, TextureRef, Wrap};
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DVec3, Vec4};
 use std::cell::RefCell;
@@ -153,9 +153,16 @@ fn piece(model: tobj::Model, index: u32, textured: bool) -> Result<Piece, String
     Ok(Piece { part, positions, triangles, uvs, colors, material: 0 })
 }
 
-/// The MTL materials' diffuse colour (`Kd`) and texture (`map_Kd`, relative to the folder of the library that
-/// defined the material: `folders[i]` for material `i`, the mesh's folder when unknown), then a white default for
-/// faces without a material. A texture that cannot be read costs its material only the texture, with a warning.
+/// The MTL materials' diffuse colour (`Kd`), opacity (`d`) and texture (`map_Kd`, relative to the folder of the
+/// library that defined the material: `folders[i]` for material `i`, the mesh's folder when unknown), then a
+/// white default for faces without a material. A texture that cannot be read costs its material only the
+/// texture, with a warning.
+///
+/// A material with an opacity map (`map_d`) is a cut-out ([`AlphaMode::Mask`] at [`DEFAULT_ALPHA_CUTOFF`]):
+/// its alpha is `d` times the map's matte, the image's alpha channel where it has one that is not all opaque,
+/// else its grey level. Where `map_d` names the diffuse texture's own file that texture's alpha is the matte;
+/// otherwise the matte is put into (a copy of) the diffuse texture's alpha, sampled at the nearest texel, or
+/// into a white texture when there is no diffuse one.
 fn read_materials(
     warnings: &mut Vec<String>,
     path: &Path,
@@ -167,13 +174,15 @@ fn read_materials(
     // (Library folder, texture name) -> index in `shading.textures`, so materials sharing one decode it once.
     let mut decoded: Vec<(Option<&Path>, String, Option<u32>)> = Vec::new();
     for (i, m) in materials.iter().enumerate() {
+        let opacity = m.dissolve.map_or(1.0, |d| if d.is_finite() { d.clamp(0.0, 1.0) as f32 } else { 1.0 });
         let base_color = m.diffuse.map_or(Vec4::ONE, |d| Vec4::new(d[0] as f32, d[1] as f32, d[2] as f32, 1.0));
+        let base_color = base_color.with_w(opacity);
         let folder = folders.get(i).and_then(Option::as_deref);
-        // `map_Kd -s 1 1 1 wood.png`: the options come first, the file name last.
-        let file = m.diffuse_texture.as_deref().and_then(|t| t.split_whitespace().last());
-        let texture = file.and_then(|file| {
+        let mut texture_of = |option: &Option<String>, what: &str| {
+            // `map_Kd -s 1 1 1 wood.png`: the options come first, the file name last.
+            let file = option.as_deref().and_then(|t| t.split_whitespace().last())?;
             if let Some((_, _, index)) = decoded.iter().find(|(d, f, _)| *d == folder && f == file) {
-                return *index;
+                return Some((file.to_string(), *index));
             }
             // Texture names in MTL files are plain paths, not URIs: `%` in one is a percent sign.
             let read = base
@@ -186,18 +195,52 @@ fn read_materials(
                     Some(shading.textures.len() as u32 - 1)
                 }
                 Err(e) => {
-                    warnings.push(format!("{}: material '{}': texture {file} not used: {e}", path.display(), m.name));
+                    warnings.push(format!("{}: material '{}': {what} {file} not used: {e}", path.display(), m.name));
                     None
                 }
             };
             decoded.push((folder, file.to_string(), index));
-            index
-        });
+            Some((file.to_string(), index))
+        };
+        let diffuse = texture_of(&m.diffuse_texture, "texture");
+        let matte = texture_of(&m.dissolve_texture, "opacity map");
+        let mut texture = diffuse.as_ref().and_then(|(_, index)| *index);
+        let mut alpha = AlphaMode::Opaque;
+        if let Some((file, Some(matte))) = matte {
+            alpha = AlphaMode::Mask(DEFAULT_ALPHA_CUTOFF);
+            if diffuse.as_ref().is_none_or(|(diffuse, _)| *diffuse != file) {
+                let cut = with_matte(texture.map(|t| &shading.textures[t as usize]), &shading.textures[matte as usize]);
+                shading.textures.push(cut);
+                texture = Some(shading.textures.len() as u32 - 1);
+            }
+        }
         let texture = texture.map(|texture| TextureRef { texture, transform: TextureRef::IDENTITY });
-        shading.materials.push(Material { name: m.name.clone(), base_color, texture });
+        shading.materials.push(Material { name: m.name.clone(), base_color, texture, alpha });
     }
     shading.materials.push(Material::default());
     shading
+}
+
+/// `diffuse` (or a white texture of the matte's size) with its alpha replaced by `matte`'s, sampled at the
+/// nearest texel: the matte's alpha where it has some below 255, else its grey level (`map_d`'s channel).
+fn with_matte(diffuse: Option<&Texture>, matte: &Texture) -> Texture {
+    let has_alpha = matte.texels.iter().any(|t| t >> 24 != 255);
+    let value = |t: u32| match has_alpha {
+        true => t >> 24,
+        false => ((t & 255) + (t >> 8 & 255) + (t >> 16 & 255) + 1) / 3,
+    };
+    let mut out =
+        diffuse.cloned().unwrap_or_else(|| Texture { texels: vec![0x00ff_ffff; matte.texels.len()], ..matte.clone() });
+    let (w, h) = (out.width as u64, out.height as u64);
+    for y in 0..h {
+        let my = (y * matte.height as u64 / h) as usize;
+        for x in 0..w {
+            let mx = (x * matte.width as u64 / w) as usize;
+            let t = &mut out.texels[(y * w + x) as usize];
+            *t = *t & 0x00ff_ffff | value(matte.texels[my * matte.width as usize + mx]) << 24;
+        }
+    }
+    out
 }
 
 /// An sRGB-encoded colour in [0, 1] as linear RGBA.

@@ -64,16 +64,61 @@ pub fn word_ranks(grid: &VoxelGrid) -> Vec<u32> {
 }
 
 /// Colours every set voxel of `grid` from grid-space `triangles` (those the grid was voxelized from) and their
-/// `shading`, with rayon across triangles.
+/// `shading`, with rayon across triangles; a voxel every triangle near it cuts out takes its neighbours' colour
+/// ([`colour_and_cut`] lists those voxels).
 pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shading) -> VoxelColours {
+    colour_and_cut(grid, triangles, shading).colours
+}
+
+/// A grid's colours, and the voxels that a material's alpha cuts out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Coloured {
+    pub colours: VoxelColours,
+    /// The ranks (in storage order, ascending) of the set voxels every triangle within reach cuts out at its
+    /// point nearest the voxel's centre ([`cut_out`]); their colours are filled as the inside's are.
+    pub cut: Vec<u32>,
+}
+
+impl Coloured {
+    /// The colours with the cut-out voxels taken out of `grid` and of the colours (a surface grid's cut-outs).
+    pub fn cut_from(self, grid: &mut VoxelGrid) -> VoxelColours {
+        let Coloured { colours, cut } = self;
+        if cut.is_empty() {
+            return colours;
+        }
+        let voxels: Vec<UVec3> = cut_voxels(grid, &cut);
+        for v in voxels {
+            grid.clear(v.x, v.y, v.z);
+        }
+        let mut next = cut.iter().peekable();
+        let rgba = colours
+            .rgba
+            .into_iter()
+            .enumerate()
+            .filter(|&(r, _)| next.next_if_eq(&&(r as u32)).is_none())
+            .map(|(_, c)| c)
+            .collect();
+        VoxelColours { rgba }
+    }
+}
+
+/// The voxels of `grid` whose ranks are `ranks` (ascending).
+fn cut_voxels(grid: &VoxelGrid, ranks: &[u32]) -> Vec<UVec3> {
+    let mut next = ranks.iter().peekable();
+    grid.iter_set().enumerate().filter(|&(r, _)| next.next_if_eq(&&(r as u32)).is_some()).map(|(_, v)| v).collect()
+}
+
+/// [`colour_voxels`], with the voxels the materials' alpha cuts out listed.
+pub fn colour_and_cut(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shading) -> Coloured {
     parallel::install(|| {
         let ranks = word_ranks(grid);
         let count = grid.count() as usize;
         let dims = grid.spec.dims;
         let best: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(f32::INFINITY.to_bits())).collect();
         let winner: Vec<AtomicU32> = (0..count).map(|_| AtomicU32::new(NO_TRIANGLE)).collect();
-        // Pass 1 (`nearest_distance`) and pass 2 (`nearest_triangle`) visit the same candidates.
-        let visit = |t: usize, f: &dyn Fn(u32, f32)| {
+        // Pass 1 (`nearest_distance`) and pass 2 (`nearest_triangle`) visit the same candidates; `None` is a
+        // candidate the triangle's alpha cuts out.
+        let visit = |t: usize, f: &dyn Fn(u32, Option<f32>)| {
             let tri = triangles[t];
             let (lo, hi) = candidate_range(tri, dims);
             for z in lo.z..=hi.z {
@@ -82,9 +127,10 @@ pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadin
                         let v = IVec3::new(x, y, z).as_uvec3();
                         let Some(rank) = voxel_rank(grid, &ranks, v) else { continue };
                         let p = voxel_centre(v);
-                        let d = squared_distance(p, tri, closest_barycentric(p, tri[0], tri[1], tri[2]));
+                        let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
+                        let d = squared_distance(p, tri, w);
                         if d <= REACH2 {
-                            f(rank, d);
+                            f(rank, (!cut_out(shading, &shading.triangles[t], w)).then_some(d));
                         }
                     }
                 }
@@ -92,14 +138,18 @@ pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadin
         };
         (0..triangles.len()).into_par_iter().for_each(|t| {
             visit(t, &|rank, d| {
-                best[rank as usize].fetch_min(d.to_bits(), Ordering::Relaxed);
+                if let Some(d) = d {
+                    best[rank as usize].fetch_min(d.to_bits(), Ordering::Relaxed);
+                }
             })
         });
         (0..triangles.len()).into_par_iter().for_each(|t| {
-            visit(t, &|rank, d| {
-                if d.to_bits() == best[rank as usize].load(Ordering::Relaxed) {
+            visit(t, &|rank, d| match d {
+                None => _ = winner[rank as usize].fetch_min(CUT, Ordering::Relaxed),
+                Some(d) if d.to_bits() == best[rank as usize].load(Ordering::Relaxed) => {
                     winner[rank as usize].fetch_min(t as u32, Ordering::Relaxed);
                 }
+                Some(_) => {}
             })
         });
         let voxels: Vec<UVec3> = grid.iter_set().collect();
@@ -108,6 +158,7 @@ pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadin
             .zip(winner.par_iter())
             .map(|(&v, w)| match w.load(Ordering::Relaxed) {
                 NO_TRIANGLE => [0; 4],
+                CUT => CUT_COLOUR,
                 t => {
                     let tri = triangles[t as usize];
                     let p = voxel_centre(v);
@@ -116,10 +167,20 @@ pub fn colour_voxels(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadin
                 }
             })
             .collect();
-        let mut colours = VoxelColours { rgba };
-        fill_interior(grid, &mut colours);
-        colours
+        finish(grid, rgba)
     })
+}
+
+/// The entries the shading pass leaves (a colour; `[0; 4]` where no triangle reached the voxel; [`CUT_COLOUR`]
+/// where every one that did is cut out) finished: the cut-out voxels listed, then every voxel without a colour
+/// given its neighbours' ([`fill_interior`]).
+pub fn finish(grid: &VoxelGrid, rgba: Vec<[u8; 4]>) -> Coloured {
+    let cut = rgba.iter().enumerate().filter(|(_, c)| **c == CUT_COLOUR).map(|(r, _)| r as u32).collect();
+    let mut colours = VoxelColours { rgba };
+    fill_interior(grid, &mut colours);
+    // A grid without one opaque surface point keeps no marker as a colour.
+    colours.rgba.iter_mut().filter(|c| c[3] == 0).for_each(|c| *c = [0; 4]);
+    Coloured { colours, cut }
 }
 
 /// The colour of `mesh` (texture, vertex colours, material, as [`shade`] gives a voxel's) at each world point's

@@ -342,6 +342,12 @@ impl VoxelGrid {
         self.words[w] |= 1 << b;
     }
 
+    #[inline]
+    pub fn clear(&mut self, x: u32, y: u32, z: u32) {
+        let (w, b) = self.spec.word_and_bit(x, y, z);
+        self.words[w] &= !(1 << b);
+    }
+
     /// Number of set voxels.
     pub fn count(&self) -> u64 {
         use rayon::prelude::*;

@@ -359,3 +359,183 @@ fn text_palettes_in_the_usual_spellings_and_the_nearest_entry_is_the_first_of_eq
     assert_eq!(s.nearest(oklab([0, 0, 0])), 0);
     assert_eq!(s.nearest(oklab([250, 10, 0])), 1);
 }
+
+/// A 1.6-unit square glTF quad at z = 0 textured with a 2×1 nearest-sampled image whose left texel is opaque
+/// green and right texel transparent (alpha 0), in material `alpha_mode`; with `opaque_strip`, a second, red,
+/// untextured quad over x in [1.25, 1.6] just above it (z = 0.04, in the same voxel layer at 16 voxels).
+fn half_transparent_quad(alpha_mode: &str, opaque_strip: bool) -> String {
+    use base64::Engine;
+    let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
+    let image =
+        image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba(if x == 0 { [0, 255, 0, 255] } else { [255, 0, 255, 0] }));
+    let mut png = Vec::new();
+    image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
+    let mut data = Vec::new();
+    let quad = [[0.0f32, 0.0, 0.0], [1.6, 0.0, 0.0], [1.6, 1.6, 0.0], [0.0, 1.6, 0.0]];
+    for p in &quad {
+        data.extend(p.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    for uv in [[0.0f32, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]] {
+        data.extend(uv.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    data.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+    data.extend([0u8; 4]);
+    // The strip's own corners (bytes 96..144), drawn with the same index list.
+    for p in [[1.25f32, 0.0, 0.04], [1.6, 0.0, 0.04], [1.6, 1.6, 0.04], [1.25, 1.6, 0.04]] {
+        data.extend(p.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    let mut primitives = vec![serde_json::json!(
+        {"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0})];
+    if opaque_strip {
+        primitives.push(serde_json::json!({"attributes": {"POSITION": 3}, "indices": 2, "material": 1}));
+    }
+    let gltf = serde_json::json!({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": primitives}],
+        "materials": [
+            {"alphaMode": alpha_mode, "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.0, 0.0, 1.0]}}],
+        "textures": [{"sampler": 0, "source": 0}],
+        "samplers": [{"magFilter": 9728}],
+        "images": [{"uri": format!("data:image/png;base64,{}", b64(&png))}],
+        "buffers": [{"byteLength": data.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&data))}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 12},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 48}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.6, 1.6, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC3", "min": [1.25, 0.0, 0.04], "max": [1.6, 1.6, 0.04]}],
+    });
+    gltf.to_string()
+}
+
+/// Alpha cut-outs (glTF `MASK`, docs/formats.md): at 16 voxels across, voxel column x has its centre's nearest
+/// quad point at u = (x + 0.5) / 16, so the masked quad keeps exactly the columns x < 8, green; `OPAQUE` and
+/// `BLEND` keep all 256. An opaque strip from x = 12.5 keeps the columns x >= 12 (red; column 11's centre is a
+/// voxel from it, beyond reach) where the masked quad is cut out: a cut-out hides nothing behind it. Every voxel is judged, CPU and GPU (the same colours and cut list), and
+/// the CLI's `alpha_cut` and grid (with and without colours) agree.
+#[test]
+fn gpu_and_cpu_cut_out_what_a_masked_texture_hides() {
+    use meshvox::voxel::colour::colour_and_cut;
+    let green = [0, 255, 0, 255];
+    for (mode, strip, kept) in [
+        ("MASK", false, (|x: u32| x < 8) as fn(u32) -> bool),
+        ("MASK", true, |x| !(8..12).contains(&x)),
+        ("OPAQUE", false, |_| true),
+        ("BLEND", false, |_| true),
+    ] {
+        let what = format!("{mode}{}", if strip { " with the opaque strip" } else { "" });
+        let text = half_transparent_quad(mode, strip);
+        let mesh = meshvox::mesh::load_bytes("quad.gltf", text.as_bytes()).expect("load");
+        let shading = mesh.shading.as_ref().expect("textured");
+        let (mut grid, tris) = voxelize_cpu(&mesh, 16, Mode::Surface);
+        assert_eq!(grid.spec.dims, UVec3::new(16, 16, 1), "{what}");
+        assert_eq!(grid.count(), 256, "{what}: the surface before the cut");
+        let coloured = colour_and_cut(&grid, &tris, shading);
+        if let Some((gpu, _)) = crate::gpu::gpu() {
+            let colourer = GpuColourer::new(gpu);
+            let on_gpu = pollster::block_on(colourer.colour_async(gpu, &grid, &tris, shading)).expect("gpu");
+            assert_eq!(on_gpu, coloured, "{what}: the GPU's colours or cut-outs differ from the CPU's");
+        }
+        let colours = coloured.cut_from(&mut grid);
+        assert_eq!(colours.rgba.len() as u64, grid.count(), "{what}: one colour per voxel left");
+        for y in 0..16 {
+            for x in 0..16 {
+                assert_eq!(grid.get(x, y, 0), kept(x), "{what}: voxel ({x}, {y}, 0)");
+            }
+        }
+        for (v, c) in grid.iter_set().zip(&colours.rgba) {
+            // Right of the middle: the strip's red where the quad is cut out, else the transparent texel's colour.
+            let want = match (v.x < 8, mode) {
+                (true, _) => green,
+                (false, "MASK") => [255, 0, 0, 255],
+                (false, _) => [255, 0, 255, 255],
+            };
+            assert_eq!(*c, want, "{what}: voxel {v}'s colour");
+        }
+
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("quad.gltf");
+        std::fs::write(&path, &text).expect("write");
+        for extra in [None, Some("--no-colour")] {
+            let mut args = vec!["voxelize", path.to_str().expect("utf-8"), "-r", "16", "-o", "g.npy", "--stats-json"];
+            args.extend(extra);
+            let out = meshvox(&args, dir.path());
+            assert!(out.status.success(), "{what}: {}", String::from_utf8_lossy(&out.stderr));
+            let s = stats(&out);
+            let cut = 256 - grid.count();
+            assert_eq!(s["voxels"], grid.count(), "{what} {extra:?}: the CLI's grid");
+            match mode {
+                "MASK" => assert_eq!(s["alpha_cut"], cut, "{what} {extra:?}"),
+                _ => assert!(s["alpha_cut"].is_null(), "{what} {extra:?}: nothing masks, {s}"),
+            }
+        }
+    }
+}
+
+/// OBJ cut-outs: a material with an opacity map (`map_d`) masks at 0.5 with the map's grey level as its matte,
+/// put into the diffuse texture's alpha at the nearest texel (docs/formats.md); `d` alone cuts nothing. Every
+/// voxel is judged against the rule recomputed in f64 from the docs: a surface voxel stays where a triangle
+/// within `√0.76` of its centre has alpha ≥ 0.5 at its point nearest the centre (the matte bilinear, repeating,
+/// along u; the quad's two triangles meet on its diagonal, where the neighbour's nearest point is). The matte's
+/// grey (100) puts the alpha's crossings of 0.5 away from the voxels' centres and the diagonal's points.
+#[test]
+fn obj_opacity_maps_cut_out_where_they_are_dark() {
+    use meshvox::voxel::colour::colour_and_cut;
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_quadrant_png(&dir.path().join("quadrants.png"));
+    // The matte: 2×1, white on the left, grey 100 on the right, no alpha channel.
+    image::RgbImage::from_fn(2, 1, |x, _| image::Rgb(if x == 0 { [255; 3] } else { [100; 3] }))
+        .save(dir.path().join("matte.png"))
+        .expect("matte");
+    let g = 100.0 / 255.0;
+    // The matte along u as the texture holds it: the 4×4 diffuse texture takes it at its nearest texel.
+    for (mtl, matte) in [
+        ("newmtl leaf\nKd 1 1 1\nmap_Kd quadrants.png\nmap_d matte.png\n", Some(vec![1.0, 1.0, g, g])),
+        ("newmtl leaf\nKd 1 1 1\nmap_d matte.png\n", Some(vec![1.0, g])),
+        ("newmtl leaf\nKd 1 1 1\nd 0.2\nmap_Kd quadrants.png\n", None),
+    ] {
+        std::fs::write(dir.path().join("leaf.mtl"), mtl).expect("mtl");
+        let obj = "mtllib leaf.mtl\nv 0 0 0\nv 1.6 0 0\nv 1.6 1.6 0\nv 0 1.6 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+            usemtl leaf\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+        let path = dir.path().join("leaf.obj");
+        std::fs::write(&path, obj).expect("obj");
+        let mesh = meshvox::mesh::load_path(&path).expect("load");
+        let shading = mesh.shading.as_ref().expect("shading");
+        assert_eq!(shading.cuts_out(), matte.is_some(), "{mtl}");
+        let (mut grid, tris) = voxelize_cpu(&mesh, 16, Mode::Surface);
+        assert_eq!(grid.count(), 256);
+        let colours = colour_and_cut(&grid, &tris, shading).cut_from(&mut grid);
+        assert_eq!(colours.rgba.len() as u64, grid.count());
+        // Bilinear with repeat along u, texel centres at half-integers.
+        let alpha = |u: f64, a: &[f64]| {
+            let s = u * a.len() as f64 - 0.5;
+            let (x0, fx) = (s.floor(), s - s.floor());
+            let at = |i: f64| a[(i as i64).rem_euclid(a.len() as i64) as usize];
+            at(x0) * (1.0 - fx) + at(x0 + 1.0) * fx
+        };
+        let mut cut = 0;
+        for y in 0..16 {
+            for x in 0..16 {
+                let c = (x as f64 + 0.5, y as f64 + 0.5);
+                // Each triangle's nearest point to the centre (which lies over the quad, half a voxel above
+                // its plane): the centre itself on its own side of the diagonal, else its foot on the diagonal.
+                let foot = (c.0 + c.1) / 2.0;
+                let nearest = [if c.1 <= c.0 { c } else { (foot, foot) }, if c.1 >= c.0 { c } else { (foot, foot) }];
+                let kept = match &matte {
+                    None => true,
+                    Some(a) => nearest.iter().any(|p| {
+                        let d2 = (p.0 - c.0).powi(2) + (p.1 - c.1).powi(2) + 0.25;
+                        d2 <= 0.76 && alpha(p.0 / 16.0, a) >= 0.5
+                    }),
+                };
+                cut += u32::from(!kept);
+                assert_eq!(grid.get(x, y, 0), kept, "{mtl}: voxel ({x}, {y}, 0)");
+            }
+        }
+        assert!(matte.is_none() || cut >= 32, "{mtl}: only {cut} voxels cut");
+    }
+}

@@ -19,6 +19,13 @@ pub const REACH: f32 = 0.872;
 /// No triangle reached the voxel.
 pub const NO_TRIANGLE: u32 = u32::MAX;
 
+/// Every triangle that reached the voxel is cut out there by its material's alpha (above any triangle index).
+pub const CUT: u32 = u32::MAX - 1;
+
+/// A cut-out voxel's entry as the shading pass leaves it: alpha 0 (no colour), told from a voxel no triangle
+/// reached (all zeros) by its red byte.
+pub const CUT_COLOUR: [u8; 4] = [1, 0, 0, 0];
+
 /// The rank of voxel `p` among the set voxels, or `None` if it is not set.
 #[inline]
 pub fn voxel_rank(grid: &VoxelGrid, ranks: &[u32], p: UVec3) -> Option<u32> {
@@ -113,6 +120,13 @@ pub fn shade(shading: &Shading, t: &TriangleShading, w: Vec3) -> Vec4 {
         colour *= sample_texture(&shading.textures[r.texture as usize], uv);
     }
     colour
+}
+
+/// Whether triangle `t`'s surface at barycentric weights `w` is cut out: its material masks, and the shaded
+/// alpha there is below the cutoff.
+pub fn cut_out(shading: &Shading, t: &TriangleShading, w: Vec3) -> bool {
+    let cutoff = shading.materials[t.material as usize].cutoff();
+    cutoff > 0.0 && shade(shading, t, w).w < cutoff
 }
 
 /// The midpoints between consecutive entries of [`SRGB_TO_LINEAR`]: byte `k` encodes the linear values from
