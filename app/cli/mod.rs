@@ -214,7 +214,7 @@ impl GridArgs {
     }
 }
 
-/// The colours of a Minecraft output (`.schem`, `.litematic`, `.nbt`: blocks) and of a `.vox` (a fixed palette).
+/// The colours of a Minecraft output (`.schem`, `.litematic`, `.nbt`, `.zip`, `.mcstructure`: blocks) and of a `.vox` (a fixed palette).
 #[derive(clap::Args, Clone, Default)]
 pub(super) struct BlockArgs {
     /// Minecraft outputs: the blocks colours map to, by the nearest colour in OKLab: `default` (concrete, wool,
@@ -251,7 +251,9 @@ impl BlockArgs {
         let minecraft = matches!(format, VoxelFormat::Minecraft(_));
         let palette = match &self.palette {
             Some(_) if !minecraft && format != VoxelFormat::Vox => {
-                anyhow::bail!("--palette is for .vox and Minecraft outputs (.schem, .litematic, .nbt, .zip)")
+                anyhow::bail!(
+                    "--palette is for .vox and Minecraft outputs (.schem, .litematic, .nbt, .zip, .mcstructure)"
+                )
             }
             Some(_) if self.block.is_some() => anyhow::bail!("--block puts one block everywhere: leave out --palette"),
             Some(file) => {
@@ -271,7 +273,7 @@ impl BlockArgs {
         if !minecraft {
             if self.blocks.is_some() || self.block.is_some() {
                 anyhow::bail!(
-                    "--blocks and --block are for Minecraft outputs: use a .schem, .litematic, .nbt or .zip output"
+                    "--blocks and --block are for Minecraft outputs: use a .schem, .litematic, .nbt, .zip or .mcstructure output"
                 );
             }
             if self.dither && palette.is_none() {

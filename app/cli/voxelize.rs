@@ -29,8 +29,9 @@ pub(super) struct VoxelizeArgs {
     pub(super) axis: Axis,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB), .nvdb (NanoVDB)
     /// or .npz (sorted coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
-    /// .schem, .litematic, .nbt or .zip for Minecraft (Sponge v3, Litematica, a structure file up to 48³, or
-    /// structure files of 48³ in a datapack that places them; blocks by colour: --blocks, --block, --dither).
+    /// .schem, .litematic, .nbt, .zip or .mcstructure for Minecraft (Sponge v3, Litematica, a structure file up to
+    /// 48³, structure files of 48³ in a datapack that places them, or Bedrock's structure file; blocks by colour:
+    /// --blocks, --block, --dither).
     #[arg(short = 'o', long = "output", value_name = "OUT")]
     pub(super) output: PathBuf,
     /// For mesh outputs, join coplanar faces of the same colour into rectangles (far fewer faces).

@@ -1,6 +1,6 @@
 //! Minecraft blocks for the schematic formats: a block set (the default one in `assets/minecraft-blocks.csv`, or
-//! the user's `id,r,g,b` file), each voxel's block the nearest to its colour in OKLab, dithered on request
-//! ([`Swatches`] does the picking).
+//! the user's `id,r,g,b[,bedrock]` file), each voxel's block the nearest to its colour in OKLab, dithered on
+//! request ([`Swatches`] does the picking).
 
 use super::swatches::Swatches;
 pub use super::swatches::oklab;
@@ -13,7 +13,9 @@ pub const DEFAULT_BLOCKS: &str = include_str!("../../assets/minecraft-blocks.csv
 /// Why a block set cannot be read.
 #[derive(Debug, thiserror::Error)]
 pub enum BlockError {
-    #[error("{what}, line {line}: {why} (a block set is lines of id,r,g,b: minecraft:white_concrete,207,213,214)")]
+    #[error(
+        "{what}, line {line}: {why} (a block set is lines of id,r,g,b[,bedrock]: minecraft:white_concrete,207,213,214)"
+    )]
     Line { what: String, line: usize, why: String },
     #[error("{0}: no blocks")]
     Empty(String),
@@ -31,6 +33,9 @@ pub const MAX_BLOCKS: usize = super::swatches::MAX_ENTRIES;
 pub struct BlockSet {
     /// Namespaced ids (`minecraft:white_concrete`), in the file's order.
     pub ids: Vec<String>,
+    /// The same blocks' Bedrock Edition states (`minecraft:hardened_clay` for Java's `minecraft:terracotta`): the
+    /// file's fifth column, or the Java id where it has none.
+    pub bedrock: Vec<String>,
     /// Their colours (sRGB), by which voxels pick them.
     pub swatches: Swatches,
 }
@@ -43,6 +48,25 @@ pub fn block_state(state: &str) -> Option<(&str, Vec<(&str, &str)>)> {
     let properties = rest.strip_suffix(']')?;
     let pairs = properties.split(',').map(|p| p.split_once('=')).collect::<Option<Vec<_>>>()?;
     Some((id, pairs))
+}
+
+/// A line's comma-separated fields, trimmed, the commas inside a state's brackets kept
+/// (`minecraft:oak_log[axis=y,…],r,g,b` is four fields).
+fn fields(line: &str) -> Vec<&str> {
+    let (mut fields, mut start, mut depth) = (Vec::new(), 0, 0i32);
+    for (i, c) in line.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth -= 1,
+            ',' if depth <= 0 => {
+                fields.push(line[start..i].trim());
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    fields.push(line[start..].trim());
+    fields
 }
 
 /// Whether `state` looks like a namespaced block id (`namespace:name`, lower-case letters, digits and `_-./`),
@@ -73,28 +97,40 @@ impl BlockSet {
         if !valid_id(&named) {
             return Err(BlockError::Id(id.to_string()));
         }
-        let id = named;
-        Ok(BlockSet { ids: vec![id], swatches: Swatches::new(vec![[255; 3]]) })
+        Ok(BlockSet { ids: vec![named.clone()], bedrock: vec![named], swatches: Swatches::new(vec![[255; 3]]) })
     }
 
-    /// A set from `id,r,g,b` lines (a header line `id,r,g,b`, blank lines and `#` comments are skipped); `what`
-    /// names it in errors.
+    /// A set from `id,r,g,b[,bedrock]` lines (a header line `id,r,g,b` or `id,r,g,b,bedrock`, blank lines and `#`
+    /// comments are skipped); `what` names it in errors.
     pub fn parse(text: &str, what: &str) -> Result<BlockSet, BlockError> {
-        let (mut ids, mut colours) = (Vec::new(), Vec::new());
+        let (mut ids, mut bedrock, mut colours) = (Vec::new(), Vec::new(), Vec::new());
         for (i, line) in text.lines().enumerate() {
             let line = line.trim();
-            if line.is_empty() || line.starts_with('#') || line.replace(' ', "") == "id,r,g,b" {
+            if line.is_empty()
+                || line.starts_with('#')
+                || matches!(&*line.replace(' ', ""), "id,r,g,b" | "id,r,g,b,bedrock")
+            {
                 continue;
             }
             let error = |why: String| BlockError::Line { what: what.to_string(), line: i + 1, why };
-            // From the right: a state's properties hold commas of their own (`oak_log[axis=y,…],r,g,b`).
-            let mut parts: Vec<&str> = line.rsplitn(4, ',').map(str::trim).collect();
-            parts.reverse();
-            let [id, r, g, b] = parts[..] else { return Err(error(format!("{} fields, not 4", parts.len()))) };
-            let id = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
-            if !valid_id(&id) {
-                return Err(error(format!("'{id}' is not a block id to build with")));
-            }
+            let parts = fields(line);
+            let (id, r, g, b, on_bedrock) = match parts[..] {
+                [id, r, g, b] => (id, r, g, b, None),
+                [id, r, g, b, on_bedrock] => (id, r, g, b, Some(on_bedrock)),
+                _ => return Err(error(format!("{} fields, not 4 or 5", parts.len()))),
+            };
+            let named = |id: &str| {
+                let id = if id.contains(':') { id.to_string() } else { format!("minecraft:{id}") };
+                match valid_id(&id) {
+                    true => Ok(id),
+                    false => Err(error(format!("'{id}' is not a block id to build with"))),
+                }
+            };
+            let id = named(id)?;
+            bedrock.push(match on_bedrock {
+                Some(b) => named(b)?,
+                None => id.clone(),
+            });
             let channel = |s: &str| s.parse::<u8>().map_err(|_| error(format!("'{s}' is not a value 0..255")));
             colours.push([channel(r)?, channel(g)?, channel(b)?]);
             ids.push(id);
@@ -105,7 +141,7 @@ impl BlockSet {
         if ids.len() > MAX_BLOCKS {
             return Err(BlockError::TooMany(what.to_string()));
         }
-        Ok(BlockSet { ids, swatches: Swatches::new(colours) })
+        Ok(BlockSet { ids, bedrock, swatches: Swatches::new(colours) })
     }
 
     /// The block nearest to OKLab colour `lab` (the first of equals).

@@ -65,7 +65,7 @@ pub enum VoxelFormat {
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 14] = [
+    pub const ALL: [VoxelFormat; 15] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -80,6 +80,7 @@ impl VoxelFormat {
         VoxelFormat::Minecraft(MinecraftFormat::Litematic),
         VoxelFormat::Minecraft(MinecraftFormat::Structure),
         VoxelFormat::Minecraft(MinecraftFormat::Tiles),
+        VoxelFormat::Minecraft(MinecraftFormat::Bedrock),
     ];
 
     /// The format named by a file's extension.

@@ -16,10 +16,14 @@ nbtlib = need("nbtlib")
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
+def default_rows():
+    return [line.split(",") for line in (ROOT / "assets" / "minecraft-blocks.csv").read_text().splitlines()
+            if line and not line.startswith("#") and line != "id,r,g,b,bedrock"]
+
+
 def default_set():
-    rows = [line.split(",") for line in (ROOT / "assets" / "minecraft-blocks.csv").read_text().splitlines()
-            if line and not line.startswith("#") and line != "id,r,g,b"]
-    return [r[0] for r in rows], np.array([[int(c) for c in r[1:]] for r in rows], dtype=np.uint8)
+    rows = default_rows()
+    return [r[0] for r in rows], np.array([[int(c) for c in r[1:4]] for r in rows], dtype=np.uint8)
 
 
 def oklab(rgb):
@@ -306,3 +310,61 @@ def test_block_states_with_properties_in_every_format(meshes, cli, tmp_path):
     out = subprocess.run([str(cli), "voxelize", duck, "-r", "16", "-o", str(tmp_path / "b.schem"), "--blocks",
                           str(bad)], capture_output=True, text=True)
     assert out.returncode != 0 and "line 1" in out.stderr and len(out.stderr.strip().splitlines()) == 1, out.stderr
+
+
+def read_mcstructure(path):
+    """(Bedrock block states [x, y, z], air where the first layer says -1, the palette's entries, the root) of a
+    .mcstructure, by nbtlib's little-endian mode (uncompressed)."""
+    root = nbtlib.load(path, gzipped=False, byteorder="little")
+    assert root.root_name == "" and int(root["format_version"]) == 1
+    assert [int(v) for v in root["structure_world_origin"]] == [0, 0, 0]
+    size = [int(v) for v in root["size"]]
+    s = root["structure"]
+    first, second = s["block_indices"]
+    assert len(first) == len(second) == size[0] * size[1] * size[2]
+    assert all(int(v) == -1 for v in second), "nothing is waterlogged"
+    assert len(s["entities"]) == 0 and len(s["palette"]["default"]["block_position_data"]) == 0
+    palette = s["palette"]["default"]["block_palette"]
+    for entry in palette:
+        assert int(entry["version"]) == 0x01150000
+    states = [str(e["name"]) + ("[" + ",".join(f"{k}={v.unpack()}" for k, v in sorted(e["states"].items())) + "]"
+                                if len(e["states"]) else "") for e in palette]
+    index = np.array([int(v) for v in first]).reshape(size)  # x outermost, then y, then z
+    names = np.array(["minecraft:air"] + states, dtype=object)[index + 1]
+    return names, palette, root
+
+
+def test_a_bedrock_structure_holds_the_schematics_blocks_under_their_bedrock_names(meshes, cli, tmp_path):
+    duck = str(meshes / "gltf" / "Duck.glb")
+    for ext in ("schem", "mcstructure"):
+        run_cli(cli, "voxelize", duck, "-r", "37", "-o", str(tmp_path / f"duck.{ext}"), "--backend", "cpu",
+                "--dither")
+    schem, _, _ = read_schem(tmp_path / "duck.schem")
+    names, palette, _ = read_mcstructure(tmp_path / "duck.mcstructure")
+    on_bedrock = {r[0]: r[4] for r in default_rows()}
+    assert on_bedrock["minecraft:terracotta"] == "minecraft:hardened_clay"
+    want = np.vectorize(lambda j: on_bedrock.get(j, j), otypes=[object])(schem)
+    assert names.shape == schem.shape and np.array_equal(names, want)
+    assert len(palette) > 3 and "minecraft:air" not in {str(p["name"]) for p in palette}
+    # A set naming Bedrock states: strings, integers as Ints, true/false as Bytes; no fifth column, the Java id.
+    mine = tmp_path / "mine.csv"
+    mine.write_text("id,r,g,b,bedrock\n"
+                    "minecraft:oak_log[axis=y],109,85,50,minecraft:oak_log[pillar_axis=y]\n"
+                    "minecraft:orange_wool,240,118,19,minecraft:sea_pickle[cluster_count=2,dead_bit=false]\n"
+                    "minecraft:yellow_wool,248,197,39\n")
+    for ext in ("schem", "mcstructure"):
+        run_cli(cli, "voxelize", duck, "-r", "30", "-o", str(tmp_path / f"m.{ext}"), "--backend", "cpu",
+                "--blocks", str(mine))
+    schem, _, _ = read_schem(tmp_path / "m.schem")
+    names, palette, _ = read_mcstructure(tmp_path / "m.mcstructure")
+    bedrock = {"minecraft:oak_log[axis=y]": "minecraft:oak_log[pillar_axis=y]",
+               "minecraft:orange_wool": "minecraft:sea_pickle[cluster_count=2,dead_bit=0]",
+               "minecraft:yellow_wool": "minecraft:yellow_wool", "minecraft:air": "minecraft:air"}
+    assert np.array_equal(names, np.vectorize(bedrock.get, otypes=[object])(schem))
+    types = {str(k): type(v).__name__ for e in palette for k, v in e["states"].items()}
+    assert types == {"pillar_axis": "String", "cluster_count": "Int", "dead_bit": "Byte"}, types
+    # Python's save writes the CLI's bytes.
+    import meshvox
+    grid = meshvox.voxelize(duck, 37, backend="cpu")
+    grid.save(tmp_path / "py.mcstructure", dither=True)
+    assert (tmp_path / "py.mcstructure").read_bytes() == (tmp_path / "duck.mcstructure").read_bytes()

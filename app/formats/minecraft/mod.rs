@@ -1,9 +1,12 @@
 //! The Minecraft formats, each gzipped NBT files of blocks: WorldEdit's Sponge v3 schematic ([`schem`]),
 //! Litematica's `.litematic` ([`litematic`]), the game's own structure-block file ([`structure`], `.nbt`, at most
-//! [`structure::MAX_SIDE`] along each axis) and a model of any size as such files in a datapack ([`tiles`], `.zip`). One set voxel is one block of a [`BlockSet`], picked by
+//! [`structure::MAX_SIDE`] along each axis), a model of any size as such files in a datapack ([`tiles`], `.zip`),
+//! and Bedrock Edition's structure file ([`bedrock`], `.mcstructure`). One set voxel is one block of a
+//! [`BlockSet`], picked by
 //! [`BlockSet::assign`]; the grid's y is Minecraft's up, and its voxel `(x, y, z)` is the block at `(x, y, z)`
 //! from the schematic's origin. The layouts and their sources are in `docs/minecraft-formats.md`.
 
+pub mod bedrock;
 pub mod litematic;
 pub mod schem;
 pub mod structure;
@@ -52,6 +55,8 @@ pub enum MinecraftFormat {
     Structure,
     /// Structure files of at most 48³ in a datapack that places them (`.zip`).
     Tiles,
+    /// Bedrock Edition's structure file (`.mcstructure`).
+    Bedrock,
 }
 
 impl MinecraftFormat {
@@ -61,6 +66,7 @@ impl MinecraftFormat {
             MinecraftFormat::Litematic => "litematic",
             MinecraftFormat::Structure => "nbt",
             MinecraftFormat::Tiles => "zip",
+            MinecraftFormat::Bedrock => "mcstructure",
         }
     }
 }
@@ -144,5 +150,6 @@ pub fn write<W: Write + std::io::Seek>(
         MinecraftFormat::Litematic => litematic::write_litematic(grid, blocks, set, name, out),
         MinecraftFormat::Structure => structure::write_structure(grid, blocks, set, out),
         MinecraftFormat::Tiles => tiles::write_tiles(grid, blocks, set, name, out),
+        MinecraftFormat::Bedrock => bedrock::write_mcstructure(grid, blocks, set, out),
     }
 }

@@ -29,7 +29,10 @@ pub fn check_fits(dims: glam::UVec3) -> Result<(), FormatError> {
             dims.x,
             dims.y,
             dims.z,
-            VoxelFormat::listed(|f| matches!(f, VoxelFormat::Minecraft(m) if m != MinecraftFormat::Structure))
+            VoxelFormat::listed(|f| matches!(
+                f,
+                VoxelFormat::Minecraft(m) if !matches!(m, MinecraftFormat::Structure | MinecraftFormat::Bedrock)
+            ))
         ))),
     }
 }

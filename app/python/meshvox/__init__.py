@@ -202,8 +202,9 @@ class VoxelGrid:
     ) -> None:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
         ``.nvdb`` (NanoVDB), ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``,
-        ``.litematic`` or ``.nbt`` (Minecraft: Sponge v3, Litematica, a structure file up to 48³)) with the CLI's
-        writers, atomically. The Minecraft formats take ``blocks`` (``"default"`` or a file of ``id,r,g,b`` lines),
+        ``.litematic``, ``.nbt``, ``.zip`` or ``.mcstructure`` (Minecraft: Sponge v3, Litematica, a structure file up
+        to 48³, structure tiles in a datapack, Bedrock's structure file)) with the CLI's writers, atomically. The
+        Minecraft formats take ``blocks`` (``"default"`` or a file of ``id,r,g,b[,bedrock]`` lines),
         ``block`` (one block everywhere) and ``dither``; ``.vox`` and the Minecraft formats take ``palette`` (a
         ``.vox`` file, a PNG strip or a text list of colours: each voxel its nearest entry), as the CLI's
         ``--blocks``, ``--block``, ``--palette`` and ``--dither`` do (docs/formats.md). A coloured
@@ -215,11 +216,13 @@ class VoxelGrid:
         ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
         in the mesh formats."""
         suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
-        minecraft = suffix in ("schem", "litematic", "nbt", "zip")
+        minecraft = suffix in ("schem", "litematic", "nbt", "zip", "mcstructure")
         if (blocks is not None or block is not None) and not minecraft:
-            raise ValueError("blocks= and block= are for Minecraft files: save as .schem, .litematic, .nbt or .zip")
+            raise ValueError(
+                "blocks= and block= are for Minecraft files: save as .schem, .litematic, .nbt, .zip or .mcstructure"
+            )
         if palette is not None and not (minecraft or suffix == "vox"):
-            raise ValueError("palette= is for .vox and Minecraft files (.schem, .litematic, .nbt, .zip)")
+            raise ValueError("palette= is for .vox and Minecraft files (.schem, .litematic, .nbt, .zip, .mcstructure)")
         if dither and not (minecraft or palette is not None):
             raise ValueError("dither= is for Minecraft files, and for .vox with palette=")
         if block is not None and (blocks is not None or palette is not None):
