@@ -48,6 +48,12 @@ pub struct BatchArgs {
     band: super::BandArgs,
     #[command(flatten)]
     voids: super::VoidArgs,
+    /// Voxelize each animated glTF file at TIME seconds of its animation (the others as they are).
+    #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
+    pose: Option<f64>,
+    /// The animation --pose plays: its name or index (default: the first).
+    #[arg(long, value_name = "NAME", requires = "pose")]
+    animation: Option<String>,
     /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
     #[arg(long, value_name = "y|z", value_parser = super::parse_up)]
     up: Option<meshvox::mesh::UpAxis>,
@@ -371,6 +377,7 @@ impl Work<'_> {
             grid: args.grid,
             colour: args.colour.clone(),
             limits: args.limits.clone(),
+            pose: super::PoseArgs { pose: args.pose, animation: args.animation.clone(), frames: None },
         }
     }
 }
@@ -481,6 +488,11 @@ fn voxelize_one(
 ) -> Result<meshvox::Report> {
     let t = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
+    // A folder mixes animated and still models: --pose poses the ones that have animations.
+    let mesh = match (args.pose.pose(), mesh.rig.is_some()) {
+        (Some(pose), true) => mesh.posed(&pose)?,
+        _ => mesh,
+    };
     let load_ms = ms(t);
     if let Some(parent) = args.output.parent() {
         std::fs::create_dir_all(parent).with_context(|| format!("{}: cannot create", parent.display()))?;

@@ -314,6 +314,54 @@ pub(super) struct BandArgs {
     pub(super) thickness: Option<String>,
 }
 
+/// Posing an animated glTF file: one time, or a sequence of frames.
+#[derive(clap::Args, Clone, Default)]
+pub(super) struct PoseArgs {
+    /// Voxelize an animated glTF file at TIME seconds of its animation (skins, morph targets and node animation
+    /// applied; without: the rest pose).
+    #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
+    pub(super) pose: Option<f64>,
+    /// The animation --pose and --frames play: its name or index (default: the first).
+    #[arg(long, value_name = "NAME")]
+    pub(super) animation: Option<String>,
+    /// One output per frame, at START, START+STEP, … up to END seconds, each named OUT with its frame number
+    /// (walk.vox: walk_0000.vox, walk_0001.vox, …), all in one grid (the frames' common box) on one engine.
+    #[arg(long, value_name = "START:END:STEP", conflicts_with = "pose")]
+    pub(super) frames: Option<String>,
+}
+
+/// The most frames `--frames` makes.
+const MAX_FRAMES: usize = 100_000;
+
+impl PoseArgs {
+    /// The pose `--pose` asks for.
+    pub(super) fn pose(&self) -> Option<mesh::rig::Pose> {
+        self.pose.map(|time| mesh::rig::Pose { animation: self.animation.clone(), time })
+    }
+
+    /// The poses `--frames` asks for, in order; `None` without it.
+    pub(super) fn frames(&self) -> Result<Option<Vec<mesh::rig::Pose>>> {
+        let Some(text) = &self.frames else { return Ok(None) };
+        let bad = |why: &str| anyhow::anyhow!("--frames {text}: {why} (START:END:STEP in seconds, as 0:2:0.25)");
+        let parts: Vec<f64> = text
+            .split(':')
+            .map(|p| p.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| bad("three numbers"))?;
+        let [start, end, step] = parts[..] else { return Err(bad("three numbers")) };
+        if !(start.is_finite() && end.is_finite() && step > 0.0 && step.is_finite()) || end < start {
+            return Err(bad("END at least START, STEP above 0"));
+        }
+        // Frame k is at START + k·STEP (not a running sum), up to END with a little slack for rounding.
+        let count = ((end - start) / step + 1e-9).floor() as usize + 1;
+        if count > MAX_FRAMES {
+            return Err(bad(&format!("{count} frames, more than {MAX_FRAMES}")));
+        }
+        let pose = |k: usize| mesh::rig::Pose { animation: self.animation.clone(), time: start + k as f64 * step };
+        Ok(Some((0..count).map(pose).collect()))
+    }
+}
+
 /// A shell's or solid's voids, for printing: drain holes, the pockets left sealed and the mesh's unit (the up axis,
 /// down which holes go, is each command's `--up`).
 #[derive(clap::Args, Clone, Default)]

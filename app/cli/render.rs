@@ -86,6 +86,12 @@ pub(super) struct RenderArgs {
     dither: bool,
     #[command(flatten)]
     limits: LimitArgs,
+    /// Draw an animated glTF file at TIME seconds of its animation (without: the rest pose).
+    #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
+    pose: Option<f64>,
+    /// The animation --pose plays: its name or index (default: the first).
+    #[arg(long, value_name = "NAME", requires = "pose")]
+    animation: Option<String>,
 }
 
 pub(super) fn parse_cut(s: &str) -> Result<meshvox::render::Cut, String> {
@@ -110,6 +116,10 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     }
     let temp = temp_beside(&args.output)?;
     let mesh = args.limits.load(&args.mesh)?;
+    let mesh = match args.pose {
+        Some(time) => mesh.posed(&meshvox::mesh::rig::Pose { animation: args.animation.clone(), time })?,
+        None => mesh,
+    };
     let mode = args.mode;
     let request = args.limits.request(Resolution::Count(args.resolution), args.axis, mode, &args.band, &args.colour)?;
     let drain = args.voids.plan()?;

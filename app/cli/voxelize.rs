@@ -62,6 +62,8 @@ pub(super) struct VoxelizeArgs {
     pub(super) blocks: super::BlockArgs,
     #[command(flatten)]
     pub(super) limits: LimitArgs,
+    #[command(flatten)]
+    pub(super) pose: super::PoseArgs,
 }
 
 impl VoxelizeArgs {
@@ -86,11 +88,23 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let colour_map = args.blocks.read(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
+    let frames = args.pose.frames()?;
+    if args.pose.animation.is_some() && args.pose.pose.is_none() && frames.is_none() {
+        bail!("--animation names the animation that --pose or --frames plays: give one of them");
+    }
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
+    if let Some(frames) = frames {
+        return voxelize_frames(args, &request, &colour_map, &mesh, &frames, ms(t_load));
+    }
+    let mesh = match args.pose.pose() {
+        Some(pose) => mesh.posed(&pose)?,
+        None => mesh,
+    };
     let load_ms = ms(t_load);
     // One job: under `auto` its cost decides whether a GPU is worth opening (see meshvox::engine::cost).
     let report = voxelize_loaded(args, &request, &colour_map, None, &mesh, load_ms, true)?;
+    let report = meshvox::Report { pose: args.pose.pose, ..report };
     let [x, y, z] = report.dims;
     eprintln!(
         "{}: {} -> {x}x{y}x{z} grid (voxel size {:.6}), {} voxels set ({}) in {} on {}; wrote {} ({} bytes)",
@@ -111,6 +125,60 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&report)?);
     }
     Ok(())
+}
+
+/// `--frames`: the mesh at each pose, in one grid (the frames' common box, so that a voxel stays where it is from
+/// frame to frame) on one engine, each written to `OUT` with its frame number.
+fn voxelize_frames(
+    args: &VoxelizeArgs,
+    request: &Request,
+    colour_map: &super::ColourMap,
+    mesh: &mesh::Mesh,
+    frames: &[mesh::rig::Pose],
+    load_ms: f64,
+) -> Result<()> {
+    let mut bounds: Option<mesh::Aabb> = None;
+    for pose in frames {
+        let b = mesh.posed(pose)?.bounds().ok_or_else(|| anyhow!("{}: nothing to voxelize", args.mesh))?;
+        bounds = Some(match bounds {
+            Some(a) => mesh::Aabb { min: a.min.min(b.min), max: a.max.max(b.max) },
+            None => b,
+        });
+    }
+    let request = Request { bounds: request.bounds.or(bounds), ..*request };
+    let first = mesh.posed(&frames[0])?;
+    let engine = open_engine_for(args.backend, &Job::plan(&args.mesh, &first, &request)?)?;
+    let digits = (frames.len() - 1).to_string().len().max(4);
+    for (k, pose) in frames.iter().enumerate() {
+        let posed = mesh.posed(pose)?;
+        let frame = VoxelizeArgs { output: frame_path(&args.output, k, digits), ..args.clone() };
+        let loaded = if k == 0 { load_ms } else { 0.0 };
+        let report = voxelize_loaded(&frame, &request, colour_map, Some(&engine), &posed, loaded, false)?;
+        let report = meshvox::Report { frame: Some(k as u64), pose: Some(pose.time), ..report };
+        eprintln!(
+            "{}: frame {k} at {:.3} s: {} voxels set in {}; wrote {} ({} bytes)",
+            args.mesh,
+            pose.time,
+            report.voxels,
+            stage_times(&report),
+            frame.output.display(),
+            report.bytes
+        );
+        if args.stats_json {
+            println!("{}", serde_json::to_string(&report)?);
+        }
+    }
+    Ok(())
+}
+
+/// Frame `k`'s output: `walk.vox` becomes `walk_0007.vox` (at least four digits, so that the names sort).
+pub(super) fn frame_path(output: &Path, k: usize, digits: usize) -> PathBuf {
+    let stem = output.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match output.extension() {
+        Some(ext) => format!("{stem}_{k:0digits$}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{k:0digits$}"),
+    };
+    output.with_file_name(name)
 }
 
 /// The engine's time for the summary line: the whole job's stages, and each where there is more than the

@@ -55,6 +55,8 @@ pub struct Report {
     /// `sdf`/`udf`: the distance field's passes (the inside for the sign included), after the surface.
     pub field_ms: Option<f64>,
     pub format: String,
+    /// `--frames`: this output's frame number (from 0); `None` otherwise.
+    pub frame: Option<u64>,
     /// The per-voxel labels made (`--attributes`), in order; `None` without.
     pub labels: Option<Vec<String>>,
     pub labels_ms: Option<f64>,
@@ -98,6 +100,8 @@ pub struct Report {
     pub pockets: Option<Vec<Pocket>>,
     /// Points of a point cloud (which has no triangles); `None` for a mesh.
     pub points: Option<u64>,
+    /// `--pose` or `--frames`: the animation time posed, seconds; `None` for the rest pose.
+    pub pose: Option<f64>,
     /// Bytes the grid's GPU passes read back (the grid or its leaves, counters, timings); `None` on the CPU.
     pub readback_bytes: Option<u64>,
     /// `solid` on the CPU: the rows near an open mesh's boundary, whose fill may evaluate the winding number (0 for

@@ -8,7 +8,9 @@
 
 use super::files::{Externals, ReadError, RefStyle};
 use super::gltf_data;
+use super::gltf_rig;
 use super::material::{AlphaMode, DEFAULT_ALPHA_CUTOFF, Material, Shading, Texture, TextureRef, Wrap};
+use super::rig::{Local, Rig, RigPiece, Trs};
 use super::{LoadLimits, Mesh, MeshError, Part, Piece};
 use glam::{DMat4, DQuat, DVec3, Vec4};
 use gltf::mesh::Mode;
@@ -24,23 +26,33 @@ pub(super) fn load(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimi
     mesh.warnings.extend(colour_warnings.into_iter().map(|w| format!("{}: {w}", path.display())));
     let (shading, tex_sets) = read_materials(&mut mesh.warnings, path, &document, &data, base);
     mesh.shading = Some(shading);
+    // Skins, morph targets and animations: the pieces are placed by the rig at rest (and can be posed later).
+    let mut rig =
+        gltf_rig::wanted(&document).then(|| gltf_rig::read(&document, &data, &transforms, &mut mesh.warnings));
     let mut pieces = Vec::new();
     let mut placed = Vec::new();
     for (node, gmesh, world, instancing) in instances {
         match instancing {
             Some(instancing) => {
                 let transforms = instancing.transforms(&data).map_err(err)?;
-                placed.extend(transforms.into_iter().map(|m| (node, gmesh.clone(), world * m)));
+                placed.extend(transforms.into_iter().map(|m| (node, gmesh.clone(), world * m, m)));
             }
-            None => placed.push((node, gmesh, world)),
+            None => placed.push((node, gmesh, world, DMat4::IDENTITY)),
         }
     }
-    for (node, gmesh, world) in placed {
+    for (node, gmesh, world, instance) in placed {
         for primitive in gmesh.primitives() {
             let source = Source { document: &document, data: &data, path };
-            let placed = Placed { node, world };
-            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, placed, &tex_sets)?);
+            let placed = Placed { node, world, instance };
+            pieces.extend(read_primitive(&mut mesh, source, &gmesh, &primitive, placed, &tex_sets, rig.as_mut())?);
         }
+    }
+    if let Some(rig) = rig {
+        let at_rest = rig.positions(None).map_err(err)?;
+        for (piece, positions) in pieces.iter_mut().zip(at_rest) {
+            piece.positions = positions;
+        }
+        mesh.rig = Some(std::sync::Arc::new(rig));
     }
     mesh.push_pieces(pieces);
     Ok(mesh)
@@ -51,7 +63,7 @@ struct Parsed {
     document: gltf::Document,
     blob: Option<Vec<u8>>,
     /// Each node's local transform read from the JSON in f64 (`None` where it could not be reread).
-    transforms: Vec<Option<DMat4>>,
+    transforms: Vec<Option<Local>>,
 }
 
 fn parse_document(path: &Path, bytes: &[u8]) -> Result<Parsed, MeshError> {
@@ -89,7 +101,7 @@ type Instance<'a> = (u32, gltf::Mesh<'a>, DMat4, Option<gltf_data::Instancing<'a
 fn mesh_instances<'a>(
     path: &Path,
     document: &'a gltf::Document,
-    transforms: &[Option<DMat4>],
+    transforms: &[Option<Local>],
     limits: &LoadLimits,
 ) -> Result<Vec<Instance<'a>>, MeshError> {
     let err = |message: String| MeshError::Gltf { path: path.to_path_buf(), message };
@@ -121,7 +133,8 @@ fn mesh_instances<'a>(
             )));
         }
         let local = match transforms.get(node.index()) {
-            Some(Some(m)) => *m,
+            Some(Some(Local::Matrix(m))) => *m,
+            Some(Some(Local::Trs(trs))) => trs.matrix(),
             // The JSON could not be reread (the crate accepted it, so this is not expected): its f32 values.
             _ => DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from))),
         };
@@ -163,14 +176,14 @@ fn validate(json: gltf::json::Root) -> Result<gltf::Document, gltf::Error> {
 /// Every node's local transform in f64, read from the JSON text (the GLB's JSON chunk or the whole `.gltf`);
 /// `None` for a node whose transform is not well-formed numbers, and an empty list if the JSON cannot be read.
 /// glTF gives either a column-major `matrix` or `translation`, `rotation` (x, y, z, w) and `scale`.
-fn node_transforms_f64(bytes: &[u8]) -> Vec<Option<DMat4>> {
+fn node_transforms_f64(bytes: &[u8]) -> Vec<Option<Local>> {
     if !bytes.starts_with(b"glTF") {
         return transforms_from_json(bytes);
     }
     gltf::binary::Glb::from_slice(bytes).map_or_else(|_| Vec::new(), |glb| transforms_from_json(&glb.json))
 }
 
-fn transforms_from_json(json: &[u8]) -> Vec<Option<DMat4>> {
+fn transforms_from_json(json: &[u8]) -> Vec<Option<Local>> {
     #[derive(serde::Deserialize)]
     struct Node {
         matrix: Option<[f64; 16]>,
@@ -190,14 +203,14 @@ fn transforms_from_json(json: &[u8]) -> Vec<Option<DMat4>> {
         .map(|v| {
             let n: Node = serde_json::from_value(v).ok()?;
             Some(match n.matrix {
-                Some(m) => DMat4::from_cols_array(&m),
+                Some(m) => Local::Matrix(DMat4::from_cols_array(&m)),
                 None => {
                     let [x, y, z, w] = n.rotation.unwrap_or([0.0, 0.0, 0.0, 1.0]);
-                    DMat4::from_scale_rotation_translation(
-                        DVec3::from(n.scale.unwrap_or([1.0; 3])),
-                        DQuat::from_xyzw(x, y, z, w),
-                        DVec3::from(n.translation.unwrap_or([0.0; 3])),
-                    )
+                    Local::Trs(Trs {
+                        translation: DVec3::from(n.translation.unwrap_or([0.0; 3])),
+                        rotation: DQuat::from_xyzw(x, y, z, w),
+                        scale: DVec3::from(n.scale.unwrap_or([1.0; 3])),
+                    })
                 }
             })
         })
@@ -329,11 +342,13 @@ fn about(path: &Path, gmesh: &gltf::Mesh, primitive: &gltf::Primitive) -> String
     format!("{}: mesh {} '{name}' primitive {}", path.display(), gmesh.index(), primitive.index())
 }
 
-/// Where a mesh instance is: the node that instanced it, and its world transform.
+/// Where a mesh instance is: the node that instanced it, its world transform, and the instance's own transform
+/// (`EXT_mesh_gpu_instancing`; identity without).
 #[derive(Clone, Copy)]
 struct Placed {
     node: u32,
     world: DMat4,
+    instance: DMat4,
 }
 
 /// A primitive's vertex arrays before they are placed in the world.
@@ -353,6 +368,7 @@ fn read_primitive(
     primitive: &gltf::Primitive,
     placed: Placed,
     tex_sets: &[u32],
+    rig: Option<&mut Rig>,
 ) -> Result<Option<Piece>, MeshError> {
     let path = source.path;
     let name = gmesh.name().unwrap_or("").to_string();
@@ -367,7 +383,9 @@ fn read_primitive(
     }
     let material = primitive.material().index().unwrap_or(tex_sets.len().saturating_sub(1));
     let set = tex_sets.get(material).copied().unwrap_or(0);
-    let arrays = match gltf_data::draco(source.document, primitive, source.data, set) {
+    let draco = gltf_data::draco(source.document, primitive, source.data, set);
+    let compressed = draco.is_some();
+    let arrays = match draco {
         Some(decoded) => {
             // Draco streams hold triangle lists whatever the primitive's mode says.
             mode = Mode::Triangles;
@@ -422,6 +440,33 @@ fn read_primitive(
         material: primitive.material().index().map(|i| i as u32),
         node: placed.node,
     };
+    if let Some(rig) = rig {
+        let node = source.document.nodes().nth(placed.node as usize).ok_or_else(|| err("a node vanished".into()))?;
+        let n = arrays.positions.len();
+        let about = about(path, gmesh, primitive);
+        let (placement, targets) = match compressed {
+            // A Draco stream's joints, weights and targets are not decoded: it is placed rigidly.
+            true => {
+                if node.skin().is_some() || primitive.morph_targets().len() > 0 {
+                    mesh.warnings
+                        .push(format!("{about}: Draco-compressed, so its skin and morph targets are not applied"));
+                }
+                (super::rig::Placement::Rigid { node: placed.node, instance: placed.instance }, Vec::new())
+            }
+            false => (
+                gltf_rig::placement(&node, placed.instance, primitive, source.data, n, &mut mesh.warnings, &about),
+                gltf_rig::targets(primitive, source.data, n, &mut mesh.warnings, &about),
+            ),
+        };
+        let local = arrays.positions.iter().map(|&p| DVec3::from(p)).collect();
+        rig.pieces.push(RigPiece {
+            positions: local,
+            triangles: triangles.clone(),
+            placement,
+            node: placed.node,
+            targets,
+        });
+    }
     let (uvs, colors) = (arrays.uvs, arrays.colors);
     Ok(Some(Piece { part, positions, triangles, uvs, colors, material: material as u32 }))
 }

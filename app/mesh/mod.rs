@@ -11,11 +11,13 @@ mod cloud_text;
 mod files;
 pub use files::{SETTING_FILE_LIMIT, read_named, read_setting_file};
 mod gltf_data;
+mod gltf_rig;
 mod gltf_scene;
 pub mod material;
 pub mod npy;
 mod obj;
 mod ply;
+pub mod rig;
 mod stl;
 
 use crate::names::Setting;
@@ -77,6 +79,9 @@ pub struct Mesh {
     /// A point cloud instead of triangles (a PLY without faces, `.xyz`, `.pts`, `.npy`, `.npz`): then `triangles`
     /// is empty and each point sets its voxel.
     pub points: Option<PointCloud>,
+    /// A glTF file's skins, morph targets and animations, by which [`Mesh::posed`] poses it again (the triangles
+    /// are its rest pose); `None` for every other mesh.
+    pub rig: Option<std::sync::Arc<rig::Rig>>,
 }
 
 impl Mesh {
@@ -182,6 +187,48 @@ impl Mesh {
         self.triangle_part.resize(self.triangles.len(), id);
     }
 
+    /// The mesh at `pose`: its skins, morph targets and node transforms with the animation sampled at the pose's
+    /// time ([`rig`]); the same parts, order and shading as the rest pose. A mesh without a rig (not glTF, or a
+    /// glTF file without skins, morph targets or animations) cannot be posed.
+    pub fn posed(&self, pose: &rig::Pose) -> Result<Mesh, MeshError> {
+        let path = PathBuf::from(&self.name);
+        let error = |message: String| MeshError::Pose { path: path.clone(), message };
+        let Some(rig) = &self.rig else {
+            return Err(error("a pose needs a glTF file with animations (this one has none)".into()));
+        };
+        let positions = rig.positions(Some(pose)).map_err(error)?;
+        let anchor = anchor_of(
+            positions.iter().zip(&rig.pieces).map(|(p, piece)| (p.as_slice(), used(p.len(), &piece.triangles))),
+        );
+        let mut triangles = Vec::with_capacity(self.triangles.len());
+        for (p, piece) in positions.iter().zip(&rig.pieces) {
+            triangles.extend(local_triangles(p, &piece.triangles, anchor));
+        }
+        if triangles.len() != self.triangles.len() {
+            return Err(error(format!(
+                "the rig holds {} triangles, the mesh {}",
+                triangles.len(),
+                self.triangles.len()
+            )));
+        }
+        Mesh { anchor, triangles, ..self.clone_without_triangles() }.validate(&path)
+    }
+
+    /// A copy of everything but the triangles (which a pose replaces).
+    fn clone_without_triangles(&self) -> Mesh {
+        Mesh {
+            name: self.name.clone(),
+            anchor: self.anchor,
+            triangles: Vec::new(),
+            triangle_part: self.triangle_part.clone(),
+            parts: self.parts.clone(),
+            warnings: self.warnings.clone(),
+            shading: self.shading.clone(),
+            points: self.points.clone(),
+            rig: self.rig.clone(),
+        }
+    }
+
     /// Rejects meshes the voxelizer cannot place in a grid: empty ones and ones with NaN or infinite coordinates.
     fn validate(self, path: &Path) -> Result<Self, MeshError> {
         // A cloud's points were checked as it was read (every point finite, at least one).
@@ -274,6 +321,9 @@ pub enum MeshError {
     Points { path: PathBuf, message: String },
     #[error("{}: contains no triangles", path.display())]
     Empty { path: PathBuf },
+    /// A pose asked of a mesh that cannot take it (no animation of that name, or no rig at all).
+    #[error("{}: {message}", path.display())]
+    Pose { path: PathBuf, message: String },
     /// Arrays handed over by a program ([`from_indexed`]) that do not make a mesh.
     #[error("{name}: {message}")]
     Arrays { name: String, message: String },

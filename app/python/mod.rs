@@ -32,6 +32,8 @@ use exceptions::MeshError as PyMeshError;
 enum Input {
     Path(PathBuf),
     Mesh(Box<Mesh>),
+    /// Another input at an animation's pose (`pose=`).
+    Posed(Box<Input>, crate::mesh::rig::Pose),
 }
 
 /// What a call asks for, from the keyword arguments of `meshvox.voxelize`: where, and the library's request
@@ -95,6 +97,8 @@ fn into_py_err(failure: Failure) -> PyErr {
     match failure {
         // Arrays that make no mesh are the caller's values; a file that makes none is a MeshError.
         Failure::Mesh(e @ MeshError::Arrays { .. }) => PyValueError::new_err(e.to_string()),
+        // A pose the file has no animation for is the caller's `pose=`/`animation=`.
+        Failure::Mesh(e @ MeshError::Pose { .. }) => PyValueError::new_err(e.to_string()),
         Failure::Mesh(e) => PyMeshError::new_err(e.to_string()),
         // The package's grids are dense and its budget is the default: the CLI's hint (--max-memory, sparse
         // outputs) names nothing a Python caller can change.
@@ -173,6 +177,11 @@ impl Input {
                 Ok((name, mesh))
             }
             Input::Mesh(mesh) => Ok(("arrays".to_string(), *mesh)),
+            Input::Posed(input, pose) => {
+                let (name, mesh) = input.load()?;
+                let posed = mesh.posed(&pose).map_err(Failure::Mesh)?;
+                Ok((name, posed))
+            }
         }
     }
 }
@@ -311,7 +320,7 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness, voids=None))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness, voids=None, pose=None))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
@@ -328,9 +337,13 @@ fn voxelize<'py>(
     attributes: &str,
     thickness: Option<&str>,
     voids: Option<Voids>,
+    pose: Option<(f64, Option<String>)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
-    let input = input(source)?;
+    let input = match pose {
+        Some((time, animation)) => Input::Posed(Box::new(input(source)?), crate::mesh::rig::Pose { animation, time }),
+        None => input(source)?,
+    };
     let result = process::run(py, progress, |control| {
         voxelize_one(input, &options, &|done, total| control.progress(done, total), &control.cancel)
     })?;

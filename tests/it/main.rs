@@ -26,6 +26,7 @@ mod modes;
 mod nanovdb;
 mod optimized_gltf;
 mod points;
+mod pose;
 mod query;
 mod query_gpu;
 mod render_snapshots;

@@ -379,6 +379,8 @@ def voxelize(
     fill_pockets: bool = False,
     up: str | None = None,
     unit: str | None = None,
+    pose: float | None = None,
+    animation: str | int | None = None,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
     ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
@@ -406,10 +408,17 @@ def voxelize(
     ``volume``, ``point``), ``stats["drains"]`` the holes; ``fill_pockets=True`` fills the pockets. A shell with
     holes or filled pockets has its walls' field in ``.distances`` (below 0 within the walls, the holes cut), so
     :meth:`VoxelGrid.to_mesh` and saving as a mesh give the walls with the holes.
+
+    An animated glTF file (skins, morph targets, node animation) is voxelized at its rest pose, or at ``pose``
+    seconds of ``animation`` (its name or index; default the first), as the CLI's ``--pose`` and ``--animation``
+    (docs/formats.md).
     """
+    if animation is not None and pose is None:
+        raise ValueError("animation= names the animation pose= plays: give pose= too")
+    posed = None if pose is None else (float(pose), None if animation is None else str(animation))
     out = _native.voxelize(
         _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
-        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit),
+        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit), posed,
     )
     return _grid(out)
 

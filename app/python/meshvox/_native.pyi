@@ -24,6 +24,7 @@ def voxelize(
     attributes: str,
     thickness: str | None,
     voids: dict[str, Any] | None = None,
+    pose: tuple[float, str | None] | None = None,
 ) -> dict[str, Any]: ...
 def voxelize_many(
     sources: Sequence[_Source],
