@@ -9,6 +9,7 @@ use crate::engine::{EngineError, Request, Voxelized};
 use crate::gpu::GpuError;
 use crate::mesh::Mesh;
 use crate::render::OrbitCamera;
+use crate::voxel::voids::DrainPlan;
 use crate::voxel::{Mode, Resolution};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -79,8 +80,13 @@ impl ViewerApp {
                 thickness: crate::voxel::Length::Voxels(f64::from(self.thickness)),
                 ..Request::new(Resolution::Count(self.resolution), self.mode)
             };
+            let drain = match (self.mode, self.drains) {
+                (Mode::Shell, holes @ 1..) => DrainPlan::Count { holes, radius: None },
+                _ => DrainPlan::None,
+            };
             let mesh = mesh.clone();
             async move {
+                let request = Request { drain: &drain, ..request };
                 let result = engine.voxelize_async(&name, &mesh, &request).await.map_err(|e| match e {
                     // A resolution the host cannot hold is refused before anything is allocated; the message
                     // names the largest one that fits, and the current voxels stay on screen.
@@ -139,6 +145,7 @@ impl ViewerApp {
             on_gpu: !done.report.backend.starts_with(crate::engine::Backend::Cpu.name()),
             voxel_size: grid.spec.voxel_size,
             coloured: done.colours.is_some(),
+            pockets: done.report.pockets.as_ref().map(Vec::len),
         });
         self.colours = done.colours;
         // A shell's field is what it was cut from: the shell is shown as voxels, cut away like the others.

@@ -66,6 +66,8 @@ pub struct Stats {
     pub voxel_size: f64,
     /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
     pub coloured: bool,
+    /// A shell's voids left sealed (`pockets` of the report): resin a print would trap; `None` for other modes.
+    pub pockets: Option<usize>,
 }
 
 pub struct ViewerApp {
@@ -80,7 +82,14 @@ pub struct ViewerApp {
     scene_version: u64,
     view: Option<View>,
     mesh_label: String,
+    /// The mesh shown: `rest` at the chosen pose, or `rest` itself.
     mesh: Option<Arc<Mesh>>,
+    /// The mesh as loaded (an animated glTF's rest pose), which a pose is made from.
+    rest: Option<Arc<Mesh>>,
+    /// An animated glTF's pose: (animation index, seconds), or `None` for the rest pose.
+    pose: Option<(usize, f64)>,
+    /// Drain holes per void of a shell (`--drain N`; 0: none).
+    drains: u32,
     resolution: u32,
     axis: Axis,
     mode: Mode,
@@ -125,6 +134,9 @@ pub struct ViewerApp {
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
 pub const DEFAULT_RESOLUTION: u32 = 64;
 
+/// The most drain holes per void the panel offers.
+pub const MAX_DRAINS: u32 = 8;
+
 /// The thickness slider's range, in voxels: a shell's band is at most 64 voxels (`MAX_BAND`), thickness + 2.
 pub const MIN_THICKNESS: f32 = 0.5;
 pub const MAX_THICKNESS: f32 = 16.0;
@@ -151,6 +163,9 @@ impl ViewerApp {
             view: None,
             mesh_label: String::new(),
             mesh: None,
+            rest: None,
+            pose: None,
+            drains: 0,
             resolution,
             axis: Axis::Longest,
             mode: Mode::Surface,
@@ -279,6 +294,46 @@ impl ViewerApp {
         }
     }
 
+    /// Drain holes per void of a shell (voxelizes again where the mode is `shell`).
+    pub fn set_drains(&mut self, drains: u32) {
+        let drains = drains.min(MAX_DRAINS);
+        if drains != self.drains {
+            self.drains = drains;
+            self.needs_voxelize |= self.mode == Mode::Shell;
+        }
+    }
+
+    /// Poses an animated glTF at `time` seconds of animation `animation` (`None`: back to the rest pose), and
+    /// voxelizes it again; a mesh without animations stays as it is.
+    pub fn set_pose(&mut self, pose: Option<(usize, f64)>) {
+        let Some(rest) = self.rest.clone() else { return };
+        if pose == self.pose || rest.rig.as_ref().is_none_or(|r| r.animations.is_empty()) {
+            return;
+        }
+        let posed = match pose {
+            Some((animation, time)) => {
+                match rest.posed(&mesh::rig::Pose { animation: Some(animation.to_string()), time }) {
+                    Ok(m) => Arc::new(m),
+                    Err(e) => return self.fail(e.to_string()),
+                }
+            }
+            None => rest,
+        };
+        self.pose = pose;
+        self.mesh = Some(posed);
+        self.needs_voxelize = true;
+    }
+
+    /// The animations of the loaded mesh, by name (or index), with their lengths in seconds.
+    pub fn animations(&self) -> Vec<(String, f64)> {
+        let Some(rig) = self.rest.as_ref().and_then(|m| m.rig.as_ref()) else { return Vec::new() };
+        rig.animations
+            .iter()
+            .enumerate()
+            .map(|(i, a)| (if a.name.is_empty() { format!("{i}") } else { a.name.clone() }, a.duration()))
+            .collect()
+    }
+
     pub fn set_mode(&mut self, mode: Mode) {
         if mode != self.mode {
             self.mode = mode;
@@ -354,7 +409,10 @@ impl ViewerApp {
                 if !self.up_chosen {
                     self.up = m.guess_up();
                 }
-                self.mesh = Some(Arc::new(m));
+                let m = Arc::new(m);
+                self.rest = Some(m.clone());
+                self.mesh = Some(m);
+                self.pose = None;
                 self.error = None;
                 self.needs_voxelize = true;
                 self.needs_framing = true;

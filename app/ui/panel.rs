@@ -119,6 +119,49 @@ impl ViewerApp {
             if ui.add(slider).on_hover_text(hint).changed() {
                 self.set_thickness(t);
             }
+            ui.horizontal(|ui| {
+                let mut n = self.drains;
+                let hint = "drain holes per void, cut on its lowest layer along the up axis (the CLI's --drain N)";
+                let drag = egui::DragValue::new(&mut n).range(0..=super::MAX_DRAINS);
+                if ui.add(drag).on_hover_text(hint).changed() {
+                    self.set_drains(n);
+                }
+                ui.label("drain holes");
+                match self.stats.as_ref().and_then(|s| s.pockets) {
+                    Some(0) => ui.label("no sealed pocket"),
+                    Some(1) => ui.label("1 sealed pocket").on_hover_text("a void no hole reaches: it traps resin"),
+                    Some(n) => ui.label(format!("{n} sealed pockets")).on_hover_text("voids no hole reaches"),
+                    None => ui.label(""),
+                };
+            });
+        }
+        self.pose_controls(ui);
+    }
+
+    /// An animated glTF's pose: which animation, and a time slider across it (the rest pose at its left end).
+    fn pose_controls(&mut self, ui: &mut egui::Ui) {
+        let animations = self.animations();
+        if animations.is_empty() {
+            return;
+        }
+        let (mut which, mut time) = self.pose.unwrap_or((0, 0.0));
+        let mut posed = self.pose.is_some();
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut posed, "pose")
+                .on_hover_text("the animation at a time (the CLI's --pose); off: the rest pose");
+            if animations.len() > 1 {
+                egui::ComboBox::from_label("animation").selected_text(&animations[which].0).show_ui(ui, |ui| {
+                    for (i, (name, _)) in animations.iter().enumerate() {
+                        ui.selectable_value(&mut which, i, name);
+                    }
+                });
+            }
+        });
+        let length = animations[which].1.max(f64::EPSILON);
+        ui.add_enabled(posed, egui::Slider::new(&mut time, 0.0..=length).text("seconds"));
+        let wanted = posed.then_some((which, time.min(length)));
+        if wanted != self.pose {
+            self.set_pose(wanted);
         }
     }
 

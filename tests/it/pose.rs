@@ -39,7 +39,7 @@ fn box_triangles() -> Vec<[u16; 3]> {
 /// The file: node 0 the skinned mesh (its own translation, which skinning ignores), node 1 the root bone, node 2
 /// its child one unit up. Animation "bend" turns bone 1 by 90° about z over a second, steps bone 0 by 0.3 along
 /// x at 0.5 s and morphs the top ring in; "grow" scales bone 0 from 1 to 2 over two seconds by a cubic spline.
-fn rigged_box() -> String {
+pub(crate) fn rigged_box() -> String {
     use base64::Engine;
     let mut data: Vec<u8> = Vec::new();
     let mut views = Vec::new();

@@ -194,9 +194,64 @@ fn the_shell_mode_shows_its_thickness_slider_and_voxels_of_each_thickness() {
     assert_eq!(thicker, shell(3.0));
     assert!(thicker > stats.voxels);
     assert!(harness.state().url_state().query().contains("mode=shell&thickness=3"));
+    // The sphere's hollow is a sealed pocket; one drain hole opens it (the CLI's --drain 1).
+    assert_eq!(harness.state().stats().expect("stats").pockets, Some(1));
+    harness.get_by_label("1 sealed pocket");
+    harness.state_mut().set_drains(1);
+    harness.run();
+    let drained = harness.state().stats().expect("stats").clone();
+    assert_eq!(drained.pockets, Some(0));
+    harness.get_by_label("no sealed pocket");
+    let drain = meshvox::voxel::voids::DrainPlan::Count { holes: 1, radius: None };
+    let request = meshvox::Request {
+        thickness: meshvox::voxel::Length::Voxels(3.0),
+        grid: meshvox::voxel::GridKind::Dense,
+        drain: &drain,
+        ..meshvox::Request::new(meshvox::voxel::Resolution::Count(40), meshvox::voxel::Mode::Shell)
+    };
+    assert_eq!(drained.voxels, engine.voxelize("sphere", &mesh, &request).expect("drained").grid.count());
+    assert!(drained.voxels < thicker, "the hole takes voxels out of the wall");
     // Cut away, the hollow shows.
     harness.state_mut().set_cut(Some(meshvox::render::Cut { axis: 0, fraction: 0.6 }));
     harness.run();
     assert_eq!(harness.state().error(), None);
     snapshot(&mut harness, "ui-shell-cut");
+}
+
+/// An animated glTF (tests/it/pose.rs's skinned box) shows a pose checkbox and slider; a pose voxelizes the
+/// mesh at that time, as the library does, and turning it off goes back to the rest pose.
+#[test]
+fn an_animated_mesh_gets_a_pose_slider_that_voxelizes_the_pose() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("box.gltf");
+    std::fs::write(&path, crate::pose::rigged_box()).expect("write");
+    let path = path.to_string_lossy().into_owned();
+    let mut harness = small_viewer(&path, 24);
+    harness.run();
+    let rest = harness.state().stats().expect("voxelized").voxels;
+    harness.get_by_label("pose");
+    assert_eq!(harness.state().animations().iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>(), ["bend", "grow"]);
+    let mesh = meshvox::mesh::load(&path).expect("load");
+    let engine = meshvox::Engine::open(meshvox::Backend::Cpu).expect("cpu");
+    let at = |animation: usize, time: f64| {
+        let pose = meshvox::mesh::rig::Pose { animation: Some(animation.to_string()), time };
+        let request = meshvox::Request {
+            grid: meshvox::voxel::GridKind::Dense,
+            ..meshvox::Request::new(meshvox::voxel::Resolution::Count(24), meshvox::voxel::Mode::Surface)
+        };
+        engine.voxelize("box", &mesh.posed(&pose).expect("pose"), &request).expect("voxelize").grid.count()
+    };
+    for (animation, time) in [(0, 1.0), (1, 2.0)] {
+        harness.state_mut().set_pose(Some((animation, time)));
+        harness.run();
+        assert_eq!(harness.state().error(), None);
+        assert_eq!(harness.state().stats().expect("stats").voxels, at(animation, time), "{animation} at {time}");
+    }
+    harness.state_mut().set_pose(None);
+    harness.run();
+    assert_eq!(harness.state().stats().expect("stats").voxels, rest);
+    // A mesh without animations has no pose controls.
+    let mut still = small_viewer("builtin:sphere", 16);
+    still.run();
+    assert!(still.query_all_by_label("pose").next().is_none());
 }
