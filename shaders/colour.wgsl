@@ -1,16 +1,20 @@
 // Voxel colours: the colour of the surface point nearest each set voxel's centre (see app/voxel/cpu/colour.rs, the
 // CPU reference, whose functions carry the same names). Three passes over the same bindings:
-//   nearest_distance  one thread per triangle: for each set voxel within reach, atomicMin of the squared distance
-//                     (f32 bits, which order like the values for non-negative numbers) into best[2 * rank];
-//   nearest_triangle  one thread per triangle: where its distance equals that minimum, atomicMin of its index into
-//                     best[2 * rank + 1] (ties go to the lowest index);
+//   nearest_distance  one thread per work item, a row (y, z) of a triangle's candidate box: for each set voxel of
+//                     the row within reach, atomicMin of the squared distance (f32 bits, which order like the
+//                     values for non-negative numbers) into best[2 * rank];
+//   nearest_triangle  the same items: where the triangle's distance equals that minimum, atomicMin of its index
+//                     into best[2 * rank + 1] (ties go to the lowest index);
 //   shade_voxels      one thread per grid word: each set voxel's winning triangle is shaded at the nearest point
 //                     and the sRGB bytes replace the distance in best[2 * rank] (0 where no triangle reached it).
 // A candidate whose material masks alpha and whose alpha at its nearest point is below the cutoff (`cut_out`)
 // lowers no distance; it lowers the winner to CUT, which any triangle index is below, and a voxel left at CUT is
 // shaded CUT_COLOUR.
 // A voxel's rank is its index among the set voxels in storage order: ranks[word] plus the set bits below it.
-// Joined after shared/common.wgsl (dot3, thread_index) and nearest.wgsl (triangle, closest_barycentric).
+// A row a thread: one thread looping over a large triangle's whole box ran past the 65,535 iterations Mesa's
+// llvmpipe (lavapipe, GL) allows a loop and silently stopped there, and would keep one GPU thread busy for long.
+// Joined after shared/common.wgsl (dot3, thread_index), shared/items.wgsl (item_triangle) and nearest.wgsl
+// (triangle, closest_barycentric).
 
 struct Params {
     dims: vec3<u32>,
@@ -22,7 +26,8 @@ struct Params {
     textures_at: u32,
     // Threads per row of the 2D dispatch (workgroups in x times the workgroup size).
     row_threads: u32,
-    _pad0: u32,
+    // Work items of the two triangle passes: the rows of every triangle's candidate box.
+    item_count: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -55,6 +60,8 @@ const TEXTURE_WORDS: u32 = 4u;
 @group(0) @binding(5) var<storage, read> grid: array<u32>;
 @group(0) @binding(6) var<storage, read> ranks: array<u32>;
 @group(0) @binding(7) var<storage, read_write> best: array<atomic<u32>>;
+// Triangle t's first work item (an exclusive prefix sum of the triangles' rows), read by item_triangle.
+@group(0) @binding(8) var<storage, read> first_items: array<u32>;
 
 fn candidate_lo(t: array<vec3<f32>, 3>) -> vec3<i32> {
     let lo = min(min(t[0], t[1]), t[2]) - (REACH + 0.5);
@@ -86,54 +93,58 @@ fn voxel_rank(v: vec3<u32>) -> u32 {
     return ranks[word] + countOneBits(w & ((1u << bit) - 1u));
 }
 
-// Both triangle passes visit the same candidates; `step` 0 lowers distances, 1 lowers triangle indices.
-fn visit(t: u32, step: u32) {
+// Work item `item`: its triangle and the row (y, z) of that triangle's candidate box it covers.
+fn visit_item(item: u32, step: u32) {
+    let t = item_triangle(item, params.tri_count);
     let tri = triangle(t);
     let lo = candidate_lo(tri);
     let hi = candidate_hi(tri);
-    for (var z = lo.z; z <= hi.z; z++) {
-        for (var y = lo.y; y <= hi.y; y++) {
-            for (var x = lo.x; x <= hi.x; x++) {
-                let v = vec3<u32>(vec3<i32>(x, y, z));
-                let rank = voxel_rank(v);
-                if rank == NO_TRIANGLE {
-                    continue;
-                }
-                let p = voxel_centre(v);
-                let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
-                let d = squared_distance(p, tri, w);
-                if d > REACH2 {
-                    continue;
-                }
-                if cut_out(t, w) {
-                    if step == 1u {
-                        atomicMin(&best[2u * rank + 1u], CUT);
-                    }
-                    continue;
-                }
-                if step == 0u {
-                    atomicMin(&best[2u * rank], bitcast<u32>(d));
-                } else if bitcast<u32>(d) == atomicLoad(&best[2u * rank]) {
-                    atomicMin(&best[2u * rank + 1u], t);
-                }
+    let row = item - first_items[t];
+    let rows_y = u32(hi.y - lo.y + 1);
+    visit_row(t, tri, lo.x, hi.x, lo.y + i32(row % rows_y), lo.z + i32(row / rows_y), step);
+}
+
+// The set voxels of one row of triangle t's candidates; `step` 0 lowers distances, 1 lowers triangle indices.
+fn visit_row(t: u32, tri: array<vec3<f32>, 3>, x_lo: i32, x_hi: i32, y: i32, z: i32, step: u32) {
+    for (var x = x_lo; x <= x_hi; x++) {
+        let v = vec3<u32>(vec3<i32>(x, y, z));
+        let rank = voxel_rank(v);
+        if rank == NO_TRIANGLE {
+            continue;
+        }
+        let p = voxel_centre(v);
+        let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
+        let d = squared_distance(p, tri, w);
+        if d > REACH2 {
+            continue;
+        }
+        if cut_out(t, w) {
+            if step == 1u {
+                atomicMin(&best[2u * rank + 1u], CUT);
             }
+            continue;
+        }
+        if step == 0u {
+            atomicMin(&best[2u * rank], bitcast<u32>(d));
+        } else if bitcast<u32>(d) == atomicLoad(&best[2u * rank]) {
+            atomicMin(&best[2u * rank + 1u], t);
         }
     }
 }
 
 @compute @workgroup_size(64)
 fn nearest_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = thread_index(gid, params.row_threads);
-    if t < params.tri_count {
-        visit(t, 0u);
+    let item = thread_index(gid, params.row_threads);
+    if item < params.item_count {
+        visit_item(item, 0u);
     }
 }
 
 @compute @workgroup_size(64)
 fn nearest_triangle(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = thread_index(gid, params.row_threads);
-    if t < params.tri_count {
-        visit(t, 1u);
+    let item = thread_index(gid, params.row_threads);
+    if item < params.item_count {
+        visit_item(item, 1u);
     }
 }
 

@@ -388,7 +388,7 @@ impl OnGpu {
         shading: &Shading,
         notices: &mut Vec<Notice>,
     ) -> Result<Option<ColourStage>, EngineError> {
-        if !GpuColourer::fits(&self.gpu, grid, tris.len(), shading) {
+        if !GpuColourer::fits(&self.gpu, grid, tris, shading) {
             return if self.fallback { Ok(None) } else { Err(EngineError::ColourTooLarge) };
         }
         let coloured = {

@@ -12,16 +12,17 @@ use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::VoxelGrid;
 use crate::voxel::colour::{Coloured, finish, word_ranks};
-use crate::voxel::cpu::colour::{NO_TRIANGLE, SRGB_MIDPOINTS};
+use crate::voxel::cpu::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, candidate_range};
 use glam::Vec3;
 
 pub const COLOUR_WGSL: &str = concat!(
     include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/nearest.wgsl"),
     include_str!("../../shaders/colour.wgsl"),
 );
 /// The files joined into [`COLOUR_WGSL`], in order, relative to `shaders/`.
-pub const COLOUR_PARTS: [&str; 3] = ["shared/common.wgsl", "nearest.wgsl", "colour.wgsl"];
+pub const COLOUR_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "nearest.wgsl", "colour.wgsl"];
 const WG: u32 = 64;
 /// Words of one material record and one texture record in the tables (`MATERIAL_WORDS`, `TEXTURE_WORDS`).
 const MATERIAL_WORDS: usize = 12;
@@ -37,7 +38,8 @@ struct Params {
     materials_at: u32,
     textures_at: u32,
     row_threads: u32,
-    _pad: [u32; 3],
+    item_count: u32,
+    _pad: [u32; 2],
 }
 
 /// The shader's `tables` (sRGB table, its midpoints, material and texture records) and `texels`, and the offsets
@@ -104,6 +106,7 @@ impl GpuColourer {
         let mut entries = vec![uniform_entry(0)];
         entries.extend((1..7).map(|b| storage_entry(b, true)));
         entries.push(storage_entry(7, false));
+        entries.push(storage_entry(8, true));
         let layout = device
             .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("colour"), entries: &entries });
         let layouts = [Some(&layout)];
@@ -115,11 +118,13 @@ impl GpuColourer {
         }
     }
 
-    /// Whether the grid, its per-voxel entries, the triangles and the texels each fit one binding of this device.
-    pub fn fits(gpu: &Gpu, grid: &VoxelGrid, triangles: usize, shading: &Shading) -> bool {
+    /// Whether the grid, its per-voxel entries, the triangles and the texels each fit one binding of this device,
+    /// and the triangles' rows ([`first_items`]) a u32 index.
+    pub fn fits(gpu: &Gpu, grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shading) -> bool {
         let max = gpu.max_binding_bytes();
         let texels: u64 = shading.textures.iter().map(|t| t.texels.len() as u64 * 4).sum();
-        [grid.spec.byte_size(), grid.count() * 8, triangles as u64 * 56, texels].iter().all(|&b| b <= max)
+        let sizes = [grid.spec.byte_size(), grid.count() * 8, triangles.len() as u64 * 56, texels];
+        sizes.iter().all(|&b| b <= max) && first_items(triangles, grid.spec.dims).is_some()
     }
 
     /// Colours `grid`'s set voxels from the grid-space triangles it was voxelized from, blocking until done.
@@ -166,8 +171,10 @@ impl GpuColourer {
         let storage = wgpu::BufferUsages::STORAGE;
         let best_init: Vec<[u32; 2]> = vec![[f32::INFINITY.to_bits(), NO_TRIANGLE]; grid.count() as usize];
         let word_count = spec.word_count() as u32;
+        // Checked by `fits`, which every caller asks first.
+        let (first, item_count) = first_items(triangles, spec.dims).unwrap_or_default();
         let groups = |n: u32| dispatch_2d(n.div_ceil(WG));
-        let (tri_groups, word_groups) = (groups(triangles.len() as u32), groups(word_count));
+        let (tri_groups, word_groups) = (groups(item_count), groups(word_count));
         let params = |row_groups: u32| Params {
             dims: spec.dims.to_array(),
             words_per_row: spec.words_per_row() as u32,
@@ -176,7 +183,8 @@ impl GpuColourer {
             materials_at: tables.materials_at,
             textures_at: tables.textures_at,
             row_threads: row_groups * WG,
-            _pad: [0; 3],
+            item_count,
+            _pad: [0; 2],
         };
         let uniform = wgpu::BufferUsages::UNIFORM;
         let tri_params = init("colour params", bytemuck::bytes_of(&params(tri_groups.0)), uniform);
@@ -189,6 +197,7 @@ impl GpuColourer {
             init("colour grid", bytemuck::cast_slice(&grid.words), storage),
             init("colour ranks", bytemuck::cast_slice(&ranks), storage),
             init("colour best", bytemuck::cast_slice(&best_init), storage | wgpu::BufferUsages::COPY_SRC),
+            init("colour first items", bytemuck::cast_slice(&first), storage),
         ];
         let bind = |params: &wgpu::Buffer| {
             let mut entries = vec![wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() }];
@@ -218,7 +227,24 @@ impl GpuColourer {
             pass.dispatch_workgroups(x, y, 1);
         }
         super::util::submit(&gpu.queue, encoder.finish());
-        let [.., best] = buffers;
+        let [.., best, _] = buffers;
         best
     }
+}
+
+/// Each triangle's first work item (the rows (y, z) of its candidate box, [`candidate_range`], one item each: the
+/// shader's `visit_item`), an exclusive prefix sum, and the items in all; `None` where they pass a u32 index.
+pub fn first_items(triangles: &[[Vec3; 3]], dims: glam::UVec3) -> Option<(Vec<u32>, u32)> {
+    let mut first = Vec::with_capacity(triangles.len());
+    let mut total = 0u32;
+    for &t in triangles {
+        first.push(total);
+        let (lo, hi) = candidate_range(t, dims);
+        let rows = match (lo.cmple(hi)).all() {
+            true => u64::from((hi.y - lo.y + 1) as u32) * u64::from((hi.z - lo.z + 1) as u32),
+            false => 0,
+        };
+        total = u32::try_from(u64::from(total) + rows).ok()?;
+    }
+    Some((first, total))
 }

@@ -1,5 +1,5 @@
 // The triangle of a work item, for the modules whose passes spread each triangle's work over a run of work items:
-// voxelize (the surface walk), solid (the crossing passes) and distance (the band). Each of them declares
+// voxelize (the surface walk), solid (the crossing passes), distance (the band) and colour (the candidates' rows). Each of them declares
 // `first_items`, triangle t's first work item at index t (ascending, a prefix sum of the triangles' item counts), so
 // the search is written once. The CPU has no counterpart: it walks each triangle's items in turn.
 

@@ -364,6 +364,12 @@ fn text_palettes_in_the_usual_spellings_and_the_nearest_entry_is_the_first_of_eq
 /// green and right texel transparent (alpha 0), in material `alpha_mode`; with `opaque_strip`, a second, red,
 /// untextured quad over x in [1.25, 1.6] just above it (z = 0.04, in the same voxel layer at 16 voxels).
 fn half_transparent_quad(alpha_mode: &str, opaque_strip: bool) -> String {
+    tilted_quad(alpha_mode, opaque_strip, 0.0)
+}
+
+/// [`half_transparent_quad`] with its corners' z raised by `tilt` times their x: tilted 45° at 1, so that its
+/// candidate box fills the grid.
+fn tilted_quad(alpha_mode: &str, opaque_strip: bool, tilt: f32) -> String {
     use base64::Engine;
     let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
     let image =
@@ -371,7 +377,7 @@ fn half_transparent_quad(alpha_mode: &str, opaque_strip: bool) -> String {
     let mut png = Vec::new();
     image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
     let mut data = Vec::new();
-    let quad = [[0.0f32, 0.0, 0.0], [1.6, 0.0, 0.0], [1.6, 1.6, 0.0], [0.0, 1.6, 0.0]];
+    let quad = [[0.0f32, 0.0, 0.0], [1.6, 0.0, 1.6 * tilt], [1.6, 1.6, 1.6 * tilt], [0.0, 1.6, 0.0]];
     for p in &quad {
         data.extend(p.iter().flat_map(|c| c.to_le_bytes()));
     }
@@ -404,7 +410,7 @@ fn half_transparent_quad(alpha_mode: &str, opaque_strip: bool) -> String {
             {"buffer": 0, "byteOffset": 80, "byteLength": 12},
             {"buffer": 0, "byteOffset": 96, "byteLength": 48}],
         "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.6, 1.6, 0.0]},
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.6, 1.6, 1.6 * tilt]},
             {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
             {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"},
             {"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC3", "min": [1.25, 0.0, 0.04], "max": [1.6, 1.6, 0.04]}],
@@ -538,4 +544,23 @@ fn obj_opacity_maps_cut_out_where_they_are_dark() {
         }
         assert!(matte.is_none() || cut >= 32, "{mtl}: only {cut} voxels cut");
     }
+}
+
+/// The colour passes split each triangle's candidates into rows, a work item each: one thread looping over a large
+/// triangle's whole box stopped silently after 65,535 iterations on Mesa's llvmpipe (lavapipe and GL), which
+/// left the voxels past that point with another voxel's colour and the cut-outs there undecided. The masked quad
+/// tilted 45° fills a 48³ box (110,592 candidates a triangle): every voxel's colour and cut-out, CPU = GPU.
+#[test]
+fn gpu_colours_a_triangle_whose_box_has_more_candidates_than_a_loop_may_run() {
+    use meshvox::voxel::colour::colour_and_cut;
+    let Some((gpu, _)) = crate::gpu::gpu() else { return };
+    let mesh = meshvox::mesh::load_bytes("tilted.gltf", tilted_quad("MASK", false, 1.0).as_bytes()).expect("load");
+    let shading = mesh.shading.as_ref().expect("textured");
+    let (grid, tris) = voxelize_cpu(&mesh, 48, Mode::Surface);
+    assert_eq!(grid.spec.dims, UVec3::new(48, 48, 48));
+    let cpu = colour_and_cut(&grid, &tris, shading);
+    assert!(cpu.cut.len() > 1000 && cpu.cut.len() < grid.count() as usize - 1000, "{} cut", cpu.cut.len());
+    let on_gpu = pollster::block_on(GpuColourer::new(gpu).colour_async(gpu, &grid, &tris, shading)).expect("gpu");
+    assert_eq!(on_gpu.cut, cpu.cut, "the GPU cut other voxels");
+    assert_eq!(on_gpu.colours, cpu.colours, "the GPU's colours differ");
 }
