@@ -2,11 +2,13 @@
 // triangle (see app/voxel/cpu/distance.rs, the CPU mirror, whose functions carry the same names). Joined after
 // shared/common.wgsl (dot3, thread_index), shared/items.wgsl (item_triangle) and nearest.wgsl (triangle,
 // closest_barycentric).
-//   band_distance  one thread per (triangle, voxel layer of its band box in this dispatch's z-range of leaves):
-//                  for every voxel centre of the layer within the band of the triangle's bounding box, the least
+//   band_distance  one thread per (triangle, row (y, z) of its band box in this dispatch's z-range of leaves):
+//                  for every voxel centre of the row within the band of the triangle's bounding box, the least
 //                  squared distance kept in best[512 * (leaf - leaf_base) + offset in the leaf] (`best_word`).
-//                  `first_items[t]` is the first item of triangle t (a prefix sum over its layers, made on the
-//                  host), so big and small triangles spread evenly.
+//                  `first_items[t]` is the first item of triangle t (a prefix sum over its rows, made on the
+//                  host), so big and small triangles spread evenly. A row, not a layer: a large flat triangle's
+//                  layer held more voxels than the 65,535 iterations Mesa's llvmpipe (lavapipe, GL) lets a loop
+//                  run, and the rest of the layer was silently left out.
 //   best_word      a squared distance as `best` keeps it: its f32 bits (which order like the values for
 //                  non-negative numbers) inverted, so an atomicMax keeps the least, and a word still zero, as the
 //                  buffer is made, is a voxel no triangle came within the band of (`best_value`: reach²). Nothing
@@ -89,34 +91,31 @@ fn band_span(bmin: vec3<f32>, bmax: vec3<f32>, y: i32, z: i32) -> vec2<i32> {
     return vec2<i32>(i32(ceil(bmin.x - w - 0.5)), i32(floor(bmax.x + w - 0.5)));
 }
 
-fn triangle_layer(tri: array<vec3<f32>, 3>, z: i32) {
-    let lo = band_lo(tri);
-    let hi = band_hi(tri);
+// Row (y, z) of the triangle's band box: the CPU's `triangle_layer` for one of its rows.
+fn triangle_row(tri: array<vec3<f32>, 3>, lo: vec3<i32>, hi: vec3<i32>, y: i32, z: i32) {
     let n = cross(tri[1] - tri[0], tri[2] - tri[0]);
     let n2 = dot3(n, n);
     let bmin = min(min(tri[0], tri[1]), tri[2]);
     let bmax = max(max(tri[0], tri[1]), tri[2]);
-    for (var y = lo.y; y <= hi.y; y++) {
-        let span = band_span(bmin, bmax, y, z);
-        for (var x = max(span.x, lo.x); x <= min(span.y, hi.x); x++) {
-            let v = vec3<u32>(vec3<i32>(x, y, z));
-            let at = (slots[leaf_slot(v / 8u) - params.slot_base] - params.leaf_base) * 512u + leaf_offset(v);
-            let p = vec3<f32>(v) + 0.5;
-            let current = best_value(atomicLoad(&best[at]));
-            // The plane's squared distance already no lower than the best: this triangle cannot win here.
-            let plane = dot3(n, tri[0] - p);
-            if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
-                continue;
-            }
-            // The bounding box no nearer than the best either.
-            let gap = max(max(bmin - p, p - bmax), vec3<f32>(0.0));
-            if dot3(gap, gap) >= current * 1.0001 {
-                continue;
-            }
-            let d2 = point_distance2(p, tri);
-            if d2 < current {
-                atomicMax(&best[at], best_word(d2));
-            }
+    let span = band_span(bmin, bmax, y, z);
+    for (var x = max(span.x, lo.x); x <= min(span.y, hi.x); x++) {
+        let v = vec3<u32>(vec3<i32>(x, y, z));
+        let at = (slots[leaf_slot(v / 8u) - params.slot_base] - params.leaf_base) * 512u + leaf_offset(v);
+        let p = vec3<f32>(v) + 0.5;
+        let current = best_value(atomicLoad(&best[at]));
+        // The plane's squared distance already no lower than the best: this triangle cannot win here.
+        let plane = dot3(n, tri[0] - p);
+        if plane * plane >= current * n2 * 1.0001 && n2 > 0.0 {
+            continue;
+        }
+        // The bounding box no nearer than the best either.
+        let gap = max(max(bmin - p, p - bmax), vec3<f32>(0.0));
+        if dot3(gap, gap) >= current * 1.0001 {
+            continue;
+        }
+        let d2 = point_distance2(p, tri);
+        if d2 < current {
+            atomicMax(&best[at], best_word(d2));
         }
     }
 }
@@ -129,5 +128,9 @@ fn band_distance(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let t = item_triangle(i, params.tri_count);
     let tri = triangle(t);
-    triangle_layer(tri, first_layer(band_lo(tri)) + i32(i - first_items[t]));
+    let lo = band_lo(tri);
+    let hi = band_hi(tri);
+    let k = i - first_items[t];
+    let rows = u32(hi.y - lo.y + 1);
+    triangle_row(tri, lo, hi, lo.y + i32(k % rows), first_layer(lo) + i32(k / rows));
 }

@@ -21,7 +21,7 @@ use super::util::{
 use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::bvh::Bvh;
-use crate::voxel::cpu::distance::triangle_layers;
+use crate::voxel::cpu::distance::{band_range, triangle_layers};
 use crate::voxel::cpu::query::NearestTables;
 use crate::voxel::distance::{Band, DistanceField, Finishing, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
@@ -268,14 +268,15 @@ impl GpuDistance {
     ) -> Result<(), GpuError> {
         let device = &gpu.device;
         let bytes = count as u64 * LEAF_BYTES;
-        // Each triangle's first work item: a prefix sum over its layers in this chunk.
+        // Each triangle's first work item: a prefix sum over its rows (y, z) in this chunk's layers.
         let span = crate::trace::span("field: work items");
         let layers: Vec<u64> = crate::parallel::install(|| {
             triangles
                 .par_iter()
                 .map(|&t| {
                     let (first, last) = triangle_layers(t, spec.dims, reach, z);
-                    (last - first + 1).max(0) as u64
+                    let (lo, hi) = band_range(t, spec.dims, reach);
+                    (last - first + 1).max(0) as u64 * (hi.y - lo.y + 1).max(0) as u64
                 })
                 .collect()
         });

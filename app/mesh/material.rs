@@ -177,10 +177,11 @@ pub struct Shading {
 }
 
 impl Shading {
-    /// Whether any surface has a colour other than white: a texture, vertex colours or a coloured material.
-    /// A mesh without any is drawn and exported in the viewer's flat colour.
+    /// Whether any surface has a colour other than white: a texture, vertex colours or a coloured material (or a
+    /// material that cuts out what its alpha hides). An opacity alone (OBJ's `d`) is no colour. A mesh without
+    /// any is drawn and exported in the viewer's flat colour.
     pub fn has_colour(&self) -> bool {
-        let used = |m: &Material| m.texture.is_some() || m.base_color != Vec4::ONE;
+        let used = |m: &Material| m.texture.is_some() || m.base_color.truncate() != glam::Vec3::ONE || m.cutoff() > 0.0;
         self.materials.iter().any(used) || self.triangles.iter().any(|t| t.color != [TriangleShading::WHITE; 3])
     }
 

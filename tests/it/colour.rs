@@ -544,6 +544,10 @@ fn obj_opacity_maps_cut_out_where_they_are_dark() {
         }
         assert!(matte.is_none() || cut >= 32, "{mtl}: only {cut} voxels cut");
     }
+    // An opacity alone is no colour: a white material with `d` leaves the mesh uncoloured.
+    std::fs::write(dir.path().join("leaf.mtl"), "newmtl leaf\nKd 1 1 1\nd 0.5\n").expect("mtl");
+    let mesh = meshvox::mesh::load_path(&dir.path().join("leaf.obj")).expect("load");
+    assert!(mesh.shading.is_none(), "a white material with d 0.5 made colours");
 }
 
 /// The colour passes split each triangle's candidates into rows, a work item each: one thread looping over a large
