@@ -50,6 +50,13 @@ pub(super) fn read(
             let inverse_bind = match skin.inverse_bind_matrices() {
                 None => identity,
                 Some(a) => match read_checked(&a, "inverseBindMatrices", &[F32], Dimensions::Mat4, data) {
+                    Ok(v) if v.iter().any(|x| !x.is_finite()) => {
+                        warnings.push(format!(
+                            "skins[{}]: an inverse bind matrix is not finite; identity used",
+                            skin.index()
+                        ));
+                        identity
+                    }
                     Ok(v) if v.len() == 16 * joints.len() => {
                         v.chunks_exact(16).map(|m| DMat4::from_cols_slice(m)).collect()
                     }
@@ -203,6 +210,9 @@ pub(super) fn targets(
                         Normalized::Allowed,
                     )?;
                     let v = gltf_data::read(&a, data)?;
+                    if v.iter().any(|x| !x.is_finite()) {
+                        return Err("a morph target's offset is not finite".into());
+                    }
                     match v.len() == 3 * vertices {
                         true => Ok(v.chunks_exact(3).map(DVec3::from_slice).collect()),
                         false => Err(format!("a morph target of {} positions for {vertices} vertices", v.len() / 3)),

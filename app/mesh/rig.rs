@@ -295,10 +295,11 @@ impl Rig {
 }
 
 /// A vertex moved by its four joints: the weighted sum of the joints' matrices (weights normalized; a vertex
-/// without weight, or naming a joint the skin lacks, stays with its node) applied to it.
+/// without weight or with weights that are not finite, or naming a joint the skin lacks, stays with its node)
+/// applied to it.
 fn skin_point(p: DVec3, matrices: &[DMat4], joints: &[u16; 4], weights: &[f64; 4], node: DMat4) -> DVec3 {
     let total: f64 = weights.iter().sum();
-    if total.is_nan()
+    if !total.is_finite()
         || total <= 0.0
         || joints.iter().zip(weights).any(|(&j, &w)| w != 0.0 && j as usize >= matrices.len())
     {

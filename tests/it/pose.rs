@@ -40,6 +40,11 @@ fn box_triangles() -> Vec<[u16; 3]> {
 /// its child one unit up. Animation "bend" turns bone 1 by 90° about z over a second, steps bone 0 by 0.3 along
 /// x at 0.5 s and morphs the top ring in; "grow" scales bone 0 from 1 to 2 over two seconds by a cubic spline.
 pub(crate) fn rigged_box() -> String {
+    rigged_box_with(false)
+}
+
+/// [`rigged_box`], with NaN inverse bind matrices where `hostile`.
+fn rigged_box_with(hostile: bool) -> String {
     use base64::Engine;
     let mut data: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -83,6 +88,7 @@ pub(crate) fn rigged_box() -> String {
         .iter()
         .flat_map(|m| m.to_cols_array())
         .collect();
+    let ibm: Vec<f64> = ibm.into_iter().map(|x| if hostile { f64::NAN } else { x }).collect();
     push(f32s(&ibm), serde_json::json!({"componentType": 5126, "count": 2, "type": "MAT4"}));
     let deltas: Vec<f64> = (0..12).flat_map(|v| morph_delta(v).to_array()).collect();
     push(
@@ -213,6 +219,10 @@ fn posed_vertices_equal_the_skinning_formula_at_rest_and_at_every_time() {
     assert_vertices(&first, &reference(Some(("bend", 0.8))), "the first animation");
     let e = mesh.posed(&Pose { animation: Some("walk".into()), time: 0.0 }).expect_err("no such animation");
     assert!(e.to_string().contains("no animation named 'walk' (it has 0 'bend', 1 'grow')"), "{e}");
+    // A skin whose inverse bind matrices are not numbers is left out with a warning: the mesh still loads.
+    let hostile = meshvox::mesh::load_bytes("nan.gltf", rigged_box_with(true).as_bytes()).expect("loads");
+    assert!(hostile.warnings.iter().any(|w| w.contains("not finite; identity used")), "{:?}", hostile.warnings);
+    assert!(hostile.triangles.iter().flatten().all(|v| v.is_finite()));
     let still = meshvox::mesh::load("builtin:torus").expect("builtin");
     let e = still.posed(&Pose::default()).expect_err("nothing to pose");
     assert!(e.to_string().contains("a pose needs a glTF file with animations"), "{e}");
