@@ -86,26 +86,26 @@ impl Coloured {
         if cut.is_empty() {
             return colours;
         }
-        let voxels: Vec<UVec3> = cut_voxels(grid, &cut);
-        for v in voxels {
+        // One walk over the set voxels and their colours, the cut ranks met in order.
+        let mut next = cut.iter().peekable();
+        let mut cleared = Vec::with_capacity(cut.len());
+        let rgba = grid
+            .iter_set()
+            .zip(colours.rgba)
+            .enumerate()
+            .filter_map(|(r, (v, c))| match next.next_if_eq(&&(r as u32)) {
+                Some(_) => {
+                    cleared.push(v);
+                    None
+                }
+                None => Some(c),
+            })
+            .collect();
+        for v in cleared {
             grid.clear(v.x, v.y, v.z);
         }
-        let mut next = cut.iter().peekable();
-        let rgba = colours
-            .rgba
-            .into_iter()
-            .enumerate()
-            .filter(|&(r, _)| next.next_if_eq(&&(r as u32)).is_none())
-            .map(|(_, c)| c)
-            .collect();
         VoxelColours { rgba }
     }
-}
-
-/// The voxels of `grid` whose ranks are `ranks` (ascending).
-fn cut_voxels(grid: &VoxelGrid, ranks: &[u32]) -> Vec<UVec3> {
-    let mut next = ranks.iter().peekable();
-    grid.iter_set().enumerate().filter(|&(r, _)| next.next_if_eq(&&(r as u32)).is_some()).map(|(_, v)| v).collect()
 }
 
 /// [`colour_voxels`], with the voxels the materials' alpha cuts out listed.

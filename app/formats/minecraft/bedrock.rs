@@ -102,8 +102,7 @@ pub fn write_mcstructure<W: Write>(
 ) -> Result<(), FormatError> {
     super::check_cells(grid, "a .mcstructure")?;
     let d = grid.spec.dims;
-    let bedrock = BlockSet { ids: set.bedrock.clone(), ..set.clone() };
-    let palette = Palette::of(blocks, &bedrock);
+    let palette = Palette::of(blocks, &set.bedrock);
     // Cells x outermost, then y, then z; -1 (nothing placed) where no voxel is set. The palette's entry 0 is
     // air, which is not written, so the indices shift down by one.
     let (sy, sz) = (d.y as usize, d.z as usize);

@@ -94,7 +94,7 @@ pub fn write_litematic<W: Write>(
     check_cells(grid, "a litematic")?;
     let d = grid.spec.dims;
     let size = Xyz { x: d.x as i32, y: d.y as i32, z: d.z as i32 };
-    let palette = Palette::of(blocks, set);
+    let palette = Palette::of(blocks, &set.ids);
     let bits = bits_for(palette.names.len());
     let cells = palette.cells(grid, blocks);
     let region = Region {

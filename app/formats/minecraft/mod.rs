@@ -80,13 +80,13 @@ pub(super) struct Palette {
 }
 
 impl Palette {
-    /// The palette of the blocks `blocks` uses (indices into `set`).
-    pub fn of(blocks: &[u16], set: &BlockSet) -> Palette {
-        let mut used = vec![false; set.ids.len()];
+    /// The palette of the blocks `blocks` uses (indices into `ids`, a block set's names in one edition).
+    pub fn of(blocks: &[u16], ids: &[String]) -> Palette {
+        let mut used = vec![false; ids.len()];
         blocks.iter().for_each(|&b| used[b as usize] = true);
         let mut names = vec![AIR.to_string()];
-        let mut index = vec![0u32; set.ids.len()];
-        for (i, id) in set.ids.iter().enumerate().filter(|(i, _)| used[*i]) {
+        let mut index = vec![0u32; ids.len()];
+        for (i, id) in ids.iter().enumerate().filter(|(i, _)| used[*i]) {
             // A state named twice (`red_wool` and `minecraft:red_wool`) shares its index.
             index[i] = match names.iter().position(|n| n == id) {
                 Some(at) => at as u32,

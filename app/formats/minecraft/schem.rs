@@ -89,7 +89,7 @@ pub fn write_schem<W: Write>(
     let d = grid.spec.dims;
     let (width, height, length) = (side(d.x, "x")?, side(d.y, "y")?, side(d.z, "z")?);
     check_cells(grid, "a schematic")?;
-    let palette = Palette::of(blocks, set);
+    let palette = Palette::of(blocks, &set.ids);
     let cells = palette.cells(grid, blocks);
     let mut data = Vec::with_capacity(cells.len());
     cells.iter().for_each(|&c| varint(c, &mut data));

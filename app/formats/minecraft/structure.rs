@@ -70,7 +70,7 @@ pub fn write_structure<W: Write>(
             d.x, d.y, d.z
         )));
     }
-    let palette = Palette::of(blocks, set);
+    let palette = Palette::of(blocks, &set.ids);
     // Air (entry 0) is left out of the file, so the states shift down by one.
     let blocks = grid
         .iter_set()
