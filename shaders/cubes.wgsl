@@ -90,7 +90,7 @@ fn cube_vertex(vi: u32, voxel: vec2<u32>, colour: vec3<f32>, ao: vec2<u32>) -> C
     local[axis] = select(0.0, 1.0, positive);
     local[(axis + 1u) % 3u] = uv.x;
     local[(axis + 2u) % 3u] = uv.y;
-    let world = (cell + local) * view.grid.x;
+    let world = (cell + local) * view.grid.xyz;
     var out: CubeOut;
     out.clip = view.view_proj * vec4<f32>(world, 1.0);
     out.face = face;

@@ -126,7 +126,7 @@ cargo test --locked "$@"
 # CI runners, WSL2): the Vulkan driver hidden, and the tests told to expect GL so that finding Vulkan fails them.
 # Compute (every pass against the CPU, the query walk against its mirror), drawing (goldens named gl-llvmpipe), the
 # viewer and the CLI.
-gl_tests="gpu:: modes::gpu modes::rows_the_gpu colour::gpu distance::gpu distance::a_field far::far_meshes_on_the_gpu engine::threads
+gl_tests="gpu:: anisotropic::anisotropic_s modes::gpu modes::rows_the_gpu colour::gpu distance::gpu distance::a_field far::far_meshes_on_the_gpu engine::threads
   query_gpu:: render_snapshots ui_snapshot view:: desktop_xvfb cli::gpu_backend
   cli::the_gpu_watchdog cli::a_headless"
 phase "the GPU tests on GL"

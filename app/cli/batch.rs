@@ -6,7 +6,7 @@ use super::{ColourArgs, Engine, LimitArgs, Request, VoxelizeArgs, check_merge, m
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
 use meshvox::formats::VoxelFormat;
-use meshvox::voxel::{Axis, Mode};
+use meshvox::voxel::Mode;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -16,7 +16,7 @@ use std::time::Instant;
 const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb", "stl", "ply", "xyz", "pts"];
 
 #[derive(clap::Args)]
-#[command(group(clap::ArgGroup::new("size").args(["resolution", "voxel_size"])))]
+#[command(group(clap::ArgGroup::new("sizes").args(["resolution", "voxel_size", "size"])))]
 pub struct BatchArgs {
     /// Mesh files, directories (searched recursively for .obj, .gltf, .glb, .stl and .ply) or glob patterns.
     #[arg(value_name = "INPUTS", required = true)]
@@ -25,15 +25,8 @@ pub struct BatchArgs {
     /// a file named directly to OUTDIR/<its name>, with the format's extension.
     #[arg(short = 'o', long = "output", value_name = "OUTDIR")]
     output: PathBuf,
-    /// Number of voxels along the axis chosen by --axis.
-    #[arg(short = 'r', long = "resolution", value_name = "N")]
-    resolution: Option<u32>,
-    /// Edge length of a voxel in mesh units, instead of -r.
-    #[arg(long = "voxel-size", value_name = "H")]
-    voxel_size: Option<f64>,
-    /// Axis along which -r counts voxels.
-    #[arg(long, value_enum, default_value_t = Axis::Longest)]
-    axis: Axis,
+    #[command(flatten)]
+    size: super::SizeArgs,
     /// Output format (the extension of every output file).
     #[arg(long, value_name = "FORMAT", default_value = "npy",
           value_parser = clap::builder::PossibleValuesParser::new(VoxelFormat::ALL.map(VoxelFormat::extension)))]
@@ -237,8 +230,8 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let task = match args.sample {
         true => Task::Sample(args.samples.request()?),
         false => {
-            let resolution = super::resolution(args.resolution, args.voxel_size)?;
-            let request = args.limits.request(resolution, args.axis, args.mode, &args.band, &args.colour)?;
+            let resolution = args.size.resolution()?;
+            let request = args.limits.request(resolution, args.size.axis, args.mode, &args.band, &args.colour)?;
             let request = args.voids.request(request, &drain, args.up);
             Task::Voxelize(Request { format: Some(format), grid: args.grid.grid, ..request }, Box::new(blocks))
         }
@@ -362,9 +355,7 @@ impl Work<'_> {
         let args = self.args;
         VoxelizeArgs {
             mesh: item.source.display().to_string(),
-            resolution: args.resolution,
-            voxel_size: args.voxel_size,
-            axis: args.axis,
+            size: args.size.clone(),
             output: output.to_path_buf(),
             merge: args.merge,
             mode: args.mode,

@@ -163,13 +163,35 @@ impl LimitArgs {
     }
 }
 
-/// `-r N` or `--voxel-size H` (clap requires one of them).
-fn resolution(count: Option<u32>, voxel_size: Option<f64>) -> Result<Resolution> {
-    Ok(match (count, voxel_size) {
-        (Some(n), _) => Resolution::Count(n),
-        (None, Some(h)) => Resolution::VoxelSize(h),
-        (None, None) => anyhow::bail!("give -r N or --voxel-size H"),
-    })
+/// The grid's size, as `voxelize` and `batch` take it: one of `-r N` (along `--axis`), `--voxel-size` and
+/// `--size` (a clap group on each command allows one).
+#[derive(clap::Args, Clone)]
+pub(super) struct SizeArgs {
+    /// Number of voxels along the axis chosen by --axis (cubic voxels).
+    #[arg(short = 'r', long = "resolution", value_name = "N")]
+    pub(super) resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units, or three (x,y,z) for voxels that are not cubes; with a unit
+    /// (0.05mm; see --unit) in world units. Instead of -r.
+    #[arg(long = "voxel-size", value_name = "H|X,Y,Z", allow_negative_numbers = true)]
+    pub(super) voxel_size: Option<String>,
+    /// The grid's voxels along x, y and z, each a number or auto (auto keeps the model's proportions: 40,auto,auto
+    /// is -r 40 --axis x). Instead of -r.
+    #[arg(long = "size", value_name = "X,Y,Z")]
+    pub(super) size: Option<String>,
+    /// Axis along which -r counts voxels.
+    #[arg(long, value_enum, default_value_t = Axis::Longest)]
+    pub(super) axis: Axis,
+}
+
+impl SizeArgs {
+    fn resolution(&self) -> Result<Resolution> {
+        Ok(match (self.resolution, &self.voxel_size, &self.size) {
+            (Some(n), _, _) => Resolution::Count(n),
+            (None, Some(h), _) => Resolution::parse_voxel_size(h).map_err(|e| anyhow::anyhow!("--voxel-size {e}"))?,
+            (None, None, Some(s)) => Resolution::parse_size(s).map_err(|e| anyhow::anyhow!("--size {e}"))?,
+            (None, None, None) => anyhow::bail!("give -r N, --voxel-size H or --size X,Y,Z"),
+        })
+    }
 }
 
 /// Opens the engine, telling what opening noticed (no adapter under `auto`).

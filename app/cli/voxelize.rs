@@ -7,26 +7,19 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use meshvox::Backend;
 use meshvox::formats::{self, VoxelFormat};
 use meshvox::mesh;
-use meshvox::voxel::{Axis, Mode};
+use meshvox::voxel::Mode;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Clone)]
-#[command(group(clap::ArgGroup::new("size").required(true).args(["resolution", "voxel_size"])))]
+#[command(group(clap::ArgGroup::new("sizes").required(true).args(["resolution", "voxel_size", "size"])))]
 pub(super) struct VoxelizeArgs {
     /// Mesh file (.obj, .gltf, .glb) or builtin:NAME (see `meshvox builtins`).
     #[arg(value_name = "MESH")]
     pub(super) mesh: String,
-    /// Number of voxels along the axis chosen by --axis.
-    #[arg(short = 'r', long = "resolution", value_name = "N")]
-    pub(super) resolution: Option<u32>,
-    /// Edge length of a voxel in mesh units, instead of -r.
-    #[arg(long = "voxel-size", value_name = "H", allow_negative_numbers = true)]
-    pub(super) voxel_size: Option<f64>,
-    /// Axis along which -r counts voxels.
-    #[arg(long, value_enum, default_value_t = Axis::Longest)]
-    pub(super) axis: Axis,
+    #[command(flatten)]
+    pub(super) size: super::SizeArgs,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB), .nvdb (NanoVDB)
     /// or .npz (sorted coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
     /// .schem, .litematic, .nbt, .zip or .mcstructure for Minecraft (Sponge v3, Litematica, a structure file up to
@@ -74,8 +67,8 @@ impl VoxelizeArgs {
         format: VoxelFormat,
         drain: &'a meshvox::voxel::voids::DrainPlan,
     ) -> Result<Request<'a>> {
-        let resolution = super::resolution(self.resolution, self.voxel_size)?;
-        let request = self.limits.request(resolution, self.axis, self.mode, &self.band, &self.colour)?;
+        let resolution = self.size.resolution()?;
+        let request = self.limits.request(resolution, self.size.axis, self.mode, &self.band, &self.colour)?;
         Ok(Request { format: Some(format), grid: self.grid.grid, ..self.voids.request(request, drain, self.up) })
     }
 }

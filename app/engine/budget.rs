@@ -44,7 +44,7 @@ pub fn surface_area(mesh: &Mesh) -> f64 {
 pub fn sparse_leaves(spec: &GridSpec, area: f64, triangles: u64) -> u64 {
     let d = spec.dims.as_u64vec3();
     let all = d.x.div_ceil(8) * d.y.div_ceil(8) * d.z.div_ceil(8);
-    let area_voxels = area / (spec.voxel_size * spec.voxel_size);
+    let area_voxels = area / spec.face_area();
     // Each triangle touches at least one leaf (small triangles share them, so this is a bound from above).
     let estimate = (LEAVES_PER_AREA * area_voxels / 64.0) as u64 + triangles.min(all);
     estimate.min(all)
@@ -95,7 +95,7 @@ pub fn estimate(
         // Row crossings (at most one per voxel² of surface, 4 bytes, sorted with a copy), the rows' offsets (4
         // bytes per row of the grid, with a copy) and the interior's tiles along the surface (16 bytes each; the
         // bunny at 8192 has 8 per leaf). Measured peaks are 0.40–0.70 of this (bench/RESULTS.md).
-        let area_voxels = (area / (spec.voxel_size * spec.voxel_size)) as u64;
+        let area_voxels = (area / spec.face_area()) as u64;
         let rows = u64::from(spec.dims.y) * u64::from(spec.dims.z);
         grid = grid
             .saturating_add(area_voxels.saturating_mul(8))
@@ -124,7 +124,7 @@ pub fn writes_level_set(mode: Mode, format: Option<VoxelFormat>) -> bool {
 /// made, then as indices with its share of the vertices: about 100 bytes (3.8 GB peak for the bunny at 1024,
 /// field included).
 pub fn level_mesh_bytes(spec: &GridSpec, area: f64) -> u64 {
-    (10.0 * area / (spec.voxel_size * spec.voxel_size) * 100.0) as u64
+    (10.0 * area / spec.face_area() * 100.0) as u64
 }
 
 /// Per-voxel labels of `count` attributes (0: none) on `spec`'s grid: per set voxel the labelling pass's minimum
@@ -141,7 +141,7 @@ pub fn labels_bytes(spec: &GridSpec, mode: Mode, count: usize, area: f64, triang
     match mode {
         Mode::Solid => all.saturating_mul(per_voxel + 100),
         _ => {
-            let surface = (3.0 * area / (spec.voxel_size * spec.voxel_size)) as u64 + triangles;
+            let surface = (3.0 * area / spec.face_area()) as u64 + triangles;
             surface.min(all).saturating_mul(per_voxel)
         }
     }

@@ -52,8 +52,7 @@ pub struct Costs {
 impl Job<'_> {
     /// The estimated wall time of `self` on `threads` CPU threads and on a GPU opened for it.
     pub fn costs(&self, threads: usize) -> Costs {
-        let h = self.spec.voxel_size;
-        let voxels = VOXELS_PER_AREA * self.area / (h * h);
+        let voxels = VOXELS_PER_AREA * self.area / self.spec.face_area();
         let bytes = self.spec.byte_size() as f64;
         let surface = self.triangles() as f64 * CPU_NS_PER_TRIANGLE + voxels * CPU_NS_PER_VOXEL;
         let work = match self.request.mode {

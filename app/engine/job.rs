@@ -132,23 +132,25 @@ impl<'a> Job<'a> {
             Some(b) => return Err(EngineError::Bounds { min: b.min.to_array(), max: b.max.to_array() }),
             None => mesh_bounds,
         };
-        let mut spec = GridSpec::fit(bounds, request.resolution, request.axis).map_err(|e| grid_error(e, false))?;
+        let unit = request.unit.unwrap_or_else(|| mesh.guess_unit());
+        let resolution = request.resolution.in_mesh_units(unit);
+        let mut spec = GridSpec::fit(bounds, resolution, request.axis).map_err(|e| grid_error(e, false))?;
+        Job::check_anisotropic(request, &spec)?;
         let format = request.format;
         let field_mesh = budget::writes_level_set(request.mode, format);
         if field_mesh && request.level > 0.0 && request.bounds.is_none() {
             // A level set above 0 lies outside the mesh, up to the level away: the grid grows by it and two voxels
             // on every side (the voxel size stays the mesh's), so the surface is not cut by the grid's boundary.
-            let pad = (request.level / spec.voxel_size).ceil().min(f64::from(MAX_DIM)) as u32 + 2;
-            spec.origin -= DVec3::splat(f64::from(pad) * spec.voxel_size);
+            let pad = (request.level / spec.edge()).ceil().min(f64::from(MAX_DIM)) as u32 + 2;
+            spec.origin -= DVec3::splat(f64::from(pad)) * spec.voxel_size;
             spec.dims += 2 * pad;
         }
         // The grid's size is known now: a format that cannot hold it refuses it before anything is voxelized.
         if let Some(format) = format {
-            format.check_fits(spec.dims).map_err(EngineError::TooLargeForFormat)?;
+            format.check_fits(&spec).map_err(EngineError::TooLargeForFormat)?;
         }
         let sparse_format = format.is_some_and(VoxelFormat::is_sparse);
         let mut request = *request;
-        let unit = request.unit.unwrap_or_else(|| mesh.guess_unit());
         let thickness = request.thickness.in_voxels(&spec, unit) as f32;
         if request.mode == Mode::Shell {
             request.band = Job::shell_band(thickness)?;
@@ -227,6 +229,23 @@ impl<'a> Job<'a> {
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
     }
 
+    /// Refuses what measures distances in voxels that are not cubes: fields, shells and their level sets, and
+    /// drain holes (round holes). Surfaces, solids and pockets are decided in the grid's frame, where every voxel
+    /// is a unit cube, and need no distance.
+    fn check_anisotropic(request: &Request, spec: &GridSpec) -> Result<(), EngineError> {
+        let what = if spec.is_cubic() {
+            return Ok(());
+        } else if request.mode.needs_field() {
+            Setting::Mode.with(request.mode.name()).to_string()
+        } else if *request.drain != DrainPlan::None {
+            Setting::Drain.to_string()
+        } else {
+            return Ok(());
+        };
+        let [x, y, z] = spec.voxel_size.to_array();
+        Err(EngineError::Anisotropic { what, x, y, z })
+    }
+
     /// The band a shell of `thickness` voxels is cut from ([`crate::voxel::shell::shell_band`]).
     fn shell_band(thickness: f32) -> Result<Band, EngineError> {
         let band = crate::voxel::shell::shell_band(thickness);
@@ -253,7 +272,7 @@ impl<'a> Job<'a> {
                 }
             )));
         }
-        let need = (level.abs() / spec.voxel_size) as f32 + 2.0;
+        let need = (level.abs() / spec.edge()) as f32 + 2.0;
         match request.band {
             Band::Voxels(k) if k >= need => Ok(request.band),
             Band::Full => Ok(Band::Full),

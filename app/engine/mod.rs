@@ -120,6 +120,13 @@ pub enum EngineError {
     /// A level set's level, or a shell's thickness, that cannot be meshed.
     #[error("{0}")]
     Level(String),
+    /// Distances asked for in voxels that are not cubes.
+    #[error(
+        "{what} measures distances in cubic voxels; these are {x} x {y} x {z}: give one {}, or {} or {} for the \
+         anisotropic grid",
+        Setting::VoxelSize, Setting::Mode.with("surface"), Setting::Mode.with("solid")
+    )]
+    Anisotropic { what: String, x: f64, y: f64, z: f64 },
     /// Drain holes or pockets that cannot be made ([`crate::voxel::voids`]).
     #[error("{0}")]
     Voids(String),
@@ -572,7 +579,7 @@ impl Engine {
             points: mesh.points.as_ref().map(|c| c.len()),
             dims: spec.dims.to_array(),
             origin: spec.origin.to_array(),
-            voxel_size: spec.voxel_size,
+            voxel_size: spec.voxel_size.into(),
             grid: GridKind::of(job.sparse).name().to_string(),
             leaves: grid.sparse().map(|g| g.leaves.len() as u64),
             tiles: grid.sparse().map(|g| g.tiles.len() as u64),

@@ -120,7 +120,7 @@ pub struct Report {
     /// Bytes the grid's GPU passes uploaded (the triangles, once per brick or batch they fall in); `None` on the
     /// CPU.
     pub upload_bytes: Option<u64>,
-    pub voxel_size: f64,
+    pub voxel_size: crate::voxel::VoxelSize,
     /// Host triangles to host grid: grid-space conversion, upload, all passes and readback.
     pub voxelize_ms: f64,
     pub voxels: u64,

@@ -16,7 +16,8 @@ pub fn write_binvox(grid: &VoxelGrid, out: &mut impl Write) -> Result<(), Format
     let d = grid.spec.dims;
     let dim = d.max_element();
     let o = grid.spec.origin;
-    let scale = grid.spec.voxel_size * dim as f64;
+    // One scale: the engine refuses other than cubic voxels for binvox (`VoxelFormat::check_fits`).
+    let scale = grid.spec.voxel_size.x * dim as f64;
     write!(out, "#binvox 1\ndim {dim} {dim} {dim}\ntranslate {} {} {}\nscale {scale}\ndata\n", o.x, o.y, o.z)?;
     let mut rle = RunLength { out, value: 0, count: 0 };
     let (dim_us, ny, nz) = (dim as usize, d.y as usize, d.z as usize);
@@ -131,7 +132,7 @@ pub fn read_binvox(input: &mut impl BufRead) -> Result<VoxelGrid, FormatError> {
         }
     }
     let d = dims.ok_or_else(|| invalid(F, "no 'dim' line"))?;
-    let spec = GridSpec { origin: translate, voxel_size: scale / d.max_element().max(1) as f64, dims: d };
+    let spec = GridSpec { origin: translate, voxel_size: DVec3::splat(scale / d.max_element().max(1) as f64), dims: d };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     let total = spec.voxel_count();
     let mut index = 0u64;

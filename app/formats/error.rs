@@ -13,6 +13,13 @@ pub enum FormatError {
     /// The grid does not fit the format (a schematic's sides are unsigned Shorts).
     #[error("{0}")]
     TooLarge(String),
+    /// The format stores one voxel size and the grid's voxels are not cubes.
+    #[error(
+        "{extension} stores one voxel size and these voxels are {} x {} x {}: write .npz, .vdb or .nvdb, which store all \
+         three, or give cubic voxels",
+        size[0], size[1], size[2]
+    )]
+    OneVoxelSize { extension: &'static str, size: [f64; 3] },
 }
 
 pub(crate) fn invalid(format: &'static str, message: impl Into<String>) -> FormatError {

@@ -473,8 +473,8 @@ pub(super) fn write_glb_head(
 struct GlbLayout {
     quads: u64,
     coloured: bool,
-    /// The voxel size: positions are in voxels until scaled by it.
-    h: f64,
+    /// The voxel sizes: positions are in voxels until scaled by them.
+    h: DVec3,
 }
 
 impl GlbLayout {
@@ -591,7 +591,7 @@ fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
         spec.dims.x,
         spec.dims.y,
         spec.dims.z,
-        spec.voxel_size,
+        crate::voxel::VoxelSize::from(spec.voxel_size),
         spec.origin.x,
         spec.origin.y,
         spec.origin.z,
@@ -627,7 +627,13 @@ fn write_obj(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
     writeln!(
         out,
         "# meshvox voxel model: {}x{}x{} voxels of {}, origin {} {} {}\n# v x y z r g b (sRGB colours in 0..1)",
-        spec.dims.x, spec.dims.y, spec.dims.z, spec.voxel_size, spec.origin.x, spec.origin.y, spec.origin.z
+        spec.dims.x,
+        spec.dims.y,
+        spec.dims.z,
+        crate::voxel::VoxelSize::from(spec.voxel_size),
+        spec.origin.x,
+        spec.origin.y,
+        spec.origin.z
     )?;
     let mut result = Ok(());
     let mut n = 0u64;

@@ -39,7 +39,7 @@ use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::labels::Labels;
 use crate::voxel::ranks::Ranked;
-use crate::voxel::{Grid, SparseGrid, VoxelGrid};
+use crate::voxel::{Grid, GridSpec, SparseGrid, VoxelGrid};
 use blocks::BlockSet;
 use glam::UVec3;
 use std::io::{Seek, Write};
@@ -118,9 +118,14 @@ impl VoxelFormat {
 
     /// Whether a grid of `dims` voxels fits the format: the structure file's blocks are at most
     /// [`minecraft::structure::MAX_SIDE`] a side. Asked before anything is voxelized.
-    pub fn check_fits(self, dims: UVec3) -> Result<(), FormatError> {
+    pub fn check_fits(self, spec: &GridSpec) -> Result<(), FormatError> {
         match self {
-            VoxelFormat::Minecraft(MinecraftFormat::Structure) => minecraft::structure::check_fits(dims),
+            VoxelFormat::Minecraft(MinecraftFormat::Structure) => minecraft::structure::check_fits(spec.dims),
+            // binvox's header has one scale. The formats that store no voxel size (.npy, .vox, Minecraft's) take
+            // any grid: their cells are the grid's voxels.
+            VoxelFormat::Binvox if !spec.is_cubic() => {
+                Err(FormatError::OneVoxelSize { extension: self.extension(), size: spec.voxel_size.to_array() })
+            }
             _ => Ok(()),
         }
     }

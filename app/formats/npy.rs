@@ -157,7 +157,7 @@ pub fn read_npy(input: &mut impl Read) -> Result<VoxelGrid, FormatError> {
     let (Ok(x), Ok(y), Ok(z)) = (x, y, z) else {
         return Err(invalid(F, format!("shape {dims:?} is too large")));
     };
-    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(x, y, z) };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::ONE, dims: UVec3::new(x, y, z) };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     let mut plane = vec![0u8; y as usize * z as usize];
     for xi in 0..x {

@@ -6,7 +6,7 @@
 //! |---|---|---|
 //! | `coords` | int32 (N, 3) | the set voxels `[x, y, z]`, sorted by x, then y, then z |
 //! | `origin` | float64 (3,) | the world minimum corner of voxel (0, 0, 0) |
-//! | `voxel_size` | float64 () | the voxels' edge length |
+//! | `voxel_size` | float64 () or (3,) | the voxels' edge length; x, y and z lengths where they differ (both broadcast in `origin + (coords + 0.5) * voxel_size`) |
 //! | `dims` | int64 (3,) | the grid's size in voxels |
 //! | `colors` | uint8 (N, 4) | sRGB RGBA of each voxel in `coords`' order, when coloured |
 //! | `triangle`, `material`, `node` | int32 (N,) | each voxel's labels in `coords`' order, when asked for (`--attributes`, see `voxel::labels`) |
@@ -73,8 +73,11 @@ pub fn write_npz<W: Write + Seek>(
         zip.write_all(&c.to_le_bytes())?;
     }
     zip.start_file("voxel_size.npy", options(0)).map_err(zip_error)?;
-    write_npy_header("<f8", "()", &mut zip)?;
-    zip.write_all(&spec.voxel_size.to_le_bytes())?;
+    let (sizes, shape) = if spec.is_cubic() { (1, "()") } else { (3, "(3,)") };
+    write_npy_header("<f8", shape, &mut zip)?;
+    for h in &spec.voxel_size.to_array()[..sizes] {
+        zip.write_all(&h.to_le_bytes())?;
+    }
     zip.start_file("dims.npy", options(0)).map_err(zip_error)?;
     write_npy_header("<i8", "(3,)", &mut zip)?;
     for d in spec.dims.to_array() {

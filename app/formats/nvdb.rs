@@ -177,10 +177,10 @@ fn pad(b: &mut Vec<u8>, to: usize) {
     b.resize(to, 0);
 }
 
-/// The index-to-world map as OpenVDB's `nanovdb_convert` writes it for a uniform scale `h` and translation `t`
+/// The index-to-world map as OpenVDB's `nanovdb_convert` writes it for a scale `h` per axis and translation `t`
 /// (so that files compare equal byte for byte), and the voxel size it reports.
 struct Map {
-    h: f64,
+    h: DVec3,
     t: DVec3,
 }
 
@@ -190,25 +190,29 @@ impl Map {
         Map { h, t: grid.spec.origin + 0.5 * h }
     }
 
-    /// The inverse's diagonal as OpenVDB's `Mat4::inverse` rounds it.
-    fn inverse(&self) -> f64 {
+    /// The inverse's diagonal as OpenVDB's `Mat4::inverse` rounds it (one over the determinant, times the other
+    /// two axes' scales).
+    fn inverse(&self) -> DVec3 {
         let h = self.h;
-        (1.0 / ((h * h) * h)) * (h * h)
+        let det = 1.0 / ((h.x * h.y) * h.z);
+        DVec3::new(det * (h.y * h.z), det * (h.x * h.z), det * (h.x * h.y))
     }
 
-    /// `AffineMap::voxelSize`: the length of the x axis's image, through the translation.
-    fn voxel_size(&self) -> f64 {
-        ((self.h + self.t.x) - self.t.x).abs()
+    /// `AffineMap::voxelSize`: the lengths of the axes' images, through the translation (the x axis's for all
+    /// three where the voxels are cubes, as OpenVDB's converter writes them).
+    fn voxel_size(&self) -> [f64; 3] {
+        let t = |i: usize| if self.h.x == self.h.y && self.h.y == self.h.z { self.t.x } else { self.t[i] };
+        [0, 1, 2].map(|i| ((self.h[i] + t(i)) - t(i)).abs())
     }
 
     /// The world position of index point `p` (NanoVDB's `applyMap`, fused multiply-adds).
     fn world(&self, p: IVec3) -> DVec3 {
         let p = p.as_dvec3();
-        DVec3::new(p.x.mul_add(self.h, self.t.x), p.y.mul_add(self.h, self.t.y), p.z.mul_add(self.h, self.t.z))
+        DVec3::new(p.x.mul_add(self.h.x, self.t.x), p.y.mul_add(self.h.y, self.t.y), p.z.mul_add(self.h.z, self.t.z))
     }
 
     fn write(&self, b: &mut Vec<u8>) {
-        let diag = |d: f64| [d, 0.0, 0.0, 0.0, d, 0.0, 0.0, 0.0, d];
+        let diag = |d: DVec3| [d.x, 0.0, 0.0, 0.0, d.y, 0.0, 0.0, 0.0, d.z];
         let (mat, inv, t) = (diag(self.h), diag(self.inverse()), self.t.to_array());
         for v in mat.iter().chain(&inv).chain(&t).chain(&[1.0]) {
             b.extend_from_slice(&(*v as f32).to_le_bytes());
@@ -418,8 +422,8 @@ fn file_head(name: &str, map: &Map, kind: &Kind, layout: &Layout, s: &Summary) -
         b.extend_from_slice(&v.to_le_bytes());
     }
     put_bbox(&mut b, s.bbox);
-    for _ in 0..3 {
-        b.extend_from_slice(&map.voxel_size().to_le_bytes());
+    for h in map.voxel_size() {
+        b.extend_from_slice(&h.to_le_bytes());
     }
     b.extend_from_slice(&(name.len() as u32 + 1).to_le_bytes());
     for v in s.node_counts.iter().chain(&[1]).chain(&s.tile_counts) {
@@ -462,8 +466,8 @@ fn grid_head(
     for v in world_bbox(map, s.bbox) {
         b.extend_from_slice(&v.to_le_bytes());
     }
-    for _ in 0..3 {
-        b.extend_from_slice(&map.voxel_size().to_le_bytes());
+    for h in map.voxel_size() {
+        b.extend_from_slice(&h.to_le_bytes());
     }
     b.extend_from_slice(&kind.class.to_le_bytes());
     b.extend_from_slice(&kind.grid_type.to_le_bytes());

@@ -281,7 +281,9 @@ fn file_uuid(grid: &SparseGrid) -> String {
     // the platform's width: the page (wasm32) must write the CLI's bytes.
     let mut words: Vec<u64> = grid.spec.dims.to_array().map(u64::from).to_vec();
     words.extend(grid.spec.origin.to_array().map(f64::to_bits));
-    words.push(grid.spec.voxel_size.to_bits());
+    let h = grid.spec.voxel_size.to_array();
+    // One size for cubes, as before anisotropic voxels (the same grid, the same identifier).
+    words.extend(h[..if grid.spec.is_cubic() { 1 } else { 3 }].iter().map(|h| h.to_bits()));
     words.extend([grid.leaves.len() as u64, grid.tiles.len() as u64]);
     for (key, mask) in grid.leaves.first().into_iter().chain(grid.leaves.last()) {
         words.push(*key);
@@ -472,10 +474,19 @@ fn write_grid<W: Write + Seek>(
     }
     write_meta(&mut b, &meta);
     // The transform: index voxel centres (integers) onto meshvox's voxel centres.
-    string(&mut b, "UniformScaleTranslateMap");
+    // OpenVDB reads both maps alike; the uniform one says the voxels are cubes.
+    string(&mut b, if grid.spec.is_cubic() { "UniformScaleTranslateMap" } else { "ScaleTranslateMap" });
     let h = grid.spec.voxel_size;
     let t = grid.spec.origin + 0.5 * h;
-    for v in [t.to_array(), [h; 3], [h; 3], [1.0 / h; 3], [1.0 / (h * h); 3], [0.5 / h; 3]] {
+    let per_axis = |f: fn(f64) -> f64| h.to_array().map(f);
+    for v in [
+        t.to_array(),
+        h.to_array(),
+        h.to_array(),
+        per_axis(|h| 1.0 / h),
+        per_axis(|h| 1.0 / (h * h)),
+        per_axis(|h| 0.5 / h),
+    ] {
         for c in v {
             b.extend_from_slice(&c.to_le_bytes());
         }

@@ -164,7 +164,7 @@ pub fn read_vox(bytes: &[u8]) -> Result<VoxelGrid, FormatError> {
     let hi = placed.iter().map(|&(i, o)| o + size_of(i)).reduce(|a, b| a.max(b)).unwrap_or(lo);
     let vd = (hi - lo).as_uvec3();
     let dims = UVec3::new(vd.x, vd.z, vd.y);
-    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::ONE, dims };
     let mut grid = VoxelGrid::new(spec).map_err(|e| invalid(F, e.to_string()))?;
     for (i, o) in placed {
         for v in &data.models[i].voxels {

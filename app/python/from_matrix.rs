@@ -13,16 +13,16 @@ use pyo3::prelude::*;
 use std::path::Path;
 
 /// The bit grid of a `[x, y, z]` occupancy array (any non-zero byte is set).
-pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: f64) -> PyResult<VoxelGrid> {
+pub(super) fn grid(matrix: &ArrayView3<'_, u8>, origin: [f64; 3], pitch: [f64; 3]) -> PyResult<VoxelGrid> {
     let (nx, ny, nz) = matrix.dim();
     let dims = [nx, ny, nz].map(|n| u32::try_from(n).unwrap_or(u32::MAX));
-    if dims.contains(&0) || dims.contains(&u32::MAX) || !(pitch.is_finite() && pitch > 0.0) {
+    if dims.contains(&0) || dims.contains(&u32::MAX) || !pitch.iter().all(|p| p.is_finite() && *p > 0.0) {
         return Err(PyValueError::new_err(format!(
-            "a grid of shape {:?} and pitch {pitch} cannot be written",
+            "a grid of shape {:?} and pitch {pitch:?} cannot be written",
             matrix.dim()
         )));
     }
-    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: pitch, dims: UVec3::from(dims) };
+    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: DVec3::from(pitch), dims: UVec3::from(dims) };
     let mut grid = VoxelGrid::new(spec).map_err(|e| PyValueError::new_err(e.to_string()))?;
     for ((x, y, z), &v) in matrix.indexed_iter() {
         if v != 0 {
@@ -52,7 +52,7 @@ pub(super) fn field_values(
             distances.dim()
         )));
     }
-    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: pitch, dims: UVec3::from(dims) };
+    let spec = GridSpec { origin: DVec3::from(origin), voxel_size: DVec3::splat(pitch), dims: UVec3::from(dims) };
     Ok((spec, distances.iter().copied().collect()))
 }
 

@@ -114,6 +114,8 @@ fn into_py_err(failure: Failure) -> PyErr {
             | EngineError::Query(_)
             | EngineError::Sample(_)
             | EngineError::FullBandSparse
+            | EngineError::Anisotropic { .. }
+            | EngineError::Voids(_)
             | EngineError::Level(_)),
         ) => PyValueError::new_err(e.to_string()),
         Failure::Engine(EngineError::Cancelled) => PyRuntimeError::new_err("cancelled"),
@@ -132,7 +134,9 @@ fn save_err(path: &std::path::Path, e: crate::formats::FormatError) -> PyErr {
         FormatError::Io(io) if io.kind() == std::io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
         FormatError::Io(io) if io.kind() == std::io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
         FormatError::Io(_) => PyOSError::new_err(message),
-        FormatError::Invalid { .. } | FormatError::TooLarge(_) => PyValueError::new_err(message),
+        FormatError::Invalid { .. } | FormatError::TooLarge(_) | FormatError::OneVoxelSize { .. } => {
+            PyValueError::new_err(message)
+        }
     }
 }
 
@@ -189,7 +193,8 @@ impl Input {
 #[allow(clippy::too_many_arguments)]
 fn options(
     resolution: Option<u32>,
-    pitch: Option<f64>,
+    pitch: Option<&str>,
+    size: Option<&str>,
     axis: &str,
     mode: &str,
     backend: &str,
@@ -200,11 +205,13 @@ fn options(
     thickness: Option<&str>,
     voids: Option<Voids>,
 ) -> PyResult<Options> {
-    let resolution = match (resolution, pitch) {
-        (Some(n), None) => Resolution::Count(n),
-        (None, Some(p)) if p.is_finite() && p > 0.0 => Resolution::VoxelSize(p),
-        (None, Some(p)) => return Err(PyValueError::new_err(format!("pitch must be a positive number, not {p}"))),
-        _ => return Err(PyValueError::new_err("give either resolution or pitch")),
+    let resolution = match (resolution, pitch, size) {
+        (Some(n), None, None) => Resolution::Count(n),
+        (None, Some(p), None) => {
+            Resolution::parse_voxel_size(p).map_err(|e| PyValueError::new_err(format!("pitch: {e}")))?
+        }
+        (None, None, Some(s)) => Resolution::parse_size(s).map_err(|e| PyValueError::new_err(format!("size: {e}")))?,
+        _ => return Err(PyValueError::new_err("give resolution or pitch, or size (one of them)")),
     };
     let axis = Axis::from_name(axis)
         .ok_or_else(|| PyValueError::new_err(format!("axis '{axis}': use {}", Axis::choices())))?;
@@ -270,7 +277,10 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     let dict = PyDict::new(py);
     dict.set_item("shape", [d.x, d.y, d.z])?;
     dict.set_item("origin", grid.spec.origin.to_array())?;
-    dict.set_item("pitch", grid.spec.voxel_size)?;
+    match grid.spec.is_cubic() {
+        true => dict.set_item("pitch", grid.spec.voxel_size.x)?,
+        false => dict.set_item("pitch", grid.spec.voxel_size.to_array())?,
+    }
     let stats = serde_json::to_string(&result.report).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
     dict.set_item("stats", stats)?;
     // Fallbacks taken on the way (the GPU out of memory, the CPU standing in), for `warnings.warn`.
@@ -320,13 +330,13 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
 
 /// `meshvox._native.voxelize`: see `meshvox.voxelize`.
 #[pyfunction]
-#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness, voids=None, pose=None))]
+#[pyo3(signature = (source, resolution, pitch, axis, mode, backend, colour, bounds, progress, band, attributes, thickness, voids=None, pose=None, size=None))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize<'py>(
     py: Python<'py>,
     source: &Bound<'py, PyAny>,
     resolution: Option<u32>,
-    pitch: Option<f64>,
+    pitch: Option<&str>,
     axis: &str,
     mode: &str,
     backend: &str,
@@ -338,8 +348,10 @@ fn voxelize<'py>(
     thickness: Option<&str>,
     voids: Option<Voids>,
     pose: Option<(f64, Option<String>)>,
+    size: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
+    let options =
+        options(resolution, pitch, size, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
     let input = match pose {
         Some((time, animation)) => Input::Posed(Box::new(input(source)?), crate::mesh::rig::Pose { animation, time }),
         None => input(source)?,
@@ -360,13 +372,13 @@ fn voxelize_points<'py>(
     points: PyReadonlyArray2<'py, f64>,
     colors: Option<PyReadonlyArray2<'py, u8>>,
     resolution: Option<u32>,
-    pitch: Option<f64>,
+    pitch: Option<&str>,
     axis: &str,
     backend: &str,
     bounds: Option<([f64; 3], [f64; 3])>,
     progress: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let options = options(resolution, pitch, axis, "surface", backend, None, bounds, "3", "", None, None)?;
+    let options = options(resolution, pitch, None, axis, "surface", backend, None, bounds, "3", "", None, None)?;
     let (points, colors) = (points.as_array(), colors.as_ref().map(|c| c.as_array()));
     if points.ncols() != 3 || colors.is_some_and(|c| c.ncols() != 4) {
         return Err(PyValueError::new_err("points must be (N, 3) and colours (N, 4)"));
@@ -388,13 +400,13 @@ fn voxelize_points<'py>(
 /// `meshvox._native.voxelize_many`: the meshes on `workers` threads sharing one engine, through the work queue
 /// `meshvox batch` uses, in input order; `progress(done, total)` counts meshes.
 #[pyfunction]
-#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes, thickness, voids=None))]
+#[pyo3(signature = (sources, resolution, pitch, axis, mode, backend, colour, bounds, progress, workers, band, attributes, thickness, voids=None, size=None))]
 #[allow(clippy::too_many_arguments)]
 fn voxelize_many<'py>(
     py: Python<'py>,
     sources: Vec<Bound<'py, PyAny>>,
     resolution: Option<u32>,
-    pitch: Option<f64>,
+    pitch: Option<&str>,
     axis: &str,
     mode: &str,
     backend: &str,
@@ -406,8 +418,10 @@ fn voxelize_many<'py>(
     attributes: &str,
     thickness: Option<&str>,
     voids: Option<Voids>,
+    size: Option<&str>,
 ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    let options = options(resolution, pitch, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
+    let options =
+        options(resolution, pitch, size, axis, mode, backend, colour, bounds, band, attributes, thickness, voids)?;
     let inputs: Vec<std::sync::Mutex<Option<Input>>> =
         sources.iter().map(|s| input(s).map(|i| std::sync::Mutex::new(Some(i)))).collect::<PyResult<_>>()?;
     let total = inputs.len();
@@ -487,7 +501,7 @@ fn save(
     path: PathBuf,
     matrix: numpy::PyReadonlyArray3<'_, u8>,
     origin: [f64; 3],
-    pitch: f64,
+    pitch: [f64; 3],
     colors: Option<numpy::PyReadonlyArray4<'_, u8>>,
     merge: bool,
     labels: Vec<(String, numpy::PyReadonlyArray3<'_, i32>)>,
@@ -519,6 +533,7 @@ fn save(
         PyValueError::new_err(format!("{}: unknown output format (use {})", path.display(), VoxelFormat::choices()))
     })?;
     let grid = from_matrix::grid(&matrix.as_array(), origin, pitch)?;
+    format.check_fits(&grid.spec).map_err(|e| save_err(&path, e))?;
     let colours = colors.map(|c| from_matrix::colours(&grid, &c.as_array())).transpose()?;
     let views: Vec<_> = labels.iter().map(|(name, values)| (name.clone(), values.as_array())).collect();
     let labels = (!views.is_empty()).then(|| from_matrix::labels(&grid, &views)).transpose()?;

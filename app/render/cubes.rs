@@ -335,7 +335,7 @@ impl CubeRenderer {
         let seen = style.floor && floor.seen_from(camera.eye());
         let u = ViewUniform {
             view_proj: camera.view_proj(aspect).to_cols_array_2d(),
-            grid: [scene.spec.voxel_size as f32, 0.0, 0.0, 0.0],
+            grid: scene.spec.voxel_size.as_vec3().extend(0.0).to_array(),
             color: [style.color[0], style.color[1], style.color[2], 1.0],
             mesh_color: [0.3, 0.65, 1.0, 0.25],
             options: [

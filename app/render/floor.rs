@@ -26,7 +26,7 @@ impl Floor {
         let up = up.index();
         let size = spec.dims.as_dvec3() * spec.voxel_size;
         let (a, b) = ((up + 1) % 3, (up + 2) % 3);
-        let extent = size[a].max(size[b]).max(spec.voxel_size);
+        let extent = size[a].max(size[b]).max(spec.voxel_size.max_element());
         let spacing = 10f64.powf((extent / 4.0).log10().floor());
         // The square reaches 30% of the model's larger side beyond it on each side; the shader fades its rim.
         let half = 0.8 * extent;

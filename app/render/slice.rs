@@ -52,7 +52,7 @@ pub fn field_slice(field: &DistanceField, surface: &VoxelGrid, slice: Cut) -> (V
             grid.set(v.x, v.y, v.z);
         }
     }
-    let (background, h) = (field.background(), spec.voxel_size as f32);
+    let (background, h) = (field.background(), spec.edge() as f32);
     let rgba = grid
         .iter_set()
         .map(|v| match v[slice.axis] == layer {

@@ -63,7 +63,7 @@ pub struct Stats {
     /// Whether the GPU made these voxels (the page's first ones come from the CPU: [`Engine::first_frame`]).
     pub on_gpu: bool,
     /// Edge length of a voxel, in the mesh's units.
-    pub voxel_size: f64,
+    pub voxel_size: glam::DVec3,
     /// Whether the voxels carry colours from the mesh (see [`crate::voxel::colour`]).
     pub coloured: bool,
     /// A shell's voids left sealed (`pockets` of the report): resin a print would trap; `None` for other modes.

@@ -8,7 +8,7 @@ use super::{ViewerApp, short_number};
 use crate::formats;
 use crate::mesh::builtin;
 use crate::render::{self, camera::UpAxis, camera::ViewPreset};
-use crate::voxel::{Axis, Mode};
+use crate::voxel::{Axis, Mode, VoxelSize};
 
 impl ViewerApp {
     pub(super) fn panel(&mut self, ui: &mut egui::Ui) {
@@ -284,11 +284,15 @@ impl ViewerApp {
                 ui.end_row();
                 // In the mesh's own units, whatever they are (glTF: metres).
                 ui.label("size");
-                let size = s.dims.map(|d| short_number(d as f64 * s.voxel_size));
+                let size = [0, 1, 2].map(|i| short_number(f64::from(s.dims[i]) * s.voxel_size[i]));
                 ui.label(format!("{} × {} × {}", size[0], size[1], size[2])).on_hover_text("in the mesh's units");
                 ui.end_row();
                 ui.label("voxel");
-                ui.label(short_number(s.voxel_size)).on_hover_text("edge length, in the mesh's units");
+                let edges = match VoxelSize::from(s.voxel_size).cubic() {
+                    Some(h) => short_number(h),
+                    None => s.voxel_size.to_array().map(short_number).join(" × "),
+                };
+                ui.label(edges).on_hover_text("edge length, in the mesh's units");
                 ui.end_row();
                 if let (true, Some(scene)) = (self.style.floor, &self.scene) {
                     let spacing = short_number(render::Floor::new(&scene.spec, self.up).spacing);
@@ -333,7 +337,7 @@ impl ViewerApp {
             let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)];
             for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb].into_iter().chain(minecraft) {
                 // A structure file holds at most 48 blocks a side.
-                let fits = self.grid.as_ref().is_some_and(|g| format.check_fits(g.spec.dims).is_ok());
+                let fits = self.grid.as_ref().is_some_and(|g| format.check_fits(&g.spec).is_ok());
                 let too_big = self.grid.is_some() && !fits;
                 let usable = fits && (!field || format.holds_field());
                 let hint = match (format, field) {

@@ -96,9 +96,10 @@ impl ViewerApp {
             (Some(pos), Some(grid)) if rect.width() > 0.0 && rect.height() > 0.0 => {
                 let uv = glam::Vec2::new((pos.x - rect.left()) / rect.width(), (pos.y - rect.top()) / rect.height());
                 let (origin, dir) = self.camera.ray(rect.width() / rect.height(), uv);
-                let h = grid.spec.voxel_size as f32;
+                // Into the grid's frame, where voxels are unit cubes (the ray's direction too, where they are not).
+                let h = grid.spec.voxel_size.as_vec3();
                 let keep = self.cut_on.then(|| (self.cut.axis, self.cut.keep(&grid.spec)));
-                render::camera::first_voxel_on_ray(origin / h, dir, grid.spec.dims, |p| {
+                render::camera::first_voxel_on_ray(origin / h, dir * (h.x / h), grid.spec.dims, |p| {
                     grid.get(p.x, p.y, p.z) && keep.is_none_or(|(axis, keep)| p[axis] < keep)
                 })
             }

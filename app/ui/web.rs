@@ -171,7 +171,7 @@ pub(crate) fn publish_status(
         let dims = js_sys::Array::of3(&s.dims[0].into(), &s.dims[1].into(), &s.dims[2].into());
         set("dims", dims.into());
         set("coloured", s.coloured.into());
-        set("voxel_size", s.voxel_size.into());
+        set("voxel_size", s.voxel_size.x.into());
     }
     if let Some(window) = web_sys::window() {
         let _ = js_sys::Reflect::set(&window, &"meshvoxStatus".into(), &status);

@@ -221,7 +221,7 @@ fn block_triangles(field: &DistanceField, level: f64, p: IVec3) -> Piece {
         let q = i - lo;
         values[((q.z * n.y + q.y) * n.x + q.x) as usize]
     };
-    let h = spec.voxel_size;
+    let h = spec.edge();
     let clearance = CLEARANCE * h;
     let position = |i: IVec3| spec.origin + (i.as_dvec3() + 0.5) * h;
     let (mut vertices, mut triangles) = (Vec::new(), Vec::new());

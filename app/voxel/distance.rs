@@ -300,7 +300,7 @@ impl DistanceField {
         parallel::install(|| {
             let dims = spec.dims;
             let leaf_dims = (dims + 7) / 8;
-            let reach = background / spec.voxel_size as f32;
+            let reach = background / spec.edge() as f32;
             let leaves: Vec<UVec3> = (0..leaf_dims.z)
                 .flat_map(|z| {
                     (0..leaf_dims.y).flat_map(move |y| (0..leaf_dims.x).map(move |x| UVec3::new(x, y, z) * 8))
@@ -380,7 +380,7 @@ impl DistanceField {
 
     /// The background: the band's half-width in world units (positive; `-background` inside).
     pub fn background(&self) -> f32 {
-        self.reach * self.spec.voxel_size as f32
+        self.reach * self.spec.edge() as f32
     }
 
     /// Whether voxel `v`'s centre is inside (always false for `udf`).
@@ -588,7 +588,7 @@ struct Finish<'a> {
 
 impl<'a> Finish<'a> {
     fn new(spec: GridSpec, band: Band, inside: Option<&'a Grid>) -> Finish<'a> {
-        let h = spec.voxel_size as f32;
+        let h = spec.edge() as f32;
         // As `DistanceField::background` and `band_mask` have them.
         let background = band.reach(spec.dims) * h;
         Finish { h, background, full: band == Band::Full, dims: spec.dims, inside }

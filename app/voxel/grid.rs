@@ -36,10 +36,76 @@ impl Axis {
 /// How the voxel size is chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Resolution {
-    /// `N` voxels along the chosen axis.
+    /// `N` voxels along the chosen axis, cubic voxels.
     Count(u32),
-    /// Voxels of this edge length, in mesh units.
-    VoxelSize(f64),
+    /// Voxels of these edge lengths along x, y and z, in mesh units (all three equal: cubes).
+    VoxelSize(DVec3),
+    /// Voxels of these edge lengths in metres, which [`Resolution::in_mesh_units`] turns into the mesh's units.
+    VoxelMetres(DVec3),
+    /// This many voxels along x, y and z; `None` (`auto`) keeps the model's proportions: that axis's voxels are
+    /// as long as the geometric mean of the given axes' (cubes when one axis is given).
+    Size([Option<u32>; 3]),
+}
+
+impl Resolution {
+    /// Cubic voxels of edge `h`, in mesh units.
+    pub fn cubes(h: f64) -> Resolution {
+        Resolution::VoxelSize(DVec3::splat(h))
+    }
+
+    /// A voxel size as a user gives it: `H` or `X,Y,Z` in the mesh's units, or each with a unit (`0.05mm`,
+    /// `0.05mm,0.05mm,0.03mm`; [`Length::UNITS`]), all with one or none.
+    pub fn parse_voxel_size(text: &str) -> Result<Resolution, String> {
+        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+        if parts.len() != 1 && parts.len() != 3 {
+            return Err(format!("'{text}': give one voxel size or three (x,y,z)"));
+        }
+        let mut sizes = Vec::with_capacity(3);
+        let mut with_unit = Vec::with_capacity(3);
+        for part in &parts {
+            // A number alone first: `NaN` and `inf` are letters, and say what is wrong with them below.
+            let split = part.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(part.len());
+            let (number, unit) = if part.parse::<f64>().is_ok() { (*part, "") } else { part.split_at(split) };
+            let value: f64 = number.trim().parse().map_err(|_| format!("'{part}' is not a voxel size (0.1, 2mm)"))?;
+            if !(value.is_finite() && value > 0.0) {
+                return Err(format!("'{part}': a voxel size must be a positive finite number"));
+            }
+            let metres = if unit.is_empty() { None } else { Some(Length::unit(unit)?) };
+            with_unit.push(metres.is_some());
+            sizes.push(value * metres.unwrap_or(1.0));
+        }
+        if with_unit.iter().any(|&u| u != with_unit[0]) {
+            return Err(format!("'{text}': give every size a unit, or none (the mesh's units)"));
+        }
+        let v = if sizes.len() == 1 { DVec3::splat(sizes[0]) } else { DVec3::new(sizes[0], sizes[1], sizes[2]) };
+        Ok(if with_unit[0] { Resolution::VoxelMetres(v) } else { Resolution::VoxelSize(v) })
+    }
+
+    /// A grid's size as a user gives it: `X,Y,Z` voxels, any of them `auto`.
+    pub fn parse_size(text: &str) -> Result<Resolution, String> {
+        let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+        let [x, y, z] = parts[..] else { return Err(format!("'{text}': give three sizes, x,y,z (a number or auto)")) };
+        let count = |p: &str| match p {
+            "auto" => Ok(None),
+            p => match p.parse::<u32>() {
+                Ok(n) if n > 0 => Ok(Some(n)),
+                _ => Err(format!("'{p}' in '{text}': a size is a whole number of voxels above 0, or auto")),
+            },
+        };
+        let counts = [count(x)?, count(y)?, count(z)?];
+        if counts.iter().all(Option::is_none) {
+            return Err(format!("'{text}': give at least one axis a number of voxels"));
+        }
+        Ok(Resolution::Size(counts))
+    }
+
+    /// The same request in the mesh's units, for a mesh whose unit is `unit` metres.
+    pub fn in_mesh_units(self, unit: f64) -> Resolution {
+        match self {
+            Resolution::VoxelMetres(m) => Resolution::VoxelSize(m / unit),
+            r => r,
+        }
+    }
 }
 
 /// A length a user gives (a shell's thickness, a drain hole's radius): in voxels, or in metres, which the mesh's
@@ -77,7 +143,7 @@ impl Length {
     pub fn in_voxels(self, spec: &GridSpec, unit: f64) -> f64 {
         match self {
             Length::Voxels(v) => v,
-            Length::Metres(m) => m / unit / spec.voxel_size,
+            Length::Metres(m) => m / unit / spec.edge(),
         }
     }
 
@@ -93,6 +159,54 @@ impl Length {
     /// The units' names, as messages list them (`mm, cm, m, in, ft`).
     fn unit_names() -> String {
         Length::UNITS.iter().map(|u| u.0).collect::<Vec<_>>().join(", ")
+    }
+}
+
+/// The voxels' edge lengths, as reports give them: one number for cubic voxels (as every report before
+/// anisotropic voxels did), `[x, y, z]` for others.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VoxelSize(pub [f64; 3]);
+
+impl VoxelSize {
+    /// The one edge length of cubic voxels.
+    pub fn cubic(self) -> Option<f64> {
+        let [x, y, z] = self.0;
+        (x == y && y == z).then_some(x)
+    }
+}
+
+impl From<DVec3> for VoxelSize {
+    fn from(v: DVec3) -> VoxelSize {
+        VoxelSize(v.to_array())
+    }
+}
+
+impl serde::Serialize for VoxelSize {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.cubic() {
+            Some(h) => s.serialize_f64(h),
+            None => self.0.serialize(s),
+        }
+    }
+}
+
+/// `0.0125` for cubes, `0.0125 x 0.0125 x 0.00625` otherwise; `{:.6}` gives each number six decimals.
+impl std::fmt::Display for VoxelSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let one = |f: &mut std::fmt::Formatter<'_>, v: f64| match f.precision() {
+            Some(p) => write!(f, "{v:.p$}"),
+            None => write!(f, "{v}"),
+        };
+        match self.cubic() {
+            Some(h) => one(f, h),
+            None => {
+                one(f, self.0[0])?;
+                f.write_str(" x ")?;
+                one(f, self.0[1])?;
+                f.write_str(" x ")?;
+                one(f, self.0[2])
+            }
+        }
     }
 }
 
@@ -127,6 +241,8 @@ pub enum GridError {
     ZeroResolution,
     #[error("the voxel size must be a positive finite number, not {0}")]
     BadVoxelSize(f64),
+    #[error("{} needs at least one number of voxels (auto on every axis gives no size)", Setting::Size)]
+    AllAuto,
     #[error("the mesh has zero extent along {0}: choose another {axis} or give {size}", axis = Setting::Axis, size = Setting::VoxelSize)]
     FlatAxis(char),
     #[error("the mesh is a single point: give {} to voxelize it", Setting::VoxelSize)]
@@ -155,7 +271,8 @@ pub enum GridError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridSpec {
     pub origin: DVec3,
-    pub voxel_size: f64,
+    /// The voxels' edge lengths along x, y and z (equal for cubic voxels).
+    pub voxel_size: DVec3,
     pub dims: UVec3,
 }
 
@@ -163,34 +280,48 @@ impl GridSpec {
     /// Lays a grid over `bounds` following the convention in the module documentation.
     pub fn fit(bounds: Aabb, resolution: Resolution, axis: Axis) -> Result<GridSpec, GridError> {
         let extent = bounds.extent();
-        let axis_index = axis.index(bounds);
+        let flat = |i: usize| {
+            if extent.max_element() <= 0.0 { GridError::PointMesh } else { GridError::FlatAxis(['x', 'y', 'z'][i]) }
+        };
+        // Each axis's voxel size, and the axes whose count is given (they get exactly that many voxels).
         let (voxel_size, fixed) = match resolution {
             Resolution::Count(0) => return Err(GridError::ZeroResolution),
             Resolution::Count(n) => {
-                let e = extent[axis_index];
-                if e <= 0.0 {
-                    return Err(if extent.max_element() <= 0.0 {
-                        GridError::PointMesh
-                    } else {
-                        GridError::FlatAxis(['x', 'y', 'z'][axis_index])
-                    });
+                let a = axis.index(bounds);
+                if extent[a] <= 0.0 {
+                    return Err(flat(a));
                 }
-                (e / n as f64, Some((axis_index, n)))
-            }
-            Resolution::VoxelSize(h) if !(h.is_finite() && h > 0.0) => {
-                return Err(GridError::BadVoxelSize(h));
-            }
-            Resolution::VoxelSize(h) => (h, None),
-        };
-        let mut dims = [0u64; 3];
-        for (i, d) in dims.iter_mut().enumerate() {
-            *d = match fixed {
-                Some((a, n)) if a == i => n as u64,
                 // An axis exactly as long as the counted one gets exactly N too, whatever the division rounds to.
-                Some((a, n)) if extent[i] == extent[a] => n as u64,
-                _ => cells(extent[i], voxel_size, snap_tolerance(extent.max_element() / 2.0, voxel_size)),
-            };
-        }
+                let fixed = [0, 1, 2].map(|i| (extent[i] == extent[a]).then_some(n));
+                (DVec3::splat(extent[a] / n as f64), fixed)
+            }
+            Resolution::Size(counts) => {
+                let mut product = 1.0;
+                let mut given = 0;
+                for (i, count) in counts.iter().enumerate() {
+                    match *count {
+                        Some(0) => return Err(GridError::ZeroResolution),
+                        Some(_) if extent[i] <= 0.0 => return Err(flat(i)),
+                        Some(n) => (product, given) = (product * extent[i] / n as f64, given + 1),
+                        None => {}
+                    }
+                }
+                if given == 0 {
+                    return Err(GridError::AllAuto);
+                }
+                let auto = product.powf(1.0 / given as f64);
+                let h = DVec3::from_array([0, 1, 2].map(|i| counts[i].map_or(auto, |n| extent[i] / n as f64)));
+                (h, counts)
+            }
+            Resolution::VoxelSize(h) | Resolution::VoxelMetres(h) => {
+                if let Some(&bad) = h.to_array().iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+                    return Err(GridError::BadVoxelSize(bad));
+                }
+                (h, [None; 3])
+            }
+        };
+        let tolerance = |i: usize| snap_tolerance(extent.max_element() / 2.0, voxel_size[i]);
+        let dims = [0, 1, 2].map(|i| fixed[i].map_or_else(|| cells(extent[i], voxel_size[i], tolerance(i)), u64::from));
         if dims.iter().any(|&d| d > MAX_DIM as u64) {
             return Err(GridError::TooLarge(dims));
         }
@@ -199,6 +330,26 @@ impl GridSpec {
             voxel_size,
             dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
         })
+    }
+
+    /// Whether the voxels are cubes (every size equal).
+    pub fn is_cubic(&self) -> bool {
+        self.voxel_size.x == self.voxel_size.y && self.voxel_size.y == self.voxel_size.z
+    }
+
+    /// The voxels' edge length where they are cubes. Distances (fields, shells, level sets, queries) are measured
+    /// in cubic voxels only: the engine refuses other voxels for them before they run
+    /// ([`crate::engine::EngineError::Anisotropic`]); elsewhere this is the x size.
+    pub fn edge(&self) -> f64 {
+        debug_assert!(self.is_cubic(), "distances need cubic voxels");
+        self.voxel_size.x
+    }
+
+    /// The area of a voxel's face, on average over the three axes' (a surface's voxel count per area, for
+    /// estimates).
+    pub fn face_area(&self) -> f64 {
+        let h = self.voxel_size;
+        (h.x * h.y + h.y * h.z + h.z * h.x) / 3.0
     }
 
     /// Words per x-row of the bit grid.
@@ -253,10 +404,10 @@ impl GridSpec {
 
     /// Grid-space coordinates of the point `d` (world units) from the grid origin, snapped within `tolerance`.
     #[inline]
-    pub(crate) fn snap_to_grid(&self, d: DVec3, tolerance: f64) -> Vec3 {
+    pub(crate) fn snap_to_grid(&self, d: DVec3, tolerance: DVec3) -> Vec3 {
         let g = d / self.voxel_size;
         let r = g.map(nearest_integer);
-        let snapped = DVec3::select((g - r).abs().cmple(DVec3::splat(tolerance)), r, g);
+        let snapped = DVec3::select((g - r).abs().cmple(tolerance), r, g);
         snapped.as_vec3()
     }
 
@@ -267,8 +418,9 @@ impl GridSpec {
     /// from the world origin, so the same mesh moved far away snaps the same way: positions are read in f64 and
     /// keep their precision however far they are (a file that stored its far-away positions in f32 has lost
     /// that precision already, and no tolerance brings it back).
-    pub fn snap_tolerance(&self) -> f64 {
-        snap_tolerance((self.dims.as_dvec3() * self.voxel_size).max_element() / 2.0, self.voxel_size)
+    pub fn snap_tolerance(&self) -> DVec3 {
+        let magnitude = (self.dims.as_dvec3() * self.voxel_size).max_element() / 2.0;
+        DVec3::from_array([0, 1, 2].map(|i| snap_tolerance(magnitude, self.voxel_size[i])))
     }
 
     /// World-space centre of voxel `(x, y, z)`.

@@ -39,7 +39,7 @@ pub mod voids;
 pub mod voxelize;
 pub mod winding_lanes;
 
-pub use grid::{Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid};
+pub use grid::{Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid, VoxelSize};
 pub use lattice::{GridTriangles, Lattice, on_lattice};
 pub use sparse::SparseGrid;
 

@@ -34,7 +34,7 @@ pub fn shell_band(thickness: f32) -> f32 {
 
 /// The largest distance a shell voxel's centre may have from the surface, in world units, as the test compares it.
 pub fn shell_reach(spec: &GridSpec, thickness: f32) -> f32 {
-    thickness * spec.voxel_size as f32
+    thickness * spec.edge() as f32
 }
 
 /// The shell of `thickness` voxels cut from the signed `field` (see the module documentation), as a sparse grid.
@@ -84,7 +84,7 @@ pub fn shell_mesh_with_progress(
 /// through the wall for each hole, and no inner wall around a filled pocket.
 pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing) -> DistanceField {
     let t = shell_reach(&field.spec, thickness);
-    let h = field.spec.voxel_size as f32;
+    let h = field.spec.edge() as f32;
     let filled = |v: UVec3| hollowing.filled_voxels.as_ref().is_some_and(|g| g.get(v.x, v.y, v.z));
     let tubes = &hollowing.tubes;
     let values: Vec<f32> = crate::parallel::install(|| {

@@ -407,7 +407,7 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
             let voxels = runs.iter().map(|&i| u64::from(voids.runs[i as usize].x1 - voids.runs[i as usize].x0)).sum();
             let first = spread(&lowest_layers(&voids, runs, u, 1), 1, 0.0, u);
             let point = first.first().map_or(DVec3::ZERO, |v| spec.voxel_center(*v));
-            Pocket { voxels, volume: voxels as f64 * h * h * h, point: point.to_array() }
+            Pocket { voxels, volume: voxels as f64 * h.x * h.y * h.z, point: point.to_array() }
         })
         .collect();
     let filled_voxels = (hollow.fill && !sealed.is_empty()).then(|| {
@@ -429,7 +429,8 @@ pub fn hollow(grid: &mut VoxelGrid, hollow: &Hollow) -> Result<Hollowing, VoidEr
     let drains = tubes
         .iter()
         .zip(&radii)
-        .map(|(&(a, b, _), &r)| Drain { from: world(a), to: world(b), radius: r * h })
+        // Drain holes are cut in cubic voxels only (the engine refuses them in others: a round hole).
+        .map(|(&(a, b, _), &r)| Drain { from: world(a), to: world(b), radius: r * spec.edge() })
         .collect();
     Ok(Hollowing { drains, pockets, tubes, filled_voxels })
 }

@@ -61,7 +61,7 @@ fn level_sets_are_closed_manifold_and_outward_on_the_hard_cases() {
         for (n, grid) in [(13, GridKind::Dense), (32, GridKind::Sparse)] {
             for (mode, level_voxels) in [(Mode::Sdf, 0.0), (Mode::Sdf, 1.0), (Mode::Udf, 0.9), (Mode::Udf, 2.5)] {
                 let f0 = field(&m, n, Mode::Sdf, 0.0, grid);
-                let level = level_voxels * f0.spec.voxel_size;
+                let level = level_voxels * f0.spec.edge();
                 let f = field(&m, n, mode, level, grid);
                 let what = format!("{name} {mode} at {n} ({grid:?}), level {level_voxels} voxels");
                 let surface = level_mesh(&f, level).unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -88,7 +88,7 @@ fn level_sets_of_the_shared_meshes_are_closed_and_hold_the_input() {
             let what = format!("{name} at {n}");
             let volume = assert_watertight(&surface, &what);
             // The inside's volume: voxel centres with a negative value (the winding number's side), one voxel each.
-            let h = f.spec.voxel_size;
+            let h = f.spec.edge();
             let inside = (0..f.spec.dims.z)
                 .flat_map(|z| {
                     (0..f.spec.dims.y).flat_map(move |y| (0..f.spec.dims.x).map(move |x| glam::UVec3::new(x, y, z)))
@@ -136,7 +136,7 @@ fn a_closed_mesh_at_256_holds_its_volume_and_shape() {
     let f = field(&m, 256, Mode::Sdf, 0.0, GridKind::Sparse);
     let surface = level_mesh(&f, 0.0).expect("level set");
     let volume = assert_watertight(&surface, "spot at 256");
-    let h = f.spec.voxel_size;
+    let h = f.spec.edge();
     // The solid's voxel volume: the voxels whose centre is inside (the field's sign, the winding number's), a
     // voxel each. (`--mode solid` also sets every voxel the surface touches, half a voxel's shell more: 3.9% here.)
     let d = f.spec.dims;
@@ -155,7 +155,7 @@ fn an_open_sheet_becomes_a_thin_closed_solid() {
     let tri = [[glam::Vec3::new(0.0, 0.0, 0.0), glam::Vec3::new(10.0, 0.5, 0.25), glam::Vec3::new(2.0, 7.0, 0.5)]];
     let m = indexed("one triangle", &tri);
     let f0 = field(&m, 40, Mode::Sdf, 0.0, GridKind::Auto);
-    let level = 1.5 * f0.spec.voxel_size;
+    let level = 1.5 * f0.spec.edge();
     let f = field(&m, 40, Mode::Udf, level, GridKind::Auto);
     let surface = level_mesh(&f, level).expect("udf level set");
     let volume = assert_watertight(&surface, "one triangle's udf shell");

@@ -9,7 +9,7 @@ use glam::{DVec3, UVec3, Vec3};
 use meshvox::voxel::{GridSpec, VoxelGrid, cpu, voxelize};
 
 fn spec(dims: UVec3) -> GridSpec {
-    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
+    GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims }
 }
 
 fn fast(triangles: &[[Vec3; 3]], dims: UVec3) -> VoxelGrid {

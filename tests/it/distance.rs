@@ -66,7 +66,7 @@ pub(crate) fn winding_f64(p: DVec3, tris: &[[DVec3; 3]]) -> f64 {
 /// number is at least ½ (`sdf`, away from ½ by more than 1e-3 and from the surface).
 fn assert_field_matches(field: &DistanceField, world: &[[DVec3; 3]], tol: f64, what: &str) -> f64 {
     let spec = field.spec;
-    let (h, reach) = (spec.voxel_size, f64::from(field.reach));
+    let (h, reach) = (spec.edge(), f64::from(field.reach));
     let bg = f64::from(field.background());
     let mut worst = 0f64;
     let d = spec.dims;
@@ -104,7 +104,7 @@ fn assert_field_matches(field: &DistanceField, world: &[[DVec3; 3]], tol: f64, w
 #[test]
 fn hard_cases_match_float64_distances_over_every_triangle_in_every_band() {
     for (name, tris, dims) in hard_cases() {
-        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
+        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims };
         let (tris, lattice) = on_lattice(&tris, dims).expect("lattice");
         let world: Vec<[DVec3; 3]> = tris.iter().map(|t| t.map(Vec3::as_dvec3)).collect();
         for band in [Band::Voxels(3.0), Band::Voxels(1.5), Band::Full] {
@@ -269,7 +269,7 @@ fn bad_bands_and_formats_are_one_line_errors() {
 fn field_difference(a: &DistanceField, b: &DistanceField) -> f64 {
     assert_eq!((a.leaves.len(), a.slots.len()), (b.leaves.len(), b.slots.len()), "the same leaves");
     assert_eq!(a.leaves, b.leaves);
-    let h = a.spec.voxel_size as f32;
+    let h = a.spec.edge() as f32;
     let mut worst = 0f32;
     for (i, (x, y)) in a.values.iter().zip(&b.values).enumerate() {
         assert_eq!(x.is_sign_negative(), y.is_sign_negative(), "value {i}: {x} and {y}");
@@ -324,7 +324,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
     // The hard cases too: segments and collinear triangles, whose Voronoi regions a GPU's rounding decides
     // otherwise than the CPU's (`closest_barycentric` measures a thin triangle's edges as well).
     for (name, tris, dims) in hard_cases() {
-        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
+        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims };
         for band in [Band::Voxels(3.0), Band::Full] {
             let (d, bound) = compare(&tris, spec, band);
             assert!(d <= bound, "{name} ({band:?}): GPU and CPU differ by {d} voxels (bound {bound:.2e})");
@@ -339,7 +339,7 @@ fn gpu_distances_equal_the_cpus_within_the_stated_bound_on_every_mesh() {
         Vec3::new(300.0, 300.0, 3.5),
         Vec3::new(0.0, 300.0, 3.5),
     );
-    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(300, 300, 8) };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims: UVec3::new(300, 300, 8) };
     let (diff, bound) = compare(&[[a, b, c], [a, c, d]], spec, Band::Voxels(3.0));
     assert!(diff <= bound, "a flat 300-voxel square: GPU and CPU differ by {diff} voxels (bound {bound:.2e})");
     worst = worst.max(diff);
@@ -452,7 +452,7 @@ fn the_whole_grids_mirror_gives_the_cpus_field_bit_for_bit() {
     let torus = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
     let mut cases: Vec<(String, Vec<[Vec3; 3]>, GridSpec)> = vec![("torus at 27".into(), torus, spec)];
     for (name, tris, dims) in hard_cases() {
-        cases.push((name.into(), tris, GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }));
+        cases.push((name.into(), tris, GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims }));
     }
     for (name, tris, spec) in cases {
         let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");

@@ -110,11 +110,10 @@ fn cancel_bounds_and_arrays_through_the_engine() {
     let spec = *whole.grid.spec();
     // The lower half of the same grid: the same voxels in the layers it keeps.
     let half = spec.dims.z / 2;
-    let max = spec.origin + spec.dims.as_dvec3() * spec.voxel_size;
+    let max = spec.origin + spec.dims.as_dvec3() * spec.edge();
     let bounds =
-        Aabb { min: spec.origin, max: glam::DVec3::new(max.x, max.y, spec.origin.z + half as f64 * spec.voxel_size) };
-    let request =
-        Request { bounds: Some(bounds), ..Request::new(Resolution::VoxelSize(spec.voxel_size), Mode::Surface) };
+        Aabb { min: spec.origin, max: glam::DVec3::new(max.x, max.y, spec.origin.z + half as f64 * spec.edge()) };
+    let request = Request { bounds: Some(bounds), ..Request::new(Resolution::cubes(spec.edge()), Mode::Surface) };
     let clipped = engine.voxelize("knot", &mesh, &request).expect("clipped");
     assert_eq!(clipped.grid.spec().origin, spec.origin);
     assert_eq!(clipped.grid.spec().dims, glam::UVec3::new(spec.dims.x, spec.dims.y, half));
@@ -249,7 +248,7 @@ impl Outcome {
                 f.x_slice(x as u32, slab);
             }
         }
-        let (largest, pitch) = (d.max_element() as f32, grid.spec.voxel_size as f32);
+        let (largest, pitch) = (d.max_element() as f32, grid.spec.edge() as f32);
         let (backend, group) = (result.report.backend, result.report.meshes_in_submission);
         Outcome { words: grid.words.clone(), field, backend, group, largest, pitch }
     }

@@ -251,21 +251,21 @@ fn open_triangles_with_axis_aligned_edges_on_voxel_edges_match_brute_force() {
 fn snapping_follows_the_coordinates_precision() {
     // A vertex 8 f32 ulps below 1.0 (as Cube.gltf has) is 1.2e-4 voxel off the boundary at 256: more than the
     // absolute 1e-4, within 16 ulps of the coordinate's magnitude, so it snaps and the face is exactly on it.
-    let spec = GridSpec { origin: DVec3::splat(-1.0), voxel_size: 2.0 / 256.0, dims: UVec3::splat(256) };
+    let spec = GridSpec { origin: DVec3::splat(-1.0), voxel_size: DVec3::splat(2.0 / 256.0), dims: UVec3::splat(256) };
     let noisy = 1.0f32 - 8.0 * f32::EPSILON;
-    assert!(spec.snap_tolerance() > 1.2e-4, "tolerance {}", spec.snap_tolerance());
+    assert!(spec.snap_tolerance().min_element() > 1.2e-4, "tolerance {}", spec.snap_tolerance());
     assert_eq!(spec.to_grid(glam::DVec3::new(noisy as f64, 0.0, -1.0)), glam::Vec3::new(256.0, 128.0, 0.0));
     // Far from the cap, a coordinate meant off the boundary stays off it.
     assert_ne!(spec.to_grid(glam::DVec3::splat(1.0 - 0.01 * 2.0 / 256.0)).x, 256.0);
     // The tolerance does not depend on where the grid is: positions are read in f64, so the same mesh moved far
     // from the origin has the same precision and snaps the same way.
-    let near = GridSpec { origin: DVec3::splat(-0.032), voxel_size: 1e-3, dims: UVec3::splat(64) };
+    let near = GridSpec { origin: DVec3::splat(-0.032), voxel_size: DVec3::splat(1e-3), dims: UVec3::splat(64) };
     let far = GridSpec { origin: DVec3::splat(4.5e6 + 0.37), ..near };
     assert_eq!(far.snap_tolerance(), near.snap_tolerance());
-    assert!(far.snap_tolerance() < 1e-3, "tolerance {}", far.snap_tolerance());
+    assert!(far.snap_tolerance().max_element() < 1e-3, "tolerance {}", far.snap_tolerance());
     // The tolerance never exceeds 1/64 voxel, however coarse f32 is at the grid's size.
-    let huge = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::splat(65_536) };
-    assert_eq!(huge.snap_tolerance(), 1.0 / 64.0);
+    let huge = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims: UVec3::splat(65_536) };
+    assert_eq!(huge.snap_tolerance(), DVec3::splat(1.0 / 64.0));
 }
 
 #[test]

@@ -79,14 +79,14 @@ fn cpu_grid(m: &Mesh, spec: GridSpec) -> VoxelGrid {
 fn assert_same_up_to_ties(far: &VoxelGrid, near: &VoxelGrid, near_mesh: &Mesh, offset: DVec3, what: &str) {
     let (f, n) = (far.spec, near.spec);
     assert_eq!(f.dims, n.dims, "{what}: dims");
-    let moved = (f.origin - offset - n.origin).abs().max_element() / n.voxel_size;
+    let moved = (f.origin - offset - n.origin).abs().max_element() / n.edge();
     assert!(moved < 1e-4, "{what}: origin {} is {moved} voxels off {} + offset", f.origin, n.origin);
-    assert!(((f.voxel_size - n.voxel_size) / n.voxel_size).abs() < 1e-6, "{what}: voxel size");
+    assert!(((f.edge() - n.edge()) / n.edge()).abs() < 1e-6, "{what}: voxel size");
     let differing = differing_voxels(far, near);
     // A tie is a voxel the mesh touches to within input rounding plus the snapping tolerance of the grid.
-    let tie = 2.0 * n.snap_tolerance() + 1e-5;
+    let tie = 2.0 * n.snap_tolerance().max_element() + 1e-5;
     let tris: Vec<[DVec3; 3]> = (0..near_mesh.triangles.len())
-        .map(|i| near_mesh.world_triangle(i).map(|p| (p - n.origin) / n.voxel_size))
+        .map(|i| near_mesh.world_triangle(i).map(|p| (p - n.origin) / n.edge()))
         .collect();
     for v in &differing {
         let p = v.as_dvec3();

@@ -7,7 +7,7 @@ use meshvox::formats::{self, VoxelFormat};
 use meshvox::voxel::{Axis, GridSpec, Resolution, VoxelGrid, voxelize};
 
 fn random_grid(dims: UVec3, density: f64, seed: u64) -> VoxelGrid {
-    let spec = GridSpec { origin: DVec3::new(-1.5, 0.25, 3.0), voxel_size: 0.125, dims };
+    let spec = GridSpec { origin: DVec3::new(-1.5, 0.25, 3.0), voxel_size: DVec3::splat(0.125), dims };
     let mut g = VoxelGrid::new(spec).expect("grid");
     let mut rng = Rng::new(seed);
     for z in 0..dims.z {
@@ -69,7 +69,7 @@ fn binvox_round_trip() {
         let dim = d.max_element();
         assert_eq!(back.spec.dims, UVec3::splat(dim), "{name}: binvox is cubic");
         assert!((back.spec.origin - g.spec.origin).abs().max_element() < 1e-12, "{name}");
-        assert!((back.spec.voxel_size - g.spec.voxel_size).abs() < 1e-12, "{name}");
+        assert!((back.spec.edge() - g.spec.edge()).abs() < 1e-12, "{name}");
         assert_eq!(back.count(), g.count(), "{name}: padding stays empty");
         for v in g.iter_set() {
             assert!(back.get(v.x, v.y, v.z), "{name}: {v} lost");
@@ -104,7 +104,7 @@ fn vox_round_trip_and_split_into_models() {
 #[test]
 fn vox_is_upright_in_magicavoxel() {
     // A single voxel at the top (max y) of a tall grid must come out at max z (MagicaVoxel's up).
-    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(2, 5, 3) };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims: UVec3::new(2, 5, 3) };
     let mut g = VoxelGrid::new(spec).expect("grid");
     g.set(1, 4, 0);
     let data = dot_vox::load_bytes(&encode(&g, VoxelFormat::Vox)).expect("parse");
@@ -122,7 +122,7 @@ pub(crate) fn independent_args(kind: &str, args: &[&str]) -> Option<serde_json::
     python_tool(&python, "independent.py", &args, &what, &["numpy", "binvox", "trimesh", "PIL"])
 }
 
-fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
+pub(crate) fn independent(kind: &str, path: &std::path::Path) -> Option<serde_json::Value> {
     independent_args(kind, &[&path.to_string_lossy()])
 }
 
@@ -191,7 +191,7 @@ fn npy_and_binvox_read_by_independent_tools() {
         let unsorted: Vec<[u32; 3]> = serde_json::from_value(j["set"].clone()).expect("set");
         assert_eq!(corners.len(), unsorted.len(), "{name}: the reader placed every voxel");
         for (c, w) in unsorted.iter().zip(&corners) {
-            let ours = g.spec.origin + UVec3::from_array(*c).as_dvec3() * g.spec.voxel_size;
+            let ours = g.spec.origin + UVec3::from_array(*c).as_dvec3() * g.spec.edge();
             assert!((ours - DVec3::from_array(*w)).abs().max_element() < 1e-9, "{name}: {c:?} at {w:?}, ours {ours}");
         }
         assert_eq!(coords.len() as u64, g.count());

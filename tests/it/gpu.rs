@@ -62,7 +62,7 @@ pub(crate) fn device_with_limits(limits: impl FnOnce(wgpu::Limits) -> wgpu::Limi
 }
 
 fn spec(dims: UVec3) -> GridSpec {
-    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
+    GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims }
 }
 
 fn gpu_grid(tris: &[[Vec3; 3]], spec: GridSpec, options: Options) -> VoxelGrid {

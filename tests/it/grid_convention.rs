@@ -13,7 +13,7 @@ fn resolution_counts_along_the_chosen_axis() {
     let b = bounds([-1.0, 0.0, 2.0], [1.0, 0.5, 2.25]); // extents 2, 0.5, 0.25
     let s = GridSpec::fit(b, Resolution::Count(16), Axis::Longest).expect("fit");
     assert_eq!(s.dims, UVec3::new(16, 4, 2));
-    assert_eq!(s.voxel_size, 0.125);
+    assert_eq!(s.voxel_size, DVec3::splat(0.125));
     assert_eq!(s.origin, DVec3::new(-1.0, 0.0, 2.0));
     let s = GridSpec::fit(b, Resolution::Count(3), Axis::Y).expect("fit");
     assert_eq!(s.dims, UVec3::new(12, 3, 2), "h = 1/6: x needs 12, z needs ceil(1.5) = 2");
@@ -24,10 +24,10 @@ fn resolution_counts_along_the_chosen_axis() {
 #[test]
 fn voxel_size_sets_h_directly() {
     let b = bounds([0.0, 0.0, 0.0], [1.0, 0.3, 0.0]);
-    let s = GridSpec::fit(b, Resolution::VoxelSize(0.1), Axis::Longest).expect("fit");
+    let s = GridSpec::fit(b, Resolution::cubes(0.1), Axis::Longest).expect("fit");
     // 1.0 / 0.1 and 0.3 / 0.1 are whole numbers up to float noise: no extra layer. A flat axis gets one voxel.
     assert_eq!(s.dims, UVec3::new(10, 3, 1));
-    let s = GridSpec::fit(b, Resolution::VoxelSize(0.4), Axis::Longest).expect("fit");
+    let s = GridSpec::fit(b, Resolution::cubes(0.4), Axis::Longest).expect("fit");
     assert_eq!(s.dims, UVec3::new(3, 1, 1));
 }
 
@@ -38,14 +38,14 @@ fn impossible_grids_are_errors() {
     assert_eq!(GridSpec::fit(flat, Resolution::Count(0), Axis::X), Err(GridError::ZeroResolution));
     let point = bounds([1.0, 1.0, 1.0], [1.0, 1.0, 1.0]);
     assert_eq!(GridSpec::fit(point, Resolution::Count(8), Axis::Longest), Err(GridError::PointMesh));
-    assert!(GridSpec::fit(point, Resolution::VoxelSize(0.5), Axis::Longest).is_ok(), "a point with a voxel size");
-    assert!(matches!(GridSpec::fit(flat, Resolution::VoxelSize(1e-9), Axis::X), Err(GridError::TooLarge(_))));
-    assert!(matches!(GridSpec::fit(flat, Resolution::VoxelSize(f64::NAN), Axis::X), Err(GridError::BadVoxelSize(_))));
+    assert!(GridSpec::fit(point, Resolution::cubes(0.5), Axis::Longest).is_ok(), "a point with a voxel size");
+    assert!(matches!(GridSpec::fit(flat, Resolution::cubes(1e-9), Axis::X), Err(GridError::TooLarge(_))));
+    assert!(matches!(GridSpec::fit(flat, Resolution::cubes(f64::NAN), Axis::X), Err(GridError::BadVoxelSize(_))));
 }
 
 #[test]
 fn bit_layout_is_row_aligned_x_fastest() {
-    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(40, 3, 2) };
+    let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims: UVec3::new(40, 3, 2) };
     assert_eq!(spec.words_per_row(), 2);
     assert_eq!(spec.word_count(), 2 * 3 * 2);
     assert_eq!(spec.word_and_bit(0, 0, 0), (0, 0));
@@ -68,7 +68,7 @@ fn bit_layout_is_row_aligned_x_fastest() {
 
 #[test]
 fn grid_space_snaps_near_boundaries() {
-    let spec = GridSpec { origin: DVec3::new(-1.0, 0.0, 0.0), voxel_size: 0.1, dims: UVec3::splat(20) };
+    let spec = GridSpec { origin: DVec3::new(-1.0, 0.0, 0.0), voxel_size: DVec3::splat(0.1), dims: UVec3::splat(20) };
     // 0.3 is not representable: (0.3 + 1) / 0.1 is 12.999999... in floating point, and snaps to 13.
     assert_eq!(spec.to_grid(DVec3::new(0.3, 0.0, 0.0)).x, 13.0);
     assert_eq!(spec.to_grid(DVec3::new(0.305, 0.0, 0.0)).x, 13.05);

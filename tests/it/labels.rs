@@ -82,7 +82,7 @@ fn mesh_of(triangles: &[[Vec3; 3]]) -> Mesh {
 #[test]
 fn labels_touch_their_voxel_and_are_nearest_on_the_hard_cases() {
     for (name, tris, dims) in hard_cases() {
-        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims };
+        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims };
         let exact = exact_triangles(&tris, dims);
         for mode in [Mode::Surface, Mode::Solid] {
             let (grid, _) = meshvox::voxel::voxelize::voxelize_grid_space_mode(

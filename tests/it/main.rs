@@ -1,6 +1,7 @@
 //! meshvox's integration tests, in one binary so that wgpu, egui and the rest are linked once (CI compiles it
 //! once instead of a dozen times). Each module is one area; `cargo test --test it MODULE::` runs one of them.
 
+mod anisotropic;
 mod bounded;
 mod cli;
 mod colour;

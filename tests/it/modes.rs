@@ -10,7 +10,7 @@ use meshvox::voxel::{Axis, GridSpec, Mode, Resolution, VoxelGrid, voxelize};
 use rayon::prelude::*;
 
 fn spec(dims: UVec3) -> GridSpec {
-    GridSpec { origin: DVec3::ZERO, voxel_size: 1.0, dims }
+    GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims }
 }
 
 fn voxelize(tris: &[[Vec3; 3]], spec: GridSpec, mode: Mode) -> VoxelGrid {

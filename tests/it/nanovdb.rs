@@ -21,7 +21,7 @@ fn tool(name: &str, args: &[&str], dir: &Path) -> Option<std::process::Output> {
 }
 
 /// One grid of a file: its name, its file record (without the name) and its buffer.
-struct Segment {
+pub(crate) struct Segment {
     name: String,
     record: Vec<u8>,
     grid: Vec<u8>,
@@ -67,7 +67,7 @@ const CHECKSUM: std::ops::Range<usize> = 8..16;
 
 /// Writes `args` as `name.nvdb` and `name.vdb` in `dir`, and checks the `.nvdb` with NanoVDB's tools against
 /// the converter's reading of the `.vdb`; returns the grids' names and the `.nvdb`'s segments.
-fn check(name: &str, args: &[&str], dir: &Path) -> Option<Vec<Segment>> {
+pub(crate) fn check(name: &str, args: &[&str], dir: &Path) -> Option<Vec<Segment>> {
     for ext in ["nvdb", "vdb"] {
         let out = crate::cli::meshvox(&[args, &["-o", &format!("{name}.{ext}"), "--backend", "cpu"]].concat(), dir);
         assert!(out.status.success(), "{name}.{ext}: {}", String::from_utf8_lossy(&out.stderr));

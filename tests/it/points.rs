@@ -107,7 +107,7 @@ fn clouds_voxelize_by_floor_division_dense_and_sparse() {
             let request = Request { grid: kind, ..Request::new(Resolution::Count(n), Mode::Surface) };
             let made = engine.voxelize("cloud", &m, &request).expect("voxelize");
             let spec = *made.grid.spec();
-            let want = reference(&points, spec.origin, spec.voxel_size, spec.dims);
+            let want = reference(&points, spec.origin, spec.edge(), spec.dims);
             let grid = made.grid.into_dense().expect("dense");
             let got: BTreeSet<[u32; 3]> = grid.iter_set().map(|v| v.to_array()).collect();
             assert_eq!(got, want, "-r {n} {kind:?} at {offset}");

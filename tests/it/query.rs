@@ -176,7 +176,7 @@ fn a_fields_values_equal_the_queries_at_its_voxel_centres() {
         let points: Vec<DVec3> = centres.iter().map(|&(_, p)| p).collect();
         let answers =
             Prepared::new(mesh.clone()).expect("prepare").query(&points, Sign::Winding, false).expect("query");
-        let h = spec.voxel_size;
+        let h = spec.edge();
         for (i, &(v, _)) in centres.iter().enumerate() {
             let (a, b) = (f64::from(field.value(v)), f64::from(answers.distance[i]));
             assert!((a.abs() - b.abs()).abs() <= 1e-4 * h, "{name}: voxel {v}: field {a}, query {b}");

@@ -221,7 +221,7 @@ fn a_shells_walls_are_closed_and_hold_its_volume() {
             let field = out.field.as_ref().expect("field");
             let walls = shell_mesh(field, thickness).expect("walls");
             let volume = assert_watertight(&walls, &what);
-            let h = field.spec.voxel_size;
+            let h = field.spec.edge();
             let voxels = out.grid.count() as f64 * h * h * h;
             let off = (volume / voxels - 1.0).abs();
             eprintln!(
@@ -324,7 +324,7 @@ fn a_sealed_cavity_is_one_pocket_of_its_volume_and_filled_where_asked() {
         assert_eq!(filled.grid.count(), plain.grid.count() + pockets[0].voxels, "{what}: filled");
         assert_eq!(sealed_voxels(&filled.grid), 0, "{what}: nothing sealed once filled");
         // Its volume is the cavity's within a voxel layer of its surface (radius 0.5: 4/3 pi r^3, area 4 pi r^2).
-        let h = plain.grid.spec().voxel_size;
+        let h = plain.grid.spec().edge();
         let (volume, area) = (4.0 / 3.0 * std::f64::consts::PI * 0.125, 4.0 * std::f64::consts::PI * 0.25);
         assert!((pockets[0].volume - volume).abs() <= area * h, "{what}: {} against {volume}", pockets[0].volume);
         let p = DVec3::from_array(pockets[0].point);
@@ -372,7 +372,7 @@ fn drain_holes_join_every_hollow_to_the_outside() {
             assert!(!drains.is_empty() && drains.len() <= holes as usize * sealed.len(), "{what}: {drains:?}");
             // The holes take the wall's voxels around their axes and nothing else.
             let cut = before.grid.count() - after.grid.count();
-            let h = before.grid.spec().voxel_size;
+            let h = before.grid.spec().edge();
             let bound: f64 = drains
                 .iter()
                 .map(|d| {
@@ -415,7 +415,7 @@ fn a_drain_goes_where_it_is_asked_and_lengths_take_units() {
     let d = &out.report.drains.as_ref().expect("drains")[0];
     let (from, to) = (DVec3::from_array(d.from), DVec3::from_array(d.to));
     assert!(from.x > 0.5 && to.x > from.x && to.y.abs() < 0.1 && to.z.abs() < 0.1, "{d:?}");
-    let h = out.grid.spec().voxel_size;
+    let h = out.grid.spec().edge();
     assert!((d.radius - 3.0 * h).abs() < 1e-6 * h, "{d:?}");
     // A point far from any void: one line saying so.
     let nowhere = DrainPlan::At(vec![(DVec3::new(0.0, 0.0, 0.0), None)]);
@@ -428,7 +428,7 @@ fn a_drain_goes_where_it_is_asked_and_lengths_take_units() {
         thickness: Length::Metres(1e-4),
         ..Request::new(Resolution::Count(40), Mode::Shell)
     };
-    let h = meshvox::engine::Job::plan("sphere", &mesh, &mm).expect("plan").spec.voxel_size;
+    let h = meshvox::engine::Job::plan("sphere", &mesh, &mm).expect("plan").spec.edge();
     let by_voxels = Request { thickness: Length::Voxels(0.1 / h), ..mm };
     assert_eq!(hollowed(&cpu, &mesh, mm).grid.count(), hollowed(&cpu, &mesh, by_voxels).grid.count());
 }

@@ -42,7 +42,7 @@ fn assert_same(dense: &VoxelGrid, sparse: &SparseGrid, what: &str) {
 #[test]
 fn the_sparse_walk_sets_the_dense_walks_voxels_on_the_hard_cases() {
     for (name, tris, dims) in hard_cases() {
-        let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims };
+        let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims };
         for mode in Mode::OCCUPANCY {
             let (dense, sparse) = dense_and_sparse(&tris, spec, mode);
             assert_same(&dense, &sparse, &format!("{name} ({mode})"));
@@ -90,7 +90,8 @@ fn the_sparse_walk_sets_the_dense_walks_voxels_on_every_mesh() {
 
 #[test]
 fn tiles_count_list_and_answer_as_the_blocks_they_stand_for() {
-    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 0.5, dims: UVec3::new(300, 140, 130) };
+    let spec =
+        GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(0.5), dims: UVec3::new(300, 140, 130) };
     let mut grid = SparseGrid::new(spec);
     // A 128-voxel tile, an 8-voxel tile and two leaves around them, one voxel each.
     grid.tiles = vec![Tile { log2: 3, origin: UVec3::new(16, 8, 16) }, Tile { log2: 7, origin: UVec3::new(128, 0, 0) }];
@@ -133,7 +134,7 @@ fn npz_is_the_sorted_coordinates_numpy_reads() {
     let coords: Vec<[u32; 3]> = serde_json::from_value(j["set"].clone()).expect("coords");
     assert_eq!(coords, sorted_voxels(&dense).iter().map(|v| v.to_array()).collect::<Vec<_>>());
     assert_eq!(j["origin"], serde_json::json!(spec.origin.to_array()));
-    assert_eq!(j["voxel_size"], serde_json::json!(spec.voxel_size));
+    assert_eq!(j["voxel_size"], serde_json::json!(spec.edge()));
     assert_eq!(j["dims"], serde_json::json!(spec.dims.to_array()));
     assert_eq!(j["colors"], serde_json::Value::Null);
 
@@ -179,7 +180,7 @@ fn a_solid_interior_is_tiles_and_the_same_voxels_as_the_dense_fill() {
 
 /// OpenVDB's reading of a `.vdb` (tests/tools/openvdb_read.py with the system Python's pyopenvdb), or `None`
 /// where pyopenvdb is missing (a recorded skip; a failure under CI, where tests/run.sh installs python3-openvdb).
-fn openvdb_read(path: &std::path::Path) -> Option<serde_json::Value> {
+pub(crate) fn openvdb_read(path: &std::path::Path) -> Option<serde_json::Value> {
     let path = path.to_string_lossy();
     crate::formats::python_tool("/usr/bin/python3", "openvdb_read.py", &[&path], "OpenVDB check", &["pyopenvdb"])
 }
@@ -401,7 +402,7 @@ fn the_leaf_chain_mirror_gives_the_sparse_walks_leaves_brick_by_brick() {
     let mut cases: Vec<(String, Vec<[glam::Vec3; 3]>, GridSpec)> = hard_cases()
         .into_iter()
         .map(|(name, tris, dims)| {
-            (name.to_string(), tris, GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims })
+            (name.to_string(), tris, GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims })
         })
         .collect();
     for name in ["builtin:knot", "builtin:torus", "builtin:sphere"] {
@@ -531,7 +532,8 @@ fn a_solid_whose_interior_spans_a_4096_tile_is_that_tile_and_its_canonical_box()
     .into_iter()
     .flatten()
     .collect();
-    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: UVec3::new(4104, 4100, 4103) };
+    let spec =
+        GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims: UVec3::new(4104, 4100, 4103) };
     let cancel = AtomicBool::new(false);
     let (sparse, _) = voxelize_grid_space_sparse(&tris, spec, Mode::Solid, &|_, _| {}, &cancel).expect("sparse");
     let (lo, hi) = (a.floor().as_uvec3(), b.floor().as_uvec3());
@@ -558,7 +560,7 @@ fn a_solid_whose_interior_spans_a_4096_tile_is_that_tile_and_its_canonical_box()
 pub(crate) fn group_cases() -> Vec<(String, Vec<glam::Vec3>, GridSpec)> {
     let mut cases: Vec<(String, Vec<glam::Vec3>, GridSpec)> = Vec::new();
     for (name, tris, dims) in hard_cases() {
-        let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims };
+        let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims };
         cases.push((name.to_string(), tris.into_iter().flatten().collect(), spec));
     }
     for m in all_meshes() {

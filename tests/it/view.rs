@@ -272,7 +272,8 @@ fn the_screenshot_is_the_viewport() {
 #[test]
 fn an_inner_corner_is_darker_than_an_open_face() {
     use meshvox::voxel::{GridSpec, VoxelGrid};
-    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: glam::UVec3::new(4, 4, 4) };
+    let spec =
+        GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims: glam::UVec3::new(4, 4, 4) };
     let mut grid = VoxelGrid::new(spec).expect("grid");
     // An L in the xy plane: a floor of two voxels and a wall voxel on the first.
     for (x, y, z) in [(0, 0, 0), (1, 0, 0), (0, 1, 0)] {
@@ -305,7 +306,8 @@ fn an_inner_corner_is_darker_than_an_open_face() {
     // Drawn: a stair of boxes seen from the iso view; with occlusion the image only gets darker, and some
     // pixels (the creases) much darker, while most (open faces) do not change.
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
-    let spec = GridSpec { origin: glam::DVec3::ZERO, voxel_size: 1.0, dims: glam::UVec3::new(12, 12, 12) };
+    let spec =
+        GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims: glam::UVec3::new(12, 12, 12) };
     let mut stairs = VoxelGrid::new(spec).expect("grid");
     for x in 0..12 {
         for y in 0..(12 - x) / 3 {
@@ -350,8 +352,11 @@ fn the_floor_grid_lies_under_the_model_at_world_multiples_of_its_spacing() {
     // A power of ten with 4 to 40 lines across the model's wider horizontal side, whatever its size.
     for (size, up) in [(0.0093, UpAxis::Y), (0.83, UpAxis::Y), (3.99, UpAxis::Z), (4.0, UpAxis::Y), (1234.5, UpAxis::Z)]
     {
-        let spec =
-            GridSpec { origin: glam::DVec3::splat(-7.31), voxel_size: size / 30.0, dims: glam::UVec3::splat(30) };
+        let spec = GridSpec {
+            origin: glam::DVec3::splat(-7.31),
+            voxel_size: glam::DVec3::splat(size / 30.0),
+            dims: glam::UVec3::splat(30),
+        };
         let floor = Floor::new(&spec, up);
         let across = size / floor.spacing;
         assert!((4.0..40.0 + 1e-9).contains(&across), "{across} lines across a model of {size}");
@@ -363,7 +368,7 @@ fn the_floor_grid_lies_under_the_model_at_world_multiples_of_its_spacing() {
     let Some((gpu, _)) = crate::gpu::gpu() else { return };
     // A decimal box of voxels, 0.83 by 0.52 by 0.61, with one voxel of 0.0277 (spacing 0.1).
     let draw = |origin: glam::DVec3, up: UpAxis, view: ViewPreset, floor: bool| {
-        let spec = GridSpec { origin, voxel_size: 0.83 / 30.0, dims: glam::UVec3::new(30, 19, 22) };
+        let spec = GridSpec { origin, voxel_size: glam::DVec3::splat(0.83 / 30.0), dims: glam::UVec3::new(30, 19, 22) };
         let mut grid = VoxelGrid::new(spec).expect("grid");
         for (x, y, z) in (4..26).flat_map(|x| (0..15).flat_map(move |y| (3..20).map(move |z| (x, y, z)))) {
             grid.set(x, y, z);
@@ -441,11 +446,11 @@ fn the_camera_stays_framed_when_the_resolution_changes() {
         // The grid still fills the same box, up to the rounding of its sides to whole voxels, so the framing
         // that fitted it still does.
         for axis in 0..3 {
-            let (old, new) = (first.dims[axis] as f64 * first.voxel_size, s.dims[axis] as f64 * s.voxel_size);
-            let slack = first.voxel_size.max(s.voxel_size);
+            let (old, new) = (first.dims[axis] as f64 * first.voxel_size.x, s.dims[axis] as f64 * s.voxel_size.x);
+            let slack = first.voxel_size.x.max(s.voxel_size.x);
             assert!((old - new).abs() <= slack, "axis {axis} at {resolution}: {old} then {new}");
         }
-        let centre = glam::DVec3::from_array(s.dims.map(|d| d as f64 * s.voxel_size * 0.5)).as_vec3();
-        assert!(centre.distance(before.target) <= s.voxel_size as f32 * 1.8, "centre {centre} at {resolution}");
+        let centre = glam::DVec3::from_array(s.dims.map(|d| d as f64 * s.voxel_size.x * 0.5)).as_vec3();
+        assert!(centre.distance(before.target) <= s.voxel_size.x as f32 * 1.8, "centre {centre} at {resolution}");
     }
 }

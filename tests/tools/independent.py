@@ -31,7 +31,7 @@ def npz(path):
         "set": coords.tolist(),
         "sorted": bool(np.array_equal(order, np.arange(len(coords))) and unique),
         "origin": arrays["origin"].tolist(),
-        "voxel_size": float(arrays["voxel_size"]),
+        "voxel_size": arrays["voxel_size"].tolist(),
         "dims": arrays["dims"].tolist(),
         "colors": arrays["colors"].tolist() if "colors" in arrays else None,
     }

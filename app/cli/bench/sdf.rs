@@ -62,7 +62,7 @@ fn openvdb(dir: &std::path::Path, spec: &meshvox::voxel::GridSpec, runs: usize) 
         .arg(dir.join("vertices.npy"))
         .arg(dir.join("faces.npy"))
         .arg(format!("{},{},{}", o.x, o.y, o.z))
-        .arg(spec.voxel_size.to_string())
+        .arg(spec.voxel_size.x.to_string())
         .arg(BAND.to_string())
         .arg(runs.max(1).to_string())
         .output();

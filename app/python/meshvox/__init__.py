@@ -56,7 +56,9 @@ Progress = Callable[[int, int], Any]
 class VoxelGrid:
     """A voxel grid: occupancy (``matrix``), where it lies (``origin``, ``pitch``), colours and statistics.
 
-    Voxel ``[x, y, z]`` is the cube with minimum corner ``origin + pitch * (x, y, z)``. Grids compare equal when
+    Voxel ``[x, y, z]`` is the box with minimum corner ``origin + pitch * (x, y, z)``: ``pitch`` is a float for
+    cubic voxels, a float64 (3,) array of the x, y and z sizes for others (``size=`` or three ``pitch`` values);
+    both broadcast alike in such formulas. Grids compare equal when
     their shape, origin, pitch, voxels and colours are equal, and pickle (for multiprocessing and Dask; a grid
     from ``voxelize`` travels as its bit grid, an eighth of ``matrix``).
     """
@@ -64,7 +66,7 @@ class VoxelGrid:
     def __init__(
         self,
         matrix: np.ndarray,
-        pitch: float,
+        pitch: float | Sequence[float],
         origin: Sequence[float],
         colors: np.ndarray | None = None,
         stats: dict[str, Any] | None = None,
@@ -74,7 +76,7 @@ class VoxelGrid:
         self._shape: tuple[int, int, int] = tuple(int(n) for n in self._matrix.shape)  # type: ignore[assignment]
         self._words: np.ndarray | None = None
         self._rgba: np.ndarray | None = None
-        self.pitch: float = float(pitch)
+        self.pitch: float | np.ndarray = _pitch_value(pitch)
         self.origin: np.ndarray = np.asarray(origin, dtype=np.float64).reshape(3)
         self.stats: dict[str, Any] = dict(stats or {})
         self.distances: np.ndarray | None = None
@@ -94,7 +96,7 @@ class VoxelGrid:
         grid._matrix, grid._colors = None, None
         grid._shape = tuple(int(n) for n in shape)
         grid._words, grid._rgba = words, rgba
-        grid.pitch, grid.origin = float(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
+        grid.pitch, grid.origin = _pitch_value(pitch), np.asarray(origin, dtype=np.float64).reshape(3)
         grid.stats = dict(stats or {})
         grid.distances, grid.background, grid.signed = None, None, None
         grid.thickness = None
@@ -245,7 +247,8 @@ class VoxelGrid:
             None if palette is None else os.fspath(palette),
             bool(dither),
         )
-        _native.save(os.fspath(path), matrix, tuple(self.origin), self.pitch, colors, merge, labels, colour_map)
+        pitch = tuple(float(p) for p in np.broadcast_to(self.pitch, 3))
+        _native.save(os.fspath(path), matrix, tuple(self.origin), pitch, colors, merge, labels, colour_map)
 
     def to_mesh(self, level: float = 0.0, *, trimesh: bool = False) -> Any:
         """A distance field's level set at ``level`` (world units; 0 the surface) as a closed, edge-manifold,
@@ -276,7 +279,8 @@ class VoxelGrid:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, VoxelGrid):
             return NotImplemented
-        if self.shape != other.shape or self.pitch != other.pitch or not np.array_equal(self.origin, other.origin):
+        same_place = np.array_equal(self.pitch, other.pitch) and np.array_equal(self.origin, other.origin)
+        if self.shape != other.shape or not same_place or np.shape(self.pitch) != np.shape(other.pitch):
             return False
         if self._matrix is None and other._matrix is None and self._words is not None and other._words is not None:
             same_voxels = np.array_equal(self._words, other._words)
@@ -296,9 +300,44 @@ class VoxelGrid:
 
     def __repr__(self) -> str:
         return (
-            f"VoxelGrid(shape={self.shape}, voxels={len(self.coords())}, pitch={self.pitch:g}, "
+            f"VoxelGrid(shape={self.shape}, voxels={len(self.coords())}, pitch={_pitch_text(self.pitch)}, "
             f"origin={tuple(float(o) for o in self.origin)}, colors={self.colors is not None})"
         )
+
+
+def _pitch_value(pitch: Any) -> float | np.ndarray:
+    """A grid's pitch as ``VoxelGrid`` keeps it: a float, or float64 (3,) where the three sizes differ."""
+    a = np.asarray(pitch, dtype=np.float64)
+    if a.ndim == 0 or (a.shape == (3,) and a[0] == a[1] == a[2]):
+        return float(a.reshape(-1)[0])
+    if a.shape != (3,):
+        raise ValueError(f"pitch: one size or three (x, y, z), not shape {a.shape}")
+    return a
+
+
+def _pitch_text(pitch: float | np.ndarray) -> str:
+    return f"{pitch:g}" if isinstance(pitch, float) else "(" + ", ".join(f"{p:g}" for p in pitch) + ")"
+
+
+def _pitch_arg(pitch: Any) -> str | None:
+    """``pitch=`` as the engine parses it: one number or three in the mesh's units, or a string with units
+    (``"0.05mm"``, ``"0.05mm,0.05mm,0.03mm"``). ``repr`` keeps every float's digits."""
+    if pitch is None or isinstance(pitch, str):
+        return pitch
+    values = np.asarray(pitch, dtype=np.float64).reshape(-1)
+    if values.size not in (1, 3):
+        raise ValueError(f"pitch: one size or three (x, y, z), not {values.size}")
+    return ",".join(repr(float(v)) for v in values)
+
+
+def _size_arg(size: Any) -> str | None:
+    """``size=(40, None, 30)`` (None or ``"auto"`` keeps proportions) or ``"40,auto,30"``, as the engine parses it."""
+    if size is None or isinstance(size, str):
+        return size
+    parts = list(size)
+    if len(parts) != 3:
+        raise ValueError(f"size: three counts (x, y, z; None for auto), not {len(parts)}")
+    return ",".join("auto" if p is None or p == "auto" else str(int(p)) for p in parts)
 
 
 def _source(mesh: Any) -> Any:
@@ -365,7 +404,8 @@ def voxelize(
     mesh: Any,
     resolution: int | None = None,
     *,
-    pitch: float | None = None,
+    pitch: float | Sequence[float] | str | None = None,
+    size: Sequence[int | None] | str | None = None,
     axis: str = "longest",
     mode: str = "surface",
     backend: str = "auto",
@@ -383,7 +423,11 @@ def voxelize(
     animation: str | int | None = None,
 ) -> VoxelGrid:
     """Voxelizes ``mesh`` (a path to an OBJ, glTF/GLB, STL or PLY file, a ``trimesh.Trimesh`` or ``Scene``, or a
-    ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis`` (or voxels of edge ``pitch``).
+    ``(vertices, faces)`` pair) into a grid of ``resolution`` voxels along ``axis``, or voxels of edge ``pitch``
+    (one size, three for voxels that are not cubes, or a string with units: ``"0.05mm,0.05mm,0.03mm"``, in the
+    world whose unit is ``unit``), or ``size=(x, y, z)`` voxels, each a count or ``None`` (auto: the model's
+    proportions kept). Voxels that are not cubes make surfaces and solids (``pitch`` is then a (3,) array); the
+    distance fields and shells measure in cubes and refuse them.
 
     ``mode``: ``"surface"`` (every voxel a triangle touches), ``"solid"`` (plus the inside, by the generalized
     winding number: right on open meshes), ``"surface6"`` (the thin surface), or a distance field: ``"sdf"``
@@ -417,8 +461,9 @@ def voxelize(
         raise ValueError("animation= names the animation pose= plays: give pose= too")
     posed = None if pose is None else (float(pose), None if animation is None else str(animation))
     out = _native.voxelize(
-        _source(mesh), resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, str(band),
-        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit), posed,
+        _source(mesh), resolution, _pitch_arg(pitch), axis, mode, backend, colour, _bounds(bounds), progress,
+        str(band), _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit), posed,
+        _size_arg(size),
     )
     return _grid(out)
 
@@ -454,7 +499,8 @@ def voxelize_many(
     resolution: int | None = None,
     *,
     workers: int | None = None,
-    pitch: float | None = None,
+    pitch: float | Sequence[float] | str | None = None,
+    size: Sequence[int | None] | str | None = None,
     axis: str = "longest",
     mode: str = "surface",
     backend: str = "auto",
@@ -473,8 +519,9 @@ def voxelize_many(
     does; returns the grids in input order. ``progress(done, total)`` counts meshes."""
     sources = [_source(m) for m in meshes]
     outs = _native.voxelize_many(
-        sources, resolution, pitch, axis, mode, backend, colour, _bounds(bounds), progress, workers, str(band),
-        _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit),
+        sources, resolution, _pitch_arg(pitch), axis, mode, backend, colour, _bounds(bounds), progress, workers,
+        str(band), _attributes(attributes), _length(thickness), _voids(drain, fill_pockets, up, unit),
+        _size_arg(size),
     )
     return [_grid(o) for o in outs]
 
@@ -483,7 +530,7 @@ def voxelize_points(
     points: Any,
     resolution: int | None = None,
     *,
-    pitch: float | None = None,
+    pitch: float | Sequence[float] | str | None = None,
     colors: Any = None,
     axis: str = "longest",
     backend: str = "auto",
@@ -510,7 +557,8 @@ def voxelize_points(
             c = np.concatenate([c, np.full((len(c), 1), 255, np.uint8)], axis=1)
         c = np.ascontiguousarray(c)
     out = _native.voxelize_points(
-        np.ascontiguousarray(p, dtype=np.float64), c, resolution, pitch, axis, backend, _bounds(bounds), progress
+        np.ascontiguousarray(p, dtype=np.float64), c, resolution, _pitch_arg(pitch), axis, backend, _bounds(bounds),
+        progress,
     )
     return _grid(out)
 
