@@ -5,18 +5,23 @@ use super::{ColourArgs, LimitArgs, parse_up, parse_view};
 use anyhow::{Context, Result, anyhow, bail};
 use meshvox::Backend;
 use meshvox::formats::blocks::BlockSet;
-use meshvox::voxel::{Axis, Mode, Resolution};
+use meshvox::voxel::{Axis, Mode};
 use meshvox::{Engine, Request};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
+#[command(group(clap::ArgGroup::new("sizes").required(true).args(["resolution", "voxel_size"])))]
 pub(super) struct RenderArgs {
     /// Mesh file (.obj, .gltf, .glb) or builtin:NAME.
     #[arg(value_name = "MESH")]
     mesh: String,
     /// Number of voxels along the axis chosen by --axis.
     #[arg(short = 'r', long = "resolution", value_name = "N")]
-    resolution: u32,
+    resolution: Option<u32>,
+    /// Edge length of a voxel in mesh units, or three (x,y,z) for voxels that are not cubes; with a unit
+    /// (0.05mm; see --unit) in world units. Instead of -r. (--size is the picture's here.)
+    #[arg(long = "voxel-size", value_name = "H|X,Y,Z", allow_negative_numbers = true)]
+    voxel_size: Option<String>,
     /// Axis along which -r counts voxels.
     #[arg(long, value_enum, default_value_t = Axis::Longest)]
     axis: Axis,
@@ -121,7 +126,13 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
         None => mesh,
     };
     let mode = args.mode;
-    let request = args.limits.request(Resolution::Count(args.resolution), args.axis, mode, &args.band, &args.colour)?;
+    let size = super::SizeArgs {
+        resolution: args.resolution,
+        voxel_size: args.voxel_size.clone(),
+        size: None,
+        axis: args.axis,
+    };
+    let request = args.limits.request(size.resolution()?, args.axis, mode, &args.band, &args.colour)?;
     let drain = args.voids.plan()?;
     let request = args.voids.request(request, &drain, args.up);
     let gpu = meshvox::gpu::Gpu::new_blocking().context("drawing needs a GPU adapter")?;

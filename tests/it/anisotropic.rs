@@ -283,6 +283,15 @@ fn anisotropic_grids_are_written_with_their_three_sizes_and_read_back_by_their_o
     for (got, want) in sizes.iter().zip([0.05, 0.02, 0.04]) {
         assert!((got - want).abs() < 1e-15, "{sizes:?}");
     }
+    // `render` draws boxes: the grid it reports is the one voxelize lays.
+    let shot = crate::cli::meshvox(
+        &["render", "builtin:knot", "--voxel-size", "0.05,0.02,0.04", "--unit", "m", "-o", "k.png", "--size", "96x64"],
+        dir.path(),
+    );
+    let told = String::from_utf8_lossy(&shot.stderr);
+    let [x, y, z] = [0, 1, 2].map(|i| units["dims"][i].as_u64().expect("dims"));
+    assert!(shot.status.success() && told.contains(&format!("({x}x{y}x{z}, surface)")), "{told}");
+    assert!(dir.path().join("k.png").exists());
     // What cannot hold three sizes, or measures distances in cubes, says so.
     for (args, says) in [
         (&["-o", "k.binvox"][..], "binvox stores one voxel size"),
