@@ -229,6 +229,12 @@ impl<'a> Job<'a> {
         budget::check(&self.spec, self.bounds, r.axis, limit, estimate)
     }
 
+    /// What the output format's usual reader will not show of this grid ([`VoxelFormat::caveat`]), as notices.
+    pub(crate) fn caveats(&self) -> Vec<super::Notice> {
+        let caveat = self.request.format.and_then(|f| f.caveat(&self.spec));
+        caveat.into_iter().map(|message| super::Notice { warning: true, message }).collect()
+    }
+
     /// Refuses what measures distances in voxels that are not cubes: fields, shells and their level sets, and
     /// drain holes (round holes). Surfaces, solids and pockets are decided in the grid's frame, where every voxel
     /// is a unit cube, and need no distance.

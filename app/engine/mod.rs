@@ -362,7 +362,7 @@ impl Engine {
         let span = crate::trace::span("grid space");
         let tris = grid_space(mesh, &spec)?;
         drop(span);
-        let mut notices = Vec::new();
+        let mut notices = job.caveats();
         let mut made = self.grid(job, &tris, &mut notices).await?;
         if let (Some(reason), true) = (&self.reason, made.backend.starts_with("gpu")) {
             made.backend = format!("{} ({reason})", made.backend);
@@ -601,7 +601,7 @@ impl Engine {
             voxel::points::PointsError::Grid(e) => job.grid_error(e),
             voxel::points::PointsError::Read(e) => EngineError::Read(e),
         };
-        let mut notices = Vec::new();
+        let mut notices = job.caveats();
         let (grid, colours) = match job.sparse {
             true => {
                 if colour {

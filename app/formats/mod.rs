@@ -33,7 +33,7 @@ pub use minecraft::MinecraftFormat;
 pub use npy::{read_npy, write_colours_npy, write_labels_npy, write_npy};
 pub use npz::write_npz;
 pub use vdb::{VdbOptions, write_vdb};
-pub use vox::{VOX_MODEL_MAX, read_vox, write_vox, write_vox_coloured};
+pub use vox::{VOX_MODEL_MAX, VOX_WORLD, read_vox, write_vox, write_vox_coloured};
 
 use crate::voxel::colour::VoxelColours;
 use crate::voxel::distance::DistanceField;
@@ -127,6 +127,15 @@ impl VoxelFormat {
                 Err(FormatError::OneVoxelSize { extension: self.extension(), size: spec.voxel_size.to_array() })
             }
             _ => Ok(()),
+        }
+    }
+
+    /// What a format's usual reader will not show of a grid it holds, in words (a notice, not a refusal: the file
+    /// holds it all).
+    pub fn caveat(self, spec: &GridSpec) -> Option<String> {
+        match self {
+            VoxelFormat::Vox => vox::beyond_the_editor(spec.dims),
+            _ => None,
         }
     }
 

@@ -11,6 +11,26 @@ use crate::voxel::{GridSpec, VoxelGrid};
 use glam::{DVec3, UVec3};
 use std::io::Write;
 
+/// How far from its origin MagicaVoxel places and edits voxels: positions -1000 to 999 on each axis (its world is
+/// 2000 a side; ephtracy/voxel-model #66, FileToVox #45). The grid is centred on the origin, so a side of up to
+/// 2000 voxels is all there.
+pub const VOX_WORLD: u32 = 2000;
+
+/// What MagicaVoxel will not show of a grid of `dims` (meshvox's axes), in words, or `None` when it shows all.
+pub fn beyond_the_editor(dims: UVec3) -> Option<String> {
+    (dims.max_element() > VOX_WORLD).then(|| {
+        format!(
+            "MagicaVoxel places voxels within {} of its origin and this {}x{}x{} model reaches past it: the .vox \
+             holds every voxel (vengi, Blender's and other importers read it whole), MagicaVoxel shows the middle \
+             {VOX_WORLD} a side",
+            VOX_WORLD / 2,
+            dims.x,
+            dims.y,
+            dims.z
+        )
+    })
+}
+
 /// MagicaVoxel's limit on a model's size along each axis.
 pub const VOX_MODEL_MAX: u32 = 256;
 

@@ -233,3 +233,44 @@ fn litematic_bits_follow_litematicas_rule_and_entries_span_longs() {
         assert_eq!(got, v as u64, "entry {i}");
     }
 }
+
+/// Each voxel of a `.vox` where MagicaVoxel places it: `t + v - size / 2` of its model (integer halves rounded
+/// down), through the scene graph's transforms, in MagicaVoxel's axes.
+fn vox_positions(data: &dot_vox::DotVoxData) -> Vec<glam::IVec3> {
+    let mut placed = Vec::new();
+    for node in &data.scenes {
+        let dot_vox::SceneNode::Transform { frames, child, .. } = node else { continue };
+        let Some(dot_vox::SceneNode::Shape { models, .. }) = data.scenes.get(*child as usize) else { continue };
+        let t = frames[0].position().map_or(glam::IVec3::ZERO, |p| glam::IVec3::new(p.x, p.y, p.z));
+        for m in models {
+            let model = &data.models[m.model_id as usize];
+            let half = glam::IVec3::new(model.size.x as i32, model.size.y as i32, model.size.z as i32) / 2;
+            for v in &model.voxels {
+                placed.push(t + glam::IVec3::new(v.x.into(), v.y.into(), v.z.into()) - half);
+            }
+        }
+    }
+    placed
+}
+
+#[test]
+fn a_vox_past_magicavoxels_world_holds_every_voxel_centred_and_says_what_the_editor_shows() {
+    // A strip 21 long, 0.01 wide: -r N along x gives N x 1 x 1 voxels, all set.
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("strip.obj"), "v 0 0 0\nv 21 0 0\nv 21 0.01 0\nv 0 0.01 0\nf 1 2 3\nf 1 3 4\n")
+        .expect("obj");
+    for (n, said) in [(2000, false), (2100, true)] {
+        let out = crate::cli::meshvox(
+            &["voxelize", "strip.obj", "-r", &n.to_string(), "--axis", "x", "-o", "s.vox", "--backend", "cpu"],
+            dir.path(),
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert_eq!(err.contains("MagicaVoxel places voxels within 1000 of its origin"), said, "at {n}: {err}");
+        let data = dot_vox::load_bytes(&std::fs::read(dir.path().join("s.vox")).expect("vox")).expect("parse");
+        let mut xs: Vec<i32> = vox_positions(&data).iter().map(|p| p.x).collect();
+        xs.sort_unstable();
+        let half = n / 2;
+        assert_eq!(xs, (-half..n - half).collect::<Vec<i32>>(), "at {n}: every voxel once, centred");
+    }
+}
