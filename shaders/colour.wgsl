@@ -272,8 +272,21 @@ fn encode_srgb(linear: f32) -> u32 {
     return lo;
 }
 
-fn pack_colour(c: vec4<f32>) -> u32 {
-    return encode_srgb(c.x) | encode_srgb(c.y) << 8u | encode_srgb(c.z) << 16u | 255u << 24u;
+// A blended material's alpha as a byte: round(a * 255) from one rounded product, its floor and their exact
+// difference (so every adapter rounds as the CPU does), at least 1 (alpha 0 marks a voxel with no colour).
+fn encode_alpha(a: f32) -> u32 {
+    let s = clamp(a, 0.0, 1.0) * 255.0;
+    let f = floor(s);
+    return max(1u, u32(f) + select(0u, 1u, s - f >= 0.5));
+}
+
+fn pack_colour(c: vec4<f32>, keep_alpha: bool) -> u32 {
+    let alpha = select(255u, encode_alpha(c.w), keep_alpha);
+    return encode_srgb(c.x) | encode_srgb(c.y) << 8u | encode_srgb(c.z) << 16u | alpha << 24u;
+}
+
+fn keeps_alpha(t: u32) -> bool {
+    return bitcast<f32>(tables[params.materials_at + MATERIAL_WORDS * shading[t].material + 11u]) < 0.0;
 }
 
 @compute @workgroup_size(64)
@@ -298,7 +311,7 @@ fn shade_voxels(@builtin(global_invocation_id) gid: vec3<u32>) {
         } else if t != NO_TRIANGLE {
             let tri = triangle(t);
             let p = voxel_centre(vec3<u32>(x0 + b, y, z));
-            packed = pack_colour(shade(t, closest_barycentric(p, tri[0], tri[1], tri[2])));
+            packed = pack_colour(shade(t, closest_barycentric(p, tri[0], tri[1], tri[2])), keeps_alpha(t));
         }
         atomicStore(&best[2u * rank], packed);
         rank++;

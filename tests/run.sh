@@ -67,16 +67,17 @@ wait_for() {
   fi
 }
 
-# The independent readers the Rust tests call (numpy, trimesh, binvox, Pillow).
+# The independent readers the Rust tests call (numpy, trimesh, binvox, Pillow, and the 3MF Consortium's lib3mf).
 venv=target/pyenv
 readers_venv() {
   python3 -m venv "$venv"
-  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0
+  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0 \
+    lib3mf==2.5.0
 }
 if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3 python3-venv python3-pip
 fi
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL' 2>/dev/null; then
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL, lib3mf' 2>/dev/null; then
   in_background readers readers_venv
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"
@@ -126,7 +127,7 @@ cargo test --locked "$@"
 # CI runners, WSL2): the Vulkan driver hidden, and the tests told to expect GL so that finding Vulkan fails them.
 # Compute (every pass against the CPU, the query walk against its mirror), drawing (goldens named gl-llvmpipe), the
 # viewer and the CLI.
-gl_tests="gpu:: anisotropic::anisotropic_s modes::gpu modes::rows_the_gpu colour::gpu distance::gpu distance::a_field far::far_meshes_on_the_gpu engine::threads
+gl_tests="gpu:: anisotropic::anisotropic_s modes::gpu modes::rows_the_gpu colour::gpu colour::blended distance::gpu distance::a_field far::far_meshes_on_the_gpu engine::threads
   query_gpu:: render_snapshots ui_snapshot view:: desktop_xvfb cli::gpu_backend
   cli::the_gpu_watchdog cli::a_headless"
 phase "the GPU tests on GL"

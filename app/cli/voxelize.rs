@@ -21,7 +21,7 @@ pub(super) struct VoxelizeArgs {
     #[command(flatten)]
     pub(super) size: super::SizeArgs,
     /// Output file: .npy (uint8, shape (x, y, z)), .binvox or .vox; sparse: .vdb (OpenVDB), .nvdb (NanoVDB)
-    /// or .npz (sorted coordinates); .glb, .ply, .obj or .stl for the voxel model's outer faces as a mesh in world space; or
+    /// or .npz (sorted coordinates); .glb, .ply, .obj, .stl or .3mf for the voxel model's outer faces as a mesh in world space; or
     /// .schem, .litematic, .nbt, .zip or .mcstructure for Minecraft (Sponge v3, Litematica, a structure file up to
     /// 48³, structure files of 48³ in a datapack that places them, or Bedrock's structure file; blocks by colour:
     /// --blocks, --block, --dither).

@@ -34,7 +34,7 @@ pub use job::{Job, Request};
 pub use query::{Queried, query_backend};
 #[cfg(not(target_arch = "wasm32"))]
 pub use queue::{default_workers, work_queue};
-pub use report::{Instances, Notice, Report, Voxelized, write_field_mesh};
+pub use report::{FieldMesh, Instances, Notice, Report, Voxelized, write_field_mesh};
 
 use crate::formats::VoxelFormat;
 use crate::mesh::Mesh;
@@ -521,6 +521,7 @@ impl Engine {
             instances,
             report,
             notices,
+            unit: job.unit,
         })
     }
 
@@ -641,6 +642,7 @@ impl Engine {
             instances: None,
             report,
             notices,
+            unit: job.unit,
         })
     }
 

@@ -161,6 +161,8 @@ pub struct Voxelized {
     pub report: Report,
     /// Fallbacks taken and failures worked around on the way, in order.
     pub notices: Vec<Notice>,
+    /// The mesh's unit in metres (`Request::unit`, else its format's), which a `.3mf` states.
+    pub unit: f64,
 }
 
 impl Voxelized {
@@ -172,23 +174,25 @@ impl Voxelized {
         options: &WriteOptions,
         out: &mut W,
     ) -> Result<(), FormatError> {
+        let options = WriteOptions { unit: options.unit.or(Some(self.unit)), ..*options };
         match (&self.field, format) {
             // A field written as a mesh: its level set, or a shell's walls, meshed here and written as a mesh.
             (Some(field), VoxelFormat::Mesh(mesh)) => {
                 let progress = options.progress.unwrap_or(&|_, _| {});
                 let colour = self.colour_source.as_ref();
+                let target = FieldMesh { format: mesh, unit: self.unit, name: options.name.unwrap_or("model") };
                 match (self.shell, &self.hollowing) {
                     // Holes or filled pockets: the walls are one level set of the shell's own field.
                     (Some(thickness), Some(h)) if h.reshapes_walls() => {
                         let walls = crate::voxel::shell::walls_field(field, thickness, h);
-                        write_field_mesh(&walls, None, 0.0, colour, progress, mesh, out)
+                        write_field_mesh(&walls, None, 0.0, colour, progress, target, out)
                     }
-                    _ => write_field_mesh(field, self.shell, options.level, colour, progress, mesh, out),
+                    _ => write_field_mesh(field, self.shell, options.level, colour, progress, target, out),
                 }
             }
             (Some(field), _) if self.shell.is_none() => formats::write_field(field, format, out),
             _ => {
-                let options = WriteOptions { labels: self.labels.as_ref(), ..*options };
+                let options = WriteOptions { labels: self.labels.as_ref(), ..options };
                 formats::write_grid(&self.grid, self.colours.as_ref(), format, &options, out)
             }
         }
@@ -200,20 +204,30 @@ impl Voxelized {
 /// `colour`, the mesh the field was made from, each vertex coloured as that mesh is at its nearest point.
 /// [`Voxelized::write`] and Python's `save_field` write a field's meshes through it.
 #[allow(clippy::too_many_arguments)]
-pub fn write_field_mesh(
+pub fn write_field_mesh<W: std::io::Write + std::io::Seek>(
     field: &DistanceField,
     shell: Option<f32>,
     level: f64,
     colour: Option<&std::sync::Arc<crate::mesh::Mesh>>,
     progress: &(dyn Fn(usize, usize) + Sync),
-    format: formats::MeshFormat,
-    out: &mut impl std::io::Write,
+    target: FieldMesh,
+    out: &mut W,
 ) -> Result<(), FormatError> {
+    let format = target.format;
     let mut surface = crate::voxel::shell::field_mesh(field, shell, level, progress).map_err(std::io::Error::other)?;
     // Each vertex the colour of the source mesh at its nearest point, where the format holds colours.
     if let Some(source) = colour.filter(|_| format.holds_colour()) {
         surface.colours = crate::voxel::colour::colour_points(source, &surface.vertices)
             .map_err(|e| std::io::Error::other(e.to_string()))?;
     }
-    formats::surface::write_surface(&surface, format, out)
+    formats::surface::write_surface(&surface, format, (target.unit, target.name), out)
+}
+
+/// The mesh format a field's level set is written in, with what a `.3mf` states: the mesh's unit in metres and its
+/// object's name.
+#[derive(Clone, Copy)]
+pub struct FieldMesh<'a> {
+    pub format: formats::MeshFormat,
+    pub unit: f64,
+    pub name: &'a str,
 }

@@ -37,6 +37,8 @@ pub enum MeshFormat {
     Ply,
     Obj,
     Stl,
+    /// The 3D Manufacturing Format's core ([`super::threemf`]).
+    ThreeMf,
 }
 
 impl MeshFormat {
@@ -47,12 +49,13 @@ impl MeshFormat {
             MeshFormat::Ply => "ply",
             MeshFormat::Obj => "obj",
             MeshFormat::Stl => "stl",
+            MeshFormat::ThreeMf => "3mf",
         }
     }
 
-    /// Whether the format holds vertex colours (STL has none).
+    /// Whether the format holds vertex colours (STL and 3MF's core have none).
     pub fn holds_colour(self) -> bool {
-        self != MeshFormat::Stl
+        !matches!(self, MeshFormat::Stl | MeshFormat::ThreeMf)
     }
 }
 
@@ -361,21 +364,56 @@ fn survey(faces: &Faces) -> (u64, DVec3, DVec3) {
     (n, lo, hi)
 }
 
-/// Writes the voxel model of `grid` (with `colours`, if any; merged into rectangles if `merge`) as `format`.
-pub fn write_mesh(
+/// Writes the voxel model of `grid` (with `colours`, if any; merged into rectangles if `merge`) as `format`; a
+/// `.3mf` states `unit` (the mesh's, in metres) and names its object `name`.
+pub fn write_mesh<W: Write + std::io::Seek>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
     merge: bool,
     format: MeshFormat,
-    out: &mut impl Write,
+    (unit, name): (f64, &str),
+    out: &mut W,
 ) -> Result<(), FormatError> {
+    if format == MeshFormat::ThreeMf {
+        // Unmerged: merged rectangles meet in T-junctions, which a slicer reads as cracks.
+        return write_3mf_model(&Faces::new(grid, None, false), grid.spec, unit, name, out);
+    }
     let faces = Faces::new(grid, colours, merge);
+    // Voxels of a blended material keep their alpha where the format holds it.
+    let translucent = colours.is_some_and(|c| c.rgba.iter().any(|c| c[3] < 255));
     match format {
-        MeshFormat::Glb => write_glb(&faces, grid.spec, colours.is_some(), out),
-        MeshFormat::Ply => write_ply(&faces, grid.spec, out),
+        MeshFormat::Glb => write_glb(&faces, grid.spec, colours.is_some(), translucent, out),
+        MeshFormat::Ply => write_ply(&faces, grid.spec, translucent, out),
         MeshFormat::Obj => write_obj(&faces, grid.spec, out),
         MeshFormat::Stl => write_stl(&faces, grid.spec, out),
+        MeshFormat::ThreeMf => unreachable!("written above"),
     }
+}
+
+/// The voxel model as one 3MF mesh: each face two triangles, corners shared by position (they are whole voxel
+/// corners, so equal corners are equal numbers), so faces that meet along an edge share it as a slicer wants.
+fn write_3mf_model<W: Write + std::io::Seek>(
+    faces: &Faces,
+    spec: GridSpec,
+    unit: f64,
+    name: &str,
+    out: &mut W,
+) -> Result<(), FormatError> {
+    let mut index: std::collections::HashMap<[u64; 3], u32> = std::collections::HashMap::new();
+    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+    faces.for_each(&mut |q| {
+        let ids = q.corners.map(|c| {
+            *index.entry(c.to_array().map(f64::to_bits)).or_insert_with(|| {
+                vertices.push(spec.origin + c * spec.voxel_size);
+                vertices.len() as u32 - 1
+            })
+        });
+        triangles.extend([[ids[0], ids[1], ids[2]], [ids[0], ids[2], ids[3]]]);
+    });
+    if triangles.is_empty() {
+        return Err(no_faces("3mf"));
+    }
+    super::threemf::write_3mf(&vertices, &triangles, unit, name, out)
 }
 
 /// Binary STL: each face as two triangles in f32 world coordinates with its normal (no colours: STL has none).
@@ -421,7 +459,13 @@ fn no_faces(format: &'static str) -> FormatError {
     FormatError::Invalid { format, message: "the grid has no set voxels, so there is no surface to write".into() }
 }
 
-fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write) -> Result<(), FormatError> {
+fn write_glb(
+    faces: &Faces,
+    spec: GridSpec,
+    coloured: bool,
+    translucent: bool,
+    out: &mut impl Write,
+) -> Result<(), FormatError> {
     let (quads, lo, hi) = survey(faces);
     if quads == 0 {
         return Err(no_faces("glb"));
@@ -432,7 +476,7 @@ fn write_glb(faces: &Faces, spec: GridSpec, coloured: bool, out: &mut impl Write
             message: format!("{quads} faces are more than 32-bit indices reach"),
         });
     }
-    let layout = GlbLayout { quads, coloured, h: spec.voxel_size };
+    let layout = GlbLayout { quads, coloured, translucent, h: spec.voxel_size };
     let text = glb_json(&layout, spec, lo, hi);
     write_glb_head(&text, layout.bin_len(), &format!("use .ply or {}", crate::names::Setting::Merge), out)?;
     write_glb_vertices(faces, &layout, out)?;
@@ -473,6 +517,8 @@ pub(super) fn write_glb_head(
 struct GlbLayout {
     quads: u64,
     coloured: bool,
+    /// Some colour's alpha is below 255 (a blended material's): the material blends.
+    translucent: bool,
     /// The voxel sizes: positions are in voxels until scaled by them.
     h: DVec3,
 }
@@ -521,7 +567,11 @@ fn glb_json(layout: &GlbLayout, spec: GridSpec, lo: DVec3, hi: DVec3) -> Vec<u8>
     // Coloured models use glTF's default material (white, so the vertex colours show as they are); plain ones a
     // material in the viewer's flat colour.
     let mut materials = Vec::new();
-    if !layout.coloured {
+    if layout.translucent {
+        primitive["material"] = 0.into();
+        materials.push(serde_json::json!({ "name": "voxels", "alphaMode": "BLEND", "pbrMetallicRoughness": {
+            "baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0 } }));
+    } else if !layout.coloured {
         primitive["material"] = 0.into();
         materials.push(serde_json::json!({ "name": "voxels", "pbrMetallicRoughness": {
             "baseColorFactor": [0.86, 0.36, 0.08, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0 } }));
@@ -577,7 +627,7 @@ fn write_glb_vertices(faces: &Faces, layout: &GlbLayout, out: &mut impl Write) -
     Ok(result?)
 }
 
-fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), FormatError> {
+fn write_ply(faces: &Faces, spec: GridSpec, translucent: bool, out: &mut impl Write) -> Result<(), FormatError> {
     let (quads, _, _) = survey(faces);
     if quads == 0 {
         return Err(no_faces("ply"));
@@ -586,7 +636,7 @@ fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
         out,
         "ply\nformat binary_little_endian 1.0\ncomment meshvox voxel model: {}x{}x{} voxels of {}, origin {} {} {}\n\
          element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
-         property uchar red\nproperty uchar green\nproperty uchar blue\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\n{}\
          element face {quads}\nproperty list uchar uint vertex_indices\nend_header\n",
         spec.dims.x,
         spec.dims.y,
@@ -595,7 +645,8 @@ fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
         spec.origin.x,
         spec.origin.y,
         spec.origin.z,
-        quads * 4
+        quads * 4,
+        if translucent { "property uchar alpha\n" } else { "" },
     )?;
     let mut result = Ok(());
     faces.for_each(&mut |q| {
@@ -608,7 +659,7 @@ fn write_ply(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), 
             for x in p.to_array() {
                 bytes.extend_from_slice(&x.to_le_bytes());
             }
-            bytes.extend_from_slice(&q.colour[..3]);
+            bytes.extend_from_slice(&q.colour[..if translucent { 4 } else { 3 }]);
             result = out.write_all(&bytes);
         }
     });

@@ -23,6 +23,7 @@ pub mod palette;
 pub mod points;
 pub mod surface;
 pub mod swatches;
+pub mod threemf;
 pub mod vdb;
 pub mod vox;
 
@@ -65,7 +66,7 @@ pub enum VoxelFormat {
 
 impl VoxelFormat {
     /// Every format, in the order messages list them.
-    pub const ALL: [VoxelFormat; 15] = [
+    pub const ALL: [VoxelFormat; 16] = [
         VoxelFormat::Npy,
         VoxelFormat::Binvox,
         VoxelFormat::Vox,
@@ -76,6 +77,7 @@ impl VoxelFormat {
         VoxelFormat::Mesh(MeshFormat::Ply),
         VoxelFormat::Mesh(MeshFormat::Obj),
         VoxelFormat::Mesh(MeshFormat::Stl),
+        VoxelFormat::Mesh(MeshFormat::ThreeMf),
         VoxelFormat::Minecraft(MinecraftFormat::Schem),
         VoxelFormat::Minecraft(MinecraftFormat::Litematic),
         VoxelFormat::Minecraft(MinecraftFormat::Structure),
@@ -184,7 +186,7 @@ pub fn write_coloured<W: Write + Seek>(
 
 /// [`write_coloured`] with every option: the dense grid's writer, which [`write_grid`] also takes for the dense
 /// formats.
-fn write_dense<W: Write + Seek>(
+pub fn write_dense<W: Write + Seek>(
     grid: &VoxelGrid,
     colours: Option<&VoxelColours>,
     format: VoxelFormat,
@@ -198,7 +200,10 @@ fn write_dense<W: Write + Seek>(
             Some(palette) => vox::write_vox_fixed(grid, colours, palette, options.dither, out),
             None => write_vox_coloured(grid, colours, out),
         },
-        VoxelFormat::Mesh(m) => mesh::write_mesh(grid, colours, options.merge, m, out),
+        VoxelFormat::Mesh(m) => {
+            let unit = options.unit.unwrap_or(DEFAULT_UNIT);
+            mesh::write_mesh(grid, colours, options.merge, m, (unit, options.name.unwrap_or("model")), out)
+        }
         VoxelFormat::Minecraft(m) => write_minecraft(grid, colours, m, options, out),
         VoxelFormat::Npz | VoxelFormat::Vdb | VoxelFormat::Nvdb => {
             write_grid(&Grid::Dense(grid.clone()), colours, format, options, out)
@@ -230,9 +235,14 @@ pub struct WriteOptions<'a> {
     /// Dither the colours to the palette when there is one, else to the blocks.
     pub dither: bool,
     /// The model's name for the structure tiles' datapack (its function and folder; `None`: `model`), the output
-    /// file's name where a client writes one.
+    /// file's name where a client writes one. `.3mf` names its object so.
     pub name: Option<&'a str>,
+    /// The mesh's unit in metres, which `.3mf` states (`None`: [`DEFAULT_UNIT`]).
+    pub unit: Option<f64>,
 }
+
+/// The unit of a mesh whose unit nobody gave: the millimetre, as slicers read STL and OBJ.
+pub const DEFAULT_UNIT: f64 = 1e-3;
 
 /// Writes a Minecraft schematic of `grid`: each voxel's block the nearest in `options.blocks` to its colour
 /// (dithered on request), or the set's first block without colours ([`BlockSet::assign`]); with

@@ -1,5 +1,6 @@
 //! Colour quantization for palette formats (MagicaVoxel `.vox` holds at most 255 colours): median cut in linear
-//! RGB, weighted by how many voxels carry each colour, then every colour mapped to its nearest palette entry.
+//! RGB and alpha (a blended material's voxels keep theirs; every other voxel's is 255), weighted by how many voxels
+//! carry each colour, then every colour mapped to its nearest palette entry.
 //!
 //! Linear space because averaging and distances there follow light, not the sRGB encoding; a grid with at most
 //! 255 distinct colours keeps them exactly.
@@ -13,50 +14,47 @@ pub struct Quantized {
     pub index: Vec<u8>,
 }
 
-fn linear(c: [u8; 4]) -> [f32; 3] {
+fn linear(c: [u8; 4]) -> [f32; 4] {
     let lut = &*SRGB_TO_LINEAR;
-    [lut[c[0] as usize], lut[c[1] as usize], lut[c[2] as usize]]
+    [lut[c[0] as usize], lut[c[1] as usize], lut[c[2] as usize], f32::from(c[3]) / 255.0]
 }
 
-fn encode(l: [f32; 3]) -> [u8; 4] {
+fn encode(l: [f32; 4]) -> [u8; 4] {
     let e = crate::voxel::cpu::colour::encode_srgb;
-    [e(l[0]) as u8, e(l[1]) as u8, e(l[2]) as u8, 255]
+    [e(l[0]) as u8, e(l[1]) as u8, e(l[2]) as u8, (l[3] * 255.0).round().clamp(1.0, 255.0) as u8]
 }
 
-/// Quantizes `colours` (sRGB RGBA; alpha is ignored) to at most `max` (1..=255) palette entries.
+/// Quantizes `colours` (sRGB RGBA) to at most `max` (1..=255) palette entries.
 pub fn quantize(colours: &[[u8; 4]], max: usize) -> Quantized {
     let max = max.clamp(1, 255);
-    let mut counts: HashMap<[u8; 3], u64> = HashMap::new();
+    let mut counts: HashMap<[u8; 4], u64> = HashMap::new();
     for c in colours {
-        *counts.entry([c[0], c[1], c[2]]).or_default() += 1;
+        *counts.entry(*c).or_default() += 1;
     }
-    let mut unique: Vec<([u8; 3], u64)> = counts.into_iter().collect();
+    let mut unique: Vec<([u8; 4], u64)> = counts.into_iter().collect();
     // A fixed order, so the same grid always gets the same palette.
     unique.sort_unstable();
-    let palette: Vec<[u8; 4]> = if unique.len() <= max {
-        unique.iter().map(|(c, _)| [c[0], c[1], c[2], 255]).collect()
-    } else {
-        median_cut(&unique, max)
-    };
-    let lin: Vec<[f32; 3]> = palette.iter().map(|&p| linear(p)).collect();
-    let nearest = |c: [u8; 3]| {
-        let l = linear([c[0], c[1], c[2], 255]);
-        let d = |p: &[f32; 3]| (0..3).map(|i| (p[i] - l[i]) * (p[i] - l[i])).sum::<f32>();
+    let palette: Vec<[u8; 4]> =
+        if unique.len() <= max { unique.iter().map(|(c, _)| *c).collect() } else { median_cut(&unique, max) };
+    let lin: Vec<[f32; 4]> = palette.iter().map(|&p| linear(p)).collect();
+    let nearest = |c: [u8; 4]| {
+        let l = linear(c);
+        let d = |p: &[f32; 4]| (0..4).map(|i| (p[i] - l[i]) * (p[i] - l[i])).sum::<f32>();
         (0..lin.len()).min_by(|&a, &b| d(&lin[a]).total_cmp(&d(&lin[b]))).unwrap_or(0) as u8
     };
-    let lookup: HashMap<[u8; 3], u8> = unique.iter().map(|&(c, _)| (c, nearest(c))).collect();
-    let index = colours.iter().map(|c| lookup.get(&[c[0], c[1], c[2]]).copied().unwrap_or(0)).collect();
+    let lookup: HashMap<[u8; 4], u8> = unique.iter().map(|&(c, _)| (c, nearest(c))).collect();
+    let index = colours.iter().map(|c| lookup.get(c).copied().unwrap_or(0)).collect();
     Quantized { palette, index }
 }
 
 /// Splits the weighted colour set into `max` boxes, each time the box with the widest channel range (times its
 /// weight, so crowded boxes split first) at its weighted median, and returns each box's weighted mean.
-fn median_cut(unique: &[([u8; 3], u64)], max: usize) -> Vec<[u8; 4]> {
-    let mut items: Vec<([f32; 3], u64)> = unique.iter().map(|&(c, n)| (linear([c[0], c[1], c[2], 255]), n)).collect();
+fn median_cut(unique: &[([u8; 4], u64)], max: usize) -> Vec<[u8; 4]> {
+    let mut items: Vec<([f32; 4], u64)> = unique.iter().map(|&(c, n)| (linear(c), n)).collect();
     // Boxes as ranges of `items`.
     let mut boxes: Vec<(usize, usize)> = vec![(0, items.len())];
-    let spread = |items: &[([f32; 3], u64)]| -> (usize, f32) {
-        (0..3)
+    let spread = |items: &[([f32; 4], u64)]| -> (usize, f32) {
+        (0..4)
             .map(|ch| {
                 let (lo, hi) =
                     items.iter().fold((f32::MAX, f32::MIN), |(lo, hi), (c, _)| (lo.min(c[ch]), hi.max(c[ch])));
@@ -97,9 +95,9 @@ fn median_cut(unique: &[([u8; 3], u64)], max: usize) -> Vec<[u8; 4]> {
         .iter()
         .map(|&(a, b)| {
             let weight: u64 = items[a..b].iter().map(|i| i.1).sum();
-            let mut sum = [0f64; 3];
+            let mut sum = [0f64; 4];
             for (c, n) in &items[a..b] {
-                for ch in 0..3 {
+                for ch in 0..4 {
                     sum[ch] += c[ch] as f64 * *n as f64;
                 }
             }

@@ -21,8 +21,13 @@ use std::io::Write;
 /// Vertices or faces written at a time: the bytes in memory stay a few MiB whatever the mesh's size.
 const CHUNK: usize = 1 << 16;
 
-/// Writes `mesh` in `format`.
-pub fn write_surface(mesh: &TriangleMesh, format: MeshFormat, out: &mut impl Write) -> Result<(), FormatError> {
+/// Writes `mesh` in `format`; a `.3mf` states `unit` (the mesh's, in metres) and names its object `name`.
+pub fn write_surface<W: Write + std::io::Seek>(
+    mesh: &TriangleMesh,
+    format: MeshFormat,
+    (unit, name): (f64, &str),
+    out: &mut W,
+) -> Result<(), FormatError> {
     if mesh.faces.is_empty() {
         return Err(FormatError::Invalid {
             format: format.extension(),
@@ -34,6 +39,7 @@ pub fn write_surface(mesh: &TriangleMesh, format: MeshFormat, out: &mut impl Wri
         MeshFormat::Obj => write_obj(mesh, out),
         MeshFormat::Glb => write_glb(mesh, out),
         MeshFormat::Stl => write_stl(mesh, out),
+        MeshFormat::ThreeMf => super::threemf::write_3mf(&mesh.vertices, &mesh.faces, unit, name, out),
     }
 }
 

@@ -126,11 +126,13 @@ fn write_vox_indexed(grid: &VoxelGrid, quantized: Option<&Quantized>, out: &mut 
     scenes[1] = SceneNode::Group { attributes: Dict::new(), children };
 
     let mut palette = dot_vox::DEFAULT_PALETTE.clone();
+    let mut materials = Vec::new();
     match quantized {
         Some(q) => {
             for (slot, c) in palette.iter_mut().zip(&q.palette) {
-                *slot = dot_vox::Color { r: c[0], g: c[1], b: c[2], a: 255 };
+                *slot = dot_vox::Color { r: c[0], g: c[1], b: c[2], a: c[3] };
             }
+            materials = blend_materials(&q.palette);
         }
         // Without colours palette entry 0 is the one every voxel uses: a warm orange that reads well on
         // MagicaVoxel's grey.
@@ -141,12 +143,29 @@ fn write_vox_indexed(grid: &VoxelGrid, quantized: Option<&Quantized>, out: &mut 
         index_map: dot_vox::DEFAULT_INDEX_MAP.to_vec(),
         models,
         palette,
-        materials: Vec::new(),
+        materials,
         scenes,
         layers: dot_vox::placeholder::LAYERS.to_vec(),
     };
     data.write_vox(out)?;
     Ok(())
+}
+
+/// A `MATL` for each palette entry whose alpha is below 255 (a blended material's voxels): MagicaVoxel's blend
+/// material with that opacity as `_alpha` (dot_vox's reading: the voxel blended over what is behind it). Material
+/// ids are the file's colour indices, one above the palette's.
+fn blend_materials(palette: &[[u8; 4]]) -> Vec<dot_vox::Material> {
+    palette
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c[3] < 255)
+        .map(|(i, c)| {
+            let mut properties = dot_vox::Dict::new();
+            properties.insert("_type".into(), "_blend".into());
+            properties.insert("_alpha".into(), format!("{}", f32::from(c[3]) / 255.0));
+            dot_vox::Material { id: i as u32 + 1, properties }
+        })
+        .collect()
 }
 
 /// Reads a `.vox` file (one model or several placed by transform nodes) back into our orientation. Origin 0

@@ -72,7 +72,7 @@ impl Tables {
                 row1[0].to_bits(),
                 row1[1].to_bits(),
                 row1[2].to_bits(),
-                m.cutoff().to_bits(),
+                m.alpha_rule().to_bits(),
             ];
             words.extend(record);
         }

@@ -128,6 +128,17 @@ impl Material {
             _ => 0.0,
         }
     }
+
+    /// Whether the voxels this material colours keep their alpha (`BLEND`); other voxels are opaque (255).
+    pub fn keeps_alpha(&self) -> bool {
+        self.alpha == AlphaMode::Blend
+    }
+
+    /// The material's alpha rule as the colour passes read it (word 11 of its record): the cutoff where it masks,
+    /// -1 where it blends (the alpha kept), else 0.
+    pub fn alpha_rule(&self) -> f32 {
+        if self.keeps_alpha() { -1.0 } else { self.cutoff() }
+    }
 }
 
 /// Per-triangle shading inputs, laid out as the colour shader reads them (`TriangleShading` in

@@ -581,8 +581,11 @@ fn save_field(
         let field = crate::voxel::distance::DistanceField::from_dense(spec, &values, background, signed);
         crate::formats::atomic::write_atomically(&path, |out| match format {
             // The level set, or the shell's walls, made first and written as a mesh (as the engine writes them).
-            VoxelFormat::Mesh(mesh) => {
-                crate::engine::write_field_mesh(&field, thickness, level, None, &|_, _| {}, mesh, out)
+            VoxelFormat::Mesh(format) => {
+                // A grid from Python carries no unit: a .3mf states millimetres, as slicers read STL.
+                let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("model");
+                let target = crate::engine::FieldMesh { format, unit: crate::formats::DEFAULT_UNIT, name };
+                crate::engine::write_field_mesh(&field, thickness, level, None, &|_, _| {}, target, out)
             }
             _ if thickness.is_some() => Err(std::io::Error::other(format!(
                 "a shell's walls are written as {}",

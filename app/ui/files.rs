@@ -84,7 +84,13 @@ impl ViewerApp {
             formats::write_field(field, format, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
             return Ok(vec![(name, bytes.into_inner())]);
         }
-        formats::write_coloured(grid, colours, format, false, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
+        // A .3mf states the mesh's unit and names its object after it.
+        let options = formats::WriteOptions {
+            unit: self.mesh.as_ref().map(|m| m.guess_unit()),
+            name: Some(self.file_stem()),
+            ..Default::default()
+        };
+        formats::write_dense(grid, colours, format, &options, &mut bytes).map_err(|e| format!("{name}: {e}"))?;
         let mut files = vec![(name.clone(), bytes.into_inner())];
         if let (Some(c), formats::VoxelFormat::Npy) = (colours, format) {
             let mut bytes = Vec::new();

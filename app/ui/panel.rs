@@ -331,11 +331,11 @@ impl ViewerApp {
         let field = self.field.is_some();
         ui.horizontal_wrapped(|ui| {
             ui.label("Export");
-            use formats::MinecraftFormat::{Litematic, Schem, Structure};
+            use formats::MinecraftFormat::{Bedrock, Litematic, Schem, Structure};
             use formats::VoxelFormat::{Binvox, Mesh, Minecraft, Npy, Npz, Nvdb, Vdb, Vox};
-            let glb = Mesh(formats::MeshFormat::Glb);
-            let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure)];
-            for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb].into_iter().chain(minecraft) {
+            let (glb, threemf) = (Mesh(formats::MeshFormat::Glb), Mesh(formats::MeshFormat::ThreeMf));
+            let minecraft = [Minecraft(Schem), Minecraft(Litematic), Minecraft(Structure), Minecraft(Bedrock)];
+            for format in [Vox, Binvox, Npy, Vdb, Nvdb, Npz, glb, threemf].into_iter().chain(minecraft) {
                 // A structure file holds at most 48 blocks a side.
                 let fits = self.grid.as_ref().is_some_and(|g| format.check_fits(&g.spec).is_ok());
                 let too_big = self.grid.is_some() && !fits;
@@ -358,6 +358,10 @@ impl ViewerApp {
                         "a structure-block file holds at most 48 blocks a side: lower the resolution, or use .schem"
                     }
                     (Minecraft(Structure), false) => "a Minecraft structure-block file: at most 48 blocks a side",
+                    (Minecraft(Bedrock), false) => "Bedrock's structure file (.mcstructure): blocks by colour",
+                    (Mesh(formats::MeshFormat::ThreeMf), false) => {
+                        "the voxel model for a slicer (3MF), in the mesh's unit (millimetres; metres for glTF)"
+                    }
                     _ => "the voxel model's outer faces as a glTF mesh, with vertex colours",
                 };
                 let button = egui::Button::new(format!(".{}", format.extension()));

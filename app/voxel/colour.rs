@@ -163,7 +163,8 @@ pub fn colour_and_cut(grid: &VoxelGrid, triangles: &[[Vec3; 3]], shading: &Shadi
                     let tri = triangles[t as usize];
                     let p = voxel_centre(v);
                     let w = closest_barycentric(p, tri[0], tri[1], tri[2]);
-                    pack_colour(shade(shading, &shading.triangles[t as usize], w))
+                    let s = &shading.triangles[t as usize];
+                    pack_colour(shade(shading, s, w), keeps_alpha(shading, s))
                 }
             })
             .collect();
@@ -199,7 +200,10 @@ pub fn colour_points(
             .triangle
             .par_iter()
             .zip(&answers.barycentric)
-            .map(|(&t, w)| pack_colour(shade(shading, &shading.triangles[t as usize], Vec3::from_array(*w))))
+            .map(|(&t, w)| {
+                let s = &shading.triangles[t as usize];
+                pack_colour(shade(shading, s, Vec3::from_array(*w)), keeps_alpha(shading, s))
+            })
             .collect()
     })))
 }

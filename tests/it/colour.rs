@@ -370,10 +370,14 @@ fn half_transparent_quad(alpha_mode: &str, opaque_strip: bool) -> String {
 /// [`half_transparent_quad`] with its corners' z raised by `tilt` times their x: tilted 45° at 1, so that its
 /// candidate box fills the grid.
 fn tilted_quad(alpha_mode: &str, opaque_strip: bool, tilt: f32) -> String {
+    textured_quad(alpha_mode, opaque_strip, tilt, &[[0, 255, 0, 255], [255, 0, 255, 0]], 1.0)
+}
+
+/// [`tilted_quad`] with a texture of `texels` in a row and the base colour's alpha `base_alpha`.
+fn textured_quad(alpha_mode: &str, opaque_strip: bool, tilt: f32, texels: &[[u8; 4]], base_alpha: f32) -> String {
     use base64::Engine;
     let b64 = |b: &[u8]| base64::engine::general_purpose::STANDARD.encode(b);
-    let image =
-        image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba(if x == 0 { [0, 255, 0, 255] } else { [255, 0, 255, 0] }));
+    let image = image::RgbaImage::from_fn(texels.len() as u32, 1, |x, _| image::Rgba(texels[x as usize]));
     let mut png = Vec::new();
     image.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("png");
     let mut data = Vec::new();
@@ -399,7 +403,8 @@ fn tilted_quad(alpha_mode: &str, opaque_strip: bool, tilt: f32) -> String {
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": primitives}],
         "materials": [
-            {"alphaMode": alpha_mode, "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}},
+            {"alphaMode": alpha_mode, "pbrMetallicRoughness": {"baseColorTexture": {"index": 0},
+                "baseColorFactor": [1.0, 1.0, 1.0, base_alpha]}},
             {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.0, 0.0, 1.0]}}],
         "textures": [{"sampler": 0, "source": 0}],
         "samplers": [{"magFilter": 9728}],
@@ -458,6 +463,8 @@ fn gpu_and_cpu_cut_out_what_a_masked_texture_hides() {
             let want = match (v.x < 8, mode) {
                 (true, _) => green,
                 (false, "MASK") => [255, 0, 0, 255],
+                // A blended material keeps its alpha, at least 1 (0 marks no colour).
+                (false, "BLEND") => [255, 0, 255, 1],
                 (false, _) => [255, 0, 255, 255],
             };
             assert_eq!(*c, want, "{what}: voxel {v}'s colour");
@@ -567,4 +574,70 @@ fn gpu_colours_a_triangle_whose_box_has_more_candidates_than_a_loop_may_run() {
     let on_gpu = pollster::block_on(GpuColourer::new(gpu).colour_async(gpu, &grid, &tris, shading)).expect("gpu");
     assert_eq!(on_gpu.cut, cpu.cut, "the GPU cut other voxels");
     assert_eq!(on_gpu.colours, cpu.colours, "the GPU's colours differ");
+}
+
+/// `BLEND` keeps the shaded alpha (issue 69): a quad whose texture's four texels have alpha 255, 190, 64 and 0 under
+/// a base colour of alpha 0.6 gives its columns alpha round(0.6 a): 153, 114, 38 and 1 (0 marks no colour), the same
+/// on the GPU; `OPAQUE` gives 255. The outputs that hold alpha keep it: `.colors.npy`, `.glb` (COLOR_0 and a
+/// `BLEND` material), `.ply` (an alpha property) and `.vox` (the palette's alpha and a blend `MATL` per entry).
+#[test]
+fn blended_materials_keep_their_alpha_in_the_colours_and_the_outputs_that_hold_it() {
+    use meshvox::voxel::colour::colour_and_cut;
+    let texels = [[200, 40, 40, 255], [40, 200, 40, 190], [40, 40, 200, 64], [200, 200, 40, 0]];
+    for (mode, alphas) in [("BLEND", [153u8, 114, 38, 1]), ("OPAQUE", [255; 4])] {
+        let text = textured_quad(mode, false, 0.0, &texels, 0.6);
+        let mesh = meshvox::mesh::load_bytes("quad.gltf", text.as_bytes()).expect("load");
+        let shading = mesh.shading.as_ref().expect("textured");
+        let (grid, tris) = voxelize_cpu(&mesh, 16, Mode::Surface);
+        let coloured = colour_and_cut(&grid, &tris, shading);
+        if let Some((gpu, _)) = crate::gpu::gpu() {
+            let on_gpu =
+                pollster::block_on(GpuColourer::new(gpu).colour_async(gpu, &grid, &tris, shading)).expect("gpu");
+            assert_eq!(on_gpu, coloured, "{mode}: the GPU's colours differ from the CPU's");
+        }
+        let mut cut = grid.clone();
+        let colours = coloured.cut_from(&mut cut);
+        assert_eq!(cut, grid, "{mode}: nothing is cut out");
+        for (v, c) in grid.iter_set().zip(&colours.rgba) {
+            assert_eq!(c[3], alphas[(v.x / 4) as usize], "{mode}: voxel {v}'s alpha ({c:?})");
+        }
+
+        let dir = tempfile::tempdir().expect("tempdir");
+        std::fs::write(dir.path().join("quad.gltf"), &text).expect("write");
+        let run = |out: &str| {
+            let o = meshvox(&["voxelize", "quad.gltf", "-r", "16", "-o", out, "--backend", "cpu"], dir.path());
+            assert!(o.status.success(), "{mode} {out}: {}", String::from_utf8_lossy(&o.stderr));
+        };
+        let blend = mode == "BLEND";
+        run("q.npy");
+        let npy = std::fs::read(dir.path().join("q.colors.npy")).expect("colours beside the grid");
+        let (_, body) = npy.split_at(npy.len() - 16 * 16 * 4);
+        for x in 0..16 {
+            // Shape (x, y, z, 4) in C order: x slowest.
+            assert_eq!(body[x * 16 * 4 + 3], alphas[x / 4], "{mode}: .colors.npy at x = {x}");
+        }
+        run("q.glb");
+        let glb = std::fs::read(dir.path().join("q.glb")).expect("glb");
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().expect("length")) as usize;
+        let json: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).expect("json");
+        assert_eq!(json["materials"][0]["alphaMode"] == "BLEND", blend, "{mode}: {}", json["materials"]);
+        run("q.ply");
+        let ply = std::fs::read(dir.path().join("q.ply")).expect("ply");
+        assert_eq!(String::from_utf8_lossy(&ply).contains("property uchar alpha"), blend, "{mode}: the .ply's header");
+        run("q.vox");
+        let vox = dot_vox::load_bytes(&std::fs::read(dir.path().join("q.vox")).expect("vox")).expect("parse");
+        let mut used: Vec<u8> = vox.models[0].voxels.iter().map(|v| vox.palette[v.i as usize].a).collect();
+        used.sort_unstable();
+        used.dedup();
+        let mut want = alphas.to_vec();
+        want.sort_unstable();
+        want.dedup();
+        assert_eq!(used, want, "{mode}: the .vox palette's alphas");
+        let blended: Vec<(u32, Option<f32>)> = vox.materials.iter().map(|m| (m.id, m.opacity())).collect();
+        assert_eq!(blended.len(), if blend { 4 } else { 0 }, "{mode}: {blended:?}");
+        for (id, opacity) in blended {
+            let a = vox.palette[id as usize - 1].a;
+            assert_eq!(opacity, Some(f32::from(a) / 255.0), "{mode}: material {id}");
+        }
+    }
 }

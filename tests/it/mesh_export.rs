@@ -175,3 +175,53 @@ fn merge_only_applies_to_mesh_outputs() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--merge joins the faces of a mesh output"));
     assert!(!dir.path().join("t.npy").exists());
 }
+
+/// `.3mf`, read by the 3MF Consortium's lib3mf (tests/tools/read_3mf.py): the voxel model and a shell's walls with a
+/// drain hole are one manifold, consistently oriented object each, watertight with a positive volume (the triangles
+/// face outwards), in the mesh's unit; the voxel model has two triangles per exposed voxel face and the voxels'
+/// volume, the walls the `.ply`'s triangles.
+#[test]
+fn threemf_is_read_by_lib3mf_as_one_closed_outward_object_in_the_meshs_unit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let read = |file: &str| {
+        let python = std::env::var("MESHVOX_PYTHON").unwrap_or_else(|_| "python3".into());
+        let path = dir.path().join(file);
+        let what = "the lib3mf check";
+        crate::formats::python_tool(&python, "read_3mf.py", &[&path.to_string_lossy()], what, &["lib3mf", "trimesh"])
+    };
+    let run = |args: &[&str]| {
+        let out = meshvox(&[args, &["--backend", "cpu", "--stats-json"]].concat(), dir.path());
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        stats(&out)
+    };
+    // The torus's voxel model, and the same grid as .npy to count its faces here.
+    let s = run(&["voxelize", "builtin:torus", "-r", "24", "-o", "t.3mf"]);
+    run(&["voxelize", "builtin:torus", "-r", "24", "-o", "t.npy"]);
+    let grid = read_grid(&dir.path().join("t.npy"));
+    let h = s["voxel_size"].as_f64().expect("h");
+    if let Some(j) = read("t.3mf") {
+        let o = &j["objects"][0];
+        assert_eq!((j["unit"].as_str(), j["warnings"].as_u64()), (Some("millimeter"), Some(0)), "{j}");
+        assert_eq!(o["name"], "t");
+        assert_eq!(o["triangles"], 2 * exposed_faces(&grid).len() as u64, "{o}");
+        assert!(o["manifold_and_oriented"].as_bool() == Some(true) && o["watertight"].as_bool() == Some(true), "{o}");
+        let volume = grid.count() as f64 * h * h * h;
+        // lib3mf holds coordinates in f32.
+        assert!((o["volume"].as_f64().expect("volume") / volume - 1.0).abs() < 1e-6, "{o} against {volume}");
+    }
+    // A shell with a drain hole, in inches: its walls are the .ply's mesh.
+    let shell = ["voxelize", "builtin:sphere", "-r", "32", "--mode", "shell", "--thickness", "2", "--drain", "1"];
+    run(&[&shell[..], &["-o", "s.3mf", "--unit", "in"]].concat());
+    run(&[&shell[..], &["-o", "s.ply"]].concat());
+    if let (Some(j), Some(ply)) =
+        (read("s.3mf"), independent_args("mesh", &[&dir.path().join("s.ply").to_string_lossy()]))
+    {
+        let o = &j["objects"][0];
+        assert_eq!(j["unit"], "inch", "{j}");
+        assert_eq!(o["triangles"], ply["triangles"], "{o} against the .ply's {ply}");
+        assert!(o["manifold_and_oriented"].as_bool() == Some(true) && o["watertight"].as_bool() == Some(true), "{o}");
+        assert!(o["volume"].as_f64().expect("volume") > 0.0, "the walls face outwards: {o}");
+        // The outer and inner spheres (Euler characteristic 2 each) joined by the hole's tube: 4 - 2.
+        assert_eq!(o["euler"], 2, "{o}");
+    }
+}

@@ -152,7 +152,21 @@ pub fn encode_srgb(linear: f32) -> u32 {
     lo as u32
 }
 
-/// A shaded colour as the stored sRGB bytes, alpha 255.
-pub fn pack_colour(c: Vec4) -> [u8; 4] {
-    [encode_srgb(c.x) as u8, encode_srgb(c.y) as u8, encode_srgb(c.z) as u8, 255]
+/// A blended material's alpha as a byte: `round(a * 255)` from one rounded product, its floor and their exact
+/// difference, at least 1 (alpha 0 marks a voxel with no colour).
+pub fn encode_alpha(a: f32) -> u32 {
+    let s = a.clamp(0.0, 1.0) * 255.0;
+    let f = s.floor();
+    (f as u32 + u32::from(s - f >= 0.5)).max(1)
+}
+
+/// A shaded colour as the stored sRGB bytes: alpha 255, or the colour's own where the material keeps it (`BLEND`).
+pub fn pack_colour(c: Vec4, keep_alpha: bool) -> [u8; 4] {
+    let alpha = if keep_alpha { encode_alpha(c.w) } else { 255 };
+    [encode_srgb(c.x) as u8, encode_srgb(c.y) as u8, encode_srgb(c.z) as u8, alpha as u8]
+}
+
+/// Whether triangle `t`'s material keeps its alpha.
+pub fn keeps_alpha(shading: &Shading, t: &TriangleShading) -> bool {
+    shading.materials[t.material as usize].keeps_alpha()
 }
