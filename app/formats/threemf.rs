@@ -67,7 +67,10 @@ pub fn write_3mf<W: Write + Seek>(
     zip.write_all(CONTENT_TYPES.as_bytes())?;
     zip.start_file("_rels/.rels", deflated).map_err(zip_error)?;
     zip.write_all(RELATIONSHIPS.as_bytes())?;
-    zip.start_file("3D/3dmodel.model", deflated.large_file(true)).map_err(zip_error)?;
+    // The model is most of the file, and its text compresses well at deflate's fastest level (a fifth of the
+    // default level's time for a few percent more bytes).
+    let fast = deflated.compression_level(Some(1)).large_file(true);
+    zip.start_file("3D/3dmodel.model", fast).map_err(zip_error)?;
     let (unit_name, scale) = unit_of(unit);
     write!(
         zip,
@@ -78,12 +81,14 @@ pub fn write_3mf<W: Write + Seek>(
         env!("CARGO_PKG_VERSION"),
         escape(name)
     )?;
+    use std::fmt::Write as _;
     let mut text = String::new();
     for chunk in vertices.chunks(CHUNK) {
         text.clear();
         for v in chunk {
             let p = *v * scale;
-            text.push_str(&format!("     <vertex x=\"{}\" y=\"{}\" z=\"{}\"/>\n", p.x, p.y, p.z));
+            // Writing into a String cannot fail.
+            let _ = writeln!(text, "     <vertex x=\"{}\" y=\"{}\" z=\"{}\"/>", p.x, p.y, p.z);
         }
         zip.write_all(text.as_bytes())?;
     }
@@ -91,7 +96,7 @@ pub fn write_3mf<W: Write + Seek>(
     for chunk in triangles.chunks(CHUNK) {
         text.clear();
         for t in chunk {
-            text.push_str(&format!("     <triangle v1=\"{}\" v2=\"{}\" v3=\"{}\"/>\n", t[0], t[1], t[2]));
+            let _ = writeln!(text, "     <triangle v1=\"{}\" v2=\"{}\" v3=\"{}\"/>", t[0], t[1], t[2]);
         }
         zip.write_all(text.as_bytes())?;
     }
