@@ -41,12 +41,8 @@ pub struct BatchArgs {
     band: super::BandArgs,
     #[command(flatten)]
     voids: super::VoidArgs,
-    /// Voxelize each animated glTF file at TIME seconds of its animation (the others as they are).
-    #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
-    pose: Option<f64>,
-    /// The animation --pose plays: its name or index (default: the first).
-    #[arg(long, value_name = "NAME", requires = "pose")]
-    animation: Option<String>,
+    #[command(flatten)]
+    pose: super::PoseArgs,
     /// The model's up axis, down which drain holes go (default: Z for STL and flat OBJ/PLY, else Y).
     #[arg(long, value_name = "y|z", value_parser = super::parse_up)]
     up: Option<meshvox::mesh::UpAxis>,
@@ -223,6 +219,7 @@ pub fn batch(args: &BatchArgs) -> Result<std::process::ExitCode> {
     let format = VoxelFormat::from_name(&args.format).ok_or_else(|| anyhow!("--format {}: unknown", args.format))?;
     check_merge(format, args.merge)?;
     args.grid.check(format)?;
+    args.pose.check(None)?;
     // The block set and palette are read once, before any file: one that cannot be read fails the run.
     let blocks = args.blocks.read(format)?;
     // Samples need no grid; grids need a size (one of -r and --voxel-size, as clap's group allows).
@@ -368,7 +365,8 @@ impl Work<'_> {
             grid: args.grid,
             colour: args.colour.clone(),
             limits: args.limits.clone(),
-            pose: super::PoseArgs { pose: args.pose, animation: args.animation.clone(), frames: None },
+            pose: args.pose.clone(),
+            frames: None,
         }
     }
 }

@@ -336,20 +336,16 @@ pub(super) struct BandArgs {
     pub(super) thickness: Option<String>,
 }
 
-/// Posing an animated glTF file: one time, or a sequence of frames.
+/// Posing an animated glTF file (`voxelize`, `batch`, `render`): at one time, or (`voxelize --frames`) a sequence.
 #[derive(clap::Args, Clone, Default)]
 pub(super) struct PoseArgs {
-    /// Voxelize an animated glTF file at TIME seconds of its animation (skins, morph targets and node animation
-    /// applied; without: the rest pose).
+    /// Pose an animated glTF file at TIME seconds of its animation (skins, morph targets and node animation
+    /// applied; without: the rest pose; batch poses the files that have animations).
     #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
     pub(super) pose: Option<f64>,
-    /// The animation --pose and --frames play: its name or index (default: the first).
+    /// The animation --pose (or voxelize's --frames) plays: its name or index (default: the first).
     #[arg(long, value_name = "NAME")]
     pub(super) animation: Option<String>,
-    /// One output per frame, at START, START+STEP, … up to END seconds, each named OUT with its frame number
-    /// (walk.vox: walk_0000.vox, walk_0001.vox, …), all in one grid (the frames' common box) on one engine.
-    #[arg(long, value_name = "START:END:STEP", conflicts_with = "pose")]
-    pub(super) frames: Option<String>,
 }
 
 /// The most frames `--frames` makes.
@@ -361,9 +357,21 @@ impl PoseArgs {
         self.pose.map(|time| mesh::rig::Pose { animation: self.animation.clone(), time })
     }
 
-    /// The poses `--frames` asks for, in order; `None` without it.
-    pub(super) fn frames(&self) -> Result<Option<Vec<mesh::rig::Pose>>> {
-        let Some(text) = &self.frames else { return Ok(None) };
+    /// Refuses `--animation` without what plays it: `--pose`, or `--frames` where the command has it (`frames`:
+    /// `None` where it has not, else whether it was given).
+    pub(super) fn check(&self, frames: Option<bool>) -> Result<()> {
+        if self.animation.is_none() || self.pose.is_some() || frames == Some(true) {
+            return Ok(());
+        }
+        match frames {
+            Some(_) => anyhow::bail!("--animation names the animation that --pose or --frames plays: give one of them"),
+            None => anyhow::bail!("--animation names the animation that --pose plays: give --pose"),
+        }
+    }
+
+    /// The poses `--frames START:END:STEP` (`frames`) asks for, in order; `None` without it.
+    pub(super) fn frames(&self, frames: Option<&str>) -> Result<Option<Vec<mesh::rig::Pose>>> {
+        let Some(text) = frames else { return Ok(None) };
         let bad = |why: &str| anyhow::anyhow!("--frames {text}: {why} (START:END:STEP in seconds, as 0:2:0.25)");
         let parts: Vec<f64> = text
             .split(':')
@@ -526,6 +534,11 @@ pub fn main() -> ExitCode {
     meshvox::names::spell_settings_with(flag);
     quiet_headless_vulkan();
     let cli = Cli::parse();
+    // The documentation's commands are checked against the flags as they are (tests/it/documented.rs): parsed,
+    // and nothing run.
+    if std::env::var_os("MESHVOX_CHECK_ARGS").is_some() {
+        return ExitCode::SUCCESS;
+    }
     if matches!(
         cli.command,
         Some(Command::Voxelize(_) | Command::Batch(_) | Command::Render(_) | Command::Query(_) | Command::Sample(_))

@@ -91,12 +91,8 @@ pub(super) struct RenderArgs {
     dither: bool,
     #[command(flatten)]
     limits: LimitArgs,
-    /// Draw an animated glTF file at TIME seconds of its animation (without: the rest pose).
-    #[arg(long, value_name = "TIME", allow_negative_numbers = true)]
-    pose: Option<f64>,
-    /// The animation --pose plays: its name or index (default: the first).
-    #[arg(long, value_name = "NAME", requires = "pose")]
-    animation: Option<String>,
+    #[command(flatten)]
+    pose: super::PoseArgs,
 }
 
 pub(super) fn parse_cut(s: &str) -> Result<meshvox::render::Cut, String> {
@@ -119,10 +115,11 @@ pub(super) fn render(args: &RenderArgs) -> Result<()> {
     if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
         bail!("{}: the output must be a .png file", args.output.display());
     }
+    args.pose.check(None)?;
     let temp = temp_beside(&args.output)?;
     let mesh = args.limits.load(&args.mesh)?;
-    let mesh = match args.pose {
-        Some(time) => mesh.posed(&meshvox::mesh::rig::Pose { animation: args.animation.clone(), time })?,
+    let mesh = match args.pose.pose() {
+        Some(pose) => mesh.posed(&pose)?,
         None => mesh,
     };
     let mode = args.mode;

@@ -57,6 +57,10 @@ pub(super) struct VoxelizeArgs {
     pub(super) limits: LimitArgs,
     #[command(flatten)]
     pub(super) pose: super::PoseArgs,
+    /// One output per frame, at START, START+STEP, … up to END seconds, each named OUT with its frame number
+    /// (walk.vox: walk_0000.vox, walk_0001.vox, …), all in one grid (the frames' common box) on one engine.
+    #[arg(long, value_name = "START:END:STEP", conflicts_with = "pose")]
+    pub(super) frames: Option<String>,
 }
 
 impl VoxelizeArgs {
@@ -81,10 +85,8 @@ pub(super) fn voxelize(args: &VoxelizeArgs) -> Result<()> {
     let colour_map = args.blocks.read(format)?;
     // An unwritable destination should fail before the mesh is even read.
     drop(temp_beside(&args.output)?);
-    let frames = args.pose.frames()?;
-    if args.pose.animation.is_some() && args.pose.pose.is_none() && frames.is_none() {
-        bail!("--animation names the animation that --pose or --frames plays: give one of them");
-    }
+    let frames = args.pose.frames(args.frames.as_deref())?;
+    args.pose.check(Some(frames.is_some()))?;
     let t_load = Instant::now();
     let mesh = args.limits.load(&args.mesh)?;
     if let Some(frames) = frames {

@@ -634,17 +634,11 @@ fn write_ply(faces: &Faces, spec: GridSpec, translucent: bool, out: &mut impl Wr
     }
     write!(
         out,
-        "ply\nformat binary_little_endian 1.0\ncomment meshvox voxel model: {}x{}x{} voxels of {}, origin {} {} {}\n\
+        "ply\nformat binary_little_endian 1.0\ncomment {}\n\
          element vertex {}\nproperty double x\nproperty double y\nproperty double z\n\
          property uchar red\nproperty uchar green\nproperty uchar blue\n{}\
          element face {quads}\nproperty list uchar uint vertex_indices\nend_header\n",
-        spec.dims.x,
-        spec.dims.y,
-        spec.dims.z,
-        crate::voxel::VoxelSize::from(spec.voxel_size),
-        spec.origin.x,
-        spec.origin.y,
-        spec.origin.z,
+        model_comment(&spec),
         quads * 4,
         if translucent { "property uchar alpha\n" } else { "" },
     )?;
@@ -674,18 +668,15 @@ fn write_ply(faces: &Faces, spec: GridSpec, translucent: bool, out: &mut impl Wr
     Ok(())
 }
 
+/// The line PLY and OBJ files of a voxel model start with: its grid, voxel size and origin.
+fn model_comment(spec: &GridSpec) -> String {
+    let (d, o) = (spec.dims, spec.origin);
+    let h = crate::voxel::VoxelSize::from(spec.voxel_size);
+    format!("meshvox voxel model: {}x{}x{} voxels of {h}, origin {} {} {}", d.x, d.y, d.z, o.x, o.y, o.z)
+}
+
 fn write_obj(faces: &Faces, spec: GridSpec, out: &mut impl Write) -> Result<(), FormatError> {
-    writeln!(
-        out,
-        "# meshvox voxel model: {}x{}x{} voxels of {}, origin {} {} {}\n# v x y z r g b (sRGB colours in 0..1)",
-        spec.dims.x,
-        spec.dims.y,
-        spec.dims.z,
-        crate::voxel::VoxelSize::from(spec.voxel_size),
-        spec.origin.x,
-        spec.origin.y,
-        spec.origin.z
-    )?;
+    writeln!(out, "# {}\n# v x y z r g b (sRGB colours in 0..1)", model_comment(&spec))?;
     let mut result = Ok(());
     let mut n = 0u64;
     faces.for_each(&mut |q| {

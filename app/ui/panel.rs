@@ -12,7 +12,7 @@ use crate::voxel::{Axis, Mode, VoxelSize};
 
 impl ViewerApp {
     pub(super) fn panel(&mut self, ui: &mut egui::Ui) {
-        ui.heading("meshvox");
+        ui.heading("meshvox").on_hover_text(concat!("meshvox ", env!("CARGO_PKG_VERSION")));
         ui.label(egui::RichText::new("GPU mesh voxelizer").weak());
         ui.separator();
         self.mesh_section(ui);

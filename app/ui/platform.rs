@@ -39,7 +39,9 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
 #[cfg(not(target_arch = "wasm32"))]
 pub fn native_options() -> eframe::NativeOptions {
     eframe::NativeOptions {
-        viewport: egui::ViewportBuilder::default().with_inner_size([1200.0, 760.0]).with_title("meshvox"),
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size([1200.0, 760.0])
+            .with_title(concat!("meshvox ", env!("CARGO_PKG_VERSION"))),
         renderer: eframe::Renderer::Wgpu,
         wgpu_options: wgpu_configuration(),
         ..Default::default()

@@ -138,7 +138,7 @@ pub(crate) fn publish_hover(hover: Option<glam::UVec3>) {
     let _ = js_sys::Reflect::set(&status, &"hover".into(), &value);
 }
 
-/// Writes `window.meshvoxStatus`: `{ ready, adapter, backend, voxelizer, mesh, resolution, mode, voxels,
+/// Writes `window.meshvoxStatus`: `{ version, ready, adapter, backend, voxelizer, mesh, resolution, mode, voxels,
 /// voxelize_ms, gpu_ms, triangles, points, dims, voxel_size, coloured, hover, error }` (`points`: a point
 /// cloud's, else null). `backend` is wgpu's (`BrowserWebGpu`, or `Gl` on the WebGL2 fallback), `voxelizer` `gpu`
 /// or `cpu`. `ready` turns true with the first finished voxelization.
@@ -153,6 +153,7 @@ pub(crate) fn publish_status(
     let set = |key: &str, value: JsValue| {
         let _ = js_sys::Reflect::set(&status, &key.into(), &value);
     };
+    set("version", env!("CARGO_PKG_VERSION").into());
     set("ready", stats.is_some().into());
     set("adapter", adapter.name.as_str().into());
     set("backend", adapter.backend.as_str().into());

@@ -667,3 +667,16 @@ fn batch_interrupted_by_ctrl_c_leaves_complete_files_and_resumes() {
         assert!(std::fs::read(path).expect("output") == reference, "{} differs", path.display());
     }
 }
+
+/// One version (Cargo.toml's) everywhere a user sees one: `meshvox --version`, and CHANGELOG.md has a section for
+/// it (issue 70).
+#[test]
+fn the_version_is_cargos_and_the_changelog_has_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = meshvox(&["--version"], dir.path());
+    assert!(out.status.success());
+    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), format!("meshvox {}", env!("CARGO_PKG_VERSION")));
+    let changelog = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/CHANGELOG.md")).expect("changelog");
+    let heading = format!("## {} ", env!("CARGO_PKG_VERSION"));
+    assert!(changelog.lines().any(|l| l.starts_with(&heading)), "CHANGELOG.md has no {heading:?} section");
+}

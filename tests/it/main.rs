@@ -10,6 +10,7 @@ mod contour;
 mod cpu_vs_bruteforce;
 mod desktop_xvfb;
 mod distance;
+mod documented;
 mod engine;
 mod exactness;
 mod far;

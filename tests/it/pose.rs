@@ -289,4 +289,13 @@ fn frames_are_single_poses_in_one_box() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
     }
+    // batch and render take the same --pose and --animation (one declaration), and name only --pose.
+    for command in
+        [&["batch", path.as_str(), "-o", "out", "-r", "8"][..], &["render", path.as_str(), "-r", "8", "-o", "e.png"]]
+    {
+        let out = meshvox(&[command, &["--animation", "bend"]].concat(), dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let says = "--animation names the animation that --pose plays: give --pose";
+        assert!(!out.status.success() && stderr.contains(says), "{command:?}: {stderr}");
+    }
 }

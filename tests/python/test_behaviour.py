@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from conftest import cli_npy, need
+from conftest import ROOT, cli_npy, need
 
 import meshvox
 
@@ -220,3 +220,14 @@ def test_an_exception_in_progress_stops_the_run(meshes):
     with pytest.raises(RuntimeError, match="stop here"):
         meshvox.voxelize(meshes / "stanford-bunny.obj", 512, backend="cpu", progress=fail)
     assert meshvox.voxelize((CUBE_V, CUBE_F), 4).stats["voxels"] > 0
+
+
+def test_the_version_is_cargos(cli):
+    """``meshvox.__version__`` is Cargo.toml's version, the CLI's ``--version`` (issue 70)."""
+    import re
+
+    cargo = (ROOT / "Cargo.toml").read_text()
+    version = re.search(r'^version = "([^"]+)"', cargo, re.M).group(1)
+    assert meshvox.__version__ == version
+    out = subprocess.run([str(cli), "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == f"meshvox {version}"

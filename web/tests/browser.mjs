@@ -259,6 +259,9 @@ async function webgpuPath(browser) {
     `first voxels ${firstMs.toFixed(0)} ms after navigation; adapter "${first.adapter}" ` +
     `(${first.backend}); ${first.mesh} @${first.resolution}: ${first.voxels} voxels in ${first.voxelize_ms.toFixed(1)} ms (${where})`);
   check(first.backend === "BrowserWebGpu", `the page draws with the browser's WebGPU (backend ${first.backend})`);
+  const cliVersion = execFileSync(bin, ["--version"]).toString().trim();
+  check(`meshvox ${first.version}` === cliVersion,
+    `the page's version (meshvoxStatus.version ${first.version}) is the CLI's (${cliVersion})`);
   check(changed.voxelizer === "gpu" && changed.gpu_ms !== null,
     `after the first frame the page voxelizes on the GPU (resolution 96: voxelizer ${changed.voxelizer}, ` +
     `compute passes ${changed.gpu_ms?.toFixed(1)} ms)`);
