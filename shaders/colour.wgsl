@@ -49,6 +49,8 @@ const CUT: u32 = 0xfffffffeu;
 const CUT_COLOUR: u32 = 1u;
 // `tables`: the sRGB-to-linear table (256 f32), then its 255 midpoints, then the records.
 const MIDPOINTS_AT: u32 = 256u;
+// The alpha bytes' midpoints follow the sRGB midpoints (255 of them).
+const ALPHA_MIDPOINTS_AT: u32 = 511u;
 const MATERIAL_WORDS: u32 = 12u;
 const TEXTURE_WORDS: u32 = 4u;
 
@@ -272,12 +274,20 @@ fn encode_srgb(linear: f32) -> u32 {
     return lo;
 }
 
-// A blended material's alpha as a byte: round(a * 255) from one rounded product, its floor and their exact
-// difference (so every adapter rounds as the CPU does), at least 1 (alpha 0 marks a voxel with no colour).
+// A blended material's alpha as the nearest byte, by binary search over the host's midpoints (comparisons only,
+// so every adapter rounds as the CPU does), at least 1 (alpha 0 marks a voxel with no colour).
 fn encode_alpha(a: f32) -> u32 {
-    let s = clamp(a, 0.0, 1.0) * 255.0;
-    let f = floor(s);
-    return max(1u, u32(f) + select(0u, 1u, s - f >= 0.5));
+    var lo = 0u;
+    var hi = 255u;
+    while lo < hi {
+        let m = (lo + hi) / 2u;
+        if bitcast<f32>(tables[ALPHA_MIDPOINTS_AT + m]) < a {
+            lo = m + 1u;
+        } else {
+            hi = m;
+        }
+    }
+    return max(1u, lo);
 }
 
 fn pack_colour(c: vec4<f32>, keep_alpha: bool) -> u32 {

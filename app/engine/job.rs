@@ -239,17 +239,23 @@ impl<'a> Job<'a> {
     /// drain holes (round holes). Surfaces, solids and pockets are decided in the grid's frame, where every voxel
     /// is a unit cube, and need no distance.
     fn check_anisotropic(request: &Request, spec: &GridSpec) -> Result<(), EngineError> {
-        let what = if spec.is_cubic() {
+        let (what, instead) = if spec.is_cubic() {
             return Ok(());
         } else if request.mode.needs_field() {
-            Setting::Mode.with(request.mode.name()).to_string()
+            let instead = format!(
+                "give one {}, or use {} or {} for the anisotropic grid",
+                Setting::VoxelSize,
+                Setting::Mode.with("surface"),
+                Setting::Mode.with("solid")
+            );
+            (Setting::Mode.with(request.mode.name()).to_string(), instead)
         } else if *request.drain != DrainPlan::None {
-            Setting::Drain.to_string()
+            (Setting::Drain.to_string(), format!("give one {}, or leave out {}", Setting::VoxelSize, Setting::Drain))
         } else {
             return Ok(());
         };
         let [x, y, z] = spec.voxel_size.to_array();
-        Err(EngineError::Anisotropic { what, x, y, z })
+        Err(EngineError::Anisotropic { what, x, y, z, instead })
     }
 
     /// The band a shell of `thickness` voxels is cut from ([`crate::voxel::shell::shell_band`]).

@@ -121,12 +121,8 @@ pub enum EngineError {
     #[error("{0}")]
     Level(String),
     /// Distances asked for in voxels that are not cubes.
-    #[error(
-        "{what} measures distances in cubic voxels; these are {x} x {y} x {z}: give one {}, or {} or {} for the \
-         anisotropic grid",
-        Setting::VoxelSize, Setting::Mode.with("surface"), Setting::Mode.with("solid")
-    )]
-    Anisotropic { what: String, x: f64, y: f64, z: f64 },
+    #[error("{what} measures distances in cubic voxels; these are {x} x {y} x {z}: {instead}")]
+    Anisotropic { what: String, x: f64, y: f64, z: f64, instead: String },
     /// Drain holes or pockets that cannot be made ([`crate::voxel::voids`]).
     #[error("{0}")]
     Voids(String),

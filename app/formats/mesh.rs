@@ -380,7 +380,8 @@ pub fn write_mesh<W: Write + std::io::Seek>(
     }
     let faces = Faces::new(grid, colours, merge);
     // Voxels of a blended material keep their alpha where the format holds it.
-    let translucent = colours.is_some_and(|c| c.rgba.iter().any(|c| c[3] < 255));
+    // (Alpha 0 marks a voxel without colour, not a transparent one.)
+    let translucent = colours.is_some_and(|c| c.rgba.iter().any(|c| (1..255).contains(&c[3])));
     match format {
         MeshFormat::Glb => write_glb(&faces, grid.spec, colours.is_some(), translucent, out),
         MeshFormat::Ply => write_ply(&faces, grid.spec, translucent, out),

@@ -27,9 +27,12 @@ fn encode(l: [f32; 4]) -> [u8; 4] {
 /// Quantizes `colours` (sRGB RGBA) to at most `max` (1..=255) palette entries.
 pub fn quantize(colours: &[[u8; 4]], max: usize) -> Quantized {
     let max = max.clamp(1, 255);
+    // Alpha 0 marks a voxel without colour (no triangle within reach): it is opaque, as every voxel but a blended
+    // material's.
+    let opaque = |c: &[u8; 4]| if c[3] == 0 { [c[0], c[1], c[2], 255] } else { *c };
     let mut counts: HashMap<[u8; 4], u64> = HashMap::new();
     for c in colours {
-        *counts.entry(*c).or_default() += 1;
+        *counts.entry(opaque(c)).or_default() += 1;
     }
     let mut unique: Vec<([u8; 4], u64)> = counts.into_iter().collect();
     // A fixed order, so the same grid always gets the same palette.
@@ -43,7 +46,7 @@ pub fn quantize(colours: &[[u8; 4]], max: usize) -> Quantized {
         (0..lin.len()).min_by(|&a, &b| d(&lin[a]).total_cmp(&d(&lin[b]))).unwrap_or(0) as u8
     };
     let lookup: HashMap<[u8; 4], u8> = unique.iter().map(|&(c, _)| (c, nearest(c))).collect();
-    let index = colours.iter().map(|c| lookup.get(c).copied().unwrap_or(0)).collect();
+    let index = colours.iter().map(|c| lookup.get(&opaque(c)).copied().unwrap_or(0)).collect();
     Quantized { palette, index }
 }
 

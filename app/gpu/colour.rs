@@ -12,7 +12,7 @@ use crate::mesh::Shading;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::voxel::VoxelGrid;
 use crate::voxel::colour::{Coloured, finish, word_ranks};
-use crate::voxel::cpu::colour::{NO_TRIANGLE, SRGB_MIDPOINTS, candidate_range};
+use crate::voxel::cpu::colour::{ALPHA_MIDPOINTS, NO_TRIANGLE, SRGB_MIDPOINTS, candidate_range};
 use glam::Vec3;
 
 pub const COLOUR_WGSL: &str = concat!(
@@ -53,7 +53,9 @@ pub struct Tables {
 
 impl Tables {
     pub fn new(shading: &Shading) -> Tables {
-        let mut words: Vec<u32> = SRGB_TO_LINEAR.iter().chain(SRGB_MIDPOINTS.iter()).map(|f| f.to_bits()).collect();
+        // The shader's MIDPOINTS_AT (256) and ALPHA_MIDPOINTS_AT (511) index these.
+        let tables = SRGB_TO_LINEAR.iter().chain(SRGB_MIDPOINTS.iter()).chain(ALPHA_MIDPOINTS.iter());
+        let mut words: Vec<u32> = tables.map(|f| f.to_bits()).collect();
         let materials_at = words.len() as u32;
         for m in &shading.materials {
             let (row0, row1, texture) = match m.texture {

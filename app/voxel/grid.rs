@@ -243,6 +243,8 @@ pub enum GridError {
     BadVoxelSize(f64),
     #[error("{} needs at least one number of voxels (auto on every axis gives no size)", Setting::Size)]
     AllAuto,
+    #[error("the mesh has zero extent along {0}: give that axis auto in {size}", size = Setting::Size)]
+    FlatCount(char),
     #[error("the mesh has zero extent along {0}: choose another {axis} or give {size}", axis = Setting::Axis, size = Setting::VoxelSize)]
     FlatAxis(char),
     #[error("the mesh is a single point: give {} to voxelize it", Setting::VoxelSize)]
@@ -301,7 +303,7 @@ impl GridSpec {
                 for (i, count) in counts.iter().enumerate() {
                     match *count {
                         Some(0) => return Err(GridError::ZeroResolution),
-                        Some(_) if extent[i] <= 0.0 => return Err(flat(i)),
+                        Some(_) if extent[i] <= 0.0 => return Err(GridError::FlatCount(['x', 'y', 'z'][i])),
                         Some(n) => (product, given) = (product * extent[i] / n as f64, given + 1),
                         None => {}
                     }

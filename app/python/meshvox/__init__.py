@@ -203,7 +203,7 @@ class VoxelGrid:
         dither: bool = False,
     ) -> None:
         """Writes the grid in the format the extension names (``.npy``, ``.binvox``, ``.vox``, ``.vdb`` (OpenVDB),
-        ``.nvdb`` (NanoVDB), ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.schem``,
+        ``.nvdb`` (NanoVDB), ``.npz`` (sorted coordinates), ``.glb``, ``.ply``, ``.obj``, ``.stl``, ``.3mf``, ``.schem``,
         ``.litematic``, ``.nbt``, ``.zip`` or ``.mcstructure`` (Minecraft: Sponge v3, Litematica, a structure file up
         to 48³, structure tiles in a datapack, Bedrock's structure file)) with the CLI's writers, atomically. The
         Minecraft formats take ``blocks`` (``"default"`` or a file of ``id,r,g,b[,bedrock]`` lines),
@@ -215,8 +215,9 @@ class VoxelGrid:
         ``merge`` joins coplanar faces of the mesh formats. A distance field (``mode="sdf"``/``"udf"``) is saved
         as ``.npy`` (float32 (X, Y, Z)), ``.npz`` (the band's ``coords`` and ``values``) ``.vdb`` or ``.nvdb`` (a level set),
         as the CLI writes it, or its level set at ``level`` (world units) as a closed mesh (``.ply``, ``.obj``,
-        ``.glb``, ``.stl``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as its walls
-        in the mesh formats."""
+        ``.glb``, ``.stl``, ``.3mf``; see :meth:`to_mesh`). A shell (``mode="shell"``) is saved as its voxels, or as
+        its walls in the mesh formats. A ``.3mf`` states millimetres (a grid in Python carries no unit; the CLI's
+        states the mesh's)."""
         suffix = os.fspath(path).lower().rsplit(".", 1)[-1]
         minecraft = suffix in ("schem", "litematic", "nbt", "zip", "mcstructure")
         if (blocks is not None or block is not None) and not minecraft:
@@ -229,7 +230,7 @@ class VoxelGrid:
             raise ValueError("dither= is for Minecraft files, and for .vox with palette=")
         if block is not None and (blocks is not None or palette is not None):
             raise ValueError("block= puts one block everywhere: leave out blocks= and palette=")
-        walls = self.thickness is not None and os.fspath(path).lower().endswith((".ply", ".obj", ".glb", ".stl"))
+        walls = self.thickness is not None and os.fspath(path).lower().endswith((".ply", ".obj", ".glb", ".stl", ".3mf"))
         if self.distances is not None and (self.thickness is None or walls):
             distances = np.ascontiguousarray(self.distances, dtype=np.float32)
             background = float(self.background if self.background is not None else np.abs(distances).max())

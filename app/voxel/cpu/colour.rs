@@ -152,12 +152,26 @@ pub fn encode_srgb(linear: f32) -> u32 {
     lo as u32
 }
 
-/// A blended material's alpha as a byte: `round(a * 255)` from one rounded product, its floor and their exact
-/// difference, at least 1 (alpha 0 marks a voxel with no colour).
+/// The midpoints between consecutive alpha bytes, `(k + ½) / 255` rounded to f32 once here: byte `k` holds the
+/// alphas from midpoint `k - 1` up to midpoint `k`.
+pub static ALPHA_MIDPOINTS: std::sync::LazyLock<[f32; 255]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(|k| ((k as f64 + 0.5) / 255.0) as f32));
+
+/// A blended material's alpha as the nearest byte, by binary search over [`ALPHA_MIDPOINTS`] (comparisons only, the
+/// same table on both sides: no adapter's contraction of a multiply and a subtract can round it otherwise), at
+/// least 1 (alpha 0 marks a voxel with no colour).
 pub fn encode_alpha(a: f32) -> u32 {
-    let s = a.clamp(0.0, 1.0) * 255.0;
-    let f = s.floor();
-    (f as u32 + u32::from(s - f >= 0.5)).max(1)
+    let mid = &*ALPHA_MIDPOINTS;
+    let (mut lo, mut hi) = (0usize, 255usize);
+    while lo < hi {
+        let m = (lo + hi) / 2;
+        if mid[m] < a {
+            lo = m + 1;
+        } else {
+            hi = m;
+        }
+    }
+    (lo as u32).max(1)
 }
 
 /// A shaded colour as the stored sRGB bytes: alpha 255, or the colour's own where the material keeps it (`BLEND`).
