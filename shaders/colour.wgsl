@@ -260,12 +260,14 @@ fn cut_out(t: u32, w: vec3<f32>) -> bool {
     return cutoff > 0.0 && shade(t, w).w < cutoff;
 }
 
-fn encode_srgb(linear: f32) -> u32 {
+// The byte whose range holds `value`: a binary search over the 255 midpoints at `at` in the tables (comparisons
+// only, so every adapter finds what the CPU finds).
+fn nearest_midpoint(at: u32, value: f32) -> u32 {
     var lo = 0u;
     var hi = 255u;
     while lo < hi {
         let m = (lo + hi) / 2u;
-        if bitcast<f32>(tables[MIDPOINTS_AT + m]) < linear {
+        if bitcast<f32>(tables[at + m]) < value {
             lo = m + 1u;
         } else {
             hi = m;
@@ -274,20 +276,14 @@ fn encode_srgb(linear: f32) -> u32 {
     return lo;
 }
 
+fn encode_srgb(linear: f32) -> u32 {
+    return nearest_midpoint(MIDPOINTS_AT, linear);
+}
+
 // A blended material's alpha as the nearest byte, by binary search over the host's midpoints (comparisons only,
 // so every adapter rounds as the CPU does), at least 1 (alpha 0 marks a voxel with no colour).
 fn encode_alpha(a: f32) -> u32 {
-    var lo = 0u;
-    var hi = 255u;
-    while lo < hi {
-        let m = (lo + hi) / 2u;
-        if bitcast<f32>(tables[ALPHA_MIDPOINTS_AT + m]) < a {
-            lo = m + 1u;
-        } else {
-            hi = m;
-        }
-    }
-    return max(1u, lo);
+    return max(1u, nearest_midpoint(ALPHA_MIDPOINTS_AT, a));
 }
 
 fn pack_colour(c: vec4<f32>, keep_alpha: bool) -> u32 {

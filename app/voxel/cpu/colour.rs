@@ -139,11 +139,15 @@ pub static SRGB_MIDPOINTS: std::sync::LazyLock<[f32; 255]> = std::sync::LazyLock
 /// A linear value as the nearest sRGB byte, by binary search over [`SRGB_MIDPOINTS`] (the same table on both
 /// sides, so both round alike).
 pub fn encode_srgb(linear: f32) -> u32 {
-    let mid = &*SRGB_MIDPOINTS;
+    nearest_midpoint(&SRGB_MIDPOINTS, linear)
+}
+
+/// The byte whose range in `mid` holds `value`: a binary search over the 255 midpoints (comparisons only).
+pub fn nearest_midpoint(mid: &[f32; 255], value: f32) -> u32 {
     let (mut lo, mut hi) = (0usize, 255usize);
     while lo < hi {
         let m = (lo + hi) / 2;
-        if mid[m] < linear {
+        if mid[m] < value {
             lo = m + 1;
         } else {
             hi = m;
@@ -161,17 +165,7 @@ pub static ALPHA_MIDPOINTS: std::sync::LazyLock<[f32; 255]> =
 /// same table on both sides: no adapter's contraction of a multiply and a subtract can round it otherwise), at
 /// least 1 (alpha 0 marks a voxel with no colour).
 pub fn encode_alpha(a: f32) -> u32 {
-    let mid = &*ALPHA_MIDPOINTS;
-    let (mut lo, mut hi) = (0usize, 255usize);
-    while lo < hi {
-        let m = (lo + hi) / 2;
-        if mid[m] < a {
-            lo = m + 1;
-        } else {
-            hi = m;
-        }
-    }
-    (lo as u32).max(1)
+    nearest_midpoint(&ALPHA_MIDPOINTS, a).max(1)
 }
 
 /// A shaded colour as the stored sRGB bytes: alpha 255, or the colour's own where the material keeps it (`BLEND`).
