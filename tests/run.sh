@@ -89,20 +89,17 @@ in_background node bash web/install.sh
 # LTO), as the tests' build does, so side by side they use the cores one alone leaves idle.
 [ $# -gt 0 ] || in_background web after node bash web/build.sh
 
-# The Python package's test environment (the wheel's tests, after `cargo test`).
+# The Python package's test environment, a fresh virtualenv every run (the wheel is installed into it after
+# `cargo test`): the test tools only, so that meshvox comes from the wheel.
 pyvenv=target/pytest-venv
 pytest_venv() {
+  rm -rf "$pyvenv"
   python3 -m venv "$pyvenv"
   "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 pytest==9.2.0 \
-    dask==2026.8.0 distributed==2026.8.0 maturin==1.16.0 nbtlib==2.0.4 \
+    dask==2026.8.0 distributed==2026.8.0 nbtlib==2.0.4 \
     litemapy==0.11.0b0 voxypy==0.2.3 imageio==2.37.2 pillow==12.1.1 warp-lang==1.19.0
 }
-if [ $# -eq 0 ]; then
-  if [ ! -x "$pyvenv/bin/python" ] || [ ! -x "$pyvenv/bin/maturin" ] \
-    || ! "$pyvenv/bin/python" -c 'import pytest, trimesh, numpy, dask.distributed, nbtlib, litemapy, voxypy, PIL, warp' 2>/dev/null; then
-    in_background pytest pytest_venv
-  fi
-fi
+[ $# -gt 0 ] || in_background pytest pytest_venv
 
 # Every skip (a missing tool, mesh, module or adapter) is recorded here by the Rust and Python tests
 # (tests/it/common.rs, tests/python/conftest.py) and listed at the end: `cargo test` hides what passing tests print.
@@ -140,19 +137,21 @@ if cargo tree --locked --no-default-features -e normal --prefix none | grep -E '
   exit 1
 fi
 
-# The Python package (docs/python.md): the wheel built once, in the dev profile and with the test build's features
-# (pyproject.toml's `python` plus the default ones; `pip install .` builds it without the viewer), so that every
-# dependency it shares with the build above is reused, not compiled again (Cargo.toml lines the features up);
-# installed into its own virtual environment, then pytest against the CLI built above.
+# The Python package (docs/python.md) as users install it: python/build-wheels.sh's x86_64 manylinux_2_28 wheel
+# (release, linked by zig against glibc 2.28's symbols, checked with auditwheel, with the sdist beside it), installed
+# by pip into the fresh virtualenv made while the tests built, then pytest with no cargo or rustc on PATH (and the
+# CLI built above for the tests that compare with it).
 phase "the wheel and pytest"
 # The fuzz targets are built (in their own target directory) while the wheel builds and pytest runs, which leave
 # one core idle much of the time.
 in_background fuzz bash tests/fuzz/run.sh --build 10
+bash python/build-wheels.sh x86_64
 wait_for pytest
-rm -rf target/wheels
-"$pyvenv/bin/maturin" build --quiet --profile dev --features python,gpu,viewer,cli --interpreter "$pyvenv/bin/python" --out target/wheels
-"$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/meshvox-*.whl
-MESHVOX_BIN="$PWD/target/debug/meshvox" "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
+wheel=$(ls "$PWD"/target/dist/meshvox-*-cp310-abi3-manylinux_2_28_x86_64.whl)
+"$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$wheel"
+no_rust=$(tr ':' '\n' <<<"$PATH" | while read -r dir; do [ -x "$dir/cargo" ] || [ -x "$dir/rustc" ] || echo "$dir"; done | paste -sd:)
+env PATH="$PWD/$pyvenv/bin:$no_rust" MESHVOX_WHEEL="$wheel" MESHVOX_BIN="$PWD/target/debug/meshvox" \
+  "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
 
 # The web page: web/dist (built in the background since the tests' build began), driven in headless Chromium and
 # compared with the CLI built above.

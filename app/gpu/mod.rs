@@ -78,10 +78,19 @@ impl std::fmt::Display for AdapterSummary {
     }
 }
 
+/// What wgpu said when it found no adapter, without the backends this build never has ("metal support not compiled
+/// in"): on a machine without the Vulkan loader, "vulkan drivers/libraries could not be loaded, gl drivers/libraries
+/// could not be loaded".
+fn why_no_adapter(wgpu_says: &str) -> String {
+    let reasons = wgpu_says.split_once("; ").map_or(wgpu_says, |(_, reasons)| reasons);
+    let kept: Vec<&str> = reasons.split(", ").filter(|r| !r.ends_with("not compiled in")).collect();
+    if kept.is_empty() { wgpu_says.to_string() } else { kept.join(", ") }
+}
+
 /// Errors of the GPU path. Each message says what to do where there is something to do.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    #[error("no GPU adapter found ({0}); use {cpu}, or install a Vulkan driver (mesa-vulkan-drivers)", cpu = crate::names::Setting::Backend.with("cpu"))]
+    #[error("no GPU adapter found ({0}); use {cpu}, or install the Vulkan loader and a driver (Debian, Ubuntu: libvulkan1 mesa-vulkan-drivers)", cpu = crate::names::Setting::Backend.with("cpu"))]
     NoAdapter(String),
     #[error("this device has no compute shaders (WebGL2); use {}", crate::names::Setting::Backend.with("cpu"))]
     NoCompute,
@@ -167,7 +176,7 @@ impl Gpu {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
             .await
-            .map_err(|e| GpuError::NoAdapter(e.to_string()))
+            .map_err(|e| GpuError::NoAdapter(why_no_adapter(&e.to_string())))
     }
 
     /// Blocking [`Gpu::new`] for native callers.

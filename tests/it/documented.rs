@@ -188,3 +188,19 @@ fn documented_commands_on_the_shared_meshes_run_as_written() {
     assert!(ran >= 15, "only {ran} documented commands ran");
     eprintln!("{ran} documented commands ran as written");
 }
+
+/// The README's library example is the code of examples/engine.rs, which the tests run (`engine::`): every line of
+/// its `rust` block but comments is a line of the example, so a renamed item or changed signature fails here.
+#[test]
+fn the_readmes_library_example_is_the_tested_example() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).expect("README.md");
+    let block = readme.split("```rust\n").nth(1).and_then(|rest| rest.split("```").next()).expect("a rust block");
+    let example = std::fs::read_to_string(root.join("examples/engine.rs")).expect("the example");
+    let lines: std::collections::HashSet<&str> = example.lines().map(str::trim).collect();
+    let code: Vec<&str> = block.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with("//")).collect();
+    assert!(code.len() >= 6, "{block}");
+    for line in code {
+        assert!(lines.contains(line), "README.md's library example has `{line}`, which examples/engine.rs lacks");
+    }
+}
