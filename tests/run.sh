@@ -67,17 +67,18 @@ wait_for() {
   fi
 }
 
-# The independent readers the Rust tests call (numpy, trimesh, binvox, Pillow, and the 3MF Consortium's lib3mf).
+# The independent readers the Rust tests call (numpy, trimesh, binvox, Pillow, the 3MF Consortium's lib3mf, and
+# fontTools for the page's font).
 venv=target/pyenv
 readers_venv() {
   python3 -m venv "$venv"
   "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6 trimesh==5.2.0 binvox==0.1.6 pillow==11.3.0 \
-    lib3mf==2.5.0
+    lib3mf==2.5.0 fonttools==4.68.0
 }
 if [ "$(id -u)" = 0 ] && ! python3 -m venv --help >/dev/null 2>&1; then
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3 python3-venv python3-pip
 fi
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL, lib3mf' 2>/dev/null; then
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import numpy, trimesh, binvox, PIL, lib3mf, fontTools' 2>/dev/null; then
   in_background readers readers_venv
 fi
 export MESHVOX_PYTHON="$PWD/$venv/bin/python"

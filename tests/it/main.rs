@@ -27,6 +27,7 @@ mod mirror;
 mod modes;
 mod nanovdb;
 mod optimized_gltf;
+mod page_font;
 mod points;
 mod pose;
 mod query;

@@ -17,7 +17,7 @@
 //    then at 31 from the front hovers the middle of the viewport and reads the voxel from meshvoxStatus.hover,
 //  - fails on any uncaught exception, panic or console error,
 //  - compares a screenshot of the first view with tests/snapshots/web-default.<backend>.png (UPDATE_SNAPSHOTS=1
-//    rewrites it).
+//    rewrites it; KEEP_SCREENSHOTS=1 also keeps each full-size screenshot as target/NAME.png, to look at).
 // Without WebGPU it checks that the WebGL2 build is the one loaded, the default mesh, a resolution change and an
 // opened coloured file against the CLI, the screenshot against its own golden, that a shared link (?mesh=…&r=…
 // &axis=…&mode=…&cam=…) restores its view and that the address bar follows changes; and that a page with neither
@@ -628,6 +628,7 @@ async function compareScreenshot(page, name) {
   const small = path.join(snapshots, `${name}.new.png`);
   const golden = path.join(snapshots, `${name}.png`);
   await page.screenshot({ path: full });
+  if (process.env.KEEP_SCREENSHOTS) execFileSync("cp", [full, path.join(root, "target", `${name}.png`)]);
   execFileSync("convert", [full, "-resize", "256x256", "-strip", "-define", "png:compression-level=9", small]);
   await rm(work, { recursive: true, force: true });
   if (process.env.UPDATE_SNAPSHOTS) {
