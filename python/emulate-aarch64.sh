@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Runs the aarch64 wheel under QEMU's user-mode emulator (`qemu-aarch64`, Debian's qemu-user): Debian's own arm64
+# Runs the aarch64 wheel under QEMU's user-mode emulator (`qemu-aarch64`, Debian's qemu-user): Debian 12's own arm64
 # Python 3.11 and the C libraries it needs, unpacked from their packages into target/aarch64-root (apt-get download:
-# nothing installed), numpy's aarch64 wheel from PyPI, and the wheel unpacked beside it. The emulated interpreter
+# nothing installed; the first run, as root, adds arm64 to dpkg's architectures, which stays), numpy's aarch64 wheel from PyPI, and the wheel unpacked beside it. The emulated interpreter
 # imports meshvox and voxelizes the bundled cube and, with ../shared beside the checkout, the bunny on the CPU; the
 # x86_64 wheel from the same folder does the same natively, and the two grids must be equal voxel for voxel.
 #   bash python/emulate-aarch64.sh target/dist/meshvox-VERSION-cp310-abi3-manylinux_2_28_aarch64.whl
 set -euo pipefail
+wheel=$(realpath "$1")
 cd "$(dirname "$0")/.."
-wheel=$1
+[ -x target/wheel-tools/bin/python ] || { echo "python/emulate-aarch64.sh: run python/build-wheels.sh first (its tools)" >&2; exit 1; }
 root=target/aarch64-root
 site=target/aarch64-site
 tools=target/wheel-tools
@@ -24,7 +25,8 @@ if [ ! -x "$root/usr/bin/python3.11" ]; then
   for package in python3.11-minimal libpython3.11-minimal libpython3.11-stdlib libc6 zlib1g libexpat1 libffi8 \
     libgcc-s1 libstdc++6 libbz2-1.0 liblzma5 libssl3 libuuid1 libsqlite3-0 libncursesw6 libtinfo6 libreadline8 \
     libcrypt1 libnsl2 libtirpc3 libdb5.3; do
-    (cd target/aarch64-debs && apt-get download -qq "$package:arm64" 2>/dev/null)
+    (cd target/aarch64-debs && apt-get download -qq "$package:arm64" >/dev/null) \
+      || { echo "python/emulate-aarch64.sh: apt-get download $package:arm64 failed (the list is Debian 12's)" >&2; exit 1; }
   done
   for deb in target/aarch64-debs/*.deb; do dpkg -x "$deb" "$root"; done
 fi
@@ -70,4 +72,6 @@ a, b = json.loads(sys.argv[1]), json.loads(sys.argv[2])
 for d in (a, b): d.pop("machine")
 sys.exit(0 if a == b else "python/emulate-aarch64.sh: the aarch64 grids differ from the x86_64 ones")' "$emulated" "$native"
   echo "the aarch64 wheel's grids equal the x86_64 wheel's"
+else
+  echo "no x86_64 wheel beside it: the aarch64 grids above were not compared"
 fi

@@ -3,6 +3,9 @@
     python python/inspect_wheel.py WHEEL ARCH POLICY
         The wheel's files, its extension's ELF machine, the shared libraries it needs (each allowed by the manylinux
         policy), its newest glibc symbol version (at most the policy's) and its size.
+    auditwheel show --json WHEEL | python python/inspect_wheel.py --auditwheel TAG
+        auditwheel's verdict: consistent with TAG (manylinux_2_28_x86_64), no external shared library, no
+        unsupported instruction set.
     python python/inspect_wheel.py --metadata VERSION SDIST WHEEL...
         The sdist's PKG-INFO and every wheel's METADATA: Cargo.toml's version and the same name, licence, summary,
         classifiers, project URLs and requirements.
@@ -10,6 +13,7 @@ Exits non-zero, saying why, when a check fails. Uses binutils' readelf, which re
 """
 
 import email.parser
+import json
 import re
 import subprocess
 import sys
@@ -58,6 +62,14 @@ def inspect(wheel, arch, policy):
           f"needs {', '.join(needed)}; newest glibc symbol {newest}")
 
 
+def audit(report, tag):
+    verdict = json.loads(report)
+    if verdict.get("overall_tag") != tag or verdict.get("external_libs") or verdict.get("unsupported_isa") \
+            or verdict.get("pyfpe") or verdict.get("ucs2"):
+        fail(f"auditwheel: {verdict.get('wheel')} is not a clean {tag} wheel: {json.dumps(verdict)}")
+    print(f"auditwheel: {verdict['wheel']} is consistent with {tag}, no external shared library")
+
+
 def fields(text):
     message = email.parser.Parser().parsestr(text)
     return {field: sorted(message.get_all(field) or []) for field in FIELDS}
@@ -85,7 +97,9 @@ def metadata(version, sdist, wheels):
 
 
 if __name__ == "__main__":
-    if sys.argv[1] == "--metadata":
+    if sys.argv[1] == "--auditwheel":
+        audit(sys.stdin.read(), sys.argv[2])
+    elif sys.argv[1] == "--metadata":
         metadata(sys.argv[2], sys.argv[3], sys.argv[4:])
     else:
         inspect(*sys.argv[1:4])

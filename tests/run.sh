@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Runs meshvox's whole test suite. Run as root on a fresh Debian machine, it first installs what the tests need
 # besides Rust itself: Mesa's lavapipe (a CPU Vulkan driver, so the GPU tests run the real shaders without a
-# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh, binvox
-# and Pillow (the independent readers the tests compare with, in a virtual environment under target/), OpenVDB
+# GPU), Xvfb and ImageMagick (the desktop app is started and screenshotted), Python with numpy, trimesh, binvox,
+# Pillow, lib3mf and fontTools (the independent readers the tests compare with, in a virtual environment under
+# target/), OpenVDB
 # (pyopenvdb and vdb_print, to read .vdb files back), Node.js
 # with web/node_modules (the glTF optimizers the tests make compressed files with, and the browser test's
 # playwright-core), Chromium for the browser test, and clang and llvm (meshoptimizer's C++ decoder is compiled
@@ -151,6 +152,11 @@ wait_for pytest
 wheel=$(ls "$PWD"/target/dist/meshvox-*-cp310-abi3-manylinux_2_28_x86_64.whl)
 "$pyvenv/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$wheel"
 no_rust=$(tr ':' '\n' <<<"$PATH" | while read -r dir; do [ -x "$dir/cargo" ] || [ -x "$dir/rustc" ] || echo "$dir"; done | paste -sd:)
+case ":$no_rust:" in
+  *:/usr/bin:*) ;;
+  *) echo "tests/run.sh: cargo or rustc is in /usr/bin, so PATH cannot leave out Rust alone (install Rust with rustup)" >&2
+    exit 1 ;;
+esac
 env PATH="$PWD/$pyvenv/bin:$no_rust" MESHVOX_WHEEL="$wheel" MESHVOX_BIN="$PWD/target/debug/meshvox" \
   "$pyvenv/bin/python" -m pytest -q -p no:cacheprovider tests/python
 

@@ -61,6 +61,8 @@ for build in webgpu webgl; do
   echo "web/dist: ${name}_bg.wasm ($build) $size bytes after wasm-opt (was $raw), $gz gzipped" >&2
 done
 cp web/index.html web/dist/index.html
+# The licence of the text font the wasm embeds (assets/fonts), which the Ubuntu Font Licence asks to travel with it.
+cp assets/fonts/UFL.txt web/dist/UFL.txt
 
 if [ "${1:-}" = "--serve" ]; then
   port="${2:-8080}"

@@ -2,7 +2,7 @@
 (epaint_default_fonts): every glyph, codepoint, advance and outline and the layout tables (kerning, substitutions)
 kept; what egui's text stack never reads dropped: the TrueType hinting programs (skrifa then hints with its
 autohinter, as it does for any font without them), the device metrics tables (hdmx, VDMX) and the glyph names.
-171 KB gzipped becomes 61 KB, the largest single part of the page's wasm that nothing needs.
+171 KB gzipped becomes 71 KB, the largest single part of the page's wasm that nothing needs.
 
 The Ubuntu Font Licence (assets/fonts/UFL.txt) asks a modified version that is not substantially changed to keep
 its name with "derivative X" appended: the family is "Ubuntu Light derivative meshvox", copyright and licence
