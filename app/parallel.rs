@@ -16,19 +16,29 @@
 //! pool none of whose threads ever waits on a call: a call holding the GPU's turn always finishes. (This module
 //! sits at the bottom with `memory`: every layer may use it.)
 
-use std::sync::{Arc, Mutex, PoisonError};
+// The library writes `crate::parallel::prelude::*` and `parallel::join` for rayon's: natively rayon's own; in the
+// page (wasm32: one thread, no pool to make) the same calls done in order (`sequential`), so that its wasm carries
+// no thread pool, job queue or parallel sort.
+#[cfg(target_arch = "wasm32")]
+mod sequential;
+#[cfg(not(target_arch = "wasm32"))]
+pub use rayon::{current_num_threads, current_thread_index, join, prelude};
+#[cfg(target_arch = "wasm32")]
+pub use sequential::{current_num_threads, current_thread_index, join, prelude};
+
+#[cfg(not(target_arch = "wasm32"))]
+use std::sync::Arc;
+use std::sync::{Mutex, PoisonError};
 
 /// The pool and the process it was made in.
+#[cfg(not(target_arch = "wasm32"))]
 static POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
 
 /// This process's pool, made on first use (`None` where the OS gives no thread: the loops then run where rayon
 /// puts them). A pool left by the process this one was forked from is forgotten, not dropped: dropping it would
 /// signal threads the child does not have.
+#[cfg(not(target_arch = "wasm32"))]
 fn pool() -> Option<Arc<rayon::ThreadPool>> {
-    // The page has one thread, and no pool to make.
-    if cfg!(target_arch = "wasm32") {
-        return None;
-    }
     let mut slot = POOL.lock().unwrap_or_else(PoisonError::into_inner);
     let pid = std::process::id();
     if let Some(stale) = slot.take_if(|(owner, _)| *owner != pid) {
@@ -48,6 +58,7 @@ fn pool() -> Option<Arc<rayon::ThreadPool>> {
 
 /// Runs `f`, which starts parallel work: directly on a rayon worker (its loops stay in that worker's pool), else
 /// on this process's pool. `f` must block on nothing but its own parallel work.
+#[cfg(not(target_arch = "wasm32"))]
 pub fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() {
         return f();
@@ -58,7 +69,14 @@ pub fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     }
 }
 
+/// Runs `f` (the page has one thread).
+#[cfg(target_arch = "wasm32")]
+pub fn install<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    f()
+}
+
 /// The number of threads [`install`]'s loops run on from here, for reports and for cutting work into pieces.
+#[cfg(not(target_arch = "wasm32"))]
 pub fn threads() -> usize {
     if rayon::current_thread_index().is_some() {
         return rayon::current_num_threads();
@@ -66,12 +84,18 @@ pub fn threads() -> usize {
     pool().map_or_else(rayon::current_num_threads, |pool| pool.current_num_threads())
 }
 
+/// One (the page's thread).
+#[cfg(target_arch = "wasm32")]
+pub fn threads() -> usize {
+    1
+}
+
 /// Runs `f`, which may block (the GPU's turn, a device poll, a channel), so that no rayon worker blocks in it
 /// while jobs of its pool may be waiting under it: off a worker, directly; on a worker, on a thread of its own
 /// (named `meshvox-call`; its loops go to this process's pool) while the worker waits for it. Where the OS
 /// refuses a thread, `f` runs on the worker after all. A panic in `f` resumes on the calling thread.
 pub fn off_workers<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_none() {
+    if current_thread_index().is_none() {
         return f();
     }
     // Taken by whichever thread runs it: the new one, or this one if there is none.

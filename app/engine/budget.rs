@@ -14,9 +14,9 @@
 
 use crate::formats::VoxelFormat;
 use crate::mesh::{Aabb, Mesh};
+use crate::parallel::prelude::*;
 use crate::voxel::distance::Band;
 use crate::voxel::{Axis, GridError, GridSpec, Mode, Resolution};
-use rayon::prelude::*;
 
 /// Bytes of one grid-space triangle (nine f32).
 const TRIANGLE_BYTES: u64 = 36;

@@ -26,11 +26,11 @@ use super::vdb::{
     slot5_of, tree_nodes, upper_of,
 };
 use crate::parallel;
+use crate::parallel::prelude::*;
 use crate::voxel::SparseGrid;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::sparse::key_origin;
 use glam::{DVec3, IVec3, UVec3};
-use rayon::prelude::*;
 use std::io::{Seek, SeekFrom, Write};
 
 /// "NanoVDB0": the file's and each grid's magic number.

@@ -27,11 +27,11 @@ use super::IntColumn;
 use super::error::FormatError;
 use crate::mesh::material::SRGB_TO_LINEAR;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use crate::voxel::SparseGrid;
 use crate::voxel::distance::DistanceField;
 use crate::voxel::sparse::{LeafMask, key_origin};
 use glam::{IVec3, UVec3};
-use rayon::prelude::*;
 use std::io::{Seek, SeekFrom, Write};
 
 /// File format version 224 (OpenVDB 10 and 11), as library 10.0.

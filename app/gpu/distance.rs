@@ -20,13 +20,13 @@ use super::util::{
 };
 use super::voxelize::Traffic;
 use super::{Gpu, GpuError, dispatch_2d};
+use crate::parallel::prelude::*;
 use crate::voxel::bvh::Bvh;
 use crate::voxel::cpu::distance::{band_range, triangle_layers};
 use crate::voxel::cpu::query::NearestTables;
 use crate::voxel::distance::{Band, DistanceField, Finishing, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
-use rayon::prelude::*;
 
 pub const DISTANCE_WGSL: &str = concat!(
     include_str!("../../shaders/shared/common.wgsl"),

@@ -30,7 +30,7 @@ use std::collections::VecDeque;
 /// as every triangle goes to the slab path: the walk clips each one's range to the grid and the brick, so one
 /// outside has no work, and the 0.6 ms of ranges the bunny took on an H200's host are saved.
 pub(super) fn bin_triangles(triangles: &[[Vec3; 3]], dims: UVec3, bricks: &[Brick]) -> Vec<Vec<u32>> {
-    use rayon::prelude::*;
+    use crate::parallel::prelude::*;
     let Some(first) = bricks.first() else { return Vec::new() };
     if bricks.len() == 1 {
         return vec![(0..triangles.len() as u32).collect()];
@@ -195,7 +195,7 @@ impl Run<'_> {
         let mut leaves: Vec<(u64, LeafMask)> = Vec::new();
         if self.options.sparse {
             let area: f64 = crate::parallel::install(|| {
-                use rayon::prelude::*;
+                use crate::parallel::prelude::*;
                 triangles.par_iter().map(|t| f64::from((t[1] - t[0]).cross(t[2] - t[0]).length()) / 2.0).sum()
             });
             // Tried: where the system refuses the address space (strict overcommit), the list grows as it did.
@@ -246,7 +246,7 @@ impl Run<'_> {
             None => {
                 let _span = crate::trace::span("sort and prune leaves");
                 crate::parallel::install(|| {
-                    use rayon::slice::ParallelSliceMut;
+                    use crate::parallel::prelude::*;
                     leaves.par_sort_unstable_by_key(|(key, _)| *key)
                 });
                 leaves.truncate(leaves.partition_point(|(key, _)| *key != EMPTY));
@@ -329,7 +329,7 @@ impl Run<'_> {
                 // the room reserved for them: at 16384 the bunny's 14 million leaves took 0.9 s on one thread of an
                 // H200's host, most of it the list's growth (copies and first touches).
                 None => crate::parallel::install(|| {
-                    use rayon::prelude::*;
+                    use crate::parallel::prelude::*;
                     let slots: &[u32] = bytemuck::cast_slice(part);
                     leaves.par_extend(
                         slots

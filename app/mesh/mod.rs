@@ -124,7 +124,7 @@ impl Mesh {
 
     /// The world-space bounding box of all triangles (or points), or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<Aabb> {
-        use rayon::prelude::*;
+        use crate::parallel::prelude::*;
         if let Some(cloud) = &self.points {
             return Some(cloud.bounds());
         }
@@ -274,7 +274,7 @@ fn anchor_of<'a>(sets: impl IntoIterator<Item = (&'a [DVec3], Vec<bool>)>) -> DV
 /// process's pool, [`crate::parallel`]): this copy is most of what building a mesh from arrays costs (the Python binding's
 /// overhead), and a plain mapping `extend` took twice as long.
 fn local_triangles(positions: &[DVec3], triangles: &[[u32; 3]], anchor: DVec3) -> Vec<[Vec3; 3]> {
-    use rayon::prelude::*;
+    use crate::parallel::prelude::*;
     let mut out = Vec::new();
     crate::parallel::install(|| {
         triangles

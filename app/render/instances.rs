@@ -67,7 +67,7 @@ pub fn coloured_instances(
 /// 2 bits per corner, face `f` (axis `f / 2`, positive when `f` is odd) and corner `u + 2 v` (`u` along axis
 /// `(f / 2 + 1) % 3`, `v` along `(f / 2 + 2) % 3`) at bit `(4 f + u + 2 v) * 2` of two words.
 pub fn ambient_occlusion(occupied: &VoxelGrid, shown: &VoxelGrid) -> Vec<[u32; 2]> {
-    use rayon::prelude::*;
+    use crate::parallel::prelude::*;
     let dims = occupied.spec.dims.as_ivec3();
     let set = |p: glam::IVec3| {
         p.cmpge(glam::IVec3::ZERO).all() && p.cmplt(dims).all() && occupied.get(p.x as u32, p.y as u32, p.z as u32)

@@ -27,8 +27,8 @@ use super::cpu::colour::*;
 use super::cpu::nearest::closest_barycentric;
 use crate::mesh::Shading;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use glam::{IVec3, UVec3, Vec3};
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Per-voxel colours of a grid, sRGB RGBA, one entry per set voxel in storage order (see the module docs).

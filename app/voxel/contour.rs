@@ -34,8 +34,8 @@ use super::sparse::{LEAF_DIM, SparseGrid, key_origin};
 use super::{Grid, GridSpec};
 use crate::names::Setting;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use glam::{DVec3, IVec3, UVec3};
-use rayon::prelude::*;
 
 /// How close to the level (in voxels) a sample may be: closer ones are moved this far from it.
 const CLEARANCE: f64 = 0.01;

@@ -35,8 +35,8 @@ use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
 use crate::names::Setting;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use glam::{IVec3, UVec3, Vec3};
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 
 /// The widest band in voxels (`--band full` covers the whole grid).

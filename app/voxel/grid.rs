@@ -504,7 +504,7 @@ impl VoxelGrid {
 
     /// Number of set voxels.
     pub fn count(&self) -> u64 {
-        use rayon::prelude::*;
+        use crate::parallel::prelude::*;
         // Every grid the engine makes is counted for its report, so this is quick: words in pairs as u64 (half
         // the population counts; the x86-64 baseline has no popcnt instruction), in parallel over large grids.
         let count = |words: &[u32]| {

@@ -28,8 +28,8 @@ use super::voxelize::voxelize_items;
 use super::{Grid, on_lattice};
 use crate::mesh::Mesh;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use glam::{UVec3, Vec3};
-use rayon::prelude::*;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 

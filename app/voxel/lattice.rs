@@ -11,8 +11,8 @@
 //! 4096), so rounding onto it costs no more precision than f32 grid-space coordinates already had.
 
 use super::GridError;
+use crate::parallel::prelude::*;
 use glam::{IVec3, UVec3, Vec3};
-use rayon::prelude::*;
 use std::borrow::Cow;
 
 /// Triangles in grid space, borrowed when nothing had to change.

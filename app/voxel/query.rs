@@ -22,8 +22,8 @@ use super::cpu::solid::{
 use super::solid::boundary;
 use super::{Axis, GridError, GridSpec, Lattice, Resolution};
 use crate::mesh::Mesh;
+use crate::parallel::prelude::*;
 use glam::{DVec3, Vec3};
-use rayon::prelude::*;
 use robust::{Coord, Coord3D, orient2d, orient3d};
 use std::sync::Arc;
 
@@ -194,7 +194,7 @@ impl Prepared {
         let frame = super::voxelize::grid_space_triangles(&mesh, &spec)?;
         let lattice = Lattice::fit(&frame, spec.dims)?;
         let (bvh, boundary) =
-            crate::parallel::install(|| rayon::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
+            crate::parallel::install(|| crate::parallel::join(|| Bvh::build(&frame), || boundary(&frame, lattice)));
         let (tables, neighbours) = (std::sync::OnceLock::new(), std::sync::OnceLock::new());
         Ok(Prepared { spec, frame, mesh, bvh, boundary, tables, neighbours })
     }

@@ -10,8 +10,8 @@
 
 use super::query::{Answers, Prepared, QueryError, Sign};
 use crate::mesh::{Aabb, Mesh};
+use crate::parallel::prelude::*;
 use glam::DVec3;
-use rayon::prelude::*;
 
 /// How the points are placed and scaled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -88,7 +88,7 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
     let filled = |v: UVec3| hollowing.filled_voxels.as_ref().is_some_and(|g| g.get(v.x, v.y, v.z));
     let tubes = &hollowing.tubes;
     let values: Vec<f32> = crate::parallel::install(|| {
-        use rayon::prelude::*;
+        use crate::parallel::prelude::*;
         field
             .leaves
             .par_iter()

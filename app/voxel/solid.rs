@@ -7,8 +7,8 @@
 use super::cpu::solid::*;
 use super::sparse::leaf_key;
 use super::{Lattice, VoxelGrid};
+use crate::parallel::prelude::*;
 use glam::{IVec3, UVec3, Vec3};
-use rayon::prelude::*;
 
 /// Calls `emit(row, packed crossing)` for every row whose centre line crosses the lattice triangle `t`.
 pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit: impl FnMut(u32, u32)) {

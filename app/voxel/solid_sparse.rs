@@ -21,8 +21,8 @@ use super::solid::{
     FillStats, boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves,
 };
 use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
+use crate::parallel::prelude::*;
 use glam::{UVec3, Vec3};
-use rayon::prelude::*;
 use std::collections::HashSet;
 
 /// Rows along y and z of one task's block: the edge of a 128³ tile.

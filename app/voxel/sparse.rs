@@ -14,8 +14,8 @@
 //! joins them.
 
 use super::{GridSpec, VoxelGrid};
+use crate::parallel::prelude::*;
 use glam::UVec3;
-use rayon::prelude::*;
 use std::collections::HashMap;
 
 /// Voxels along each edge of a leaf.

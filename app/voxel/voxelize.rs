@@ -13,8 +13,8 @@ use super::sparse::{LEAF_DIM, LeafSet, SparseGrid};
 use super::{GridSpec, Mode, VoxelGrid};
 use crate::mesh::Mesh;
 use crate::parallel;
+use crate::parallel::prelude::*;
 use glam::{UVec3, Vec3};
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 
 /// Walks the work items `items` of one triangle (see [`walk`]), then decides the voxels the f32 decision was
@@ -154,7 +154,7 @@ pub fn voxelize_grid_space_sparse(
 
 /// z layers per band of [`walk_bands`]: about eight bands per thread, so that bands of unequal work even out.
 fn band_layers(dims_z: u32) -> usize {
-    (dims_z as usize).div_ceil(8 * rayon::current_num_threads()).max(1)
+    (dims_z as usize).div_ceil(8 * crate::parallel::current_num_threads()).max(1)
 }
 
 /// The walk over the grid cut into bands of `band` z layers (`sinks[b]` receives the runs of band `b`, layers

@@ -137,7 +137,7 @@ pub fn slot_origin(brick: &Brick, slot: &[u32]) -> UVec3 {
 /// grid's pages (one fault per 4 KiB), which one thread paid alone (59 ms of the bunny's 67 ms at 1024 on an
 /// H200) where the CPU backend spreads it over all of them.
 pub fn scatter_rows(brick: &Brick, slots: &[u32], grid: &mut crate::voxel::VoxelGrid) -> u64 {
-    use rayon::prelude::*;
+    use crate::parallel::prelude::*;
     let size = (brick.hi - brick.lo) / 8;
     let (dims, wpr) = (grid.spec.dims, grid.spec.words_per_row());
     let band_words = wpr * dims.y as usize * 8;
