@@ -6,8 +6,8 @@
 #   bash python/build-wheels.sh x86_64           one architecture (CI builds this one, then tests/run.sh installs it
 #                                                into a virtualenv without Rust and runs the pytest suite on it)
 # Checks: `auditwheel show` (PyPI's auditwheel) must find the wheel consistent with its manylinux_2_28 tag and needing
-# no shared library outside that policy (its JSON report) (the GPU backend opens the Vulkan loader, libEGL and libGL at run time with
-# dlopen, so none is linked); the ELF's machine, its needed libraries and its newest glibc symbol are printed; the
+# no shared library outside that policy, by its JSON report (the GPU backend opens the Vulkan loader, libEGL and
+# libGL at run time with dlopen, so none is linked); the ELF's machine, its needed libraries and its newest glibc symbol are printed; the
 # wheels and the sdist carry Cargo.toml's version and the same metadata. Where QEMU's user-mode emulator is there
 # (Debian's qemu-user, installed when run as root), the aarch64 wheel is imported by Debian 12's arm64 Python under
 # emulation and voxelizes meshes, compared with the x86_64 wheel's grids.

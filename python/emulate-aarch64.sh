@@ -1,17 +1,17 @@
 #!/usr/bin/env bash
 # Runs the aarch64 wheel under QEMU's user-mode emulator (`qemu-aarch64`, Debian's qemu-user): Debian 12's own arm64
 # Python 3.11 and the C libraries it needs, unpacked from their packages into target/aarch64-root (apt-get download:
-# nothing installed; the first run, as root, adds arm64 to dpkg's architectures, which stays), numpy's aarch64 wheel from PyPI, and the wheel unpacked beside it. The emulated interpreter
-# imports meshvox and voxelizes the bundled cube and, with ../shared beside the checkout, the bunny on the CPU; the
+# nothing installed; the first run, as root, adds arm64 to dpkg's architectures, which stays), numpy's aarch64
+# wheel from PyPI, and the wheel unpacked beside it. The emulated interpreter imports meshvox and voxelizes the bundled cube and, with ../shared beside the checkout, the bunny on the CPU; the
 # x86_64 wheel from the same folder does the same natively, and the two grids must be equal voxel for voxel.
 #   bash python/emulate-aarch64.sh target/dist/meshvox-VERSION-cp310-abi3-manylinux_2_28_aarch64.whl
 set -euo pipefail
 wheel=$(realpath "$1")
 cd "$(dirname "$0")/.."
-[ -x target/wheel-tools/bin/python ] || { echo "python/emulate-aarch64.sh: run python/build-wheels.sh first (its tools)" >&2; exit 1; }
 root=target/aarch64-root
 site=target/aarch64-site
 tools=target/wheel-tools
+[ -x "$tools/bin/python" ] || { echo "python/emulate-aarch64.sh: run python/build-wheels.sh first (its tools)" >&2; exit 1; }
 
 if [ ! -x "$root/usr/bin/python3.11" ]; then
   if ! dpkg --print-foreign-architectures | grep -qx arm64; then
@@ -60,8 +60,8 @@ start=$SECONDS
 emulated=$(qemu-aarch64 -L "$root" "$root/usr/bin/python3.11" -c "import sys; sys.path.insert(0, '$site')
 $job")
 echo "under qemu-aarch64 ($((SECONDS - start)) s): $emulated"
-x86=$(ls "$(dirname "$wheel")"/meshvox-*-"$(basename "$wheel" | sed 's/.*-cp310-abi3-\(manylinux_[0-9_]*\)_aarch64.whl/\1/')"_x86_64.whl 2>/dev/null || true)
-if [ -n "$x86" ]; then
+x86=${wheel%_aarch64.whl}_x86_64.whl
+if [ -f "$x86" ]; then
   python3 -m zipfile -e "$x86" target/x86_64-site
   "$tools/bin/python" -c 'import numpy' 2>/dev/null || "$tools/bin/python" -m pip install --quiet --disable-pip-version-check numpy==2.4.6
   native=$("$tools/bin/python" -c "import sys; sys.path.insert(0, '$PWD/target/x86_64-site')

@@ -144,7 +144,7 @@ impl<'a, T> IntoParallelIterator for &'a Vec<T> {
     }
 }
 
-/// Tuples of iterables, zipped: items are tuples of the same arity.
+/// Tuples of iterables, zipped: items are tuples of the same arity (the arities the library zips).
 macro_rules! zipped_tuple {
     ($name:ident: $($t:ident $i:tt),+) => {
         pub struct $name<$($t),+>($($t),+);
@@ -166,9 +166,6 @@ macro_rules! zipped_tuple {
     };
 }
 zipped_tuple!(Zip2: A 0, B 1);
-zipped_tuple!(Zip3: A 0, B 1, C 2);
-zipped_tuple!(Zip4: A 0, B 1, C 2, D 3);
-zipped_tuple!(Zip5: A 0, B 1, C 2, D 3, E 4);
 zipped_tuple!(Zip6: A 0, B 1, C 2, D 3, E 4, F 5);
 
 /// `par_iter` on anything whose reference iterates (slices, vectors, maps).

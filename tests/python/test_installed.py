@@ -18,6 +18,9 @@ import numpy as np
 import meshvox
 from conftest import ROOT, skip_or_fail
 
+# A closed tetrahedron, voxelized in the hidden-loader process and here.
+TETRAHEDRON = ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
 
 def installed_wheel() -> pathlib.Path:
     wheel = os.environ.get("MESHVOX_WHEEL")
@@ -64,10 +67,9 @@ def test_without_a_vulkan_loader_or_egl_the_gpu_backend_says_so_in_one_line(tmp_
     libraries = sorted({os.path.realpath(path) for name, path in re.findall(r"^\s*(\S+) .*=> (\S+)$", cache, re.M)
                         if name.split(".so")[0] in ("libvulkan", "libEGL", "libGL")})
     assert any("libvulkan" in path for path in libraries), cache
-    job = """
+    job = f"""
 import meshvox, numpy as np
-vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+vertices, faces = np.array({TETRAHEDRON[0]!r}, float), np.array({TETRAHEDRON[1]!r})
 try:
     meshvox.voxelize((vertices, faces), 16, backend="gpu")
     print("GPU: voxelized")
@@ -90,7 +92,6 @@ print("auto:", grid.stats["backend"])
     # What is missing, without the backends this build never has.
     assert "vulkan drivers/libraries could not be loaded" in gpu and "not compiled in" not in gpu, gpu
     assert next(line for line in lines if line.startswith("auto:")).startswith("auto: cpu"), lines
-    on_cpu = meshvox.voxelize(
-        (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float),
-         np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])), 16, backend="cpu", mode="solid")
+    tetrahedron = (np.array(TETRAHEDRON[0], float), np.array(TETRAHEDRON[1]))
+    on_cpu = meshvox.voxelize(tetrahedron, 16, backend="cpu", mode="solid")
     assert np.array_equal(np.load(tmp_path / "auto.npy"), on_cpu.matrix)
