@@ -2,7 +2,8 @@
 # Builds the web page as a self-contained static site in web/dist/: index.html and two builds of the meshvox
 # binary's release wasm with their JS bindings (wasm-bindgen-cli, whose version must equal Cargo.lock's
 # wasm-bindgen): meshvox.js for browsers with WebGPU, meshvox_gl.js (`--features webgl`: CPU voxelization, WebGL2
-# drawing) for the others; the page loads only the one it needs. Each wasm is built with the size-optimised `web`
+# drawing) for the others; the page loads only the one it needs, and meshvox_loader.js (app/loader.rs: glTF files and
+# JPEG or WebP textures, which neither app build decodes) only when a file needs it. Each wasm is built with the size-optimised `web`
 # profile and shrunk with wasm-opt (npm's binaryen, installed into web/node_modules).
 # `bash web/build.sh --serve [PORT]` then serves it on http://127.0.0.1:PORT (default 8080).
 # Run as root on a fresh machine, it installs what it needs first: clang and llvm (meshoptimizer's C++ decoder is
@@ -60,6 +61,18 @@ for build in webgpu webgl; do
   gz=$(gzip -9 -c web/dist/${name}_bg.wasm | wc -c)
   echo "web/dist: ${name}_bg.wasm ($build) $size bytes after wasm-opt (was $raw), $gz gzipped" >&2
 done
+# The loader module both builds fetch for glTF files and JPEG or WebP textures (app/loader.rs): the library
+# without the GPU and the viewer.
+cargo build --locked --profile web --target wasm32-unknown-unknown --bin meshvox-loader --no-default-features \
+  --features loader
+wasm-bindgen --target web --no-typescript --out-dir web/dist --out-name meshvox_loader \
+  "${CARGO_TARGET_DIR:-target}"/wasm32-unknown-unknown/web/meshvox-loader.wasm
+# shellcheck disable=SC2086
+web/node_modules/.bin/wasm-opt -O1 $features web/dist/meshvox_loader_bg.wasm -o web/dist/meshvox_loader_bg.opt.wasm
+mv web/dist/meshvox_loader_bg.opt.wasm web/dist/meshvox_loader_bg.wasm
+size=$(stat -c %s web/dist/meshvox_loader_bg.wasm)
+gz=$(gzip -9 -c web/dist/meshvox_loader_bg.wasm | wc -c)
+echo "web/dist: meshvox_loader_bg.wasm (the loader module) $size bytes after wasm-opt, $gz gzipped" >&2
 cp web/index.html web/dist/index.html
 # The licence of the text font the wasm embeds (assets/fonts), which the Ubuntu Font Licence asks to travel with it.
 cp assets/fonts/UFL.txt web/dist/UFL.txt

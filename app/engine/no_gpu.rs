@@ -88,6 +88,7 @@ impl OnGpu {
         match *self {}
     }
 
+    #[cfg_attr(target_arch = "wasm32", allow(dead_code))]
     pub(super) async fn nearest(
         &self,
         _: &NearestTables,

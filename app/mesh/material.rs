@@ -9,7 +9,7 @@
 use glam::{Vec2, Vec4};
 
 /// How a texture coordinate outside [0, 1] is brought back (glTF sampler `wrapS`/`wrapT`; OBJ textures repeat).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[repr(u32)]
 pub enum Wrap {
     #[default]
@@ -20,7 +20,7 @@ pub enum Wrap {
 
 /// A decoded texture: `width × height` texels, row 0 at the top (v = 0), each RGBA8 packed as
 /// `r | g << 8 | b << 16 | a << 24` with sRGB-encoded colour and linear alpha.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Texture {
     pub width: u32,
     pub height: u32,
@@ -44,10 +44,9 @@ impl Texture {
         nearest: bool,
         budget: &super::files::Budget,
     ) -> Result<Texture, String> {
-        let reader = || image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
         // The size from the header first: an image over the budget is refused before it is decoded. The decoder
         // itself stays within the image crate's default limits (512 MiB).
-        let (width, height) = reader().map_err(|e| e.to_string())?.into_dimensions().map_err(|e| e.to_string())?;
+        let (width, height) = image_dimensions(bytes)?;
         if width == 0 || height == 0 {
             return Err("the image is empty".into());
         }
@@ -61,16 +60,42 @@ impl Texture {
             ));
         }
         budget.spend(texel_bytes).map_err(|total| format!("decoded, it {}", budget.over(texel_bytes, total)))?;
-        let image = reader().map_err(|e| e.to_string())?.decode().map_err(|e| e.to_string())?.into_rgba8();
+        let image = decode_image(bytes)?.into_rgba8();
         let (width, height) = image.dimensions();
         let texels = image.pixels().map(|p| u32::from_le_bytes(p.0)).collect();
         Ok(Texture { width, height, texels, wrap, nearest })
     }
 }
 
+/// An image's size from its header: PNG, JPEG or WebP guessed from its bytes, or PNG alone in the page's app
+/// ([`super::DECODES_ALL`]: there the image crate's format guess, which reaches every decoder, is not linked).
+fn image_dimensions(bytes: &[u8]) -> Result<(u32, u32), String> {
+    use image::ImageDecoder;
+    if super::DECODES_ALL {
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
+        reader.map_err(|e| e.to_string())?.into_dimensions().map_err(|e| e.to_string())
+    } else {
+        Ok(png_decoder(bytes)?.dimensions())
+    }
+}
+
+/// An image decoded, as [`image_dimensions`] reads it.
+fn decode_image(bytes: &[u8]) -> Result<image::DynamicImage, String> {
+    if super::DECODES_ALL {
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
+        reader.map_err(|e| e.to_string())?.decode().map_err(|e| e.to_string())
+    } else {
+        image::DynamicImage::from_decoder(png_decoder(bytes)?).map_err(|e| e.to_string())
+    }
+}
+
+fn png_decoder(bytes: &[u8]) -> Result<image::codecs::png::PngDecoder<std::io::Cursor<&[u8]>>, String> {
+    image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())
+}
+
 /// A texture as a material uses it: which one, and the `KHR_texture_transform` of its coordinates as the two
 /// rows of a 2×3 matrix (`uv' = (row0 · (u, v, 1), row1 · (u, v, 1))`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TextureRef {
     pub texture: u32,
     pub transform: [[f32; 3]; 2],
@@ -88,7 +113,7 @@ impl TextureRef {
 }
 
 /// What a material's alpha (base colour alpha × texture alpha × vertex colour alpha) means: glTF's `alphaMode`.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub enum AlphaMode {
     /// Alpha is ignored: every surface point is there (glTF's default).
     #[default]
@@ -104,7 +129,7 @@ pub enum AlphaMode {
 pub const DEFAULT_ALPHA_CUTOFF: f32 = 0.5;
 
 /// A material's colour: `base_color × texture(uv)`, linear RGBA, and what its alpha means.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Material {
     pub name: String,
     pub base_color: Vec4,
@@ -144,7 +169,7 @@ impl Material {
 /// Per-triangle shading inputs, laid out as the colour shader reads them (`TriangleShading` in
 /// `shaders/colour.wgsl`): three texture coordinates, three vertex colours in linear unorm16 RGBA, the material.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable, serde::Serialize, serde::Deserialize)]
 pub struct TriangleShading {
     pub uv: [[f32; 2]; 3],
     /// Linear RGBA per corner, each channel `round(c × 65535)`, packed two channels per u32 (r | g << 16, b | a << 16).
@@ -180,7 +205,7 @@ impl TriangleShading {
 }
 
 /// Everything the colour pass needs from a mesh: `triangles[i]` shades `Mesh::triangles[i]`.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Shading {
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,

@@ -19,6 +19,7 @@ mod obj;
 mod ply;
 pub mod rig;
 mod stl;
+pub mod transfer;
 
 use crate::names::Setting;
 use cloud::{CloudFormat, PointCloud};
@@ -29,7 +30,7 @@ use material::TriangleShading;
 use std::path::{Path, PathBuf};
 
 /// Where a group of triangles came from, so later stages (colour transfer, per-part stats) can trace them back.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Part {
     /// Object/group name (OBJ) or mesh name (glTF); empty when the file gives none.
     pub name: String,
@@ -60,7 +61,7 @@ impl Aabb {
 /// A triangle soup. Positions are f32 offsets from an f64 `anchor` (the centre of the loaded positions): a
 /// mesh far from the origin (UTM coordinates, a CAD part metres from its assembly's origin) keeps the f32
 /// precision of a mesh at the origin, while the triangles take no more memory than plain f32 positions.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {
     /// A short name for messages and stats: the file name or `builtin:NAME`.
     pub name: String,
@@ -77,7 +78,9 @@ pub struct Mesh {
     /// colour (see [`Shading::has_colour`]); `None` otherwise.
     pub shading: Option<Shading>,
     /// A point cloud instead of triangles (a PLY without faces, `.xyz`, `.pts`, `.npy`, `.npz`): then `triangles`
-    /// is empty and each point sets its voxel.
+    /// is empty and each point sets its voxel. Not carried by [`transfer`]: the files the page's loader module
+    /// reads (glTF, textured OBJ) give no point clouds.
+    #[serde(skip)]
     pub points: Option<PointCloud>,
     /// A glTF file's skins, morph targets and animations, by which [`Mesh::posed`] poses it again (the triangles
     /// are its rest pose); `None` for every other mesh.
@@ -306,6 +309,12 @@ pub enum MeshError {
     Io { path: PathBuf, source: std::io::Error },
     #[error("{}: unsupported mesh format (expected .obj, .gltf, .glb, .stl or .ply; point clouds: .ply, .xyz, .pts, .npy or .npz)", path.display())]
     UnsupportedFormat { path: PathBuf },
+    /// The web page's app leaves glTF files and JPEG and WebP images to its loader module ([`DECODES_ALL`]).
+    #[error("{}: glTF and JPEG or WebP textures are read by the page's loader module, not by this build", path.display())]
+    NotInThisBuild { path: PathBuf },
+    /// A failure reported by another build of meshvox, the page's loader module, in its own words.
+    #[error("{0}")]
+    Elsewhere(String),
     #[error("{}: invalid OBJ: {message}", path.display())]
     Obj { path: PathBuf, message: String },
     #[error("{}: invalid glTF: {message}", path.display())]
@@ -552,6 +561,12 @@ pub fn load_bytes(name: &str, bytes: &[u8]) -> Result<Mesh, MeshError> {
     load_bytes_impl(Path::new(name), bytes, Externals::None(&Budget::new(limits.byte_limit())), &limits)
 }
 
+/// Whether this build reads glTF files and decodes JPEG and WebP images itself: every build but the web page's
+/// app, whose wasm leaves them (the gltf, Draco, meshoptimizer, JPEG and WebP decoders, a sixth of its code) to
+/// the loader module the page fetches when a file needs it (`app/loader.rs`, [`transfer`]). A constant, so
+/// that the page's link drops the code behind it.
+pub const DECODES_ALL: bool = !cfg!(all(target_arch = "wasm32", feature = "viewer"));
+
 /// Loads a mesh from several files picked or dropped together (a `.gltf` with its `.bin` and textures, an `.obj`
 /// with its `.mtl` and images): the first file with a mesh extension is the mesh, the others are what it refers
 /// to, found by file name.
@@ -568,7 +583,8 @@ pub fn load_files(files: &[(String, Vec<u8>)]) -> Result<Mesh, MeshError> {
 fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {
     let mut mesh = match Format::detect(path, bytes) {
         Some(Format::Obj) => obj::load(path, bytes, base, limits)?,
-        Some(Format::Gltf) => gltf_scene::load(path, bytes, base, limits)?,
+        Some(Format::Gltf) if DECODES_ALL => gltf_scene::load(path, bytes, base, limits)?,
+        Some(Format::Gltf) => return Err(MeshError::NotInThisBuild { path: path.to_path_buf() }),
         Some(Format::Stl) => stl::load(path, bytes, limits)?,
         Some(Format::Ply) => ply::load(path, bytes, limits)?,
         Some(Format::Points(format)) => cloud::load(path, bytes, format, limits)?,

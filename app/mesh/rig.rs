@@ -16,7 +16,7 @@
 use glam::{DMat4, DQuat, DVec3};
 
 /// A translation, rotation and scale.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Trs {
     pub translation: DVec3,
     pub rotation: DQuat,
@@ -30,14 +30,14 @@ impl Trs {
 }
 
 /// A node's own transform as the file gives it: a matrix (never animated) or its parts.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Local {
     Matrix(DMat4),
     Trs(Trs),
 }
 
 /// A node of the hierarchy.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RigNode {
     pub parent: Option<u32>,
     pub local: Local,
@@ -46,14 +46,14 @@ pub struct RigNode {
 }
 
 /// A skin: its joints (node indices) and each joint's inverse bind matrix.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Skin {
     pub joints: Vec<u32>,
     pub inverse_bind: Vec<DMat4>,
 }
 
 /// What an animation channel moves.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Property {
     Translation,
     Rotation,
@@ -61,7 +61,7 @@ pub enum Property {
     Weights,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Interpolation {
     Step,
     Linear,
@@ -70,7 +70,7 @@ pub enum Interpolation {
 
 /// One animated property of one node: key times (seconds, increasing) and values, `width` numbers a key (3, 4,
 /// or the morph target count; three times that for `CUBICSPLINE`: in-tangent, value, out-tangent).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Channel {
     pub node: u32,
     pub property: Property,
@@ -80,7 +80,7 @@ pub struct Channel {
     pub width: usize,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Animation {
     /// The file's name for it (empty where it has none).
     pub name: String,
@@ -95,7 +95,7 @@ impl Animation {
 }
 
 /// How a piece's vertices reach the world.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Placement {
     /// By its node's world transform, times an instance's transform.
     Rigid { node: u32, instance: DMat4 },
@@ -105,7 +105,7 @@ pub enum Placement {
 
 /// One primitive as the rig moves it: its vertices in the mesh's own space, its triangles, how it is placed, the
 /// node whose morph weights it takes and its morph targets' position offsets.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RigPiece {
     pub positions: Vec<DVec3>,
     pub triangles: Vec<[u32; 3]>,
@@ -115,7 +115,7 @@ pub struct RigPiece {
 }
 
 /// Everything a glTF file needs to be posed again.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Rig {
     pub nodes: Vec<RigNode>,
     pub skins: Vec<Skin>,

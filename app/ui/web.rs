@@ -31,6 +31,8 @@ pub enum Command {
     SetView(String),
     /// One mesh file, or a mesh with the files it refers to (see [`crate::mesh::load_files`]).
     LoadFiles(Vec<(String, Vec<u8>)>),
+    /// A mesh the page's loader module read ([`load_elsewhere`]), named as [`Command::LoadFiles`] names it.
+    Loaded(String, Box<Result<mesh::Mesh, mesh::MeshError>>),
     /// Download the current grid in a format named by its extension.
     Export(String),
     /// Something the page tried failed (a file could not be read); shown like any other error.
@@ -90,6 +92,34 @@ pub(crate) fn read_dropped(files: Vec<egui::DroppedFileHandle>) {
         }
         send(Command::LoadFiles(read));
     });
+}
+
+/// Hands files this build does not read ([`mesh::DECODES_ALL`]) to the page's loader module through
+/// `window.meshvoxLoaderModule(names, contents)` (web/index.html fetches the module on first use) and queues the
+/// mesh it returns, or its error, as [`Command::Loaded`].
+fn load_elsewhere(name: String, files: Vec<(String, Vec<u8>)>) {
+    wasm_bindgen_futures::spawn_local(async move {
+        let loaded = read_elsewhere(&files).await;
+        send(Command::Loaded(name, Box::new(loaded)));
+    });
+}
+
+async fn read_elsewhere(files: &[(String, Vec<u8>)]) -> Result<mesh::Mesh, mesh::MeshError> {
+    let failed =
+        |what: &str, e: JsValue| mesh::MeshError::Elsewhere(e.as_string().unwrap_or_else(|| format!("{what}: {e:?}")));
+    let window = web_sys::window().ok_or_else(|| mesh::MeshError::Elsewhere("no window".into()))?;
+    let f = js_sys::Reflect::get(&window, &"meshvoxLoaderModule".into()).map_err(|e| failed("no loader", e))?;
+    let f: js_sys::Function =
+        f.dyn_into().map_err(|_| mesh::MeshError::Elsewhere("this page has no window.meshvoxLoaderModule".into()))?;
+    let (names, contents) = (js_sys::Array::new(), js_sys::Array::new());
+    for (name, bytes) in files {
+        names.push(&name.into());
+        contents.push(&js_sys::Uint8Array::from(bytes.as_slice()));
+    }
+    let promise = f.call2(&JsValue::NULL, &names, &contents).map_err(|e| failed("the loader module", e))?;
+    let promise: js_sys::Promise = promise.dyn_into().map_err(|e| failed("the loader module", e))?;
+    let encoded = wasm_bindgen_futures::JsFuture::from(promise).await.map_err(|e| failed("the loader module", e))?;
+    mesh::transfer::decode(&js_sys::Uint8Array::new(&encoded).to_vec())
 }
 
 /// Hands `bytes` to the page's `window.meshvoxDownload(name, bytes)`, which saves them as a download.
@@ -203,13 +233,19 @@ impl ViewerApp {
                     }
                 },
                 Command::LoadFiles(files) => {
-                    let loaded = mesh::load_files(&files);
                     let name = files
                         .iter()
                         .map(|(n, _)| n.as_str())
                         .find(|n| mesh::Format::detect(std::path::Path::new(n), &[]).is_some());
-                    self.set_mesh(name.unwrap_or("files").to_string(), loaded);
+                    let name = name.unwrap_or("files").to_string();
+                    if !mesh::DECODES_ALL && mesh::transfer::needs_loader(&files) {
+                        load_elsewhere(name, files);
+                    } else {
+                        let loaded = mesh::load_files(&files);
+                        self.set_mesh(name, loaded);
+                    }
                 }
+                Command::Loaded(name, loaded) => self.set_mesh(name, *loaded),
                 Command::Export(ext) => {
                     match formats::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
                         Some(format) => self.download(format),

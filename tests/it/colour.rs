@@ -335,6 +335,26 @@ fn sampler_wrap_modes_filter_and_texture_transform() {
     }
 }
 
+/// A palette PNG is decoded within `PALETTE_IMAGE_BYTES`: one whose header declares more (a few KiB of one colour
+/// that would decode to 64 MiB) is refused before its pixels are decoded, one within it gives its colours.
+#[test]
+fn a_palette_png_is_decoded_within_its_bound() {
+    use meshvox::formats::swatches::{PALETTE_IMAGE_BYTES, Swatches};
+    let png = |side: u32| {
+        let image = image::RgbaImage::from_pixel(side, side, image::Rgba([9, 99, 199, 255]));
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image.write_to(&mut bytes, image::ImageFormat::Png).expect("encode");
+        bytes.into_inner()
+    };
+    const { assert!(4096 * 4096 * 4 > PALETTE_IMAGE_BYTES && 1024 * 1024 * 4 <= PALETTE_IMAGE_BYTES) };
+    let big = png(4096);
+    assert!(big.len() < 1 << 20, "{} bytes", big.len());
+    let e = Swatches::read_palette(&big, "big.png").expect_err("over the bound").to_string();
+    assert!(e.contains("big.png") && e.contains("not a readable PNG") && e.to_lowercase().contains("limit"), "{e}");
+    let s = Swatches::read_palette(&png(1024), "fits.png").expect("within the bound");
+    assert_eq!(s.colours, [[9, 99, 199]]);
+}
+
 /// Palette files in the spellings people have them (GIMP, hex with or without `#`, Paint.NET's ARGB, CSV), and
 /// the nearest entry in Oklab, the first of equals.
 #[test]

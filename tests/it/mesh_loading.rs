@@ -470,3 +470,85 @@ fn obj_files_count_their_faces_and_errors_name_the_line() {
         }
     }
 }
+
+/// An OBJ quad textured by `texture` (its bytes, named `name`), as files picked together.
+fn textured_quad(name: &str, texture: Vec<u8>) -> Vec<(String, Vec<u8>)> {
+    let obj = "mtllib quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0.25\nv 0 1 0.25\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+               usemtl textured\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    let mtl = format!("newmtl textured\nmap_Kd {name}\n");
+    vec![("quad.obj".into(), obj.into()), ("quad.mtl".into(), mtl.into_bytes()), (name.into(), texture)]
+}
+
+/// A 16x8 gradient encoded as `format`.
+fn gradient(format: image::ImageFormat) -> Vec<u8> {
+    let image = image::RgbImage::from_fn(16, 8, |x, y| image::Rgb([(x * 16) as u8, (y * 32) as u8, 200]));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, format).expect("encode");
+    bytes.into_inner()
+}
+
+/// The web page's app reads neither glTF nor JPEG or WebP (`mesh::DECODES_ALL`); its loader module reads them and
+/// hands the mesh over as `mesh::transfer`'s bytes. Every kind of mesh it reads comes back equal, field for field:
+/// the rigged box's skins, morph targets and animations, materials, texels, vertex colours, parts and warnings.
+#[test]
+fn meshes_the_pages_loader_module_hands_over_come_back_whole() {
+    let mut meshes = vec![
+        ("the rigged box".to_string(), mesh::load_bytes("box.gltf", crate::pose::rigged_box().as_bytes())),
+        (
+            "an OBJ with a JPEG texture".into(),
+            mesh::load_files(&textured_quad("t.jpg", gradient(image::ImageFormat::Jpeg))),
+        ),
+        (
+            "an OBJ with a WebP texture".into(),
+            mesh::load_files(&textured_quad("t.webp", gradient(image::ImageFormat::WebP))),
+        ),
+    ];
+    if let Some(dir) = shared_meshes() {
+        let gltf = dir.join("gltf");
+        let mut files: Vec<_> =
+            std::fs::read_dir(&gltf).expect("gltf folder").map(|e| e.expect("entry").path()).collect();
+        files.push(gltf.join("cube-external/Cube.gltf"));
+        files.retain(|p| p.extension().is_some_and(|e| e == "gltf" || e == "glb"));
+        files.sort();
+        assert!(files.len() >= 8, "{files:?}");
+        meshes.extend(files.iter().map(|p| (p.display().to_string(), mesh::load_path(p))));
+    }
+    let (mut rigged, mut textured, mut coloured_corners) = (0, 0, 0);
+    for (what, loaded) in meshes {
+        let m = loaded.unwrap_or_else(|e| panic!("{what}: {e}"));
+        let bytes = mesh::transfer::encode(&m).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let back = mesh::transfer::decode(&bytes).unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert!(back == m, "{what}: the mesh handed over differs from the mesh loaded");
+        rigged += m.rig.as_ref().is_some_and(|r| !r.animations.is_empty() && !r.skins.is_empty()) as usize;
+        let shading = m.shading.as_ref();
+        textured += shading.is_some_and(|s| s.textures.iter().any(|t| t.texels.len() > 1)) as usize;
+        coloured_corners += shading.is_some_and(|s| {
+            s.triangles.iter().any(|t| t.color.iter().any(|c| *c != mesh::material::TriangleShading::WHITE))
+        }) as usize;
+    }
+    // What the comparison covered: a rig with skins and animations, decoded textures, per-corner colours.
+    assert!(rigged >= 1 && textured >= 2 && coloured_corners >= usize::from(shared_meshes().is_some()));
+    // Bytes that are not a mesh are an error, not a panic or a wrong mesh.
+    for bad in [&b""[..], b"\xff\xff\xff\xff\xff", b"not a mesh at all"] {
+        assert!(mesh::transfer::decode(bad).is_err(), "{bad:?}");
+    }
+}
+
+/// Which picked files the page's app hands to its loader module: glTF by name or magic, and JPEG or WebP images
+/// by their bytes whatever their names; an OBJ with a PNG, STL and PLY stay in the app.
+#[test]
+fn files_that_need_the_pages_loader_module_are_told_by_name_and_bytes() {
+    let file = |name: &str, bytes: &[u8]| (name.to_string(), bytes.to_vec());
+    let png = gradient(image::ImageFormat::Png);
+    let needs = mesh::transfer::needs_loader;
+    assert!(needs(&[file("a.gltf", b"{}")]));
+    assert!(needs(&[file("a.GLB", b"")]));
+    assert!(needs(&[file("scan", b"glTF\x02\0\0\0")]));
+    assert!(needs(&textured_quad("t.jpg", gradient(image::ImageFormat::Jpeg))));
+    assert!(needs(&textured_quad("named-png.png", gradient(image::ImageFormat::Jpeg))));
+    assert!(needs(&textured_quad("t.webp", gradient(image::ImageFormat::WebP))));
+    assert!(!needs(&textured_quad("t.png", png)));
+    assert!(!needs(&[file("a.stl", b"solid a\nendsolid a\n")]));
+    assert!(!needs(&[file("a.ply", b"ply\nformat ascii 1.0\nend_header\n")]));
+    assert!(!needs(&[file("not-an-image.jpg", b"\x89PNG")]));
+}

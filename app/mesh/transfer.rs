@@ -1,0 +1,39 @@
+//! A loaded mesh handed between two wasm modules of the web page: its loader module (`app/loader.rs`) reads the
+//! files the page's app leaves to it ([`super::DECODES_ALL`]: glTF, and JPEG or WebP textures) and gives back the
+//! mesh as bytes, which the app turns back into the same [`Mesh`] (every triangle, part, material, texel and the
+//! rig). The bytes are serde's derived form in postcard's encoding: both sides are built from this crate at
+//! once, so no version is written.
+
+use super::{Format, Mesh, MeshError};
+use std::path::Path;
+
+/// The mesh as bytes. A point cloud is refused: the loader module reads none (its files are glTF and OBJ).
+pub fn encode(mesh: &Mesh) -> Result<Vec<u8>, MeshError> {
+    if mesh.points.is_some() {
+        return Err(MeshError::Elsewhere(format!("{}: a point cloud cannot be handed over", mesh.name)));
+    }
+    postcard::to_allocvec(mesh).map_err(|e| MeshError::Elsewhere(format!("{}: cannot encode the mesh: {e}", mesh.name)))
+}
+
+/// The mesh [`encode`] wrote.
+pub fn decode(bytes: &[u8]) -> Result<Mesh, MeshError> {
+    postcard::from_bytes(bytes)
+        .map_err(|e| MeshError::Elsewhere(format!("the loader module's mesh is not readable: {e}")))
+}
+
+/// Whether files picked together need what a build without [`super::DECODES_ALL`] leaves out: a glTF file (by
+/// name or by its `glTF` magic), or a JPEG or WebP image by its signature (an OBJ's textures are named by its
+/// material library, so every image among the files counts, whatever its name).
+pub fn needs_loader(files: &[(String, Vec<u8>)]) -> bool {
+    files.iter().any(|(name, bytes)| {
+        Format::detect(Path::new(name), bytes) == Some(Format::Gltf) || is_jpeg(bytes) || is_webp(bytes)
+    })
+}
+
+fn is_jpeg(bytes: &[u8]) -> bool {
+    bytes.starts_with(&[0xff, 0xd8, 0xff])
+}
+
+fn is_webp(bytes: &[u8]) -> bool {
+    bytes.len() >= 12 && &bytes[..4] == b"RIFF" && &bytes[8..12] == b"WEBP"
+}
