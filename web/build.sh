@@ -2,9 +2,9 @@
 # Builds the web page as a self-contained static site in web/dist/: index.html and two builds of the meshvox
 # binary's release wasm with their JS bindings (wasm-bindgen-cli, whose version must equal Cargo.lock's
 # wasm-bindgen): meshvox.js for browsers with WebGPU, meshvox_gl.js (`--features webgl`: CPU voxelization, WebGL2
-# drawing) for the others; the page loads only the one it needs, and meshvox_loader.js (app/loader.rs: glTF files and
-# JPEG or WebP textures, which neither app build decodes) only when a file needs it. Each wasm is built with the size-optimised `web`
-# profile and shrunk with wasm-opt (npm's binaryen, installed into web/node_modules).
+# drawing) for the others; the page loads only the one it needs, and meshvox_loader.js (app/loader.rs: glTF files
+# and JPEG or WebP textures, which neither app build decodes) only when a file needs it. Each wasm is built with
+# the size-optimised `web` profile and shrunk with wasm-opt (npm's binaryen, installed into web/node_modules).
 # `bash web/build.sh --serve [PORT]` then serves it on http://127.0.0.1:PORT (default 8080).
 # Run as root on a fresh machine, it installs what it needs first: clang and llvm (meshoptimizer's C++ decoder is
 # compiled for wasm32 with clang and archived with llvm-ar), Node.js and npm (for wasm-opt), the wasm32 target and

@@ -248,16 +248,9 @@ fn parse_text(text: &str, what: &str) -> Result<Vec<[u8; 3]>, PaletteError> {
 /// A palette image decoded within bounds: a PNG declares its size in its header, and a small file can declare
 /// gigapixels. A palette is a strip or a small swatch sheet; 16 MiB of decoded pixels is far more than any.
 fn decode_palette_png(bytes: &[u8]) -> image::ImageResult<image::DynamicImage> {
-    use image::ImageDecoder;
-    // The PNG decoder itself, not `ImageReader`, whose decode reaches every format the image crate is built
-    // with (the page's app links only PNG's; mesh::DECODES_ALL); the limits as `ImageReader::decode` applies them:
-    // the decoder's own allocations, then the decoded image's bytes.
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(PALETTE_IMAGE_BYTES);
-    let mut decoder = image::codecs::png::PngDecoder::with_limits(std::io::Cursor::new(bytes), limits.clone())?;
-    limits.reserve(decoder.total_bytes())?;
-    decoder.set_limits(limits)?;
-    image::DynamicImage::from_decoder(decoder)
+    crate::mesh::material::decode_png(bytes, limits)
 }
 
 /// The most bytes a palette image may decode to.

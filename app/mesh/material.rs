@@ -75,22 +75,43 @@ fn image_dimensions(bytes: &[u8]) -> Result<(u32, u32), String> {
         let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
         reader.map_err(|e| e.to_string())?.into_dimensions().map_err(|e| e.to_string())
     } else {
-        Ok(png_decoder(bytes)?.dimensions())
+        only_png(bytes)?;
+        let decoder = image::codecs::png::PngDecoder::with_limits(std::io::Cursor::new(bytes), Default::default());
+        Ok(decoder.map_err(|e| e.to_string())?.dimensions())
     }
 }
 
-/// An image decoded, as [`image_dimensions`] reads it.
+/// An image decoded, as [`image_dimensions`] reads it, within the image crate's default limits (512 MiB).
 fn decode_image(bytes: &[u8]) -> Result<image::DynamicImage, String> {
     if super::DECODES_ALL {
         let reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format();
         reader.map_err(|e| e.to_string())?.decode().map_err(|e| e.to_string())
     } else {
-        image::DynamicImage::from_decoder(png_decoder(bytes)?).map_err(|e| e.to_string())
+        only_png(bytes)?;
+        decode_png(bytes, image::Limits::default()).map_err(|e| e.to_string())
     }
 }
 
-fn png_decoder(bytes: &[u8]) -> Result<image::codecs::png::PngDecoder<std::io::Cursor<&[u8]>>, String> {
-    image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())
+/// In the page's app, an image that is not a PNG fails as `ImageReader` fails on a format it is built without
+/// (JPEG and WebP never get here: the loader module reads the files that have them).
+fn only_png(bytes: &[u8]) -> Result<(), String> {
+    use image::error::{ImageError, ImageFormatHint};
+    match image::guess_format(bytes) {
+        Ok(image::ImageFormat::Png) => Ok(()),
+        Ok(format) => Err(ImageError::Unsupported(ImageFormatHint::Exact(format).into()).to_string()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A PNG decoded by the PNG decoder itself within `limits`, applied as `ImageReader::decode` applies them: the
+/// decoder's own allocations, then the decoded image's bytes. For the page's app, which links no other decoder
+/// (`ImageReader`'s decode reaches every format the image crate is built with), and for palettes.
+pub(crate) fn decode_png(bytes: &[u8], mut limits: image::Limits) -> image::ImageResult<image::DynamicImage> {
+    use image::ImageDecoder;
+    let mut decoder = image::codecs::png::PngDecoder::with_limits(std::io::Cursor::new(bytes), limits.clone())?;
+    limits.reserve(decoder.total_bytes())?;
+    decoder.set_limits(limits)?;
+    image::DynamicImage::from_decoder(decoder)
 }
 
 /// A texture as a material uses it: which one, and the `KHR_texture_transform` of its coordinates as the two

@@ -79,7 +79,7 @@ pub struct Mesh {
     pub shading: Option<Shading>,
     /// A point cloud instead of triangles (a PLY without faces, `.xyz`, `.pts`, `.npy`, `.npz`): then `triangles`
     /// is empty and each point sets its voxel. Not carried by [`transfer`]: the files the page's loader module
-    /// reads (glTF, textured OBJ) give no point clouds.
+    /// is handed (glTF, an OBJ with JPEG or WebP textures; [`transfer::needs_loader`]) give no point clouds.
     #[serde(skip)]
     pub points: Option<PointCloud>,
     /// A glTF file's skins, morph targets and animations, by which [`Mesh::posed`] poses it again (the triangles

@@ -21,13 +21,17 @@ pub fn decode(bytes: &[u8]) -> Result<Mesh, MeshError> {
         .map_err(|e| MeshError::Elsewhere(format!("the loader module's mesh is not readable: {e}")))
 }
 
-/// Whether files picked together need what a build without [`super::DECODES_ALL`] leaves out: a glTF file (by
-/// name or by its `glTF` magic), or a JPEG or WebP image by its signature (an OBJ's textures are named by its
-/// material library, so every image among the files counts, whatever its name).
+/// Whether files picked together need what a build without [`super::DECODES_ALL`] leaves out. The mesh is the
+/// file [`super::load_files`] takes (the first with a mesh file's extension): a glTF needs it, and so does an OBJ
+/// beside a JPEG or WebP image, found by its signature whatever its name (the material library names the
+/// textures). Anything else (STL, PLY, point clouds, an OBJ with PNG textures) loads without it.
 pub fn needs_loader(files: &[(String, Vec<u8>)]) -> bool {
-    files.iter().any(|(name, bytes)| {
-        Format::detect(Path::new(name), bytes) == Some(Format::Gltf) || is_jpeg(bytes) || is_webp(bytes)
-    })
+    let mesh = files.iter().find_map(|(name, _)| Format::detect(Path::new(name), &[]));
+    match mesh {
+        Some(Format::Gltf) => true,
+        Some(Format::Obj) => files.iter().any(|(_, bytes)| is_jpeg(bytes) || is_webp(bytes)),
+        _ => false,
+    }
 }
 
 fn is_jpeg(bytes: &[u8]) -> bool {

@@ -129,6 +129,13 @@ pub struct ViewerApp {
     /// The query last written to the page's address bar.
     #[cfg(target_arch = "wasm32")]
     url_written: String,
+    /// Meshes shown or asked of the page's loader module so far: a mesh the loader module returns is shown only
+    /// if nothing was opened or asked for after it (a slow glTF must not replace a mesh picked meanwhile).
+    #[cfg(target_arch = "wasm32")]
+    loads: u64,
+    /// The file the page's loader module is reading for the latest load, shown in the panel meanwhile.
+    #[cfg(target_arch = "wasm32")]
+    reading: Option<String>,
 }
 
 /// Default resolution: detailed, and still live on a CPU-emulated GPU.
@@ -192,6 +199,10 @@ impl ViewerApp {
             camera_from_url: None,
             #[cfg(target_arch = "wasm32")]
             url_written: String::new(),
+            #[cfg(target_arch = "wasm32")]
+            loads: 0,
+            #[cfg(target_arch = "wasm32")]
+            reading: None,
         };
         #[cfg(target_arch = "wasm32")]
         {
@@ -399,6 +410,11 @@ impl ViewerApp {
 
     /// Shows a newly loaded mesh, or keeps the current one and shows the error.
     pub fn set_mesh(&mut self, label: String, loaded: Result<Mesh, mesh::MeshError>) {
+        #[cfg(target_arch = "wasm32")]
+        {
+            self.loads += 1;
+            self.reading = None;
+        }
         match loaded {
             Ok(m) => {
                 // A link's note about its file is answered once another mesh is opened.

@@ -67,6 +67,10 @@ impl ViewerApp {
             web::open_file_picker();
         }
         ui.label(egui::RichText::new("Drop a mesh or point-cloud file anywhere.").small().weak());
+        #[cfg(target_arch = "wasm32")]
+        if let Some(name) = &self.reading {
+            ui.label(egui::RichText::new(format!("reading {name}…")).small());
+        }
         if let Some(notice) = &self.notice {
             ui.add(
                 egui::Label::new(egui::RichText::new(notice).small().color(egui::Color32::from_rgb(240, 160, 64)))

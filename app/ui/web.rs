@@ -31,8 +31,9 @@ pub enum Command {
     SetView(String),
     /// One mesh file, or a mesh with the files it refers to (see [`crate::mesh::load_files`]).
     LoadFiles(Vec<(String, Vec<u8>)>),
-    /// A mesh the page's loader module read ([`load_elsewhere`]), named as [`Command::LoadFiles`] names it.
-    Loaded(String, Box<Result<mesh::Mesh, mesh::MeshError>>),
+    /// A mesh the page's loader module read ([`load_elsewhere`]) for the load numbered `.0`, named as
+    /// [`Command::LoadFiles`] names it.
+    Loaded(u64, String, Box<Result<mesh::Mesh, mesh::MeshError>>),
     /// Download the current grid in a format named by its extension.
     Export(String),
     /// Something the page tried failed (a file could not be read); shown like any other error.
@@ -97,16 +98,23 @@ pub(crate) fn read_dropped(files: Vec<egui::DroppedFileHandle>) {
 /// Hands files this build does not read ([`mesh::DECODES_ALL`]) to the page's loader module through
 /// `window.meshvoxLoaderModule(names, contents)` (web/index.html fetches the module on first use) and queues the
 /// mesh it returns, or its error, as [`Command::Loaded`].
-fn load_elsewhere(name: String, files: Vec<(String, Vec<u8>)>) {
+fn load_elsewhere(load: u64, name: String, files: Vec<(String, Vec<u8>)>) {
     wasm_bindgen_futures::spawn_local(async move {
         let loaded = read_elsewhere(&files).await;
-        send(Command::Loaded(name, Box::new(loaded)));
+        send(Command::Loaded(load, name, Box::new(loaded)));
     });
 }
 
 async fn read_elsewhere(files: &[(String, Vec<u8>)]) -> Result<mesh::Mesh, mesh::MeshError> {
-    let failed =
-        |what: &str, e: JsValue| mesh::MeshError::Elsewhere(e.as_string().unwrap_or_else(|| format!("{what}: {e:?}")));
+    // A load's own failure comes as its one-line message; anything else (a trap in the module, a failed fetch)
+    // as a JavaScript error that web/index.html words, in one line.
+    let failed = |what: &str, e: JsValue| {
+        let line = match e.dyn_ref::<js_sys::Error>() {
+            Some(error) => String::from(error.message()),
+            None => e.as_string().unwrap_or_else(|| format!("{what} failed")),
+        };
+        mesh::MeshError::Elsewhere(line)
+    };
     let window = web_sys::window().ok_or_else(|| mesh::MeshError::Elsewhere("no window".into()))?;
     let f = js_sys::Reflect::get(&window, &"meshvoxLoaderModule".into()).map_err(|e| failed("no loader", e))?;
     let f: js_sys::Function =
@@ -119,7 +127,8 @@ async fn read_elsewhere(files: &[(String, Vec<u8>)]) -> Result<mesh::Mesh, mesh:
     let promise = f.call2(&JsValue::NULL, &names, &contents).map_err(|e| failed("the loader module", e))?;
     let promise: js_sys::Promise = promise.dyn_into().map_err(|e| failed("the loader module", e))?;
     let encoded = wasm_bindgen_futures::JsFuture::from(promise).await.map_err(|e| failed("the loader module", e))?;
-    mesh::transfer::decode(&js_sys::Uint8Array::new(&encoded).to_vec())
+    let encoded: js_sys::Uint8Array = encoded.dyn_into().map_err(|e| failed("the loader module's mesh", e))?;
+    mesh::transfer::decode(&encoded.to_vec())
 }
 
 /// Hands `bytes` to the page's `window.meshvoxDownload(name, bytes)`, which saves them as a download.
@@ -239,13 +248,17 @@ impl ViewerApp {
                         .find(|n| mesh::Format::detect(std::path::Path::new(n), &[]).is_some());
                     let name = name.unwrap_or("files").to_string();
                     if !mesh::DECODES_ALL && mesh::transfer::needs_loader(&files) {
-                        load_elsewhere(name, files);
+                        self.loads += 1;
+                        self.reading = Some(name.clone());
+                        load_elsewhere(self.loads, name, files);
                     } else {
                         let loaded = mesh::load_files(&files);
                         self.set_mesh(name, loaded);
                     }
                 }
-                Command::Loaded(name, loaded) => self.set_mesh(name, *loaded),
+                // Only the latest load: anything opened since makes this one stale.
+                Command::Loaded(load, name, loaded) if load == self.loads => self.set_mesh(name, *loaded),
+                Command::Loaded(..) => {}
                 Command::Export(ext) => {
                     match formats::VoxelFormat::from_extension(std::path::Path::new(&format!("x.{ext}"))) {
                         Some(format) => self.download(format),

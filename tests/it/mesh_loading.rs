@@ -534,8 +534,9 @@ fn meshes_the_pages_loader_module_hands_over_come_back_whole() {
     }
 }
 
-/// Which picked files the page's app hands to its loader module: glTF by name or magic, and JPEG or WebP images
-/// by their bytes whatever their names; an OBJ with a PNG, STL and PLY stay in the app.
+/// Which picked files the page's app hands to its loader module: a glTF (by name, as `load_files` picks its mesh),
+/// and an OBJ beside JPEG or WebP images (by their bytes whatever their names); an OBJ with a PNG, STL, PLY and
+/// point clouds, with or without images beside them, stay in the app.
 #[test]
 fn files_that_need_the_pages_loader_module_are_told_by_name_and_bytes() {
     let file = |name: &str, bytes: &[u8]| (name.to_string(), bytes.to_vec());
@@ -543,7 +544,7 @@ fn files_that_need_the_pages_loader_module_are_told_by_name_and_bytes() {
     let needs = mesh::transfer::needs_loader;
     assert!(needs(&[file("a.gltf", b"{}")]));
     assert!(needs(&[file("a.GLB", b"")]));
-    assert!(needs(&[file("scan", b"glTF\x02\0\0\0")]));
+    assert!(needs(&[file("a.gltf", b"{}"), file("a.bin", b""), file("t.png", &png)]));
     assert!(needs(&textured_quad("t.jpg", gradient(image::ImageFormat::Jpeg))));
     assert!(needs(&textured_quad("named-png.png", gradient(image::ImageFormat::Jpeg))));
     assert!(needs(&textured_quad("t.webp", gradient(image::ImageFormat::WebP))));
@@ -551,4 +552,11 @@ fn files_that_need_the_pages_loader_module_are_told_by_name_and_bytes() {
     assert!(!needs(&[file("a.stl", b"solid a\nendsolid a\n")]));
     assert!(!needs(&[file("a.ply", b"ply\nformat ascii 1.0\nend_header\n")]));
     assert!(!needs(&[file("not-an-image.jpg", b"\x89PNG")]));
+    // The mesh decides: a point cloud or an STL picked beside a photo loads without it, as the first mesh file
+    // is what `load_files` reads; a file without a mesh file's name is no mesh there either.
+    let photo = gradient(image::ImageFormat::Jpeg);
+    assert!(!needs(&[file("scan.ply", b"ply\nformat ascii 1.0\nend_header\n"), file("photo.jpg", &photo)]));
+    assert!(!needs(&[file("scan.xyz", b"0 0 0\n"), file("photo.webp", &gradient(image::ImageFormat::WebP))]));
+    assert!(!needs(&[file("part.stl", b"solid a\nendsolid a\n"), file("photo.jpg", &photo)]));
+    assert!(!needs(&[file("scan", b"glTF\x02\0\0\0")]));
 }

@@ -409,6 +409,22 @@ async function webgpuPath(browser) {
       }
     }
     await rm(work, { recursive: true, force: true });
+
+    // A mesh picked while the loader module is still reading wins: the Duck handed over and the torus picked in
+    // the same frame; the Duck's answer, when it comes, is dropped.
+    const duckB64 = (await readFile(duck)).toString("base64");
+    const callsBefore = await page.evaluate(() => window.meshvoxLoaderCalls);
+    await page.evaluate((b64) => {
+      window.meshvoxLoadFiles(["Duck.glb"], [Uint8Array.from(atob(b64), (c) => c.charCodeAt(0))]);
+      window.meshvoxLoadBuiltin("torus");
+    }, duckB64);
+    await status({ ready: true, mesh: "torus" }, "the torus picked while the loader module reads the Duck");
+    await page.waitForFunction((n) => window.meshvoxLoaderAnswers > n &&
+      window.meshvoxLoaderAnswers === window.meshvoxLoaderCalls, callsBefore, { timeout: 60_000 });
+    await page.waitForTimeout(1500);
+    const kept = await page.evaluate(() => window.meshvoxStatus);
+    check(kept.mesh === "torus" && !kept.error,
+      `the torus picked while the loader module read the Duck stays after the Duck's answer (${kept.mesh})`);
   }
 
   // STL and PLY through the file input (files of the hostile corpus's valid half): the CLI's voxels, and the
@@ -422,23 +438,30 @@ async function webgpuPath(browser) {
       `${name} @${s.resolution}: page ${s.voxels} == CLI ${cli}, coloured ${s.coloured}`);
   }
 
-  // An OBJ textured with a JPEG (ImageMagick makes it): the app hands the files to the loader module, and the
-  // coloured grid's .vox (voxels and palette) is the CLI's file.
-  const jpegDir = await mkdtemp(path.join(scratch, "jpeg-obj-"));
-  await writeFile(path.join(jpegDir, "jpeg-quad.obj"), "mtllib jpeg-quad.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0.25\n" +
-    "v 0 1 0.25\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl gradient\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
-  await writeFile(path.join(jpegDir, "jpeg-quad.mtl"), "newmtl gradient\nmap_Kd gradient.jpg\n");
-  execFileSync("convert", ["-size", "64x64", "gradient:orange-navy", path.join(jpegDir, "gradient.jpg")]);
-  await page.setInputFiles("#meshvox-file", ["jpeg-quad.obj", "jpeg-quad.mtl", "gradient.jpg"].map((f) => path.join(jpegDir, f)));
-  const jq = await status({ ready: true, mesh: "jpeg-quad.obj" }, "an OBJ with a JPEG texture");
-  const [jqVox] = await exported(page, "vox", 1);
-  const jqSaved = path.join(jpegDir, "page.vox");
-  await jqVox.saveAs(jqSaved);
-  execFileSync(bin, ["voxelize", path.join(jpegDir, "jpeg-quad.obj"), "-r", String(jq.resolution), "-o",
-    path.join(jpegDir, "cli.vox"), "--backend", "cpu"], { stdio: "ignore" });
-  const [jqPage, jqCli] = [await readFile(jqSaved), await readFile(path.join(jpegDir, "cli.vox"))];
-  check(jq.coloured && jqPage.equals(jqCli), `an OBJ with a JPEG texture @${jq.resolution}: coloured ${jq.coloured}, ` +
-    `its .vox (${jqPage.length} bytes) equals the CLI's (${jqCli.length} bytes)`);
+  // OBJs textured with a PNG (read by the app itself, which decodes PNGs with the PNG decoder alone) and with a JPEG
+  // (ImageMagick makes both; the app hands the JPEG's files to the loader module): each coloured grid's .vox
+  // (voxels and palette) is the CLI's file.
+  const texDir = await mkdtemp(path.join(scratch, "textured-obj-"));
+  for (const [ext, want] of [["png", 0], ["jpg", 1]]) {
+    const name = `${ext}-quad`;
+    await writeFile(path.join(texDir, `${name}.obj`), `mtllib ${name}.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0.25\n` +
+      "v 0 1 0.25\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl gradient\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n");
+    await writeFile(path.join(texDir, `${name}.mtl`), `newmtl gradient\nmap_Kd gradient.${ext}\n`);
+    execFileSync("convert", ["-size", "64x64", "gradient:orange-navy", path.join(texDir, `gradient.${ext}`)]);
+    const calls = await page.evaluate(() => window.meshvoxLoaderCalls);
+    await page.setInputFiles("#meshvox-file", [`${name}.obj`, `${name}.mtl`, `gradient.${ext}`].map((f) => path.join(texDir, f)));
+    const q = await status({ ready: true, mesh: `${name}.obj` }, `an OBJ with a ${ext} texture`);
+    const handed = (await page.evaluate(() => window.meshvoxLoaderCalls)) - calls;
+    const [download] = await exported(page, "vox", 1);
+    const saved = path.join(texDir, `${name}-page.vox`);
+    await download.saveAs(saved);
+    execFileSync(bin, ["voxelize", path.join(texDir, `${name}.obj`), "-r", String(q.resolution), "-o",
+      path.join(texDir, `${name}-cli.vox`), "--backend", "cpu"], { stdio: "ignore" });
+    const [fromPage, fromCli] = [await readFile(saved), await readFile(path.join(texDir, `${name}-cli.vox`))];
+    check(q.coloured && fromPage.equals(fromCli) && handed === want, `an OBJ with a ${ext} texture @${q.resolution}: ` +
+      `coloured ${q.coloured}, handed to the loader module ${handed} time(s), its .vox (${fromPage.length} bytes) ` +
+      `equals the CLI's (${fromCli.length} bytes)`);
+  }
 
   // A point cloud (a PLY without faces, as scanners write them): 5,000 points with decimals and colours on a
   // sphere far from the origin, dropped on the canvas. Each point sets its voxel; the status names the points.
