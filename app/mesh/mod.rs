@@ -571,13 +571,17 @@ pub const DECODES_ALL: bool = !cfg!(all(target_arch = "wasm32", feature = "viewe
 /// with its `.mtl` and images): the first file with a mesh extension is the mesh, the others are what it refers
 /// to, found by file name.
 pub fn load_files(files: &[(String, Vec<u8>)]) -> Result<Mesh, MeshError> {
-    let is_mesh = |name: &str| Format::detect(Path::new(name), &[]).is_some();
-    let Some((name, bytes)) = files.iter().find(|(name, _)| is_mesh(name)) else {
+    let Some((name, bytes)) = mesh_file(files) else {
         let names: Vec<&str> = files.iter().map(|(n, _)| n.as_str()).collect();
         return Err(MeshError::UnsupportedFormat { path: PathBuf::from(names.join(", ")) });
     };
     let limits = LoadLimits::default();
     load_bytes_impl(Path::new(name), bytes, Externals::Files(files, &Budget::new(limits.byte_limit())), &limits)
+}
+
+/// The mesh among files picked together, as [`load_files`] takes it: the first with a mesh file's extension.
+pub fn mesh_file(files: &[(String, Vec<u8>)]) -> Option<&(String, Vec<u8>)> {
+    files.iter().find(|(name, _)| Format::detect(Path::new(name), &[]).is_some())
 }
 
 fn load_bytes_impl(path: &Path, bytes: &[u8], base: Externals, limits: &LoadLimits) -> Result<Mesh, MeshError> {

@@ -26,18 +26,13 @@ pub fn decode(bytes: &[u8]) -> Result<Mesh, MeshError> {
 /// beside a JPEG or WebP image, found by its signature whatever its name (the material library names the
 /// textures). Anything else (STL, PLY, point clouds, an OBJ with PNG textures) loads without it.
 pub fn needs_loader(files: &[(String, Vec<u8>)]) -> bool {
-    let mesh = files.iter().find_map(|(name, _)| Format::detect(Path::new(name), &[]));
-    match mesh {
+    let Some((name, _)) = super::mesh_file(files) else { return false };
+    match Format::detect(Path::new(name), &[]) {
         Some(Format::Gltf) => true,
-        Some(Format::Obj) => files.iter().any(|(_, bytes)| is_jpeg(bytes) || is_webp(bytes)),
+        // The image crate's signature guess (no decoder behind it).
+        Some(Format::Obj) => files.iter().any(|(_, bytes)| {
+            matches!(image::guess_format(bytes), Ok(image::ImageFormat::Jpeg | image::ImageFormat::WebP))
+        }),
         _ => false,
     }
-}
-
-fn is_jpeg(bytes: &[u8]) -> bool {
-    bytes.starts_with(&[0xff, 0xd8, 0xff])
-}
-
-fn is_webp(bytes: &[u8]) -> bool {
-    bytes.len() >= 12 && &bytes[..4] == b"RIFF" && &bytes[8..12] == b"WEBP"
 }

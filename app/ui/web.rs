@@ -242,11 +242,7 @@ impl ViewerApp {
                     }
                 },
                 Command::LoadFiles(files) => {
-                    let name = files
-                        .iter()
-                        .map(|(n, _)| n.as_str())
-                        .find(|n| mesh::Format::detect(std::path::Path::new(n), &[]).is_some());
-                    let name = name.unwrap_or("files").to_string();
+                    let name = mesh::mesh_file(&files).map_or("files", |(n, _)| n.as_str()).to_string();
                     if !mesh::DECODES_ALL && mesh::transfer::needs_loader(&files) {
                         self.loads += 1;
                         self.reading = Some(name.clone());
