@@ -211,7 +211,9 @@ impl DistanceField {
         parallel::install(|| {
             let dims = spec.dims;
             let reach = band.reach(dims);
+            let span = crate::trace::span("field: mark leaves");
             let (slots, leaves) = mark_leaves(triangles, dims, reach);
+            drop(span);
             if band == Band::Full {
                 return full_field(triangles, spec, slots, leaves, inside, progress);
             }
@@ -219,11 +221,14 @@ impl DistanceField {
             // Every leaf is in one brick, which writes all its values: nothing to start them with, and the pages
             // of the largest allocation are first touched by the bricks, on every thread.
             let best: Vec<AtomicU32> = bytemuck::zeroed_vec(leaves.len() * 512);
+            let span = crate::trace::span("field: bin bricks");
             let bins = bin_bricks(triangles, dims, reach);
+            drop(span);
             let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
             let (evaluations, band_voxels) = (AtomicU64::new(0), AtomicU64::new(0));
             let finish = Finish::new(spec, band, inside.as_ref());
             let ticker = parallel::Ticker::new(work, PROGRESS_CALLS, progress);
+            let span = crate::trace::span("field: bricks");
             bins.par_iter().for_each(|(origin, bin)| {
                 let mut cells = BrickCells::new(*origin, dims, start);
                 let n = super::lanes::lower_brick(triangles, bin, dims, reach, &mut cells);
@@ -233,6 +238,7 @@ impl DistanceField {
                 ticker.add(bin.len());
             });
             ticker.finish();
+            drop(span);
             let values: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
             let band_voxels = band_voxels.into_inner();
             let mut field = DistanceField::from_values(spec, band, (slots, leaves), values, inside, band_voxels);
@@ -260,7 +266,7 @@ impl DistanceField {
                 .zip(values.par_chunks_mut(512))
                 .map(|(&origin, leaf)| {
                     let squared: [f32; 512] = std::array::from_fn(|i| leaf[i]);
-                    finish.leaf(origin, |i| squared[i], leaf)
+                    finish.leaf(origin, |y, z| row_of(&squared, y, z), leaf)
                 })
                 .sum()
         });
@@ -563,10 +569,14 @@ fn finish_brick(cells: &BrickCells, finish: &Finish, slots: &[u32], best: &[Atom
                     continue;
                 }
                 let origin = UVec3::new(lx, ly, lz) * 8;
-                let squared = |i: usize| {
-                    let v = (origin + UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6)).as_ivec3();
-                    // Voxels past the grid's end keep the start value, as the leaves' atomics would.
-                    if v.cmple(cells.hi).all() { cells.get(v) } else { start }
+                // A leaf's row of 8 is a run of the brick's row; past the grid's end in x the brick's values are
+                // the start value, and rows past its end in y or z keep it too, as the leaves' atomics would.
+                let squared = |y: u32, z: u32| {
+                    let v = (origin + UVec3::new(0, y, z)).as_ivec3();
+                    match v.cmple(cells.hi).all() {
+                        true => cells.row(v),
+                        false => [start; 8],
+                    }
                 };
                 band += finish.leaf(origin, squared, &mut values);
                 let out = &best[slot as usize * 512..(slot as usize + 1) * 512];
@@ -594,20 +604,33 @@ impl<'a> Finish<'a> {
         Finish { h, background, full: band == Band::Full, dims: spec.dims, inside }
     }
 
-    /// The values of the leaf at `origin` into `out` from voxel `i`'s squared distance `squared(i)`; returns how
-    /// many of them are in the band (as [`DistanceField::band_mask`] counts).
-    fn leaf(&self, origin: UVec3, squared: impl Fn(usize) -> f32, out: &mut [f32]) -> u64 {
+    /// The values of the leaf at `origin` into `out` from the squared distances of its rows along x,
+    /// `squared(y, z)`; returns how many of them are in the band (as [`DistanceField::band_mask`] counts). A row's
+    /// eight voxels side by side, so they are computed in vector lanes.
+    fn leaf(&self, origin: UVec3, squared: impl Fn(u32, u32) -> [f32; 8], out: &mut [f32]) -> u64 {
         // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
         let mask = self.inside.map_or([0; 8], |g| inside_mask(g, origin));
         let mut band = 0;
-        for (i, value) in out.iter_mut().enumerate() {
-            let (x, y, z) = (i & 7, (i >> 3) & 7, i >> 6);
-            *value = finish_value(squared(i), mask[x] >> (y * 8 + z) & 1 != 0, self.h);
-            let within = (origin + UVec3::new(x as u32, y as u32, z as u32)).cmplt(self.dims).all();
-            band += u64::from((value.abs() < self.background || self.full) && within);
+        for (row, values) in out.chunks_exact_mut(8).enumerate() {
+            let (y, z) = (row as u32 & 7, row as u32 >> 3);
+            let d2 = squared(y, z);
+            let row_within = origin.y + y < self.dims.y && origin.z + z < self.dims.z;
+            let mut in_band = 0;
+            for x in 0..8 {
+                values[x] = finish_value(d2[x], mask[x] >> (y * 8 + z) & 1 != 0, self.h);
+                let within = row_within & (origin.x + (x as u32) < self.dims.x);
+                in_band += u32::from(((values[x].abs() < self.background) | self.full) & within);
+            }
+            band += u64::from(in_band);
         }
         band
     }
+}
+
+/// Row `(y, z)` of a leaf's 512 values (x fastest).
+fn row_of<T: Copy>(leaf: &[T], y: u32, z: u32) -> [T; 8] {
+    let at = (z as usize * 8 + y as usize) * 8;
+    std::array::from_fn(|x| leaf[at + x])
 }
 
 /// A field's values made as a GPU's runs of leaves are read back, from the words of its `best` buffer
@@ -637,7 +660,8 @@ impl<'a> Finishing<'a> {
                 .par_iter()
                 .zip(out.par_chunks_mut(512).zip(words.par_chunks(512)))
                 .map(|(&origin, (leaf, words))| {
-                    finish.leaf(origin, |i| super::cpu::distance::best_value(words[i], reach), leaf)
+                    let row = |y, z| row_of(words, y, z).map(|w| super::cpu::distance::best_value(w, reach));
+                    finish.leaf(origin, row, leaf)
                 })
                 .sum::<u64>()
         });

@@ -10,9 +10,9 @@
 //! [`point_distance2`] also compares with its edges', takes the scalar code per voxel.
 
 use super::cpu::common::dot3;
-use super::cpu::distance::{BrickCells, band_range, band_span, cannot_lower, triangle_layers};
+use super::cpu::distance::{BrickCells, ROW_SLACK, band_range, band_span, triangle_layers};
 use super::cpu::nearest::{THIN, point_distance2};
-use glam::{IVec3, UVec3, Vec3};
+use glam::{DVec3, IVec3, UVec3, Vec3};
 use multiversion::multiversion;
 use std::cmp::Ordering;
 
@@ -65,6 +65,42 @@ struct Frame {
     thin: bool,
     /// Its [`band_range`], which every layer clips.
     range: (IVec3, IVec3),
+    slab: Option<Slab>,
+}
+
+/// The voxels whose centres lie within `reach + 1` of a triangle's plane (`n · (p - a)`, in f64 from the f32
+/// normal and vertex the pruning uses), row by row. Every other voxel the pruning's plane bound skips, whatever its
+/// value: its squared plane distance exceeds `reach²` by far more than the bound's 1e-4 margin and the f32
+/// rounding of `n · (a - p)` (under 1e-6 of `|n| |a - p|`, a hundredth of a voxel even across a 16384 grid), and
+/// no value starts above `reach²`. So leaving them out changes no value and no count of evaluations; a triangle
+/// tilted across a row's axis visits a slab of the row, not its whole box.
+struct Slab {
+    n: DVec3,
+    a: DVec3,
+    half: f64,
+}
+
+impl Slab {
+    fn of(n: Vec3, n2: f32, a: Vec3, reach: f32) -> Option<Slab> {
+        // A degenerate triangle's plane prunes nothing.
+        (n2 > 0.0).then(|| {
+            let n = n.as_dvec3();
+            Slab { n, a: a.as_dvec3(), half: (f64::from(reach) + 1.0) * n.length() }
+        })
+    }
+
+    /// Row `(py, pz)`'s voxels `x0..=x1` (widened by up to a voxel by truncation) that may lie within the slab.
+    #[inline(always)]
+    fn span(&self, py: f32, pz: f32) -> (i32, i32) {
+        let (n, a) = (self.n, self.a);
+        let c = n.x * a.x + n.y * (a.y - f64::from(py)) + n.z * (a.z - f64::from(pz));
+        if n.x == 0.0 {
+            return if c.abs() <= self.half { (i32::MIN, i32::MAX) } else { (1, 0) };
+        }
+        let (u, v) = ((c - self.half) / n.x, (c + self.half) / n.x);
+        // A centre `x + 0.5` in `lo..=hi`; `as` truncates toward zero, a voxel wider at most, and saturates.
+        ((u.min(v) - 1.5) as i32, (u.max(v) + 0.5) as i32)
+    }
 }
 
 impl Frame {
@@ -77,29 +113,41 @@ impl Frame {
         let m = Vec3::new(ab.y * ac.z - ab.z * ac.y, ab.z * ac.x - ab.x * ac.z, ab.x * ac.y - ab.y * ac.x);
         let thin = dot3(m, m).partial_cmp(&(THIN * dot3(ab, ab) * dot3(ac, ac))) != Some(Ordering::Greater);
         let bounds = (a.min(b).min(c), a.max(b).max(c));
-        Frame { a, b, c, ab, ac, n, n2: dot3(n, n), bounds, thin, range: band_range(t, dims, reach) }
+        let n2 = dot3(n, n);
+        let slab = Slab::of(n, n2, a, reach);
+        Frame { a, b, c, ab, ac, n, n2, bounds, thin, range: band_range(t, dims, reach), slab }
     }
 }
 
-/// [`crate::voxel::cpu::distance::triangle_layer`] over a brick, eight voxels of a row at a time.
+/// [`crate::voxel::cpu::distance::triangle_layer`] over a brick, eight voxels of a row at a time: their values
+/// read and written as one run of `best` (a brick keeps [`ROW_SLACK`] values past its last row, so a run may start
+/// at a row's last voxel), the pruning bounds computed in every lane, and a lane past the row's span or pruned
+/// keeping its value.
 #[inline(always)]
 fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) -> u32 {
+    const { assert!(ROW_SLACK >= LANES - 1) };
     let (lo, hi) = (f.range.0.max(cells.origin), f.range.1.min(cells.hi));
     let mut evaluated = 0;
     for y in lo.y..=hi.y {
-        let (x0, x1) = band_span(f.bounds.0, f.bounds.1, y, z, reach);
-        let (x0, x1) = (x0.max(lo.x), x1.min(hi.x));
         let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
+        let (x0, x1) = band_span(f.bounds.0, f.bounds.1, y, z, reach);
+        let (s0, s1) = f.slab.as_ref().map_or((x0, x1), |s| s.span(py, pz));
+        let (x0, x1) = (x0.max(lo.x).max(s0), x1.min(hi.x).min(s1));
         let mut start = x0;
         while start <= x1 {
-            let index: [usize; LANES] =
-                std::array::from_fn(|k| cells.index(IVec3::new((start + k as i32).min(x1), y, z)));
-            let xs: [f32; LANES] = std::array::from_fn(|k| (start + k as i32).min(x1) as f32 + 0.5);
-            let mut pass = 0u32;
+            let at = cells.index(IVec3::new(start, y, z));
+            let run = &mut cells.best[at..at + LANES];
+            // Loops rather than `std::array::from_fn`, whose closures may be left out of line, outside the
+            // function compiled for the wide vector sets.
+            let (mut old, mut xs) = ([0.0f32; LANES], [0.0f32; LANES]);
             for k in 0..LANES {
-                let p = Vec3::new(xs[k], py, pz);
-                let far = cannot_lower(p, f.a, f.n, f.n2, f.bounds, cells.best[index[k]]);
-                pass |= u32::from(!far && start + (k as i32) <= x1) << k;
+                old[k] = run[k];
+                xs[k] = (start + k as i32) as f32 + 0.5;
+            }
+            let near = near_lanes(f, &xs, py, pz, &old, x1 - start);
+            let mut pass = 0u32;
+            for (k, &n) in near.iter().enumerate() {
+                pass |= u32::from(n) << k;
             }
             if pass != 0 {
                 let d2 = match f.thin {
@@ -107,18 +155,34 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
                     true => std::array::from_fn(|k| point_distance2(Vec3::new(xs[k], py, pz), t)),
                 };
                 evaluated += pass.count_ones();
-                while pass != 0 {
-                    let k = pass.trailing_zeros() as usize;
-                    pass &= pass - 1;
-                    if d2[k] < cells.best[index[k]] {
-                        cells.best[index[k]] = d2[k];
-                    }
+                for k in 0..LANES {
+                    run[k] = if near[k] & (d2[k] < old[k]) { d2[k] } else { old[k] };
                 }
             }
             start += LANES as i32;
         }
     }
     evaluated
+}
+
+/// Which lanes of the points `(xs[k], py, pz)` the triangle may lower from `old[k]`: [`cannot_lower`](super::cpu::distance::cannot_lower)'s two bounds
+/// with its arithmetic in its order, written per coordinate so the lanes compute them side by side (`a - p` and the
+/// box's gap in y and z are the row's), and only the lanes `k <= last`.
+#[inline(always)]
+fn near_lanes(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32, old: &[f32; LANES], last: i32) -> [bool; LANES] {
+    let (ay, az) = (f.a.y - py, f.a.z - pz);
+    let (lo, hi) = f.bounds;
+    let gy = (lo.y - py).max(py - hi.y).max(0.0);
+    let gz = (lo.z - pz).max(pz - hi.z).max(0.0);
+    let mut near = [false; LANES];
+    for k in 0..LANES {
+        let plane = f.n.x * (f.a.x - xs[k]) + f.n.y * ay + f.n.z * az;
+        let gx = (lo.x - xs[k]).max(xs[k] - hi.x).max(0.0);
+        let gap2 = gx * gx + gy * gy + gz * gz;
+        let far = (plane * plane >= old[k] * f.n2 * 1.0001) & (f.n2 > 0.0) | (gap2 >= old[k] * 1.0001);
+        near[k] = !far & (k as i32 <= last);
+    }
+    near
 }
 
 /// [`point_distance2`] of a triangle that is not thin at the points `(xs[k], py, pz)`.

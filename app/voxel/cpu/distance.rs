@@ -98,7 +98,12 @@ impl Cells for LeafCells<'_> {
 /// the triangles near it lower them, where the leaves' atomics spread over the whole band.
 pub const BRICK: u32 = 32;
 
-/// One brick of `BRICK³` voxels at `origin`, x fastest, lowered by one thread without atomics.
+/// Values a [`BrickCells`] keeps past its last row (at the brick's start value), so the CPU's kernel
+/// (`crate::voxel::lanes`) can read and write eight voxels of a row as one run from any voxel of it.
+pub const ROW_SLACK: usize = 7;
+
+/// One brick of `BRICK³` voxels at `origin`, x fastest (and [`ROW_SLACK`] values past them), lowered by one thread
+/// without atomics.
 pub struct BrickCells {
     pub origin: IVec3,
     /// The brick's last voxel in the grid, per axis.
@@ -110,7 +115,7 @@ impl BrickCells {
     /// The brick at `origin` of a grid of `dims`, every voxel starting at `start`.
     pub fn new(origin: IVec3, dims: UVec3, start: f32) -> BrickCells {
         let hi = (origin + BRICK as i32 - 1).min(dims.as_ivec3() - 1);
-        BrickCells { origin, hi, best: vec![start; (BRICK * BRICK * BRICK) as usize] }
+        BrickCells { origin, hi, best: vec![start; (BRICK * BRICK * BRICK) as usize + ROW_SLACK] }
     }
 
     /// Where voxel `v` (in the brick) is in `best`.
@@ -118,6 +123,14 @@ impl BrickCells {
     pub fn index(&self, v: IVec3) -> usize {
         let l = (v - self.origin).as_uvec3();
         ((l.z * BRICK + l.y) * BRICK + l.x) as usize
+    }
+
+    /// The eight values from voxel `v` along x: a leaf's row, which lies in one row of the brick (voxels past the
+    /// grid's end keep the start value).
+    #[inline]
+    pub fn row(&self, v: IVec3) -> [f32; 8] {
+        let at = self.index(v);
+        std::array::from_fn(|k| self.best[at + k])
     }
 }
 
@@ -200,7 +213,9 @@ pub fn box_distance2(p: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 #[inline]
 pub fn cannot_lower(p: Vec3, a: Vec3, n: Vec3, n2: f32, bounds: (Vec3, Vec3), current: f32) -> bool {
     let plane = dot3(n, a - p);
-    (plane * plane >= current * n2 * 1.0001 && n2 > 0.0) || box_distance2(p, bounds.0, bounds.1) >= current * 1.0001
+    // `&` and `|` rather than `&&` and `||`: both bounds are cheap, and without branches the CPU's kernel computes
+    // them in vector lanes.
+    (plane * plane >= current * n2 * 1.0001) & (n2 > 0.0) | (box_distance2(p, bounds.0, bounds.1) >= current * 1.0001)
 }
 
 /// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
