@@ -230,10 +230,15 @@ impl DistanceField {
             let ticker = parallel::Ticker::new(work, PROGRESS_CALLS, progress);
             let span = crate::trace::span("field: bricks");
             bins.par_iter().for_each(|(origin, bin)| {
+                // Each brick's two steps timed apart (summed over the threads).
+                let span = crate::trace::span("field: bricks' distances");
                 let mut cells = BrickCells::new(*origin, dims, start);
                 let n = super::lanes::lower_brick(triangles, bin, dims, reach, &mut cells);
+                drop(span);
                 evaluations.fetch_add(n, Ordering::Relaxed);
+                let span = crate::trace::span("field: bricks' values");
                 let band = finish_brick(&cells, &finish, &slots, &best, start);
+                drop(span);
                 band_voxels.fetch_add(band, Ordering::Relaxed);
                 ticker.add(bin.len());
             });

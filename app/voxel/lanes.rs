@@ -12,7 +12,7 @@
 use super::cpu::common::dot3;
 use super::cpu::distance::{BrickCells, ROW_SLACK, band_range, band_span, triangle_layers};
 use super::cpu::nearest::{THIN, point_distance2};
-use glam::{DVec3, IVec3, UVec3, Vec3};
+use glam::{IVec3, UVec3, Vec3};
 use multiversion::multiversion;
 use std::cmp::Ordering;
 
@@ -75,29 +75,33 @@ struct Frame {
 /// no value starts above `reach²`. So leaving them out changes no value and no count of evaluations; a triangle
 /// tilted across a row's axis visits a slab of the row, not its whole box.
 struct Slab {
-    n: DVec3,
-    a: DVec3,
+    /// `n · a`, `n.y`, `n.z`, the slab's half-width `(reach + 1) |n|` and `1 / n.x` (0 where `n.x` is).
+    na: f64,
+    ny: f64,
+    nz: f64,
     half: f64,
+    inverse: f64,
 }
 
 impl Slab {
     fn of(n: Vec3, n2: f32, a: Vec3, reach: f32) -> Option<Slab> {
         // A degenerate triangle's plane prunes nothing.
         (n2 > 0.0).then(|| {
-            let n = n.as_dvec3();
-            Slab { n, a: a.as_dvec3(), half: (f64::from(reach) + 1.0) * n.length() }
+            let (n, a) = (n.as_dvec3(), a.as_dvec3());
+            let inverse = if n.x == 0.0 { 0.0 } else { 1.0 / n.x };
+            Slab { na: n.dot(a), ny: n.y, nz: n.z, half: (f64::from(reach) + 1.0) * n.length(), inverse }
         })
     }
 
-    /// Row `(py, pz)`'s voxels `x0..=x1` (widened by up to a voxel by truncation) that may lie within the slab.
+    /// Row `(py, pz)`'s voxels `x0..=x1` (widened by up to a voxel by truncation) that may lie within the slab:
+    /// where `n.x x = n · a - n.y py - n.z pz ± half` (f64's roundings here are far below the spare voxel).
     #[inline(always)]
     fn span(&self, py: f32, pz: f32) -> (i32, i32) {
-        let (n, a) = (self.n, self.a);
-        let c = n.x * a.x + n.y * (a.y - f64::from(py)) + n.z * (a.z - f64::from(pz));
-        if n.x == 0.0 {
+        let c = self.na - self.ny * f64::from(py) - self.nz * f64::from(pz);
+        if self.inverse == 0.0 {
             return if c.abs() <= self.half { (i32::MIN, i32::MAX) } else { (1, 0) };
         }
-        let (u, v) = ((c - self.half) / n.x, (c + self.half) / n.x);
+        let (u, v) = ((c - self.half) * self.inverse, (c + self.half) * self.inverse);
         // A centre `x + 0.5` in `lo..=hi`; `as` truncates toward zero, a voxel wider at most, and saturates.
         ((u.min(v) - 1.5) as i32, (u.max(v) + 0.5) as i32)
     }
