@@ -118,8 +118,11 @@ impl Frame {
         let thin = dot3(m, m).partial_cmp(&(THIN * dot3(ab, ab) * dot3(ac, ac))) != Some(Ordering::Greater);
         let bounds = (a.min(b).min(c), a.max(b).max(c));
         let n2 = dot3(n, n);
-        let slab = Slab::of(n, n2, a, reach);
-        Frame { a, b, c, ab, ac, n, n2, bounds, thin, range: band_range(t, dims, reach), slab }
+        let range = band_range(t, dims, reach);
+        // Where the band's box is no wider than the lanes a row is one run whatever the slab cuts, and the cut
+        // would only cost its arithmetic.
+        let slab = Slab::of(n, n2, a, reach).filter(|_| range.1.x - range.0.x >= LANES as i32);
+        Frame { a, b, c, ab, ac, n, n2, bounds, thin, range, slab }
     }
 }
 
@@ -142,17 +145,14 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
             let at = cells.index(IVec3::new(start, y, z));
             let run = &mut cells.best[at..at + LANES];
             // Loops rather than `std::array::from_fn`, whose closures may be left out of line, outside the
-            // function compiled for the wide vector sets.
+            // function compiled for the wide vector sets; `x + 0.5` is the scalar code's `(start + k) as f32 + 0.5`
+            // (every term an exact f32) without an integer sum per lane, whose overflow check kept the lanes apart.
             let (mut old, mut xs) = ([0.0f32; LANES], [0.0f32; LANES]);
             for k in 0..LANES {
                 old[k] = run[k];
-                xs[k] = (start + k as i32) as f32 + 0.5;
+                xs[k] = start as f32 + (k as f32 + 0.5);
             }
-            let near = near_lanes(f, &xs, py, pz, &old, x1 - start);
-            let mut pass = 0u32;
-            for (k, &n) in near.iter().enumerate() {
-                pass |= u32::from(n) << k;
-            }
+            let pass = near_lanes(f, &xs, py, pz, &old, x1 - start);
             if pass != 0 {
                 let d2 = match f.thin {
                     false => distances(f, &xs, py, pz),
@@ -160,7 +160,7 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
                 };
                 evaluated += pass.count_ones();
                 for k in 0..LANES {
-                    run[k] = if near[k] & (d2[k] < old[k]) { d2[k] } else { old[k] };
+                    run[k] = if (pass >> k & 1 != 0) & (d2[k] < old[k]) { d2[k] } else { old[k] };
                 }
             }
             start += LANES as i32;
@@ -169,24 +169,31 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
     evaluated
 }
 
-/// Which lanes of the points `(xs[k], py, pz)` the triangle may lower from `old[k]`: [`cannot_lower`](super::cpu::distance::cannot_lower)'s two bounds
-/// with its arithmetic in its order, written per coordinate so the lanes compute them side by side (`a - p` and the
-/// box's gap in y and z are the row's), and only the lanes `k <= last`.
+/// Which lanes of the points `(xs[k], py, pz)` the triangle may lower from `old[k]`, as bits:
+/// [`cannot_lower`](super::cpu::distance::cannot_lower)'s two bounds with its arithmetic in its order, written per
+/// coordinate so the lanes compute them side by side (`a - p` and the box's gap in y and z are the row's), and only
+/// the lanes `k <= last`.
 #[inline(always)]
-fn near_lanes(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32, old: &[f32; LANES], last: i32) -> [bool; LANES] {
+fn near_lanes(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32, old: &[f32; LANES], last: i32) -> u32 {
     let (ay, az) = (f.a.y - py, f.a.z - pz);
     let (lo, hi) = f.bounds;
     let gy = (lo.y - py).max(py - hi.y).max(0.0);
     let gz = (lo.z - pz).max(pz - hi.z).max(0.0);
-    let mut near = [false; LANES];
+    // A degenerate triangle's plane bounds nothing: its bound made one no square can reach.
+    let n2 = if f.n2 > 0.0 { f.n2 } else { f32::INFINITY };
+    let mut far = [0u32; LANES];
     for k in 0..LANES {
         let plane = f.n.x * (f.a.x - xs[k]) + f.n.y * ay + f.n.z * az;
         let gx = (lo.x - xs[k]).max(xs[k] - hi.x).max(0.0);
         let gap2 = gx * gx + gy * gy + gz * gz;
-        let far = (plane * plane >= old[k] * f.n2 * 1.0001) & (f.n2 > 0.0) | (gap2 >= old[k] * 1.0001);
-        near[k] = !far & (k as i32 <= last);
+        far[k] = u32::from(plane * plane >= old[k] * n2 * 1.0001) | u32::from(gap2 >= old[k] * 1.0001);
     }
-    near
+    let mut near = 0;
+    for (k, far) in far.iter().enumerate() {
+        near |= (far ^ 1) << k;
+    }
+    // Lanes `0..=last`: none past the row's span.
+    near & ((1u32 << (last.clamp(-1, LANES as i32 - 1) + 1)) - 1)
 }
 
 /// [`point_distance2`] of a triangle that is not thin at the points `(xs[k], py, pz)`.
