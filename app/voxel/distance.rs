@@ -361,12 +361,14 @@ impl DistanceField {
     /// The voxels of the leaf at `origin` with values `leaf` that are in the band (nearer than the background, or
     /// all for `Band::Full`) and inside the grid, as a leaf mask.
     fn band_mask(&self, origin: UVec3, leaf: &[f32]) -> LeafMask {
-        let (bg, dims, full) = (self.background(), self.spec.dims, self.band == Band::Full);
+        let (bg, full) = (self.background(), self.band == Band::Full);
+        // The leaf's voxels in the grid per axis (no sum per voxel).
+        let within = self.spec.dims.saturating_sub(origin);
         let mut mask = [0u64; 8];
         for (i, &value) in leaf.iter().enumerate() {
-            let l = UVec3::new(i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
-            if (value.abs() < bg || full) && (origin + l).cmplt(dims).all() {
-                mask[l.x as usize] |= 1 << (l.y * 8 + l.z);
+            let (x, y, z) = (i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
+            if (value.abs() < bg || full) && x < within.x && y < within.y && z < within.z {
+                mask[x as usize] |= 1 << (y * 8 + z);
             }
         }
         mask
@@ -424,14 +426,17 @@ impl DistanceField {
             return None;
         }
         let leaf = &self.values[slot as usize * 512..(slot as usize + 1) * 512];
-        let (dims, background) = (self.spec.dims, self.background());
-        Some(std::array::from_fn(|n| {
-            let v = origin + UVec3::new((n >> 6) as u32, (n >> 3) as u32 & 7, n as u32 & 7);
-            match v.cmplt(dims).all() {
-                true => leaf[leaf_offset(v)],
-                false => background,
+        // The leaf's voxels in the grid, transposed; the background past its end.
+        let within = self.spec.dims.saturating_sub(origin).min(UVec3::splat(8)).as_usizevec3();
+        let mut out = [self.background(); 512];
+        for x in 0..within.x {
+            for y in 0..within.y {
+                for z in 0..within.z {
+                    out[x << 6 | y << 3 | z] = leaf[(z * 8 + y) * 8 + x];
+                }
             }
-        }))
+        }
+        Some(out)
     }
 
     /// Voxel values of the x-slice `x`, `[y, z]` in C order (`slice[y * dims_z + z]`): what the dense `.npy` and
@@ -615,16 +620,19 @@ impl<'a> Finish<'a> {
     fn leaf(&self, origin: UVec3, squared: impl Fn(u32, u32) -> [f32; 8], out: &mut [f32]) -> u64 {
         // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
         let mask = self.inside.map_or([0; 8], |g| inside_mask(g, origin));
+        // How many of the leaf's voxels along each axis lie in the grid (no sum per voxel: its overflow check
+        // would keep the lanes apart).
+        let within = self.dims.saturating_sub(origin);
         let mut band = 0;
-        for (row, values) in out.chunks_exact_mut(8).enumerate() {
+        for (row, values) in out.as_chunks_mut::<8>().0.iter_mut().enumerate() {
             let (y, z) = (row as u32 & 7, row as u32 >> 3);
             let d2 = squared(y, z);
-            let row_within = origin.y + y < self.dims.y && origin.z + z < self.dims.z;
+            let row_within = (y < within.y) & (z < within.z);
             let mut in_band = 0;
             for x in 0..8 {
                 values[x] = finish_value(d2[x], mask[x] >> (y * 8 + z) & 1 != 0, self.h);
-                let within = row_within & (origin.x + (x as u32) < self.dims.x);
-                in_band += u32::from(((values[x].abs() < self.background) | self.full) & within);
+                let counted = ((values[x].abs() < self.background) | self.full) & row_within & ((x as u32) < within.x);
+                in_band += u32::from(counted);
             }
             band += u64::from(in_band);
         }
@@ -635,7 +643,9 @@ impl<'a> Finish<'a> {
 /// Row `(y, z)` of a leaf's 512 values (x fastest).
 fn row_of<T: Copy>(leaf: &[T], y: u32, z: u32) -> [T; 8] {
     let at = (z as usize * 8 + y as usize) * 8;
-    std::array::from_fn(|x| leaf[at + x])
+    let mut row = [leaf[at]; 8];
+    row.copy_from_slice(&leaf[at..at + 8]);
+    row
 }
 
 /// A field's values made as a GPU's runs of leaves are read back, from the words of its `best` buffer

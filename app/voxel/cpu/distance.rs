@@ -129,8 +129,9 @@ impl BrickCells {
     /// grid's end keep the start value).
     #[inline]
     pub fn row(&self, v: IVec3) -> [f32; 8] {
-        let at = self.index(v);
-        std::array::from_fn(|k| self.best[at + k])
+        let (at, mut row) = (self.index(v), [0.0; 8]);
+        row.copy_from_slice(&self.best[at..at + 8]);
+        row
     }
 }
 
