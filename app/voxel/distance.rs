@@ -620,8 +620,8 @@ impl<'a> Finish<'a> {
     fn leaf(&self, origin: UVec3, squared: impl Fn(u32, u32) -> [f32; 8], out: &mut [f32]) -> u64 {
         // The inside of the whole leaf at once: a sparse grid's lookup costs a search per leaf, not per voxel.
         let mask = self.inside.map_or([0; 8], |g| inside_mask(g, origin));
-        // How many of the leaf's voxels along each axis lie in the grid (no sum per voxel: its overflow check
-        // would keep the lanes apart).
+        // How many of the leaf's voxels along each axis lie in the grid (no sum per voxel: its overflow check, in
+        // builds that keep them, would keep the lanes apart).
         let within = self.dims.saturating_sub(origin);
         let mut band = 0;
         for (row, values) in out.as_chunks_mut::<8>().0.iter_mut().enumerate() {

@@ -68,14 +68,15 @@ struct Frame {
     slab: Option<Slab>,
 }
 
-/// The voxels whose centres lie within `reach + 1` of a triangle's plane (`n · (p - a)`, in f64 from the f32
-/// normal and vertex the pruning uses), row by row. Every other voxel the pruning's plane bound skips, whatever its
-/// value: its squared plane distance exceeds `reach²` by far more than the bound's 1e-4 margin and the f32
-/// rounding of `n · (a - p)` (under 1e-6 of `|n| |a - p|`, a hundredth of a voxel even across a 16384 grid), and
-/// no value starts above `reach²`. So leaving them out changes no value and no count of evaluations; a triangle
-/// tilted across a row's axis visits a slab of the row, not its whole box.
+/// The voxels whose centres lie within about `reach + 1` of a triangle's plane (`n · (p - a)`, in f64 from the
+/// f32 normal and vertex the pruning uses), row by row. Every other voxel the pruning's plane bound skips, whatever
+/// its value: no value starts above `reach²`, and the slab's half-width covers the bound's 1e-4 margin and the f32
+/// rounding of `n · (a - p)` (sixteen units in the last place of `Σ |n_i| |a_i - p_i|` over the band's box, where
+/// a few suffice: a vertex far outside a cropped grid widens the slab rather than breaking it) with a voxel to
+/// spare. So leaving them out changes no value and no count of evaluations; a triangle tilted across a row's axis
+/// visits a slab of the row, not its whole box.
 struct Slab {
-    /// `n · a`, `n.y`, `n.z`, the slab's half-width `(reach + 1) |n|` and `1 / n.x` (0 where `n.x` is).
+    /// `n · a`, `n.y`, `n.z`, the slab's half-width and `1 / n.x` (0 where `n.x` is).
     na: f64,
     ny: f64,
     nz: f64,
@@ -84,17 +85,23 @@ struct Slab {
 }
 
 impl Slab {
-    fn of(n: Vec3, n2: f32, a: Vec3, reach: f32) -> Option<Slab> {
-        // A degenerate triangle's plane prunes nothing.
-        (n2 > 0.0).then(|| {
+    /// The slab of a triangle with normal `n` (`n2 = n · n` in f32) and first vertex `a` whose band's box is
+    /// `range`; none where `n2` is zero or subnormal (its plane prunes nothing, or `n2` may be far from `|n|²`).
+    fn of(n: Vec3, n2: f32, a: Vec3, reach: f32, range: (IVec3, IVec3)) -> Option<Slab> {
+        (n2 >= f32::MIN_POSITIVE).then(|| {
             let (n, a) = (n.as_dvec3(), a.as_dvec3());
+            // How far a voxel centre of the band's box lies from `a` along each axis, and so the rounding.
+            let (lo, hi) = (range.0.as_dvec3() + 0.5, range.1.as_dvec3() + 0.5);
+            let far = (a - lo).abs().max((a - hi).abs());
+            let rounding = 8.0 * f64::from(f32::EPSILON) * n.abs().dot(far);
+            let half = (f64::from(reach) * 1.0001 + 1.0) * n.length() + rounding;
             let inverse = if n.x == 0.0 { 0.0 } else { 1.0 / n.x };
-            Slab { na: n.dot(a), ny: n.y, nz: n.z, half: (f64::from(reach) + 1.0) * n.length(), inverse }
+            Slab { na: n.dot(a), ny: n.y, nz: n.z, half, inverse }
         })
     }
 
-    /// Row `(py, pz)`'s voxels `x0..=x1` (widened by up to a voxel by truncation) that may lie within the slab:
-    /// where `n.x x = n · a - n.y py - n.z pz ± half` (f64's roundings here are far below the spare voxel).
+    /// Row `(py, pz)`'s voxels `x0..=x1` holding every voxel whose centre lies in the slab: where
+    /// `n.x x = n · a - n.y py - n.z pz ± half` (f64's roundings here are far below the spare voxel).
     #[inline(always)]
     fn span(&self, py: f32, pz: f32) -> (i32, i32) {
         let c = self.na - self.ny * f64::from(py) - self.nz * f64::from(pz);
@@ -102,7 +109,8 @@ impl Slab {
             return if c.abs() <= self.half { (i32::MIN, i32::MAX) } else { (1, 0) };
         }
         let (u, v) = ((c - self.half) * self.inverse, (c + self.half) * self.inverse);
-        // A centre `x + 0.5` in `lo..=hi`; `as` truncates toward zero, a voxel wider at most, and saturates.
+        // A centre `x + 0.5` in `u..=v`: each bound moved out by a voxel, which truncation toward zero (and
+        // saturation) takes back by less than one.
         ((u.min(v) - 1.5) as i32, (u.max(v) + 0.5) as i32)
     }
 }
@@ -121,7 +129,7 @@ impl Frame {
         let range = band_range(t, dims, reach);
         // Where the band's box is no wider than the lanes a row is one run whatever the slab cuts, and the cut
         // would only cost its arithmetic.
-        let slab = Slab::of(n, n2, a, reach).filter(|_| range.1.x - range.0.x >= LANES as i32);
+        let slab = Slab::of(n, n2, a, reach, range).filter(|_| range.1.x - range.0.x >= LANES as i32);
         Frame { a, b, c, ab, ac, n, n2, bounds, thin, range, slab }
     }
 }
@@ -146,7 +154,8 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
             let run = &mut cells.best[at..at + LANES];
             // Loops rather than `std::array::from_fn`, whose closures may be left out of line, outside the
             // function compiled for the wide vector sets; `x + 0.5` is the scalar code's `(start + k) as f32 + 0.5`
-            // (every term an exact f32) without an integer sum per lane, whose overflow check kept the lanes apart.
+            // (every term an exact f32) without an integer sum per lane, whose overflow check (in builds that keep
+            // them, as the development profile the tests and benchmarks build does) kept the lanes apart.
             let (mut old, mut xs) = ([0.0f32; LANES], [0.0f32; LANES]);
             for k in 0..LANES {
                 old[k] = run[k];

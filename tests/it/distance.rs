@@ -570,6 +570,15 @@ fn the_cpus_vector_kernel_gives_the_scalar_mirrors_distances_bit_for_bit() {
         let tris = meshvox::voxel::voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
         cases.push((name, tris, spec.dims));
     }
+    // A grid cropped from a huge tilted triangle (as `--bounds` crops one): its vertices millions of voxels away,
+    // where the f32 plane value's rounding is voxels wide and the kernel's slab must widen with it.
+    let (c, u, v) =
+        (Vec3::new(48.3, 47.1, 50.7), Vec3::new(1.0, 0.37, -0.21) * 2.0e6, Vec3::new(0.13, 1.0, 0.61) * 2.0e6);
+    cases.push((
+        "cropped from a huge triangle".into(),
+        vec![[c - u - v, c + u * 2.0 - v, c - u + v * 2.0]],
+        UVec3::splat(96),
+    ));
     for (name, tris, dims) in cases {
         let (tris, _) = on_lattice(&tris, dims).expect("lattice");
         for band in [Band::Voxels(1.5), Band::Voxels(6.0)] {

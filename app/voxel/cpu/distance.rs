@@ -214,9 +214,7 @@ pub fn box_distance2(p: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 #[inline]
 pub fn cannot_lower(p: Vec3, a: Vec3, n: Vec3, n2: f32, bounds: (Vec3, Vec3), current: f32) -> bool {
     let plane = dot3(n, a - p);
-    // `&` and `|` rather than `&&` and `||`: both bounds are cheap, and without branches the CPU's kernel computes
-    // them in vector lanes.
-    (plane * plane >= current * n2 * 1.0001) & (n2 > 0.0) | (box_distance2(p, bounds.0, bounds.1) >= current * 1.0001)
+    (plane * plane >= current * n2 * 1.0001 && n2 > 0.0) || box_distance2(p, bounds.0, bounds.1) >= current * 1.0001
 }
 
 /// The voxels of row `(y, z)` whose centres are within `reach` of the box `bmin..bmax` (the triangle's bounding
