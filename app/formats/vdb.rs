@@ -615,7 +615,8 @@ fn write_buffers(
                 .map(|&i| {
                     let (key, mask) = &grid.leaves[i as usize];
                     let origin = key_origin(*key);
-                    let mut b = Vec::with_capacity(140);
+                    // Two masks, the metadata byte and at most 512 values.
+                    let mut b = Vec::with_capacity(2 * 64 + 1 + 512 * 4);
                     Mask(mask.to_vec()).write(&mut b);
                     match values {
                         Values::Bool => {
@@ -625,9 +626,11 @@ fn write_buffers(
                         // What the arm below writes, from the leaf's values looked up once.
                         Values::LevelSet { .. } if let Some(leaf) = values.leaf_values(origin) => {
                             b.push(MASK_AND_NO_INACTIVE_VALS);
-                            let mut selection = Mask::new(512);
-                            (0..512).filter(|&n| leaf[n] > 0.0).for_each(|n| selection.set(n));
-                            selection.write(&mut b);
+                            // The selection mask a word of 64 values at a time (compared side by side).
+                            for word in leaf.as_chunks::<64>().0 {
+                                let bits = (0..64).fold(0u64, |w, n| w | u64::from(word[n] > 0.0) << n);
+                                b.extend_from_slice(&bits.to_le_bytes());
+                            }
                             for (x, &word) in mask.iter().enumerate() {
                                 let mut bits = word;
                                 while bits != 0 {

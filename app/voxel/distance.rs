@@ -365,10 +365,17 @@ impl DistanceField {
         // The leaf's voxels in the grid per axis (no sum per voxel).
         let within = self.spec.dims.saturating_sub(origin);
         let mut mask = [0u64; 8];
-        for (i, &value) in leaf.iter().enumerate() {
-            let (x, y, z) = (i as u32 & 7, (i as u32 >> 3) & 7, i as u32 >> 6);
-            if (value.abs() < bg || full) && x < within.x && y < within.y && z < within.z {
-                mask[x as usize] |= 1 << (y * 8 + z);
+        // A row of eight values at a time, each lane's bit or'ed into its own word: the lanes side by side, where
+        // a voxel at a time the bits were set one by one.
+        for (row, values) in leaf.as_chunks::<8>().0.iter().enumerate() {
+            let (y, z) = (row as u32 & 7, row as u32 >> 3);
+            if y >= within.y || z >= within.z {
+                continue;
+            }
+            let bit = 1u64 << (y * 8 + z);
+            for x in 0..8 {
+                let on = ((values[x].abs() < bg) | full) & ((x as u32) < within.x);
+                mask[x] |= if on { bit } else { 0 };
             }
         }
         mask

@@ -161,15 +161,16 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
                 old[k] = run[k];
                 xs[k] = start as f32 + (k as f32 + 0.5);
             }
-            let pass = near_lanes(f, &xs, py, pz, &old, x1 - start);
+            let near = near_lanes(f, &xs, py, pz, &old, x1 - start);
+            let pass = -near.iter().sum::<i32>() as u32;
             if pass != 0 {
                 let d2 = match f.thin {
                     false => distances(f, &xs, py, pz),
                     true => std::array::from_fn(|k| point_distance2(Vec3::new(xs[k], py, pz), t)),
                 };
-                evaluated += pass.count_ones();
+                evaluated += pass;
                 for k in 0..LANES {
-                    run[k] = if (pass >> k & 1 != 0) & (d2[k] < old[k]) { d2[k] } else { old[k] };
+                    run[k] = if (near[k] != 0) & (d2[k] < old[k]) { d2[k] } else { old[k] };
                 }
             }
             start += LANES as i32;
@@ -178,31 +179,30 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
     evaluated
 }
 
-/// Which lanes of the points `(xs[k], py, pz)` the triangle may lower from `old[k]`, as bits:
-/// [`cannot_lower`](super::cpu::distance::cannot_lower)'s two bounds with its arithmetic in its order, written per
-/// coordinate so the lanes compute them side by side (`a - p` and the box's gap in y and z are the row's), and only
-/// the lanes `k <= last`.
+/// Which lanes of the points `(xs[k], py, pz)` the triangle may lower from `old[k]`, as lane masks (`-1` where it
+/// may, `0` where not): [`cannot_lower`](super::cpu::distance::cannot_lower)'s two bounds with its arithmetic in its
+/// order, written per coordinate so the lanes compute them side by side (`a - p` and the box's gap in y and z are
+/// the row's), and only the lanes `k <= last`. Masks, not the bits of one integer: gathering the lanes' verdicts
+/// into bits kept the compiler from putting the bounds in vector lanes at all (a quarter of the kernel's
+/// instructions, counted).
 #[inline(always)]
-fn near_lanes(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32, old: &[f32; LANES], last: i32) -> u32 {
+fn near_lanes(f: &Frame, xs: &[f32; LANES], py: f32, pz: f32, old: &[f32; LANES], last: i32) -> [i32; LANES] {
     let (ay, az) = (f.a.y - py, f.a.z - pz);
     let (lo, hi) = f.bounds;
     let gy = (lo.y - py).max(py - hi.y).max(0.0);
     let gz = (lo.z - pz).max(pz - hi.z).max(0.0);
     // A degenerate triangle's plane bounds nothing: its bound made one no square can reach.
     let n2 = if f.n2 > 0.0 { f.n2 } else { f32::INFINITY };
-    let mut far = [0u32; LANES];
+    let mut near = [0i32; LANES];
     for k in 0..LANES {
         let plane = f.n.x * (f.a.x - xs[k]) + f.n.y * ay + f.n.z * az;
         let gx = (lo.x - xs[k]).max(xs[k] - hi.x).max(0.0);
         let gap2 = gx * gx + gy * gy + gz * gz;
-        far[k] = u32::from(plane * plane >= old[k] * n2 * 1.0001) | u32::from(gap2 >= old[k] * 1.0001);
+        let far = (plane * plane >= old[k] * n2 * 1.0001) | (gap2 >= old[k] * 1.0001);
+        // Lanes `0..=last`: none past the row's span.
+        near[k] = -i32::from(!far & (k as i32 <= last));
     }
-    let mut near = 0;
-    for (k, far) in far.iter().enumerate() {
-        near |= (far ^ 1) << k;
-    }
-    // Lanes `0..=last`: none past the row's span.
-    near & ((1u32 << (last.clamp(-1, LANES as i32 - 1) + 1)) - 1)
+    near
 }
 
 /// [`point_distance2`] of a triangle that is not thin at the points `(xs[k], py, pz)`.
