@@ -27,6 +27,7 @@ mod grid;
 pub mod labels;
 pub mod lanes;
 mod lattice;
+pub mod monotone;
 pub mod points;
 pub mod query;
 pub mod ranks;

@@ -574,6 +574,77 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
     assert_eq!(solid("spot.obj", 128), (0, 0), "a closed mesh has no rows beside holes");
 }
 
+/// A run's pulls (`voxel/monotone.rs`: how fast the winding number can rise and how fast it can fall along a row,
+/// each alone) bound the f64 winding number's boundary term: between any two points a quarter voxel apart on the
+/// run it rises by at most `up` and falls by at most `down` per voxel (plus f64's rounding), on every open mesh of
+/// this file, the bunny and the teapot, for runs of 8 to 200 voxels on a stride through the grid. The fill takes
+/// every voxel past a decided one from these bounds, so a bound too small would put voxels on the wrong side.
+#[test]
+fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
+    use meshvox::voxel::cpu::solid::winding_exact;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut paths: Vec<(String, String)> =
+        open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
+    if let Some(shared) = shared_meshes() {
+        for name in ["stanford-bunny.obj", "teapot.obj"] {
+            paths.push((name.to_string(), shared.join(name).to_string_lossy().into_owned()));
+        }
+    }
+    let (mut judged, mut tight, mut meshes) = (0usize, 0usize, Vec::new());
+    for (name, path) in &paths {
+        let mesh = meshvox::mesh::load(path).expect("load");
+        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(96), Axis::Longest).expect("spec");
+        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+        let boundary = meshvox::voxel::solid::boundary(&tris, lattice);
+        let d = spec.dims;
+        let rows: Vec<(u32, u32)> =
+            (0..d.z).step_by(3).flat_map(|z| (0..d.y).step_by(3).map(move |y| (y, z))).collect();
+        let found: Vec<(usize, usize)> = rows
+            .par_iter()
+            .map(|&(y, z)| {
+                let (mut judged, mut tight) = (0, 0);
+                for length in [8u32, 40, 200] {
+                    for first in (0..d.x.saturating_sub(length)).step_by(length as usize * 3 / 2 + 1) {
+                        let last = first + length - 1;
+                        let Some((up, down)) =
+                            meshvox::voxel::monotone::pulls(first, last, y, z, bytemuck::cast_slice(&boundary.edges))
+                        else {
+                            continue;
+                        };
+                        let term = |x: f64| {
+                            winding_exact(0, DVec3::new(x, f64::from(y) + 0.5, f64::from(z) + 0.5), &boundary.edges)
+                        };
+                        let mut before = term(f64::from(first) + 0.5);
+                        for k in 1..=4 * (length - 1) {
+                            let now = term(f64::from(first) + 0.5 + f64::from(k) / 4.0);
+                            let (rise, fall) = (now - before, before - now);
+                            assert!(
+                                rise <= up / 4.0 + 1e-11 && fall <= down / 4.0 + 1e-11,
+                                "{name}: row ({y}, {z}), run {first}..={last}: the term moves by {} in a quarter \
+                                 voxel at {}, against pulls up {up} and down {down}",
+                                now - before,
+                                f64::from(first) + 0.5 + f64::from(k) / 4.0
+                            );
+                            // A bound within ten times what it bounds, somewhere: the test judges real motion.
+                            tight += usize::from(rise.max(fall) > 1e-4 && rise.max(fall) * 40.0 > up.max(down));
+                            before = now;
+                        }
+                        judged += 1;
+                    }
+                }
+                (judged, tight)
+            })
+            .collect();
+        let (j, t) = found.iter().fold((0, 0), |(j, t), &(a, b)| (j + a, t + b));
+        eprintln!("{name}: {j} runs' pulls bound the f64 boundary term ({t} quarter steps within 10x of a bound)");
+        judged += j;
+        tight += t;
+        meshes.push(name.clone());
+    }
+    assert!(judged > 2_000 && tight > 100, "only {judged} runs judged, {tight} steps near a bound, on {meshes:?}");
+}
+
 /// The CPU adds a winding number's boundary terms eight edges at a time (`voxel/winding_lanes.rs`, on the widest
 /// vector set the machine has and on the baseline) and must give the scalar sum's bits: the value, its error
 /// bound, the far chains' bound, the drift and its rate, at every point asked, for every mesh with a boundary (the

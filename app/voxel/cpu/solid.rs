@@ -49,6 +49,7 @@
 use super::common::{U, dot3};
 use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
+use crate::voxel::monotone;
 use crate::voxel::winding_lanes::{LANES, Sums, Terms, edge_sums, edge_sums_baseline};
 use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
@@ -660,6 +661,19 @@ pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
     certain_side(w, e, 0.0, MARGIN)
 }
 
+/// Whether the centre of voxel `k` of row `(y, z)` (`count` crossings before it) is inside: [`point_side`], and
+/// in f64 ([`inside_exact`]) where f32's bounds leave it open.
+pub fn voxel_inside(count: i32, k: u32, y: u32, z: u32, boundary: &Boundary) -> bool {
+    let p = Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+    match point_side(count, p, boundary) {
+        2 => {
+            boundary.evaluations.add(1);
+            inside_exact(count, k, y, z, &boundary.edges)
+        }
+        side => side == 1,
+    }
+}
+
 /// A bound on the winding number's gradient anywhere within `radius` of `p` that the mesh's surface does not
 /// separate from `p`. Off the surface the gradient of the solid angle is the Biot–Savart integral of the boundary
 /// curve, so `|∇w| ≤ (1/4π) Σ |w_e| len_e / d_e²` with `d_e` the least distance from the ball to edge `e`; a
@@ -892,9 +906,14 @@ pub const RUN_STACK: usize = 40;
 /// boundary edge takes one evaluation; close to a rim the stretches shrink to single voxels. A middle voxel the
 /// f32 bounds leave open is decided in f64 ([`inside_exact`]); the shader hands its row to the host there
 /// instead. An explicit stack, as in the shader, which cannot recurse.
+///
+/// The CPU's alone: a placed middle also decides the voxels on either side as far as the run's pulls allow
+/// ([`crate::voxel::monotone::pulls`]: the edges pulling the winding number back across ½ that way, each alone),
+/// so the half beside a root that no symmetric drift bound can certify whole is decided with it.
 pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary: &Boundary, row: &mut [u32]) {
     let mut stack = [(0u32, 0u32, 0.0f32); RUN_STACK];
     stack[0] = (first, last, STRETCH_BUDGET);
+    let mut pulls = None;
     let mut len = 1;
     while len > 0 {
         len -= 1;
@@ -917,23 +936,27 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
                 // The voxels around the middle that the drift rate keeps on its side, or the middle alone.
                 let slack = (v.w - 0.5).abs() - MARGIN * v.e - v.far;
                 let r = ((slack / v.rate) * 0.999).floor();
-                let (lo, hi) = match r >= 1.0 {
-                    true => {
-                        let r = r.min((b - m) as f32) as u32;
-                        ((m - r).max(a), m + r)
-                    }
-                    false => (m, m),
+                let (mut left, mut right) = match r >= 1.0 {
+                    true => (r, r),
+                    false => (0.0, 0.0),
                 };
+                // Where the middle is placed, as far each way as the edges pulling it across ½ allow: the run's
+                // pulls, summed once (the first stretch to need them).
+                if slack > 0.0
+                    && let Some((up, down)) = *pulls.get_or_insert_with(|| {
+                        monotone::pulls(first, last, y, z, bytemuck::cast_slice(&boundary.edges))
+                    })
+                {
+                    let (ahead, behind) = if v.w > 0.5 { (down, up) } else { (up, down) };
+                    let reach = |rate: f64| ((f64::from(slack) / rate) * 0.999).floor() as f32;
+                    (left, right) = (left.max(reach(behind)), right.max(reach(ahead)));
+                }
+                let lo = m - (left.min((m - a) as f32) as u32);
+                let hi = m + (right.min((b - m) as f32) as u32);
                 // The middle alone needs no drift: where the stretch's own bounds place it, it is placed.
-                let inside = match r >= 1.0 || slack > 0.0 {
+                let inside = match slack > 0.0 {
                     true => v.w > 0.5,
-                    false => match point_side(count, p, boundary) {
-                        2 => {
-                            boundary.evaluations.add(1);
-                            inside_exact(count, m, y, z, &boundary.edges)
-                        }
-                        side => side == 1,
-                    },
+                    false => voxel_inside(count, m, y, z, boundary),
                 };
                 if inside {
                     set_range(row, lo, hi + 1);

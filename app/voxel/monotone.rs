@@ -1,0 +1,62 @@
+//! How fast the winding number can rise and how fast it can fall along a run of a row beside the holes, each
+//! alone: the CPU's fill of a row (`fill_open_run`) certifies the voxels past a decided one from them. The CPU's
+//! alone (the shader halves its stretches with the symmetric drift rate).
+//!
+//! # Why
+//! A row that runs through a hole's cap crosses ½ once, and halving its run until every piece is certified costs
+//! two evaluations a halving: the half beside the root never certifies whole, since a drift bound that holds
+//! both ways can never be below how far the winding number actually moves across it. But most edges pull the
+//! winding number one way only along a row: an inside voxel stays inside for as far as the edges that pull it
+//! down allow, which beside a hole's cap (its loop seen around the row) is the whole run.
+//!
+//! # The bound
+//! Along +x only the boundary term moves (the crossing count is constant within a run). An edge's strip angle
+//! `2 atan2(num, den)` ([`cone_parts`](crate::voxel::cpu::solid::cone_parts)) has `num` constant along the row
+//! and its derivative is `num ∫ ds / |r|³` over the edge (Biot–Savart's; `r` from the point to the edge), so each
+//! edge moves the winding number one way throughout, at most `|w num| / (4π D³)` per voxel with `D` the least
+//! distance from the run to the edge. Summed over the edges pulling each way, in f64: `num` is a difference of two
+//! exact products (lattice coordinates less voxel centres), so its sign is exact and its value within a unit;
+//! the distances are within a few units and allowed `1e-9`.
+
+use glam::DVec3;
+
+/// f64's unit roundoff.
+const U64: f64 = f64::EPSILON / 2.0;
+
+/// The most the winding number can rise and the most it can fall per voxel anywhere on the voxels `first..=last`
+/// of row `(y, z)`, `(up, down)`: every edge summed (`edges` in the boundary edges' layout, `a.xyz, weight, b.xyz,
+/// span`: this module sits below the fill that calls it), each at its least distance from the run. `None` where an
+/// edge meets the run or its strip holds it (the least distance zero: the winding number may jump there).
+pub fn pulls(first: u32, last: u32, y: u32, z: u32, edges: &[[f32; 8]]) -> Option<(f64, f64)> {
+    let p = DVec3::new((f64::from(first) + f64::from(last + 1)) / 2.0, f64::from(y) + 0.5, f64::from(z) + 0.5);
+    let reach = f64::from(last - first) / 2.0;
+    let (mut up, mut down, mut meets) = (0.0f64, 0.0f64, false);
+    for e in edges {
+        let corner = |k: usize| DVec3::new(f64::from(e[k]), f64::from(e[k + 1]), f64::from(e[k + 2])) - p;
+        let (a, b) = (corner(0), corner(4));
+        let pull = f64::from(e[3]) * (a.y * b.z - a.z * b.y);
+        // The least distance from the run to the edge: at least the YZ distance from the row to the edge, and at
+        // least its distance from the run's middle less the reach.
+        let yz = DVec3::new(0.0, 1.0, 1.0);
+        let near = closest(a * yz, b * yz).length().max(closest(a, b).length() - reach) * (1.0 - 1e-9);
+        // Not a number (an edge of zero length at the point) meets it too.
+        meets |= near.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater);
+        let most = pull.abs() / (near * near * near);
+        up += if pull > 0.0 { most } else { 0.0 };
+        down += if pull > 0.0 { 0.0 } else { most };
+    }
+    if meets {
+        return None;
+    }
+    // Each sum's rounding, and the terms' own, well within this.
+    let margin = (1.0 + 1e-8 + 2.0 * edges.len() as f64 * U64) / (4.0 * std::f64::consts::PI);
+    Some((up * margin, down * margin))
+}
+
+/// The point of the segment `a b` nearest the origin.
+fn closest(a: DVec3, b: DVec3) -> DVec3 {
+    let ab = b - a;
+    let length2 = ab.length_squared();
+    let t = if length2 > 0.0 { (-a.dot(ab) / length2).clamp(0.0, 1.0) } else { 0.0 };
+    a + ab * t
+}
