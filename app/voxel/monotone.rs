@@ -15,8 +15,9 @@
 //! and its derivative is `num ∫ ds / |r|³` over the edge (Biot–Savart's; `r` from the point to the edge), so each
 //! edge moves the winding number one way throughout, at most `|w num| / (4π D³)` per voxel with `D` the least
 //! distance from the run to the edge. Summed over the edges pulling each way, in f64: `num` is a difference of two
-//! exact products (lattice coordinates less voxel centres), so its sign is exact and its value within a unit;
-//! the distances are within a few units and allowed `1e-9`.
+//! exact products (lattice coordinates less voxel centres), so its sign is exact and its value within a unit; the
+//! distances are each less their rounding (relative and absolute); and a row that runs through an edge's YZ
+//! projection, into its strip, is found exactly and left to the halving.
 
 use glam::DVec3;
 
@@ -34,13 +35,19 @@ pub fn pulls(first: u32, last: u32, y: u32, z: u32, edges: &[[f32; 8]]) -> Optio
     for e in edges {
         let corner = |k: usize| DVec3::new(f64::from(e[k]), f64::from(e[k + 1]), f64::from(e[k + 2])) - p;
         let (a, b) = (corner(0), corner(4));
-        let pull = f64::from(e[3]) * (a.y * b.z - a.z * b.y);
+        let num = a.y * b.z - a.z * b.y;
+        let pull = f64::from(e[3]) * num;
         // The least distance from the run to the edge: at least the YZ distance from the row to the edge, and at
-        // least its distance from the run's middle less the reach.
+        // least its distance from the run's middle less the reach; each less its rounding (a few units of the
+        // lengths involved, absolute: a row through the edge can come out a hair away from it).
         let yz = DVec3::new(0.0, 1.0, 1.0);
-        let near = closest(a * yz, b * yz).length().max(closest(a, b).length() - reach) * (1.0 - 1e-9);
-        // Not a number (an edge of zero length at the point) meets it too.
-        meets |= near.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater);
+        let rounding = 16.0 * U64 * (a.length() + b.length());
+        let near = closest(a * yz, b * yz).length().max(closest(a, b).length() - reach) * (1.0 - 1e-9) - rounding;
+        // Not a number (an edge of zero length at the point) meets it too; and, decided exactly, a row whose centre
+        // line passes through the edge's YZ projection (`num` zero with the line between the ends, or on an edge
+        // along x) runs into the edge's strip, where the winding number jumps, wherever the edge is.
+        let through = num == 0.0 && a.y * b.y + a.z * b.z <= 0.0;
+        meets |= near.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || through;
         let most = pull.abs() / (near * near * near);
         up += if pull > 0.0 { most } else { 0.0 };
         down += if pull > 0.0 { 0.0 } else { most };
