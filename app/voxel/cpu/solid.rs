@@ -661,19 +661,6 @@ pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
     certain_side(w, e, 0.0, MARGIN)
 }
 
-/// Whether the centre of voxel `k` of row `(y, z)` (`count` crossings before it) is inside: [`point_side`], and
-/// in f64 ([`inside_exact`]) where f32's bounds leave it open.
-pub fn voxel_inside(count: i32, k: u32, y: u32, z: u32, boundary: &Boundary) -> bool {
-    let p = Vec3::new(k as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
-    match point_side(count, p, boundary) {
-        2 => {
-            boundary.evaluations.add(1);
-            inside_exact(count, k, y, z, &boundary.edges)
-        }
-        side => side == 1,
-    }
-}
-
 /// A bound on the winding number's gradient anywhere within `radius` of `p` that the mesh's surface does not
 /// separate from `p`. Off the surface the gradient of the solid angle is the Biot–Savart integral of the boundary
 /// curve, so `|∇w| ≤ (1/4π) Σ |w_e| len_e / d_e²` with `d_e` the least distance from the ball to edge `e`; a
@@ -948,15 +935,21 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
                     })
                 {
                     let (ahead, behind) = if v.w > 0.5 { (down, up) } else { (up, down) };
-                    let reach = |rate: f64| ((f64::from(slack) / rate) * 0.999).floor() as f32;
-                    (left, right) = (left.max(reach(behind)), right.max(reach(ahead)));
+                    let extent = |rate: f64| ((f64::from(slack) / rate) * 0.999).floor() as f32;
+                    (left, right) = (left.max(extent(behind)), right.max(extent(ahead)));
                 }
                 let lo = m - (left.min((m - a) as f32) as u32);
                 let hi = m + (right.min((b - m) as f32) as u32);
                 // The middle alone needs no drift: where the stretch's own bounds place it, it is placed.
                 let inside = match slack > 0.0 {
                     true => v.w > 0.5,
-                    false => voxel_inside(count, m, y, z, boundary),
+                    false => match point_side(count, p, boundary) {
+                        2 => {
+                            boundary.evaluations.add(1);
+                            inside_exact(count, m, y, z, &boundary.edges)
+                        }
+                        side => side == 1,
+                    },
                 };
                 if inside {
                     set_range(row, lo, hi + 1);
