@@ -574,6 +574,35 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
     assert_eq!(solid("spot.obj", 128), (0, 0), "a closed mesh has no rows beside holes");
 }
 
+/// A mesh's name, boundary, grid size and rows ([`holed_boundaries_at_96`]).
+type HoledAt96 = (String, meshvox::voxel::cpu::solid::Boundary, UVec3, Vec<(u32, u32)>);
+
+/// The open test meshes of this file, the bunny and the teapot on a 96 grid: each one's name, boundary, grid
+/// size, and every third row each way (what the pulls' and the brackets' tests judge runs on).
+fn holed_boundaries_at_96() -> Vec<HoledAt96> {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut paths: Vec<(String, String)> =
+        open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
+    if let Some(shared) = shared_meshes() {
+        for name in ["stanford-bunny.obj", "teapot.obj"] {
+            paths.push((name.to_string(), shared.join(name).to_string_lossy().into_owned()));
+        }
+    }
+    paths
+        .into_iter()
+        .map(|(name, path)| {
+            let mesh = meshvox::mesh::load(&path).expect("load");
+            let fit = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(96), Axis::Longest);
+            let spec = fit.expect("spec");
+            let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+            let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+            let d = spec.dims;
+            let rows = (0..d.z).step_by(3).flat_map(|z| (0..d.y).step_by(3).map(move |y| (y, z))).collect();
+            (name, meshvox::voxel::solid::boundary(&tris, lattice), d, rows)
+        })
+        .collect()
+}
+
 /// A run's pulls (`voxel/monotone.rs`: how fast the winding number can rise and how fast it can fall along a row,
 /// each alone) bound the f64 winding number's boundary term: between any two points a quarter voxel apart on the
 /// run it rises by at most `up` and falls by at most `down` per voxel (plus f64's rounding), on every open mesh of
@@ -584,24 +613,9 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
 #[test]
 fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
     use meshvox::voxel::cpu::solid::winding_exact;
-    let dir = tempfile::tempdir().expect("tempdir");
-    let mut paths: Vec<(String, String)> =
-        open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
-    if let Some(shared) = shared_meshes() {
-        for name in ["stanford-bunny.obj", "teapot.obj"] {
-            paths.push((name.to_string(), shared.join(name).to_string_lossy().into_owned()));
-        }
-    }
     let (mut judged, mut tight, mut meshes) = (0usize, 0usize, Vec::new());
-    for (name, path) in &paths {
-        let mesh = meshvox::mesh::load(path).expect("load");
-        let spec = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(96), Axis::Longest).expect("spec");
-        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
-        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
-        let boundary = meshvox::voxel::solid::boundary(&tris, lattice);
-        let d = spec.dims;
-        let rows: Vec<(u32, u32)> =
-            (0..d.z).step_by(3).flat_map(|z| (0..d.y).step_by(3).map(move |y| (y, z))).collect();
+    for (name, boundary, d, rows) in &holed_boundaries_at_96() {
+        let d = *d;
         let found: Vec<(usize, usize)> = rows
             .par_iter()
             .map(|&(y, z)| {
@@ -654,6 +668,62 @@ fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
         let pulls = meshvox::voxel::monotone::pulls(first, last, 4, 3, &[edge]);
         assert_eq!(pulls, None, "run {first}..={last} of a row through an edge's strip: {pulls:?}");
     }
+}
+
+/// A run's brackets (`fill_bracketed_run`: the terms that rise along the row and those that fall, summed apart
+/// from one list of edges for the whole run) bound the f64 winding number's boundary term at every voxel between
+/// any two voxels evaluated: at least `rise(a) + fall(b)` and at most `rise(b) + fall(a)`, each with its
+/// tolerance, on every open mesh of this file, the bunny and the teapot, for runs of 32, 48 and 96 voxels on a
+/// stride through a 96 grid (and their halves, and short stretches inside them). The fill decides every voxel
+/// between two evaluated ones from these bounds, so a bound that did not hold would put voxels on the wrong side.
+#[test]
+fn a_runs_brackets_bound_the_winding_number_between_two_evaluated_voxels() {
+    use meshvox::voxel::cpu::solid::{Bracketed, bracket, run_list, winding_exact};
+    let (mut judged, mut near, mut meshes) = (0usize, 0usize, Vec::new());
+    for (name, boundary, d, rows) in &holed_boundaries_at_96() {
+        let d = *d;
+        let found: Vec<(usize, usize)> = rows
+            .par_iter()
+            .map(|&(y, z)| {
+                let (mut judged, mut near) = (0, 0);
+                for length in [32u32, 48, 96] {
+                    for first in (0..=d.x.saturating_sub(length)).step_by(length as usize * 3 / 2 + 1) {
+                        let last = first + length - 1;
+                        // (A row too near an edge's line to know which way it pulls has no brackets.)
+                        let Some((winding, middle, list)) = run_list(0, first, last, y, z, boundary) else {
+                            continue;
+                        };
+                        let at = |k: u32| Bracketed::evaluate(0, k, y, z, &list, boundary);
+                        let (a, b) = (at(first), at(last));
+                        let pairs = [(a, b), (a, middle), (middle, b), (at(first + 5), at(first + 12))];
+                        for (a, b) in pairs {
+                            let (least, most) = bracket(0, &a, &b, winding.far);
+                            for k in a.k..=b.k {
+                                let p = DVec3::new(f64::from(k) + 0.5, f64::from(y) + 0.5, f64::from(z) + 0.5);
+                                let term = winding_exact(0, p, &boundary.edges);
+                                assert!(
+                                    f64::from(least) <= term && term <= f64::from(most),
+                                    "{name}: row ({y}, {z}), voxels {}..={} of run {first}..={last}: the term is \
+                                     {term} at voxel {k}, outside the bracket {least}..{most}",
+                                    a.k,
+                                    b.k
+                                );
+                                near += usize::from(term - f64::from(least) < 0.01 || f64::from(most) - term < 0.01);
+                            }
+                            judged += 1;
+                        }
+                    }
+                }
+                (judged, near)
+            })
+            .collect();
+        let (j, n) = found.iter().fold((0, 0), |(j, t), &(a, b)| (j + a, t + b));
+        eprintln!("{name}: {j} brackets hold the f64 boundary term ({n} voxels within 0.01 of a bound)");
+        judged += j;
+        near += n;
+        meshes.push(name.clone());
+    }
+    assert!(judged > 2_000 && near > 100, "only {judged} brackets judged, {near} voxels near a bound, on {meshes:?}");
 }
 
 /// The CPU adds a winding number's boundary terms eight edges at a time (`voxel/winding_lanes.rs`, on the widest
