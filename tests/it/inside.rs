@@ -678,21 +678,35 @@ fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
 /// between two evaluated ones from these bounds, so a bound that did not hold would put voxels on the wrong side.
 #[test]
 fn a_runs_brackets_bound_the_winding_number_between_two_evaluated_voxels() {
-    use meshvox::voxel::cpu::solid::{Bracketed, bracket, run_list, winding_exact};
-    let (mut judged, mut near, mut meshes) = (0usize, 0usize, Vec::new());
+    use meshvox::voxel::cpu::solid::{Bracketed, bracket, fill_bracketed_run, inside_exact, run_list, winding_exact};
+    let (mut judged, mut near, mut filled_runs, mut meshes) = (0usize, 0usize, 0usize, Vec::new());
     for (name, boundary, d, rows) in &holed_boundaries_at_96() {
         let d = *d;
-        let found: Vec<(usize, usize)> = rows
+        let found: Vec<(usize, usize, usize)> = rows
             .par_iter()
             .map(|&(y, z)| {
-                let (mut judged, mut near) = (0, 0);
+                let (mut judged, mut near, mut filled) = (0, 0, 0);
                 for length in [32u32, 48, 96] {
-                    for first in (0..=d.x.saturating_sub(length)).step_by(length as usize * 3 / 2 + 1) {
+                    for first in (0..(d.x + 1).saturating_sub(length)).step_by(length as usize * 3 / 2 + 1) {
                         let last = first + length - 1;
                         // (A row too near an edge's line to know which way it pulls has no brackets.)
                         let Some((winding, middle, list)) = run_list(0, first, last, y, z, boundary) else {
                             continue;
                         };
+                        // The run filled by brackets (its boundary term alone, as a run with no crossing before
+                        // it), against f64 at every voxel.
+                        let mut row = vec![0u32; d.x.div_ceil(32) as usize];
+                        if fill_bracketed_run(0, first, last, y, z, boundary, &mut row) {
+                            for k in first..=last {
+                                let set = row[(k / 32) as usize] >> (k % 32) & 1 == 1;
+                                assert_eq!(
+                                    set,
+                                    inside_exact(0, k, y, z, &boundary.edges),
+                                    "{name}: row ({y}, {z}), run {first}..={last}: voxel {k} filled by brackets"
+                                );
+                            }
+                            filled += 1;
+                        }
                         let at = |k: u32| Bracketed::evaluate(0, k, y, z, &list, boundary);
                         let (a, b) = (at(first), at(last));
                         let pairs = [(a, b), (a, middle), (middle, b), (at(first + 5), at(first + 12))];
@@ -714,16 +728,23 @@ fn a_runs_brackets_bound_the_winding_number_between_two_evaluated_voxels() {
                         }
                     }
                 }
-                (judged, near)
+                (judged, near, filled)
             })
             .collect();
-        let (j, n) = found.iter().fold((0, 0), |(j, t), &(a, b)| (j + a, t + b));
-        eprintln!("{name}: {j} brackets hold the f64 boundary term ({n} voxels within 0.01 of a bound)");
+        let (j, n, f) = found.iter().fold((0, 0, 0), |(j, t, f), &(a, b, c)| (j + a, t + b, f + c));
+        eprintln!(
+            "{name}: {j} brackets hold the f64 boundary term ({n} voxels within 0.01 of a bound), {f} runs filled \
+             by brackets equal f64"
+        );
         judged += j;
         near += n;
+        filled_runs += f;
         meshes.push(name.clone());
     }
-    assert!(judged > 2_000 && near > 100, "only {judged} brackets judged, {near} voxels near a bound, on {meshes:?}");
+    assert!(
+        judged > 2_000 && near > 100 && filled_runs > 1_000,
+        "only {judged} brackets judged, {near} voxels near a bound, {filled_runs} runs filled, on {meshes:?}"
+    );
 }
 
 /// The CPU adds a winding number's boundary terms eight edges at a time (`voxel/winding_lanes.rs`, on the widest

@@ -1008,9 +1008,10 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
 pub const BRACKET_RUN: u32 = 32;
 
 /// The far budget of a run's list of edges ([`fill_bracketed_run`]): the chords' bound is part of every
-/// bracket's tolerance, so it is kept small. Measured on the bunny's sparse solid: a budget of 1/64 cost more
-/// instructions than no bracket at all at 2048; 1/1024 cost 4.7% more at 1024 (longer lists) and the same time
-/// at 8192 (fewer evaluations).
+/// bracket's tolerance, and the band of voxels it leaves to a second sum widens with the grid, so it is kept
+/// small. Measured on the bunny's sparse solid (with the pulls still in the brackets' fill): 1/64 took 38.4 M
+/// evaluations and 115 s at 8192 against 19.1 M and 83 s; 1/1024 took 4.7% more instructions at 1024 (longer
+/// lists) and the same time at 8192.
 pub const BRACKET_BUDGET: f32 = 1.0 / 256.0;
 
 /// A voxel of a run seen from the run's list of edges ([`fill_bracketed_run`]): the list's winding number and
@@ -1101,8 +1102,9 @@ pub fn bracket(count: i32, a: &Bracketed, b: &Bracketed, far: f32) -> (f32, f32)
 /// the whole run gives the list of edges and chords every evaluation then sums, so that every evaluation splits
 /// the same terms; the chords' fans add at most the walk's `far` anywhere on the run. A stretch between two
 /// evaluated voxels whose bracket lies on one side of ½ is decided without an evaluation; one that does not is
-/// halved. Each voxel evaluated is placed by its own value, with as many beside it as the run's pulls allow, or
-/// by [`point_side`] and [`inside_exact`] as a middle is.
+/// halved. Each voxel evaluated is placed by its own value (the run's pulls, which extend a placed middle in
+/// [`fill_open_run`], cost a run of the teapot's 1,036 boundary edges more in f64 than they saved here), or where
+/// the chords' bound leaves it open by every edge summed once, or in f64 ([`inside_exact`]).
 pub fn fill_bracketed_run(
     count: i32,
     first: u32,
@@ -1124,72 +1126,46 @@ pub fn fill_bracketed_run(
         _ => {}
     }
     let far = v.far;
-    let mut pulls = None;
-    // Decides voxel `v.k`, and as many voxels of `lo..=hi` beside it as the run's pulls keep on its side;
-    // returns the range decided.
-    let mut place = |v: &Bracketed, lo: u32, hi: u32, row: &mut [u32]| -> (u32, u32) {
-        let slack = (v.w - 0.5).abs() - MARGIN * v.e - far;
-        if slack <= 0.0 {
-            // Where the chords' bound is what leaves it open, every edge summed once; where f32's own is, f64.
-            let side = match (v.w - 0.5).abs() > MARGIN * v.e {
-                true => {
-                    let all = winding_number_tree(count, voxel_centre(v.k, y, z), 0.0, boundary, 0.0, ATAN2_CPU);
-                    certain_side(all.w, all.e, 0.0, MARGIN)
-                }
-                false => 2,
-            };
-            let inside = match side {
-                2 => {
-                    boundary.evaluations.add(1);
-                    inside_exact(count, v.k, y, z, &boundary.edges)
-                }
-                side => side == 1,
-            };
-            if inside {
-                set_range(row, v.k, v.k + 1);
+    // Decides voxel `v.k` alone: by its own value; where the chords' bound is what leaves it open, by every edge
+    // summed once; where f32's own bound does, in f64 (not a number included).
+    let place = |v: &Bracketed, row: &mut [u32]| {
+        let side = match certain_side(v.w, v.e, far, MARGIN) {
+            2 if (v.w - 0.5).abs() > MARGIN * v.e => {
+                let all = winding_number_tree(count, voxel_centre(v.k, y, z), 0.0, boundary, 0.0, ATAN2_CPU);
+                certain_side(all.w, all.e, 0.0, MARGIN)
             }
-            return (v.k, v.k);
+            side => side,
+        };
+        let inside = match side {
+            2 => {
+                boundary.evaluations.add(1);
+                inside_exact(count, v.k, y, z, &boundary.edges)
+            }
+            side => side == 1,
+        };
+        if inside {
+            set_range(row, v.k, v.k + 1);
         }
-        let (mut left, mut right) = (0.0f32, 0.0f32);
-        if let Some((up, down)) =
-            *pulls.get_or_insert_with(|| monotone::pulls(first, last, y, z, bytemuck::cast_slice(&boundary.edges)))
-        {
-            let (ahead, behind) = if v.w > 0.5 { (down, up) } else { (up, down) };
-            let extent = |rate: f64| ((f64::from(slack) / rate) * 0.999).floor().max(0.0) as f32;
-            (left, right) = (extent(behind), extent(ahead));
-        }
-        let (l, h) = (v.k - left.min((v.k - lo) as f32) as u32, v.k + right.min((hi - v.k) as f32) as u32);
-        if v.w > 0.5 {
-            set_range(row, l, h + 1);
-        }
-        (l, h)
     };
-    // The stretches left: the voxels `lo..=hi` between the evaluated `a` and `b`.
-    let mut stack = [(Bracketed::default(), Bracketed::default(), 0u32, 0u32); RUN_STACK];
+    // The stretches left: the voxels strictly between the evaluated `a` and `b`.
+    let mut stack = [(Bracketed::default(), Bracketed::default()); RUN_STACK];
     let mut len = 0;
-    let (l, h) = place(&middle, first, last, row);
-    if first < l {
-        let end = Bracketed::evaluate(count, first, y, z, &list, boundary);
-        let (_, h) = place(&end, first, l - 1, row);
-        if h + 1 < l {
-            stack[len] = (end, middle, h + 1, l - 1);
-            len += 1;
-        }
+    let ends = [first, last].map(|k| Bracketed::evaluate(count, k, y, z, &list, boundary));
+    for v in [&middle, &ends[0], &ends[1]] {
+        place(v, row);
     }
-    if h < last {
-        let end = Bracketed::evaluate(count, last, y, z, &list, boundary);
-        let (l, _) = place(&end, h + 1, last, row);
-        if h + 1 < l {
-            stack[len] = (middle, end, h + 1, l - 1);
+    for (a, b) in [(ends[0], middle), (middle, ends[1])] {
+        if b.k > a.k + 1 {
+            stack[len] = (a, b);
             len += 1;
         }
     }
     while len > 0 {
         len -= 1;
-        let (a, b, lo, hi) = stack[len];
+        let (a, b) = stack[len];
         let (least, most) = bracket(count, &a, &b, far);
         if least > 0.5 {
-            set_range(row, lo, hi + 1);
+            set_range(row, a.k + 1, b.k);
             continue;
         }
         if most < 0.5 {
@@ -1197,20 +1173,18 @@ pub fn fill_bracketed_run(
         }
         if len + 2 > RUN_STACK {
             // Unreachable (each level halves a stretch); keeps the result exact if it were not.
-            for k in (lo..=hi).filter(|&k| inside_exact(count, k, y, z, &boundary.edges)) {
+            for k in (a.k + 1..b.k).filter(|&k| inside_exact(count, k, y, z, &boundary.edges)) {
                 set_range(row, k, k + 1);
             }
             continue;
         }
-        let v = Bracketed::evaluate(count, lo + (hi - lo) / 2, y, z, &list, boundary);
-        let (l, h) = place(&v, lo, hi, row);
-        if lo < l {
-            stack[len] = (a, v, lo, l - 1);
-            len += 1;
-        }
-        if h < hi {
-            stack[len] = (v, b, h + 1, hi);
-            len += 1;
+        let v = Bracketed::evaluate(count, a.k + (b.k - a.k) / 2, y, z, &list, boundary);
+        place(&v, row);
+        for (a, b) in [(a, v), (v, b)] {
+            if b.k > a.k + 1 {
+                stack[len] = (a, b);
+                len += 1;
+            }
         }
     }
     true
