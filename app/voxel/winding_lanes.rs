@@ -41,10 +41,6 @@ pub struct Sums {
     pub error: f32,
     pub drift: f32,
     pub rate: f32,
-    /// The terms that raise the winding number along +x (positive) and those that lower it (negative), each
-    /// summed apart: an edge's term has its `num`'s sign, constant along a row.
-    pub rise: f32,
-    pub fall: f32,
     pub summed: u32,
 }
 
@@ -54,11 +50,6 @@ impl Sums {
     pub fn accumulate(&mut self, t: Terms, reach: f32) {
         self.sum += t[0];
         self.summed += 1;
-        if t[0] > 0.0 {
-            self.rise += t[0];
-        } else {
-            self.fall += t[0];
-        }
         self.magnitude += t[1];
         self.error += t[2];
         if reach > 0.0 {

@@ -933,7 +933,7 @@ pub fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, boundary
         len -= 1;
         let (a, b, budget) = stack[len];
         let m = a + (b - a) / 2;
-        let p = Vec3::new(m as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);
+        let p = voxel_centre(m, y, z);
         let reach = (b - m) as f32;
         let mut v = winding_number_tree(count, p, reach, boundary, budget, ATAN2_CPU);
         let mut side = certain_side(v.w, v.e, v.drift + v.far, MARGIN);
@@ -1027,10 +1027,15 @@ pub struct Bracketed {
 }
 
 impl Bracketed {
+    /// The rising and falling parts from the sum and the magnitude (each term's magnitude is its own value's:
+    /// `(sum ± magnitude) / 2` keeps the terms of one sign), so the lanes keep no sums of their own for them. Each
+    /// part is within the evaluation's error bound of the exact one: the terms' errors are a part of those summed,
+    /// and the two sums' roundings and the halving are within the bound's `(n + 2) u Σ|t|`.
     fn new(k: u32, count: i32, terms: &EdgeTerms) -> Bracketed {
         let (w, e, _) = terms.finish(count);
         let scale = 1.0 / (4.0 * std::f32::consts::PI);
-        Bracketed { k, w, e, rise: terms.sums.rise * scale, fall: terms.sums.fall * scale }
+        let (sum, magnitude) = (terms.sums.sum, terms.sums.magnitude);
+        Bracketed { k, w, e, rise: (sum + magnitude) * 0.5 * scale, fall: (sum - magnitude) * 0.5 * scale }
     }
 
     /// The list's edges summed at voxel `k` of row `(y, z)`: an evaluation without the tree's walk.
@@ -1083,8 +1088,8 @@ pub fn run_list(
 
 /// Bounds on the winding number anywhere on the voxels between `a` and `b` (`a.k < b.k`, of one run, evaluated from
 /// its list, whose chords' fans add at most `far`): `rise(a) + fall(b)` and `rise(b) + fall(a)` with `count`, each
-/// widened by its tolerance. Each split sum is within its evaluation's error bound of the exact one (it is a part
-/// of the same sum); the bracket's own roundings are well within the last term.
+/// widened by its tolerance. Each part is within its evaluation's error bound of the exact one ([`Bracketed`]);
+/// the bracket's own roundings are well within the last term.
 pub fn bracket(count: i32, a: &Bracketed, b: &Bracketed, far: f32) -> (f32, f32) {
     let tolerance = MARGIN * (a.e + b.e) + far + 8.0 * U * (count.abs() as f32 + a.rise - a.fall + b.rise - b.fall);
     (count as f32 + (a.rise + b.fall) - tolerance, count as f32 + (b.rise + a.fall) + tolerance)
