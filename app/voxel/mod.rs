@@ -33,6 +33,7 @@ pub mod query;
 pub mod ranks;
 pub mod sample;
 pub mod shell;
+pub mod slope;
 pub mod solid;
 pub mod solid_sparse;
 pub mod sparse;

@@ -5,6 +5,7 @@
 //! also explains the algorithm.
 
 use super::cpu::solid::*;
+use super::slope::slope_leaf;
 use super::sparse::leaf_key;
 use super::{Lattice, VoxelGrid};
 use crate::parallel::prelude::*;
@@ -548,10 +549,31 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
                 let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
                 near_rows.fetch_add(near.iter().filter(|&&n| n).count() as u64, std::sync::atomic::Ordering::Relaxed);
                 let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
-                let decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
+                let mut decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
                     true => certify_group(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
                     false => Vec::new(),
                 };
+                // Beside a cap: the leaves the boxes left open decided voxel by voxel from one slope each, their
+                // bits written here and the leaf then skipped by its rows.
+                let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
+                for lx in (0..decided.len()).filter(|&lx| whole && (lx as u32 + 1) * 8 <= dims.x) {
+                    if decided[lx] != LEAF_OPEN || keys.binary_search(&leaf_key(lx as u32 * 8, ya, za)).is_ok() {
+                        continue;
+                    }
+                    let list = |i: usize| {
+                        let r = ((za + i as u32 % 8) * dims.y + ya + i as u32 / 8) as usize;
+                        &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize]
+                    };
+                    let counts = std::array::from_fn(|i| count_before(list(i), lx as u32 * 8));
+                    if let Some(mask) = slope_leaf(UVec3::new(lx as u32 * 8, ya, za), &counts, &boundary) {
+                        // A leaf's 8 voxels of a row are one byte of a row's 32-bit word.
+                        for i in 0..64u32 {
+                            let byte = (0..8).filter(|&x| mask[x] >> i & 1 != 0).fold(0u32, |b, x| b | 1 << x);
+                            words[word(ya + i / 8, za + i % 8) + lx / 4] |= byte << (lx % 4 * 8);
+                        }
+                        decided[lx] = LEAF_OUTSIDE;
+                    }
+                }
                 for (&(y, z), &near) in group.iter().zip(&near) {
                     let r = (z * dims.y + y) as usize;
                     let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];

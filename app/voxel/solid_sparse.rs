@@ -16,7 +16,8 @@
 
 use super::Lattice;
 use super::cpu::groups::{GroupOutput, row_byte};
-use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::slope::slope_leaf;
 use super::solid::{
     FillStats, boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves,
 };
@@ -77,6 +78,8 @@ enum Leaf {
     Inside,
     /// Decided voxel by voxel, from the rows' bits: the surface passes through, or nothing decided it whole.
     Bits,
+    /// Decided voxel by voxel from the slope of the winding number at its middle ([`slope_leaf`]).
+    Mask(LeafMask),
 }
 
 /// Adds the voxels whose centres are inside the lattice triangles' mesh to `surface` (which holds the shell).
@@ -181,6 +184,12 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                                 _ if partial => Leaf::Bits,
                                 Some(&LEAF_INSIDE) => Leaf::Inside,
                                 Some(&LEAF_OUTSIDE) => Leaf::Outside,
+                                // Beside a cap: the leaf's voxels from one slope, where it decides them.
+                                Some(&LEAF_OPEN) if by_count == Leaf::Bits => {
+                                    let counts = std::array::from_fn(|i| count_before(group_rows[i].2, k as u32 * 8));
+                                    slope_leaf(UVec3::new(k as u32 * 8, ya, za), &counts, &boundary)
+                                        .map_or(Leaf::Bits, Leaf::Mask)
+                                }
                                 _ => by_count,
                             };
                         }
@@ -222,6 +231,12 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             match states[lx] {
                                 Leaf::Outside => full = false,
                                 Leaf::Inside => found.push((t, origin, FULL_LEAF)),
+                                Leaf::Mask(mask) => {
+                                    full &= mask == FULL_LEAF;
+                                    if mask != [0; 8] {
+                                        found.push((t, origin, mask));
+                                    }
+                                }
                                 Leaf::Bits => {
                                     let mut mask: LeafMask = [0; 8];
                                     for i in 0..64 {

@@ -577,9 +577,12 @@ fn a_row_beside_the_holes_costs_a_bounded_count_of_winding_numbers() {
 /// A mesh's name, boundary, grid size and rows ([`holed_boundaries_at_96`]).
 type HoledAt96 = (String, meshvox::voxel::cpu::solid::Boundary, UVec3, Vec<(u32, u32)>);
 
-/// The open test meshes of this file, the bunny and the teapot on a 96 grid: each one's name, boundary, grid
-/// size, and every third row each way (what the pulls' and the brackets' tests judge runs on).
-fn holed_boundaries_at_96() -> Vec<HoledAt96> {
+/// A mesh's name, lattice triangles, lattice and grid size ([`holed_meshes_at`]).
+type HoledMesh = (String, Vec<[Vec3; 3]>, meshvox::voxel::Lattice, UVec3);
+
+/// The open test meshes of this file, the bunny and the teapot on a grid of `n`: each one's name, lattice
+/// triangles, lattice and grid size.
+fn holed_meshes_at(n: u32) -> Vec<HoledMesh> {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut paths: Vec<(String, String)> =
         open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
@@ -592,15 +595,139 @@ fn holed_boundaries_at_96() -> Vec<HoledAt96> {
         .into_iter()
         .map(|(name, path)| {
             let mesh = meshvox::mesh::load(&path).expect("load");
-            let fit = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(96), Axis::Longest);
+            let fit = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(n), Axis::Longest);
             let spec = fit.expect("spec");
             let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
             let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
-            let d = spec.dims;
+            (name, tris.into_owned(), lattice, spec.dims)
+        })
+        .collect()
+}
+
+/// The meshes of [`holed_meshes_at`] on a 96 grid: each one's name, boundary, grid size, and every third row each
+/// way (what the pulls' and the brackets' tests judge runs on).
+fn holed_boundaries_at_96() -> Vec<HoledAt96> {
+    holed_meshes_at(96)
+        .into_iter()
+        .map(|(name, tris, lattice, d)| {
             let rows = (0..d.z).step_by(3).flat_map(|z| (0..d.y).step_by(3).map(move |y| (y, z))).collect();
             (name, meshvox::voxel::solid::boundary(&tris, lattice), d, rows)
         })
         .collect()
+}
+
+/// A leaf's slope (`voxel/slope.rs`: the winding number at a box's middle voxel and its gradient, with bounds on
+/// both and on the Hessian) bounds the f64 winding number at every voxel of the box, for every whole leaf no
+/// triangle comes near and each of its 4³ octants, on every open mesh of this file, the bunny and the teapot on a
+/// 160 grid; and the leaves `slope_leaf` decides have every voxel clear of ½ on the reference's side. The fill
+/// takes those leaves' voxels from their slopes alone, so a bound that did not hold would put voxels on the wrong
+/// side. At 160 few leaves that a cap crosses are far enough from the rims for a slope, so the bunny at 512 adds
+/// every such leaf `slope_leaf` decides (and judges its boxes' bounds too).
+#[test]
+fn a_leafs_slope_bounds_the_winding_number_at_every_voxel_of_it() {
+    use meshvox::voxel::slope::slope_leaf;
+    use meshvox::voxel::solid::{boundary, column_crossings, surface_leaves};
+    let (mut judged, mut near, mut crossed, mut meshes) = (0usize, 0usize, 0usize, Vec::new());
+    let mut cases: Vec<(HoledMesh, bool)> = holed_meshes_at(160).into_iter().map(|m| (m, false)).collect();
+    if let Some(dir) = shared_meshes() {
+        let mesh = meshvox::mesh::load(&dir.join("stanford-bunny.obj").to_string_lossy()).expect("bunny");
+        let fit = GridSpec::fit(mesh.bounds().expect("bounds"), Resolution::Count(512), Axis::Longest);
+        let spec = fit.expect("spec");
+        let tris = voxelize::grid_space_triangles(&mesh, &spec).expect("grid space");
+        let (tris, lattice) = on_lattice(&tris, spec.dims).expect("lattice");
+        cases.push((("bunny at 512, leaves a cap crosses".into(), tris.into_owned(), lattice, spec.dims), true));
+    }
+    for ((name, tris, lattice, d), crossed_only) in cases {
+        let boundary = boundary(&tris, lattice);
+        let rows = column_crossings(&tris, d, lattice);
+        let keys: std::collections::HashSet<u64> = surface_leaves(&tris, d).into_iter().collect();
+        let counts = |origin: UVec3| -> [i32; 64] {
+            std::array::from_fn(|i| {
+                let r = ((origin.z + i as u32 % 8) * d.y + origin.y + i as u32 / 8) as usize;
+                let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                meshvox::voxel::solid::count_before(list, origin.x)
+            })
+        };
+        let mut leaves: Vec<UVec3> = (0..d.z / 8)
+            .flat_map(|z| (0..d.y / 8).flat_map(move |y| (0..d.x / 8).map(move |x| UVec3::new(x, y, z) * 8)))
+            .filter(|o| !keys.contains(&meshvox::voxel::sparse::leaf_key(o.x, o.y, o.z)))
+            .collect();
+        if crossed_only {
+            let full = [u64::MAX; 8];
+            leaves = leaves
+                .into_par_iter()
+                .filter(|&o| slope_leaf(o, &counts(o), &boundary).is_some_and(|m| m != [0; 8] && m != full))
+                .collect();
+        }
+        let wanted: std::collections::HashSet<UVec3> = leaves.iter().map(|&o| o / 8).collect();
+        let reference = Reference::new(&tris, d, |v| wanted.contains(&(v / 8)));
+        let found: Vec<(usize, usize, usize)> = leaves
+            .par_iter()
+            .map(|&o| judge_slopes(&name, o, &counts(o), &boundary, |v| reference.values[index(o + v, d)]))
+            .collect();
+        let (j, n, c) = found.iter().fold((0, 0, 0), |(j, n, c), &(a, b, e)| (j + a, n + b, c + e));
+        eprintln!(
+            "{name}: {j} voxels within their slope's bound ({n} within ten times it); {c} leaves with voxels on both \
+             sides decided by slopes"
+        );
+        judged += j;
+        near += n;
+        crossed += c;
+        meshes.push(name);
+    }
+    assert!(
+        judged > 100_000 && near > 1_000 && crossed > 10,
+        "only {judged} voxels judged, {near} near a bound, {crossed} leaves crossing ½ decided, on {meshes:?}"
+    );
+}
+
+/// The slopes of the leaf at `origin` and of its octants, against `w` (the f64 winding number at a voxel of the
+/// leaf) at every voxel, and its voxels as `slope_leaf` decides them: how many voxels were judged, how many were
+/// within ten times their bound of its edge, and whether the leaf was decided with voxels on both sides of ½.
+fn judge_slopes(
+    name: &str,
+    origin: UVec3,
+    counts: &[i32; 64],
+    boundary: &meshvox::voxel::cpu::solid::Boundary,
+    w: impl Fn(UVec3) -> f64,
+) -> (usize, usize, usize) {
+    use meshvox::voxel::slope::{slope_at, slope_leaf};
+    let (mut judged, mut near) = (0, 0);
+    let octants = (0..8u32).map(|k| (UVec3::new(k & 1, k >> 1 & 1, k >> 2) * 4, 4u32));
+    for (corner, side) in std::iter::once((UVec3::ZERO, 8u32)).chain(octants) {
+        let m = corner + side / 2;
+        let radius = (3.0 * f64::from(side * side / 4)).sqrt();
+        let c = (origin + m).as_dvec3() + 0.5;
+        let Some(slope) = slope_at(counts[(m.y * 8 + m.z) as usize], c, radius, boundary) else {
+            continue;
+        };
+        for i in 0..side * side * side {
+            let v = corner + UVec3::new(i % side, i / side % side, i / side / side);
+            let (value, tolerance) = slope.bound(v.as_dvec3() - m.as_dvec3());
+            let exact = w(v);
+            assert!(
+                (exact - value).abs() <= tolerance,
+                "{name}: leaf {origin}, box {corner} of {side}: the winding number is {exact} at voxel {v}, the \
+                 slope's value {value} within {tolerance}"
+            );
+            judged += 1;
+            near += usize::from((exact - value).abs() * 10.0 > tolerance);
+        }
+    }
+    let Some(mask) = slope_leaf(origin, counts, boundary) else {
+        return (judged, near, 0);
+    };
+    let mut sides = [false; 2];
+    for v in (0..512u32).map(|i| UVec3::new(i % 8, i / 8 % 8, i / 64)) {
+        let exact = w(v);
+        let set = mask[v.x as usize] >> (v.y * 8 + v.z) & 1 == 1;
+        sides[usize::from(set)] = true;
+        assert!(
+            (exact - 0.5).abs() <= TOLERANCE || set == (exact >= 0.5),
+            "{name}: leaf {origin}: voxel {v} decided {set} by its slope, the winding number {exact}"
+        );
+    }
+    (judged, near, usize::from(sides == [true, true]))
 }
 
 /// A run's pulls (`voxel/monotone.rs`: how fast the winding number can rise and how fast it can fall along a row,

@@ -717,7 +717,7 @@ pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
 /// node without halves is the visit's to finish). A piece's tree is balanced, so the stack holds at most its
 /// depth plus one entry per level.
 #[inline(always)]
-fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bool) {
+pub fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bool) {
     let mut stack = [0u32; 2 * TREE_DEPTH];
     for piece in &boundary.pieces {
         stack[0] = piece.root;
