@@ -72,17 +72,48 @@ pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Latti
     by_row(pairs, rows.len())
 }
 
-/// `(row, packed crossing)` pairs as [`RowCrossings`] over `rows` rows: sorted, so each row's list is in order.
-fn by_row(mut pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
-    crate::parallel::install(|| pairs.par_sort_unstable());
+/// `(row, packed crossing)` pairs as [`RowCrossings`] over `rows` rows, each row's list in order. A counting sort:
+/// the pairs come a triangle at a time, each row's scattered through the list, and a comparison sort of them all
+/// took a tenth of the bunny's sparse solid at 2048; counted into place by row, only each row's few are sorted.
+fn by_row(pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
     let mut offsets = vec![0u32; rows + 1];
     for &(row, _) in &pairs {
-        offsets[row as usize + 1] += 1;
+        offsets[row as usize] += 1;
     }
-    for r in 0..rows {
-        offsets[r + 1] += offsets[r];
+    // Each row's end, then (placing its crossings from the last back) its start.
+    let mut end = 0;
+    for o in &mut offsets[..rows] {
+        end += *o;
+        *o = end;
     }
-    RowCrossings { offsets, crossings: pairs.into_iter().map(|(_, c)| c).collect() }
+    offsets[rows] = end;
+    let mut crossings = vec![0u32; pairs.len()];
+    for &(row, c) in pairs.iter().rev() {
+        let o = &mut offsets[row as usize];
+        *o -= 1;
+        crossings[*o as usize] = c;
+    }
+    drop(pairs);
+    // Each row's list sorted, blocks of rows in parallel.
+    let blocks = 256.min(rows.max(1));
+    let bounds: Vec<usize> = (0..=blocks).map(|b| rows * b / blocks).collect();
+    let mut slices = Vec::with_capacity(blocks);
+    let mut rest = crossings.as_mut_slice();
+    for b in 0..blocks {
+        let len = (offsets[bounds[b + 1]] - offsets[bounds[b]]) as usize;
+        let (block, tail) = rest.split_at_mut(len);
+        slices.push((bounds[b], bounds[b + 1], block));
+        rest = tail;
+    }
+    crate::parallel::install(|| {
+        slices.into_par_iter().for_each(|(r0, r1, block)| {
+            let first = offsets[r0];
+            for r in r0..r1 {
+                block[(offsets[r] - first) as usize..(offsets[r + 1] - first) as usize].sort_unstable();
+            }
+        })
+    });
+    RowCrossings { offsets, crossings }
 }
 
 /// Lists the crossings of all lattice triangles.
