@@ -425,6 +425,15 @@ pub fn count_before(list: &[u32], k: u32) -> i32 {
     -list.iter().take_while(|&&c| crossing_voxel(c) <= k).map(|&c| crossing_sign(c)).sum::<i32>()
 }
 
+/// The crossing counts before the leaf at `origin` (whole in a grid of `dims`) of its 64 rows, row `(y, z)` at
+/// `(y - origin.y) * 8 + (z - origin.z)`: what [`crate::voxel::slope::slope_leaf`] takes.
+pub fn leaf_counts(rows: &RowCrossings, dims: UVec3, origin: UVec3) -> [i32; 64] {
+    std::array::from_fn(|i| {
+        let (y, z) = (origin.y + i as u32 / 8, origin.z + i as u32 % 8);
+        count_before(rows.row((z * dims.y + y) as usize), origin.x)
+    })
+}
+
 /// The 8³ leaves along x of the group of rows `ya..ya + 8`, `za..za + 8` (multiples of 8) whose voxels are all on
 /// one side of 1/2, found with one winding number per box of leaves instead of one per stretch of each row: a box
 /// with no surface voxel (`surface[lx]` false for each of its leaves) is certified where the winding number at its
@@ -451,7 +460,7 @@ pub fn certify_leaves(
         let (m, radius) = group_box(a, b, dims, ya, za);
         let p = m.as_vec3() + 0.5;
         let r = (m.z * dims.y + m.y) as usize;
-        let count = count_before(&rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize], m.x);
+        let count = count_before(rows.row(r), m.x);
         let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         match certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN) {
             1 => Some(LEAF_INSIDE),
@@ -580,23 +589,24 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
                 let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
                 near_rows.fetch_add(near.iter().filter(|&&n| n).count() as u64, std::sync::atomic::Ordering::Relaxed);
                 let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
-                let mut decided = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
-                    true => certify_group(&rows, dims, ya, za, &boundary, &group_surface(&keys, dims, ya, za)),
-                    false => Vec::new(),
+                // Which leaves the surface passes through, and which the boxes decide: beside a hole only.
+                let (surface, mut decided) = match near.iter().any(|&n| n) && !boundary.edges.is_empty() {
+                    true => {
+                        let surface = group_surface(&keys, dims, ya, za);
+                        let decided = certify_group(&rows, dims, ya, za, &boundary, &surface);
+                        (surface, decided)
+                    }
+                    false => (Vec::new(), Vec::new()),
                 };
                 // Beside a cap: the leaves the boxes left open decided voxel by voxel from one slope each, their
                 // bits written here and the leaf then skipped by its rows.
                 let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
                 for lx in (0..decided.len()).filter(|&lx| whole && (lx as u32 + 1) * 8 <= dims.x) {
-                    if decided[lx] != LEAF_OPEN || keys.binary_search(&leaf_key(lx as u32 * 8, ya, za)).is_ok() {
+                    if decided[lx] != LEAF_OPEN || surface[lx] {
                         continue;
                     }
-                    let list = |i: usize| {
-                        let r = ((za + i as u32 % 8) * dims.y + ya + i as u32 / 8) as usize;
-                        &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize]
-                    };
-                    let counts = std::array::from_fn(|i| count_before(list(i), lx as u32 * 8));
-                    if let Some(mask) = slope_leaf(UVec3::new(lx as u32 * 8, ya, za), &counts, &boundary) {
+                    let origin = UVec3::new(lx as u32 * 8, ya, za);
+                    if let Some(mask) = slope_leaf(origin, &leaf_counts(&rows, dims, origin), &boundary) {
                         // A leaf's 8 voxels of a row are one byte of a row's 32-bit word.
                         for i in 0..64u32 {
                             let byte = (0..8).filter(|&x| mask[x] >> i & 1 != 0).fold(0u32, |b, x| b | 1 << x);
@@ -606,8 +616,7 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
                     }
                 }
                 for (&(y, z), &near) in group.iter().zip(&near) {
-                    let r = (z * dims.y + y) as usize;
-                    let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                    let list = rows.row((z * dims.y + y) as usize);
                     if list.is_empty() && !near {
                         continue;
                     }

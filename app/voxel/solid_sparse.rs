@@ -131,8 +131,7 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                         .map(|i| (ya + i / 8, za + i % 8))
                         .filter(|&(y, z)| y < dims.y && z < dims.z)
                         .map(|(y, z)| {
-                            let r = (z * dims.y + y) as usize;
-                            let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
+                            let list = rows.row((z * dims.y + y) as usize);
                             let near = near_boundary(y, z, &boundary.pieces);
                             let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
                             (y, z, list, near, total == 0 && !near)

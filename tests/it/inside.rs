@@ -626,7 +626,7 @@ fn holed_boundaries_at_96() -> Vec<HoledAt96> {
 #[test]
 fn a_leafs_slope_bounds_the_winding_number_at_every_voxel_of_it() {
     use meshvox::voxel::slope::slope_leaf;
-    use meshvox::voxel::solid::{boundary, column_crossings, surface_leaves};
+    use meshvox::voxel::solid::{boundary, column_crossings, leaf_counts, surface_leaves};
     let (mut judged, mut near, mut crossed, mut meshes) = (0usize, 0usize, 0usize, Vec::new());
     let mut cases: Vec<(HoledMesh, bool)> = holed_meshes_at(160).into_iter().map(|m| (m, false)).collect();
     if let Some(dir) = shared_meshes() {
@@ -641,13 +641,7 @@ fn a_leafs_slope_bounds_the_winding_number_at_every_voxel_of_it() {
         let boundary = boundary(&tris, lattice);
         let rows = column_crossings(&tris, d, lattice);
         let keys: std::collections::HashSet<u64> = surface_leaves(&tris, d).into_iter().collect();
-        let counts = |origin: UVec3| -> [i32; 64] {
-            std::array::from_fn(|i| {
-                let r = ((origin.z + i as u32 % 8) * d.y + origin.y + i as u32 / 8) as usize;
-                let list = &rows.crossings[rows.offsets[r] as usize..rows.offsets[r + 1] as usize];
-                meshvox::voxel::solid::count_before(list, origin.x)
-            })
-        };
+        let counts = |origin: UVec3| leaf_counts(&rows, d, origin);
         let mut leaves: Vec<UVec3> = (0..d.z / 8)
             .flat_map(|z| (0..d.y / 8).flat_map(move |y| (0..d.x / 8).map(move |x| UVec3::new(x, y, z) * 8)))
             .filter(|o| !keys.contains(&meshvox::voxel::sparse::leaf_key(o.x, o.y, o.z)))

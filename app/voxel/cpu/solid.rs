@@ -269,6 +269,13 @@ pub struct RowCrossings {
     pub crossings: Vec<u32>,
 }
 
+impl RowCrossings {
+    /// Row `r`'s crossings, sorted.
+    pub fn row(&self, r: usize) -> &[u32] {
+        &self.crossings[self.offsets[r] as usize..self.offsets[r + 1] as usize]
+    }
+}
+
 /// The signed solid angle of the strip swept from edge `a→b` (relative to the point) along +x, the spherical
 /// triangle `a/|a|, b/|b|, x̂` (Van Oosterom & Strackee 1983 with the third corner a unit vector), as what it is
 /// made from: `(num, den, mag)`, the solid angle being `2 atan2(num, den)`, with `den = |a||b| + a·b + a_x|b| +
