@@ -699,16 +699,7 @@ impl<'a> Finishing<'a> {
 fn inside_mask(g: &Grid, origin: UVec3) -> LeafMask {
     match g {
         Grid::Sparse(s) => s.leaf_mask(origin),
-        Grid::Dense(d) => {
-            let mut mask = [0u64; 8];
-            for i in 0..512u32 {
-                let v = origin + UVec3::new(i >> 6, (i >> 3) & 7, i & 7);
-                if v.cmplt(d.spec.dims).all() && d.get(v.x, v.y, v.z) {
-                    mask[(i >> 6) as usize] |= 1 << (i & 63);
-                }
-            }
-            mask
-        }
+        Grid::Dense(d) => d.leaf_mask(origin),
     }
 }
 

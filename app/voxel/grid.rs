@@ -490,6 +490,27 @@ impl VoxelGrid {
         self.words[w] >> b & 1 != 0
     }
 
+    /// The 8³ leaf at `origin` (a multiple of 8 inside the grid) as a sparse leaf's mask (bit `y * 8 + z` of word
+    /// `x`): a leaf's eight voxels of a row are one byte of its words, so 64 bytes are read, not 512 bits.
+    pub fn leaf_mask(&self, origin: UVec3) -> [u64; 8] {
+        let (dims, wpr, lx) = (self.spec.dims, self.spec.words_per_row(), origin.x / 8);
+        let mut mask = [0u64; 8];
+        for dz in 0..8.min(dims.z.saturating_sub(origin.z)) {
+            for dy in 0..8.min(dims.y.saturating_sub(origin.y)) {
+                let row = (origin.z + dz) as usize * dims.y as usize + (origin.y + dy) as usize;
+                let byte = u64::from(self.words[row * wpr + (lx / 4) as usize] >> ((lx % 4) * 8) & 0xff);
+                if byte == 0 {
+                    continue;
+                }
+                // Every x at once, no branch per set voxel: an inside leaf's bytes are mostly full.
+                for (x, word) in mask.iter_mut().enumerate() {
+                    *word |= (byte >> x & 1) << (dy * 8 + dz);
+                }
+            }
+        }
+        mask
+    }
+
     #[inline]
     pub fn set(&mut self, x: u32, y: u32, z: u32) {
         let (w, b) = self.spec.word_and_bit(x, y, z);

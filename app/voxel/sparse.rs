@@ -126,9 +126,9 @@ impl SparseGrid {
 
     /// The same voxels as `grid`.
     pub fn from_dense(grid: &VoxelGrid) -> SparseGrid {
-        // Leaf by leaf from the rows' bytes (a leaf's eight voxels of a row are one byte of its words), eight layers
-        // at a time on the library's threads: no lookup per row and leaf, which a full grid has millions of.
-        let (spec, dims, wpr) = (grid.spec, grid.spec.dims, grid.spec.words_per_row());
+        // Leaf by leaf from the rows' bytes (`VoxelGrid::leaf_mask`), eight layers at a time on the library's
+        // threads: no lookup per row and leaf, which a full grid has millions of.
+        let (spec, dims) = (grid.spec, grid.spec.dims);
         let leaves_x = dims.x.div_ceil(8);
         let mut leaves: Vec<(u64, LeafMask)> = crate::parallel::install(|| {
             (0..dims.z.div_ceil(8))
@@ -136,19 +136,7 @@ impl SparseGrid {
                 .flat_map_iter(|gz| {
                     (0..dims.y.div_ceil(8)).flat_map(move |gy| {
                         (0..leaves_x).filter_map(move |lx| {
-                            let mut mask: LeafMask = [0; 8];
-                            for dz in 0..8.min(dims.z - gz * 8) {
-                                for dy in 0..8.min(dims.y - gy * 8) {
-                                    let (z, y) = (gz * 8 + dz, gy * 8 + dy);
-                                    let word = grid.words[(z * dims.y + y) as usize * wpr + (lx / 4) as usize];
-                                    let mut byte = (word >> ((lx % 4) * 8)) & 0xff;
-                                    while byte != 0 {
-                                        let x = byte.trailing_zeros();
-                                        mask[x as usize] |= 1u64 << (dy * 8 + dz);
-                                        byte &= byte - 1;
-                                    }
-                                }
-                            }
+                            let mask = grid.leaf_mask(UVec3::new(lx, gy, gz) * 8);
                             (mask != [0; 8]).then(|| (leaf_key(lx * 8, gy * 8, gz * 8), mask))
                         })
                     })
