@@ -546,7 +546,8 @@ fn full_field(
 /// origin and those triangles (indices, in mesh order, so a brick's sums are the same on every thread count).
 fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, Vec<u32>)> {
     let brick_dims = (dims + BRICK - 1) / BRICK;
-    let mut pairs: Vec<(u32, u32)> = triangles
+    // Each pair as one integer, brick then triangle: sorted as integers, about twice as fast as pairs.
+    let mut pairs: Vec<u64> = triangles
         .par_iter()
         .enumerate()
         .flat_map_iter(|(i, &t)| {
@@ -556,17 +557,17 @@ fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, V
             (lo.z..=hi.z)
                 .flat_map(move |z| (lo.y..=hi.y).flat_map(move |y| (lo.x..=hi.x).map(move |x| UVec3::new(x, y, z))))
                 .filter(move |_| !empty)
-                .map(move |b| (leaf_slot(b, brick_dims) as u32, i as u32))
+                .map(move |b| (leaf_slot(b, brick_dims) as u64) << 32 | i as u64)
         })
         .collect();
     pairs.par_sort_unstable();
     pairs
-        .chunk_by(|a, b| a.0 == b.0)
+        .chunk_by(|a, b| a >> 32 == b >> 32)
         .map(|run| {
-            let b = run[0].0;
+            let b = (run[0] >> 32) as u32;
             let (x, y) = (b % brick_dims.x, b / brick_dims.x % brick_dims.y);
             let origin = UVec3::new(x, y, b / (brick_dims.x * brick_dims.y)) * BRICK;
-            (origin.as_ivec3(), run.iter().map(|p| p.1).collect())
+            (origin.as_ivec3(), run.iter().map(|&p| p as u32).collect())
         })
         .collect()
 }

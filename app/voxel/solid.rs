@@ -132,6 +132,29 @@ pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) 
     })
 }
 
+/// One use of an edge by a triangle ([`boundary_edges`]): its ends in order, `+1` where the triangle runs
+/// `a → b`, `-1` for `b → a`, and a hash of the ends to group the uses by.
+#[derive(Clone, Copy)]
+struct EdgeUse {
+    hash: u32,
+    a: [i32; 3],
+    b: [i32; 3],
+    weight: i32,
+}
+
+impl EdgeUse {
+    /// A multiply-and-fold of the six coordinates: unkeyed, as a file that made every hash collide would only
+    /// leave the ends to order the uses (the same groups, a slower sort).
+    fn hash(a: [i32; 3], b: [i32; 3]) -> u32 {
+        let h = a.iter().chain(&b).fold(0u64, |h, &c| {
+            let h = (h ^ u64::from(c as u32)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            h ^ (h >> 29)
+        });
+        // 32 bits keep the use at 32 bytes, which the sort moves.
+        (h >> 32) as u32
+    }
+}
+
 /// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles of
 /// non-zero area, with
 /// vertices identified by their exact lattice position (so unwelded files and duplicated vertices count as
@@ -141,43 +164,51 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
         // Three uses a triangle, each edge keyed by its ends in order; a use of weight 0 (a zero-area triangle's,
-        // or an edge whose ends coincide) adds nothing to its edge's sum.
-        let mut uses: Vec<([i32; 3], [i32; 3], i32)> = vec![([0; 3], [0; 3], 0); triangles.len() * 3];
-        uses.par_chunks_mut(3).zip(triangles.par_iter()).for_each(|(out, t)| {
-            let u = t.map(|p| lattice.units(p));
-            // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of a
-            // collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
-            let (e0, e1) = (u[1] - u[0], u[2] - u[0]);
-            let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
-            for (i, slot) in out.iter_mut().enumerate() {
-                let (a, b) = (u[i].to_array(), u[(i + 1) % 3].to_array());
-                *slot = match (flat, a.cmp(&b)) {
-                    (true, _) | (_, std::cmp::Ordering::Equal) => (a, a, 0),
-                    (_, std::cmp::Ordering::Less) => (a, b, 1),
-                    (_, std::cmp::Ordering::Greater) => (b, a, -1),
-                };
-            }
-        });
-        uses.par_sort_unstable();
+        // or an edge whose ends coincide) adds nothing to its edge's sum. Collected in place by the threads that
+        // make them, so the pages are first touched by every thread, not by one filling the list beforehand.
+        let mut uses: Vec<[EdgeUse; 3]> = triangles
+            .par_iter()
+            .map(|t| {
+                let u = t.map(|p| lattice.units(p));
+                // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
+                // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
+                let (e0, e1) = (u[1] - u[0], u[2] - u[0]);
+                let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
+                std::array::from_fn(|i| {
+                    let (a, b) = (u[i].to_array(), u[(i + 1) % 3].to_array());
+                    let (a, b, weight) = match (flat, a.cmp(&b)) {
+                        (true, _) | (_, std::cmp::Ordering::Equal) => (a, a, 0),
+                        (_, std::cmp::Ordering::Less) => (a, b, 1),
+                        (_, std::cmp::Ordering::Greater) => (b, a, -1),
+                    };
+                    EdgeUse { hash: EdgeUse::hash(a, b), a, b, weight }
+                })
+            })
+            .collect();
+        let uses = uses.as_flattened_mut();
+        // Grouped by a hash of the ends first (a sort by one integer moves the uses about twice as fast as one by
+        // the ends), then each run of one hash by its ends, so equal edges meet whatever the hash does: a file that
+        // made every hash collide would only make that run's sort the whole sort.
+        uses.par_sort_unstable_by_key(|u| u.hash);
+        uses.par_chunk_by_mut(|x, y| x.hash == y.hash)
+            .filter(|run| run.len() > 1)
+            .for_each(|run| run.sort_unstable_by_key(|u| (u.a, u.b)));
+        let mut left: Vec<([i32; 3], [i32; 3], i32)> = uses
+            .chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
+            .map(|run| (run[0].a, run[0].b, run.iter().map(|u| u.weight).sum::<i32>()))
+            .filter(|&(_, _, weight)| weight != 0)
+            .collect();
+        left.sort_unstable();
         let scale = 1.0 / lattice.scale();
         let point = |u: [i32; 3]| IVec3::from_array(u).as_vec3() * scale;
-        let mut edges = Vec::new();
-        let mut i = 0;
-        while i < uses.len() {
-            let (a, b, _) = uses[i];
-            let mut weight = 0;
-            while i < uses.len() && uses[i].0 == a && uses[i].1 == b {
-                weight += uses[i].2;
-                i += 1;
-            }
-            if weight != 0 {
+        left.into_iter()
+            .map(|(a, b, weight)| {
                 let (a, b) = (point(a), point(b));
                 // Rounded up a little: it only ever enlarges a bound.
                 let span = (b.y - a.y).hypot(b.z - a.z) * (1.0 + 1e-6);
-                edges.push(BoundaryEdge { a: a.to_array(), weight: weight as f32, b: b.to_array(), span });
-            }
-        }
-        edges
+                BoundaryEdge { a: a.to_array(), weight: weight as f32, b: b.to_array(), span }
+            })
+            .collect()
     })
 }
 
