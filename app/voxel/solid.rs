@@ -190,9 +190,10 @@ pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<Boundary
         // the ends), then each run of one hash by its ends, so equal edges meet whatever the hash does: a file that
         // made every hash collide would only make that run's sort the whole sort.
         uses.par_sort_unstable_by_key(|u| u.hash);
-        uses.par_chunk_by_mut(|x, y| x.hash == y.hash)
-            .filter(|run| run.len() > 1)
-            .for_each(|run| run.sort_unstable_by_key(|u| (u.a, u.b)));
+        // (On one thread: the runs are a use or two each, and the page's build has no parallel `chunk_by`.)
+        for run in uses.chunk_by_mut(|x, y| x.hash == y.hash).filter(|run| run.len() > 1) {
+            run.sort_unstable_by_key(|u| (u.a, u.b));
+        }
         let mut left: Vec<([i32; 3], [i32; 3], i32)> = uses
             .chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
             .map(|run| (run[0].a, run[0].b, run.iter().map(|u| u.weight).sum::<i32>()))
