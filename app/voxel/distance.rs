@@ -546,7 +546,7 @@ fn full_field(
 /// origin and those triangles (indices, in mesh order, so a brick's sums are the same on every thread count).
 fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, Vec<u32>)> {
     let brick_dims = (dims + BRICK - 1) / BRICK;
-    // Each pair as one integer, brick then triangle: sorted as integers, about twice as fast as pairs.
+    // Each pair as one integer, brick then triangle, sorted as integers (the knot at 512: 76 -> 62 ms as pairs).
     let mut pairs: Vec<u64> = triangles
         .par_iter()
         .enumerate()
