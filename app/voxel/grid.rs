@@ -491,24 +491,18 @@ impl VoxelGrid {
     }
 
     /// The 8³ leaf at `origin` (a multiple of 8 inside the grid) as a sparse leaf's mask (bit `y * 8 + z` of word
-    /// `x`): a leaf's eight voxels of a row are one byte of its words, so 64 bytes are read, not 512 bits.
+    /// `x`): a leaf's eight voxels of a row are one byte of its words ([`row_byte`]), so 64 bytes are read and
+    /// turned ([`leaf_mask_of_bytes`]), not 512 bits.
     pub fn leaf_mask(&self, origin: UVec3) -> [u64; 8] {
-        let (dims, wpr, lx) = (self.spec.dims, self.spec.words_per_row(), origin.x / 8);
-        let mut mask = [0u64; 8];
+        let (dims, wpr, lx) = (self.spec.dims, self.spec.words_per_row(), origin.x as usize / 8);
+        let mut bytes = [0u8; 64];
         for dz in 0..8.min(dims.z.saturating_sub(origin.z)) {
             for dy in 0..8.min(dims.y.saturating_sub(origin.y)) {
-                let row = (origin.z + dz) as usize * dims.y as usize + (origin.y + dy) as usize;
-                let byte = u64::from(self.words[row * wpr + (lx / 4) as usize] >> ((lx % 4) * 8) & 0xff);
-                if byte == 0 {
-                    continue;
-                }
-                // Every x at once, no branch per set voxel: an inside leaf's bytes are mostly full.
-                for (x, word) in mask.iter_mut().enumerate() {
-                    *word |= (byte >> x & 1) << (dy * 8 + dz);
-                }
+                let row = ((origin.z + dz) as usize * dims.y as usize + (origin.y + dy) as usize) * wpr;
+                bytes[(dy * 8 + dz) as usize] = row_byte(&self.words[row..row + wpr], lx);
             }
         }
-        mask
+        leaf_mask_of_bytes(&bytes)
     }
 
     #[inline]
@@ -611,4 +605,42 @@ impl VoxelGrid {
         }
         out
     }
+}
+
+/// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8` of the row, the row of its leaf `lx`.
+#[inline]
+pub fn row_byte(row: &[u32], lx: usize) -> u8 {
+    (row[lx / 4] >> ((lx % 4) * 8)) as u8
+}
+
+/// A sparse leaf's mask (bit `i` of word `x`) from its 64 rows' bytes (`bytes[i]`, bit `x` the row's voxel `x`;
+/// `i = y * 8 + z`, OpenVDB's order): eight rows at a time as an 8×8 bit matrix, transposed in three exchanges
+/// ([`transpose_bits`]) so that each of its bytes is eight bits of one word, where a bit at a time took up to 512
+/// steps for an inside leaf.
+#[inline]
+pub fn leaf_mask_of_bytes(bytes: &[u8; 64]) -> [u64; 8] {
+    let mut mask = [0u64; 8];
+    for (g, rows) in bytes.as_chunks::<8>().0.iter().enumerate() {
+        let matrix = u64::from_le_bytes(*rows);
+        if matrix == 0 {
+            continue;
+        }
+        let columns = transpose_bits(matrix);
+        for (x, word) in mask.iter_mut().enumerate() {
+            *word |= (columns >> (8 * x) & 0xff) << (8 * g);
+        }
+    }
+    mask
+}
+
+/// The 8×8 bit matrix whose row `r` is byte `r` (column `c` its bit `c`), transposed: bit `8 r + c` moves to
+/// `8 c + r` (Hacker's Delight, §7-3: 2×2 blocks of bits, then of 2×2 blocks, then of 4×4).
+#[inline]
+pub fn transpose_bits(mut m: u64) -> u64 {
+    let t = (m ^ (m >> 7)) & 0x00aa_00aa_00aa_00aa;
+    m ^= t ^ (t << 7);
+    let t = (m ^ (m >> 14)) & 0x0000_cccc_0000_cccc;
+    m ^= t ^ (t << 14);
+    let t = (m ^ (m >> 28)) & 0x0000_0000_f0f0_f0f0;
+    m ^ t ^ (t << 28)
 }

@@ -41,7 +41,10 @@ pub mod voids;
 pub mod voxelize;
 pub mod winding_lanes;
 
-pub use grid::{Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid, VoxelSize};
+pub use grid::{
+    Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid, VoxelSize, leaf_mask_of_bytes, row_byte,
+    transpose_bits,
+};
 pub use lattice::{GridTriangles, Lattice, on_lattice};
 pub use sparse::SparseGrid;
 

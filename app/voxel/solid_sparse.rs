@@ -15,8 +15,9 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
-use super::cpu::groups::{GroupOutput, row_byte};
+use super::cpu::groups::GroupOutput;
 use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::grid::{leaf_mask_of_bytes, row_byte};
 use super::slope::slope_leaf;
 use super::solid::{
     FillStats, boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves,
@@ -237,17 +238,13 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                                     }
                                 }
                                 Leaf::Bits => {
-                                    let mut mask: LeafMask = [0; 8];
-                                    for i in 0..64 {
+                                    let bytes = std::array::from_fn(|i| {
                                         let row = &mut group[i * wpr..(i + 1) * wpr];
-                                        let mut bits = row_byte(row, lx);
+                                        let byte = row_byte(row, lx);
                                         clear_byte(row, lx);
-                                        while bits != 0 {
-                                            let x = bits.trailing_zeros();
-                                            mask[x as usize] |= 1u64 << i;
-                                            bits &= bits - 1;
-                                        }
-                                    }
+                                        byte
+                                    });
+                                    let mask = leaf_mask_of_bytes(&bytes);
                                     full &= mask == FULL_LEAF;
                                     if mask != [0; 8] {
                                         found.push((t, origin, mask));

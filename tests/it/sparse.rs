@@ -722,3 +722,68 @@ fn a_fields_memory_estimate_bounds_its_peak_within_twelve_times() {
     assert!(ratio >= 1.0, "the estimate {estimate:.3e} is under the peak {peak:.3e}");
     assert!(ratio < 12.0, "the estimate {estimate:.3e} is {ratio:.1} times the peak {peak:.3e}");
 }
+
+/// A leaf's mask from its rows' bytes (`leaf_mask_of_bytes`, an 8×8 bit transpose a group of rows) and from a dense
+/// grid (`VoxelGrid::leaf_mask`) equal a bit-by-bit reference: every single bit, full and empty leaves, random ones,
+/// and leaves cut by a grid whose sides are not multiples of 8.
+#[test]
+fn a_leafs_mask_from_its_row_bytes_is_every_bit_where_the_voxels_are() {
+    use meshvox::voxel::{leaf_mask_of_bytes, transpose_bits};
+    let reference = |bytes: &[u8; 64]| {
+        let mut mask = [0u64; 8];
+        for (i, &b) in bytes.iter().enumerate() {
+            for (x, word) in mask.iter_mut().enumerate() {
+                *word |= u64::from(b >> x & 1) << i;
+            }
+        }
+        mask
+    };
+    let mut cases: Vec<[u8; 64]> = vec![[0; 64], [0xff; 64]];
+    for i in 0..64 {
+        for x in 0..8 {
+            let mut b = [0u8; 64];
+            b[i] = 1 << x;
+            cases.push(b);
+        }
+    }
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    for _ in 0..2000 {
+        cases.push(std::array::from_fn(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 24) as u8
+        }));
+    }
+    for bytes in &cases {
+        assert_eq!(leaf_mask_of_bytes(bytes), reference(bytes), "bytes {bytes:?}");
+    }
+    for m in [0u64, u64::MAX, 0x0123_4567_89ab_cdef, 1, 1 << 63] {
+        assert_eq!(transpose_bits(transpose_bits(m)), m);
+    }
+    // From a dense grid of 21 x 13 x 11 voxels, every voxel set by a rule no byte boundary follows.
+    let spec =
+        GridSpec { origin: glam::DVec3::ZERO, voxel_size: glam::DVec3::splat(1.0), dims: UVec3::new(21, 13, 11) };
+    let mut grid = VoxelGrid::new(spec).expect("grid");
+    for z in 0..11 {
+        for y in 0..13 {
+            for x in 0..21 {
+                if (x * 7 + y * 3 + z * 5) % 4 != 0 {
+                    grid.set(x, y, z);
+                }
+            }
+        }
+    }
+    for origin in [UVec3::ZERO, UVec3::new(8, 0, 8), UVec3::new(16, 8, 0), UVec3::new(16, 8, 8)] {
+        let mut expected = [0u64; 8];
+        for (x, word) in expected.iter_mut().enumerate() {
+            for i in 0..64u32 {
+                let v = origin + UVec3::new(x as u32, i / 8, i % 8);
+                if v.cmplt(spec.dims).all() && grid.get(v.x, v.y, v.z) {
+                    *word |= 1 << i;
+                }
+            }
+        }
+        assert_eq!(grid.leaf_mask(origin), expected, "leaf at {origin}");
+    }
+}

@@ -12,6 +12,7 @@
 //! [`crate::voxel::solid_sparse::solid_from_groups`] turns into tiles and leaves.
 
 use super::solid::{Boundary, RowCrossings, crossing_sign, fill_row, near_boundary};
+use crate::voxel::grid::row_byte;
 use glam::UVec3;
 
 /// A leaf written by a group: its x index, its group's indices, its mask in OpenVDB's order (bit `y * 8 + z` of
@@ -152,12 +153,6 @@ fn settle_leaf(
 /// a certificate cannot: every bit it decides is the exact one, so the two agree wherever the shader decides.
 pub fn open_leaf_bits(row: &[u32], l: u32) -> u32 {
     u32::from(row_byte(row, l as usize))
-}
-
-/// Byte `lx` of a row of bit words: voxels `8 lx .. 8 lx + 8` (also how the sparse fill reads a leaf of a row).
-#[inline]
-pub(crate) fn row_byte(row: &[u32], lx: usize) -> u8 {
-    (row[lx / 4] >> ((lx % 4) * 8)) as u8
 }
 
 /// One of a group's rows: its sorted crossings, whether it lies in the grid, and for an open row (one its crossing
