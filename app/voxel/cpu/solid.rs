@@ -774,7 +774,15 @@ fn fill_decided_run(
     let (mut k, k1) = (run.start, run.end);
     while k < k1 {
         let mut end = ((k / 8 + 1) * 8).min(k1);
-        match state(k) {
+        let s = state(k);
+        if s != LEAF_OPEN {
+            // The leaves after this one in the run that share its state, taken with it: one range set, where a
+            // row of a large grid beside a hole took a step and a range a leaf (1,024 of them at 8192).
+            let (first, last) = ((k / 8 + 1) as usize, k1.div_ceil(8) as usize);
+            let same = decided.get(first..last.max(first)).map_or(0, |r| r.iter().take_while(|&&d| d == s).count());
+            end = (((first + same) * 8) as u32).min(k1);
+        }
+        match s {
             LEAF_INSIDE => set_range(row, k, end),
             LEAF_OUTSIDE => {}
             s if s >= LEAF_COUNT / 2 => {
