@@ -491,7 +491,7 @@ impl VoxelGrid {
     }
 
     /// The 8³ leaf at `origin` (a multiple of 8 inside the grid) as a sparse leaf's mask (bit `y * 8 + z` of word
-    /// `x`): a leaf's eight voxels of a row are one byte of its words ([`row_byte`]), so 64 bytes are read and
+    /// `x`): a leaf's eight voxels of a row are one byte of its words (`row_byte`), so 64 bytes are read and
     /// turned ([`leaf_mask_of_bytes`]), not 512 bits.
     pub fn leaf_mask(&self, origin: UVec3) -> [u64; 8] {
         let (dims, wpr, lx) = (self.spec.dims, self.spec.words_per_row(), origin.x as usize / 8);

@@ -42,7 +42,7 @@ pub mod voxelize;
 pub mod winding_lanes;
 
 pub use grid::{
-    Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid, VoxelSize, leaf_mask_of_bytes, row_byte,
+    Axis, GridError, GridSpec, Length, MAX_DIM, Resolution, SNAP, VoxelGrid, VoxelSize, leaf_mask_of_bytes,
     transpose_bits,
 };
 pub use lattice::{GridTriangles, Lattice, on_lattice};

@@ -779,7 +779,7 @@ fn fill_decided_run(
             // The leaves after this one in the run that share its state, taken with it: one range set, where a
             // row of a large grid beside a hole took a step and a range a leaf (1,024 of them at 8192).
             let (first, last) = ((k / 8 + 1) as usize, k1.div_ceil(8) as usize);
-            let same = decided.get(first..last.max(first)).map_or(0, |r| r.iter().take_while(|&&d| d == s).count());
+            let same = decided.get(first..last).map_or(0, |r| r.iter().take_while(|&&d| d == s).count());
             end = (((first + same) * 8) as u32).min(k1);
         }
         match s {
