@@ -13,19 +13,76 @@ use glam::{IVec3, UVec3, Vec3};
 
 /// Calls `emit(row, packed crossing)` for every row whose centre line crosses the lattice triangle `t`.
 pub fn triangle_crossings(t: [Vec3; 3], dims: UVec3, lattice: Lattice, mut emit: impl FnMut(u32, u32)) {
+    let all = RowBlock { origin: [0, 0], size: [dims.y, dims.z] };
+    triangle_crossings_within(t, dims, lattice, all, |y, z, c| emit(z * dims.y + y, c));
+}
+
+/// Calls `emit(y, z, packed crossing)` for every row of `block` whose centre line crosses the lattice triangle `t`.
+fn triangle_crossings_within(
+    t: [Vec3; 3],
+    dims: UVec3,
+    lattice: Lattice,
+    block: RowBlock,
+    mut emit: impl FnMut(u32, u32, u32),
+) {
     let s = crossing_setup(t, dims, lattice);
-    if s.sign == 0 {
+    let end = [block.origin[0] + block.size[0], block.origin[1] + block.size[1]];
+    if s.sign == 0 || s.lo[0] >= end[0] || s.lo[1] >= end[1] {
         return;
     }
     let unit = 1i32 << lattice.shift;
     let units = t.map(|p| lattice.units(p));
-    for z in s.lo[1]..=s.hi[1] {
-        for y in s.lo[0]..=s.hi[0] {
+    for z in s.lo[1].max(block.origin[1])..=s.hi[1].min(end[1] - 1) {
+        for y in s.lo[0].max(block.origin[0])..=s.hi[0].min(end[0] - 1) {
             if covers_row(&s, y, z, unit) {
-                emit(z * dims.y + y, row_crossing(t, &s, &units, (y, z), dims.x, unit));
+                emit(y, z, row_crossing(t, &s, &units, (y, z), dims.x, unit));
             }
         }
     }
+}
+
+/// The crossings of `block`'s rows, as [`column_crossings`] lists them for the whole grid, from `triangles`
+/// (those of `all` whose YZ boxes meet the block: [`block_triangles`]): a block's rows listed where it is filled,
+/// on its thread, so no list of the whole grid's crossings is ever made (at 8192 that was 69 M of them, 830 MB
+/// with their rows and the rows' offsets, built by one thread while the other waited).
+pub fn block_crossings(
+    all: &[[Vec3; 3]],
+    triangles: &[u32],
+    dims: UVec3,
+    lattice: Lattice,
+    block: RowBlock,
+) -> RowCrossings {
+    let mut pairs = Vec::new();
+    let [y0, z0] = block.origin;
+    for &t in triangles {
+        triangle_crossings_within(all[t as usize], dims, lattice, block, |y, z, c| {
+            pairs.push(((z - z0) * block.size[0] + (y - y0), c));
+        });
+    }
+    let rows = block.size[0] as usize * block.size[1] as usize;
+    by_row(pairs, rows, RowLayout::Block(block), false)
+}
+
+/// The triangles whose rows may fall in each block of `BLOCK × BLOCK` rows (edge `block`): `(b << 32) | t`,
+/// sorted, with `b = bz * blocks_y + by` and `t` the triangle's index.
+pub fn block_triangles(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice, block: u32) -> Vec<u64> {
+    let blocks_y = u64::from(dims.y.div_ceil(block));
+    let mut keys: Vec<u64> = triangles
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(i, &t)| {
+            let s = crossing_setup(t, dims, lattice);
+            let (lo, hi) = match s.sign {
+                0 => ([1, 1], [0, 0]),
+                _ => (s.lo.map(|c| c / block), s.hi.map(|c| c / block)),
+            };
+            (lo[1]..=hi[1]).flat_map(move |bz| {
+                (lo[0]..=hi[0]).map(move |by| (u64::from(bz) * blocks_y + u64::from(by)) << 32 | i as u64)
+            })
+        })
+        .collect();
+    keys.par_sort_unstable();
+    keys
 }
 
 /// The packed crossing of row `(y, z)` with triangle `t`, whose setup `s` says it covers the row.
@@ -69,13 +126,14 @@ pub fn listed_row_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Latti
             })
             .collect()
     });
-    by_row(pairs, rows.len())
+    by_row(pairs, rows.len(), RowLayout::Listed, true)
 }
 
 /// `(row, packed crossing)` pairs as [`RowCrossings`] over `rows` rows, each row's list in order. A counting sort:
 /// the pairs come a triangle at a time, each row's scattered through the list, and a comparison sort of them all
 /// took a tenth of the bunny's sparse solid at 2048; counted into place by row, only each row's few are sorted.
-fn by_row(pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
+/// `parallel`: the rows sorted by the pool's threads (a whole grid's), or on this one (a block's).
+fn by_row(pairs: Vec<(u32, u32)>, rows: usize, layout: RowLayout, parallel: bool) -> RowCrossings {
     let mut offsets = vec![0u32; rows + 1];
     for &(row, _) in &pairs {
         offsets[row as usize] += 1;
@@ -94,6 +152,12 @@ fn by_row(pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
         crossings[*o as usize] = c;
     }
     drop(pairs);
+    if !parallel {
+        for r in 0..rows {
+            crossings[offsets[r] as usize..offsets[r + 1] as usize].sort_unstable();
+        }
+        return RowCrossings { offsets, crossings, layout };
+    }
     // Each row's list sorted, blocks of rows in parallel.
     let blocks = 256.min(rows.max(1));
     let bounds: Vec<usize> = (0..=blocks).map(|b| rows * b / blocks).collect();
@@ -113,7 +177,7 @@ fn by_row(pairs: Vec<(u32, u32)>, rows: usize) -> RowCrossings {
             }
         })
     });
-    RowCrossings { offsets, crossings }
+    RowCrossings { offsets, crossings, layout }
 }
 
 /// Lists the crossings of all lattice triangles.
@@ -128,7 +192,8 @@ pub fn column_crossings(triangles: &[[Vec3; 3]], dims: UVec3, lattice: Lattice) 
                 v
             })
             .collect();
-        by_row(pairs, dims.y as usize * dims.z as usize)
+        let all = RowLayout::Block(RowBlock { origin: [0, 0], size: [dims.y, dims.z] });
+        by_row(pairs, dims.y as usize * dims.z as usize, all, true)
     })
 }
 
@@ -457,12 +522,12 @@ pub fn count_before(list: &[u32], k: u32) -> i32 {
     -list.iter().take_while(|&&c| crossing_voxel(c) <= k).map(|&c| crossing_sign(c)).sum::<i32>()
 }
 
-/// The crossing counts before the leaf at `origin` (whole in a grid of `dims`) of its 64 rows, row `(y, z)` at
+/// The crossing counts before the leaf at `origin` (whole in the rows `rows` holds) of its 64 rows, row `(y, z)` at
 /// `(y - origin.y) * 8 + (z - origin.z)`: what [`crate::voxel::slope::slope_leaf`] takes.
-pub fn leaf_counts(rows: &RowCrossings, dims: UVec3, origin: UVec3) -> [i32; 64] {
+pub fn leaf_counts(rows: &RowCrossings, origin: UVec3) -> [i32; 64] {
     std::array::from_fn(|i| {
         let (y, z) = (origin.y + i as u32 / 8, origin.z + i as u32 % 8);
-        count_before(rows.row((z * dims.y + y) as usize), origin.x)
+        count_before(rows.row_at(y, z), origin.x)
     })
 }
 
@@ -491,8 +556,7 @@ pub fn certify_leaves(
         }
         let (m, radius) = group_box(a, b, dims, ya, za);
         let p = m.as_vec3() + 0.5;
-        let r = (m.z * dims.y + m.y) as usize;
-        let count = count_before(rows.row(r), m.x);
+        let count = count_before(rows.row_at(m.y, m.z), m.x);
         let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         match certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN) {
             1 => Some(LEAF_INSIDE),
@@ -618,7 +682,10 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
             for ya in (0..dims.y).step_by(8) {
                 let group: Vec<(u32, u32)> =
                     (za..(za + 8).min(dims.z)).flat_map(|z| (ya..(ya + 8).min(dims.y)).map(move |y| (y, z))).collect();
-                let near: Vec<bool> = group.iter().map(|&(y, z)| near_boundary(y, z, &boundary.pieces)).collect();
+                let (y1, z1) = ((ya + 7).min(dims.y - 1), (za + 7).min(dims.z - 1));
+                let any_near = near_boundary_box(ya..=y1, za..=z1, &boundary.pieces);
+                let near: Vec<bool> =
+                    group.iter().map(|&(y, z)| any_near && near_boundary(y, z, &boundary.pieces)).collect();
                 near_rows.fetch_add(near.iter().filter(|&&n| n).count() as u64, std::sync::atomic::Ordering::Relaxed);
                 let word = |y: u32, z: u32| ((z - za) as usize * dims.y as usize + y as usize) * wpr;
                 // Which leaves the surface passes through, and which the boxes decide: beside a hole only.
@@ -638,7 +705,7 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
                         continue;
                     }
                     let origin = UVec3::new(lx as u32 * 8, ya, za);
-                    if let Some(mask) = slope_leaf(origin, &leaf_counts(&rows, dims, origin), &boundary) {
+                    if let Some(mask) = slope_leaf(origin, &leaf_counts(&rows, origin), &boundary) {
                         // A leaf's 8 voxels of a row are one byte of a row's 32-bit word.
                         for i in 0..64u32 {
                             let byte = (0..8).filter(|&x| mask[x] >> i & 1 != 0).fold(0u32, |b, x| b | 1 << x);
@@ -648,7 +715,7 @@ pub fn fill(triangles: &[[Vec3; 3]], lattice: Lattice, grid: &mut VoxelGrid) -> 
                     }
                 }
                 for (&(y, z), &near) in group.iter().zip(&near) {
-                    let list = rows.row((z * dims.y + y) as usize);
+                    let list = rows.row_at(y, z);
                     if list.is_empty() && !near {
                         continue;
                     }

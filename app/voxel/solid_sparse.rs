@@ -3,8 +3,9 @@
 //! is kept as tiles wherever whole blocks are inside, so a solid at 8192³ costs memory along its surface rather
 //! than through its volume.
 //!
-//! The grid is taken in blocks of 128 × 128 rows (y, z), one rayon task each, which owns the leaves and tiles of
-//! its block, and each block in groups of 8 × 8 rows (one leaf row). The work follows the surface: in a group, a
+//! The grid is taken in blocks of 128 × 128 rows (y, z), one rayon task each, which lists its rows' crossings
+//! (from the triangles binned to the block: no list of the whole grid's crossings is made) and owns the leaves and
+//! tiles of its block, and each block in groups of 8 × 8 rows (one leaf row). The work follows the surface: in a group, a
 //! run of leaves the surface does not pass through is decided whole (by each row's crossing count, one lookup per
 //! row, where the counts decide; beside a hole by the certificates of [`certify_group`]), and the rows are filled
 //! bit by bit only through the leaves left (those the surface crosses, and those beside a hole no certificate
@@ -16,16 +17,19 @@
 
 use super::Lattice;
 use super::cpu::groups::GroupOutput;
-use super::cpu::solid::{Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, crossing_sign, fill_row_span, near_boundary};
+use super::cpu::solid::{
+    Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, RowBlock, crossing_sign, fill_row_span, near_boundary,
+    near_boundary_box,
+};
 use super::grid::{leaf_mask_of_bytes, row_byte};
 use super::slope::slope_leaf;
 use super::solid::{
-    FillStats, boundary, certify_group, column_crossings, count_before, listed_row_crossings, surface_leaves,
+    FillStats, block_crossings, block_triangles, boundary, certify_group, count_before, listed_row_crossings,
+    surface_leaves,
 };
-use super::sparse::{FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
+use super::sparse::{Blocks, FULL_LEAF, LeafMask, SparseGrid, Tile, key_origin, leaf_key};
 use crate::parallel::prelude::*;
 use glam::{UVec3, Vec3};
-use std::collections::HashSet;
 
 /// Rows along y and z of one task's block: the edge of a 128³ tile.
 const BLOCK: u32 = 128;
@@ -79,8 +83,10 @@ enum Leaf {
     Inside,
     /// Decided voxel by voxel, from the rows' bits: the surface passes through, or nothing decided it whole.
     Bits,
-    /// Decided voxel by voxel from the slope of the winding number at its middle ([`slope_leaf`]).
-    Mask(LeafMask),
+    /// Decided voxel by voxel from the slope of the winding number at its middle ([`slope_leaf`]): the group's
+    /// mask of that index. (An index, not the mask: a group's states are looked at leaf by leaf several times,
+    /// and at 8 bytes a state they stay in the cache where 72 did not.)
+    Mask(u32),
 }
 
 /// Adds the voxels whose centres are inside the lattice triangles' mesh to `surface` (which holds the shell).
@@ -99,9 +105,13 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
     crate::parallel::install(|| {
         let spec = surface.spec;
         let dims = spec.dims;
-        let rows = column_crossings(triangles, dims, lattice);
+        let span = crate::trace::span("fill: triangles' blocks");
+        let binned = block_triangles(triangles, dims, lattice, BLOCK);
+        drop(span);
         let boundary = boundary(triangles, lattice);
+        let span = crate::trace::span("fill: surface's groups");
         let surface_keys = group_leaves(&surface, triangles, dims);
+        drop(span);
         let groups_y = dims.y.div_ceil(8);
         let wpr = spec.words_per_row();
         let (blocks_y, blocks_z) = (dims.y.div_ceil(BLOCK), dims.z.div_ceil(BLOCK));
@@ -110,6 +120,11 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
         let fill_block = |b: u32| -> BlockInterior {
             let (y0, z0) = ((b % blocks_y) * BLOCK, (b / blocks_y) * BLOCK);
             let mut out = BlockInterior::default();
+            let at = binned.partition_point(|&k| k >> 32 < u64::from(b));
+            let mine: Vec<u32> =
+                binned[at..].iter().take_while(|&&k| k >> 32 == u64::from(b)).map(|&k| k as u32).collect();
+            let block = RowBlock { origin: [y0, z0], size: [BLOCK.min(dims.y - y0), BLOCK.min(dims.z - z0)] };
+            let rows = block_crossings(triangles, &mine, dims, lattice, block);
             // Per 16-leaf segment along x (a 128³ tile's width), the groups in which it is all inside; a block cut
             // by the grid's end has no tile.
             let whole_block = y0 + BLOCK <= dims.y && z0 + BLOCK <= dims.z;
@@ -118,7 +133,11 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
             let mut full_segments: Vec<(usize, u32, u32)> = Vec::new();
             let mut found: Vec<(usize, UVec3, LeafMask)> = Vec::new();
             let mut group = vec![0u32; 64 * wpr];
+            // A group's leaves' states (each assigned in every group that is not quiet), the masks they index,
+            // and which leaves the surface passes through (cleared after each group).
             let mut states = vec![Leaf::Outside; leaves_x];
+            let mut masks: Vec<LeafMask> = Vec::new();
+            let mut surface_here = vec![false; leaves_x];
             for gz in 0..BLOCK / 8 {
                 for gy in 0..BLOCK / 8 {
                     let (ya, za) = (y0 + gy * 8, z0 + gz * 8);
@@ -126,14 +145,15 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                         continue;
                     }
                     let whole = ya + 8 <= dims.y && za + 8 <= dims.z;
-                    // The group's rows (y, z, crossings, near), and which leaves the surface passes through.
+                    let (y1, z1) = ((ya + 7).min(dims.y - 1), (za + 7).min(dims.z - 1));
+                    let any_near = near_boundary_box(ya..=y1, za..=z1, &boundary.pieces);
                     // The group's rows: (y, z, crossings, near, whether the count alone decides the row).
                     let group_rows: Vec<(u32, u32, &[u32], bool, bool)> = (0..64u32)
                         .map(|i| (ya + i / 8, za + i % 8))
                         .filter(|&(y, z)| y < dims.y && z < dims.z)
                         .map(|(y, z)| {
-                            let list = rows.row((z * dims.y + y) as usize);
-                            let near = near_boundary(y, z, &boundary.pieces);
+                            let list = rows.row_at(y, z);
+                            let near = any_near && near_boundary(y, z, &boundary.pieces);
                             let total: i32 = list.iter().map(|&c| crossing_sign(c)).sum();
                             (y, z, list, near, total == 0 && !near)
                         })
@@ -152,7 +172,6 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                         continue;
                     }
                     let near_group = group_rows.iter().any(|row| row.3) && !boundary.edges.is_empty();
-                    let mut surface_here = vec![false; leaves_x];
                     crossed.iter().for_each(|&lx| surface_here[lx] = true);
                     let decided = match near_group {
                         true => certify_group(&rows, dims, ya, za, &boundary, &surface_here),
@@ -178,17 +197,30 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             Some(c) if c.iter().all(|&i| !i) => Leaf::Outside,
                             _ => Leaf::Bits,
                         };
-                        for (k, state) in states.iter_mut().enumerate().take(end).skip(lx) {
-                            let partial = !whole || (k + 1) * 8 > dims.x as usize;
-                            *state = match decided.get(k) {
-                                _ if partial => Leaf::Bits,
-                                Some(&LEAF_INSIDE) => Leaf::Inside,
-                                Some(&LEAF_OUTSIDE) => Leaf::Outside,
+                        // Leaves from `partial` on are cut by the grid's end: their rows decide them.
+                        let partial = match whole {
+                            true => (dims.x / 8) as usize,
+                            false => 0,
+                        };
+                        let cut = end.min(partial).max(lx);
+                        states[cut..end].fill(Leaf::Bits);
+                        if decided.is_empty() {
+                            states[lx..cut].fill(by_count);
+                        }
+                        for k in (lx..cut).filter(|_| !decided.is_empty()) {
+                            states[k] = match decided[k] {
+                                LEAF_INSIDE => Leaf::Inside,
+                                LEAF_OUTSIDE => Leaf::Outside,
                                 // Beside a cap: the leaf's voxels from one slope, where it decides them.
-                                Some(&LEAF_OPEN) if by_count == Leaf::Bits => {
+                                LEAF_OPEN if by_count == Leaf::Bits => {
                                     let counts = std::array::from_fn(|i| count_before(group_rows[i].2, k as u32 * 8));
-                                    slope_leaf(UVec3::new(k as u32 * 8, ya, za), &counts, &boundary)
-                                        .map_or(Leaf::Bits, Leaf::Mask)
+                                    match slope_leaf(UVec3::new(k as u32 * 8, ya, za), &counts, &boundary) {
+                                        Some(mask) => {
+                                            masks.push(mask);
+                                            Leaf::Mask(masks.len() as u32 - 1)
+                                        }
+                                        None => Leaf::Bits,
+                                    }
                                 }
                                 _ => by_count,
                             };
@@ -231,7 +263,8 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             match states[lx] {
                                 Leaf::Outside => full = false,
                                 Leaf::Inside => found.push((t, origin, FULL_LEAF)),
-                                Leaf::Mask(mask) => {
+                                Leaf::Mask(i) => {
+                                    let mask = masks[i as usize];
                                     full &= mask == FULL_LEAF;
                                     if mask != [0; 8] {
                                         found.push((t, origin, mask));
@@ -259,7 +292,8 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             full_segments.push((t, ya, za));
                         }
                     }
-                    states.iter_mut().for_each(|s| *s = Leaf::Outside);
+                    crossed.iter().for_each(|&lx| surface_here[lx] = false);
+                    masks.clear();
                 }
             }
             // 128³ tiles: segments whole in every group of a whole block.
@@ -286,6 +320,7 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
         // freed (at 8192, keeping them all until the last left some 600 MB of the process's heap behind them).
         // The lists' order is the blocks' finishing order; the join sorts both.
         let joined = std::sync::Mutex::new((Vec::<Tile>::new(), Vec::<(u64, LeafMask)>::new(), 0u64));
+        let span = crate::trace::span("fill: blocks");
         (0..blocks_y * blocks_z).into_par_iter().for_each(|b| {
             let part = fill_block(b);
             let mut joined = joined.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -294,8 +329,9 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
             joined.2 += part.near_rows;
         });
         let (tiles, inside, rows_beside_holes) = joined.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
-        drop(rows);
+        drop(span);
         let stats = FillStats { winding_evaluations: boundary.evaluations.get(), rows_beside_holes };
+        let _span = crate::trace::span("fill: join");
         (join_interior(surface, tiles, inside), stats)
     })
 }
@@ -306,13 +342,14 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
     crate::parallel::install(|| {
         let spec = surface.spec;
         inside.par_sort_unstable_by_key(|(k, _)| *k);
-        // A surface leaf under a tile adds nothing: the tile's voxels are all set.
-        let blocks: HashSet<UVec3> = tiles.iter().filter(|t| t.log2 == 7).map(|t| t.origin).collect();
+        // A surface leaf under a tile adds nothing: the tile's voxels are all set. The 128³ tiles marked in an
+        // array over the grid's 128³ blocks, the 8³ tiles' keys sorted to be walked beside the sorted leaves.
+        let blocks = Blocks::new(spec.dims, 7);
+        let mut tiled = vec![false; blocks.len()];
+        tiles.iter().filter(|t| t.log2 == 7).for_each(|t| tiled[blocks.index(t.origin)] = true);
         let mut small: Vec<u64> =
             tiles.iter().filter(|t| t.log2 == 3).map(|t| leaf_key(t.origin.x, t.origin.y, t.origin.z)).collect();
         small.par_sort_unstable();
-        let under_tile =
-            |key: u64| small.binary_search(&key).is_ok() || blocks.contains(&((key_origin(key) >> 7u32) << 7u32));
         // Join the two sorted lists in the surface's, from the back (no third list: at 8192 each is some 230 MB),
         // then OR the leaves present in both.
         let mut leaves = surface.leaves;
@@ -338,8 +375,15 @@ fn join_interior(surface: SparseGrid, mut tiles: Vec<Tile>, mut inside: Vec<(u64
             }
             same
         });
-        leaves.retain(|(k, _)| !under_tile(*k));
-        drop((small, blocks));
+        let mut next = 0;
+        leaves.retain(|&(k, _)| {
+            while small.get(next).is_some_and(|&s| s < k) {
+                next += 1;
+            }
+            let under_small = small.get(next) == Some(&k);
+            !under_small && !tiled[blocks.index(key_origin(k))]
+        });
+        drop((small, tiled));
         tiles.extend(surface.tiles);
         SparseGrid { spec, leaves, tiles }.prune()
     })

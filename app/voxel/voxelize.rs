@@ -135,11 +135,15 @@ pub fn voxelize_grid_space_sparse(
         let dims = spec.dims;
         let band = band_layers(dims.z).next_multiple_of(LEAF_DIM as usize);
         let mut bands: Vec<LeafSet> = (0..(dims.z as usize).div_ceil(band)).map(|_| LeafSet::default()).collect();
+        let span = crate::trace::span("sparse: surface walk");
         let mut stats =
             walk_bands(&triangles, lattice, dims, mode, band, &mut bands, progress, cancel, |set, x0, x1, y, z| {
                 set.set_run(x0, x1, y, z)
             });
+        drop(span);
+        let span = crate::trace::span("sparse: surface leaves");
         let grid = SparseGrid::from_leaf_sets(spec, bands);
+        drop(span);
         let grid = match mode == Mode::Solid && !cancel.load(Ordering::Relaxed) {
             true => {
                 let (grid, fill) = super::solid_sparse::fill_sparse_counted(&triangles, lattice, grid);

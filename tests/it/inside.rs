@@ -641,7 +641,7 @@ fn a_leafs_slope_bounds_the_winding_number_at_every_voxel_of_it() {
         let boundary = boundary(&tris, lattice);
         let rows = column_crossings(&tris, d, lattice);
         let keys: std::collections::HashSet<u64> = surface_leaves(&tris, d).into_iter().collect();
-        let counts = |origin: UVec3| leaf_counts(&rows, d, origin);
+        let counts = |origin: UVec3| leaf_counts(&rows, origin);
         let mut leaves: Vec<UVec3> = (0..d.z / 8)
             .flat_map(|z| (0..d.y / 8).flat_map(move |y| (0..d.x / 8).map(move |x| UVec3::new(x, y, z) * 8)))
             .filter(|o| !keys.contains(&meshvox::voxel::sparse::leaf_key(o.x, o.y, o.z)))

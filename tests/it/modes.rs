@@ -335,6 +335,44 @@ fn open_meshes() -> Vec<(String, Vec<[Vec3; 3]>, GridSpec)> {
 }
 
 #[test]
+fn a_box_of_rows_far_from_every_hole_holds_no_row_near_one() {
+    // The CPU's fills skip `near_boundary` for the rows of a group that `near_boundary_box` finds far from every
+    // hole, so where the box's test says no, no row of it may be near; for a single row the two are one test.
+    // Every placement of boxes of several shapes, cut by the grid's end where they reach it.
+    use meshvox::voxel::cpu::solid::{near_boundary, near_boundary_box};
+    use meshvox::voxel::solid::boundary;
+    let (mut far, mut boxes) = (0u32, 0u32);
+    for (name, tris, s) in open_meshes() {
+        let lattice = meshvox::voxel::Lattice::fit(&tris, s.dims).expect("lattice");
+        let pieces = boundary(&tris, lattice).pieces;
+        let near: Vec<bool> = (0..s.dims.z)
+            .flat_map(|z| (0..s.dims.y).map(move |y| (y, z)))
+            .map(|(y, z)| near_boundary(y, z, &pieces))
+            .collect();
+        for (sy, sz) in [(8u32, 8u32), (1, 1), (3, 5), (13, 2)] {
+            for z0 in 0..s.dims.z {
+                for y0 in 0..s.dims.y {
+                    let (y1, z1) = ((y0 + sy - 1).min(s.dims.y - 1), (z0 + sz - 1).min(s.dims.z - 1));
+                    let any = near_boundary_box(y0..=y1, z0..=z1, &pieces);
+                    let rows_near = (z0..=z1).any(|z| (y0..=y1).any(|y| near[(z * s.dims.y + y) as usize]));
+                    assert!(
+                        any || !rows_near,
+                        "{name}: rows {y0}..={y1}, {z0}..={z1} near a hole, the box's test says no"
+                    );
+                    if (sy, sz) == (1, 1) {
+                        assert_eq!(any, rows_near, "{name}: row ({y0}, {z0})");
+                    }
+                    boxes += 1;
+                    far += u32::from(!any);
+                }
+            }
+        }
+    }
+    // (At 26 voxels the holed sphere's holes reach every row; the bowl's and the bunny's leave rows far from them.)
+    assert!(far > 0 && far < boxes, "{far} of {boxes} boxes far from every hole");
+}
+
+#[test]
 fn the_winding_numbers_error_bound_holds_against_float64() {
     // The GPU decides a solid voxel through a hole only where the winding number is farther from 1/2 than twice
     // this bound, so the bound must hold: here against the same boundary term in f64, at every voxel centre of

@@ -53,6 +53,7 @@ use crate::voxel::monotone;
 use crate::voxel::winding_lanes::{LANES, Sums, Terms, edge_sums, edge_sums_baseline};
 use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
+use std::ops::RangeInclusive;
 
 /// A crossing as stored on both backends: the first voxel at or beyond it along the row (at most `dims.x`),
 /// shifted left by one, and bit 0 set when the ray leaves the mesh there (`n_x > 0`).
@@ -267,12 +268,37 @@ impl Evaluations {
 pub struct RowCrossings {
     pub offsets: Vec<u32>,
     pub crossings: Vec<u32>,
+    /// Which rows `offsets` counts.
+    pub layout: RowLayout,
+}
+
+/// The rows a [`RowCrossings`] holds: a block of the grid's rows, row `(y, z)` at `(z - z0) * size_y + y - y0`
+/// (the whole grid's from `(0, 0)`), or rows listed by the caller, known by their place in its list.
+#[derive(Clone, Copy, Debug)]
+pub enum RowLayout {
+    Block(RowBlock),
+    Listed,
+}
+
+/// The rows of a block of the grid's YZ: `size[0]` along y from `origin[0]`, `size[1]` along z from `origin[1]`.
+#[derive(Clone, Copy, Debug)]
+pub struct RowBlock {
+    pub origin: [u32; 2],
+    pub size: [u32; 2],
 }
 
 impl RowCrossings {
     /// Row `r`'s crossings, sorted.
     pub fn row(&self, r: usize) -> &[u32] {
         &self.crossings[self.offsets[r] as usize..self.offsets[r + 1] as usize]
+    }
+
+    /// Row `(y, z)`'s crossings, sorted: a row of the block held (none for rows listed by the caller).
+    pub fn row_at(&self, y: u32, z: u32) -> &[u32] {
+        match self.layout {
+            RowLayout::Block(b) => self.row(((z - b.origin[1]) * b.size[0] + (y - b.origin[0])) as usize),
+            RowLayout::Listed => unreachable!("rows listed by the caller are read by their place in its list"),
+        }
     }
 }
 
@@ -905,9 +931,29 @@ const NEAR: f32 = std::f32::consts::TAU * 0.99;
 #[inline]
 pub fn near_boundary(y: u32, z: u32, pieces: &[BoundaryPiece]) -> bool {
     let (cy, cz) = (y as f32 + 0.5, z as f32 + 0.5);
+    reaches_half(pieces, |piece| piece.yz_gap(cy, cz))
+}
+
+/// Whether some row `(y, z)` with `y` in `ys` and `z` in `zs` may be near the boundary ([`near_boundary`]): the
+/// same sum, each piece's gap taken to the rows' nearest centre. Every step of the sum is monotone in the gaps, in
+/// f32's rounding as in exact arithmetic, so where this is false [`near_boundary`] is false for each of those
+/// rows, and a group of rows far from every hole skips their tests (the CPU's alone).
+pub fn near_boundary_box(ys: RangeInclusive<u32>, zs: RangeInclusive<u32>, pieces: &[BoundaryPiece]) -> bool {
+    let (y0, y1) = (*ys.start() as f32 + 0.5, *ys.end() as f32 + 0.5);
+    let (z0, z1) = (*zs.start() as f32 + 0.5, *zs.end() as f32 + 0.5);
+    reaches_half(pieces, |piece| {
+        let dy = (piece.lo[1] - y1).max(y0 - piece.hi[1]).max(0.0);
+        let dz = (piece.lo[2] - z1).max(z0 - piece.hi[2]).max(0.0);
+        (dy, dz)
+    })
+}
+
+/// [`near_boundary`]'s sum over the pieces, each seen `gap(piece)` away in (y, z).
+#[inline]
+fn reaches_half(pieces: &[BoundaryPiece], gap: impl Fn(&BoundaryPiece) -> (f32, f32)) -> bool {
     let mut sum = 0.0f32;
     for piece in pieces {
-        let (dy, dz) = piece.yz_gap(cy, cz);
+        let (dy, dz) = gap(piece);
         let d = (dy * dy + dz * dz).sqrt();
         if d == 0.0 {
             return true;
