@@ -611,11 +611,7 @@ pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec
     let strip = boundary
         .edges
         .iter()
-        .filter(|e| {
-            let (ey0, ey1) = (e.a[1].min(e.b[1]), e.a[1].max(e.b[1]));
-            let (ez0, ez1) = (e.a[2].min(e.b[2]), e.a[2].max(e.b[2]));
-            ey1 >= ylo && ey0 <= yhi && ez1 >= zlo && ez0 <= zhi
-        })
+        .filter(|e| yz_segment_meets(e, [ylo, yhi], [zlo, zhi]))
         .map(|e| e.a[0].min(e.b[0]))
         .fold(f32::INFINITY, f32::min);
     // Leaves wholly before the first strip (a voxel of slack).
@@ -633,6 +629,27 @@ pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec
     });
     states.resize(leaves_x as usize, LEAF_OPEN);
     states
+}
+
+/// Whether edge `e`'s projection on YZ may meet the rectangle `ys × zs`, so its strip may pass between the rows
+/// of a group: its box meets the rectangle, and the rectangle's corners are not all on one side of its line by
+/// more than f32's rounding of the side (some `1e-7` of the products; `1e-5` allowed). A long edge passing
+/// beside a group only by its box no longer stops the group's certificates by counts at its strip.
+pub fn yz_segment_meets(e: &BoundaryEdge, ys: [f32; 2], zs: [f32; 2]) -> bool {
+    let (ey0, ey1) = (e.a[1].min(e.b[1]), e.a[1].max(e.b[1]));
+    let (ez0, ez1) = (e.a[2].min(e.b[2]), e.a[2].max(e.b[2]));
+    if ey1 < ys[0] || ey0 > ys[1] || ez1 < zs[0] || ez0 > zs[1] {
+        return false;
+    }
+    let (dy, dz) = (e.b[1] - e.a[1], e.b[2] - e.a[2]);
+    let side = |y: f32, z: f32| {
+        let (py, pz) = (y - e.a[1], z - e.a[2]);
+        let f = dy * pz - dz * py;
+        let err = 1e-5 * ((dy * pz).abs() + (dz * py).abs());
+        (f > err) as i32 - (f < -err) as i32
+    };
+    let corners = [side(ys[0], zs[0]), side(ys[0], zs[1]), side(ys[1], zs[0]), side(ys[1], zs[1])];
+    !(corners.iter().all(|&c| c == 1) || corners.iter().all(|&c| c == -1))
 }
 
 /// A near group's certified leaves: by the count plus an integer where no strip crosses ([`certify_counts`]),

@@ -63,9 +63,10 @@ impl Tile {
         1u64 << (3 * self.log2)
     }
 
-    /// Tiles are sorted by this: size, then origin.
-    pub(super) fn sort_key(&self) -> (u32, u64) {
-        (self.log2, leaf_key(self.origin.x, self.origin.y, self.origin.z))
+    /// Tiles are sorted by this: size, then origin (one integer: a leaf's key has 39 bits, and sorting the 26 M
+    /// tiles of a solid at 8192 by one integer moves them faster than by a pair).
+    pub(super) fn sort_key(&self) -> u64 {
+        u64::from(self.log2) << 39 | leaf_key(self.origin.x, self.origin.y, self.origin.z)
     }
 }
 

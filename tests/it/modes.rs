@@ -373,6 +373,74 @@ fn a_box_of_rows_far_from_every_hole_holds_no_row_near_one() {
 }
 
 #[test]
+fn a_strip_may_pass_between_a_groups_rows_wherever_its_edge_meets_their_rectangle() {
+    // certify_counts decides a group's leaves by the count plus one integer up to the first strip passing
+    // between its rows; `yz_segment_meets` says which edges' strips may, and may never miss one whose YZ segment
+    // meets the rectangle (judged here in f64 by clipping the segment). Every boundary edge of the open meshes and
+    // edges made to graze, touch and run along rectangles, against rectangles of rows placed all around each.
+    use meshvox::voxel::cpu::solid::BoundaryEdge;
+    use meshvox::voxel::solid::{boundary, yz_segment_meets};
+    let meets = |e: &BoundaryEdge, ys: [f64; 2], zs: [f64; 2]| {
+        let (a, b) = ([e.a[1] as f64, e.a[2] as f64], [e.b[1] as f64, e.b[2] as f64]);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (k, lim) in [(0, ys), (1, zs)] {
+            let d = b[k] - a[k];
+            if d == 0.0 {
+                if a[k] < lim[0] || a[k] > lim[1] {
+                    return false;
+                }
+                continue;
+            }
+            let (u, v) = ((lim[0] - a[k]) / d, (lim[1] - a[k]) / d);
+            t0 = t0.max(u.min(v));
+            t1 = t1.min(u.max(v));
+        }
+        t0 <= t1
+    };
+    let mut edges: Vec<BoundaryEdge> = Vec::new();
+    for (_, tris, s) in open_meshes() {
+        let lattice = meshvox::voxel::Lattice::fit(&tris, s.dims).expect("lattice");
+        edges.extend(boundary(&tris, lattice).edges);
+    }
+    // The same holes as a grid some 40 times finer sees them: edges tens of voxels long, whose boxes hold many
+    // groups' rows that their segments pass by.
+    let scaled: Vec<BoundaryEdge> = edges
+        .iter()
+        .map(|e| BoundaryEdge { a: e.a.map(|c| c * 37.3), b: e.b.map(|c| c * 37.3), span: e.span * 37.3, ..*e })
+        .collect();
+    edges.extend(scaled);
+    let edge = |a: [f32; 3], b: [f32; 3]| BoundaryEdge { a, weight: 1.0, b, span: 0.0 };
+    // Through a corner (10.5, 10.5), along a side (y = 20.5), along x, and long and shallow.
+    edges.push(edge([0.0, 0.0, 0.0], [3.0, 21.0, 21.0]));
+    edges.push(edge([0.0, 20.5, 4.0], [2.0, 20.5, 30.0]));
+    edges.push(edge([0.0, 12.25, 13.75], [9.0, 12.25, 13.75]));
+    edges.push(edge([0.0, 1.0, 9.0], [5.0, 60.0, 11.0]));
+    let mut rng = Rng::new(68);
+    let (mut checked, mut met, mut spared) = (0u32, 0u32, 0u32);
+    for e in &edges {
+        let (ylo, zlo) = (e.a[1].min(e.b[1]).floor() - 12.0, e.a[2].min(e.b[2]).floor() - 12.0);
+        let (yhi, zhi) = (e.a[1].max(e.b[1]).ceil() + 12.0, e.a[2].max(e.b[2]).ceil() + 12.0);
+        for _ in 0..200 {
+            let y0 = ylo as f64 + rng.below((yhi - ylo) as u64 + 1) as f64 - 0.5;
+            let z0 = zlo as f64 + rng.below((zhi - zlo) as u64 + 1) as f64 - 0.5;
+            let (ys, zs) = ([y0, y0 + 1.0 + rng.below(10) as f64], [z0, z0 + 1.0 + rng.below(10) as f64]);
+            let said = yz_segment_meets(e, ys.map(|c| c as f32), zs.map(|c| c as f32));
+            let truth = meets(e, ys, zs);
+            assert!(said || !truth, "edge {e:?} meets rows {ys:?} x {zs:?}, the test says no");
+            let in_box = e.a[1].max(e.b[1]) as f64 >= ys[0]
+                && (e.a[1].min(e.b[1]) as f64) <= ys[1]
+                && e.a[2].max(e.b[2]) as f64 >= zs[0]
+                && (e.a[2].min(e.b[2]) as f64) <= zs[1];
+            checked += 1;
+            met += u32::from(truth);
+            spared += u32::from(in_box && !said);
+        }
+    }
+    // Not vacuous: rectangles met, and rectangles within an edge's box that its segment passes by.
+    assert!(met > 1000 && spared > 1000, "{met} met, {spared} spared by the line of {checked}");
+}
+
+#[test]
 fn the_winding_numbers_error_bound_holds_against_float64() {
     // The GPU decides a solid voxel through a hole only where the winding number is farther from 1/2 than twice
     // this bound, so the bound must hold: here against the same boundary term in f64, at every voxel centre of
