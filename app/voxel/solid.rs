@@ -558,11 +558,20 @@ pub fn certify_leaves(
         let p = m.as_vec3() + 0.5;
         let count = count_before(rows.row_at(m.y, m.z), m.x);
         let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
-        match certain_side(v.w, v.e, v.far + radius * gradient_bound(p, radius, boundary), MARGIN) {
+        let g = gradient_bound(p, radius, boundary);
+        let side = |reach: f32| match certain_side(v.w, v.e, v.far + reach * g, MARGIN) {
             1 => Some(LEAF_INSIDE),
             0 => Some(LEAF_OUTSIDE),
             _ => None,
+        };
+        if let Some(state) = side(radius) {
+            return Some((state, a, b));
         }
+        // The leaves around the middle that its distance from ½ reaches at the gradient's bound.
+        let slack = (v.w - 0.5).abs() - MARGIN * v.e - v.far;
+        let fits = |spread: f32| certain_side(v.w, v.e, v.far + spread, MARGIN) != 2;
+        let (lo, hi) = around_middle(p, m, (a, b), (radius, g), slack, boundary, (dims, ya, za), fits)?;
+        side(0.0).map(|state| (state, lo, hi))
     })
 }
 
@@ -572,13 +581,80 @@ fn group_box(a: u32, b: u32, dims: UVec3, ya: u32, za: u32) -> (UVec3, f32) {
     let lo = UVec3::new(a * 8, ya, za);
     let hi = UVec3::new(b * 8 + 7, ya + 7, za + 7).min(dims - 1);
     let m = (lo + hi) / 2;
-    let far = (m - lo).max(hi - m).as_vec3();
-    (m, far.length() * (1.0 + 1e-6))
+    (m, reach_from(m, a, b, dims, ya, za))
 }
 
-/// The states of leaves `0..len` from `decide(a, b)`, a state for all of `a..=b` or none: tried on the whole,
-/// then on halves down to single leaves where it gives none ([`LEAF_OPEN`] where no range did).
-fn bisect_leaves(len: u32, mut decide: impl FnMut(u32, u32) -> Option<u8>) -> Vec<u8> {
+/// The distance from voxel `m`'s centre to the farthest voxel centre of the box of leaves `a..=b` along x of the
+/// group of rows at `(ya, za)` (rounded up).
+fn reach_from(m: UVec3, a: u32, b: u32, dims: UVec3, ya: u32, za: u32) -> f32 {
+    let lo = UVec3::new(a * 8, ya, za).as_ivec3();
+    let hi = UVec3::new(b * 8 + 7, ya + 7, za + 7).min(dims - 1).as_ivec3();
+    let m = m.as_ivec3();
+    let far = (m - lo).abs().max((hi - m).abs()).as_vec3();
+    far.length() * (1.0 + 1e-6)
+}
+
+/// The leaves `lo..=hi` of `a..=b` (whose middle voxel is `m`) that lie within `reach` of `m`'s centre, the
+/// leaf of `m` among them, or none: where one evaluation's bound does not reach over its whole box, the leaves
+/// around its middle that it does reach are still decided by it, and only the rest are halved. The caller checks
+/// the box found with [`reach_from`] and its own bound.
+fn leaves_within(m: UVec3, a: u32, b: u32, reach: f32, dims: UVec3, ya: u32, za: u32) -> Option<(u32, u32)> {
+    let (y1, z1) = ((ya + 7).min(dims.y - 1), (za + 7).min(dims.z - 1));
+    let fy = (m.y - ya).max(y1 - m.y) as f32;
+    let fz = (m.z - za).max(z1 - m.z) as f32;
+    let room = (reach / (1.0 + 1e-5)).powi(2) - fy * fy - fz * fz;
+    if room.is_nan() || room < 0.0 {
+        return None;
+    }
+    let dx = room.sqrt().min(dims.x as f32) as u32;
+    let lo = (m.x.saturating_sub(dx)).div_ceil(8).max(a);
+    let end = (m.x + dx).min(dims.x - 1);
+    // The last leaf whose last voxel (cut by the grid's end) is at most `end`.
+    let hi = match end + 1 == dims.x {
+        true => b,
+        false => ((end + 1) / 8).checked_sub(1)?.min(b),
+    };
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// The leaves `lo..=hi` of `a..=b` (evaluated at its middle voxel `m`, centre `p`) on which `fits(spread)` holds,
+/// `spread` the gradient's bound times their farthest voxel's distance from `p`, with `slack` the most a spread
+/// may be: the gradient bounded over the ball of the whole box's `radius` (`g`), else over balls a quarter and a
+/// sixteenth as wide (an edge within the wider ball makes its bound infinite).
+#[allow(clippy::too_many_arguments)]
+fn around_middle(
+    p: Vec3,
+    m: UVec3,
+    (a, b): (u32, u32),
+    (radius, g): (f32, f32),
+    slack: f32,
+    boundary: &Boundary,
+    (dims, ya, za): (UVec3, u32, u32),
+    fits: impl Fn(f32) -> bool,
+) -> Option<(u32, u32)> {
+    if slack.is_nan() || slack <= 0.0 {
+        return None;
+    }
+    let (mut r, mut g) = (radius, g);
+    for _ in 0..3 {
+        if let Some((lo, hi)) = leaves_within(m, a, b, (slack / g).min(r), dims, ya, za) {
+            let reach = reach_from(m, lo, hi, dims, ya, za);
+            if reach <= r && fits(reach * g) {
+                return Some((lo, hi));
+            }
+        }
+        r /= 4.0;
+        // A narrower ball only where it holds a leaf.
+        leaves_within(m, a, b, r, dims, ya, za)?;
+        g = gradient_bound(p, r, boundary);
+    }
+    None
+}
+
+/// The states of leaves `0..len` from `decide(a, b)`: a state for the leaves `lo..=hi` of `a..=b` (all of them,
+/// or those around the middle that one evaluation reaches), or none. Tried on the whole, then on what is left of
+/// it, halved down to single leaves where it gives none ([`LEAF_OPEN`] where no range did).
+fn bisect_leaves(len: u32, mut decide: impl FnMut(u32, u32) -> Option<(u8, u32, u32)>) -> Vec<u8> {
     let mut states = vec![LEAF_OPEN; len as usize];
     let mut stack = match len {
         0 => Vec::new(),
@@ -586,7 +662,15 @@ fn bisect_leaves(len: u32, mut decide: impl FnMut(u32, u32) -> Option<u8>) -> Ve
     };
     while let Some((a, b)) = stack.pop() {
         match decide(a, b) {
-            Some(state) => states[a as usize..=b as usize].iter_mut().for_each(|s| *s = state),
+            Some((state, lo, hi)) => {
+                states[lo as usize..=hi as usize].iter_mut().for_each(|s| *s = state);
+                if lo > a {
+                    stack.push((a, lo - 1));
+                }
+                if hi < b {
+                    stack.push((hi + 1, b));
+                }
+            }
             None if a < b => {
                 let m = a + (b - a) / 2;
                 stack.extend([(m + 1, b), (a, m)]);
@@ -624,8 +708,17 @@ pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec
         let p = m.as_vec3() + 0.5;
         let v = winding_number_tree(0, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         let k = v.w.round();
-        let spread = MARGIN * v.e + v.far + radius * gradient_bound(p, radius, boundary);
-        ((v.w - k).abs() + spread < 0.5 && k.abs() < 64.0).then(|| (i32::from(LEAF_COUNT) + k as i32) as u8)
+        let g = gradient_bound(p, radius, boundary);
+        let within = |reach: f32| (v.w - k).abs() + (MARGIN * v.e + v.far + reach * g) < 0.5 && k.abs() < 64.0;
+        let state = (i32::from(LEAF_COUNT) + k as i32) as u8;
+        if within(radius) {
+            return Some((state, a, b));
+        }
+        // The leaves around the middle that its distance from an integer reaches at the gradient's bound.
+        let slack = 0.5 - (v.w - k).abs() - MARGIN * v.e - v.far;
+        let fits = |spread: f32| (v.w - k).abs() + (MARGIN * v.e + v.far + spread) < 0.5 && k.abs() < 64.0;
+        let (lo, hi) = around_middle(p, m, (a, b), (radius, g), slack, boundary, (dims, ya, za), fits)?;
+        Some((state, lo, hi))
     });
     states.resize(leaves_x as usize, LEAF_OPEN);
     states

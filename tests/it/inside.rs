@@ -616,6 +616,75 @@ fn holed_boundaries_at_96() -> Vec<HoledAt96> {
         .collect()
 }
 
+/// The leaves a group of 8×8 rows beside a hole certifies whole (`certify_group`: inside or outside by one side of
+/// ½, or by the rows' counts plus one integer) hold the f64 winding number at every voxel, on every open mesh of
+/// this file, the bunny and the teapot on a 160 grid. Each certificate is one evaluation at a box's middle and the
+/// gradient's bound times its reach: over the whole box, or over the leaves around the middle that it reaches
+/// where the whole box is too far (`around_middle`); a reach taken short would put voxels on the wrong side.
+#[test]
+fn a_groups_certified_leaves_hold_the_winding_number_at_every_voxel() {
+    use meshvox::voxel::cpu::solid::{LEAF_COUNT, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, near_boundary_box};
+    use meshvox::voxel::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
+    let (mut by_side, mut by_count, mut meshes) = (0usize, 0usize, Vec::new());
+    for (name, tris, lattice, d) in holed_meshes_at(160) {
+        let boundary = boundary(&tris, lattice);
+        let rows = column_crossings(&tris, d, lattice);
+        let keys: std::collections::HashSet<u64> = surface_leaves(&tris, d).into_iter().collect();
+        let groups: Vec<(u32, u32)> = (0..d.z.div_ceil(8))
+            .flat_map(|gz| (0..d.y.div_ceil(8)).map(move |gy| (gy * 8, gz * 8)))
+            .filter(|&(ya, za)| {
+                near_boundary_box(ya..=(ya + 7).min(d.y - 1), za..=(za + 7).min(d.z - 1), &boundary.pieces)
+            })
+            .collect();
+        let states: Vec<((u32, u32), Vec<u8>)> = groups
+            .par_iter()
+            .map(|&(ya, za)| {
+                let surface: Vec<bool> = (0..d.x.div_ceil(8))
+                    .map(|lx| keys.contains(&meshvox::voxel::sparse::leaf_key(lx * 8, ya, za)))
+                    .collect();
+                ((ya, za), certify_group(&rows, d, ya, za, &boundary, &surface))
+            })
+            .collect();
+        let decided: std::collections::HashSet<UVec3> = states
+            .iter()
+            .flat_map(|((ya, za), s)| {
+                s.iter()
+                    .enumerate()
+                    .filter(|(_, s)| **s != LEAF_OPEN)
+                    .map(move |(lx, _)| UVec3::new(lx as u32, ya / 8, za / 8))
+            })
+            .collect();
+        let reference = Reference::new(&tris, d, |v| decided.contains(&(v / 8)));
+        for ((ya, za), s) in &states {
+            for (lx, &state) in s.iter().enumerate().filter(|(_, s)| **s != LEAF_OPEN) {
+                let origin = UVec3::new(lx as u32 * 8, *ya, *za);
+                for v in (0..512u32).map(|i| origin + UVec3::new(i % 8, i / 8 % 8, i / 64)) {
+                    if v.cmpge(d).any() {
+                        continue;
+                    }
+                    let exact = reference.values[index(v, d)];
+                    let inside = match state {
+                        LEAF_INSIDE => true,
+                        LEAF_OUTSIDE => false,
+                        s => count_before(rows.row_at(v.y, v.z), v.x) + i32::from(s) - i32::from(LEAF_COUNT) >= 1,
+                    };
+                    assert!(
+                        (exact - 0.5).abs() <= TOLERANCE || inside == (exact >= 0.5),
+                        "{name}: group ({ya}, {za}), leaf {lx} certified {state}: voxel {v} decided {inside}, the \
+                         winding number {exact}"
+                    );
+                    match state >= LEAF_COUNT / 2 {
+                        true => by_count += 1,
+                        false => by_side += 1,
+                    }
+                }
+            }
+        }
+        meshes.push(name);
+    }
+    assert!(by_side > 100_000 && by_count > 100_000, "only {by_side} and {by_count} voxels judged on {meshes:?}");
+}
+
 /// A leaf's slope (`voxel/slope.rs`: the winding number at a box's middle voxel and its gradient, with bounds on
 /// both and on the Hessian) bounds the f64 winding number at every voxel of the box, for every whole leaf no
 /// triangle comes near and each of its 4³ octants, on every open mesh of this file, the bunny and the teapot on a
