@@ -19,6 +19,7 @@
 //! lets the GPU process the grid in z-slabs that are whole word ranges.
 
 pub mod bvh;
+pub mod cells;
 pub mod colour;
 pub mod contour;
 pub mod cpu;

@@ -734,15 +734,19 @@ pub fn yz_segment_meets(e: &BoundaryEdge, ys: [f32; 2], zs: [f32; 2]) -> bool {
     if ey1 < ys[0] || ey0 > ys[1] || ez1 < zs[0] || ez0 > zs[1] {
         return false;
     }
-    let (dy, dz) = (e.b[1] - e.a[1], e.b[2] - e.a[2]);
-    let side = |y: f32, z: f32| {
-        let (py, pz) = (y - e.a[1], z - e.a[2]);
-        let f = dy * pz - dz * py;
-        let err = 1e-5 * ((dy * pz).abs() + (dz * py).abs());
-        (f > err) as i32 - (f < -err) as i32
-    };
+    let side = |y: f32, z: f32| yz_side(e, y, z);
     let corners = [side(ys[0], zs[0]), side(ys[0], zs[1]), side(ys[1], zs[0]), side(ys[1], zs[1])];
     !(corners.iter().all(|&c| c == 1) || corners.iter().all(|&c| c == -1))
+}
+
+/// The side of edge `e`'s YZ line that the point `(y, z)` is on, `1` or `-1`, where the f32 cross product is
+/// farther from 0 than its rounding (some `1e-7` of its products; `1e-5` allowed), else `0`.
+pub fn yz_side(e: &BoundaryEdge, y: f32, z: f32) -> i32 {
+    let (dy, dz) = (e.b[1] - e.a[1], e.b[2] - e.a[2]);
+    let (py, pz) = (y - e.a[1], z - e.a[2]);
+    let f = dy * pz - dz * py;
+    let err = 1e-5 * ((dy * pz).abs() + (dz * py).abs());
+    (f > err) as i32 - (f < -err) as i32
 }
 
 /// A near group's certified leaves: by the count plus an integer where no strip crosses ([`certify_counts`]),

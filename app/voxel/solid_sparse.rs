@@ -16,6 +16,7 @@
 //! leaves as tiles, complete blocks as larger tiles) the GPU's grid is compared in.
 
 use super::Lattice;
+use super::cells::{certify_cells, group_strips};
 use super::cpu::groups::GroupOutput;
 use super::cpu::solid::{
     Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, RowBlock, crossing_sign, fill_row_span, near_boundary,
@@ -173,7 +174,7 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                     }
                     let near_group = group_rows.iter().any(|row| row.3) && !boundary.edges.is_empty();
                     crossed.iter().for_each(|&lx| surface_here[lx] = true);
-                    let decided = match near_group {
+                    let mut decided = match near_group {
                         true => certify_group(&rows, dims, ya, za, &boundary, &surface_here),
                         false => Vec::new(),
                     };
@@ -227,6 +228,18 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                         }
                         lx = end;
                     }
+                    // Beside a hole, the leaves left to their rows that a strip cuts: each row by its count and its
+                    // cell's integer, where one is certified (`certify_cells`).
+                    let mut cells: Vec<(usize, [u8; 64])> = Vec::new();
+                    let mut strips = None;
+                    for lx in (0..leaves_x).filter(|&lx| near_group && states[lx] == Leaf::Bits) {
+                        if decided[lx] == LEAF_OPEN && surface_here[lx] {
+                            let strips = strips.get_or_insert_with(|| group_strips(dims, ya, za, &boundary));
+                            if let Some(rows) = certify_cells(dims, ya, za, lx as u32, strips, &boundary) {
+                                cells.push((lx, rows));
+                            }
+                        }
+                    }
                     // The rows, only through the leaves left to them.
                     let mut k = 0;
                     while k < leaves_x {
@@ -239,6 +252,7 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                         for &(y, z, list, near, _) in &group_rows {
                             let i = ((y - ya) * 8 + (z - za)) as usize;
                             let row = &mut group[i * wpr..(i + 1) * wpr];
+                            cells.iter().for_each(|&(lx, rows)| decided[lx] = rows[i]);
                             fill_row_span(list, y, z, span.clone(), near, &boundary, &decided, row);
                         }
                         k = end;

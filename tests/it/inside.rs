@@ -617,15 +617,18 @@ fn holed_boundaries_at_96() -> Vec<HoledAt96> {
 }
 
 /// The leaves a group of 8×8 rows beside a hole certifies whole (`certify_group`: inside or outside by one side of
-/// ½, or by the rows' counts plus one integer) hold the f64 winding number at every voxel, on every open mesh of
-/// this file, the bunny and the teapot on a 160 grid. Each certificate is one evaluation at a box's middle and the
-/// gradient's bound times its reach: over the whole box, or over the leaves around the middle that it reaches
-/// where the whole box is too far (`around_middle`); a reach taken short would put voxels on the wrong side.
+/// ½, or by the rows' counts plus one integer) and the rows of the leaves it leaves open that their cells certify
+/// (`certify_cells`: the rows cut by the strips' lines, each cell's count plus its own integer) hold the f64 winding
+/// number at every voxel, on every open mesh of this file, the bunny and the teapot on a 160 grid. Each certificate
+/// is one evaluation and the gradient's bound times its reach: over a whole box, over the leaves around its middle
+/// that it reaches where the whole box is too far (`around_middle`), or over a cell; a reach taken short, or a
+/// cell that a strip passes through, would put voxels on the wrong side.
 #[test]
 fn a_groups_certified_leaves_hold_the_winding_number_at_every_voxel() {
+    use meshvox::voxel::cells::{certify_cells, group_strips};
     use meshvox::voxel::cpu::solid::{LEAF_COUNT, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, near_boundary_box};
     use meshvox::voxel::solid::{boundary, certify_group, column_crossings, count_before, surface_leaves};
-    let (mut by_side, mut by_count, mut meshes) = (0usize, 0usize, Vec::new());
+    let (mut by_side, mut by_count, mut by_cell, mut meshes) = (0usize, 0usize, 0usize, Vec::new());
     for (name, tris, lattice, d) in holed_meshes_at(160) {
         let boundary = boundary(&tris, lattice);
         let rows = column_crossings(&tris, d, lattice);
@@ -636,30 +639,34 @@ fn a_groups_certified_leaves_hold_the_winding_number_at_every_voxel() {
                 near_boundary_box(ya..=(ya + 7).min(d.y - 1), za..=(za + 7).min(d.z - 1), &boundary.pieces)
             })
             .collect();
-        let states: Vec<((u32, u32), Vec<u8>)> = groups
+        // Each group's decided leaves: each row's state, and whether by cells.
+        type Decided = Vec<(u32, [u8; 64], bool)>;
+        let states: Vec<((u32, u32), Decided)> = groups
             .par_iter()
             .map(|&(ya, za)| {
                 let surface: Vec<bool> = (0..d.x.div_ceil(8))
                     .map(|lx| keys.contains(&meshvox::voxel::sparse::leaf_key(lx * 8, ya, za)))
                     .collect();
-                ((ya, za), certify_group(&rows, d, ya, za, &boundary, &surface))
+                let strips = group_strips(d, ya, za, &boundary);
+                let leaves = certify_group(&rows, d, ya, za, &boundary, &surface);
+                let decided = leaves.iter().enumerate().filter_map(|(lx, &s)| match s {
+                    LEAF_OPEN => certify_cells(d, ya, za, lx as u32, &strips, &boundary).map(|r| (lx as u32, r, true)),
+                    s => Some((lx as u32, [s; 64], false)),
+                });
+                ((ya, za), decided.collect())
             })
             .collect();
-        let decided: std::collections::HashSet<UVec3> = states
+        let wanted: std::collections::HashSet<UVec3> = states
             .iter()
-            .flat_map(|((ya, za), s)| {
-                s.iter()
-                    .enumerate()
-                    .filter(|(_, s)| **s != LEAF_OPEN)
-                    .map(move |(lx, _)| UVec3::new(lx as u32, ya / 8, za / 8))
-            })
+            .flat_map(|((ya, za), s)| s.iter().map(move |(lx, _, _)| UVec3::new(*lx, ya / 8, za / 8)))
             .collect();
-        let reference = Reference::new(&tris, d, |v| decided.contains(&(v / 8)));
+        let reference = Reference::new(&tris, d, |v| wanted.contains(&(v / 8)));
         for ((ya, za), s) in &states {
-            for (lx, &state) in s.iter().enumerate().filter(|(_, s)| **s != LEAF_OPEN) {
-                let origin = UVec3::new(lx as u32 * 8, *ya, *za);
+            for &(lx, row_states, cells) in s {
+                let origin = UVec3::new(lx * 8, *ya, *za);
                 for v in (0..512u32).map(|i| origin + UVec3::new(i % 8, i / 8 % 8, i / 64)) {
-                    if v.cmpge(d).any() {
+                    let state = row_states[((v.y - ya) * 8 + (v.z - za)) as usize];
+                    if v.cmpge(d).any() || state == LEAF_OPEN {
                         continue;
                     }
                     let exact = reference.values[index(v, d)];
@@ -670,19 +677,24 @@ fn a_groups_certified_leaves_hold_the_winding_number_at_every_voxel() {
                     };
                     assert!(
                         (exact - 0.5).abs() <= TOLERANCE || inside == (exact >= 0.5),
-                        "{name}: group ({ya}, {za}), leaf {lx} certified {state}: voxel {v} decided {inside}, the \
-                         winding number {exact}"
+                        "{name}: group ({ya}, {za}), leaf {lx} certified {state} (by cells: {cells}): voxel {v} \
+                         decided {inside}, the winding number {exact}"
                     );
-                    match state >= LEAF_COUNT / 2 {
-                        true => by_count += 1,
-                        false => by_side += 1,
+                    match (cells, state >= LEAF_COUNT / 2) {
+                        (true, _) => by_cell += 1,
+                        (false, true) => by_count += 1,
+                        (false, false) => by_side += 1,
                     }
                 }
             }
         }
         meshes.push(name);
     }
-    assert!(by_side > 100_000 && by_count > 100_000, "only {by_side} and {by_count} voxels judged on {meshes:?}");
+    eprintln!("{by_side} voxels judged decided by a side of ½, {by_count} by counts, {by_cell} by cells");
+    assert!(
+        by_side > 100_000 && by_count > 100_000 && by_cell > 10_000,
+        "only {by_side}, {by_count} and {by_cell} voxels judged on {meshes:?}"
+    );
 }
 
 /// A leaf's slope (`voxel/slope.rs`: the winding number at a box's middle voxel and its gradient, with bounds on
