@@ -78,6 +78,7 @@ pub fn certify_cells(
     let mut states = [LEAF_OPEN; 64];
     let mut done = [false; 64];
     let mx = (x0 + x1) / 2;
+    let dx = (mx - x0).max(x1 - mx) as f32;
     for first in 0..64 {
         let Some(key) = cells[first] else { continue };
         if done[first] {
@@ -89,7 +90,6 @@ pub fn certify_cells(
         let yz = |i: usize| Vec3::new(0.0, (i / 8) as f32, (i % 8) as f32);
         let far = |c: usize| members.iter().map(|&i| (yz(i) - yz(c)).length_squared()).fold(0.0f32, f32::max);
         let centre = members.iter().copied().min_by(|&a, &b| far(a).total_cmp(&far(b))).unwrap_or(first);
-        let dx = (mx - x0).max(x1 - mx) as f32;
         let radius = (far(centre) + dx * dx).sqrt() * (1.0 + 1e-6);
         let (y, z) = (ya + centre as u32 / 8, za + centre as u32 % 8);
         let p = Vec3::new(mx as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5);

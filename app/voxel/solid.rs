@@ -559,17 +559,17 @@ pub fn certify_leaves(
         let count = count_before(rows.row_at(m.y, m.z), m.x);
         let v = winding_number_tree(count, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         let g = gradient_bound(p, radius, boundary);
-        let side = |reach: f32| match certain_side(v.w, v.e, v.far + reach * g, MARGIN) {
+        let side = |spread: f32| match certain_side(v.w, v.e, v.far + spread, MARGIN) {
             1 => Some(LEAF_INSIDE),
             0 => Some(LEAF_OUTSIDE),
             _ => None,
         };
-        if let Some(state) = side(radius) {
+        if let Some(state) = side(radius * g) {
             return Some((state, a, b));
         }
         // The leaves around the middle that its distance from ½ reaches at the gradient's bound.
         let slack = (v.w - 0.5).abs() - MARGIN * v.e - v.far;
-        let fits = |spread: f32| certain_side(v.w, v.e, v.far + spread, MARGIN) != 2;
+        let fits = |spread: f32| side(spread).is_some();
         let (lo, hi) = around_middle(p, m, (a, b), (radius, g), slack, boundary, (dims, ya, za), fits)?;
         side(0.0).map(|state| (state, lo, hi))
     })
@@ -594,8 +594,7 @@ fn reach_from(m: UVec3, a: u32, b: u32, dims: UVec3, ya: u32, za: u32) -> f32 {
     far.length() * (1.0 + 1e-6)
 }
 
-/// The leaves `lo..=hi` of `a..=b` (whose middle voxel is `m`) that lie within `reach` of `m`'s centre, the
-/// leaf of `m` among them, or none: where one evaluation's bound does not reach over its whole box, the leaves
+/// The leaves `lo..=hi` of `a..=b` (whose middle voxel is `m`) that lie within `reach` of `m`'s centre, or none: where one evaluation's bound does not reach over its whole box, the leaves
 /// around its middle that it does reach are still decided by it, and only the rest are halved. The caller checks
 /// the box found with [`reach_from`] and its own bound.
 fn leaves_within(m: UVec3, a: u32, b: u32, reach: f32, dims: UVec3, ya: u32, za: u32) -> Option<(u32, u32)> {
@@ -709,14 +708,13 @@ pub fn certify_counts(dims: UVec3, ya: u32, za: u32, boundary: &Boundary) -> Vec
         let v = winding_number_tree(0, p, 0.0, boundary, STRETCH_BUDGET, ATAN2_CPU);
         let k = v.w.round();
         let g = gradient_bound(p, radius, boundary);
-        let within = |reach: f32| (v.w - k).abs() + (MARGIN * v.e + v.far + reach * g) < 0.5 && k.abs() < 64.0;
+        let fits = |spread: f32| (v.w - k).abs() + (MARGIN * v.e + v.far + spread) < 0.5 && k.abs() < 64.0;
         let state = (i32::from(LEAF_COUNT) + k as i32) as u8;
-        if within(radius) {
+        if fits(radius * g) {
             return Some((state, a, b));
         }
         // The leaves around the middle that its distance from an integer reaches at the gradient's bound.
         let slack = 0.5 - (v.w - k).abs() - MARGIN * v.e - v.far;
-        let fits = |spread: f32| (v.w - k).abs() + (MARGIN * v.e + v.far + spread) < 0.5 && k.abs() < 64.0;
         let (lo, hi) = around_middle(p, m, (a, b), (radius, g), slack, boundary, (dims, ya, za), fits)?;
         Some((state, lo, hi))
     });
@@ -734,8 +732,8 @@ pub fn yz_segment_meets(e: &BoundaryEdge, ys: [f32; 2], zs: [f32; 2]) -> bool {
     if ey1 < ys[0] || ey0 > ys[1] || ez1 < zs[0] || ez0 > zs[1] {
         return false;
     }
-    let side = |y: f32, z: f32| yz_side(e, y, z);
-    let corners = [side(ys[0], zs[0]), side(ys[0], zs[1]), side(ys[1], zs[0]), side(ys[1], zs[1])];
+    let sides = ys.map(|y| zs.map(|z| yz_side(e, y, z)));
+    let corners = sides.as_flattened();
     !(corners.iter().all(|&c| c == 1) || corners.iter().all(|&c| c == -1))
 }
 

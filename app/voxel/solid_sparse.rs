@@ -232,12 +232,11 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                     // cell's integer, where one is certified (`certify_cells`).
                     let mut cells: Vec<(usize, [u8; 64])> = Vec::new();
                     let mut strips = None;
-                    for lx in (0..leaves_x).filter(|&lx| near_group && states[lx] == Leaf::Bits) {
-                        if decided[lx] == LEAF_OPEN && surface_here[lx] {
-                            let strips = strips.get_or_insert_with(|| group_strips(dims, ya, za, &boundary));
-                            if let Some(rows) = certify_cells(dims, ya, za, lx as u32, strips, &boundary) {
-                                cells.push((lx, rows));
-                            }
+                    // (Only a near group has leaves certified: `decided` is empty in the others.)
+                    for lx in (0..decided.len()).filter(|&lx| decided[lx] == LEAF_OPEN && surface_here[lx]) {
+                        let strips = strips.get_or_insert_with(|| group_strips(dims, ya, za, &boundary));
+                        if let Some(rows) = certify_cells(dims, ya, za, lx as u32, strips, &boundary) {
+                            cells.push((lx, rows));
                         }
                     }
                     // The rows, only through the leaves left to them.
