@@ -8,7 +8,8 @@
 //! answer specially (a non-finite input, or both zero: the point on an edge's end) is added by the scalar code.
 //! [`edge_sums`] is compiled for the widest vector set the machine has (AVX-512, AVX2), chosen at run time, over
 //! the baseline; [`edge_sums_baseline`] is the baseline alone, for the tests. [`crate::voxel::cpu::solid::Kernel`]
-//! chooses.
+//! chooses. The gradient bound's edge terms (what certifies a box or a cell around one evaluation) are taken
+//! eight at a time the same way ([`gradient_sums`]).
 
 use super::cpu::atan::atan_unit;
 use super::cpu::common::U;
@@ -90,6 +91,44 @@ fn add(sums: &mut Sums, edges: &[Edge], p: [f32; 3], reach: f32, atan2_error: f3
         added += batch.len();
     }
     added
+}
+
+/// Adds to `sum`, in the edges' order, each edge's term of the winding number's gradient bound within `radius` of
+/// `p` ([`gradient_bound`](crate::voxel::cpu::solid::gradient_bound)'s: `|w| len / d²`, infinite where the edge
+/// comes within the ball), [`LANES`] terms at a time, compiled as [`edge_sums`] is.
+#[multiversion(targets("x86_64+avx512f+avx512vl+avx2+fma", "x86_64+avx2+fma"))]
+pub fn gradient_sums(sum: f32, edges: &[Edge], p: [f32; 3], radius: f32) -> f32 {
+    add_gradient(sum, edges, p, radius)
+}
+
+/// [`gradient_sums`] compiled for the baseline vector set only.
+pub fn gradient_sums_baseline(sum: f32, edges: &[Edge], p: [f32; 3], radius: f32) -> f32 {
+    add_gradient(sum, edges, p, radius)
+}
+
+#[inline(always)]
+fn add_gradient(mut sum: f32, edges: &[Edge], p: [f32; 3], radius: f32) -> f32 {
+    for batch in edges.chunks(LANES) {
+        // Short batches repeat their first edge; the extra lanes are not added.
+        let edge: [&Edge; LANES] = std::array::from_fn(|k| batch.get(k).unwrap_or(&batch[0]));
+        // (A loop over the lanes, as `add`'s: `array::from_fn` leaves its closure out of line, a lane at a time.)
+        let mut terms = [0.0; LANES];
+        for k in 0..LANES {
+            terms[k] = gradient_lane(edge[k], p, radius);
+        }
+        terms[..batch.len()].iter().for_each(|t| sum += t);
+    }
+    sum
+}
+
+/// One edge's gradient term, in the scalar code's order of operations.
+#[inline(always)]
+fn gradient_lane(e: &Edge, p: [f32; 3], radius: f32) -> f32 {
+    let a = [e.a[0] - p[0], e.a[1] - p[1], e.a[2] - p[2]];
+    let b = [e.b[0] - p[0], e.b[1] - p[1], e.b[2] - p[2]];
+    let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (length(a) + length(b)) - radius;
+    let ab = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    select(d > 0.0, e.weight.abs() * length(ab) * (1.0 + 1e-5) / (d * d), f32::INFINITY)
 }
 
 /// One lane: `edge_term` without branches, and whether its `atan2` is special.

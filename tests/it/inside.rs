@@ -811,10 +811,11 @@ fn judge_slopes(
 /// this file, the bunny and the teapot, for runs of 8, 24 and 64 voxels on a stride through a 96 grid. The fill
 /// takes every voxel past a decided one from these bounds, so a bound too small would put voxels on the wrong
 /// side. A row through an edge's YZ projection (into its strip, where the term jumps) has none, even where f64
-/// leaves the row a hair away from the edge.
+/// leaves the row a hair away from the edge. The pulls' lanes give the scalar sums bit for bit on every run.
 #[test]
 fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
     use meshvox::voxel::cpu::solid::winding_exact;
+    use meshvox::voxel::monotone;
     let (mut judged, mut tight, mut meshes) = (0usize, 0usize, Vec::new());
     for (name, boundary, d, rows) in &holed_boundaries_at_96() {
         let d = *d;
@@ -825,9 +826,15 @@ fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
                 for length in [8u32, 24, 64] {
                     for first in (0..d.x.saturating_sub(length)).step_by(length as usize * 3 / 2 + 1) {
                         let last = first + length - 1;
-                        let Some((up, down)) =
-                            meshvox::voxel::monotone::pulls(first, last, y, z, bytemuck::cast_slice(&boundary.edges))
-                        else {
+                        let edges = bytemuck::cast_slice(&boundary.edges);
+                        let found = monotone::pulls(first, last, y, z, edges);
+                        // The lanes, widest and baseline, give the scalar sums bit for bit.
+                        let bits = |p: Option<(f64, f64)>| p.map(|(u, d)| [u.to_bits(), d.to_bits()]);
+                        let scalar = bits(monotone::pulls_scalar(first, last, y, z, edges));
+                        assert_eq!(bits(found), scalar, "{name}: row ({y}, {z}), run {first}..={last}: lanes");
+                        let baseline = bits(monotone::pulls_baseline(first, last, y, z, edges));
+                        assert_eq!(baseline, scalar, "{name}: row ({y}, {z}), run {first}..={last}: baseline");
+                        let Some((up, down)) = found else {
                             continue;
                         };
                         let term = |x: f64| {
@@ -867,7 +874,7 @@ fn a_runs_pulls_bound_how_fast_the_winding_number_rises_and_falls() {
     let (y, z) = (4.5f32, 3.5f32);
     let edge = [90.5, y - 5328.0, z - 7452.0, 1.0, 103.5, y + 2220.0, z + 3105.0, 0.0];
     for (first, last) in [(96, 104), (0, 200), (100, 101)] {
-        let pulls = meshvox::voxel::monotone::pulls(first, last, 4, 3, &[edge]);
+        let pulls = monotone::pulls(first, last, 4, 3, &[edge]);
         assert_eq!(pulls, None, "run {first}..={last} of a row through an edge's strip: {pulls:?}");
     }
 }
@@ -957,8 +964,10 @@ fn a_runs_brackets_bound_the_winding_number_between_two_evaluated_voxels() {
 /// scalar code), points on its line and on the strip swept from it along +x (where `atan2` jumps), each with
 /// reaches from none to a long stretch and with the far budgets the fill uses and none.
 #[test]
-fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
-    use meshvox::voxel::cpu::solid::{ATAN2_CPU, FAR_BUDGET, Kernel, STRETCH_BUDGET, winding_number_tree_with};
+fn the_cpus_edge_lanes_give_the_scalar_winding_number_and_gradient_bound_bit_for_bit() {
+    use meshvox::voxel::cpu::solid::{
+        ATAN2_CPU, FAR_BUDGET, Kernel, STRETCH_BUDGET, gradient_bound_with, winding_number_tree_with,
+    };
     let dir = tempfile::tempdir().expect("tempdir");
     let mut paths: Vec<(String, String)> =
         open_meshes(dir.path()).into_iter().map(|(name, path, _)| (name, path)).collect();
@@ -973,6 +982,7 @@ fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
     }
     let mut ends = 0;
     let mut judged = 0usize;
+    let (mut gradients, mut finite) = (0usize, 0usize);
     let mut meshes = Vec::new();
     for (name, tris, d) in &cases {
         let (tris, lattice) = on_lattice(tris, *d).expect("lattice");
@@ -1009,9 +1019,21 @@ fn the_cpus_edge_lanes_give_the_scalar_winding_number_bit_for_bit() {
                     judged += 1;
                 }
             }
+            // The gradient's bound around the point, finite and infinite (an edge within the ball).
+            for radius in [0.25, 2.0, 40.0] {
+                let at = |kernel| gradient_bound_with(kernel, p, radius, &boundary).to_bits();
+                let scalar = at(Kernel::Scalar);
+                for kernel in [Kernel::Widest, Kernel::Baseline] {
+                    assert_eq!(at(kernel), scalar, "{name}: {kernel:?} gradient bound at {p} within {radius}");
+                }
+                finite += usize::from(f32::from_bits(scalar).is_finite());
+                gradients += 1;
+            }
         }
     }
     eprintln!("{judged} winding numbers equal bit for bit ({ends} at edges' ends) on {meshes:?}");
+    eprintln!("{gradients} gradient bounds equal bit for bit, {finite} of them finite");
+    assert!(finite > 10_000 && gradients - finite > 1_000, "{finite} of {gradients} gradient bounds finite");
     assert!(judged > 100_000, "only {judged} winding numbers judged");
     let shared: &[&str] = match crate::common::shared_meshes() {
         Some(_) => &["stanford-bunny.obj", "teapot.obj"],

@@ -50,7 +50,9 @@ use super::common::{U, dot3};
 use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
 use crate::voxel::monotone;
-use crate::voxel::winding_lanes::{LANES, Sums, Terms, edge_sums, edge_sums_baseline};
+use crate::voxel::winding_lanes::{
+    LANES, Sums, Terms, edge_sums, edge_sums_baseline, gradient_sums, gradient_sums_baseline,
+};
 use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
 use std::ops::RangeInclusive;
@@ -723,6 +725,11 @@ pub fn point_side(count: i32, p: Vec3, boundary: &Boundary) -> u32 {
 /// chain at least twice its box's diagonal from the ball counts as one term, its length over the squared
 /// distance to its box. Infinite where an edge comes within the ball.
 pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
+    gradient_bound_with(Kernel::Widest, p, radius, boundary)
+}
+
+/// [`gradient_bound`] with a leaf's edges added by `kernel`: every kernel gives the same bits.
+pub fn gradient_bound_with(kernel: Kernel, p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
     let mut sum = 0.0f32;
     walk_tree(boundary, |node| {
         let gap = (node.lo - p).max(p - node.hi).max(Vec3::ZERO).length() * (1.0 - 1.0 / 1024.0) - radius;
@@ -731,19 +738,27 @@ pub fn gradient_bound(p: Vec3, radius: f32, boundary: &Boundary) -> f32 {
             return false;
         }
         if node.children == [NO_NODE, NO_NODE] {
-            for e in boundary.node_edges(node) {
-                let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
-                let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (a.length() + b.length()) - radius;
-                // An edge within the ball: no bound.
-                sum += match d > 0.0 {
-                    true => e.weight.abs() * (b - a).length() * (1.0 + 1e-5) / (d * d),
-                    false => f32::INFINITY,
-                };
-            }
+            let edges = boundary.node_edges(node);
+            sum = match kernel {
+                Kernel::Widest => gradient_sums(sum, bytemuck::cast_slice(edges), p.to_array(), radius),
+                Kernel::Baseline => gradient_sums_baseline(sum, bytemuck::cast_slice(edges), p.to_array(), radius),
+                Kernel::Scalar => edges.iter().fold(sum, |sum, e| sum + gradient_term(e, p, radius)),
+            };
         }
         true
     });
     sum / (4.0 * std::f32::consts::PI) * 1.01
+}
+
+/// One edge's term of [`gradient_bound`]: `|w| len / d²` with `d` the least distance from the ball to the edge
+/// less its rounding, infinite where the edge comes within the ball.
+fn gradient_term(e: &BoundaryEdge, p: Vec3, radius: f32) -> f32 {
+    let (a, b) = (Vec3::from_array(e.a) - p, Vec3::from_array(e.b) - p);
+    let d = segment_distance(a, b) * (1.0 - 1.0 / 1024.0) - 16.0 * U * (a.length() + b.length()) - radius;
+    match d > 0.0 {
+        true => e.weight.abs() * (b - a).length() * (1.0 + 1e-5) / (d * d),
+        false => f32::INFINITY,
+    }
 }
 
 /// Walks each piece's tree depth first, each node before its halves: `visit(node)` says whether to open it (a
