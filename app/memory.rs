@@ -90,3 +90,100 @@ pub fn peak_resident() -> Option<u64> {
 pub fn reset_peak() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
+
+/// Buffers at least this large are mapped apart, where huge pages can back them (one is 2 MiB on x86-64).
+#[cfg(target_os = "linux")]
+const MAPPED_FROM: usize = 4 << 20;
+
+/// A zeroed buffer of `len` values, on Linux mapped apart and offered to the kernel for transparent huge pages
+/// when large: a distance field's values (51 MB for Spot's band at 512) are written once, page by page, by every
+/// thread, and taken 4 KiB at a time their first touch cost more page faults than any other step of the field (a
+/// tenth of its time; the kernel zeroes a huge page in one fault). Where the kernel gives none, or elsewhere, the
+/// pages are the allocator's. Reads as a slice.
+pub struct Pages<T: bytemuck::Pod> {
+    store: Store<T>,
+}
+
+enum Store<T> {
+    Heap(Vec<T>),
+    #[cfg(target_os = "linux")]
+    Mapped(memmap2::MmapMut, usize),
+}
+
+impl<T: bytemuck::Pod> Pages<T> {
+    /// `len` zeroed values.
+    pub fn zeroed(len: usize) -> Pages<T> {
+        #[cfg(target_os = "linux")]
+        if let Some(bytes) = len.checked_mul(std::mem::size_of::<T>())
+            && bytes >= MAPPED_FROM
+            && let Ok(map) = memmap2::MmapOptions::new().len(bytes).map_anon()
+        {
+            // Only advice: without huge pages the mapping's 4 KiB pages serve as the allocator's would.
+            let _ = map.advise(memmap2::Advice::HugePage);
+            return Pages { store: Store::Mapped(map, len) };
+        }
+        Pages { store: Store::Heap(bytemuck::zeroed_vec(len)) }
+    }
+}
+
+impl<T: bytemuck::Pod> Default for Pages<T> {
+    fn default() -> Pages<T> {
+        Pages { store: Store::Heap(Vec::new()) }
+    }
+}
+
+impl<T: bytemuck::Pod> From<Vec<T>> for Pages<T> {
+    fn from(values: Vec<T>) -> Pages<T> {
+        Pages { store: Store::Heap(values) }
+    }
+}
+
+impl<T: bytemuck::Pod> std::ops::Deref for Pages<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        match &self.store {
+            Store::Heap(v) => v,
+            // The mapping is page-aligned and exactly `len` values long.
+            #[cfg(target_os = "linux")]
+            Store::Mapped(map, len) => &bytemuck::cast_slice(&map[..])[..*len],
+        }
+    }
+}
+
+impl<T: bytemuck::Pod> std::ops::DerefMut for Pages<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        match &mut self.store {
+            Store::Heap(v) => v,
+            #[cfg(target_os = "linux")]
+            Store::Mapped(map, len) => &mut bytemuck::cast_slice_mut(&mut map[..])[..*len],
+        }
+    }
+}
+
+impl<T: bytemuck::Pod> Clone for Pages<T> {
+    fn clone(&self) -> Pages<T> {
+        let mut copy = Pages::zeroed(self.len());
+        copy.copy_from_slice(self);
+        copy
+    }
+}
+
+impl<T: bytemuck::Pod + PartialEq> PartialEq for Pages<T> {
+    fn eq(&self, other: &Pages<T>) -> bool {
+        self[..] == other[..]
+    }
+}
+
+impl<T: bytemuck::Pod + std::fmt::Debug> std::fmt::Debug for Pages<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self[..].fmt(f)
+    }
+}
+
+impl<'a, T: bytemuck::Pod> IntoIterator for &'a Pages<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> std::slice::Iter<'a, T> {
+        self.iter()
+    }
+}

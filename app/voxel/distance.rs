@@ -33,6 +33,7 @@ use super::bvh::Bvh;
 use super::cpu::distance::*;
 use super::sparse::{LeafMask, leaf_key};
 use super::{Grid, GridError, GridSpec, SparseGrid, VoxelGrid};
+use crate::memory::Pages;
 use crate::names::Setting;
 use crate::parallel;
 use crate::parallel::prelude::*;
@@ -119,7 +120,7 @@ pub struct DistanceField {
     pub leaves: Vec<UVec3>,
     /// 512 values per leaf, voxel `(x, y, z)` of the leaf at `(z * 8 + y) * 8 + x`: world distance, or the
     /// background beyond the band.
-    pub values: Vec<f32>,
+    pub values: Pages<f32>,
     /// Voxels whose centres are inside (`sdf` only), for the sign beyond the band.
     pub inside: Option<Grid>,
     /// Voxels in the band ([`DistanceField::band_grid`]'s count).
@@ -220,16 +221,17 @@ impl DistanceField {
             let start = reach * reach;
             // Every leaf is in one brick, which writes all its values: nothing to start them with, and the pages
             // of the largest allocation are first touched by the bricks, on every thread.
-            let best: Vec<AtomicU32> = bytemuck::zeroed_vec(leaves.len() * 512);
+            let mut values = Pages::<f32>::zeroed(leaves.len() * 512);
             let span = crate::trace::span("field: bin bricks");
             let bins = bin_bricks(triangles, dims, reach);
+            let mut outs = brick_leaves(&bins, &slots, dims, &mut values);
             drop(span);
             let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
             let (evaluations, band_voxels) = (AtomicU64::new(0), AtomicU64::new(0));
             let finish = Finish::new(spec, band, inside.as_ref());
             let ticker = parallel::Ticker::new(work, PROGRESS_CALLS, progress);
             let span = crate::trace::span("field: bricks");
-            bins.par_iter().for_each(|(origin, bin)| {
+            bins.par_iter().zip(outs.par_iter_mut()).for_each(|((origin, bin), out)| {
                 // Each brick's two steps timed apart (summed over the threads).
                 let span = crate::trace::span("field: bricks' distances");
                 let mut cells = BrickCells::new(*origin, dims, start);
@@ -237,14 +239,14 @@ impl DistanceField {
                 drop(span);
                 evaluations.fetch_add(n, Ordering::Relaxed);
                 let span = crate::trace::span("field: bricks' values");
-                let band = finish_brick(&cells, &finish, &slots, &best, start);
+                let band = finish_brick(&cells, &finish, out, start);
                 drop(span);
                 band_voxels.fetch_add(band, Ordering::Relaxed);
                 ticker.add(bin.len());
             });
             ticker.finish();
             drop(span);
-            let values: Vec<f32> = best.into_iter().map(|b| f32::from_bits(b.into_inner())).collect();
+            drop(outs);
             let band_voxels = band_voxels.into_inner();
             let mut field = DistanceField::from_values(spec, band, (slots, leaves), values, inside, band_voxels);
             field.evaluations = evaluations.into_inner();
@@ -275,7 +277,7 @@ impl DistanceField {
                 })
                 .sum()
         });
-        DistanceField::from_values(spec, band, (slots, leaves), values, inside, band_voxels)
+        DistanceField::from_values(spec, band, (slots, leaves), values.into(), inside, band_voxels)
     }
 
     /// A field from its finished values (with `band_voxels` of them in the band), with `slots` and `leaves` as
@@ -284,7 +286,7 @@ impl DistanceField {
         spec: GridSpec,
         band: Band,
         (slots, leaves): (Vec<u32>, Vec<UVec3>),
-        values: Vec<f32>,
+        values: Pages<f32>,
         inside: Option<Grid>,
         band_voxels: u64,
     ) -> DistanceField {
@@ -338,7 +340,7 @@ impl DistanceField {
                 leaf_dims,
                 slots: (0..leaves.len() as u32).collect(),
                 leaves,
-                values: leaf_values,
+                values: leaf_values.into(),
                 inside: None,
                 band_voxels: 0,
                 evaluations: 0,
@@ -391,7 +393,7 @@ impl DistanceField {
             leaf_dims: self.leaf_dims,
             slots: self.slots.clone(),
             leaves: self.leaves.clone(),
-            values: Vec::new(),
+            values: Pages::default(),
             inside: None,
             band_voxels: self.band_voxels,
             evaluations: self.evaluations,
@@ -572,35 +574,54 @@ fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, V
         .collect()
 }
 
-/// Pass 3 for the leaves a brick holds (every leaf belongs to one brick): their values from the brick's squared
-/// distances, finished ([`Finish::leaf`]) and stored as f32 bits; returns how many are in the band.
-fn finish_brick(cells: &BrickCells, finish: &Finish, slots: &[u32], best: &[AtomicU32], start: f32) -> u64 {
-    let leaf_dims = (finish.dims + 7) / 8;
-    let (lo, hi) = (cells.origin.as_uvec3() / 8, cells.hi.as_uvec3() / 8);
-    let mut band = 0;
-    let mut values = [0.0f32; 512];
-    for lz in lo.z..=hi.z {
-        for ly in lo.y..=hi.y {
-            for lx in lo.x..=hi.x {
-                let slot = slots[leaf_slot(UVec3::new(lx, ly, lz), leaf_dims)];
-                if slot == NO_LEAF {
-                    continue;
-                }
-                let origin = UVec3::new(lx, ly, lz) * 8;
-                // A leaf's row of 8 is a run of the brick's row; past the grid's end in x the brick's values are
-                // the start value, and rows past its end in y or z keep it too, as the leaves' atomics would.
-                let squared = |y: u32, z: u32| {
-                    let v = (origin + UVec3::new(0, y, z)).as_ivec3();
-                    match v.cmple(cells.hi).all() {
-                        true => cells.row(v),
-                        false => [start; 8],
+/// Each brick's leaves (those of its box with a slot), with their values in `values` to write: every leaf is in one
+/// brick, so the bricks write their values apart, straight into the field's.
+fn brick_leaves<'a>(
+    bins: &[(IVec3, Vec<u32>)],
+    slots: &[u32],
+    dims: UVec3,
+    values: &'a mut [f32],
+) -> Vec<Vec<(UVec3, &'a mut [f32])>> {
+    let leaf_dims = (dims + 7) / 8;
+    let mut chunks: Vec<Option<&mut [f32]>> = values.chunks_mut(512).map(Some).collect();
+    bins.iter()
+        .map(|(origin, _)| {
+            let (lo, hi) = (origin.as_uvec3() / 8, brick_hi(*origin, dims).as_uvec3() / 8);
+            let mut out = Vec::new();
+            for lz in lo.z..=hi.z {
+                for ly in lo.y..=hi.y {
+                    for lx in lo.x..=hi.x {
+                        let leaf = UVec3::new(lx, ly, lz);
+                        // (No leaf's slot, `NO_LEAF`, is past every chunk.)
+                        if let Some(values) = chunks.get_mut(slots[leaf_slot(leaf, leaf_dims)] as usize)
+                            && let Some(values) = values.take()
+                        {
+                            out.push((leaf * 8, values));
+                        }
                     }
-                };
-                band += finish.leaf(origin, squared, &mut values);
-                let out = &best[slot as usize * 512..(slot as usize + 1) * 512];
-                out.iter().zip(&values).for_each(|(o, v)| o.store(v.to_bits(), Ordering::Relaxed));
+                }
             }
-        }
+            out
+        })
+        .collect()
+}
+
+/// Pass 3 for the leaves a brick holds (`out`: each leaf's origin and its values, from [`brick_leaves`]): their
+/// values from the brick's squared distances, finished ([`Finish::leaf`]); returns how many are in the band.
+fn finish_brick(cells: &BrickCells, finish: &Finish, out: &mut [(UVec3, &mut [f32])], start: f32) -> u64 {
+    let mut band = 0;
+    for (origin, values) in out {
+        let origin = *origin;
+        // A leaf's row of 8 is a run of the brick's row; past the grid's end in x the brick's values are the
+        // start value, and rows past its end in y or z keep it too, as the leaves' atomics would.
+        let squared = |y: u32, z: u32| {
+            let v = (origin + UVec3::new(0, y, z)).as_ivec3();
+            match v.cmple(cells.hi).all() {
+                true => cells.row(v),
+                false => [start; 8],
+            }
+        };
+        band += finish.leaf(origin, squared, values);
     }
     band
 }
@@ -662,7 +683,7 @@ fn row_of<T: Copy>(leaf: &[T], y: u32, z: u32) -> [T; 8] {
 pub struct Finishing<'a> {
     finish: Finish<'a>,
     reach: f32,
-    values: Vec<f32>,
+    values: Pages<f32>,
     band_voxels: u64,
 }
 
@@ -670,7 +691,7 @@ impl<'a> Finishing<'a> {
     /// For `leaves` leaves of a field of `band` on `spec`'s grid, signed by `inside` where given.
     pub fn new(spec: GridSpec, band: Band, leaves: usize, inside: Option<&'a Grid>) -> Finishing<'a> {
         // Zeros from the allocator: the pages are touched once, by the values.
-        let values = vec![0.0; leaves * 512];
+        let values = Pages::zeroed(leaves * 512);
         Finishing { finish: Finish::new(spec, band, inside), reach: band.reach(spec.dims), values, band_voxels: 0 }
     }
 
@@ -691,7 +712,7 @@ impl<'a> Finishing<'a> {
     }
 
     /// The values and how many of them are in the band: what [`DistanceField::from_values`] takes.
-    pub fn done(self) -> (Vec<f32>, u64) {
+    pub fn done(self) -> (Pages<f32>, u64) {
         (self.values, self.band_voxels)
     }
 }

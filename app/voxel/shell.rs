@@ -111,7 +111,7 @@ pub fn walls_field(field: &DistanceField, thickness: f32, hollowing: &Hollowing)
             .collect()
     });
     let inside = hollowing.filled_voxels.clone().map(super::Grid::Dense);
-    DistanceField { values, inside, evaluations: 0, ..field.clone_without_values() }
+    DistanceField { values: values.into(), inside, evaluations: 0, ..field.clone_without_values() }
 }
 
 /// The mesh a field is written as: with `shell` (a thickness in voxels) the walls of the shell cut from it

@@ -534,6 +534,50 @@ fn sizes_parse_as_written_and_linux_reports_available_memory() {
     }
 }
 
+/// A distance field's values buffer (`memory::Pages`): zeroed, written and read back whole, cloned equal, small
+/// (the allocator's) and large (mapped apart); on Linux with transparent huge pages on, the large one's mapping
+/// carries the huge-page advice (`hg` in `/proc/self/smaps`), which is what spares the field's first touch most of
+/// its page faults.
+#[test]
+fn large_value_buffers_are_zeroed_whole_and_offered_huge_pages() {
+    use meshvox::memory::Pages;
+    for len in [0usize, 1, 1000, 3 << 20] {
+        let mut pages = Pages::<f32>::zeroed(len);
+        assert_eq!(pages.len(), len);
+        assert!(pages.iter().all(|&v| v.to_bits() == 0), "{len} values not all zero");
+        pages.iter_mut().enumerate().for_each(|(i, v)| *v = i as f32);
+        assert!(pages.iter().enumerate().all(|(i, &v)| v == i as f32), "{len} values not kept");
+        let copy = pages.clone();
+        assert!(copy == pages && (&copy).into_iter().count() == len);
+        if let Some(last) = pages.last_mut() {
+            *last = -1.0;
+            assert!(copy != pages, "a changed value leaves the clone equal");
+        }
+    }
+    let from: Pages<u32> = vec![7; 5].into();
+    assert_eq!(&from[..], &[7; 5]);
+    let thp = std::fs::read_to_string("/sys/kernel/mm/transparent_hugepage/enabled").unwrap_or_default();
+    if cfg!(target_os = "linux") && !thp.is_empty() && !thp.contains("[never]") {
+        let pages = Pages::<f32>::zeroed(3 << 20);
+        let at = pages.as_ptr() as usize;
+        let smaps = std::fs::read_to_string("/proc/self/smaps").expect("smaps");
+        let mut flags = None;
+        let mut inside = false;
+        for line in smaps.lines() {
+            if let Some((range, _)) = line.split_once(' ')
+                && let Some((lo, hi)) = range.split_once('-')
+                && let (Ok(lo), Ok(hi)) = (usize::from_str_radix(lo, 16), usize::from_str_radix(hi, 16))
+            {
+                inside = (lo..hi).contains(&at);
+            } else if inside && let Some(f) = line.strip_prefix("VmFlags:") {
+                flags = Some(f.split_whitespace().map(str::to_string).collect::<Vec<_>>());
+            }
+        }
+        let flags = flags.expect("the buffer's mapping in smaps");
+        assert!(flags.iter().any(|f| f == "hg"), "no huge-page advice on a 12 MiB buffer ({thp}): {flags:?}");
+    }
+}
+
 /// Progress from a parallel loop: the start, each crossing of a tenth once (from whichever thread crosses it),
 /// and the end.
 #[test]

@@ -102,6 +102,11 @@ pub const BRICK: u32 = 32;
 /// (`crate::voxel::lanes`) can read and write eight voxels of a row as one run from any voxel of it.
 pub const ROW_SLACK: usize = 7;
 
+/// The last voxel in the grid of the brick at `origin`, per axis.
+pub fn brick_hi(origin: IVec3, dims: UVec3) -> IVec3 {
+    (origin + BRICK as i32 - 1).min(dims.as_ivec3() - 1)
+}
+
 /// One brick of `BRICK³` voxels at `origin`, x fastest (and [`ROW_SLACK`] values past them), lowered by one thread
 /// without atomics.
 pub struct BrickCells {
@@ -114,8 +119,11 @@ pub struct BrickCells {
 impl BrickCells {
     /// The brick at `origin` of a grid of `dims`, every voxel starting at `start`.
     pub fn new(origin: IVec3, dims: UVec3, start: f32) -> BrickCells {
-        let hi = (origin + BRICK as i32 - 1).min(dims.as_ivec3() - 1);
-        BrickCells { origin, hi, best: vec![start; (BRICK * BRICK * BRICK) as usize + ROW_SLACK] }
+        BrickCells {
+            origin,
+            hi: brick_hi(origin, dims),
+            best: vec![start; (BRICK * BRICK * BRICK) as usize + ROW_SLACK],
+        }
     }
 
     /// Where voxel `v` (in the brick) is in `best`.
