@@ -29,7 +29,7 @@ const U64: f64 = f64::EPSILON / 2.0;
 /// of row `(y, z)`, `(up, down)`: every edge summed (`edges` in the boundary edges' layout, `a.xyz, weight, b.xyz,
 /// span`: this module sits below the fill that calls it), each at its least distance from the run. `None` where an
 /// edge meets the run or its strip holds it (the least distance zero: the winding number may jump there). The
-/// edges' terms are taken [`LANES`] at a time on the widest vector set the machine has and summed in the edges'
+/// edges' terms are taken eight at a time on the widest vector set the machine has and summed in the edges'
 /// order, so [`pulls_baseline`] and [`pulls_scalar`] give the same bits.
 #[multiversion(targets("x86_64+avx512f+avx512vl+avx2+fma", "x86_64+avx2+fma"))]
 pub fn pulls(first: u32, last: u32, y: u32, z: u32, edges: &[[f32; 8]]) -> Option<(f64, f64)> {
