@@ -613,7 +613,7 @@ fn finish_brick(cells: &BrickCells, finish: &Finish, out: &mut [(UVec3, &mut [f3
     for (origin, values) in out {
         let origin = *origin;
         // A leaf's row of 8 is a run of the brick's row; past the grid's end in x the brick's values are the
-        // start value, and rows past its end in y or z keep it too, as the leaves' atomics would.
+        // start value, and rows past its end in y or z keep it too, as the GPU's leaves keep it.
         let squared = |y: u32, z: u32| {
             let v = (origin + UVec3::new(0, y, z)).as_ivec3();
             match v.cmple(cells.hi).all() {
@@ -690,7 +690,7 @@ pub struct Finishing<'a> {
 impl<'a> Finishing<'a> {
     /// For `leaves` leaves of a field of `band` on `spec`'s grid, signed by `inside` where given.
     pub fn new(spec: GridSpec, band: Band, leaves: usize, inside: Option<&'a Grid>) -> Finishing<'a> {
-        // Zeros from the allocator: the pages are touched once, by the values.
+        // Zeroed pages, huge where the kernel gives them: touched once, by the values.
         let values = Pages::zeroed(leaves * 512);
         Finishing { finish: Finish::new(spec, band, inside), reach: band.reach(spec.dims), values, band_voxels: 0 }
     }
