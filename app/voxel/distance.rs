@@ -224,8 +224,8 @@ impl DistanceField {
             let mut values = Pages::<f32>::zeroed(leaves.len() * 512);
             let span = crate::trace::span("field: bin bricks");
             let bins = bin_bricks(triangles, dims, reach);
-            let mut outs = brick_leaves(&bins, &slots, dims, &mut values);
             drop(span);
+            let mut outs = brick_leaves(&bins, &slots, dims, &mut values);
             let work = bins.iter().map(|(_, b)| b.len()).sum::<usize>();
             let (evaluations, band_voxels) = (AtomicU64::new(0), AtomicU64::new(0));
             let finish = Finish::new(spec, band, inside.as_ref());
