@@ -208,16 +208,89 @@ struct EdgeUse {
 }
 
 impl EdgeUse {
-    /// A multiply-and-fold of the six coordinates: unkeyed, as a file that made every hash collide would only
-    /// leave the ends to order the uses (the same groups, a slower sort).
+    /// The six coordinates packed in three words, each multiplied by its own odd constant, then folded: unkeyed,
+    /// as a file that made every hash collide would only leave the ends to find the uses' edges (the same edges,
+    /// found slower). The three products are independent, where a fold of one coordinate after another waits on
+    /// each multiply in turn.
+    #[inline]
     fn hash(a: [i32; 3], b: [i32; 3]) -> u32 {
-        let h = a.iter().chain(&b).fold(0u64, |h, &c| {
-            let h = (h ^ u64::from(c as u32)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            h ^ (h >> 29)
-        });
-        // 32 bits keep the use at 32 bytes, which the sort moves.
+        let word = |x: i32, y: i32| u64::from(x as u32) | u64::from(y as u32) << 32;
+        let h = word(a[0], a[1]).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            ^ word(a[2], b[0]).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+            ^ word(b[1], b[2]).wrapping_mul(0x1656_67b1_9e37_79f9);
+        let h = (h ^ (h >> 29)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        // 32 bits keep the use at 32 bytes, which the buckets move.
         (h >> 32) as u32
     }
+
+    /// The three uses of a triangle's edges, each keyed by its ends in order; a use of weight 0 (a zero-area
+    /// triangle's, or an edge whose ends coincide) adds nothing to its edge's sum.
+    fn of_triangle(t: &[Vec3; 3], lattice: Lattice) -> [EdgeUse; 3] {
+        let u = t.map(|p| lattice.units(p));
+        // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of a
+        // collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
+        let (e0, e1) = (u[1] - u[0], u[2] - u[0]);
+        let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
+        std::array::from_fn(|i| {
+            let (a, b) = (u[i].to_array(), u[(i + 1) % 3].to_array());
+            let (a, b, weight) = match (flat, a.cmp(&b)) {
+                (true, _) | (_, std::cmp::Ordering::Equal) => (a, a, 0),
+                (_, std::cmp::Ordering::Less) => (a, b, 1),
+                (_, std::cmp::Ordering::Greater) => (b, a, -1),
+            };
+            EdgeUse { hash: EdgeUse::hash(a, b), a, b, weight }
+        })
+    }
+}
+
+/// Uses a bucket of [`boundary_edges`] holds on average: its table then stays in a core's cache.
+const BUCKET_USES: usize = 2048;
+
+/// The edges of one bucket of uses whose uses do not cancel, with their summed weight, in no order: each use
+/// found in a table of the bucket's edges, open addressed by its hash. Where the probes pass a few per use (a file
+/// made for its hashes to collide), the bucket is sorted instead ([`uncancelled_sorted`]), so no file makes it
+/// quadratic.
+fn uncancelled(bucket: &mut [EdgeUse], tables: bool) -> Vec<([i32; 3], [i32; 3], i32)> {
+    if !tables {
+        return uncancelled_sorted(bucket);
+    }
+    let size = (bucket.len() * 2).next_power_of_two().max(16);
+    let (mut slots, mut sums) = (vec![u32::MAX; size], vec![0i32; bucket.len()]);
+    let mut probes = 0;
+    for (i, u) in bucket.iter().enumerate() {
+        let mut s = u.hash as usize & (size - 1);
+        loop {
+            match slots[s] {
+                u32::MAX => {
+                    (slots[s], sums[i]) = (i as u32, u.weight);
+                    break;
+                }
+                j if (bucket[j as usize].a, bucket[j as usize].b) == (u.a, u.b) => {
+                    sums[j as usize] += u.weight;
+                    break;
+                }
+                _ => (s, probes) = ((s + 1) & (size - 1), probes + 1),
+            }
+        }
+        if probes > 8 * bucket.len() + 64 {
+            return uncancelled_sorted(bucket);
+        }
+    }
+    bucket.iter().zip(sums).filter(|&(_, sum)| sum != 0).map(|(u, sum)| (u.a, u.b, sum)).collect()
+}
+
+/// [`uncancelled`] by sorting: the uses sorted by hash, then each run of one hash by its ends, so equal edges meet
+/// whatever the hash does (a file that made every hash collide would only make that run's sort the whole sort).
+fn uncancelled_sorted(bucket: &mut [EdgeUse]) -> Vec<([i32; 3], [i32; 3], i32)> {
+    bucket.sort_unstable_by_key(|u| u.hash);
+    for run in bucket.chunk_by_mut(|x, y| x.hash == y.hash).filter(|run| run.len() > 1) {
+        run.sort_unstable_by_key(|u| (u.a, u.b));
+    }
+    bucket
+        .chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
+        .map(|run| (run[0].a, run[0].b, run.iter().map(|u| u.weight).sum::<i32>()))
+        .filter(|&(_, _, weight)| weight != 0)
+        .collect()
 }
 
 /// The boundary of the mesh as a chain: every edge's uses `a→b` minus its uses `b→a`, over all triangles of
@@ -226,43 +299,38 @@ impl EdgeUse {
 /// shared). Edges where the uses cancel are interior; a closed mesh has none left. Sorted, so both backends sum
 /// the boundary term in the same order.
 pub fn boundary_edges(triangles: &[[Vec3; 3]], lattice: Lattice) -> Vec<BoundaryEdge> {
+    boundary_edges_with(triangles, lattice, true)
+}
+
+/// [`boundary_edges`], each bucket's edges found by its table (`tables`) or by sorting it, as a file whose hashes
+/// collide makes it: the same edges (the tests hold both).
+pub fn boundary_edges_with(triangles: &[[Vec3; 3]], lattice: Lattice, tables: bool) -> Vec<BoundaryEdge> {
     // The process's pool (crate::parallel): its loops never wait on a call that holds the GPU.
     crate::parallel::install(|| {
-        // Three uses a triangle, each edge keyed by its ends in order; a use of weight 0 (a zero-area triangle's,
-        // or an edge whose ends coincide) adds nothing to its edge's sum. Collected in place by the threads that
-        // make them, so the pages are first touched by every thread, not by one filling the list beforehand.
-        let mut uses: Vec<[EdgeUse; 3]> = triangles
-            .par_iter()
-            .map(|t| {
-                let u = t.map(|p| lattice.units(p));
-                // A triangle of zero area (exactly: a segment or a point) subtends no solid angle, but the loop of
-                // a collinear one's edges would not cancel, and its f32 solid angles need not sum to zero.
-                let (e0, e1) = (u[1] - u[0], u[2] - u[0]);
-                let flat = (0..3).all(|k| super::cpu::exact::exact_normal_component(e0, e1, k) == 0);
-                std::array::from_fn(|i| {
-                    let (a, b) = (u[i].to_array(), u[(i + 1) % 3].to_array());
-                    let (a, b, weight) = match (flat, a.cmp(&b)) {
-                        (true, _) | (_, std::cmp::Ordering::Equal) => (a, a, 0),
-                        (_, std::cmp::Ordering::Less) => (a, b, 1),
-                        (_, std::cmp::Ordering::Greater) => (b, a, -1),
-                    };
-                    EdgeUse { hash: EdgeUse::hash(a, b), a, b, weight }
-                })
+        // Three uses a triangle, each thread's put straight into buckets by their hash's top bits as it makes
+        // them (every use of an edge in one bucket), then each bucket's edges summed in a table that fits a
+        // cache. A sort of the whole list of uses moved each use at every level of the sort that did not fit
+        // one, and making the list first paged in 96 MB for a million triangles.
+        let bits = (triangles.len() * 3 / BUCKET_USES).max(1).ilog2().min(16);
+        let bucket = |u: &EdgeUse| ((u64::from(u.hash) << bits) >> 32) as usize;
+        let part = triangles.len().div_ceil(crate::parallel::threads().max(1)).max(1);
+        let made: Vec<Vec<Vec<EdgeUse>>> = triangles
+            .par_chunks(part)
+            .map(|part| {
+                let room = ((part.len() * 3) >> bits) * 5 / 4 + 16;
+                let mut buckets: Vec<Vec<EdgeUse>> = (0..1 << bits).map(|_| Vec::with_capacity(room)).collect();
+                for t in part {
+                    EdgeUse::of_triangle(t, lattice).into_iter().for_each(|u| buckets[bucket(&u)].push(u));
+                }
+                buckets
             })
             .collect();
-        let uses = uses.as_flattened_mut();
-        // Grouped by a hash of the ends first (a sort by one integer moves the uses about twice as fast as one by
-        // the ends), then each run of one hash by its ends, so equal edges meet whatever the hash does: a file that
-        // made every hash collide would only make that run's sort the whole sort.
-        uses.par_sort_unstable_by_key(|u| u.hash);
-        // (On one thread: the runs are a use or two each, and the page's build has no parallel `chunk_by`.)
-        for run in uses.chunk_by_mut(|x, y| x.hash == y.hash).filter(|run| run.len() > 1) {
-            run.sort_unstable_by_key(|u| (u.a, u.b));
-        }
-        let mut left: Vec<([i32; 3], [i32; 3], i32)> = uses
-            .chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
-            .map(|run| (run[0].a, run[0].b, run.iter().map(|u| u.weight).sum::<i32>()))
-            .filter(|&(_, _, weight)| weight != 0)
+        let mut left: Vec<([i32; 3], [i32; 3], i32)> = (0..1usize << bits)
+            .into_par_iter()
+            .flat_map_iter(|b| {
+                let mut uses: Vec<EdgeUse> = made.iter().flat_map(|part| &part[b]).copied().collect();
+                uncancelled(&mut uses, tables)
+            })
             .collect();
         left.sort_unstable();
         let scale = 1.0 / lattice.scale();

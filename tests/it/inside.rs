@@ -497,10 +497,10 @@ fn the_cpus_atan2_is_within_its_stated_bound_on_every_f32_it_takes() {
 /// The mesh's boundary (every edge's uses one way less its uses the other, by exact lattice points, zero-area
 /// triangles left out) equals a count of every use in an ordered map, edge for edge and in the map's order, on the
 /// holed meshes, every shared and built-in mesh, and a soup with a collinear triangle, a repeated one and one
-/// turned over.
+/// turned over; each bucket's edges found by its table and, as a file whose hashes collide makes it, by sorting.
 #[test]
 fn the_boundary_edges_equal_a_count_of_every_use() {
-    use meshvox::voxel::solid::boundary_edges;
+    use meshvox::voxel::solid::boundary_edges_with;
     let dir = tempfile::tempdir().expect("tempdir");
     let mut meshes: Vec<(String, meshvox::mesh::Mesh)> = open_meshes(dir.path())
         .into_iter()
@@ -539,11 +539,13 @@ fn the_boundary_edges_equal_a_count_of_every_use() {
         }
         let expected: Vec<([i32; 3], [i32; 3], f32)> =
             uses.into_iter().filter(|&(_, w)| w != 0).map(|((a, b), w)| (a, b, w as f32)).collect();
-        let edges: Vec<([i32; 3], [i32; 3], f32)> = boundary_edges(&tris, lattice)
-            .iter()
-            .map(|e| (units(Vec3::from_array(e.a)), units(Vec3::from_array(e.b)), e.weight))
-            .collect();
-        assert_eq!(edges, expected, "{name}: the boundary's edges");
+        for tables in [true, false] {
+            let edges: Vec<([i32; 3], [i32; 3], f32)> = boundary_edges_with(&tris, lattice, tables)
+                .iter()
+                .map(|e| (units(Vec3::from_array(e.a)), units(Vec3::from_array(e.b)), e.weight))
+                .collect();
+            assert_eq!(edges, expected, "{name}: the boundary's edges (tables: {tables})");
+        }
     }
 }
 
