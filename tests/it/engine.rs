@@ -595,3 +595,32 @@ fn a_ticker_reports_the_start_each_crossing_once_and_the_end() {
     let crossings: Vec<usize> = calls[1..calls.len() - 1].iter().map(|c| c.0).collect();
     assert_eq!(crossings, (1..=10).map(|k| k * 100).collect::<Vec<_>>(), "each multiple of 100 once");
 }
+
+/// The field's bricks are binned by `parallel::buckets::sort_by_high_bits`: integers sorted by their high bits
+/// alone, the order of equal keys kept, equal to std's stable sort by the same key, for keys of no bits, of one
+/// digit, of a digit and a part (two passes), with the low bits in and out of order, and for none, one and a
+/// million integers.
+#[test]
+fn integers_sorted_by_their_high_bits_keep_their_order_within_a_key() {
+    use meshvox::parallel::buckets::sort_by_high_bits;
+    let mut rng = crate::common::Rng::new(68);
+    for (len, shift, key_bits) in [
+        (0, 32, 8),
+        (1, 32, 8),
+        (1000, 32, 0),
+        (5000, 32, 5),
+        (1_000_000, 32, 11),
+        (200_000, 20, 24),
+        (300_000, 40, 16),
+    ] {
+        let keys = 1u64 << key_bits;
+        let items: Vec<u64> = (0..len as u64)
+            .map(|i| ((rng.next_u64() % keys) << shift) | ((i * 7919 + rng.next_u64() % 3) % (1 << shift.min(32))))
+            .collect();
+        let mut expected = items.clone();
+        expected.sort_by_key(|v| v >> shift);
+        let mut sorted = items.clone();
+        sort_by_high_bits(&mut sorted, shift, key_bits);
+        assert!(sorted == expected, "{len} integers by {key_bits} bits at {shift}");
+    }
+}
