@@ -10,7 +10,7 @@
 //! [`point_distance2`] also compares with its edges', takes the scalar code per voxel.
 
 use super::cpu::common::dot3;
-use super::cpu::distance::{BrickCells, ROW_SLACK, band_range, band_span, triangle_layers};
+use super::cpu::distance::{BrickCells, ROW_SLACK, band_range, band_span_floored, triangle_layers};
 use super::cpu::nearest::{THIN, point_distance2};
 use glam::{IVec3, UVec3, Vec3};
 use multiversion::multiversion;
@@ -145,7 +145,7 @@ fn layer(t: [Vec3; 3], f: &Frame, z: i32, reach: f32, cells: &mut BrickCells) ->
     let mut evaluated = 0;
     for y in lo.y..=hi.y {
         let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
-        let (x0, x1) = band_span(f.bounds.0, f.bounds.1, y, z, reach);
+        let (x0, x1) = band_span_floored(f.bounds.0, f.bounds.1, y, z, reach, f32::floor);
         let (s0, s1) = f.slab.as_ref().map_or((x0, x1), |s| s.span(py, pz));
         let (x0, x1) = (x0.max(lo.x).max(s0), x1.min(hi.x).min(s1));
         let mut start = x0;

@@ -4,7 +4,7 @@
 //! [`crate::voxel::distance`].
 
 use super::common::dot3;
-use super::exact::{ceil, floor};
+use super::exact::floor;
 use super::nearest::{point_distance2, reach_range};
 use glam::{IVec3, UVec3, Vec3};
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -229,6 +229,14 @@ pub fn cannot_lower(p: Vec3, a: Vec3, n: Vec3, n2: f32, bounds: (Vec3, Vec3), cu
 /// box), as `x0..=x1`: the box's rounded dilation, not its square one, so rows and runs that cannot come within the
 /// band are never visited. Widened by 1e-3 voxel so rounding never leaves out a voxel inside the band.
 pub fn band_span(bmin: Vec3, bmax: Vec3, y: i32, z: i32, reach: f32) -> (i32, i32) {
+    band_span_floored(bmin, bmax, y, z, reach, floor)
+}
+
+/// [`band_span`] with its `floor` given: the same integers from any exact floor. The CPU's lanes take the
+/// rounding instruction the wide vector sets have (`f32::floor`), where the baseline set has none and
+/// [`floor`]'s comparisons stand in for a library call.
+#[inline(always)]
+pub fn band_span_floored(bmin: Vec3, bmax: Vec3, y: i32, z: i32, reach: f32, floor: impl Fn(f32) -> f32) -> (i32, i32) {
     let (py, pz) = (y as f32 + 0.5, z as f32 + 0.5);
     let dy = (bmin.y - py).max(py - bmax.y).max(0.0);
     let dz = (bmin.z - pz).max(pz - bmax.z).max(0.0);
@@ -237,5 +245,6 @@ pub fn band_span(bmin: Vec3, bmax: Vec3, y: i32, z: i32, reach: f32) -> (i32, i3
         return (1, 0);
     }
     let w = rest.sqrt() + 1e-3;
-    (ceil(bmin.x - w - 0.5) as i32, floor(bmax.x + w - 0.5) as i32)
+    // `ceil(x)` as `-floor(-x)`, as `exact::ceil` is.
+    (-floor(-(bmin.x - w - 0.5)) as i32, floor(bmax.x + w - 0.5) as i32)
 }
