@@ -19,6 +19,7 @@
 // The library writes `crate::parallel::prelude::*` and `parallel::join` for rayon's: natively rayon's own; in the
 // page (wasm32: one thread, no pool to make) the same calls done in order (`sequential`), so that its wasm carries
 // no thread pool, job queue or parallel sort.
+#[cfg(not(target_arch = "wasm32"))]
 pub mod buckets;
 #[cfg(target_arch = "wasm32")]
 mod sequential;

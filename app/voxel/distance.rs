@@ -563,8 +563,16 @@ fn bin_bricks(triangles: &[[Vec3; 3]], dims: UVec3, reach: f32) -> Vec<(IVec3, V
                 .map(move |b| (leaf_slot(b, brick_dims) as u64) << 32 | i as u64)
         })
         .collect();
-    let brick_bits = (brick_dims.x * brick_dims.y * brick_dims.z).next_power_of_two().ilog2();
-    crate::parallel::buckets::sort_by_high_bits(&mut pairs, 32, brick_bits);
+    // The page (one thread) sorts the integers whole, the same order (each brick's triangles come in order), with
+    // the sort its wasm already has.
+    #[cfg(target_arch = "wasm32")]
+    pairs.sort_unstable();
+    #[cfg(not(target_arch = "wasm32"))]
+    crate::parallel::buckets::sort_by_high_bits(
+        &mut pairs,
+        32,
+        (brick_dims.x * brick_dims.y * brick_dims.z).next_power_of_two().ilog2(),
+    );
     pairs
         .chunk_by(|a, b| a >> 32 == b >> 32)
         .map(|run| {

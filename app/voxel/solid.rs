@@ -251,6 +251,8 @@ const BUCKET_USES: usize = 2048;
 /// made for its hashes to collide), the bucket is sorted instead ([`uncancelled_sorted`]), so no file makes it
 /// quadratic.
 fn uncancelled(bucket: &mut [EdgeUse], tables: bool) -> Vec<([i32; 3], [i32; 3], i32)> {
+    // The page sorts (its wasm carries no table code: it is held to 1.5 MB gzipped), the same edges.
+    let tables = tables && !cfg!(target_arch = "wasm32");
     if !tables {
         return uncancelled_sorted(bucket);
     }
