@@ -19,7 +19,7 @@ use super::Lattice;
 use super::cells::{certify_cells, group_strips};
 use super::cpu::groups::GroupOutput;
 use super::cpu::solid::{
-    Boundary, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, RowBlock, crossing_sign, fill_row_span, near_boundary,
+    Boundary, LEAF_COUNT, LEAF_INSIDE, LEAF_OPEN, LEAF_OUTSIDE, RowBlock, crossing_sign, fill_row_span, near_boundary,
     near_boundary_box,
 };
 use super::grid::{leaf_mask_of_bytes, row_byte};
@@ -48,6 +48,25 @@ struct BlockInterior {
 #[inline]
 fn clear_byte(row: &mut [u32], lx: usize) {
     row[lx / 4] &= !(0xffu32 << ((lx % 4) * 8));
+}
+
+/// The mask of a leaf the surface does not pass through whose boundary term is certified within ½ of an integer
+/// (`state`, [`LEAF_COUNT`] more than it), from its group's 64 rows (`rows`, whole in the grid, as the fill lists
+/// them) and their crossing counts before it (`counts`): each row is inside throughout where its count (plus the
+/// integer, in a row open to the holes) is at least 1, as [`fill_row_span`] fills it. Filled row by row, such leaves
+/// were nine in ten of those the bunny's sparse solid filled at 4096.
+fn counted_leaf(state: u8, counts: &[i32], rows: &[(u32, u32, &[u32], bool, bool)]) -> LeafMask {
+    let integer = i32::from(state) - i32::from(LEAF_COUNT);
+    let mut bits = 0u64;
+    for (i, (&count, &(_, _, _, _, decides))) in counts.iter().zip(rows).enumerate() {
+        let inside = match decides {
+            true => count >= 1,
+            false => count + integer >= 1,
+        };
+        bits |= u64::from(inside) << i;
+    }
+    // A row's eight voxels are bit `i` of each of the mask's words.
+    [bits; 8]
 }
 
 /// The leaves the surface passes through, per group of 8×8 rows: `(group << 21) | lx`, sorted, with `group` the
@@ -204,6 +223,11 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             false => 0,
                         };
                         let cut = end.min(partial).max(lx);
+                        // The rows' counts at the run's first voxel, made when a leaf needs them: no crossing lies
+                        // within a run the surface does not pass through, so they hold along it.
+                        let mut run_counts: Option<Vec<i32>> = None;
+                        // And the last such leaf's state and mask: the next leaf of the run with that state has it.
+                        let mut last_counted: Option<(u8, LeafMask)> = None;
                         states[cut..end].fill(Leaf::Bits);
                         if decided.is_empty() {
                             states[lx..cut].fill(by_count);
@@ -221,6 +245,27 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                                             Leaf::Mask(masks.len() as u32 - 1)
                                         }
                                         None => Leaf::Bits,
+                                    }
+                                }
+                                // Certified within ½ of an integer: each row inside or outside throughout, by its count.
+                                s if s >= LEAF_COUNT / 2 && by_count == Leaf::Bits => {
+                                    let mask = match last_counted {
+                                        Some((state, mask)) if state == s => mask,
+                                        _ => {
+                                            let counts = run_counts.get_or_insert_with(|| {
+                                                group_rows.iter().map(|&(_, _, l, _, _)| count_before(l, x0)).collect()
+                                            });
+                                            counted_leaf(s, counts, &group_rows)
+                                        }
+                                    };
+                                    last_counted = Some((s, mask));
+                                    match mask {
+                                        FULL_LEAF => Leaf::Inside,
+                                        [0, 0, 0, 0, 0, 0, 0, 0] => Leaf::Outside,
+                                        mask => {
+                                            masks.push(mask);
+                                            Leaf::Mask(masks.len() as u32 - 1)
+                                        }
                                     }
                                 }
                                 _ => by_count,
