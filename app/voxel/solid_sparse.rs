@@ -55,7 +55,7 @@ fn clear_byte(row: &mut [u32], lx: usize) {
 /// them) and their crossing counts before it (`counts`): each row is inside throughout where its count (plus the
 /// integer, in a row open to the holes) is at least 1, as [`fill_row_span`] fills it. Filled row by row, such leaves
 /// were nine in ten of those the bunny's sparse solid filled at 4096.
-fn counted_leaf(state: u8, counts: &[i32], rows: &[(u32, u32, &[u32], bool, bool)]) -> LeafMask {
+fn counted_leaf(state: u8, counts: &[i32; 64], rows: &[(u32, u32, &[u32], bool, bool)]) -> LeafMask {
     let integer = i32::from(state) - i32::from(LEAF_COUNT);
     let mut bits = 0u64;
     for (i, (&count, &(_, _, _, _, decides))) in counts.iter().zip(rows).enumerate() {
@@ -223,9 +223,11 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                             false => 0,
                         };
                         let cut = end.min(partial).max(lx);
-                        // The rows' counts at the run's first voxel, made when a leaf needs them: no crossing lies
-                        // within a run the surface does not pass through, so they hold along it.
-                        let mut run_counts: Option<Vec<i32>> = None;
+                        // The rows' counts at the run's first voxel, made when a leaf's slope or integer needs them
+                        // (a run's leaves are all whole groups' rows): no crossing lies within a run the surface does
+                        // not pass through, so they hold along it.
+                        let row_counts = || std::array::from_fn(|i| count_before(group_rows[i].2, x0));
+                        let mut run_counts: Option<[i32; 64]> = None;
                         // And the last such leaf's state and mask: the next leaf of the run with that state has it.
                         let mut last_counted: Option<(u8, LeafMask)> = None;
                         states[cut..end].fill(Leaf::Bits);
@@ -238,8 +240,8 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                                 LEAF_OUTSIDE => Leaf::Outside,
                                 // Beside a cap: the leaf's voxels from one slope, where it decides them.
                                 LEAF_OPEN if by_count == Leaf::Bits => {
-                                    let counts = std::array::from_fn(|i| count_before(group_rows[i].2, k as u32 * 8));
-                                    match slope_leaf(UVec3::new(k as u32 * 8, ya, za), &counts, &boundary) {
+                                    let counts = run_counts.get_or_insert_with(row_counts);
+                                    match slope_leaf(UVec3::new(k as u32 * 8, ya, za), counts, &boundary) {
                                         Some(mask) => {
                                             masks.push(mask);
                                             Leaf::Mask(masks.len() as u32 - 1)
@@ -251,12 +253,7 @@ pub fn fill_sparse_counted(triangles: &[[Vec3; 3]], lattice: Lattice, surface: S
                                 s if s >= LEAF_COUNT / 2 && by_count == Leaf::Bits => {
                                     let mask = match last_counted {
                                         Some((state, mask)) if state == s => mask,
-                                        _ => {
-                                            let counts = run_counts.get_or_insert_with(|| {
-                                                group_rows.iter().map(|&(_, _, l, _, _)| count_before(l, x0)).collect()
-                                            });
-                                            counted_leaf(s, counts, &group_rows)
-                                        }
+                                        _ => counted_leaf(s, run_counts.get_or_insert_with(row_counts), &group_rows),
                                     };
                                     last_counted = Some((s, mask));
                                     match mask {
