@@ -241,7 +241,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
-            boundary: Boundary { edges, pieces, nodes, evaluations: Default::default() },
+            boundary: Boundary::new(edges, pieces, nodes),
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

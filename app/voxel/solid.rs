@@ -448,7 +448,7 @@ pub fn boundary(triangles: &[[Vec3; 3]], lattice: Lattice) -> Boundary {
         });
         i += n;
     }
-    Boundary { edges: grouped, pieces, nodes, evaluations: Default::default() }
+    Boundary::new(grouped, pieces, nodes)
 }
 
 /// The net ends of a chain of weighted edges (`-w` where an edge starts, `+w` where it ends), those not zero.

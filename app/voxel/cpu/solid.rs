@@ -51,7 +51,8 @@ use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
 use crate::voxel::monotone;
 use crate::voxel::winding_lanes::{
-    LANES, Sums, Terms, edge_sums, edge_sums_baseline, gradient_sums, gradient_sums_baseline,
+    LANES, NODE_BLOCK, NodeBoxes, Sums, Terms, edge_sums, edge_sums_baseline, fan_bounds, fan_bounds_baseline,
+    gradient_sums, gradient_sums_baseline, node_boxes,
 };
 use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
@@ -244,8 +245,23 @@ pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
     pub nodes: Vec<BoundaryNode>,
+    /// `nodes` a field to an array, for the lanes ([`fan_bounds`]).
+    pub boxes: NodeBoxes,
     /// The certified winding numbers evaluated against it so far (CPU only: the fills report them).
     pub evaluations: Evaluations,
+}
+
+impl Boundary {
+    /// The boundary of `edges` (grouped by piece), its `pieces` and their trees' `nodes`.
+    pub fn new(edges: Vec<BoundaryEdge>, pieces: Vec<BoundaryPiece>, nodes: Vec<BoundaryNode>) -> Boundary {
+        let boxes = nodes.iter().map(|n| {
+            let count = if n.chord == Chord::Branched { f32::NAN } else { n.count as f32 };
+            (n.lo.to_array(), n.hi.to_array(), n.axis_area.to_array(), n.area, count)
+        });
+        // None on wasm32, whose walk takes the nodes one by one ([`winding_number_tree_with`]).
+        let boxes = if cfg!(target_arch = "wasm32") { Vec::new() } else { node_boxes(boxes) };
+        Boundary { edges, pieces, nodes, boxes, evaluations: Default::default() }
+    }
 }
 
 /// A count of winding-number evaluations (each [`winding_number_tree`], and each f64 sum a fill falls back to),
@@ -606,23 +622,35 @@ fn tree_terms(
     let mut far = 0.0f32;
     let share = budget / boundary.edges.len().max(1) as f32;
     let mut pending = Pending { kernel, p, reach, atan2_error, edges: [BoundaryEdge::zeroed(); PENDING], len: 0 };
-    walk_tree(boundary, |node| {
-        if node.chord != Chord::Branched
-            && let Some(d2) = node.outside_distance2(p, reach)
-        {
-            let bound = node.fan_bound(p, reach, d2) * scale * 1.01;
-            // Each node's share of the budget is its share of the edges: the nodes that stand in are disjoint, so
-            // their bounds add up to at most `budget`, and a near node's need does not starve the far ones.
-            if bound <= share * node.count as f32 {
-                far += bound;
-                if let Chord::Edge(chord) = node.chord {
-                    pending.push(std::slice::from_ref(&chord), &mut terms);
-                    if let Some(list) = list.as_mut() {
-                        list.push(chord);
-                    }
+    // The lanes' fan bounds of the block of nodes the walk is in (it visits them in the order they are stored).
+    let mut block = (usize::MAX, [f32::NAN; NODE_BLOCK]);
+    // On wasm32 node by node: the page's wasm is within a few hundred bytes of its budget.
+    let lanes = kernel != Kernel::Scalar && cfg!(not(target_arch = "wasm32"));
+    walk_tree_indexed(boundary, |index, node| {
+        let stands_in = match lanes {
+            false => stands_in(node, p, reach, share, scale),
+            true => {
+                let index = index as usize;
+                if block.0 != index / NODE_BLOCK {
+                    let bounds = match kernel {
+                        Kernel::Baseline => fan_bounds_baseline,
+                        _ => fan_bounds,
+                    };
+                    let at = index / NODE_BLOCK;
+                    block = (at, bounds(&boundary.boxes[at], p.to_array(), reach, share, scale));
                 }
-                return false;
+                Some(block.1[index % NODE_BLOCK]).filter(|b| !b.is_nan())
             }
+        };
+        if let Some(bound) = stands_in {
+            far += bound;
+            if let Chord::Edge(chord) = node.chord {
+                pending.push(std::slice::from_ref(&chord), &mut terms);
+                if let Some(list) = list.as_mut() {
+                    list.push(chord);
+                }
+            }
+            return false;
         }
         if node.children == [NO_NODE, NO_NODE] {
             pending.push(boundary.node_edges(node), &mut terms);
@@ -636,6 +664,20 @@ fn tree_terms(
     let (w, e, drift) = terms.finish(count);
     let rate = terms.rate() * scale * 1.01;
     (Winding { w, e, drift, far, rate }, terms)
+}
+
+/// The fan bound of `node` (times `scale` and 1.01) where its chord stands in for its chain in
+/// [`winding_number_tree_with`]'s walk from `p ± reach`: the stretch passes outside its box in YZ, and the bound is
+/// within `share` of each of its edges. Each node's share of the budget is its share of the edges: the nodes that
+/// stand in are disjoint, so their bounds add up to at most the budget, and a near node's need does not starve
+/// the far ones. The lanes' [`fan_bounds`] make the same decisions and bounds, a block of nodes at once.
+#[inline]
+fn stands_in(node: &BoundaryNode, p: Vec3, reach: f32, share: f32, scale: f32) -> Option<f32> {
+    if node.chord == Chord::Branched {
+        return None;
+    }
+    let bound = node.fan_bound(p, reach, node.outside_distance2(p, reach)?) * scale * 1.01;
+    (bound <= share * node.count as f32).then_some(bound)
 }
 
 /// Edges [`winding_number_tree_with`] gathers before it adds them: three batches of lanes.
@@ -766,6 +808,13 @@ fn gradient_term(e: &BoundaryEdge, p: Vec3, radius: f32) -> f32 {
 /// depth plus one entry per level.
 #[inline(always)]
 pub fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bool) {
+    walk_tree_indexed(boundary, |_, node| visit(node));
+}
+
+/// [`walk_tree`] with each node's index in [`Boundary::nodes`]: the indices a walk visits rise (each node is stored
+/// before its halves, the first half's nodes before the second's, piece after piece).
+#[inline(always)]
+pub fn walk_tree_indexed(boundary: &Boundary, mut visit: impl FnMut(u32, &BoundaryNode) -> bool) {
     let mut stack = [0u32; 2 * TREE_DEPTH];
     for piece in &boundary.pieces {
         stack[0] = piece.root;
@@ -773,7 +822,7 @@ pub fn walk_tree(boundary: &Boundary, mut visit: impl FnMut(&BoundaryNode) -> bo
         while len > 0 {
             len -= 1;
             let node = &boundary.nodes[stack[len] as usize];
-            if visit(node) && node.children != [NO_NODE, NO_NODE] {
+            if visit(stack[len], node) && node.children != [NO_NODE, NO_NODE] {
                 stack[len] = node.children[1];
                 stack[len + 1] = node.children[0];
                 len += 2;
