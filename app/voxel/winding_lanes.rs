@@ -113,8 +113,8 @@ fn add_gradient(mut sum: f32, edges: &[Edge], p: [f32; 3], radius: f32) -> f32 {
         let edge = transposed(batch);
         // (A loop over the lanes, as `add`'s: `array::from_fn` leaves its closure out of line, a lane at a time.)
         let mut terms = [0.0; LANES];
-        for k in 0..LANES {
-            terms[k] = gradient_lane(&edge_of(&edge, k), p, radius);
+        for (k, term) in terms.iter_mut().enumerate() {
+            *term = gradient_lane(&edge_of(&edge, k), p, radius);
         }
         terms[..batch.len()].iter().for_each(|t| sum += t);
     }
