@@ -205,13 +205,14 @@ impl SolidPipelines {
         if rows * 8 > limit {
             return Err(GpuError::TooLarge { what: "the solid pass's row table".into(), needed: rows * 8, limit });
         }
-        let Boundary { edges, pieces, nodes, .. } = boundary(triangles, lattice);
+        let mesh_boundary = boundary(triangles, lattice);
+        let (edges, pieces) = (&mesh_boundary.edges, &mesh_boundary.pieces);
         let (offsets, items) = item_offsets(triangles, spec, lattice);
         if items > u32::MAX as u64 / 2 {
             return Err(GpuError::TooLarge { what: "the solid pass's work list".into(), needed: items * 4, limit });
         }
-        let base = SolidParams::new(spec, triangles.len(), &edges, &pieces, lattice, items);
-        let edge_bytes = boundary_bytes(&edges, &pieces);
+        let base = SolidParams::new(spec, triangles.len(), edges, pieces, lattice, items);
+        let edge_bytes = boundary_bytes(edges, pieces);
         let buffers = SolidBuffers::new(gpu, rows, &offsets, &edge_bytes, &base).await?;
         let SolidBuffers { params, counts, segments, placeholder, boundary, total, item_offsets, unsure } = buffers;
         let item_groups = dispatch_2d((items as u32).div_ceil(WG));
@@ -241,7 +242,7 @@ impl SolidPipelines {
             bind,
             base,
             unsure,
-            boundary: Boundary::new(edges, pieces, nodes),
+            boundary: mesh_boundary,
             _buffers: vec![counts, segments, crossings, boundary, total, placeholder, item_offsets],
         })
     }

@@ -233,6 +233,10 @@ fn atan2(y: f32, x: f32) -> (f32, bool) {
 /// Nodes of the boundary's tree whose fan bounds [`fan_bounds`] takes at once.
 pub const NODE_BLOCK: usize = 16;
 
+/// Whether the tree's walk takes its nodes' fan bounds in lanes: not on wasm32, whose page's wasm is within a few
+/// hundred bytes of its budget (there the walk takes them node by node, and no blocks are made).
+pub const NODE_LANES: bool = cfg!(not(target_arch = "wasm32"));
+
 /// The tree's nodes a field to an array, [`NODE_BLOCK`] to a block (the last padded), as [`fan_bounds`] reads
 /// them: each node's box, its fan's areas and its edge count, NaN where its chord is branched (no chord stands in).
 #[derive(Clone, Copy, Debug)]
@@ -247,29 +251,29 @@ pub struct NodeBlock {
 /// The blocks of a tree's nodes.
 pub type NodeBoxes = Vec<NodeBlock>;
 
-/// The blocks of `nodes`, each `(lo, hi, axis_area, area, count)`, `count` NaN where no chord stands in.
-pub fn node_boxes(nodes: impl Iterator<Item = ([f32; 3], [f32; 3], [f32; 3], f32, f32)>) -> NodeBoxes {
-    // Padding: never stands in.
-    let empty = NodeBlock {
-        lo: [[0.0; NODE_BLOCK]; 3],
-        hi: [[0.0; NODE_BLOCK]; 3],
-        axis_area: [[0.0; NODE_BLOCK]; 3],
-        area: [0.0; NODE_BLOCK],
-        count: [f32::NAN; NODE_BLOCK],
+/// A node as [`node_boxes`] takes it: `(lo, hi, axis_area, area, count)`, `count` NaN where no chord stands in.
+pub type NodeFields = ([f32; 3], [f32; 3], [f32; 3], f32, f32);
+
+/// The blocks of `nodes`.
+pub fn node_boxes(nodes: &[NodeFields]) -> NodeBoxes {
+    let chunk_block = |chunk: &[NodeFields]| {
+        // Padding: never stands in.
+        let mut block = NodeBlock {
+            lo: [[0.0; NODE_BLOCK]; 3],
+            hi: [[0.0; NODE_BLOCK]; 3],
+            axis_area: [[0.0; NODE_BLOCK]; 3],
+            area: [0.0; NODE_BLOCK],
+            count: [f32::NAN; NODE_BLOCK],
+        };
+        for (k, &(lo, hi, axis_area, area, count)) in chunk.iter().enumerate() {
+            for a in 0..3 {
+                (block.lo[a][k], block.hi[a][k], block.axis_area[a][k]) = (lo[a], hi[a], axis_area[a]);
+            }
+            (block.area[k], block.count[k]) = (area, count);
+        }
+        block
     };
-    let mut blocks: NodeBoxes = Vec::new();
-    for (i, (lo, hi, axis_area, area, count)) in nodes.enumerate() {
-        let k = i % NODE_BLOCK;
-        if k == 0 {
-            blocks.push(empty);
-        }
-        let Some(block) = blocks.last_mut() else { continue };
-        for a in 0..3 {
-            (block.lo[a][k], block.hi[a][k], block.axis_area[a][k]) = (lo[a], hi[a], axis_area[a]);
-        }
-        (block.area[k], block.count[k]) = (area, count);
-    }
-    blocks
+    nodes.chunks(NODE_BLOCK).map(chunk_block).collect()
 }
 
 /// For the nodes of `block`, what `winding_number_tree`'s walk decides from `p ± reach` along x: each node's fan

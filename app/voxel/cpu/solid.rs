@@ -51,8 +51,8 @@ use super::exact::{ERROR_FACTOR, ceil, floor};
 use crate::voxel::Lattice;
 use crate::voxel::monotone;
 use crate::voxel::winding_lanes::{
-    LANES, NODE_BLOCK, NodeBoxes, Sums, Terms, edge_sums, edge_sums_baseline, fan_bounds, fan_bounds_baseline,
-    gradient_sums, gradient_sums_baseline, node_boxes,
+    LANES, NODE_BLOCK, NODE_LANES, NodeBoxes, Sums, Terms, edge_sums, edge_sums_baseline, fan_bounds,
+    fan_bounds_baseline, gradient_sums, gradient_sums_baseline, node_boxes,
 };
 use bytemuck::Zeroable;
 use glam::{DVec3, I64Vec2, IVec3, UVec3, Vec3};
@@ -245,7 +245,7 @@ pub struct Boundary {
     pub edges: Vec<BoundaryEdge>,
     pub pieces: Vec<BoundaryPiece>,
     pub nodes: Vec<BoundaryNode>,
-    /// `nodes` a field to an array, for the lanes ([`fan_bounds`]).
+    /// `nodes` a field to an array, for the lanes ([`fan_bounds`]); none where [`NODE_LANES`] is false.
     pub boxes: NodeBoxes,
     /// The certified winding numbers evaluated against it so far (CPU only: the fills report them).
     pub evaluations: Evaluations,
@@ -254,12 +254,14 @@ pub struct Boundary {
 impl Boundary {
     /// The boundary of `edges` (grouped by piece), its `pieces` and their trees' `nodes`.
     pub fn new(edges: Vec<BoundaryEdge>, pieces: Vec<BoundaryPiece>, nodes: Vec<BoundaryNode>) -> Boundary {
-        let boxes = nodes.iter().map(|n| {
+        let fields = |n: &BoundaryNode| {
             let count = if n.chord == Chord::Branched { f32::NAN } else { n.count as f32 };
             (n.lo.to_array(), n.hi.to_array(), n.axis_area.to_array(), n.area, count)
-        });
-        // None on wasm32, whose walk takes the nodes one by one ([`winding_number_tree_with`]).
-        let boxes = if cfg!(target_arch = "wasm32") { Vec::new() } else { node_boxes(boxes) };
+        };
+        let boxes = match NODE_LANES {
+            true => node_boxes(&nodes.iter().map(fields).collect::<Vec<_>>()),
+            false => Vec::new(),
+        };
         Boundary { edges, pieces, nodes, boxes, evaluations: Default::default() }
     }
 }
@@ -624,22 +626,20 @@ fn tree_terms(
     let mut pending = Pending { kernel, p, reach, atan2_error, edges: [BoundaryEdge::zeroed(); PENDING], len: 0 };
     // The lanes' fan bounds of the block of nodes the walk is in (it visits them in the order they are stored).
     let mut block = (usize::MAX, [f32::NAN; NODE_BLOCK]);
-    // On wasm32 node by node: the page's wasm is within a few hundred bytes of its budget.
-    let lanes = kernel != Kernel::Scalar && cfg!(not(target_arch = "wasm32"));
+    let bounds = match kernel {
+        Kernel::Baseline => fan_bounds_baseline,
+        _ => fan_bounds,
+    };
+    let lanes = kernel != Kernel::Scalar && NODE_LANES;
     walk_tree_indexed(boundary, |index, node| {
         let stands_in = match lanes {
             false => stands_in(node, p, reach, share, scale),
             true => {
-                let index = index as usize;
-                if block.0 != index / NODE_BLOCK {
-                    let bounds = match kernel {
-                        Kernel::Baseline => fan_bounds_baseline,
-                        _ => fan_bounds,
-                    };
-                    let at = index / NODE_BLOCK;
+                let (at, k) = (index as usize / NODE_BLOCK, index as usize % NODE_BLOCK);
+                if block.0 != at {
                     block = (at, bounds(&boundary.boxes[at], p.to_array(), reach, share, scale));
                 }
-                Some(block.1[index % NODE_BLOCK]).filter(|b| !b.is_nan())
+                Some(block.1[k]).filter(|b| !b.is_nan())
             }
         };
         if let Some(bound) = stands_in {
