@@ -312,12 +312,8 @@ fn to_dict<'py>(py: Python<'py>, result: Voxelized) -> PyResult<Bound<'py, PyDic
     let distances = field.map(|field| {
         let (nx, ny, nz) = (d.x as usize, d.y as usize, d.z as usize);
         let mut values = vec![0f32; nx * ny * nz];
-        // One trip to the library's pool for every slice (rayon's global pool does not survive a fork).
-        crate::parallel::install(|| {
-            for (x, slab) in values.chunks_mut(ny * nz).enumerate() {
-                field.x_slice(x as u32, slab);
-            }
-        });
+        // On the library's pool (rayon's global pool does not survive a fork).
+        field.x_slices(0, &mut values);
         values.into_pyarray(py).reshape([nx, ny, nz])
     });
     dict.set_item("distances", distances.transpose()?)?;

@@ -121,6 +121,36 @@ fn hard_cases_match_float64_distances_over_every_triangle_in_every_band() {
     }
 }
 
+/// The dense values (`.npy`, Python's `.distances`) are every voxel's [`DistanceField::value`]: slices taken a leaf
+/// layer at a time, from the first slice and from one inside a leaf layer, on the hard cases' grids (sizes that are
+/// not multiples of 8), signed by a dense and a sparse inside and unsigned.
+#[test]
+fn dense_slices_give_every_voxels_value() {
+    for (name, tris, dims) in hard_cases() {
+        let spec = GridSpec { origin: DVec3::ZERO, voxel_size: DVec3::splat(1.0), dims };
+        let (tris, lattice) = on_lattice(&tris, dims).expect("lattice");
+        for inside in [None, Some(false), Some(true)] {
+            let inside = inside.map(|sparse| inside_grid(&tris, lattice, spec, sparse).expect("inside"));
+            let field = DistanceField::compute(&tris, spec, Band::Voxels(1.5), inside);
+            let (area, nz) = ((dims.y * dims.z) as usize, dims.z as usize);
+            let mut all = vec![f32::NAN; dims.x as usize * area];
+            field.x_slices(0, &mut all);
+            let first = dims.x.min(3);
+            let mut some = vec![f32::NAN; (dims.x - first).min(11) as usize * area];
+            field.x_slices(first, &mut some);
+            for (i, &value) in all.iter().enumerate() {
+                let v = UVec3::new((i / area) as u32, (i % area / nz) as u32, (i % nz) as u32);
+                let want = field.value(v);
+                assert_eq!(value.to_bits(), want.to_bits(), "{name} at {v}: {value} from the slices, {want} alone");
+                if let Some(&part) = (v.x >= first).then(|| some.get(i - first as usize * area)).flatten() {
+                    assert_eq!(part.to_bits(), want.to_bits(), "{name} at {v}: {part} from slice {first} on");
+                }
+            }
+            assert!(field.band_voxels > 0, "{name}: a band to slice");
+        }
+    }
+}
+
 /// A mesh with decimal coordinates a thousand units from the origin, voxelized at a non-power-of-two
 /// resolution through the engine, against float64 over its world triangles; the same through the sparse inside.
 #[test]

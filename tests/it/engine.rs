@@ -244,9 +244,7 @@ impl Outcome {
         let d = grid.spec.dims;
         let mut field = vec![0f32; (d.x * d.y * d.z) as usize];
         if let Some(f) = &result.field {
-            for (x, slab) in field.chunks_mut((d.y * d.z) as usize).enumerate() {
-                f.x_slice(x as u32, slab);
-            }
+            f.x_slices(0, &mut field);
         }
         let (largest, pitch) = (d.max_element() as f32, grid.spec.edge() as f32);
         let (backend, group) = (result.report.backend, result.report.meshes_in_submission);
