@@ -495,7 +495,7 @@ impl DistanceField {
                         i => {
                             let leaf = &self.values[i as usize * 512..(i as usize + 1) * 512];
                             for (dz, value) in run.iter_mut().enumerate() {
-                                *value = leaf[(dz * 8 + dy) * 8 + dx];
+                                *value = leaf[leaf_offset(UVec3::new(dx as u32, dy as u32, dz as u32))];
                             }
                         }
                     }
