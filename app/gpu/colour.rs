@@ -15,12 +15,12 @@ use crate::voxel::colour::{Coloured, finish, word_ranks};
 use crate::voxel::cpu::colour::{ALPHA_MIDPOINTS, NO_TRIANGLE, SRGB_MIDPOINTS, candidate_range};
 use glam::Vec3;
 
-pub const COLOUR_WGSL: &str = concat!(
+pub const COLOUR_WGSL: &str = super::wgsl::wgsl_module!(concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/nearest.wgsl"),
     include_str!("../../shaders/colour.wgsl"),
-);
+));
 /// The files joined into [`COLOUR_WGSL`], in order, relative to `shaders/`.
 pub const COLOUR_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "nearest.wgsl", "colour.wgsl"];
 const WG: u32 = 64;

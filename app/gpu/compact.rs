@@ -7,8 +7,10 @@ use super::{Gpu, GpuError, dispatch_2d};
 use crate::voxel::GridSpec;
 use glam::UVec3;
 
-pub const COMPACT_WGSL: &str =
-    concat!(include_str!("../../shaders/shared/common.wgsl"), include_str!("../../shaders/compact.wgsl"));
+pub const COMPACT_WGSL: &str = super::wgsl::wgsl_module!(concat!(
+    include_str!("../../shaders/shared/common.wgsl"),
+    include_str!("../../shaders/compact.wgsl")
+));
 /// The files joined into [`COMPACT_WGSL`], in order, relative to `shaders/`.
 pub const COMPACT_PARTS: [&str; 2] = ["shared/common.wgsl", "compact.wgsl"];
 

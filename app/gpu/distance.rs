@@ -28,12 +28,12 @@ use crate::voxel::distance::{Band, DistanceField, Finishing, mark_leaves};
 use crate::voxel::{Grid, GridSpec};
 use glam::{UVec3, Vec3};
 
-pub const DISTANCE_WGSL: &str = concat!(
+pub const DISTANCE_WGSL: &str = super::wgsl::wgsl_module!(concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/nearest.wgsl"),
     include_str!("../../shaders/distance.wgsl"),
-);
+));
 /// The files joined into [`DISTANCE_WGSL`], in order, relative to `shaders/`.
 pub const DISTANCE_PARTS: [&str; 4] = ["shared/common.wgsl", "shared/items.wgsl", "nearest.wgsl", "distance.wgsl"];
 const WG: u32 = 64;

@@ -14,6 +14,7 @@ pub mod solid;
 mod sparse;
 mod util;
 pub mod voxelize;
+pub(crate) mod wgsl;
 
 pub use readback::watchdog;
 use std::sync::atomic::{AtomicUsize, Ordering};

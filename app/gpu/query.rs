@@ -16,12 +16,12 @@ use crate::voxel::cpu::solid::Boundary;
 use crate::voxel::query::Proposed;
 use glam::Vec3;
 
-pub const QUERY_WGSL: &str = concat!(
+pub const QUERY_WGSL: &str = super::wgsl::wgsl_module!(concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/nearest.wgsl"),
     include_str!("../../shaders/shared/winding.wgsl"),
     include_str!("../../shaders/query.wgsl"),
-);
+));
 /// The files joined into [`QUERY_WGSL`], in order, relative to `shaders/`.
 pub const QUERY_PARTS: [&str; 4] = ["shared/common.wgsl", "nearest.wgsl", "shared/winding.wgsl", "query.wgsl"];
 const WG: u32 = 64;

@@ -16,14 +16,14 @@ use glam::Vec3;
 /// The solid module's WGSL source, shared with the shader validation test. A module of its own, not part of the
 /// voxelize one: its passes read their triangles' first work items from a binding of their own, which the shared
 /// `item_triangle` reads by the one name `first_items`.
-pub const SOLID_WGSL: &str = concat!(
+pub const SOLID_WGSL: &str = super::wgsl::wgsl_module!(concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/exact.wgsl"),
     include_str!("../../shaders/shared/winding.wgsl"),
     include_str!("../../shaders/solid.wgsl"),
     include_str!("../../shaders/groups.wgsl"),
-);
+));
 /// The files joined into [`SOLID_WGSL`], in order, relative to `shaders/`.
 pub const SOLID_PARTS: [&str; 6] =
     ["shared/common.wgsl", "shared/items.wgsl", "exact.wgsl", "shared/winding.wgsl", "solid.wgsl", "groups.wgsl"];

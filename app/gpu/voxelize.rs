@@ -16,7 +16,7 @@ use glam::Vec3;
 use std::sync::OnceLock;
 
 /// The WGSL source, shared with the shader validation test.
-pub const VOXELIZE_WGSL: &str = concat!(
+pub const VOXELIZE_WGSL: &str = super::wgsl::wgsl_module!(concat!(
     include_str!("../../shaders/shared/common.wgsl"),
     include_str!("../../shaders/shared/items.wgsl"),
     include_str!("../../shaders/exact.wgsl"),
@@ -24,7 +24,7 @@ pub const VOXELIZE_WGSL: &str = concat!(
     include_str!("../../shaders/scan.wgsl"),
     include_str!("../../shaders/thin.wgsl"),
     include_str!("../../shaders/leaves.wgsl"),
-);
+));
 
 /// The files [`VOXELIZE_WGSL`] is joined from, in order, relative to `shaders/` (module-scope declarations in WGSL
 /// may come in any order, so each file uses what the others declare).

@@ -9,7 +9,7 @@ use crate::mesh::Mesh;
 use crate::voxel::GridSpec;
 use wgpu::util::DeviceExt;
 
-pub const CUBES_WGSL: &str = include_str!("../../shaders/cubes.wgsl");
+pub const CUBES_WGSL: &str = crate::gpu::wgsl::wgsl_module!(include_str!("../../shaders/cubes.wgsl"));
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// How the scene looks.

@@ -67,6 +67,17 @@ pub(crate) fn wgsl_functions(source: &str) -> Vec<String> {
         .collect()
 }
 
+/// What the program compiles of a WGSL text (its modules are stripped at compile time, app/gpu/wgsl.rs): each line
+/// cut at `//` and trimmed, the lines left empty dropped.
+fn without_comments(source: &str) -> String {
+    source
+        .lines()
+        .map(|line| line.split("//").next().unwrap_or("").trim())
+        .filter(|line| !line.is_empty())
+        .map(|line| format!("{line}\n"))
+        .collect()
+}
+
 fn parse(source: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
     // Default capabilities: nothing beyond core WebGPU, so the same shaders run in the browser.
@@ -92,15 +103,19 @@ fn the_modules_are_the_files_on_disk() {
     used.sort();
     used.dedup();
     for (name, source) in modules().into_iter().filter(|(name, _)| name.ends_with(".wgsl")) {
-        assert_eq!(source, read(name), "{name} as compiled differs from shaders/{name}");
+        assert_eq!(source, without_comments(&read(name)), "{name} as compiled differs from shaders/{name}");
         used.push(name.to_string());
     }
     used.sort();
     assert_eq!(files, used, "a .wgsl file in shaders/ that no module includes, or a module without its file");
-    // Each joined module is its parts in order, each a whole file.
+    // Each joined module is its parts in order, each a whole file, without what no compiler reads.
     for (source, parts) in joined_modules() {
         let joined: String = parts.iter().map(|p| read(p)).collect();
-        assert_eq!(source, joined, "{parts:?}");
+        assert_eq!(source, without_comments(&joined), "{parts:?}");
+    }
+    // The files' block comments would survive the stripping: they have none.
+    for file in wgsl_files() {
+        assert!(!read(&file).contains("/*"), "shaders/{file} has a block comment, which the program would carry");
     }
     // The shared arithmetic stands alone: the surface and solid parts use it, it uses neither.
     parse(&read("exact.wgsl")).expect("exact.wgsl is a module of its own");
