@@ -49,8 +49,9 @@ fn shell_leaves_per_layer(shell: &SparseGrid) -> Vec<u64> {
 
 impl SolidPipelines {
     /// The inside of the sparse solid whose shell is `shell`, from `triangles` (on the lattice), in slabs under
-    /// `limit` bytes per binding, with the groups left to the host listed in `host` (at most `host_capacity` a
-    /// slab); `None` where it is the host's to fill (no slab of eight layers fits, or a list overflowed). What
+    /// `limit` bytes per binding, with the groups left to the host listed in `host` (at most `host_capacity` words
+    /// a slab; a slab whose list overflows is cut in two); `None` where it is the host's to fill (no slab of eight
+    /// layers fits, or an eight-layer slab's list overflowed). What
     /// crossed the bus is added to `traffic`, the passes' time (where the adapter times them) to `gpu_ms`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) async fn sparse_inside(
@@ -116,8 +117,17 @@ impl SolidPipelines {
                     out.open.extend(part.open);
                     z0 = z1;
                 }
-                SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
-                SlabEnd::TooLarge | SlabEnd::Host => return Ok(None),
+                // A slab past a binding, or whose list of the host's groups overflowed, is cut in two: an open
+                // mesh at 4096 lists more than the list holds in one slab (the bunny's 1,010,811 rows beside its
+                // holes), and each of its eight-layer slabs far fewer.
+                SlabEnd::TooLarge | SlabEnd::Host if layers > 8 => {
+                    let _cut = crate::trace::span("groups: slab cut");
+                    layers = (layers / 2) / 8 * 8
+                }
+                SlabEnd::TooLarge | SlabEnd::Host => {
+                    let _host = crate::trace::span("groups: the host's (an eight-layer slab overflowed)");
+                    return Ok(None);
+                }
             }
         }
         Ok(Some((out, boundary)))
@@ -269,7 +279,8 @@ enum SlabEnd {
     Done(GroupOutput),
     /// Its crossing list or output is past a binding: cut the slab.
     TooLarge,
-    /// More groups were the host's than its list holds, or the output overflowed: the host fills the solid.
+    /// More groups were the host's than its list holds, or the output overflowed: cut the slab, or where it is
+    /// eight layers the host fills the solid.
     Host,
 }
 
