@@ -49,9 +49,8 @@ fn shell_leaves_per_layer(shell: &SparseGrid) -> Vec<u64> {
 
 impl SolidPipelines {
     /// The inside of the sparse solid whose shell is `shell`, from `triangles` (on the lattice), in slabs under
-    /// `limit` bytes per binding, with the groups left to the host listed in `host` (at most `host_capacity` words
-    /// a slab; a slab whose list overflows is cut in two); `None` where it is the host's to fill (no slab of eight
-    /// layers fits, or an eight-layer slab's list overflowed). What
+    /// `limit` bytes per binding, with the groups left to the host listed in `host` (at most `host_capacity` a
+    /// slab); `None` where it is the host's to fill (no slab of eight layers fits, or a list overflowed). What
     /// crossed the bus is added to `traffic`, the passes' time (where the adapter times them) to `gpu_ms`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) async fn sparse_inside(
@@ -109,8 +108,7 @@ impl SolidPipelines {
             let rows = dims.y * (z1 - z0);
             let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups, dims_y: dims.y };
             let account = (&mut *traffic, &mut *gpu_ms);
-            let end = self.slab_inside(gpu, &buffers, &tris, base, items, slab, limit, account).await?;
-            match end {
+            match self.slab_inside(gpu, &buffers, &tris, base, items, slab, limit, account).await? {
                 SlabEnd::Done(part) => {
                     out.leaves.extend(part.leaves);
                     out.runs.extend(part.runs);
@@ -118,25 +116,8 @@ impl SolidPipelines {
                     out.open.extend(part.open);
                     z0 = z1;
                 }
-                // A slab past a binding is cut in two; one whose list of the host's groups overflowed, to the
-                // layers the list would have held at its density (at most half): an open mesh at 4096 lists more
-                // than the list holds in one slab (the bunny's 1,010,811 rows beside its holes), and each of its
-                // eight-layer slabs far fewer.
-                SlabEnd::TooLarge | SlabEnd::Host | SlabEnd::ListFull(_) if layers > 8 => {
-                    let _cut = crate::trace::span("groups: slab cut");
-                    let half = (layers / 2) / 8 * 8;
-                    layers = match end {
-                        SlabEnd::ListFull(listed) => {
-                            let fit = u64::from(layers) * u64::from(host_capacity) / listed.max(1);
-                            (fit.min(u64::from(half)) as u32 / 8 * 8).max(8)
-                        }
-                        _ => half,
-                    };
-                }
-                SlabEnd::TooLarge | SlabEnd::Host | SlabEnd::ListFull(_) => {
-                    let _host = crate::trace::span("groups: the host's (an eight-layer slab overflowed)");
-                    return Ok(None);
-                }
+                SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
+                SlabEnd::TooLarge | SlabEnd::Host => return Ok(None),
             }
         }
         Ok(Some((out, boundary)))
@@ -231,7 +212,7 @@ impl SolidPipelines {
         // The groups left to the host: each is filled there, unless more were listed than the list holds.
         let host = u64::from(first_word(&counters[1]).unwrap_or(0));
         if host > u64::from(params.unsure_capacity()) {
-            return Ok(SlabEnd::ListFull(host));
+            return Ok(SlabEnd::Host);
         }
         if leaves > slab.leaf_capacity || runs > slab.run_capacity {
             return Ok(SlabEnd::Host);
@@ -288,10 +269,8 @@ enum SlabEnd {
     Done(GroupOutput),
     /// Its crossing list or output is past a binding: cut the slab.
     TooLarge,
-    /// The output overflowed: cut the slab, or where it is eight layers the host fills the solid.
+    /// More groups were the host's than its list holds, or the output overflowed: the host fills the solid.
     Host,
-    /// More words of the host's groups were listed (the count) than the list holds: as `Host`.
-    ListFull(u64),
 }
 
 /// The leaves and runs as the shader wrote them (see `shaders/groups.wgsl`).
