@@ -18,7 +18,9 @@
 // Output, in `solid_grid`: word 0 the leaves written, word 1 the runs written (atomic counters), word 2 the leaves'
 // capacity, word 3 the runs' (set by the host); then GROUP_LEAF_WORDS words per leaf (lx | gy << 16, gz, then its
 // mask in OpenVDB's order, bit y * 8 + z of word x, each u64 as two u32); then two words per run of full leaves
-// lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16). Open groups go to `solid_unsure` (a count, then
+// lx0 .. lx1 of a group (gy | gz << 16, lx0 | lx1 << 16); then one bit per group of the slab (its index in the
+// dispatch), set when the group finished with none of its invocations' loops cut short (`loops_were_cut`): the
+// host drops what a group without it wrote and fills its rows itself. Open groups go to `solid_unsure` (a count, then
 // gy | gz << 16 | 1 << 31 for an open group; z * dims.y + y | 1 << 30 then lx for a row's leaf left to the host).
 // gy and gz index groups: rows gy * 8 .. gy * 8 + 8 along y, gz * 8 .. along z.
 
@@ -33,6 +35,8 @@ var<workgroup> group_any: atomic<u32>;
 var<workgroup> group_after: array<atomic<u32>, 2>;
 var<workgroup> group_next: atomic<u32>;
 var<workgroup> group_has_open: atomic<u32>;
+// Whether some invocation's loops were cut short (`loops_were_cut`).
+var<workgroup> group_cut: atomic<u32>;
 // Plain copies for `workgroupUniformLoad`: the next leaf, and whether the group is open.
 var<workgroup> group_step: u32;
 var<workgroup> group_open: u32;
@@ -206,6 +210,7 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     if r == 0u {
         atomicStore(&group_next, NO_LEAF);
         atomicStore(&group_has_open, 0u);
+        atomicStore(&group_cut, 0u);
     }
     workgroupBarrier();
     sort_row(start, n);
@@ -282,12 +287,21 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         }
         l = workgroupUniformLoad(&group_step);
     }
+    if loops_were_cut(solid.dims.x >> 31u) {
+        atomicStore(&group_cut, 1u);
+    }
+    workgroupBarrier();
     if r == 0u {
         if run != NO_LEAF {
             emit_run(gy, gz, run, leaves_x);
         }
         if open_group {
             list_open(gy | (gz << 16u) | 0x80000000u, NO_LEAF);
+        }
+        // The group vouches for what it wrote: the host takes over a group that does not.
+        if atomicLoad(&group_cut) == 0u && gz * 8u < solid.rows_z1 {
+            let done = 4u + atomicLoad(&solid_grid[2]) * GROUP_LEAF_WORDS + 2u * atomicLoad(&solid_grid[3]) + g / 32u;
+            atomicOr(&solid_grid[done], 1u << (g % 32u));
         }
     }
 }

@@ -345,6 +345,10 @@ fn fill_open_run(count: i32, first: u32, last: u32, y: u32, z: u32, base: u32) -
     return true;
 }
 
+// Set in `solid_unsure`'s count where some invocation's loops were cut short: past any capacity, which the host
+// reads as an overflow (the count of rows stays far below it).
+const LIST_CUT: u32 = 0x80000000u;
+
 // Lists row (y, z) for the host.
 fn defer_row(y: u32, z: u32) {
     let i = atomicAdd(&solid_unsure[0], 1u);
@@ -432,8 +436,12 @@ fn fill_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id
     let z = solid.slab_z0 + i / solid.dims.y;
     let segment = row_segments[(z - solid.rows_z0) * solid.dims.y + y];
     let near = near_boundary(y, z);
-    if segment.y == 0u && !near {
-        return;
+    if segment.y != 0u || near {
+        fill_row(segment.x, segment.y, y, z, near, i * solid.words_per_row);
     }
-    fill_row(segment.x, segment.y, y, z, near, i * solid.words_per_row);
+    // A row whose loops were cut short may have set voxels it should not have: the list is marked overflowed
+    // (its count past any capacity), and the host fills the whole solid.
+    if loops_were_cut(solid.dims.x >> 31u) {
+        atomicOr(&solid_unsure[0], LIST_CUT);
+    }
 }

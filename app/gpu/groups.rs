@@ -104,9 +104,9 @@ impl SolidPipelines {
             let leaf_capacity = per_layer[g0..g1].iter().sum::<u64>() + 64;
             let groups = u64::from(dims.y.div_ceil(8)) * (g1 - g0) as u64;
             let run_capacity = leaf_capacity + groups;
-            let out_bytes = (HEADER_WORDS + LEAF_WORDS * leaf_capacity + 2 * run_capacity) * 4;
+            let out_bytes = (HEADER_WORDS + LEAF_WORDS * leaf_capacity + 2 * run_capacity + groups.div_ceil(32)) * 4;
             let rows = dims.y * (z1 - z0);
-            let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups, dims_y: dims.y };
+            let slab = Slab { z0, z1, rows, leaf_capacity, run_capacity, out_bytes, groups, dims };
             let account = (&mut *traffic, &mut *gpu_ms);
             match self.slab_inside(gpu, &buffers, &tris, base, items, slab, limit, account).await? {
                 SlabEnd::Done(part) => {
@@ -114,6 +114,7 @@ impl SolidPipelines {
                     out.runs.extend(part.runs);
                     out.host_leaves.extend(part.host_leaves);
                     out.open.extend(part.open);
+                    out.cut.extend(part.cut);
                     z0 = z1;
                 }
                 SlabEnd::TooLarge if layers > 8 => layers = (layers / 2) / 8 * 8,
@@ -219,8 +220,13 @@ impl SolidPipelines {
         }
         let leaf_at = HEADER_WORDS * 4;
         let run_at = (HEADER_WORDS + LEAF_WORDS * slab.leaf_capacity) * 4;
-        let ranges =
-            [(&output, leaf_at, leaves * LEAF_WORDS * 4), (&output, run_at, runs * 8), (&b.unsure, 4, host * 4)];
+        let done_at = run_at + slab.run_capacity * 8;
+        let ranges = [
+            (&output, done_at, slab.groups.div_ceil(32) * 4),
+            (&output, leaf_at, leaves * LEAF_WORDS * 4),
+            (&output, run_at, runs * 8),
+            (&b.unsure, 4, host * 4),
+        ];
         let ranges: Vec<_> = ranges.into_iter().filter(|r| r.2 > 0).collect();
         traffic.readback += ranges.iter().map(|r| r.2).sum::<u64>();
         let parts = if ranges.is_empty() { Vec::new() } else { read_buffers(device, &gpu.queue, &ranges).await? };
@@ -231,7 +237,7 @@ impl SolidPipelines {
                 false => Vec::new(),
             }
         };
-        let (leaf_words, run_words, host_words) = (next(leaves), next(runs), next(host));
+        let (done, leaf_words, run_words, host_words) = (next(1), next(leaves), next(runs), next(host));
         let _span = crate::trace::span("groups: decode");
         let mut part = decode(&leaf_words, &run_words);
         // The open groups (bit 31), and the leaves of their rows a certificate left to the host (bit 30, then the
@@ -242,10 +248,11 @@ impl SolidPipelines {
                 2 | 3 => part.open.push((w & 0xffff, (w >> 16) & 0x7fff)),
                 _ => {
                     let (row, lx) = (w & 0x3fff_ffff, words.next().unwrap_or_default());
-                    part.host_leaves.push((lx, row % slab.dims_y, row / slab.dims_y));
+                    part.host_leaves.push((lx, row % slab.dims.y, row / slab.dims.y));
                 }
             }
         }
+        take_over_cut_groups(&mut part, &done, slab);
         Ok(SlabEnd::Done(part))
     }
 }
@@ -260,8 +267,37 @@ struct Slab {
     run_capacity: u64,
     out_bytes: u64,
     groups: u64,
-    /// The grid's rows along y: a listed row is `z * dims_y + y`.
-    dims_y: u32,
+    /// The grid's dimensions: a listed row is `z * dims.y + y`.
+    dims: glam::UVec3,
+}
+
+/// What a group that did not vouch for its output (its bit in `done` unset: some invocation's loops were cut short,
+/// `loops_were_cut` in `shaders/shared/common.wgsl`) wrote is dropped, and every leaf of its rows is the host's:
+/// the group is listed with the open ones, which the host decides.
+fn take_over_cut_groups(part: &mut GroupOutput, done: &[u32], slab: Slab) {
+    let groups_y = slab.dims.y.div_ceil(8);
+    let cut: std::collections::HashSet<(u32, u32)> = (0..slab.groups as u32)
+        .filter(|&g| done.get(g as usize / 32).is_none_or(|w| w >> (g % 32) & 1 == 0))
+        .map(|g| (g % groups_y, slab.z0 / 8 + g / groups_y))
+        .collect();
+    if cut.is_empty() {
+        return;
+    }
+    part.leaves.retain(|l| !cut.contains(&(l.gy, l.gz)));
+    part.runs.retain(|r| !cut.contains(&(r.gy, r.gz)));
+    part.host_leaves.retain(|&(_, y, z)| !cut.contains(&(y / 8, z / 8)));
+    part.open.retain(|g| !cut.contains(g));
+    let leaves_x = slab.dims.x.div_ceil(8);
+    for &(gy, gz) in &cut {
+        let ys = gy * 8..(gy * 8 + 8).min(slab.dims.y);
+        for z in gz * 8..(gz * 8 + 8).min(slab.z1) {
+            for y in ys.clone() {
+                part.host_leaves.extend((0..leaves_x).map(|lx| (lx, y, z)));
+            }
+        }
+        part.open.push((gy, gz));
+    }
+    part.cut.extend(cut);
 }
 
 /// How a slab ended.

@@ -17,3 +17,19 @@ fn linear_id(wid: vec3<u32>, lid: vec3<u32>, groups: vec3<u32>, size: u32) -> u3
 fn thread_index(gid: vec3<u32>, row_threads: u32) -> u32 {
     return gid.x + gid.y * row_threads;
 }
+
+// Whether the invocation's loops were cut short. llvmpipe (lavapipe, and GL on llvmpipe) ends every loop of an
+// invocation without a word once its loops have run 65,535 passes in all (gallivm's loop limiter: one count shared
+// by every loop of the shader, per 8 lanes), so a long walk's later loops each stop after one pass and what it
+// wrote is wrong. A loop of two passes that stopped after one tells; `zero` is a runtime 0, so that no compiler
+// counts its passes ahead. Hardware drivers have no such limit: there it is never true.
+fn loops_were_cut(zero: u32) -> bool {
+    var passes = 0u;
+    loop {
+        passes += 1u;
+        if passes >= 2u + zero {
+            break;
+        }
+    }
+    return passes < 2u;
+}

@@ -738,3 +738,73 @@ fn the_groups_on_the_gpu_equal_their_mirror_in_slabs() {
     eprintln!("open groups' row leaves: {open_leaves}, left to the host: {hosted_leaves}");
     assert!(hosted_leaves * 500 <= open_leaves, "the certificates left {hosted_leaves} of {open_leaves} row leaves");
 }
+
+#[test]
+fn zz_scratch_groups_bunny() {
+    use meshvox::voxel::cpu::groups::GroupOutput;
+    let Some((gpu, v)) = gpu() else { return };
+    let n: u32 = std::env::var("ZZ_N").ok().and_then(|s| s.parse().ok()).unwrap_or(1024);
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let mesh = meshvox::mesh::load("../shared/meshes/stanford-bunny.obj").expect("bunny");
+    let s = GridSpec::fit(mesh.bounds().unwrap(), Resolution::Count(n), Axis::Longest).unwrap();
+    let tris = voxelize::grid_space_triangles(&mesh, &s).unwrap();
+    let (lattice_tris, lattice) = meshvox::voxel::on_lattice(&tris, s.dims).expect("lattice");
+    let boundary = meshvox::voxel::solid::boundary(&lattice_tris, lattice);
+    let crossings = meshvox::voxel::solid::column_crossings(&lattice_tris, s.dims, lattice);
+    let t = std::time::Instant::now();
+    let mirror = meshvox::voxel::cpu::groups::fill_groups(&crossings, s.dims, &boundary, 0, s.dims.z).sorted();
+    eprintln!("mirror {:?}", t.elapsed());
+    let (shell, _) = voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Surface, &|_, _| {}, &never).expect("cpu");
+    let groups = v.inside_groups(gpu, &tris, s, &shell, gpu.max_binding_bytes()).unwrap().expect("groups ran");
+    let groups: GroupOutput = groups.sorted();
+    eprintln!(
+        "gpu leaves {} runs {} host {} open {}; mirror leaves {} runs {} open {}",
+        groups.leaves.len(), groups.runs.len(), groups.host_leaves.len(), groups.open.len(),
+        mirror.leaves.len(), mirror.runs.len(), mirror.open.len()
+    );
+    eprintln!("open equal {} cut {:?}", groups.open == mirror.open, groups.cut);
+    let go: std::collections::BTreeSet<_> = groups.open.iter().copied().collect();
+    let mo: std::collections::BTreeSet<_> = mirror.open.iter().copied().collect();
+    for g in go.symmetric_difference(&mo) {
+        let nh = groups.host_leaves.iter().filter(|&&(_, y, z)| (y / 8, z / 8) == *g).count();
+        let gpu_leaves = groups.leaves.iter().filter(|l| (l.gy, l.gz) == *g).count();
+        let mir_leaves = mirror.leaves.iter().filter(|l| (l.gy, l.gz) == *g).count();
+        eprintln!("open diff in gpu={} {:?} host leaves {nh} leaves gpu {gpu_leaves} mirror {mir_leaves}", go.contains(g), g);
+        let gl: Vec<_> = groups.leaves.iter().filter(|l| (l.gy, l.gz) == *g).map(|l| (l.lx, l.mask.iter().map(|m| m.count_ones()).sum::<u32>())).collect();
+        let ml: Vec<_> = mirror.leaves.iter().filter(|l| (l.gy, l.gz) == *g).map(|l| (l.lx, l.mask.iter().map(|m| m.count_ones()).sum::<u32>())).collect();
+        let gr: Vec<_> = groups.runs.iter().filter(|l| (l.gy, l.gz) == *g).map(|r| (r.lx0, r.lx1)).collect();
+        let mr: Vec<_> = mirror.runs.iter().filter(|l| (l.gy, l.gz) == *g).map(|r| (r.lx0, r.lx1)).collect();
+        let mut hl: Vec<_> = groups.host_leaves.iter().filter(|&&(_, y, z)| (y / 8, z / 8) == *g).map(|&(lx, y, z)| (lx, (y % 8) * 8 + z % 8)).collect();
+        hl.sort();
+        eprintln!("  gpu {gl:?} runs {gr:?}\n  mir {ml:?} runs {mr:?}\n  host {hl:?}");
+    }
+    let dup = groups.open.windows(2).filter(|w| w[0] == w[1]).count();
+    eprintln!("dup open {dup}, dup host {}", groups.host_leaves.windows(2).filter(|w| w[0] == w[1]).count());
+    let hosted = |g: (u32, u32)| groups.host_leaves.iter().any(|&(_, y, z)| (y / 8, z / 8) == g);
+    let gl: std::collections::BTreeSet<_> = groups.leaves.iter().copied().collect();
+    let ml: std::collections::BTreeSet<_> = mirror.leaves.iter().copied().collect();
+    let mut shown = 0;
+    for l in gl.symmetric_difference(&ml) {
+        if hosted((l.gy, l.gz)) { continue; }
+        if shown < 20 {
+            let pops: u32 = l.mask.iter().map(|m| m.count_ones()).sum();
+            eprintln!("diff leaf in gpu={} {:?} pop {pops}", gl.contains(l), (l.gz, l.gy, l.lx));
+        }
+        shown += 1;
+    }
+    eprintln!("{shown} differing leaves outside hosted groups");
+    let gr: std::collections::BTreeSet<_> = groups.runs.iter().copied().collect();
+    let mr: std::collections::BTreeSet<_> = mirror.runs.iter().copied().collect();
+    let mut shown = 0;
+    for r in gr.symmetric_difference(&mr) {
+        if hosted((r.gy, r.gz)) { continue; }
+        if shown < 20 { eprintln!("diff run in gpu={} {:?}", gr.contains(r), r); }
+        shown += 1;
+    }
+    eprintln!("{shown} differing runs outside hosted groups");
+    // Hosted groups: compare with host leaves ORed in, via leaf masks: count mirror bits missing from GPU.
+    let (completed, _) = meshvox::voxel::solid_sparse::solid_from_groups(&lattice_tris, lattice, &boundary, shell.clone(), &groups);
+    let (cpu, _) = voxelize::voxelize_grid_space_sparse(&tris, s, Mode::Solid, &|_, _| {}, &never).expect("cpu");
+    eprintln!("completed {} cpu {}", completed.count(), cpu.count());
+    assert!(completed == cpu);
+}

@@ -46,6 +46,9 @@ pub struct GroupOutput {
     /// Open groups decided: those with a row its crossing count does not decide (beside an open mesh's holes),
     /// every leaf walked, the open rows decided by the dense fill's certified runs on the GPU, exactly here.
     pub open: Vec<(u32, u32)>,
+    /// Groups the GPU took back (the GPU's only): an invocation's loops were cut short (llvmpipe's loop limiter),
+    /// so what the group wrote was dropped and its rows are the host's (in `host_leaves`, and listed in `open`).
+    pub cut: Vec<(u32, u32)>,
 }
 
 impl GroupOutput {
@@ -55,6 +58,7 @@ impl GroupOutput {
         self.runs.sort_unstable();
         self.host_leaves.sort_unstable();
         self.open.sort_unstable();
+        self.cut.sort_unstable();
         self
     }
 }
