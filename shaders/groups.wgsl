@@ -287,7 +287,9 @@ fn fill_groups(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
         }
         l = workgroupUniformLoad(&group_step);
     }
-    if loops_were_cut(solid.dims.x >> 31u) {
+    // The walk ends at the last leaf or not at all: one that stopped short was cut too (GL's llvmpipe cuts it where
+    // the check below, run after it, still gets its passes).
+    if loops_were_cut(solid.dims.x >> 16u) || l < leaves_x {
         atomicStore(&group_cut, 1u);
     }
     workgroupBarrier();

@@ -441,7 +441,7 @@ fn fill_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_id
     }
     // A row whose loops were cut short may have set voxels it should not have: the list is marked overflowed
     // (its count past any capacity), and the host fills the whole solid.
-    if loops_were_cut(solid.dims.x >> 31u) {
+    if loops_were_cut(solid.dims.x >> 16u) {
         atomicOr(&solid_unsure[0], LIST_CUT);
     }
 }

@@ -791,7 +791,8 @@ fn a_leafs_mask_from_its_row_bytes_is_every_bit_where_the_voxels_are() {
 /// The open bunny's sparse solid at 1024 through the groups (on a hardware adapter, its default) is the CPU's. On
 /// llvmpipe some of its groups beside the holes run past the driver's loop limit: before the groups checked for it
 /// (`loops_were_cut`) seven of them stopped part way and the solid came out 18,222 voxels short. In the Vulkan pass
-/// only (it is in `sparse`, not `gpu`): on GL's llvmpipe the check misses two of the nine groups (docs/gpu.md).
+/// only (it is in `sparse`, not `gpu`): on GL its long dispatches hold wgpu's GL context lock past what the other
+/// tests running beside it wait for (it passes on GL alone: `MESHVOX_TEST_BACKEND=gl`, this test's name).
 #[test]
 fn the_bunnys_sparse_solid_at_1024_through_the_groups_is_the_cpus() {
     let Some((gpu, v)) = crate::gpu::gpu() else { return };
