@@ -22,8 +22,9 @@ fn thread_index(gid: vec3<u32>, row_threads: u32) -> u32 {
 // invocation without a word once its loops have run 65,535 passes in all (gallivm's loop limiter: one count shared
 // by every loop of the shader, per 8 lanes), so a long walk's later loops each stop after one pass and what it
 // wrote is wrong. A loop of two passes that stopped after one tells. `zero` is a runtime 0 of a wide range (a grid
-// size shifted right by 16): a compiler that can bound a loop's passes unrolls it into code with no loop, and GL's
-// llvmpipe did so with a range of [0, 1]. Hardware drivers have no such limit: there it is never true.
+// size shifted right by 16), so that no compiler can bound the passes and unroll the loop away (a precaution: GL's
+// llvmpipe missed two of the bunny's cut groups with either range; the groups also check their walk's end). Hardware
+// drivers have no such limit: there it is never true.
 fn loops_were_cut(zero: u32) -> bool {
     var passes = 0u;
     loop {
